@@ -1,0 +1,65 @@
+"""Exceptions raised by pinstab.
+
+Every error a user can provoke with bad input is a :class:`PinstabError` subclass whose
+message names the offending item and, where it helps, the valid alternatives.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+
+class PinstabError(Exception):
+    """Base class of every error pinstab raises on purpose."""
+
+
+class SceneError(PinstabError):
+    """A scene file or scene argument is invalid (unknown key, frame, joint, type or unit)."""
+
+
+class AssemblyError(PinstabError):
+    """The loop closures cannot be satisfied from the given initial configuration.
+
+    Attributes:
+        residual: the largest closure residual reached [m or rad].
+    """
+
+    def __init__(self, message: str, residual: float) -> None:
+        super().__init__(message)
+        self.residual = residual
+
+
+class SolverError(PinstabError):
+    """A KKT solve failed or is not applicable to the scene (e.g. rank loss with ``dense``)."""
+
+
+class ProjectionError(PinstabError):
+    """Coordinate projection onto the constraint manifold did not converge."""
+
+
+class DivergenceError(PinstabError):
+    """A simulation left the finite or drift-bounded region.
+
+    Attributes:
+        time: time of the last finite state [s].
+        q: last finite configuration.
+        v: last finite velocity.
+        trajectory: the partial trajectory up to and including that state.
+    """
+
+    def __init__(self, message: str, time: float, q, v, trajectory=None) -> None:
+        super().__init__(message)
+        self.time = time
+        self.q = q
+        self.v = v
+        self.trajectory = trajectory
+
+
+def choices(valid: Iterable[str]) -> str:
+    """Format a list of valid alternatives for an error message."""
+    names = sorted(str(name) for name in valid)
+    return ", ".join(names) if names else "(none)"
+
+
+class ConstraintError(PinstabError):
+    """A constraint is ill-defined (bad frame, wrong shape from a user callable, non-finite value)."""

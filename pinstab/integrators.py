@@ -1,0 +1,113 @@
+"""Explicit integrators on the configuration Lie group: ``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``.
+
+Positions advance with ``pin.integrate``. For the Runge-Kutta schemes every stage velocity is
+carried back to the tangent space at the step's start point with ``pin.dDifference`` (exact
+``dexp^-1``, Runge-Kutta-Munthe-Kaas), which is the identity on models made of 1-DOF joints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import PinstabError, choices
+
+if TYPE_CHECKING:
+    from .system import ConstrainedSystem, Evaluation
+
+INTEGRATORS = ("euler", "semi-implicit-euler", "heun", "rk4")
+
+
+@dataclass
+class Step:
+    """A step's end state and the dynamics evaluated at its start (for multipliers)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    start: Evaluation
+
+
+class Integrator:
+    """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``."""
+
+    name = ""
+
+    def __init__(self, system: ConstrainedSystem) -> None:
+        self.system = system
+        model = system.model
+        self.flat = all(model.joints[j].nv == 1 for j in range(1, model.njoints))
+
+    def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> Step:
+        raise NotImplementedError
+
+    def _to_start_tangent(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
+        if self.flat:
+            return v_stage
+        return pin.dDifference(self.system.model, q, q_stage, pin.ArgumentPosition.ARG1) @ v_stage
+
+    def _runge_kutta(self, q, v, t, dt, nodes, weights) -> Step:
+        system = self.system
+        first = system.dynamics(q, v, t)
+        velocity_slopes, acceleration_slopes = [v], [first.acceleration]
+        for row, node in nodes:
+            dq = dt * sum(c * k for c, k in zip(row, velocity_slopes))
+            v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes))
+            q_stage = system.integrate(q, dq)
+            evaluation = system.dynamics(q_stage, v_stage, t + node * dt)
+            velocity_slopes.append(self._to_start_tangent(q, q_stage, v_stage))
+            acceleration_slopes.append(evaluation.acceleration)
+        dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes))
+        dv = dt * sum(w * k for w, k in zip(weights, acceleration_slopes))
+        return Step(system.integrate(q, dq), v + dv, first)
+
+
+class Euler(Integrator):
+    """Explicit Euler: q+ = q (+) dt v, v+ = v + dt a(q, v). Order 1."""
+
+    name = "euler"
+
+    def step(self, q, v, t, dt):
+        first = self.system.dynamics(q, v, t)
+        return Step(self.system.integrate(q, dt * v), v + dt * first.acceleration, first)
+
+
+class SemiImplicitEuler(Integrator):
+    """Symplectic Euler, velocity first: v+ = v + dt a(q, v), q+ = q (+) dt v+. Order 1."""
+
+    name = "semi-implicit-euler"
+
+    def step(self, q, v, t, dt):
+        first = self.system.dynamics(q, v, t)
+        v_new = v + dt * first.acceleration
+        return Step(self.system.integrate(q, dt * v_new), v_new, first)
+
+
+class Heun(Integrator):
+    """Heun's two-stage Runge-Kutta method. Order 2."""
+
+    name = "heun"
+
+    def step(self, q, v, t, dt):
+        return self._runge_kutta(q, v, t, dt, nodes=[((1.0,), 1.0)], weights=(0.5, 0.5))
+
+
+class RK4(Integrator):
+    """Classical four-stage Runge-Kutta. Order 4."""
+
+    name = "rk4"
+    NODES = [((0.5,), 0.5), ((0.0, 0.5), 0.5), ((0.0, 0.0, 1.0), 1.0)]
+    WEIGHTS = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
+
+    def step(self, q, v, t, dt):
+        return self._runge_kutta(q, v, t, dt, self.NODES, self.WEIGHTS)
+
+
+def make_integrator(name: str, system: ConstrainedSystem) -> Integrator:
+    """Integrator by name (one of :data:`INTEGRATORS`)."""
+    classes = {cls.name: cls for cls in (Euler, SemiImplicitEuler, Heun, RK4)}
+    if name not in classes:
+        raise PinstabError(f"unknown integrator {name!r}; valid integrators: {choices(INTEGRATORS)}")
+    return classes[name](system)

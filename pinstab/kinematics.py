@@ -1,0 +1,60 @@
+"""One kinematics pass per state: inertia, bias forces, frame placements, Jacobians, drifts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class Kinematics:
+    """Owns a Pinocchio ``Data`` and updates everything the constraint layer reads, once per state.
+
+    After :meth:`update`, ``mass_matrix`` [kg, kg m^2] and ``bias`` (h = C v + g) [N, N m] hold the
+    joint-space dynamics, and the frame accessors return world-aligned quantities at (q, v) with
+    zero joint acceleration (so accelerations are the drift terms).
+    """
+
+    def __init__(self, model: pin.Model) -> None:
+        self.model = model
+        self.data = model.createData()
+        self.mass_matrix = np.zeros((model.nv, model.nv))
+        self.bias = np.zeros(model.nv)
+        self._zero_acceleration = np.zeros(model.nv)
+
+    def update(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
+        model, data = self.model, self.data
+        pin.crba(model, data, q)
+        self.mass_matrix[:] = np.triu(data.M) + np.triu(data.M, 1).T
+        self.bias[:] = pin.nonLinearEffects(model, data, q, v)
+        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
+        pin.computeJointJacobians(model, data)
+        pin.updateFramePlacements(model, data)
+
+    def update_positions(self, q: np.ndarray) -> None:
+        """Placements only (enough for residuals)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+
+    def update_jacobians(self, q: np.ndarray) -> None:
+        """Placements and Jacobians (enough for residuals and constraint Jacobians)."""
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+
+    def placement(self, frame_id: int) -> pin.SE3:
+        """World placement of a frame."""
+        return self.data.oMf[frame_id]
+
+    def jacobian(self, frame_id: int) -> np.ndarray:
+        """6 x nv frame Jacobian in LOCAL_WORLD_ALIGNED (linear rows first) [m/rad, 1]."""
+        return pin.getFrameJacobian(self.model, self.data, frame_id, LWA)
+
+    def drift_acceleration(self, frame_id: int) -> pin.Motion:
+        """Classical acceleration of a frame at zero joint acceleration, LOCAL_WORLD_ALIGNED."""
+        return pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, LWA)
+
+    def velocity(self, frame_id: int) -> pin.Motion:
+        """Frame velocity, LOCAL_WORLD_ALIGNED [m/s, rad/s]."""
+        return pin.getFrameVelocity(self.model, self.data, frame_id, LWA)

@@ -1,0 +1,52 @@
+"""``dense``: numpy elimination through the Delassus matrix; refuses rank-deficient constraints."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SolverError
+from .base import KKTProblem, KKTSolution, KKTSolver
+
+RANK_TOLERANCE = 1e-10
+
+
+class DenseSolver(KKTSolver):
+    """``lambda = (G M^-1 G^T)^-1 (rhs - G M^-1 f)``, ``a = M^-1 (f + G^T lambda)``.
+
+    Args:
+        row_names: a name per constraint row, for the rank-loss message.
+    """
+
+    name = "dense"
+
+    def __init__(self, row_names: list[str]) -> None:
+        self.row_names = row_names
+
+    def solve(self, problem: KKTProblem) -> KKTSolution:
+        jac = problem.jacobian
+        try:
+            solved = np.linalg.solve(problem.mass_matrix, np.column_stack([problem.free_force, jac.T]))
+        except np.linalg.LinAlgError:
+            raise SolverError("dense: the joint-space inertia matrix is singular (a massless moving subtree?)") from None
+        free_acceleration, minv_gt = solved[:, 0], solved[:, 1:]
+        if jac.shape[0] == 0:
+            return KKTSolution(free_acceleration, np.zeros(0))
+        delassus = jac @ minv_gt
+        eigenvalues, eigenvectors = np.linalg.eigh(delassus)
+        if eigenvalues[0] <= RANK_TOLERANCE * max(eigenvalues[-1], 1e-300):
+            raise SolverError(self._rank_message(eigenvalues, eigenvectors))
+        multipliers = np.linalg.solve(delassus, problem.rhs - jac @ free_acceleration)
+        return KKTSolution(free_acceleration + minv_gt @ multipliers, multipliers)
+
+    def _rank_message(self, eigenvalues: np.ndarray, eigenvectors: np.ndarray) -> str:
+        scale = max(eigenvalues[-1], 1e-300)
+        deficient = eigenvalues <= RANK_TOLERANCE * scale
+        rank = int(np.sum(~deficient))
+        involved = np.abs(eigenvectors[:, deficient]).max(axis=1) > 1e-6
+        rows = sorted({self.row_names[i] for i in np.flatnonzero(involved)})
+        return (
+            f"dense: the constraint Jacobian lost rank ({rank} independent of {len(eigenvalues)} rows); "
+            f"dependent rows in: {', '.join(rows)}. The constraints are redundant, or the mechanism is at "
+            "a singular configuration, so the multipliers are not unique. Use solver 'proxsuite' (or "
+            "'pinocchio'), which handle rank loss."
+        )

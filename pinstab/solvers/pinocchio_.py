@@ -1,0 +1,100 @@
+"""``pinocchio``: Pinocchio's own ``constraintDynamics`` (sparse constrained Cholesky + proximal loop).
+
+It fits scenes whose constraints are frame closures: ``point`` maps to ``CONTACT_3D`` and ``weld`` to
+``CONTACT_6D`` (both in LOCAL_WORLD_ALIGNED); ``planar-point`` maps to ``CONTACT_3D`` when the
+out-of-plane row is identically redundant (a planar mechanism), which is checked. Its stabilization
+term can only be Pinocchio's Baumgarte corrector (scalar Kp, Kd); ``desired_contact_acceleration``
+is not used by Pinocchio 4.1's algorithm, so no other term can be injected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..constraints import Constraint, FrameClosure
+from ..errors import SolverError
+from .base import KKTProblem, KKTSolution, KKTSolver
+
+CONTACT_TYPES = {"point": pin.ContactType.CONTACT_3D, "planar-point": pin.ContactType.CONTACT_3D, "weld": pin.ContactType.CONTACT_6D}
+
+
+class PinocchioSolver(KKTSolver):
+    """Pinocchio ``constraintDynamics`` as a KKT backend.
+
+    Args:
+        model: the scene model.
+        constraints: the scene's constraint blocks (frame closures only).
+        kp: Baumgarte proportional gain [1/s^2] (Pinocchio's Kp = beta^2).
+        kd: Baumgarte derivative gain [1/s] (Pinocchio's Kd = 2 alpha).
+        mu: proximal regularization of Pinocchio's solve.
+    """
+
+    name = "pinocchio"
+
+    def __init__(self, model: pin.Model, constraints: list[Constraint], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12) -> None:
+        self.model = model
+        self.data = model.createData()
+        self.models = pin.StdVec_RigidConstraintModel()
+        self.datas = pin.StdVec_RigidConstraintData()
+        self.closures: list[FrameClosure] = []
+        for constraint in constraints:
+            if not isinstance(constraint, FrameClosure):
+                raise SolverError(
+                    f"solver pinocchio: constraint {constraint.name!r} is not a frame closure; Pinocchio's "
+                    "constraintDynamics only takes point/weld closures. Use solver 'proxsuite' or 'dense'."
+                )
+            self.closures.append(constraint)
+            self.models.append(self._rigid_model(constraint, kp, kd))
+        for rcm in self.models:
+            self.datas.append(rcm.createData())
+        pin.initConstraintDynamics(model, self.data, self.models, self.datas)
+        self.settings = pin.ProximalSettings(1e-14, 1e-12, mu, 50)
+        self._checked_planar = False
+
+    def _rigid_model(self, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
+        frame_a = self.model.frames[closure.frame_a]
+        if closure.frame_b is None:
+            joint_b, placement_b = 0, closure.world_placement_b
+        else:
+            frame_b = self.model.frames[closure.frame_b]
+            joint_b, placement_b = frame_b.parentJoint, frame_b.placement
+        rcm = pin.RigidConstraintModel(
+            CONTACT_TYPES[closure.kind], self.model, frame_a.parentJoint, frame_a.placement, joint_b, placement_b,
+            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+        )
+        rcm.name = closure.name
+        rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
+        return rcm
+
+    def _check_planar(self, problem: KKTProblem) -> None:
+        """planar-point rows stand in for 3-D contacts only if the third row is identically zero."""
+        data = self.model.createData()
+        pin.computeJointJacobians(self.model, data, problem.q)
+        pin.updateFramePlacements(self.model, data)
+        for closure in self.closures:
+            if closure.kind != "planar-point":
+                continue
+            jac = pin.getFrameJacobian(self.model, data, closure.frame_a, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+            if closure.frame_b is not None:
+                jac = jac - pin.getFrameJacobian(self.model, data, closure.frame_b, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+            normal = np.cross(closure.selection[0], closure.selection[1])
+            if np.abs(normal @ jac).max() > 1e-12:
+                raise SolverError(
+                    f"solver pinocchio: planar-point closure {closure.name!r} is not on a planar mechanism "
+                    "(its out-of-plane motion is not blocked by the joints), so it has no Pinocchio equivalent. "
+                    "Use solver 'proxsuite' or 'dense'."
+                )
+        self._checked_planar = True
+
+    def solve(self, problem: KKTProblem) -> KKTSolution:
+        if not self._checked_planar:
+            self._check_planar(problem)
+        acceleration = pin.constraintDynamics(
+            self.model, self.data, problem.q, problem.v, problem.tau, self.models, self.datas, self.settings
+        )
+        if not np.all(np.isfinite(acceleration)):
+            raise SolverError("solver pinocchio: constraintDynamics returned a non-finite acceleration")
+        residual_force = problem.mass_matrix @ acceleration - problem.free_force
+        multipliers = np.linalg.lstsq(problem.jacobian.T, residual_force, rcond=1e-12)[0]
+        return KKTSolution(np.array(acceleration), multipliers)

@@ -1,0 +1,59 @@
+"""``proxsuite``: Gauss's principle as an equality QP solved by ProxQP, warm-started.
+
+``min_a 1/2 a^T M a - f^T a  s.t.  G a = rhs`` (MATH.md eq. 5). The proximal method keeps the
+problem well-posed when G is rank-deficient (redundant or singular rows): the accelerations stay
+unique, the multipliers are the minimum-norm ones the proximal iterations converge to.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import proxsuite
+
+from ..errors import SolverError
+from .base import KKTProblem, KKTSolution, KKTSolver
+
+
+class ProxsuiteSolver(KKTSolver):
+    """ProxQP dense backend.
+
+    Args:
+        eps_abs: absolute accuracy of the primal and dual residuals.
+    """
+
+    name = "proxsuite"
+
+    def __init__(self, eps_abs: float = 1e-12) -> None:
+        self.eps_abs = eps_abs
+        self._qp: proxsuite.proxqp.dense.QP | None = None
+
+    def _fresh(self, nv: int, rows: int) -> proxsuite.proxqp.dense.QP:
+        qp = proxsuite.proxqp.dense.QP(nv, rows, 0)
+        qp.settings.eps_abs = self.eps_abs
+        qp.settings.eps_rel = 0.0
+        qp.settings.verbose = False
+        qp.settings.max_iter = 1000
+        return qp
+
+    def solve(self, problem: KKTProblem) -> KKTSolution:
+        nv, rows = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
+        neg_f = -problem.free_force
+        if self._qp is None or self._qp.model.dim != nv or self._qp.model.n_eq != rows:
+            self._qp = self._fresh(nv, rows)
+            self._qp.init(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+        else:
+            self._qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            self._qp.update(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+        self._qp.solve()
+        results = self._qp.results
+        status = results.info.status
+        if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+            raise SolverError(
+                f"proxsuite: ProxQP did not solve the constrained dynamics ({status.name}, primal residual "
+                f"{results.info.pri_res:.3g}, dual residual {results.info.dua_res:.3g}); the constraints may be "
+                "inconsistent (conflicting closures) rather than merely redundant"
+            )
+        acceleration = np.array(results.x)
+        if not np.all(np.isfinite(acceleration)):
+            raise SolverError("proxsuite: ProxQP returned a non-finite acceleration")
+        return KKTSolution(acceleration, -np.array(results.y))

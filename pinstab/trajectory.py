@@ -1,0 +1,99 @@
+"""The result of a simulation: states, multipliers, drifts, energy, timings; saved as NPZ."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import PinstabError
+
+
+@dataclass
+class Trajectory:
+    """A simulated motion, sampled at every step.
+
+    Attributes:
+        t: times [s] (n+1,).
+        q: configurations (n+1, nq). v: velocities (n+1, nv) [rad/s, m/s].
+        multipliers: constraint multipliers (n+1, s) [N, N m]; see ``force_frames``.
+        position_drift: max |phi| per sample [m or rad]. velocity_drift: max |g| [m/s or rad/s].
+        energy: total mechanical energy [J].
+        wall_time: wall-clock time of the stepping loop [s].
+        info: scene, method, integrator, solver, dt, gains, assembly report, constraint layout.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    multipliers: np.ndarray
+    position_drift: np.ndarray
+    velocity_drift: np.ndarray
+    energy: np.ndarray
+    wall_time: float
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def steps(self) -> int:
+        return len(self.t) - 1
+
+    def multipliers_of(self, constraint: str) -> np.ndarray:
+        """The multiplier rows of one constraint (n+1, rows), in the frame ``force_frames[name]``."""
+        slices = self.info.get("constraint_rows", {})
+        if constraint not in slices:
+            raise PinstabError(f"no constraint named {constraint!r}; constraints: {', '.join(slices) or '(none)'}")
+        start, stop = slices[constraint]
+        return self.multipliers[:, start:stop]
+
+    def summary(self) -> dict[str, Any]:
+        """The figures ``pinstab run --json`` prints."""
+        finite_energy = self.energy[np.isfinite(self.energy)]
+        return {
+            "steps": self.steps,
+            "wall_s": self.wall_time,
+            "max_position_drift": float(np.max(self.position_drift)),
+            "max_velocity_drift": float(np.max(self.velocity_drift)),
+            "final_position_drift": float(self.position_drift[-1]),
+            "final_velocity_drift": float(self.velocity_drift[-1]),
+            "energy_start": float(finite_energy[0]) if finite_energy.size else None,
+            "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write an ``.npz`` file atomically (temp file + rename)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            raise PinstabError(f"trajectory files are .npz; got {path.name!r}")
+        if not path.parent.exists():
+            raise PinstabError(f"cannot save {path}: folder {path.parent} does not exist")
+        handle, temp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
+        os.close(handle)
+        try:
+            np.savez_compressed(
+                temp, t=self.t, q=self.q, v=self.v, multipliers=self.multipliers,
+                position_drift=self.position_drift, velocity_drift=self.velocity_drift, energy=self.energy,
+                wall_time=self.wall_time, info=json.dumps(self.info),
+            )
+            os.replace(temp, path)
+        finally:
+            if os.path.exists(temp):
+                os.remove(temp)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Trajectory:
+        """Read a trajectory written by :meth:`save`."""
+        try:
+            with np.load(path) as data:
+                return cls(
+                    t=data["t"], q=data["q"], v=data["v"], multipliers=data["multipliers"],
+                    position_drift=data["position_drift"], velocity_drift=data["velocity_drift"],
+                    energy=data["energy"], wall_time=float(data["wall_time"]), info=json.loads(str(data["info"])),
+                )
+        except (OSError, KeyError, ValueError) as exc:
+            raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None

@@ -1,0 +1,84 @@
+"""Physical quantities in scene files: plain numbers are SI, strings carry a unit.
+
+``"30 deg"``, ``"15 mm"`` and ``0.015`` are all accepted; the unit must belong to the quantity's
+dimension, otherwise :class:`~pinstab.errors.SceneError` lists the units that would be valid.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .errors import SceneError, choices
+
+# dimension -> {unit: factor to SI}
+UNITS: dict[str, dict[str, float]] = {
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0},
+    "time": {"s": 1.0, "ms": 1e-3},
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0},
+    "stiffness": {"N/m": 1.0, "kN/m": 1e3},
+    "damping": {"N*s/m": 1.0, "Ns/m": 1.0},
+    "torque": {"N*m": 1.0, "Nm": 1.0},
+    "force": {"N": 1.0},
+    "velocity": {"m/s": 1.0, "mm/s": 1e-3},
+    "angular-velocity": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
+}
+
+# joint-coordinate dimensions: a revolute coordinate is an angle, a prismatic one a length
+COORDINATE_DIMENSIONS = {"angle", "length"}
+RATE_DIMENSIONS = {"angular-velocity", "velocity"}
+
+
+def quantity(value: object, dimension: str, where: str) -> float:
+    """Convert a scene value to SI.
+
+    Args:
+        value: a number (already SI) or a string ``"<number> <unit>"``.
+        dimension: a key of :data:`UNITS`, or a set name (``"coordinate"``, ``"rate"``) that
+            accepts any of several dimensions.
+        where: the scene item being read, for error messages.
+
+    Returns:
+        The value in SI units.
+    """
+    allowed = _allowed_units(dimension)
+    if isinstance(value, bool):
+        raise SceneError(f"{where}: expected a number or a '<number> <unit>' string, got {value!r}")
+    if isinstance(value, (int, float)):
+        result = float(value)
+    elif isinstance(value, str):
+        parts = value.split()
+        if len(parts) != 2:
+            raise SceneError(
+                f"{where}: cannot read {value!r}; write a number in SI units or '<number> <unit>' "
+                f"with a unit among {choices(allowed)}"
+            )
+        number, unit = parts
+        if unit not in allowed:
+            raise SceneError(
+                f"{where}: unit {unit!r} is not a {dimension} unit; valid units: {choices(allowed)}"
+            )
+        try:
+            result = float(number) * allowed[unit]
+        except ValueError:
+            raise SceneError(f"{where}: {number!r} is not a number") from None
+    else:
+        raise SceneError(
+            f"{where}: expected a number or a '<number> <unit>' string, got {type(value).__name__}"
+        )
+    if not math.isfinite(result):
+        raise SceneError(f"{where}: value {value!r} is not finite")
+    return result
+
+
+def _allowed_units(dimension: str) -> dict[str, float]:
+    if dimension == "coordinate":
+        dims = COORDINATE_DIMENSIONS
+    elif dimension == "rate":
+        dims = RATE_DIMENSIONS
+    else:
+        dims = {dimension}
+    allowed: dict[str, float] = {}
+    for dim in dims:
+        allowed.update(UNITS[dim])
+    return allowed
