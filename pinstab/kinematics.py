@@ -22,12 +22,13 @@ class Kinematics:
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
         self._zero_acceleration = np.zeros(model.nv)
+        self._lower = np.tril_indices(model.nv, -1)
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
         model, data = self.model, self.data
-        pin.crba(model, data, q)
-        self.mass_matrix[:] = np.triu(data.M) + np.triu(data.M, 1).T
+        self.mass_matrix[:] = pin.crba(model, data, q)
+        self.mass_matrix[self._lower] = self.mass_matrix.T[self._lower]
         self.bias[:] = pin.nonLinearEffects(model, data, q, v)
         pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
         pin.computeJointJacobians(model, data)

@@ -73,8 +73,10 @@ class ConstrainedSystem:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia M(q), symmetric [kg, kg m^2]."""
-        upper = pin.crba(self.model, self._energy_data, q)
-        return np.triu(upper) + np.triu(upper, 1).T
+        matrix = pin.crba(self.model, self._energy_data, q).copy()
+        lower = np.tril_indices(self.model.nv, -1)
+        matrix[lower] = matrix.T[lower]
+        return matrix
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
         """Kinetic + gravity + spring energy [J]; placements at q must be current in ``kin``."""

@@ -1,0 +1,184 @@
+"""The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation.
+
+Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import __version__
+from .errors import DivergenceError, PinstabError, ProjectionError, SceneError
+from .integrators import INTEGRATORS
+from .solvers import SOLVERS
+from .stabilizers import METHODS
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 2, 3
+
+
+def _parameters(pairs: list[str]) -> dict[str, Any]:
+    """``--param N=20`` -> {"N": 20} (values read as TOML scalars: ints, floats, strings)."""
+    import tomllib
+
+    parsed: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise SceneError(f"--param expects NAME=VALUE, got {pair!r}")
+        try:
+            parsed[key] = tomllib.loads(f"x = {value}")["x"]
+        except tomllib.TOMLDecodeError:
+            parsed[key] = value
+    return parsed
+
+
+def _scene_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="bundled scene name (fourbar, slider-crank, fivebar, delta, nfourbar) or a .toml file")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pinstab", description="Constrained multibody simulation with measurable constraint stabilization.")
+    parser.add_argument("--version", action="version", version=f"pinstab {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    check = sub.add_parser("check", help="assemble a scene and report its constraint structure")
+    _scene_arguments(check)
+
+    run = sub.add_parser("run", help="simulate a scene and report drift and energy")
+    _scene_arguments(run)
+    run.add_argument("--method", default="baumgarte", choices=METHODS, help="stabilization method (default: baumgarte)")
+    run.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
+    run.add_argument("--solver", default=None, choices=SOLVERS, help="KKT backend (default: proxsuite; pinocchio for method pinocchio)")
+    run.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
+    run.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
+    run.add_argument("--kp", type=float, default=None, help="Baumgarte Kp = beta^2 [1/s^2] (default: 100)")
+    run.add_argument("--kd", type=float, default=None, help="Baumgarte Kd = 2 alpha [1/s] (default: 20)")
+    run.add_argument("--drift-limit", type=float, default=1.0, help="position drift [m or rad] that counts as divergence (default: 1)")
+    run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "check":
+            result = _check(args)
+        else:
+            result = _run(args)
+    except DivergenceError as exc:
+        _fail(exc, args)
+        return EXIT_DIVERGED
+    except ProjectionError as exc:
+        _fail(exc, args)
+        return EXIT_DIVERGED
+    except PinstabError as exc:
+        _fail(exc, args)
+        return EXIT_BAD_INPUT
+    _emit(result, args)
+    return EXIT_OK
+
+
+def _fail(exc: PinstabError, args: argparse.Namespace) -> None:
+    print(f"pinstab {args.command}: error: {exc}", file=sys.stderr)
+    if getattr(args, "json", False) and isinstance(exc, (DivergenceError, ProjectionError)):
+        payload = {"scene": args.scene, "diverged": True, "error": str(exc)}
+        if isinstance(exc, DivergenceError) and exc.trajectory is not None:
+            payload.update(exc.trajectory.summary())
+            payload["diverged_at"] = exc.time
+        print(json.dumps(_clean(payload)))
+
+
+def _emit(result: dict[str, Any], args: argparse.Namespace) -> None:
+    if args.json:
+        print(json.dumps(_clean(result)))
+        return
+    width = max(len(k) for k in result)
+    for key, value in result.items():
+        if isinstance(value, float):
+            value = f"{value:.6g}"
+        print(f"{key:<{width}}  {value}")
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _check(args: argparse.Namespace) -> dict[str, Any]:
+    from .assembly import assemble
+    from .scene import load_scene
+    from .simulate import build_system
+
+    scene = load_scene(args.scene, **_parameters(args.param))
+    system = build_system(scene, "none", "proxsuite")
+    report = assemble(system, scene.q0, scene.v0)
+    values = system.constraint_values(report.q, report.v, 0.0)
+    rows = system.constraints.rows
+    if rows:
+        singular_values = np.linalg.svd(values.jacobian, compute_uv=False)
+        rank = int(np.sum(singular_values > 1e-9 * max(singular_values[0], 1.0)))
+    else:
+        rank = 0
+    return {
+        "scene": scene.name,
+        "nq": scene.model.nq,
+        "nv": scene.model.nv,
+        "rows": rows,
+        "rank": rank,
+        "redundant": rows - rank,
+        "mobility": scene.model.nv - rank,
+        "assembly_residual": report.residual,
+        "assembly_iterations": report.iterations,
+        "assembly_velocity_residual": report.velocity_residual,
+        "constraints": {c.name: {"rows": c.rows, "holonomic": c.holonomic, "frame": c.force_frame} for c in scene.constraints},
+        "locked_joints": scene.locked_joints,
+    }
+
+
+def _run(args: argparse.Namespace) -> dict[str, Any]:
+    from .scene import load_scene
+    from .simulate import simulate
+
+    scene = load_scene(args.scene, **_parameters(args.param))
+    trajectory = simulate(
+        scene, method=args.method, integrator=args.integrator, dt=args.dt, duration=args.duration, solver=args.solver,
+        kp=args.kp, kd=args.kd, drift_limit=args.drift_limit, progress=not args.quiet,
+    )
+    if args.save:
+        trajectory.save(args.save)
+    info = trajectory.info
+    result = {
+        "scene": scene.name,
+        "method": info["method"],
+        "integrator": info["integrator"],
+        "solver": info["solver"],
+        "dt": args.dt,
+        "duration": args.duration,
+        **trajectory.summary(),
+        "diverged": False,
+        "parameters": info["parameters"],
+    }
+    if args.save:
+        result["saved"] = args.save
+    return result
+
+
+if __name__ == "__main__":
+    sys.exit(main())
