@@ -198,11 +198,11 @@ def scene_from_dict(
     v0 = _velocity(model, v_table)
 
     closure_tables = _list_of_tables(data.get("closures", []), "closures")
-    closures = [_closure_spec(t, i) for i, t in enumerate(closure_tables)]
-    constraints: list[Constraint] = [_closure(model, spec) for spec in closures]
     force_tables = _list_of_tables(data.get("forces", []), "forces")
+    closures = [_closure_spec(t, i) for i, t in enumerate(closure_tables)]
+    _check_unique([c.name for c in closures] + [str(t.get("name", f"force{i}")) for i, t in enumerate(force_tables)])
+    constraints: list[Constraint] = [_closure(model, spec) for spec in closures]
     forces = [_force(model, t, i) for i, t in enumerate(force_tables)]
-    ConstraintSet(constraints, model.nv)  # validates unique names
     return Scene(
         name=name,
         description=description,
@@ -418,6 +418,12 @@ def _force(model: pin.Model, table: dict[str, Any], index: int) -> ForceElement:
 
 
 # -- small validators ---------------------------------------------------------------------------
+def _check_unique(names: list[str]) -> None:
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise SceneError(f"closure and force names must be unique; repeated: {', '.join(repeated)}")
+
+
 def _check_keys(table: dict[str, Any], allowed: set[str], where: str) -> None:
     unknown = sorted(set(table) - allowed)
     if unknown:

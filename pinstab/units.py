@@ -56,7 +56,7 @@ def quantity(value: object, dimension: str, where: str) -> float:
         number, unit = parts
         if unit not in allowed:
             raise SceneError(
-                f"{where}: unit {unit!r} is not a {dimension} unit; valid units: {choices(allowed)}"
+                f"{where}: unit {unit!r} is not a unit of {dimension}; valid units: {choices(allowed)}"
             )
         try:
             result = float(number) * allowed[unit]

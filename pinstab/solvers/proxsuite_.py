@@ -30,7 +30,7 @@ class ProxsuiteSolver(KKTSolver):
     def _fresh(self, nv: int, rows: int) -> proxsuite.proxqp.dense.QP:
         qp = proxsuite.proxqp.dense.QP(nv, rows, 0)
         qp.settings.eps_abs = self.eps_abs
-        qp.settings.eps_rel = 0.0
+        qp.settings.eps_rel = self.eps_abs
         qp.settings.verbose = False
         qp.settings.max_iter = 1000
         return qp
