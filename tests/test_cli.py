@@ -1,0 +1,77 @@
+"""The pinstab command line: JSON outputs, exit codes 0 / 2 / 3, no tracebacks on bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pinstab.cli import main
+
+RUN_KEYS = {"scene", "method", "integrator", "solver", "dt", "steps", "wall_s", "max_position_drift", "max_velocity_drift",
+            "final_position_drift", "energy_start", "energy_end", "diverged"}
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize(("scene", "mobility", "redundant"), [("fourbar", 1, 0), ("fivebar", 2, 1), ("delta", 3, 0), ("nfourbar", 1, 0)])
+def test_check_reports_mobility(capsys, scene, mobility, redundant):
+    code, out, _ = run_cli(capsys, "check", scene, "--json")
+    result = json.loads(out)
+    assert code == 0
+    assert {"nq", "nv", "rows", "rank", "redundant", "mobility", "assembly_residual"} <= set(result)
+    assert (result["mobility"], result["redundant"]) == (mobility, redundant)
+    assert result["assembly_residual"] < 1e-12
+
+
+def test_check_takes_generator_parameters(capsys):
+    code, out, _ = run_cli(capsys, "check", "nfourbar", "--param", "N=3", "--json")
+    assert code == 0 and json.loads(out)["nv"] == 7
+
+
+def test_run_json_has_the_documented_keys(capsys, tmp_path):
+    code, out, _ = run_cli(capsys, "run", "fourbar", "--duration", "0.1", "--json", "--save", str(tmp_path / "r.npz"))
+    result = json.loads(out)
+    assert code == 0
+    assert RUN_KEYS <= set(result)
+    assert result["steps"] == 100 and result["diverged"] is False
+    assert (tmp_path / "r.npz").is_file()
+
+
+def test_unknown_scene_exits_2_listing_bundled_scenes(capsys):
+    code, out, err = run_cli(capsys, "run", "no-such-scene")
+    assert code == 2 and out == ""
+    assert "delta, fivebar, fourbar, nfourbar, slider-crank" in err
+    assert "Traceback" not in err
+
+
+def test_divergence_exits_3_with_json(capsys):
+    code, out, err = run_cli(capsys, "run", "fourbar", "--method", "baumgarte", "--kp", "1e6", "--kd", "2e3",
+                             "--integrator", "euler", "--dt", "1e-2", "--duration", "5", "--json", "--quiet")
+    assert code == 3
+    result = json.loads(out)
+    assert result["diverged"] is True and result["diverged_at"] < 5.0
+    assert "diverged" in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "fourbar", "--solver", "dense", "--method", "pinocchio"],
+    ["run", "fivebar", "--solver", "dense", "--duration", "0.01"],
+    ["check", "nfourbar", "--param", "N=zero"],
+    ["run", "fourbar", "--dt", "-1"],
+])
+def test_bad_input_exits_2_without_traceback(capsys, argv):
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert err.startswith(f"pinstab {argv[0]}: error:") and "Traceback" not in err
+
+
+def test_console_script_is_installed():
+    completed = subprocess.run([sys.executable, "-m", "pinstab.cli", "run", "nope"], capture_output=True, text=True)
+    assert completed.returncode == 2 and "Bundled scenes" in completed.stderr
