@@ -156,6 +156,8 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     from .scene import load_scene
     from .simulate import simulate
 
+    if args.save:
+        _check_save_path(args.save)
     scene = load_scene(args.scene, **_parameters(args.param))
     trajectory = simulate(
         scene, method=args.method, integrator=args.integrator, dt=args.dt, duration=args.duration, solver=args.solver,
@@ -178,6 +180,17 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     if args.save:
         result["saved"] = args.save
     return result
+
+
+def _check_save_path(path: str) -> None:
+    """Refuse a --save target before the run rather than after it."""
+    from pathlib import Path
+
+    target = Path(path)
+    if target.suffix != ".npz":
+        raise PinstabError(f"--save {path}: trajectory files are .npz")
+    if not target.parent.is_dir():
+        raise PinstabError(f"--save {path}: folder {target.parent} does not exist")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from .system import ConstrainedSystem
 from .trajectory import Trajectory
 
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
+MAX_STEPS = 20_000_000  # every step is recorded; beyond this the arrays alone reach gigabytes
 
 
 def make_solver(name: str, scene: Scene, stabilizer: Stabilizer) -> KKTSolver:
@@ -95,6 +96,11 @@ def simulate(
     steps = int(round(duration / dt))
     if steps < 1:
         raise PinstabError(f"duration {duration} s is shorter than one step of dt = {dt} s")
+    if steps > MAX_STEPS:
+        raise PinstabError(
+            f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed the {MAX_STEPS:,} a trajectory records; "
+            "use a larger dt or a shorter duration"
+        )
     system = build_system(scene, method, solver, kp, kd)
     stepper = make_integrator(integrator, system)
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
@@ -113,22 +119,27 @@ def simulate(
     t = 0.0
     try:
         for k in range(1, steps + 1):
-            step = stepper.step(q, v, t, dt)
-            recorder.multipliers[k - 1] = step.start.multipliers
-            t = k * dt
-            correction = system.stabilizer.correct(system, step.q, step.v, t)
-            q_next, v_next = correction.q, correction.v
-            drift = recorder.record(k, t, q_next, v_next)
-            if not (np.all(np.isfinite(q_next)) and np.all(np.isfinite(v_next))) or not drift <= drift_limit:
+            try:
+                step = stepper.step(q, v, t, dt)
+            except DivergenceError:
+                recorder.record(k, k * dt, np.full_like(q, np.nan), np.full_like(v, np.nan))
+                drift = math.nan
+            else:
+                recorder.multipliers[k - 1] = step.start.multipliers
+                correction = system.stabilizer.correct(system, step.q, step.v, k * dt)
+                recorder.corrections[k] = correction.iterations
+                q_next, v_next = correction.q, correction.v
+                drift = recorder.record(k, k * dt, q_next, v_next)
+            if not drift <= drift_limit:
                 recorder.wall_time = time.perf_counter() - start
                 partial = recorder.trajectory(k, _info(scene, system, integrator, dt, report))
                 reason = "a non-finite state" if not np.isfinite(drift) else f"position drift {drift:.3g} > {drift_limit:g}"
                 raise DivergenceError(
-                    f"simulation diverged at t = {t:.6g} s (step {k}): {reason}; the last finite state is at "
-                    f"t = {t - dt:.6g} s. Reduce dt, change the gains, or use another method.",
-                    t - dt, q, v, partial,
+                    f"simulation diverged at t = {k * dt:.6g} s (step {k}): {reason}; the last finite state is at "
+                    f"t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
+                    t, q, v, partial,
                 )
-            q, v = q_next, v_next
+            q, v, t = q_next, v_next, k * dt
             if bar is not None:
                 bar.update(1)
         recorder.multipliers[steps] = system.dynamics(q, v, t).multipliers
@@ -150,6 +161,7 @@ class _Recorder:
         self.position_drift = np.zeros(n)
         self.velocity_drift = np.zeros(n)
         self.energy = np.zeros(n)
+        self.corrections = np.zeros(n, dtype=int)
         self.wall_time = 0.0
 
     def record(self, k: int, t: float, q: np.ndarray, v: np.ndarray) -> float:
@@ -169,6 +181,7 @@ class _Recorder:
             t=self.t[:n].copy(), q=self.q[:n].copy(), v=self.v[:n].copy(), multipliers=self.multipliers[:n].copy(),
             position_drift=self.position_drift[:n].copy(), velocity_drift=self.velocity_drift[:n].copy(),
             energy=self.energy[:n].copy(), wall_time=self.wall_time, info=info,
+            correction_iterations=self.corrections[:n].copy(),
         )
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 
 from .constraints import ConstraintValues
+from .errors import DivergenceError
 from .kinematics import Kinematics
 from .scene import Scene
 from .solvers import KKTProblem, KKTSolver
@@ -54,7 +55,13 @@ class ConstrainedSystem:
         return tau
 
     def dynamics(self, q: np.ndarray, v: np.ndarray, t: float) -> Evaluation:
-        """Accelerations and multipliers at (q, v, t)."""
+        """Accelerations and multipliers at (q, v, t).
+
+        Raises:
+            DivergenceError: the state (or an integrator stage) is not finite.
+        """
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise DivergenceError(f"non-finite state reached at t = {t:.6g} s", t, q, v)
         self.kin.update(q, v)
         tau = self.applied_force(v, t)
         values = self.constraints.values(self.kin, q, v, t, with_drift=True)
@@ -64,6 +71,8 @@ class ConstrainedSystem:
             rhs = rhs + gamma
         problem = KKTProblem(q, v, tau, self.kin.mass_matrix, tau - self.kin.bias, values.jacobian, rhs)
         solution = self.solver.solve(problem)
+        if not np.all(np.isfinite(solution.acceleration)):
+            raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
         return Evaluation(solution.acceleration, solution.multipliers, values)
 
     def constraint_values(self, q: np.ndarray, v: np.ndarray, t: float) -> ConstraintValues:

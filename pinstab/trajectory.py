@@ -24,6 +24,7 @@ class Trajectory:
         multipliers: constraint multipliers (n+1, s) [N, N m]; see ``force_frames``.
         position_drift: max |phi| per sample [m or rad]. velocity_drift: max |g| [m/s or rad/s].
         energy: total mechanical energy [J].
+        correction_iterations: post-step projection iterations per sample (projection, post).
         wall_time: wall-clock time of the stepping loop [s].
         info: scene, method, integrator, solver, dt, gains, assembly report, constraint layout.
     """
@@ -37,6 +38,7 @@ class Trajectory:
     energy: np.ndarray
     wall_time: float
     info: dict[str, Any] = field(default_factory=dict)
+    correction_iterations: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -53,6 +55,8 @@ class Trajectory:
     def summary(self) -> dict[str, Any]:
         """The figures ``pinstab run --json`` prints."""
         finite_energy = self.energy[np.isfinite(self.energy)]
+        assembly = self.info.get("assembly") or {}
+        corrections = self.correction_iterations if self.correction_iterations is not None else np.zeros(1, int)
         return {
             "steps": self.steps,
             "wall_s": self.wall_time,
@@ -62,6 +66,10 @@ class Trajectory:
             "final_velocity_drift": float(self.velocity_drift[-1]),
             "energy_start": float(finite_energy[0]) if finite_energy.size else None,
             "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
+            "assembly_iterations": assembly.get("iterations"),
+            "assembly_residual": assembly.get("residual"),
+            "correction_iterations_total": int(corrections.sum()),
+            "correction_iterations_max": int(corrections.max()),
         }
 
     def save(self, path: str | Path) -> Path:
@@ -78,12 +86,18 @@ class Trajectory:
                 temp, t=self.t, q=self.q, v=self.v, multipliers=self.multipliers,
                 position_drift=self.position_drift, velocity_drift=self.velocity_drift, energy=self.energy,
                 wall_time=self.wall_time, info=json.dumps(self.info),
+                correction_iterations=self._corrections(),
             )
             os.replace(temp, path)
         finally:
             if os.path.exists(temp):
                 os.remove(temp)
         return path
+
+    def _corrections(self) -> np.ndarray:
+        if self.correction_iterations is None:
+            return np.zeros(len(self.t), dtype=int)
+        return self.correction_iterations
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
@@ -94,6 +108,7 @@ class Trajectory:
                     t=data["t"], q=data["q"], v=data["v"], multipliers=data["multipliers"],
                     position_drift=data["position_drift"], velocity_drift=data["velocity_drift"],
                     energy=data["energy"], wall_time=float(data["wall_time"]), info=json.loads(str(data["info"])),
+                    correction_iterations=data["correction_iterations"],
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None

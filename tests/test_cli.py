@@ -75,3 +75,20 @@ def test_bad_input_exits_2_without_traceback(capsys, argv):
 def test_console_script_is_installed():
     completed = subprocess.run([sys.executable, "-m", "pinstab.cli", "run", "nope"], capture_output=True, text=True)
     assert completed.returncode == 2 and "Bundled scenes" in completed.stderr
+
+
+def test_bad_save_path_is_refused_before_the_run(capsys, tmp_path):
+    code, _, err = run_cli(capsys, "run", "fourbar", "--duration", "1000", "--save", str(tmp_path / "no" / "r.npz"))
+    assert code == 2 and "does not exist" in err
+
+
+def test_absurd_step_count_is_refused(capsys):
+    code, _, err = run_cli(capsys, "run", "fourbar", "--duration", "1e9")
+    assert code == 2 and "exceed" in err
+
+
+@pytest.mark.parametrize("solver", ["dense", "proxsuite", "pinocchio"])
+def test_blow_up_inside_a_step_is_a_divergence(capsys, solver):
+    code, _, err = run_cli(capsys, "run", "fourbar", "--kp", "1e12", "--kd", "1e6", "--dt", "1e-2", "--solver", solver, "--quiet")
+    assert code == (2 if solver == "proxsuite" else 3), err  # ProxQP stops on its iteration limit first
+    assert "Traceback" not in err

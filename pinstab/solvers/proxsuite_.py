@@ -50,10 +50,8 @@ class ProxsuiteSolver(KKTSolver):
         if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
             raise SolverError(
                 f"proxsuite: ProxQP did not solve the constrained dynamics ({status.name}, primal residual "
-                f"{results.info.pri_res:.3g}, dual residual {results.info.dua_res:.3g}); the constraints may be "
-                "inconsistent (conflicting closures) rather than merely redundant"
+                f"{results.info.pri_res:.3g}, dual residual {results.info.dua_res:.3g}). Either the constraints are "
+                "inconsistent (conflicting closures, not merely redundant) or the run is blowing up (reduce dt or "
+                "the gains)"
             )
-        acceleration = np.array(results.x)
-        if not np.all(np.isfinite(acceleration)):
-            raise SolverError("proxsuite: ProxQP returned a non-finite acceleration")
-        return KKTSolution(acceleration, -np.array(results.y))
+        return KKTSolution(np.array(results.x), -np.array(results.y))

@@ -30,12 +30,10 @@ class ProjectionStabilizer(Stabilizer):
         if not tolerance > 0 or max_iterations < 1:
             raise PinstabError("projection: tolerance must be > 0 and max_iterations >= 1")
         self.tolerance, self.max_iterations = tolerance, max_iterations
-        self.total_iterations = 0
 
     def correct(self, system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
         inverse_mass = np.linalg.inv(system.mass_matrix(q))
         q, iterations = project_positions(system, q, t, inverse_mass, self.tolerance, self.max_iterations)
-        self.total_iterations += iterations
         return Correction(q, project_velocities(system, q, v, t, inverse_mass), iterations)
 
     def parameters(self) -> dict[str, float]:
