@@ -1,7 +1,7 @@
 """Compare the stabilization methods on a bundled scene: drift, energy error and cost, side by side.
 
-    python demos/compare_methods.py                 # fourbar, 10 s, dt = 1e-3, rk4
-    python demos/compare_methods.py delta --duration 2 --integrator semi-implicit-euler
+python demos/compare_methods.py                 # fourbar, 10 s, dt = 1e-3, rk4
+python demos/compare_methods.py delta --duration 2 --integrator semi-implicit-euler
 """
 
 from __future__ import annotations
@@ -24,13 +24,17 @@ def main() -> None:
     print(f"{'method':<12}{'max |phi|':>12}{'max |g|':>12}{'|dE| [J]':>12}{'wall [s]':>10}")
     for method in pinstab.METHODS:
         try:
-            traj = pinstab.simulate(scene, method=method, integrator=args.integrator, dt=args.dt, duration=args.duration)
+            traj = pinstab.simulate(
+                scene, method=method, integrator=args.integrator, dt=args.dt, duration=args.duration
+            )
         except pinstab.PinstabError as exc:
             print(f"{method:<12}failed: {exc}")
             continue
         s = traj.summary()
-        print(f"{method:<12}{s['max_position_drift']:>12.2e}{s['max_velocity_drift']:>12.2e}"
-              f"{abs(s['energy_end'] - s['energy_start']):>12.2e}{s['wall_s']:>10.2f}")
+        print(
+            f"{method:<12}{s['max_position_drift']:>12.2e}{s['max_velocity_drift']:>12.2e}"
+            f"{abs(s['energy_end'] - s['energy_start']):>12.2e}{s['wall_s']:>10.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -21,17 +21,23 @@ URDF = Path(__file__).resolve().parents[1] / "tests" / "data" / "point_mass.urdf
 
 def main() -> None:
     scene = scene_from_dict(
-        {"robot": {"urdf": str(URDF)}, "gravity": [0.0, -GRAVITY, 0.0],
-         "initial": {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}}},
+        {
+            "robot": {"urdf": str(URDF)},
+            "gravity": [0.0, -GRAVITY, 0.0],
+            "initial": {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}},
+        },
         name="pendulum",
     )
-    scene.add_constraint(pinstab.HolonomicConstraint(
-        "rod", 1,
-        residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - LENGTH**2]),
-        jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
-        drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
-        nv=2,
-    ))
+    scene.add_constraint(
+        pinstab.HolonomicConstraint(
+            "rod",
+            1,
+            residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - LENGTH**2]),
+            jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
+            drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
+            nv=2,
+        )
+    )
     traj = pinstab.simulate(scene, method="projection", dt=1e-3, duration=2.0)
     theta = np.arctan2(traj.q[:, 0], -traj.q[:, 1])
     rate = (traj.q[:, 0] * traj.v[:, 1] - traj.q[:, 1] * traj.v[:, 0]) / LENGTH**2

@@ -8,7 +8,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -38,13 +39,19 @@ def _parameters(pairs: list[str]) -> dict[str, Any]:
 
 
 def _scene_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="bundled scene name (fourbar, slider-crank, fivebar, delta, nfourbar) or a .toml file")
-    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20")
+    parser.add_argument(
+        "scene", help="bundled scene name (fourbar, slider-crank, fivebar, delta, nfourbar) or a .toml file"
+    )
+    parser.add_argument(
+        "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pinstab", description="Constrained multibody simulation with measurable constraint stabilization.")
+    parser = argparse.ArgumentParser(
+        prog="pinstab", description="Constrained multibody simulation with measurable constraint stabilization."
+    )
     parser.add_argument("--version", action="version", version=f"pinstab {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -55,12 +62,22 @@ def build_parser() -> argparse.ArgumentParser:
     _scene_arguments(run)
     run.add_argument("--method", default="baumgarte", choices=METHODS, help="stabilization method (default: baumgarte)")
     run.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
-    run.add_argument("--solver", default=None, choices=SOLVERS, help="KKT backend (default: proxsuite; pinocchio for method pinocchio)")
+    run.add_argument(
+        "--solver",
+        default=None,
+        choices=SOLVERS,
+        help="KKT backend (default: proxsuite; pinocchio for method pinocchio)",
+    )
     run.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
     run.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
     run.add_argument("--kp", type=float, default=None, help="Baumgarte Kp = beta^2 [1/s^2] (default: 100)")
     run.add_argument("--kd", type=float, default=None, help="Baumgarte Kd = 2 alpha [1/s] (default: 20)")
-    run.add_argument("--drift-limit", type=float, default=1.0, help="position drift [m or rad] that counts as divergence (default: 1)")
+    run.add_argument(
+        "--drift-limit",
+        type=float,
+        default=1.0,
+        help="position drift [m or rad] that counts as divergence (default: 1)",
+    )
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -147,7 +164,9 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
         "assembly_residual": report.residual,
         "assembly_iterations": report.iterations,
         "assembly_velocity_residual": report.velocity_residual,
-        "constraints": {c.name: {"rows": c.rows, "holonomic": c.holonomic, "frame": c.force_frame} for c in scene.constraints},
+        "constraints": {
+            c.name: {"rows": c.rows, "holonomic": c.holonomic, "frame": c.force_frame} for c in scene.constraints
+        },
         "locked_joints": scene.locked_joints,
     }
 
@@ -160,8 +179,16 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         _check_save_path(args.save)
     scene = load_scene(args.scene, **_parameters(args.param))
     trajectory = simulate(
-        scene, method=args.method, integrator=args.integrator, dt=args.dt, duration=args.duration, solver=args.solver,
-        kp=args.kp, kd=args.kd, drift_limit=args.drift_limit, progress=not args.quiet,
+        scene,
+        method=args.method,
+        integrator=args.integrator,
+        dt=args.dt,
+        duration=args.duration,
+        solver=args.solver,
+        kp=args.kp,
+        kd=args.kd,
+        drift_limit=args.drift_limit,
+        progress=not args.quiet,
     )
     if args.save:
         trajectory.save(args.save)

@@ -6,7 +6,7 @@ message names the offending item and, where it helps, the valid alternatives.
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 
 class PinstabError(Exception):

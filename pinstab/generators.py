@@ -8,7 +8,8 @@ otherwise spell out.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from .errors import SceneError, choices
 from .urdf_text import Joint, Rod, UrdfDocument
@@ -37,9 +38,7 @@ def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> d
     for k in range(n + 1):
         crank = f"crank{k}"
         doc.links.append(Rod(crank, link_length, link_mass, color=(0.8, 0.3, 0.2, 1.0)))
-        doc.joints.append(
-            Joint(f"{crank}_joint", "ground", crank, xyz=(k * link_length, 0, 0), rpy=(0, 0, quarter))
-        )
+        doc.joints.append(Joint(f"{crank}_joint", "ground", crank, xyz=(k * link_length, 0, 0), rpy=(0, 0, quarter)))
         q0[f"{crank}_joint"] = 0.0
         v0[f"{crank}_joint"] = -1.0
         if k == 0:
@@ -84,8 +83,6 @@ def generate(name: str, parameters: dict[str, Any]) -> dict[str, Any]:
     kwargs = {}
     for key, value in parameters.items():
         if key not in mapping:
-            raise SceneError(
-                f"generator {name}: unknown parameter {key!r}; valid parameters: {choices(mapping)}"
-            )
+            raise SceneError(f"generator {name}: unknown parameter {key!r}; valid parameters: {choices(mapping)}")
         kwargs[mapping[key]] = value
     return GENERATORS[name](**kwargs)

@@ -53,14 +53,14 @@ class Integrator:
         first = system.dynamics(q, v, t)
         velocity_slopes, acceleration_slopes = [v], [first.acceleration]
         for row, node in nodes:
-            dq = dt * sum(c * k for c, k in zip(row, velocity_slopes))
-            v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes))
+            dq = dt * sum(c * k for c, k in zip(row, velocity_slopes, strict=False))  # row covers the slopes so far
+            v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes, strict=False))
             q_stage = system.integrate(q, dq)
             evaluation = system.dynamics(q_stage, v_stage, t + node * dt)
             velocity_slopes.append(self._to_start_tangent(q, q_stage, v_stage))
             acceleration_slopes.append(evaluation.acceleration)
-        dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes))
-        dv = dt * sum(w * k for w, k in zip(weights, acceleration_slopes))
+        dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes, strict=True))
+        dv = dt * sum(w * k for w, k in zip(weights, acceleration_slopes, strict=True))
         return Step(system.integrate(q, dq), v + dv, first)
 
 

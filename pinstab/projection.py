@@ -54,7 +54,9 @@ def project_positions(
     )
 
 
-def project_velocities(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray) -> np.ndarray:
+def project_velocities(
+    system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray
+) -> np.ndarray:
     """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric."""
     values = system.constraint_values(q, v, t)
     return v + weighted_correction(inverse_mass, values.jacobian, values.velocity_residual)

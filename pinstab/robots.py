@@ -58,8 +58,7 @@ def example_robot_urdf(name: str) -> tuple[Path, Path]:
     if name not in names:
         if not names:
             raise SceneError(
-                f"robot {name!r}: the example-robot-data package is not installed "
-                "(pip install example-robot-data)"
+                f"robot {name!r}: the example-robot-data package is not installed (pip install example-robot-data)"
             )
         raise SceneError(f"unknown example-robot-data robot {name!r}; valid names: {choices(names)}")
     return names[name], names[name].parents[2]

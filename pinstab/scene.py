@@ -19,7 +19,7 @@ import pinocchio as pin
 from . import robots
 from .constraints import CLOSURE_KINDS, Constraint, ConstraintSet, FrameClosure
 from .constraints.loops import PLANES
-from .errors import PinstabError, SceneError, choices
+from .errors import SceneError, choices
 from .forces import ForceElement, JointTorque, SpringDamper
 from .generators import generate
 from .units import quantity
@@ -183,10 +183,10 @@ def scene_from_dict(
         model = pin.buildReducedModel(full_model, locked_ids, q_full)
     else:
         model = full_model.copy()
-    locked_positions = {
-        j: float(q_full[full_model.joints[_joint_id(full_model, j, "robot")].idx_q]) for j in locked
-    }
-    model.gravity = pin.Motion(_vector(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity", "acceleration"), np.zeros(3))
+    locked_positions = {j: float(q_full[full_model.joints[_joint_id(full_model, j, "robot")].idx_q]) for j in locked}
+    model.gravity = pin.Motion(
+        _vector(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity", "acceleration"), np.zeros(3)
+    )
 
     for j in list(q_table):
         if j in locked:
@@ -360,7 +360,9 @@ def _closure_spec(table: dict[str, Any], index: int) -> ClosureSpec:
 def _add_point_frame(model: pin.Model, frame_name: str, placement: pin.SE3, new_name: str, where: str) -> int:
     parent = _frame_id(model, frame_name, where)
     frame = model.frames[parent]
-    return model.addFrame(pin.Frame(new_name, frame.parentJoint, parent, frame.placement * placement, pin.FrameType.OP_FRAME))
+    return model.addFrame(
+        pin.Frame(new_name, frame.parentJoint, parent, frame.placement * placement, pin.FrameType.OP_FRAME)
+    )
 
 
 def _closure(model: pin.Model, spec: ClosureSpec) -> FrameClosure:
@@ -457,4 +459,4 @@ def _vector(value: Any, size: int, where: str, dimension: str | None) -> np.ndar
     return np.array([quantity(x, dimension, where) for x in value])
 
 
-__all__ = ["ClosureSpec", "PinstabError", "Scene", "load_scene", "scene_from_dict"]
+__all__ = ["ClosureSpec", "Scene", "load_scene", "scene_from_dict"]

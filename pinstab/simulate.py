@@ -43,7 +43,9 @@ def make_solver(name: str, scene: Scene, stabilizer: Stabilizer) -> KKTSolver:
     raise PinstabError(f"unknown solver {name!r}; valid solvers: {choices(SOLVERS)}")
 
 
-def build_system(scene: Scene, method: str, solver: str | None, kp: float | None = None, kd: float | None = None) -> ConstrainedSystem:
+def build_system(
+    scene: Scene, method: str, solver: str | None, kp: float | None = None, kd: float | None = None
+) -> ConstrainedSystem:
     """A :class:`ConstrainedSystem` for the named method and solver (solver None: the method's own or proxsuite)."""
     stabilizer = make_stabilizer(method, kp, kd)
     solver_name = solver or stabilizer.required_solver or "proxsuite"
@@ -133,11 +135,16 @@ def simulate(
             if not drift <= drift_limit:
                 recorder.wall_time = time.perf_counter() - start
                 partial = recorder.trajectory(k, _info(scene, system, integrator, dt, report))
-                reason = "a non-finite state" if not np.isfinite(drift) else f"position drift {drift:.3g} > {drift_limit:g}"
+                reason = (
+                    "a non-finite state" if not np.isfinite(drift) else f"position drift {drift:.3g} > {drift_limit:g}"
+                )
                 raise DivergenceError(
                     f"simulation diverged at t = {k * dt:.6g} s (step {k}): {reason}; the last finite state is at "
                     f"t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
-                    t, q, v, partial,
+                    t,
+                    q,
+                    v,
+                    partial,
                 )
             q, v, t = q_next, v_next, k * dt
             if bar is not None:
@@ -178,14 +185,22 @@ class _Recorder:
     def trajectory(self, last: int, info: dict[str, Any]) -> Trajectory:
         n = last + 1
         return Trajectory(
-            t=self.t[:n].copy(), q=self.q[:n].copy(), v=self.v[:n].copy(), multipliers=self.multipliers[:n].copy(),
-            position_drift=self.position_drift[:n].copy(), velocity_drift=self.velocity_drift[:n].copy(),
-            energy=self.energy[:n].copy(), wall_time=self.wall_time, info=info,
+            t=self.t[:n].copy(),
+            q=self.q[:n].copy(),
+            v=self.v[:n].copy(),
+            multipliers=self.multipliers[:n].copy(),
+            position_drift=self.position_drift[:n].copy(),
+            velocity_drift=self.velocity_drift[:n].copy(),
+            energy=self.energy[:n].copy(),
+            wall_time=self.wall_time,
+            info=info,
             correction_iterations=self.corrections[:n].copy(),
         )
 
 
-def _info(scene: Scene, system: ConstrainedSystem, integrator: str, dt: float, report: AssemblyReport | None) -> dict[str, Any]:
+def _info(
+    scene: Scene, system: ConstrainedSystem, integrator: str, dt: float, report: AssemblyReport | None
+) -> dict[str, Any]:
     constraints = system.constraints
     return {
         "scene": scene.name,
@@ -197,8 +212,12 @@ def _info(scene: Scene, system: ConstrainedSystem, integrator: str, dt: float, r
         "scene_parameters": scene.parameters,
         "constraint_rows": {name: [s.start, s.stop] for name, s in constraints.slices.items()},
         "force_frames": {c.name: c.force_frame for c in constraints.constraints},
-        "assembly": None if report is None else {
-            "iterations": report.iterations, "residual": report.residual, "velocity_residual": report.velocity_residual,
+        "assembly": None
+        if report is None
+        else {
+            "iterations": report.iterations,
+            "residual": report.residual,
+            "velocity_residual": report.velocity_residual,
         },
     }
 

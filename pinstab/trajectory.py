@@ -83,9 +83,16 @@ class Trajectory:
         os.close(handle)
         try:
             np.savez_compressed(
-                temp, t=self.t, q=self.q, v=self.v, multipliers=self.multipliers,
-                position_drift=self.position_drift, velocity_drift=self.velocity_drift, energy=self.energy,
-                wall_time=self.wall_time, info=json.dumps(self.info),
+                temp,
+                t=self.t,
+                q=self.q,
+                v=self.v,
+                multipliers=self.multipliers,
+                position_drift=self.position_drift,
+                velocity_drift=self.velocity_drift,
+                energy=self.energy,
+                wall_time=self.wall_time,
+                info=json.dumps(self.info),
                 correction_iterations=self._corrections(),
             )
             os.replace(temp, path)
@@ -105,9 +112,15 @@ class Trajectory:
         try:
             with np.load(path) as data:
                 return cls(
-                    t=data["t"], q=data["q"], v=data["v"], multipliers=data["multipliers"],
-                    position_drift=data["position_drift"], velocity_drift=data["velocity_drift"],
-                    energy=data["energy"], wall_time=float(data["wall_time"]), info=json.loads(str(data["info"])),
+                    t=data["t"],
+                    q=data["q"],
+                    v=data["v"],
+                    multipliers=data["multipliers"],
+                    position_drift=data["position_drift"],
+                    velocity_drift=data["velocity_drift"],
+                    energy=data["energy"],
+                    wall_time=float(data["wall_time"]),
+                    info=json.loads(str(data["info"])),
                     correction_iterations=data["correction_iterations"],
                 )
         except (OSError, KeyError, ValueError) as exc:

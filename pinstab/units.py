@@ -55,17 +55,13 @@ def quantity(value: object, dimension: str, where: str) -> float:
             )
         number, unit = parts
         if unit not in allowed:
-            raise SceneError(
-                f"{where}: unit {unit!r} is not a unit of {dimension}; valid units: {choices(allowed)}"
-            )
+            raise SceneError(f"{where}: unit {unit!r} is not a unit of {dimension}; valid units: {choices(allowed)}")
         try:
             result = float(number) * allowed[unit]
         except ValueError:
             raise SceneError(f"{where}: {number!r} is not a number") from None
     else:
-        raise SceneError(
-            f"{where}: expected a number or a '<number> <unit>' string, got {type(value).__name__}"
-        )
+        raise SceneError(f"{where}: expected a number or a '<number> <unit>' string, got {type(value).__name__}")
     if not math.isfinite(result):
         raise SceneError(f"{where}: value {value!r} is not finite")
     return result

@@ -13,7 +13,9 @@ from pinstab.scene import scene_from_dict
 def coupler_gap(q):
     """Independent geometry of the bundled four-bar: distance between coupler tip and rocker tip [m]."""
     crank, coupler, rocker = q
-    tip = 0.2 * np.array([np.cos(crank), np.sin(crank)]) + 0.6 * np.array([np.cos(crank + coupler), np.sin(crank + coupler)])
+    tip = 0.2 * np.array([np.cos(crank), np.sin(crank)]) + 0.6 * np.array(
+        [np.cos(crank + coupler), np.sin(crank + coupler)]
+    )
     rocker_tip = np.array([0.6, 0.0]) + 0.5 * np.array([np.cos(rocker), np.sin(rocker)])
     return np.linalg.norm(tip - rocker_tip)
 
@@ -49,8 +51,17 @@ def test_bundled_scenes_assemble(name):
 def test_lengths_that_cannot_close_raise_with_the_residual():
     data = {
         "robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")},
-        "closures": [{"name": "too-long", "kind": "planar-point", "plane": "xy", "frame_a": "coupler",
-                      "offset_a": [2.0, 0, 0], "frame_b": "rocker", "offset_b": [0.5, 0, 0]}],
+        "closures": [
+            {
+                "name": "too-long",
+                "kind": "planar-point",
+                "plane": "xy",
+                "frame_a": "coupler",
+                "offset_a": [2.0, 0, 0],
+                "frame_b": "rocker",
+                "offset_b": [0.5, 0, 0],
+            }
+        ],
     }
     scene = scene_from_dict(data)
     with pytest.raises(AssemblyError, match="too-long") as info:

@@ -10,8 +10,21 @@ import pytest
 
 from pinstab.cli import main
 
-RUN_KEYS = {"scene", "method", "integrator", "solver", "dt", "steps", "wall_s", "max_position_drift", "max_velocity_drift",
-            "final_position_drift", "energy_start", "energy_end", "diverged"}
+RUN_KEYS = {
+    "scene",
+    "method",
+    "integrator",
+    "solver",
+    "dt",
+    "steps",
+    "wall_s",
+    "max_position_drift",
+    "max_velocity_drift",
+    "final_position_drift",
+    "energy_start",
+    "energy_end",
+    "diverged",
+}
 
 
 def run_cli(capsys, *argv):
@@ -20,7 +33,9 @@ def run_cli(capsys, *argv):
     return code, out, err
 
 
-@pytest.mark.parametrize(("scene", "mobility", "redundant"), [("fourbar", 1, 0), ("fivebar", 2, 1), ("delta", 3, 0), ("nfourbar", 1, 0)])
+@pytest.mark.parametrize(
+    ("scene", "mobility", "redundant"), [("fourbar", 1, 0), ("fivebar", 2, 1), ("delta", 3, 0), ("nfourbar", 1, 0)]
+)
 def test_check_reports_mobility(capsys, scene, mobility, redundant):
     code, out, _ = run_cli(capsys, "check", scene, "--json")
     result = json.loads(out)
@@ -52,20 +67,40 @@ def test_unknown_scene_exits_2_listing_bundled_scenes(capsys):
 
 
 def test_divergence_exits_3_with_json(capsys):
-    code, out, err = run_cli(capsys, "run", "fourbar", "--method", "baumgarte", "--kp", "1e6", "--kd", "2e3",
-                             "--integrator", "euler", "--dt", "1e-2", "--duration", "5", "--json", "--quiet")
+    code, out, err = run_cli(
+        capsys,
+        "run",
+        "fourbar",
+        "--method",
+        "baumgarte",
+        "--kp",
+        "1e6",
+        "--kd",
+        "2e3",
+        "--integrator",
+        "euler",
+        "--dt",
+        "1e-2",
+        "--duration",
+        "5",
+        "--json",
+        "--quiet",
+    )
     assert code == 3
     result = json.loads(out)
     assert result["diverged"] is True and result["diverged_at"] < 5.0
     assert "diverged" in err
 
 
-@pytest.mark.parametrize("argv", [
-    ["run", "fourbar", "--solver", "dense", "--method", "pinocchio"],
-    ["run", "fivebar", "--solver", "dense", "--duration", "0.01"],
-    ["check", "nfourbar", "--param", "N=zero"],
-    ["run", "fourbar", "--dt", "-1"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "fourbar", "--solver", "dense", "--method", "pinocchio"],
+        ["run", "fivebar", "--solver", "dense", "--duration", "0.01"],
+        ["check", "nfourbar", "--param", "N=zero"],
+        ["run", "fourbar", "--dt", "-1"],
+    ],
+)
 def test_bad_input_exits_2_without_traceback(capsys, argv):
     code, _, err = run_cli(capsys, *argv)
     assert code == 2
@@ -89,6 +124,8 @@ def test_absurd_step_count_is_refused(capsys):
 
 @pytest.mark.parametrize("solver", ["dense", "proxsuite", "pinocchio"])
 def test_blow_up_inside_a_step_is_a_divergence(capsys, solver):
-    code, _, err = run_cli(capsys, "run", "fourbar", "--kp", "1e12", "--kd", "1e6", "--dt", "1e-2", "--solver", solver, "--quiet")
+    code, _, err = run_cli(
+        capsys, "run", "fourbar", "--kp", "1e12", "--kd", "1e6", "--dt", "1e-2", "--solver", solver, "--quiet"
+    )
     assert code == (2 if solver == "proxsuite" else 3), err  # ProxQP stops on its iteration limit first
     assert "Traceback" not in err

@@ -16,16 +16,48 @@ STEP = 1e-6
 TOLERANCE = 1e-7
 
 CLOSURES = [
-    {"name": "pt", "kind": "point", "frame_a": "forearm0", "offset_a": [0.31, 0.02, -0.01],
-     "frame_b": "forearm1", "offset_b": [0.1, 0.0, 0.03]},
-    {"name": "pt-world", "kind": "point", "frame_a": "platform2", "offset_a": [0.01, 0.02, 0.03],
-     "offset_b": [0.1, -0.2, -0.4]},
-    {"name": "planar", "kind": "planar-point", "plane": [0.2, -0.3, 1.0], "frame_a": "arm1",
-     "offset_a": [0.1, 0.05, 0.0], "frame_b": "forearm2", "offset_b": [0.2, 0.0, 0.0]},
+    {
+        "name": "pt",
+        "kind": "point",
+        "frame_a": "forearm0",
+        "offset_a": [0.31, 0.02, -0.01],
+        "frame_b": "forearm1",
+        "offset_b": [0.1, 0.0, 0.03],
+    },
+    {
+        "name": "pt-world",
+        "kind": "point",
+        "frame_a": "platform2",
+        "offset_a": [0.01, 0.02, 0.03],
+        "offset_b": [0.1, -0.2, -0.4],
+    },
+    {
+        "name": "planar",
+        "kind": "planar-point",
+        "plane": [0.2, -0.3, 1.0],
+        "frame_a": "arm1",
+        "offset_a": [0.1, 0.05, 0.0],
+        "frame_b": "forearm2",
+        "offset_b": [0.2, 0.0, 0.0],
+    },
     {"name": "planar-world", "kind": "planar-point", "plane": "xz", "frame_a": "forearm1", "offset_b": [0.0, 0.1, 0.0]},
-    {"name": "weld", "kind": "weld", "frame_a": "platform0", "offset_a": [0.02, 0.0, 0.01], "rpy_a": [0.1, -0.2, 0.3],
-     "frame_b": "forearm2", "offset_b": [0.4, 0.01, 0.0], "rpy_b": [0.5, 0.4, -0.3]},
-    {"name": "weld-world", "kind": "weld", "frame_a": "platform1", "rpy_b": [0.3, 0.2, 0.1], "offset_b": [0.0, 0.0, -0.4]},
+    {
+        "name": "weld",
+        "kind": "weld",
+        "frame_a": "platform0",
+        "offset_a": [0.02, 0.0, 0.01],
+        "rpy_a": [0.1, -0.2, 0.3],
+        "frame_b": "forearm2",
+        "offset_b": [0.4, 0.01, 0.0],
+        "rpy_b": [0.5, 0.4, -0.3],
+    },
+    {
+        "name": "weld-world",
+        "kind": "weld",
+        "frame_a": "platform1",
+        "rpy_b": [0.3, 0.2, 0.1],
+        "offset_b": [0.0, 0.0, -0.4],
+    },
 ]
 
 
@@ -87,7 +119,15 @@ def test_residual_vanishes_when_frames_coincide(scene):
     rpy = pin.rpy.matrixToRpy(target.rotation)
     data = {
         "robot": {"urdf": str(ROBOTS / "urdf" / "delta.urdf")},
-        "closures": [{"name": "w", "kind": "weld", "frame_a": "platform1", "offset_b": list(target.translation), "rpy_b": list(rpy)}],
+        "closures": [
+            {
+                "name": "w",
+                "kind": "weld",
+                "frame_a": "platform1",
+                "offset_b": list(target.translation),
+                "rpy_b": list(rpy),
+            }
+        ],
     }
     welded = scene_from_dict(data)
     kin2 = Kinematics(welded.model)
@@ -96,8 +136,9 @@ def test_residual_vanishes_when_frames_coincide(scene):
 
 
 def test_user_callable_with_wrong_shape_names_the_constraint(scene):
-    bad = HolonomicConstraint("bad-rows", 2, lambda q, t: np.zeros(3), lambda q, t: np.zeros((2, 15)),
-                              lambda q, v, t: np.zeros(2), nv=15)
+    bad = HolonomicConstraint(
+        "bad-rows", 2, lambda q, t: np.zeros(3), lambda q, t: np.zeros((2, 15)), lambda q, v, t: np.zeros(2), nv=15
+    )
     kin = Kinematics(scene.model)
     with pytest.raises(ConstraintError, match="bad-rows.*residual.*shape"):
         bad.residual(kin, pin.neutral(scene.model), 0.0)

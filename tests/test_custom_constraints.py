@@ -24,13 +24,17 @@ MASS, LENGTH, GRAVITY = 2.0, 0.8, 9.81
 
 def pendulum_scene(data_dir):
     scene = scene_from_dict(
-        {"robot": {"urdf": str(data_dir / "point_mass.urdf")}, "gravity": [0.0, -GRAVITY, 0.0],
-         "initial": {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}, "v": {"x": 0.5}}},
+        {
+            "robot": {"urdf": str(data_dir / "point_mass.urdf")},
+            "gravity": [0.0, -GRAVITY, 0.0],
+            "initial": {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}, "v": {"x": 0.5}},
+        },
         name="pendulum",
     )
     scene.add_constraint(
         HolonomicConstraint(
-            "rod", 1,
+            "rod",
+            1,
             residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - LENGTH**2]),
             jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
             drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
@@ -47,7 +51,9 @@ def test_pendulum_multiplier_matches_closed_form(data_dir, method):
     x, y = traj.q[0]
     vx, vy = traj.v[0]
     theta_rate0 = (x * vy - y * vx) / LENGTH**2
-    expected = -MASS * (LENGTH * theta_rate0**2 + 3 * GRAVITY * np.cos(theta) - 2 * GRAVITY * np.cos(theta[0])) / (2 * LENGTH)
+    expected = (
+        -MASS * (LENGTH * theta_rate0**2 + 3 * GRAVITY * np.cos(theta) - 2 * GRAVITY * np.cos(theta[0])) / (2 * LENGTH)
+    )
     multiplier = traj.multipliers_of("rod")[:, 0]
     # the carriage's 1e-9 kg and rk4 error at dt = 1e-3 keep the match well inside 1e-6 N
     np.testing.assert_allclose(multiplier, expected, atol=1e-6)
@@ -56,13 +62,17 @@ def test_pendulum_multiplier_matches_closed_form(data_dir, method):
 
 def knife_edge_scene(data_dir):
     scene = scene_from_dict(
-        {"robot": {"urdf": str(data_dir / "knife_edge.urdf")}, "gravity": [0.0, 0.0, -9.81],
-         "initial": {"q": {"x": 0.1, "y": -0.2, "theta": 0.3}, "v": {"x": 1.0, "y": 0.7, "theta": 1.5}}},
+        {
+            "robot": {"urdf": str(data_dir / "knife_edge.urdf")},
+            "gravity": [0.0, 0.0, -9.81],
+            "initial": {"q": {"x": 0.1, "y": -0.2, "theta": 0.3}, "v": {"x": 1.0, "y": 0.7, "theta": 1.5}},
+        },
         name="knife-edge",
     )
     scene.add_constraint(
         PfaffianConstraint(
-            "blade", 1,
+            "blade",
+            1,
             matrix=lambda q, t: np.array([[-np.sin(q[2]), np.cos(q[2]), 0.0]]),
             drift=lambda q, v, t: np.array([-v[2] * (np.cos(q[2]) * v[0] + np.sin(q[2]) * v[1])]),
             nv=3,

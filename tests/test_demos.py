@@ -11,7 +11,9 @@ DEMOS = Path(__file__).resolve().parents[1] / "demos"
 
 
 def run_demo(*argv: str) -> str:
-    completed = subprocess.run([sys.executable, str(DEMOS / argv[0]), *argv[1:]], capture_output=True, text=True, timeout=120)
+    completed = subprocess.run(
+        [sys.executable, str(DEMOS / argv[0]), *argv[1:]], capture_output=True, text=True, timeout=120
+    )
     assert completed.returncode == 0, completed.stderr
     return completed.stdout
 

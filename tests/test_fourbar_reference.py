@@ -59,12 +59,19 @@ class MinimalFourBar:
         lhs = np.column_stack([B * perp(ph), -C * perp(ps)])
         k_ph, k_ps = np.linalg.solve(lhs, -A * perp(th))
         phd, psd = k_ph * thd, k_ps * thd
-        # acceleration loop at thddot = 0: B r_ph perp(ph) - C r_ps perp(ps) = A thd^2 e(th) + B phd^2 e(ph) - C psd^2 e(ps)
+        # acceleration loop at thddot = 0:
+        # B r_ph perp(ph) - C r_ps perp(ps) = A thd^2 e(th) + B phd^2 e(ph) - C psd^2 e(ps)
         r_ph, r_ps = np.linalg.solve(lhs, A * thd**2 * e(th) + B * phd**2 * e(ph) - C * psd**2 * e(ps))
         bodies = [
             (MASSES["crank"], A, A / 2 * perp(th), -A / 2 * thd**2 * e(th), 1.0, 0.0),
-            (MASSES["coupler"], B, A * perp(th) + B / 2 * k_ph * perp(ph),
-             -A * thd**2 * e(th) + B / 2 * (r_ph * perp(ph) - phd**2 * e(ph)), k_ph, r_ph),
+            (
+                MASSES["coupler"],
+                B,
+                A * perp(th) + B / 2 * k_ph * perp(ph),
+                -A * thd**2 * e(th) + B / 2 * (r_ph * perp(ph) - phd**2 * e(ph)),
+                k_ph,
+                r_ph,
+            ),
             (MASSES["rocker"], C, C / 2 * k_ps * perp(ps), C / 2 * (r_ps * perp(ps) - psd**2 * e(ps)), k_ps, r_ps),
         ]
         inertia = sum(m * u @ u + m * L**2 / 12 * k**2 for m, L, u, w, k, r in bodies)
@@ -76,7 +83,9 @@ def reference(traj):
     th0, thd0 = traj.q[0, 0], traj.v[0, 0]
     coupler_tip = A * e(th0) + B * e(th0 + traj.q[0, 1])
     model = MinimalFourBar(th0, coupler_tip)
-    solution = solve_ivp(model.rhs, (0, traj.t[-1]), [th0, thd0], method="DOP853", rtol=1e-12, atol=1e-12, t_eval=traj.t)
+    solution = solve_ivp(
+        model.rhs, (0, traj.t[-1]), [th0, thd0], method="DOP853", rtol=1e-12, atol=1e-12, t_eval=traj.t
+    )
     return solution.y[0]
 
 

@@ -12,11 +12,13 @@ from pinstab.scene import scene_from_dict
 
 
 def floating_scene(data_dir):
-    return scene_from_dict({
-        "robot": {"urdf": str(data_dir / "body.urdf"), "free_flyer": True},
-        "gravity": [0.0, 0.0, 0.0],
-        "initial": {"v": {"root_joint": [0.3, -0.1, 0.2, 1.0, 4.0, 0.5], "hinge": -2.0}},
-    })
+    return scene_from_dict(
+        {
+            "robot": {"urdf": str(data_dir / "body.urdf"), "free_flyer": True},
+            "gravity": [0.0, 0.0, 0.0],
+            "initial": {"v": {"root_joint": [0.3, -0.1, 0.2, 1.0, 4.0, 0.5], "hinge": -2.0}},
+        }
+    )
 
 
 def world_momentum(scene, q, v):
@@ -48,7 +50,9 @@ def test_runge_kutta_keeps_its_order_on_se3(data_dir, integrator, order):
 
 
 def test_unknown_integrator_lists_the_valid_ones():
-    with pytest.raises(PinstabError, match="unknown integrator 'rk5'; valid integrators: euler, heun, rk4, semi-implicit-euler"):
+    with pytest.raises(
+        PinstabError, match="unknown integrator 'rk5'; valid integrators: euler, heun, rk4, semi-implicit-euler"
+    ):
         simulate("fourbar", integrator="rk5", duration=0.01)
 
 

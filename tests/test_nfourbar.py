@@ -21,12 +21,21 @@ N, MASS, LENGTH, GRAVITY = 5, 1.0, 1.0, 9.81
 def parallelogram_angle(times):
     inertia = (N + 1) * MASS * LENGTH**2 / 3 + N * MASS * LENGTH**2
     torque = MASS * GRAVITY * LENGTH * ((N + 1) / 2 + N)
-    solution = solve_ivp(lambda t, y: [y[1], torque * np.sin(y[0]) / inertia], (0, times[-1]), [0.0, -1.0],
-                         method="DOP853", rtol=1e-12, atol=1e-12, t_eval=times)
+    solution = solve_ivp(
+        lambda t, y: [y[1], torque * np.sin(y[0]) / inertia],
+        (0, times[-1]),
+        [0.0, -1.0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=times,
+    )
     return solution.y[0]
 
 
-@pytest.mark.parametrize(("method", "solver"), [("baumgarte", "proxsuite"), ("projection", "proxsuite"), ("pinocchio", "pinocchio")])
+@pytest.mark.parametrize(
+    ("method", "solver"), [("baumgarte", "proxsuite"), ("projection", "proxsuite"), ("pinocchio", "pinocchio")]
+)
 def test_cranks_follow_the_parallelogram_pendulum(method, solver):
     scene = load_scene("nfourbar", N=N)
     traj = simulate(scene, method=method, solver=solver, dt=1e-3, duration=2.5)

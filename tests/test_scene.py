@@ -15,8 +15,17 @@ FOURBAR_URDF = str(ROBOTS / "urdf" / "fourbar.urdf")
 def fourbar_dict(**changes):
     data = {
         "robot": {"urdf": FOURBAR_URDF},
-        "closures": [{"name": "loop", "kind": "planar-point", "plane": "xy", "frame_a": "coupler",
-                      "offset_a": [0.6, 0, 0], "frame_b": "rocker", "offset_b": [0.5, 0, 0]}],
+        "closures": [
+            {
+                "name": "loop",
+                "kind": "planar-point",
+                "plane": "xy",
+                "frame_a": "coupler",
+                "offset_a": [0.6, 0, 0],
+                "frame_b": "rocker",
+                "offset_b": [0.5, 0, 0],
+            }
+        ],
         "initial": {"q": {"crank": 1.0}},
     }
     data.update(changes)
@@ -26,21 +35,51 @@ def fourbar_dict(**changes):
 @pytest.mark.parametrize(
     ("changes", "pattern"),
     [
-        ({"robto": {}}, r"unknown key 'robto'; valid keys: closures, description, forces, generator, gravity, initial, name, robot"),
+        (
+            {"robto": {}},
+            r"unknown key 'robto'; valid keys: closures, description, forces, generator, gravity, initial, name, robot",
+        ),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
-        ({"robot": {"name": "no-such-robot"}}, r"unknown example-robot-data robot 'no-such-robot'; valid names: .*panda"),
+        (
+            {"robot": {"name": "no-such-robot"}},
+            r"unknown example-robot-data robot 'no-such-robot'; valid names: .*panda",
+        ),
         ({"initial": {"q": {"elbow": 1.0}}}, r"initial.q: unknown joint 'elbow'; valid joints: coupler, crank, rocker"),
-        ({"initial": {"q": {"crank": "30 mm"}}}, r"initial.q.crank: unit 'mm' is not a unit of angle; valid units: deg, rad"),
+        (
+            {"initial": {"q": {"crank": "30 mm"}}},
+            r"initial.q.crank: unit 'mm' is not a unit of angle; valid units: deg, rad",
+        ),
         ({"initial": {"q": {"crank": [1, 2]}}}, r"initial.q.crank: expected a number"),
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
-        ({"closures": [{"kind": "hinge", "frame_a": "coupler"}]}, r"kind 'hinge' is not a closure kind; valid kinds: planar-point, point, weld"),
-        ({"closures": [{"kind": "point", "frame_a": "cupler"}]}, r"unknown frame 'cupler'; valid frames: world, .*coupler"),
-        ({"closures": [{"kind": "planar-point", "frame_a": "coupler", "plane": "xw"}]}, r"'plane' must be one of xy, xz, yz"),
-        ({"closures": [{"kind": "point", "frame_a": "coupler", "offset_a": [1, 2]}]}, r"offset_a must be a list of 3 numbers"),
-        ({"forces": [{"kind": "motor"}]}, r"kind 'motor' is not a force kind; valid kinds: joint-torque, spring-damper"),
-        ({"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]}, r"unit 'N' is not a unit of torque"),
+        (
+            {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
+            r"kind 'hinge' is not a closure kind; valid kinds: planar-point, point, weld",
+        ),
+        (
+            {"closures": [{"kind": "point", "frame_a": "cupler"}]},
+            r"unknown frame 'cupler'; valid frames: world, .*coupler",
+        ),
+        (
+            {"closures": [{"kind": "planar-point", "frame_a": "coupler", "plane": "xw"}]},
+            r"'plane' must be one of xy, xz, yz",
+        ),
+        (
+            {"closures": [{"kind": "point", "frame_a": "coupler", "offset_a": [1, 2]}]},
+            r"offset_a must be a list of 3 numbers",
+        ),
+        (
+            {"forces": [{"kind": "motor"}]},
+            r"kind 'motor' is not a force kind; valid kinds: joint-torque, spring-damper",
+        ),
+        (
+            {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},
+            r"unit 'N' is not a unit of torque",
+        ),
         ({"forces": [{"kind": "spring-damper", "frame_a": "crank", "stiffness": -1.0}]}, r"stiffness must be >= 0"),
-        ({"forces": [{"kind": "joint-torque", "joint": "crank", "table": [[1.0, 0.0], [0.5, 1.0]]}]}, r"times must be strictly increasing"),
+        (
+            {"forces": [{"kind": "joint-torque", "joint": "crank", "table": [[1.0, 0.0], [0.5, 1.0]]}]},
+            r"times must be strictly increasing",
+        ),
     ],
 )
 def test_bad_scene_input_names_the_item(changes, pattern):
@@ -49,7 +88,9 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 
 
 def test_unknown_scene_lists_bundled_scenes():
-    with pytest.raises(SceneError, match=r"no scene named 'nope'.*Bundled scenes: delta, fivebar, fourbar, nfourbar, slider-crank"):
+    with pytest.raises(
+        SceneError, match=r"no scene named 'nope'.*Bundled scenes: delta, fivebar, fourbar, nfourbar, slider-crank"
+    ):
         load_scene("nope")
 
 
@@ -79,10 +120,12 @@ def test_nfourbar_parameter_sets_the_size():
 
 def test_locked_joints_reduce_the_model():
     """Panda from example-robot-data with the fingers locked: 7 DOF left, locked positions kept."""
-    scene = scene_from_dict({
-        "robot": {"name": "panda", "locked_joints": ["panda_finger_joint1", "panda_finger_joint2"]},
-        "initial": {"q": {"panda_finger_joint1": 0.02, "panda_joint4": -1.5}},
-    })
+    scene = scene_from_dict(
+        {
+            "robot": {"name": "panda", "locked_joints": ["panda_finger_joint1", "panda_finger_joint2"]},
+            "initial": {"q": {"panda_finger_joint1": 0.02, "panda_joint4": -1.5}},
+        }
+    )
     assert scene.full_model.nv == 9
     assert scene.model.nv == 7
     assert scene.locked_joints == {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.0}

@@ -16,15 +16,24 @@ def native_accelerations(scene, kp, kd, states):
     models, datas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
     for closure in scene.constraints:
         fa, fb = model.frames[closure.frame_a], model.frames[closure.frame_b]
-        rcm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, fa.parentJoint, fa.placement,
-                                       fb.parentJoint, fb.placement, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        rcm = pin.RigidConstraintModel(
+            pin.ContactType.CONTACT_3D,
+            model,
+            fa.parentJoint,
+            fa.placement,
+            fb.parentJoint,
+            fb.placement,
+            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+        )
         rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(kp, kd))
         models.append(rcm)
         datas.append(rcm.createData())
     data = model.createData()
     pin.initConstraintDynamics(model, data, models, datas)
     settings = pin.ProximalSettings(1e-14, 1e-14, 1e-12, 100)
-    return [pin.constraintDynamics(model, data, q, v, np.zeros(model.nv), models, datas, settings).copy() for q, v in states]
+    return [
+        pin.constraintDynamics(model, data, q, v, np.zeros(model.nv), models, datas, settings).copy() for q, v in states
+    ]
 
 
 @pytest.mark.parametrize("scene_name", ["fourbar", "slider-crank"])
@@ -35,14 +44,25 @@ def test_baumgarte_reproduces_pinocchio_corrector(scene_name, solver):
     # no torque element in the native call: drop them for both
     scene.forces.clear()
     # start off the manifold so that the corrector terms are active along the whole run
-    traj = simulate(scene, method="baumgarte", kp=kp, kd=kd, integrator="semi-implicit-euler", dt=1e-3, duration=0.5,
-                    solver=solver, assemble_initial=False)
+    traj = simulate(
+        scene,
+        method="baumgarte",
+        kp=kp,
+        kd=kd,
+        integrator="semi-implicit-euler",
+        dt=1e-3,
+        duration=0.5,
+        solver=solver,
+        assemble_initial=False,
+    )
     assert traj.position_drift[0] > 1e-3
     system = build_system(scene, "baumgarte", solver, kp, kd)
-    states = list(zip(traj.q[::25], traj.v[::25]))
+    states = list(zip(traj.q[::25], traj.v[::25], strict=True))
     native = native_accelerations(scene, kp, kd, states)
-    for (q, v), expected in zip(states, native):
-        np.testing.assert_allclose(system.dynamics(q, v, 0.0).acceleration, expected, rtol=0, atol=1e-10 * max(1.0, np.abs(expected).max()))
+    for (q, v), expected in zip(states, native, strict=True):
+        np.testing.assert_allclose(
+            system.dynamics(q, v, 0.0).acceleration, expected, rtol=0, atol=1e-10 * max(1.0, np.abs(expected).max())
+        )
 
 
 def test_pinocchio_method_tracks_baumgarte_run():
@@ -58,19 +78,32 @@ def test_fivebar_redundant_rows_give_the_reduced_accelerations():
     redundant = load_scene("fivebar")
     reduced = load_scene("fivebar")
     reduced.constraints.clear()
-    planar = scene_from_dict({
-        "robot": {"urdf": str(redundant.urdf_path)},
-        "closures": [{"name": "end-effector", "kind": "planar-point", "plane": "xy", "frame_a": "distal_left",
-                      "offset_a": [0.4, 0.0, 0.0], "frame_b": "distal_right", "offset_b": [0.4, 0.0, 0.0]}],
-        "gravity": [0.0, -9.81, 0.0],
-    })
+    planar = scene_from_dict(
+        {
+            "robot": {"urdf": str(redundant.urdf_path)},
+            "closures": [
+                {
+                    "name": "end-effector",
+                    "kind": "planar-point",
+                    "plane": "xy",
+                    "frame_a": "distal_left",
+                    "offset_a": [0.4, 0.0, 0.0],
+                    "frame_b": "distal_right",
+                    "offset_b": [0.4, 0.0, 0.0],
+                }
+            ],
+            "gravity": [0.0, -9.81, 0.0],
+        }
+    )
     traj = simulate(redundant, method="baumgarte", solver="proxsuite", dt=2e-3, duration=1.0)
     prox = build_system(redundant, "baumgarte", "proxsuite")
     dense = build_system(planar, "baumgarte", "dense")
     compared = 0
-    for q, v in zip(traj.q[::20], traj.v[::20]):
+    for q, v in zip(traj.q[::20], traj.v[::20], strict=True):
         expected = dense.dynamics(q, v, 0.0).acceleration
-        np.testing.assert_allclose(prox.dynamics(q, v, 0.0).acceleration, expected, atol=1e-9 * max(1.0, np.abs(expected).max()))
+        np.testing.assert_allclose(
+            prox.dynamics(q, v, 0.0).acceleration, expected, atol=1e-9 * max(1.0, np.abs(expected).max())
+        )
         compared += 1
     assert compared >= 5
 
@@ -81,9 +114,19 @@ def test_dense_refuses_redundant_rows_with_a_clear_error():
 
 
 def test_pinocchio_solver_refuses_planar_closure_on_a_spatial_mechanism():
-    scene = scene_from_dict({
-        "robot": {"urdf": str(load_scene("delta").urdf_path)},
-        "closures": [{"name": "odd", "kind": "planar-point", "plane": "xy", "frame_a": "forearm0", "offset_b": [0.3, 0.0, -0.4]}],
-    })
+    scene = scene_from_dict(
+        {
+            "robot": {"urdf": str(load_scene("delta").urdf_path)},
+            "closures": [
+                {
+                    "name": "odd",
+                    "kind": "planar-point",
+                    "plane": "xy",
+                    "frame_a": "forearm0",
+                    "offset_b": [0.3, 0.0, -0.4],
+                }
+            ],
+        }
+    )
     with pytest.raises(SolverError, match="odd.*not on a planar mechanism"):
         simulate(scene, method="pinocchio", dt=1e-3, duration=0.01, assemble_initial=False)

@@ -70,8 +70,9 @@ class FrameClosure(Constraint):
             self.selection = np.eye(3)
         self.rows = 6 if kind == "weld" else self.selection.shape[0]
         self.force_frame = (
-            "world axes (force on a) + log3(R_b^T R_a) axes (moment on a)" if kind == "weld" else
-            ("world axes, force on a" if kind == "point" else "plane axes, force on a")
+            "world axes (force on a) + log3(R_b^T R_a) axes (moment on a)"
+            if kind == "weld"
+            else ("world axes, force on a" if kind == "point" else "plane axes, force on a")
         )
 
     # -- helpers -----------------------------------------------------------------------------
@@ -150,10 +151,8 @@ def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:
         coeff_rate = float(theta @ theta_rate) / 360.0
     else:
         coeff = 1.0 / angle**2 - (1.0 + np.cos(angle)) / (2.0 * angle * np.sin(angle))
-        dcoeff = (
-            -2.0 / angle**3
-            + (np.sin(angle) * angle * np.sin(angle) + (1.0 + np.cos(angle)) * (np.sin(angle) + angle * np.cos(angle)))
-            / (2.0 * (angle * np.sin(angle)) ** 2)
-        )
+        dcoeff = -2.0 / angle**3 + (
+            np.sin(angle) * angle * np.sin(angle) + (1.0 + np.cos(angle)) * (np.sin(angle) + angle * np.cos(angle))
+        ) / (2.0 * (angle * np.sin(angle)) ** 2)
         coeff_rate = dcoeff * float(theta @ theta_rate) / angle
     return 0.5 * hat_rate + coeff_rate * hat @ hat + coeff * (hat_rate @ hat + hat @ hat_rate)

@@ -27,7 +27,9 @@ class DenseSolver(KKTSolver):
         try:
             solved = np.linalg.solve(problem.mass_matrix, np.column_stack([problem.free_force, jac.T]))
         except np.linalg.LinAlgError:
-            raise SolverError("dense: the joint-space inertia matrix is singular (a massless moving subtree?)") from None
+            raise SolverError(
+                "dense: the joint-space inertia matrix is singular (a massless moving subtree?)"
+            ) from None
         free_acceleration, minv_gt = solved[:, 0], solved[:, 1:]
         if jac.shape[0] == 0:
             return KKTSolution(free_acceleration, np.zeros(0))

@@ -16,7 +16,11 @@ from ..constraints import Constraint, FrameClosure
 from ..errors import SolverError
 from .base import KKTProblem, KKTSolution, KKTSolver
 
-CONTACT_TYPES = {"point": pin.ContactType.CONTACT_3D, "planar-point": pin.ContactType.CONTACT_3D, "weld": pin.ContactType.CONTACT_6D}
+CONTACT_TYPES = {
+    "point": pin.ContactType.CONTACT_3D,
+    "planar-point": pin.ContactType.CONTACT_3D,
+    "weld": pin.ContactType.CONTACT_6D,
+}
 
 
 class PinocchioSolver(KKTSolver):
@@ -32,7 +36,9 @@ class PinocchioSolver(KKTSolver):
 
     name = "pinocchio"
 
-    def __init__(self, model: pin.Model, constraints: list[Constraint], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12) -> None:
+    def __init__(
+        self, model: pin.Model, constraints: list[Constraint], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12
+    ) -> None:
         self.model = model
         self.data = model.createData()
         self.models = pin.StdVec_RigidConstraintModel()
@@ -60,7 +66,12 @@ class PinocchioSolver(KKTSolver):
             frame_b = self.model.frames[closure.frame_b]
             joint_b, placement_b = frame_b.parentJoint, frame_b.placement
         rcm = pin.RigidConstraintModel(
-            CONTACT_TYPES[closure.kind], self.model, frame_a.parentJoint, frame_a.placement, joint_b, placement_b,
+            CONTACT_TYPES[closure.kind],
+            self.model,
+            frame_a.parentJoint,
+            frame_a.placement,
+            joint_b,
+            placement_b,
             pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
         )
         rcm.name = closure.name
@@ -77,7 +88,12 @@ class PinocchioSolver(KKTSolver):
                 continue
             jac = pin.getFrameJacobian(self.model, data, closure.frame_a, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
             if closure.frame_b is not None:
-                jac = jac - pin.getFrameJacobian(self.model, data, closure.frame_b, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+                jac = (
+                    jac
+                    - pin.getFrameJacobian(self.model, data, closure.frame_b, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[
+                        :3
+                    ]
+                )
             normal = np.cross(closure.selection[0], closure.selection[1])
             if np.abs(normal @ jac).max() > 1e-12:
                 raise SolverError(

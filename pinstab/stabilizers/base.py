@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from abc import ABC
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -23,7 +22,7 @@ class Correction:
     iterations: int = 0
 
 
-class Stabilizer(ABC):
+class Stabilizer:
     """Base stabilizer: no term, no correction.
 
     Attributes:
