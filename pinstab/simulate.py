@@ -207,6 +207,7 @@ def _info(
         "method": system.stabilizer.name,
         "integrator": integrator,
         "solver": system.solver.name,
+        "solver_fallbacks": system.solver.fallbacks,
         "dt": dt,
         "parameters": system.stabilizer.parameters(),
         "scene_parameters": scene.parameters,

@@ -70,6 +70,7 @@ class Trajectory:
             "assembly_residual": assembly.get("residual"),
             "correction_iterations_total": int(corrections.sum()),
             "correction_iterations_max": int(corrections.max()),
+            "solver_fallbacks": self.info.get("solver_fallbacks", 0),
         }
 
     def save(self, path: str | Path) -> Path:

@@ -8,6 +8,7 @@ import pytest
 
 from pinstab import SolverError, build_system, load_scene, simulate
 from pinstab.scene import scene_from_dict
+from pinstab.solvers import PinocchioSolver
 
 
 def native_accelerations(scene, kp, kd, states):
@@ -130,3 +131,20 @@ def test_pinocchio_solver_refuses_planar_closure_on_a_spatial_mechanism():
     )
     with pytest.raises(SolverError, match="odd.*not on a planar mechanism"):
         simulate(scene, method="pinocchio", dt=1e-3, duration=0.01, assemble_initial=False)
+
+
+def test_pinocchio_solver_hands_missed_constraints_to_proxqp():
+    """Pinocchio with no corrector cannot apply a Baumgarte term it does not know: the residual check
+    sees G a != rhs off the manifold and solves with ProxQP instead, which meets the rows."""
+    scene = load_scene("fourbar")
+    native = PinocchioSolver(scene.model, scene.constraints, kp=0.0, kd=0.0)
+    system = build_system(scene, "baumgarte", "proxsuite", 100.0, 20.0)
+    system.solver = native
+    q, v = scene.q0, scene.v0  # not assembled: phi is about 0.1 m
+    evaluation = system.dynamics(q, v, 0.0)
+    assert native.fallbacks == 1
+    reference = build_system(scene, "baumgarte", "dense", 100.0, 20.0).dynamics(q, v, 0.0)
+    np.testing.assert_allclose(evaluation.acceleration, reference.acceleration, atol=1e-8)
+    # on the manifold with matching gains, no fallback is needed
+    traj = simulate(scene, method="pinocchio", dt=1e-3, duration=0.2)
+    assert traj.info["solver_fallbacks"] == 0

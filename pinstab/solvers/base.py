@@ -39,9 +39,15 @@ class KKTSolution:
 
 
 class KKTSolver(ABC):
-    """A backend that solves :class:`KKTProblem`."""
+    """A backend that solves :class:`KKTProblem`.
+
+    Attributes:
+        fallbacks: how many solves were handed to a rank-robust backend after this one missed
+            the acceleration-level constraint (only backends with a fallback count them).
+    """
 
     name: str
+    fallbacks: int = 0
 
     @abstractmethod
     def solve(self, problem: KKTProblem) -> KKTSolution:

@@ -5,6 +5,10 @@ It fits scenes whose constraints are frame closures: ``point`` maps to ``CONTACT
 out-of-plane row is identically redundant (a planar mechanism), which is checked. Its stabilization
 term can only be Pinocchio's Baumgarte corrector (scalar Kp, Kd); ``desired_contact_acceleration``
 is not used by Pinocchio 4.1's algorithm, so no other term can be injected.
+
+Pinocchio's proximal solve can lose the constraints near singular configurations, so every solve is
+checked: when ``|G a - rhs|`` exceeds ``RESIDUAL_TOLERANCE`` (relative to the size of the terms)
+the same problem is solved again by ProxQP and the fallback is counted.
 """
 
 from __future__ import annotations
@@ -15,6 +19,9 @@ import pinocchio as pin
 from ..constraints import Constraint, FrameClosure
 from ..errors import SolverError
 from .base import KKTProblem, KKTSolution, KKTSolver
+from .proxsuite_ import ProxsuiteSolver
+
+RESIDUAL_TOLERANCE = 1e-8
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,
@@ -57,6 +64,7 @@ class PinocchioSolver(KKTSolver):
         pin.initConstraintDynamics(model, self.data, self.models, self.datas)
         self.settings = pin.ProximalSettings(1e-14, 1e-12, mu, 50)
         self._checked_planar = False
+        self._fallback = ProxsuiteSolver()
 
     def _rigid_model(self, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
         frame_a = self.model.frames[closure.frame_a]
@@ -109,6 +117,18 @@ class PinocchioSolver(KKTSolver):
         acceleration = pin.constraintDynamics(
             self.model, self.data, problem.q, problem.v, problem.tau, self.models, self.datas, self.settings
         )
+        if not self._meets_constraints(problem, acceleration):
+            self.fallbacks += 1
+            return self._fallback.solve(problem)
         residual_force = problem.mass_matrix @ acceleration - problem.free_force
         multipliers = np.linalg.lstsq(problem.jacobian.T, residual_force, rcond=1e-12)[0]
         return KKTSolution(np.array(acceleration), multipliers)
+
+    @staticmethod
+    def _meets_constraints(problem: KKTProblem, acceleration: np.ndarray) -> bool:
+        """Is ``G a = rhs`` met (a finite answer that lost the constraints is handed on)?"""
+        if not np.all(np.isfinite(acceleration)):
+            return True  # the system reports the divergence
+        achieved = problem.jacobian @ acceleration
+        scale = 1.0 + np.abs(problem.rhs).max(initial=0.0) + np.abs(achieved).max(initial=0.0)
+        return bool(np.abs(achieved - problem.rhs).max(initial=0.0) <= RESIDUAL_TOLERANCE * scale)
