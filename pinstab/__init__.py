@@ -17,6 +17,8 @@ from .errors import (
     ProjectionError,
     SceneError,
     SolverError,
+    UnstableGainsError,
+    UnstableGainsWarning,
 )
 from .integrators import INTEGRATORS
 from .scene import Scene, load_scene
@@ -47,6 +49,8 @@ __all__ = [
     "SceneError",
     "SolverError",
     "Trajectory",
+    "UnstableGainsError",
+    "UnstableGainsWarning",
     "__version__",
     "assemble",
     "build_system",

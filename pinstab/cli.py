@@ -1,4 +1,4 @@
-"""The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation.
+"""The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation, map ``stability``.
 
 Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence.
 """
@@ -8,16 +8,18 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from . import __version__
-from .errors import DivergenceError, PinstabError, ProjectionError, SceneError
+from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .integrators import INTEGRATORS
 from .solvers import SOLVERS
-from .stabilizers import METHODS
+from .stability_map import MAP_METHODS
+from .stabilizers import METHODS, VARIANTS
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 2, 3
 
@@ -70,8 +72,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
     run.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
-    run.add_argument("--kp", type=float, default=None, help="Baumgarte Kp = beta^2 [1/s^2] (default: 100)")
-    run.add_argument("--kd", type=float, default=None, help="Baumgarte Kd = 2 alpha [1/s] (default: 20)")
+    run.add_argument(
+        "--kp",
+        type=float,
+        default=None,
+        help="Baumgarte Kp = beta^2 [1/s^2] (default: 100); mukharlyamov: stiffness H (default: automatic gains)",
+    )
+    run.add_argument(
+        "--kd",
+        type=float,
+        default=None,
+        help="Baumgarte Kd = 2 alpha [1/s] (default: 20); mukharlyamov: damping B (default: automatic gains)",
+    )
+    run.add_argument(
+        "--variant", choices=VARIANTS, default=None, help="mukharlyamov: kinematic (A = E) or inertial (A = Lambda)"
+    )
+    run.add_argument("--decay", type=float, default=None, help="mukharlyamov automatic gains: decay factor r per step")
+    run.add_argument(
+        "--no-hold",
+        dest="hold",
+        action="store_false",
+        default=None,
+        help="mukharlyamov with heun/rk4: evaluate the term at every stage instead of holding it over the step",
+    )
+    run.add_argument("--strict", action="store_true", help="refuse gains predicted unstable instead of warning")
     run.add_argument(
         "--drift-limit",
         type=float,
@@ -80,6 +104,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    stability = sub.add_parser("stability", help="map observed vs predicted stability over a (dt, gain) grid")
+    _scene_arguments(stability)
+    stability.add_argument("--method", default="baumgarte", choices=MAP_METHODS, help="(default: baumgarte)")
+    stability.add_argument(
+        "--integrator", default="semi-implicit-euler", choices=INTEGRATORS, help="(default: semi-implicit-euler)"
+    )
+    stability.add_argument(
+        "--dt-range",
+        nargs=2,
+        type=float,
+        default=[1e-4, 3e-2],
+        metavar=("A", "B"),
+        help="steps [s] (default: 1e-4 3e-2)",
+    )
+    stability.add_argument(
+        "--gain-range",
+        nargs=2,
+        type=float,
+        default=[1e2, 1e9],
+        metavar=("C", "D"),
+        help="Kp [1/s^2], Kd = 2 sqrt(Kp) (default: 1e2 1e9)",
+    )
+    stability.add_argument("--grid", type=int, default=40, help="cells per axis (default: 40)")
+    stability.add_argument("--steps", type=int, default=200, help="steps per run (default: 200)")
+    stability.add_argument("--perturbation", type=float, default=0.01, help="initial violation [rad] (default: 0.01)")
+    stability.add_argument(
+        "--solver", default="dense", choices=SOLVERS, help="KKT backend of the runs (default: dense)"
+    )
+    stability.add_argument("-o", "--output", metavar="MAP.png", help="write the map as a PNG")
+    stability.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
@@ -87,10 +142,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = build_parser().parse_args(argv)
     try:
-        if args.command == "check":
-            result = _check(args)
-        else:
-            result = _run(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", UnstableGainsWarning)
+            warnings.showwarning = _show_warning(args.command)
+            result = {"check": _check, "run": _run, "stability": _stability}[args.command](args)
     except DivergenceError as exc:
         _fail(exc, args)
         return EXIT_DIVERGED
@@ -102,6 +157,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     _emit(result, args)
     return EXIT_OK
+
+
+def _show_warning(command: str):
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"pinstab {command}: warning: {message}", file=sys.stderr, flush=True)
+
+    return show
 
 
 def _fail(exc: PinstabError, args: argparse.Namespace) -> None:
@@ -176,7 +238,7 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     from .simulate import simulate
 
     if args.save:
-        _check_save_path(args.save)
+        _check_output_path(args.save, ".npz")
     scene = load_scene(args.scene, **_parameters(args.param))
     trajectory = simulate(
         scene,
@@ -187,6 +249,10 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         solver=args.solver,
         kp=args.kp,
         kd=args.kd,
+        variant=args.variant,
+        decay=args.decay,
+        hold=args.hold,
+        strict=args.strict,
         drift_limit=args.drift_limit,
         progress=not args.quiet,
     )
@@ -209,15 +275,45 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
     return result
 
 
-def _check_save_path(path: str) -> None:
-    """Refuse a --save target before the run rather than after it."""
+def _check_output_path(path: str, suffix: str) -> None:
+    """Refuse an output target before the work rather than after it."""
     from pathlib import Path
 
     target = Path(path)
-    if target.suffix != ".npz":
-        raise PinstabError(f"--save {path}: trajectory files are .npz")
+    if target.suffix.lower() != suffix:
+        raise PinstabError(f"{path}: the output must be a {suffix} file")
     if not target.parent.is_dir():
-        raise PinstabError(f"--save {path}: folder {target.parent} does not exist")
+        raise PinstabError(f"{path}: folder {target.parent} does not exist")
+
+
+def _stability(args: argparse.Namespace) -> dict[str, Any]:
+    from .scene import load_scene
+    from .stability_map import plot_stability_map, stability_map
+
+    if args.output:
+        _check_output_path(args.output, ".png")
+    scene = load_scene(args.scene, **_parameters(args.param))
+    result = stability_map(
+        scene,
+        method=args.method,
+        integrator=args.integrator,
+        dt_range=tuple(args.dt_range),
+        gain_range=tuple(args.gain_range),
+        grid=args.grid,
+        steps=args.steps,
+        perturbation=args.perturbation,
+        solver=args.solver,
+        progress=not args.quiet,
+    )
+    if args.output:
+        plot_stability_map(result, args.output)
+    payload = result.to_json()
+    if not args.json:
+        counts = {name: sum(c.observed == name for c in result.cells) for name in ("converged", "bounded", "diverged")}
+        payload = {k: v for k, v in payload.items() if k != "cells"} | counts
+    if args.output:
+        payload["map"] = args.output
+    return payload
 
 
 if __name__ == "__main__":

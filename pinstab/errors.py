@@ -63,3 +63,11 @@ def choices(valid: Iterable[str]) -> str:
 
 class ConstraintError(PinstabError):
     """A constraint is ill-defined (bad frame, wrong shape from a user callable, non-finite value)."""
+
+
+class UnstableGainsError(PinstabError):
+    """Stabilization gains whose discrete deviation dynamics are unstable at the chosen step (strict mode)."""
+
+
+class UnstableGainsWarning(UserWarning):
+    """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""

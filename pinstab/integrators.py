@@ -52,11 +52,11 @@ class Integrator:
         system = self.system
         first = system.dynamics(q, v, t)
         velocity_slopes, acceleration_slopes = [v], [first.acceleration]
-        for row, node in nodes:
+        for stage, (row, node) in enumerate(nodes, start=1):
             dq = dt * sum(c * k for c, k in zip(row, velocity_slopes, strict=False))  # row covers the slopes so far
             v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes, strict=False))
             q_stage = system.integrate(q, dq)
-            evaluation = system.dynamics(q_stage, v_stage, t + node * dt)
+            evaluation = system.dynamics(q_stage, v_stage, t + node * dt, stage)
             velocity_slopes.append(self._to_start_tangent(q, q_stage, v_stage))
             acceleration_slopes.append(evaluation.acceleration)
         dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes, strict=True))

@@ -5,16 +5,19 @@ from __future__ import annotations
 import math
 import sys
 import time
+import warnings
+from contextlib import closing, nullcontext
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .errors import DivergenceError, PinstabError, choices
+from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning, choices
 from .integrators import make_integrator
 from .scene import Scene, load_scene
 from .solvers import SOLVERS, DenseSolver, KKTSolver, PinocchioSolver, ProxsuiteSolver
+from .stability import largest_stable_step
 from .stabilizers import Stabilizer, make_stabilizer
 from .system import ConstrainedSystem
 from .trajectory import Trajectory
@@ -44,10 +47,21 @@ def make_solver(name: str, scene: Scene, stabilizer: Stabilizer) -> KKTSolver:
 
 
 def build_system(
-    scene: Scene, method: str, solver: str | None, kp: float | None = None, kd: float | None = None
+    scene: Scene,
+    method: str,
+    solver: str | None,
+    kp: float | None = None,
+    kd: float | None = None,
+    variant: str | None = None,
+    decay: float | None = None,
+    hold: bool | None = None,
 ) -> ConstrainedSystem:
-    """A :class:`ConstrainedSystem` for the named method and solver (solver None: the method's own or proxsuite)."""
-    stabilizer = make_stabilizer(method, kp, kd)
+    """A :class:`ConstrainedSystem` for the named method and solver (solver None: the method's own or proxsuite).
+
+    Methods with step-dependent gains (``mukharlyamov``) need ``system.stabilizer.bind(...)`` before
+    ``system.dynamics``; :func:`simulate` does it.
+    """
+    stabilizer = make_stabilizer(method, kp, kd, variant, decay, hold)
     solver_name = solver or stabilizer.required_solver or "proxsuite"
     return ConstrainedSystem(scene, stabilizer, make_solver(solver_name, scene, stabilizer))
 
@@ -61,6 +75,10 @@ def simulate(
     solver: str | None = None,
     kp: float | None = None,
     kd: float | None = None,
+    variant: str | None = None,
+    decay: float | None = None,
+    hold: bool | None = None,
+    strict: bool = False,
     drift_limit: float = DEFAULT_DRIFT_LIMIT,
     progress: bool = False,
     q0: np.ndarray | None = None,
@@ -76,8 +94,16 @@ def simulate(
         dt: time step [s].
         duration: simulated time [s].
         solver: ``proxsuite`` (default), ``pinocchio`` or ``dense``.
-        kp, kd: Baumgarte gains [1/s^2], [1/s] (``baumgarte``, ``pinocchio``).
-        drift_limit: position drift [m or rad] above which the run stops with DivergenceError.
+        kp, kd: Baumgarte gains [1/s^2], [1/s] (``baumgarte``, ``pinocchio``), or the stiffness
+            and damping of ``mukharlyamov`` (omit both for automatic gains).
+        variant: ``mukharlyamov``: ``kinematic`` (default) or ``inertial``.
+        decay: ``mukharlyamov`` automatic gains: decay factor r per step (default 0 kinematic, 0.3 inertial).
+        hold: ``mukharlyamov`` with heun or rk4: evaluate the term once per step and hold it
+            (default True) rather than at every stage.
+        strict: refuse (:class:`UnstableGainsError`) instead of warning when the gains are
+            predicted unstable (rho(R(tau W)) >= 1) at this step and integrator.
+        drift_limit: position drift [m or rad] above which the run stops with DivergenceError; a
+            velocity drift above ``drift_limit / dt`` stops it too.
         progress: show a progress bar on stderr for runs longer than a couple of seconds.
         q0, v0: initial state overriding the scene's.
         assemble_initial: make the initial state consistent first (off: start as given, e.g. to
@@ -89,6 +115,10 @@ def simulate(
     Raises:
         DivergenceError: non-finite state or drift above ``drift_limit``; carries the last finite
             state, its time and the partial trajectory.
+        UnstableGainsError: with ``strict``, gains predicted unstable, before any step.
+
+    Warns:
+        UnstableGainsWarning: gains predicted unstable, before any step (without ``strict``).
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -103,7 +133,7 @@ def simulate(
             f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed the {MAX_STEPS:,} a trajectory records; "
             "use a larger dt or a shorter duration"
         )
-    system = build_system(scene, method, solver, kp, kd)
+    system = build_system(scene, method, solver, kp, kd, variant, decay, hold)
     stepper = make_integrator(integrator, system)
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
@@ -113,13 +143,17 @@ def simulate(
     if assemble_initial:
         report = assemble(system, q, v)
         q, v = report.q, report.v
+    system.stabilizer.bind(system, dt, integrator, q)
+    start_radius = _refuse_unstable_gains(system, q, v, strict)
 
     recorder = _Recorder(system, steps)
+    recorder.warned = start_radius is not None and start_radius >= 1.0
     recorder.record(0, 0.0, q, v)
     bar = _progress_bar(steps, scene.name, progress)
     start = time.perf_counter()
     t = 0.0
-    try:
+    # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
+    with np.errstate(over="ignore", invalid="ignore"), nullcontext() if bar is None else closing(bar):
         for k in range(1, steps + 1):
             try:
                 step = stepper.step(q, v, t, dt)
@@ -132,11 +166,15 @@ def simulate(
                 recorder.corrections[k] = correction.iterations
                 q_next, v_next = correction.q, correction.v
                 drift = recorder.record(k, k * dt, q_next, v_next)
+                # a velocity residual that would carry the constraint past the limit within one step
+                drift = max(drift, recorder.velocity_drift[k] * dt)
             if not drift <= drift_limit:
                 recorder.wall_time = time.perf_counter() - start
                 partial = recorder.trajectory(k, _info(scene, system, integrator, dt, report))
                 reason = (
-                    "a non-finite state" if not np.isfinite(drift) else f"position drift {drift:.3g} > {drift_limit:g}"
+                    "a non-finite state"
+                    if not np.isfinite(drift)
+                    else f"drift {drift:.3g} > {drift_limit:g} (position residual, or velocity residual x dt)"
                 )
                 raise DivergenceError(
                     f"simulation diverged at t = {k * dt:.6g} s (step {k}): {reason}; the last finite state is at "
@@ -150,9 +188,6 @@ def simulate(
             if bar is not None:
                 bar.update(1)
         recorder.multipliers[steps] = system.dynamics(q, v, t).multipliers
-    finally:
-        if bar is not None:
-            bar.close()
     recorder.wall_time = time.perf_counter() - start
     return recorder.trajectory(steps, _info(scene, system, integrator, dt, report))
 
@@ -169,6 +204,8 @@ class _Recorder:
         self.velocity_drift = np.zeros(n)
         self.energy = np.zeros(n)
         self.corrections = np.zeros(n, dtype=int)
+        self.spectral_radius = np.full(n, np.nan)
+        self.warned = False  # one warning per run when rho first reaches 1 mid-run
         self.wall_time = 0.0
 
     def record(self, k: int, t: float, q: np.ndarray, v: np.ndarray) -> float:
@@ -180,6 +217,19 @@ class _Recorder:
         self.position_drift[k] = np.max(np.abs(values.phi), initial=0.0)
         self.velocity_drift[k] = np.max(np.abs(values.velocity_residual), initial=0.0)
         self.energy[k] = self.system.energy(q, v)
+        radius = self.system.stabilizer.spectral_radius(self.system, q, v, t)
+        if radius is not None:
+            self.spectral_radius[k] = radius
+            if radius >= 1.0 and not self.warned and k > 0:
+                self.warned = True
+                warnings.warn(
+                    UnstableGainsWarning(
+                        f"at t = {t:.6g} s the deviation dynamics of method {self.system.stabilizer.name} reached "
+                        f"rho(R(tau W)) = {radius:.4g} >= 1 (state-dependent gains): constraint errors may grow "
+                        "from here"
+                    ),
+                    stacklevel=4,
+                )
         return float(self.position_drift[k])
 
     def trajectory(self, last: int, info: dict[str, Any]) -> Trajectory:
@@ -195,6 +245,7 @@ class _Recorder:
             wall_time=self.wall_time,
             info=info,
             correction_iterations=self.corrections[:n].copy(),
+            spectral_radius=self.spectral_radius[:n].copy(),
         )
 
 
@@ -221,6 +272,37 @@ def _info(
             "velocity_residual": report.velocity_residual,
         },
     }
+
+
+def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:
+    """Warn (or refuse with ``strict``) before stepping when rho(R(tau W)) >= 1 at the start; returns rho."""
+    stabilizer = system.stabilizer
+    radius = stabilizer.spectral_radius(system, q, v, 0.0)
+    if radius is None or radius < 1.0:
+        return radius
+    bound = largest_stable_step(*stabilizer.deviation_gains(system, q, v), stabilizer.scheme)
+    step = stabilizer.step
+    gains = stabilizer.parameters()
+    described = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in gains.items())
+    scale = bound / step
+    advice = f"stable for dt < {bound:.3g} s with these gains" if bound > 0 else "no step is stable with these gains"
+    if "kp" in gains or "stiffness" in gains:
+        kp = gains.get("kp", gains.get("stiffness"))
+        kd = gains.get("kd", gains.get("damping"))
+        advice += (
+            f"; at dt = {step:g} s, gains below Kp = {kp * scale**2:.3g}, Kd = {kd * scale:.3g} (the same ratio) "
+            "are stable"
+        )
+    message = (
+        f"method {stabilizer.name} ({described}) with {stabilizer.integrator} at dt = {step:g} s: the deviation "
+        f"dynamics have spectral radius rho(R(tau W)) = {radius:.4g} >= 1, so constraint errors grow instead of "
+        f"decaying. {advice[0].upper() + advice[1:]}; or use --method mukharlyamov, whose automatic gains are "
+        "placed for the step and the integrator."
+    )
+    if strict:
+        raise UnstableGainsError(message)
+    warnings.warn(UnstableGainsWarning(message), stacklevel=3)
+    return radius
 
 
 def _progress_bar(steps: int, label: str, enabled: bool):

@@ -54,8 +54,8 @@ class ConstrainedSystem:
             tau += element.generalized_force(self.kin, v, t)
         return tau
 
-    def dynamics(self, q: np.ndarray, v: np.ndarray, t: float) -> Evaluation:
-        """Accelerations and multipliers at (q, v, t).
+    def dynamics(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> Evaluation:
+        """Accelerations and multipliers at (q, v, t); ``stage`` is the integrator's stage index.
 
         Raises:
             DivergenceError: the state (or an integrator stage) is not finite.
@@ -66,7 +66,7 @@ class ConstrainedSystem:
         tau = self.applied_force(v, t)
         values = self.constraints.values(self.kin, q, v, t, with_drift=True)
         rhs = -values.drift
-        gamma = self.stabilizer.stabilization_term(values, self.constraints.holonomic_mask)
+        gamma = self.stabilizer.stabilization_term(self, q, v, t, values, stage)
         if gamma is not None:
             rhs = rhs + gamma
         problem = KKTProblem(q, v, tau, self.kin.mass_matrix, tau - self.kin.bias, values.jacobian, rhs)

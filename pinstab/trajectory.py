@@ -25,6 +25,8 @@ class Trajectory:
         position_drift: max |phi| per sample [m or rad]. velocity_drift: max |g| [m/s or rad/s].
         energy: total mechanical energy [J].
         correction_iterations: post-step projection iterations per sample (projection, post).
+        spectral_radius: rho(R(tau W)) of the deviation dynamics per sample (methods with a
+            stabilization term; NaN otherwise).
         wall_time: wall-clock time of the stepping loop [s].
         info: scene, method, integrator, solver, dt, gains, assembly report, constraint layout.
     """
@@ -39,6 +41,7 @@ class Trajectory:
     wall_time: float
     info: dict[str, Any] = field(default_factory=dict)
     correction_iterations: np.ndarray | None = None
+    spectral_radius: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -57,7 +60,8 @@ class Trajectory:
         finite_energy = self.energy[np.isfinite(self.energy)]
         assembly = self.info.get("assembly") or {}
         corrections = self.correction_iterations if self.correction_iterations is not None else np.zeros(1, int)
-        return {
+        radii = self.spectral_radius if self.spectral_radius is not None else np.full(1, np.nan)
+        summary = {
             "steps": self.steps,
             "wall_s": self.wall_time,
             "max_position_drift": float(np.max(self.position_drift)),
@@ -72,6 +76,9 @@ class Trajectory:
             "correction_iterations_max": int(corrections.max()),
             "solver_fallbacks": self.info.get("solver_fallbacks", 0),
         }
+        if np.any(np.isfinite(radii)):
+            summary["max_spectral_radius"] = float(np.nanmax(radii))
+        return summary
 
     def save(self, path: str | Path) -> Path:
         """Write an ``.npz`` file atomically (temp file + rename)."""
@@ -95,6 +102,9 @@ class Trajectory:
                 wall_time=self.wall_time,
                 info=json.dumps(self.info),
                 correction_iterations=self._corrections(),
+                spectral_radius=self.spectral_radius
+                if self.spectral_radius is not None
+                else np.full(len(self.t), np.nan),
             )
             os.replace(temp, path)
         finally:
@@ -123,6 +133,7 @@ class Trajectory:
                     wall_time=float(data["wall_time"]),
                     info=json.loads(str(data["info"])),
                     correction_iterations=data["correction_iterations"],
+                    spectral_radius=data["spectral_radius"],
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None

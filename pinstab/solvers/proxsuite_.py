@@ -45,6 +45,11 @@ class ProxsuiteSolver(KKTSolver):
             self._qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
             self._qp.update(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
         self._qp.solve()
+        if self._qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+            # a warm start far from the answer (a state changing fast) can stall: retry cold
+            self._qp = self._fresh(nv, rows)
+            self._qp.init(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+            self._qp.solve()
         results = self._qp.results
         status = results.info.status
         if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:

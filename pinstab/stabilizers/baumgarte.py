@@ -30,8 +30,12 @@ class BaumgarteStabilizer(Stabilizer):
                 raise PinstabError(f"baumgarte: gain {label} must be a finite number >= 0, got {value}")
         self.kp, self.kd = float(kp), float(kd)
 
-    def stabilization_term(self, values: ConstraintValues, holonomic_mask: np.ndarray) -> np.ndarray:
-        velocity_gain = np.where(holonomic_mask, self.kd, 0.5 * self.kd)
+    def deviation_gains(self, system, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        mask = system.constraints.holonomic_mask
+        return self.kp * np.eye(len(mask))[:, mask], np.diag(np.where(mask, self.kd, 0.5 * self.kd)), mask
+
+    def stabilization_term(self, system, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
+        velocity_gain = np.where(system.constraints.holonomic_mask, self.kd, 0.5 * self.kd)
         return -velocity_gain * values.velocity_residual - self.kp * values.phi
 
     def baumgarte_gains(self) -> tuple[float, float]:

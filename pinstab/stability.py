@@ -1,0 +1,230 @@
+"""The discrete stability criterion of the deviation dynamics (MATH.md 3.2-3.3, [M] section 5).
+
+The constraint deviations ``y = (q~, v~)`` (position residual on the m holonomic rows, velocity
+residual on all s rows) obey, linearized, ``dy/dt = W y`` with::
+
+    W = [[0, P], [-S, -K]]      P: s -> m picks the holonomic rows of v~
+
+An explicit scheme maps ``y_{k+1} = R(tau W) y_k + rho_k``; the deviations stay bounded when the
+spectral radius of R is below one. Besides the four schemes of the MATH.md table (stabilization term
+evaluated at every stage) there is ``held``: a Runge-Kutta step whose stabilization term is evaluated
+at the first stage and held over the step. The deviations then see a constant acceleration, which
+any scheme of order >= 2 integrates exactly: ``R = [[E - tau^2 P S / 2, tau P - tau^2 P K / 2],
+[-tau S, E - tau K]]``, first order ``E - tau K`` on nonholonomic rows.
+
+This module builds W and R, evaluates the radius, places the discrete eigenvalues at a chosen decay
+factor per step (automatic gains), and finds the largest stable step for given gains.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import PinstabError, choices
+
+# stability polynomials p(mu) of the Runge-Kutta schemes, R = p(tau W) (lowest degree first)
+POLYNOMIALS = {
+    "euler": (1.0, 1.0),
+    "heun": (1.0, 1.0, 0.5),
+    "rk4": (1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0),
+}
+SCHEMES = ("euler", "semi-implicit-euler", "heun", "rk4", "held")
+
+
+def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray) -> np.ndarray:
+    """W of the linearized deviation dynamics.
+
+    Args:
+        stiffness: S, s x m (rows: all constraint rows; columns: holonomic rows) [1/s^2].
+        damping: K, s x s [1/s].
+        holonomic_mask: which of the s rows are holonomic (m of them).
+    """
+    rows = len(holonomic_mask)
+    holonomic = int(np.count_nonzero(holonomic_mask))
+    pick = np.eye(rows)[holonomic_mask]  # m x s
+    return np.block([[np.zeros((holonomic, holonomic)), pick], [-stiffness, -damping]])
+
+
+def amplification(
+    stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
+) -> np.ndarray:
+    """R(tau W) of one step of ``scheme`` [dimensionless], per the MATH.md table."""
+    _check_scheme(scheme)
+    w = deviation_matrix(stiffness, damping, holonomic_mask)
+    n = w.shape[0]
+    if scheme in ("semi-implicit-euler", "held"):
+        holonomic = int(np.count_nonzero(holonomic_mask))
+        pick = w[:holonomic, holonomic:]
+        velocity_map = np.eye(n - holonomic) - step * damping
+        if scheme == "held":
+            return np.block(
+                [
+                    [
+                        np.eye(holonomic) - 0.5 * step**2 * pick @ stiffness,
+                        step * pick - 0.5 * step**2 * pick @ damping,
+                    ],
+                    [-step * stiffness, velocity_map],
+                ]
+            )
+        return np.block(
+            [
+                [np.eye(holonomic) - step**2 * pick @ stiffness, step * pick @ velocity_map],
+                [-step * stiffness, velocity_map],
+            ]
+        )
+    result = np.zeros((n, n))
+    power = np.eye(n)
+    for coefficient in POLYNOMIALS[scheme]:
+        result += coefficient * power
+        power = power @ (step * w)
+    return result
+
+
+def spectral_radius(matrix: np.ndarray) -> float:
+    """Largest eigenvalue modulus."""
+    if matrix.size == 0:
+        return 0.0
+    return float(np.max(np.abs(np.linalg.eigvals(matrix))))
+
+
+def scalar_radius(kp: float, kd: float, step: float, scheme: str, holonomic: bool = True) -> float:
+    """rho(R) for scalar gains: S = Kp, K = Kd on a holonomic row (2 x 2), or K = Kd alone."""
+    mask = np.array([holonomic])
+    stiffness = np.array([[kp]]) if holonomic else np.zeros((1, 0))
+    return spectral_radius(amplification(stiffness, np.array([[kd]]), mask, step, scheme))
+
+
+@dataclass(frozen=True)
+class PlacedGains:
+    """Gains that put every discrete eigenvalue at modulus ``decay`` per step.
+
+    Attributes:
+        stiffness: S on holonomic rows [1/s^2]. damping: K on holonomic rows [1/s].
+        first_order_damping: K on nonholonomic rows [1/s].
+        decay: the target r. achieved: rho(R) actually reached (holonomic block).
+        first_order_achieved: rho reached on a nonholonomic row (RK4 cannot go below 0.27).
+    """
+
+    stiffness: float
+    damping: float
+    first_order_damping: float
+    decay: float
+    achieved: float
+    first_order_achieved: float
+
+
+def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
+    """Scalar gains placing the eigenvalues of R(tau W) at ``decay`` (r in [0, 1)).
+
+    Closed forms for the Euler schemes (MATH.md 3.3) and for ``held`` (trace 2r and determinant
+    r^2 of its R give S = (1 - r)^2 / tau^2, K = (1 - r)(3 + r) / (2 tau)). For Heun and RK4, R = p(tau W), so the
+    eigenvalues of R are p(mu) for the eigenvalues mu of tau W: choosing mu1, mu2 as two roots of
+    p(mu) = r (a real pair or a conjugate pair, the one nearest zero) gives S = mu1 mu2 / tau^2,
+    K = -(mu1 + mu2) / tau with both eigenvalues exactly r. A real root may be taken twice (the
+    critically damped choice, as in the Euler closed forms); the pair nearest zero, i.e. the gentlest
+    gains, is used.
+    """
+    _check_scheme(scheme)
+    if not (0.0 <= decay < 1.0) or not math.isfinite(step) or step <= 0:
+        raise PinstabError(
+            f"gain placement needs a decay factor r in [0, 1) and a step > 0, got r = {decay}, dt = {step}"
+        )
+    if scheme in ("euler", "semi-implicit-euler", "held"):
+        stiffness = (1.0 - decay) ** 2 / step**2
+        damping = {
+            "euler": 2.0 * (1.0 - decay),
+            "semi-implicit-euler": 1.0 - decay**2,
+            "held": (1.0 - decay) * (3.0 + decay) / 2.0,
+        }[scheme] / step
+        first_order = (1.0 - decay) / step
+    else:
+        mu_pair = _root_pair(POLYNOMIALS[scheme], decay)
+        stiffness = float((mu_pair[0] * mu_pair[1]).real) / step**2
+        damping = float(-(mu_pair[0] + mu_pair[1]).real) / step
+        first_order = -_real_root_or_minimum(POLYNOMIALS[scheme], decay) / step
+    achieved = scalar_radius(stiffness, damping, step, scheme)
+    first = scalar_radius(0.0, first_order, step, scheme, holonomic=False)
+    return PlacedGains(stiffness, damping, first_order, decay, achieved, first)
+
+
+def _root_pair(coefficients: tuple[float, ...], decay: float) -> tuple[complex, complex]:
+    shifted = np.array(coefficients, dtype=float)
+    shifted[0] -= decay
+    roots = np.roots(shifted[::-1])
+    candidates = []
+    for i in range(len(roots)):
+        for j in range(i, len(roots)):
+            a, b = roots[i], roots[j]
+            if i == j and abs(a.imag) > 1e-9:
+                continue
+            product, total = a * b, a + b
+            if abs(product.imag) > 1e-9 or abs(total.imag) > 1e-9 or product.real <= 0 or total.real >= 0:
+                continue
+            candidates.append((max(abs(a), abs(b)), (a, b)))
+    if not candidates:
+        raise PinstabError(f"no gains place both eigenvalues at r = {decay}")
+    return min(candidates, key=lambda c: c[0])[1]
+
+
+def _real_root_or_minimum(coefficients: tuple[float, ...], decay: float) -> float:
+    """The negative real mu nearest zero with p(mu) = r, else the minimizer of p on the real axis."""
+    shifted = np.array(coefficients, dtype=float)
+    shifted[0] -= decay
+    roots = np.roots(shifted[::-1])
+    real = [r.real for r in roots if abs(r.imag) < 1e-9 and r.real < 0]
+    if real:
+        return max(real)
+    derivative = np.polyder(np.array(coefficients[::-1]))
+    stationary = [r.real for r in np.roots(derivative) if abs(r.imag) < 1e-9 and r.real < 0]
+    return min(stationary, key=lambda mu: np.polyval(np.array(coefficients[::-1]), mu))
+
+
+def largest_stable_step(
+    stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, scheme: str, upper: float = 10.0
+) -> float:
+    """The largest tau [s] with rho(R(tau W)) < 1 (scan from small steps, then bisect).
+
+    rho depends on tau^2 S and tau K only, so the same bound says which gains are stable at a given
+    step: S (tau_max / tau)^2 and K (tau_max / tau) sit exactly on the boundary.
+    """
+
+    def radius(tau: float) -> float:
+        return spectral_radius(amplification(stiffness, damping, holonomic_mask, tau, scheme))
+
+    steps = np.geomspace(1e-9, upper, 300)
+    unstable = [i for i, tau in enumerate(steps) if radius(tau) >= 1.0]
+    if not unstable:
+        return upper
+    first = unstable[0]
+    if first == 0:
+        return 0.0
+    low, high = steps[first - 1], steps[first]
+    for _ in range(60):
+        middle = math.sqrt(low * high)
+        if radius(middle) < 1.0:
+            low = middle
+        else:
+            high = middle
+    return float(low)
+
+
+def _check_scheme(scheme: str) -> None:
+    if scheme not in SCHEMES:
+        raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(SCHEMES)}")
+
+
+def perturbed_configuration(system, q: np.ndarray, size: float) -> np.ndarray:
+    """q moved ``size`` [rad or m, tangent-space norm] off the constraint manifold.
+
+    The displacement is along ``G^T 1`` (normalized), a direction that changes every constraint row
+    to first order and has no component along the manifold.
+    """
+    jac = system.constraint_values(q, np.zeros(system.nv), 0.0).jacobian
+    direction = jac.T @ np.ones(jac.shape[0])
+    norm = np.linalg.norm(direction)
+    if norm == 0.0:
+        raise PinstabError("the scene has no constraint rows to perturb")
+    return system.integrate(q, size * direction / norm)

@@ -1,0 +1,211 @@
+"""Stability maps: observed behaviour of a stabilizer over a (step, gain) grid beside the prediction
+rho(R(tau W)) = 1 of the discrete criterion (MATH.md 3.3)."""
+
+from __future__ import annotations
+
+import math
+import sys
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .assembly import assemble
+from .errors import DivergenceError, PinstabError, UnstableGainsWarning
+from .scene import Scene
+from .simulate import build_system, simulate
+from .stability import perturbed_configuration
+
+MAP_METHODS = ("baumgarte", "mukharlyamov", "pinocchio")
+CONVERGED_RATIO = 1e-2  # final / initial position drift at or below this: converged
+DIVERGED_RATIO = 1e3  # above this (the runs stop there) or non-finite: diverged; in between: bounded
+
+
+@dataclass
+class Cell:
+    """One (dt, gain) run.
+
+    Attributes:
+        dt: step [s]. kp: stiffness gain [1/s^2]. kd: damping gain 2 sqrt(kp) [1/s].
+        predicted_radius: rho(R(tau W)) at the start. observed: converged | bounded | diverged.
+        drift_ratio: final / initial position drift (inf when the run diverged).
+    """
+
+    dt: float
+    kp: float
+    kd: float
+    predicted_radius: float
+    observed: str
+    drift_ratio: float
+
+    @property
+    def predicted_stable(self) -> bool:
+        return self.predicted_radius < 1.0
+
+    @property
+    def agrees(self) -> bool:
+        return self.predicted_stable == (self.observed != "diverged")
+
+
+@dataclass
+class StabilityMap:
+    """The grid of cells and how often prediction and observation agree."""
+
+    scene: str
+    method: str
+    integrator: str
+    steps: int
+    perturbation: float
+    cells: list[Cell] = field(default_factory=list)
+
+    @property
+    def agreement(self) -> float:
+        """Fraction of cells where rho < 1 coincides with a run that did not diverge."""
+        return sum(c.agrees for c in self.cells) / len(self.cells) if self.cells else math.nan
+
+    def to_json(self) -> dict[str, Any]:
+        cells = []
+        for c in self.cells:
+            row = asdict(c)
+            row["predicted_stable"] = c.predicted_stable
+            row["drift_ratio"] = c.drift_ratio if math.isfinite(c.drift_ratio) else None
+            cells.append(row)
+        return {
+            "scene": self.scene,
+            "method": self.method,
+            "integrator": self.integrator,
+            "steps": self.steps,
+            "perturbation": self.perturbation,
+            "grid": [len({c.dt for c in self.cells}), len({c.kp for c in self.cells})],
+            "agreement": self.agreement,
+            "cells": cells,
+        }
+
+
+def stability_map(
+    scene: Scene,
+    method: str = "baumgarte",
+    integrator: str = "semi-implicit-euler",
+    dt_range: tuple[float, float] = (1e-4, 3e-2),
+    gain_range: tuple[float, float] = (1e2, 1e9),
+    grid: int = 40,
+    steps: int = 200,
+    perturbation: float = 0.01,
+    solver: str | None = "dense",
+    progress: bool = False,
+) -> StabilityMap:
+    """Run a grid of short simulations from a start ``perturbation`` [rad] off the manifold.
+
+    Args:
+        scene: the scene.
+        method: ``baumgarte``, ``pinocchio`` (Kp, Kd) or ``mukharlyamov`` (given kinematic gains
+            S = Kp, K = Kd, i.e. H = Kp E, B = Kd E).
+        integrator: the integrator.
+        dt_range: smallest and largest step [s] (log-spaced).
+        gain_range: smallest and largest Kp [1/s^2] (log-spaced); Kd = 2 sqrt(Kp).
+        grid: cells per axis.
+        steps: steps per run.
+        perturbation: size of the initial violation [rad, tangent norm].
+        solver: KKT backend for the runs (``dense`` is the fastest on non-redundant scenes).
+        progress: progress bar on stderr.
+    """
+    if method not in MAP_METHODS:
+        raise PinstabError(f"stability maps take methods {', '.join(MAP_METHODS)}, not {method!r}")
+    for label, (low, high) in (("dt range", dt_range), ("gain range", gain_range)):
+        if not (0 < low < high) or not math.isfinite(high):
+            raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
+    if grid < 2 or steps < 2:
+        raise PinstabError("grid and steps must be at least 2")
+    probe = build_system(scene, "none", solver)
+    start = assemble(probe, scene.q0, scene.v0)
+    q_off = perturbed_configuration(probe, start.q, perturbation)
+    result = StabilityMap(scene.name, method, integrator, steps, perturbation)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=grid * grid, desc=f"stability {scene.name}", unit="run", file=sys.stderr, mininterval=0.5)
+    for dt in np.geomspace(*dt_range, grid):
+        for kp in np.geomspace(*gain_range, grid):
+            result.cells.append(_cell(scene, method, integrator, float(dt), float(kp), steps, q_off, start.v, solver))
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    return result
+
+
+def _cell(scene, method, integrator, dt, kp, steps, q_off, v0, solver) -> Cell:
+    kd = 2.0 * math.sqrt(kp)
+    system = build_system(scene, method, solver, kp, kd)
+    system.stabilizer.bind(system, dt, integrator, q_off)
+    radius = system.stabilizer.spectral_radius(system, q_off, v0, 0.0)
+    initial = float(np.max(np.abs(system.constraint_values(q_off, v0, 0.0).phi)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableGainsWarning)
+        try:
+            run = simulate(
+                scene,
+                method=method,
+                integrator=integrator,
+                dt=dt,
+                duration=steps * dt,
+                solver=solver,
+                kp=kp,
+                kd=kd,
+                q0=q_off,
+                v0=v0,
+                assemble_initial=False,
+                drift_limit=DIVERGED_RATIO * initial,
+            )
+        except (DivergenceError, PinstabError):
+            return Cell(dt, kp, kd, radius, "diverged", math.inf)
+    ratio = float(run.position_drift[-1] / initial)
+    observed = "converged" if ratio <= CONVERGED_RATIO else ("bounded" if ratio <= DIVERGED_RATIO else "diverged")
+    return Cell(dt, kp, kd, radius, observed, ratio)
+
+
+def plot_stability_map(result: StabilityMap, path: str | Path) -> Path:
+    """Write a PNG: observed classes per cell, the predicted boundary rho = 1 drawn over them."""
+    from .plotting import pyplot, save_figure
+
+    plt = pyplot()
+    dts = np.array(sorted({c.dt for c in result.cells}))
+    gains = np.array(sorted({c.kp for c in result.cells}))
+    codes = {"converged": 0, "bounded": 1, "diverged": 2}
+    classes = np.zeros((len(gains), len(dts)))
+    radii = np.zeros((len(gains), len(dts)))
+    for c in result.cells:
+        i, j = int(np.searchsorted(gains, c.kp)), int(np.searchsorted(dts, c.dt))
+        classes[i, j] = codes[c.observed]
+        radii[i, j] = c.predicted_radius
+    fig, ax = plt.subplots(figsize=(7.0, 5.6), dpi=110)
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    colors = ["#4c9a2a", "#e0b43c", "#c0392b"]
+    ax.pcolormesh(_edges(dts), _edges(gains), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat")
+    ax.contour(dts, gains, radii, levels=[1.0], colors="black", linewidths=2.0)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("time step dt [s]")
+    ax.set_ylabel("Kp [1/s$^2$]  (Kd = 2$\\sqrt{Kp}$ [1/s])")
+    ax.set_title(
+        f"{result.scene}: {result.method} + {result.integrator}, {result.steps} steps from "
+        f"{result.perturbation:g} rad off\n"
+        f"observed vs predicted stability agree on {100 * result.agreement:.1f} % of cells",
+        fontsize=10,
+    )
+    handles = [Patch(color=c, label=name) for c, name in zip(colors, codes, strict=True)]
+    handles.append(plt.Line2D([], [], color="black", linewidth=2, label=r"predicted $\rho(R(\tau W)) = 1$"))
+    ax.legend(handles=handles, loc="lower left", fontsize=8, framealpha=0.9)
+    return save_figure(fig, path)
+
+
+def _edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges for log-spaced centres."""
+    logs = np.log(centres)
+    middle = (logs[1:] + logs[:-1]) / 2
+    return np.exp(np.concatenate([[2 * logs[0] - middle[0]], middle, [2 * logs[-1] - middle[-1]]]))

@@ -1,0 +1,189 @@
+"""``mukharlyamov``: the extended system with designed perturbation equations (MATH.md 3.2, [M]).
+
+The deviations ``q~ = phi`` (holonomic rows) and ``v~ = g`` (all rows) are driven by the Lagrange
+equations of ``L~ = 1/2 v~^T A v~ - 1/2 q~^T H q~`` with dissipation ``D~ = 1/2 v~^T B v~``:
+``dv~/dt = -S q~ - K v~`` with ``S = A^-1 H``, ``K = A^-1 (B + dA/dt)``, imposed through
+``gamma_stab = -S q~ - K v~``. Nonholonomic rows have no potential term (first order).
+
+Variants:
+
+* ``kinematic``: A = E. H and B are rates (1/s^2, 1/s); H = beta^2 E, B = 2 alpha E is Baumgarte.
+* ``inertial``: A = Lambda(q) = (G M^-1 G^T)^-1, the constraint-space inertia. H and B are a
+  physical stiffness and damping (N/m, N s/m) acting on the violated constraint; dA/dt is taken
+  as a forward difference of G M^-1 G^T along the motion (step 1e-7 s).
+
+Gains are either given (H = stiffness E, B = damping E) or automatic: placed from the step and the
+integrator so that every eigenvalue of the amplification matrix R(tau W) has modulus ``decay`` per
+step (:func:`pinstab.stability.place_gains`); in the inertial variant the automatic H and B are
+those gains times Lambda at the start of the run. With heun and rk4 the term is evaluated at the
+first stage and held over the step (scheme ``held``): evaluated at every stage, gains of order
+1/tau^2 turn the stages' O(tau^2) excursions off the manifold into O(1) accelerations and RK4 loses
+its accuracy (benchmarks/decay_factor.py: drift 8e-6 instead of 3e-11 at dt = 1e-3, r = 0).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..constraints import ConstraintValues
+from ..errors import PinstabError, choices
+from ..kinematics import Kinematics
+from ..stability import place_gains
+from .base import Stabilizer
+
+if TYPE_CHECKING:
+    from ..system import ConstrainedSystem
+
+VARIANTS = ("kinematic", "inertial")
+MULTISTAGE = ("heun", "rk4")
+# per-step decay factor r of the automatic gains, measured by benchmarks/decay_factor.py: dead-beat
+# (r = 0) repairs a violation fastest and leaves the lowest drift in every kinematic row; the
+# inertial variant's rate follows Lambda(q), which changes ~2x over the four-bar's motion, and
+# dead-beat gains then leave no margin (it diverges), while r = 0.3 stays stable with a small drift.
+DEFAULT_DECAY = {"kinematic": 0.0, "inertial": 0.3}
+RATE_STEP = 1e-7  # [s] forward-difference step for dA/dt in the inertial variant
+RCOND = 1e-10
+
+
+class MukharlyamovStabilizer(Stabilizer):
+    """Extended-system stabilization.
+
+    Args:
+        variant: ``kinematic`` (A = E) or ``inertial`` (A = Lambda(q)).
+        stiffness: H = stiffness E [1/s^2 kinematic, N/m inertial]; None for automatic gains.
+        damping: B = damping E [1/s kinematic, N s/m inertial]; None for automatic gains.
+        decay: per-step decay factor r in [0, 1) of the automatic gains (default
+            :data:`DEFAULT_DECAY` of the variant).
+        hold: with a multi-stage integrator (heun, rk4), evaluate the term at the first stage and
+            hold it over the step (the ``held`` amplification matrix) instead of at every stage.
+    """
+
+    name = "mukharlyamov"
+
+    def __init__(
+        self,
+        variant: str = "kinematic",
+        stiffness: float | None = None,
+        damping: float | None = None,
+        decay: float | None = None,
+        hold: bool = True,
+    ) -> None:
+        if variant not in VARIANTS:
+            raise PinstabError(f"mukharlyamov: unknown variant {variant!r}; valid variants: {choices(VARIANTS)}")
+        if (stiffness is None) != (damping is None):
+            raise PinstabError(
+                "mukharlyamov: give both stiffness (--kp) and damping (--kd), or neither for automatic gains"
+            )
+        for label, value in (("stiffness", stiffness), ("damping", damping)):
+            if value is not None and (not math.isfinite(value) or value < 0):
+                raise PinstabError(f"mukharlyamov: {label} must be a finite number >= 0, got {value}")
+        decay = DEFAULT_DECAY.get(variant, 0.0) if decay is None else decay
+        if not (0.0 <= decay < 1.0):
+            raise PinstabError(f"mukharlyamov: decay factor r must be in [0, 1), got {decay}")
+        self.variant, self.decay = variant, float(decay)
+        self.stiffness, self.damping = stiffness, damping
+        self.automatic = stiffness is None
+        self.hold = hold
+        self._bound = False
+
+    # -- set-up --------------------------------------------------------------------------------
+    def bind(self, system: ConstrainedSystem, step: float, integrator: str, q: np.ndarray) -> None:
+        super().bind(system, step, integrator, q)
+        mask = self.mask
+        self.constant_gains = self.variant == "kinematic"
+        self.holding = self.hold and integrator in MULTISTAGE
+        if self.holding:
+            self.scheme = "held"
+        if self.automatic:
+            placed = place_gains(step, self.scheme, self.decay)
+            rate_stiffness = placed.stiffness
+            rate_damping = np.where(mask, placed.damping, placed.first_order_damping)
+            self.placed = placed
+        else:
+            rate_stiffness = float(self.stiffness)
+            rate_damping = np.full(len(mask), float(self.damping))
+        self._pick = np.eye(len(mask))[:, mask]  # s x m: holonomic columns
+        if self.variant == "kinematic":
+            self._s_scalar, self._k_diagonal = rate_stiffness, rate_damping
+        else:
+            self._rate_kin = Kinematics(system.model)
+            self._h_matrix, self._b_matrix = self._physical_gains(system, q, rate_stiffness, rate_damping)
+        self._bound = True
+
+    def _physical_gains(
+        self, system: ConstrainedSystem, q0: np.ndarray, stiffness: float, damping: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H (s x m, zero-padded) and B (s x s) of the inertial variant; automatic ones scale Lambda(q0)."""
+        if not self.automatic:
+            return stiffness * self._pick, np.diag(damping)
+        system.kin.update_jacobians(q0)
+        jac = system.constraints.velocity_terms(system.kin, q0, 0.0)[0]
+        inertia = np.linalg.pinv(jac @ np.linalg.solve(system.mass_matrix(q0), jac.T), rcond=RCOND)
+        weighted = inertia @ np.diag(damping)
+        return stiffness * inertia @ self._pick, 0.5 * (weighted + weighted.T)
+
+    # -- the term ----------------------------------------------------------------------------------
+    def stabilization_term(self, system, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
+        if not self._bound:
+            raise PinstabError("mukharlyamov: bind() the stabilizer to a step and an integrator before use")
+        if self.holding and stage > 0:
+            return self._held_term
+        if self.variant == "kinematic":
+            term = -self._s_scalar * values.phi - self._k_diagonal * values.velocity_residual
+        else:
+            stiffness, damping = self._inertial_matrices(system, q, v, values.jacobian, system.kin.mass_matrix)
+            term = -stiffness @ values.phi[self.mask] - damping @ values.velocity_residual
+        self._held_term = term
+        return term
+
+    def _inertial_matrices(self, system, q, v, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
+        """S = D H and K = D B - dD/dt Lambda (D = G M^-1 G^T = Lambda^-1, so D dLambda/dt = -dD/dt Lambda)."""
+        delassus = jac @ np.linalg.solve(mass_matrix, jac.T)
+        q_ahead = system.integrate(q, RATE_STEP * v)
+        self._rate_kin.update_jacobians(q_ahead)
+        jac_ahead = system.constraints.velocity_terms(self._rate_kin, q_ahead, 0.0)[0]
+        delassus_ahead = jac_ahead @ np.linalg.solve(system.mass_matrix(q_ahead), jac_ahead.T)
+        delassus_rate = (delassus_ahead - delassus) / RATE_STEP
+        inertia = np.linalg.pinv(delassus, rcond=RCOND)
+        return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
+
+    # -- the criterion -------------------------------------------------------------------------------
+    def deviation_gains(self, system, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.variant == "kinematic":
+            return self._s_scalar * self._pick, np.diag(self._k_diagonal), self.mask
+        system.kin.update(q, v)
+        jac = system.constraints.velocity_terms(system.kin, q, 0.0)[0]
+        stiffness, damping = self._inertial_matrices(system, q, v, jac, system.kin.mass_matrix)
+        return _on_row_space(jac, stiffness, damping, self.mask)
+
+    def parameters(self) -> dict[str, float | str]:
+        report: dict[str, float | str] = {"variant": self.variant, "gains": "auto" if self.automatic else "given"}
+        if self._bound:
+            report["scheme"] = self.scheme
+        if self.automatic:
+            report["decay"] = self.decay
+            if self._bound:
+                report.update(stiffness=self.placed.stiffness, damping=self.placed.damping)
+        else:
+            report.update(stiffness=float(self.stiffness), damping=float(self.damping))
+        return report
+
+
+def _on_row_space(
+    jac: np.ndarray, stiffness: np.ndarray, damping: np.ndarray, mask: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Restrict S, K to the deviations that can occur: g = G v lies in range(G), and so (to first
+    order) does phi. With redundant rows Lambda = pinv(G M^-1 G^T) leaves the redundant direction
+    without stiffness or damping, a marginal eigenvalue of R that says nothing about stability.
+    Only applied when every row is holonomic (then S is square)."""
+    if not mask.all():
+        return stiffness, damping, mask
+    left, singular, _ = np.linalg.svd(jac, full_matrices=False)
+    rank = int(np.sum(singular > 1e-9 * max(singular[0], 1e-300))) if singular.size else 0
+    if rank == len(mask):
+        return stiffness, damping, mask
+    basis = left[:, :rank]
+    return basis.T @ stiffness @ basis, basis.T @ damping @ basis, np.ones(rank, dtype=bool)
