@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 from .errors import PinstabError
+from .files import atomic_output
 
 
 def pyplot() -> Any:
@@ -23,19 +22,10 @@ def pyplot() -> Any:
 
 
 def save_figure(fig: Any, path: str | Path) -> Path:
-    """Save a figure as PNG through a temporary file in the target folder, then close it."""
-    path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise PinstabError(f"charts are written as .png; got {path.name!r}")
-    if not path.parent.is_dir():
-        raise PinstabError(f"cannot write {path}: folder {path.parent} does not exist")
-    handle, temp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(handle)
+    """Save a figure as PNG atomically, then close it."""
     try:
-        fig.savefig(temp, format="png", bbox_inches="tight")
-        os.replace(temp, path)
+        with atomic_output(path, ".png", "chart") as temp:
+            fig.savefig(temp, format="png", bbox_inches="tight")
     finally:
-        if os.path.exists(temp):
-            os.remove(temp)
         pyplot().close(fig)
-    return path
+    return Path(path)

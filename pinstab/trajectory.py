@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .errors import PinstabError
+from .files import atomic_output
 
 
 @dataclass
@@ -43,6 +42,12 @@ class Trajectory:
     correction_iterations: np.ndarray | None = None
     spectral_radius: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        if self.correction_iterations is None:
+            self.correction_iterations = np.zeros(len(self.t), dtype=int)
+        if self.spectral_radius is None:
+            self.spectral_radius = np.full(len(self.t), np.nan)
+
     @property
     def steps(self) -> int:
         return len(self.t) - 1
@@ -59,8 +64,8 @@ class Trajectory:
         """The figures ``pinstab run --json`` prints."""
         finite_energy = self.energy[np.isfinite(self.energy)]
         assembly = self.info.get("assembly") or {}
-        corrections = self.correction_iterations if self.correction_iterations is not None else np.zeros(1, int)
-        radii = self.spectral_radius if self.spectral_radius is not None else np.full(1, np.nan)
+        corrections = self.correction_iterations
+        radii = self.spectral_radius
         summary = {
             "steps": self.steps,
             "wall_s": self.wall_time,
@@ -78,18 +83,22 @@ class Trajectory:
         }
         if np.any(np.isfinite(radii)):
             summary["max_spectral_radius"] = float(np.nanmax(radii))
+        summary["drift_growth_exponent"] = self.drift_growth_exponent()
         return summary
+
+    def drift_growth_exponent(self) -> float | None:
+        """p in position drift ~ t^p, fitted (log-log) over the second half of the run; None when the
+        drift there is zero or the run is too short. About 2 for an unstabilized run (MATH.md 3)."""
+        half = len(self.t) // 2
+        t, drift = self.t[half:], self.position_drift[half:]
+        keep = (t > 0) & (drift > 0) & np.isfinite(drift)
+        if np.count_nonzero(keep) < 10 or np.ptp(np.log(t[keep])) == 0:
+            return None
+        return float(np.polyfit(np.log(t[keep]), np.log(drift[keep]), 1)[0])
 
     def save(self, path: str | Path) -> Path:
         """Write an ``.npz`` file atomically (temp file + rename)."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            raise PinstabError(f"trajectory files are .npz; got {path.name!r}")
-        if not path.parent.exists():
-            raise PinstabError(f"cannot save {path}: folder {path.parent} does not exist")
-        handle, temp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
-        os.close(handle)
-        try:
+        with atomic_output(path, ".npz", "trajectory") as temp:
             np.savez_compressed(
                 temp,
                 t=self.t,
@@ -101,21 +110,10 @@ class Trajectory:
                 energy=self.energy,
                 wall_time=self.wall_time,
                 info=json.dumps(self.info),
-                correction_iterations=self._corrections(),
-                spectral_radius=self.spectral_radius
-                if self.spectral_radius is not None
-                else np.full(len(self.t), np.nan),
+                correction_iterations=self.correction_iterations,
+                spectral_radius=self.spectral_radius,
             )
-            os.replace(temp, path)
-        finally:
-            if os.path.exists(temp):
-                os.remove(temp)
-        return path
-
-    def _corrections(self) -> np.ndarray:
-        if self.correction_iterations is None:
-            return np.zeros(len(self.t), dtype=int)
-        return self.correction_iterations
+        return Path(path)
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:

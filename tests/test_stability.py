@@ -1,0 +1,97 @@
+"""The discrete criterion: amplification matrices against the schemes written out by hand, gain
+placement, stable-step bounds, and the criterion's predictions against real runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pinstab.stability import SCHEMES, amplification, largest_stable_step, place_gains, scalar_radius, spectral_radius
+
+
+def one_step(scheme, stiffness, damping, step, y):
+    """One step of the deviation ODE  y' = v, v' = -S y - K v  (scalar), written out per scheme."""
+
+    def rate(state):
+        position, velocity = state
+        return np.array([velocity, -stiffness * position - damping * velocity])
+
+    if scheme == "euler":
+        return y + step * rate(y)
+    if scheme == "semi-implicit-euler":
+        velocity = y[1] + step * (-stiffness * y[0] - damping * y[1])
+        return np.array([y[0] + step * velocity, velocity])
+    if scheme == "heun":
+        k1 = rate(y)
+        k2 = rate(y + step * k1)
+        return y + step / 2 * (k1 + k2)
+    if scheme == "rk4":
+        k1 = rate(y)
+        k2 = rate(y + step / 2 * k1)
+        k3 = rate(y + step / 2 * k2)
+        k4 = rate(y + step * k3)
+        return y + step / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    # held: the acceleration of the first stage, held over the step and integrated exactly
+    acceleration = -stiffness * y[0] - damping * y[1]
+    return np.array([y[0] + step * y[1] + step**2 / 2 * acceleration, y[1] + step * acceleration])
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_amplification_matches_the_scheme_written_out(scheme):
+    rng = np.random.default_rng(1)
+    mask = np.array([True])
+    for _ in range(5):
+        stiffness, damping, step = 10 ** rng.uniform(0, 6), 10 ** rng.uniform(0, 3), 10 ** rng.uniform(-4, -2)
+        y = rng.standard_normal(2)
+        matrix = amplification(np.array([[stiffness]]), np.array([[damping]]), mask, step, scheme)
+        np.testing.assert_allclose(matrix @ y, one_step(scheme, stiffness, damping, step, y), rtol=1e-12, atol=1e-12)
+
+
+def test_amplification_with_a_nonholonomic_row_is_first_order():
+    """One holonomic and one nonholonomic row, coupled through K: the nonholonomic deviation has no
+    position part, so R is 3 x 3 and its last row is the first-order update."""
+    stiffness = np.array([[400.0], [0.0]])
+    damping = np.array([[40.0, 5.0], [3.0, 30.0]])
+    matrix = amplification(stiffness, damping, np.array([True, False]), 1e-3, "euler")
+    expected = np.eye(3) + 1e-3 * np.array([[0, 1, 0], [-400, -40, -5], [0, -3, -30]])
+    np.testing.assert_allclose(matrix, expected, rtol=1e-14)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+@pytest.mark.parametrize("decay", [0.0, 0.2, 0.5, 0.9])
+def test_placed_gains_put_every_eigenvalue_at_the_decay_factor(scheme, decay):
+    placed = place_gains(2e-3, scheme, decay)
+    # a defective double eigenvalue r is resolved to about sqrt(machine epsilon)
+    assert placed.achieved == pytest.approx(decay, abs=1e-7)
+    assert placed.stiffness > 0 and placed.damping > 0
+    # a first-order row sees p(mu) on the real axis, which Heun keeps >= 1/2 and RK4 >= 0.27039
+    floor = {"heun": 0.5, "rk4": 0.27039}.get(scheme, 0.0)
+    assert placed.first_order_achieved == pytest.approx(max(decay, floor), abs=1e-4)
+
+
+def test_euler_closed_forms_of_math_md():
+    tau, r = 1e-3, 0.3
+    explicit, symplectic = place_gains(tau, "euler", r), place_gains(tau, "semi-implicit-euler", r)
+    assert explicit.damping == pytest.approx(2 * (1 - r) / tau) and explicit.stiffness == pytest.approx(
+        (1 - r) ** 2 / tau**2
+    )
+    assert symplectic.damping == pytest.approx((1 - r**2) / tau) and symplectic.stiffness == pytest.approx(
+        (1 - r) ** 2 / tau**2
+    )
+
+
+def test_baumgarte_semi_implicit_boundary_is_two_alpha_tau_equals_two():
+    """det R = 1 - tau Kd for semi-implicit Euler (MATH.md 3.3): Kd tau = 2 is the boundary."""
+    assert scalar_radius(1e6, 2e3, 1e-3, "semi-implicit-euler") > 1.0
+    bound = largest_stable_step(np.array([[1e6]]), np.array([[2e3]]), np.array([True]), "semi-implicit-euler")
+    assert (
+        scalar_radius(1e6, 2e3, 0.999 * bound, "semi-implicit-euler")
+        < 1.0
+        <= scalar_radius(1e6, 2e3, 1.001 * bound, "semi-implicit-euler")
+    )
+    # with Kp = 1e6 the trace condition binds first: 2 - tau^2 Kp - tau Kd = -(1 + det), tau = 2 (sqrt 2 - 1) / 1e3
+    assert bound == pytest.approx(2 * (np.sqrt(2) - 1) * 1e-3, rel=1e-9)
+
+
+def test_spectral_radius_of_empty_matrix_is_zero():
+    assert spectral_radius(np.zeros((0, 0))) == 0.0
