@@ -29,8 +29,17 @@ OUT = Path(__file__).parent / "results" / "decay_factor.json"
 
 def measure(scene, integrator, dt, q_off, v0, **method):
     try:
-        repair = pinstab.simulate(scene, integrator=integrator, dt=dt, duration=300 * dt, solver="dense",
-                                  q0=q_off, v0=v0, assemble_initial=False, **method)
+        repair = pinstab.simulate(
+            scene,
+            integrator=integrator,
+            dt=dt,
+            duration=300 * dt,
+            solver="dense",
+            q0=q_off,
+            v0=v0,
+            assemble_initial=False,
+            **method,
+        )
         below = np.flatnonzero(repair.position_drift <= 1e-3 * repair.position_drift[0])
         steps = int(below[0]) if below.size else None
         steady = pinstab.simulate(scene, integrator=integrator, dt=dt, duration=2.0, solver="dense", **method)
@@ -54,8 +63,9 @@ def main() -> None:
             cells["baumgarte"] = measure(scene, integrator, dt, q_off, start.v, method="baumgarte")
             rows.append({"integrator": integrator, "hold": hold, "dt": dt, **cells})
             text = "  ".join(
-                f"{name}: {c['steps'] if c['steps'] is not None else '-':>4} / "
-                f"{c['floor']:.1e}" if c["floor"] is not None else f"{name}: diverged"
+                f"{name}: {c['steps'] if c['steps'] is not None else '-':>4} / {c['floor']:.1e}"
+                if c["floor"] is not None
+                else f"{name}: diverged"
                 for name, c in cells.items()
             )
             label = integrator + (" held" if hold and integrator != "semi-implicit-euler" else "")

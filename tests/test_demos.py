@@ -28,3 +28,10 @@ def test_user_constraint_matches_closed_form():
     out = run_demo("user_constraint.py")
     error = float(re.search(r"closed form\| over 2 s: ([0-9.e+-]+) N", out).group(1))
     assert error < 1e-6
+
+
+def test_stability_map_demo_writes_a_map(tmp_path):
+    out = run_demo("stability_map.py", "--grid", "5", "-o", str(tmp_path / "map.png"))
+    agreement = float(re.search(r"agree on ([0-9.]+) % of 25 cells", out).group(1))
+    assert agreement >= 80.0
+    assert (tmp_path / "map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -95,3 +95,31 @@ def test_baumgarte_semi_implicit_boundary_is_two_alpha_tau_equals_two():
 
 def test_spectral_radius_of_empty_matrix_is_zero():
     assert spectral_radius(np.zeros((0, 0))) == 0.0
+
+
+def test_stability_map_agrees_with_the_criterion(tmp_path):
+    """A small map on the four-bar: prediction and observation agree on most cells, both regions occur,
+    and the PNG and JSON are written."""
+    import json
+
+    import pinstab
+    from pinstab.cli import main
+    from pinstab.stability_map import plot_stability_map, stability_map
+
+    result = stability_map(pinstab.load_scene("fourbar"), integrator="semi-implicit-euler", grid=8, steps=100)
+    assert result.agreement >= 0.9
+    observed = {c.observed for c in result.cells}
+    assert {"converged", "diverged"} <= observed
+    png = plot_stability_map(result, tmp_path / "map.png")
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert main(["stability", "fourbar", "--grid", "3", "--steps", "50", "--json", "--quiet", "-o", str(tmp_path / "m.png")]) == 0
+
+
+def test_stability_map_refuses_bad_ranges():
+    import pinstab
+    from pinstab.stability_map import stability_map
+
+    with pytest.raises(pinstab.PinstabError, match="dt range must be two increasing positive numbers"):
+        stability_map(pinstab.load_scene("fourbar"), dt_range=(1e-2, 1e-3))
+    with pytest.raises(pinstab.PinstabError, match="stability maps take methods"):
+        stability_map(pinstab.load_scene("fourbar"), method="projection")
