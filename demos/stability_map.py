@@ -30,8 +30,10 @@ def main() -> None:
     result = stability_map(pinstab.load_scene(args.scene), integrator=args.integrator, grid=args.grid, progress=True)
     plot_stability_map(result, args.output)
     counts = {name: sum(c.observed == name for c in result.cells) for name in ("converged", "bounded", "diverged")}
-    print(f"{args.scene} + {args.integrator}: {counts}; prediction and observation agree on "
-          f"{100 * result.agreement:.1f} % of {len(result.cells)} cells -> {args.output}")
+    print(
+        f"{args.scene} + {args.integrator}: {counts}; prediction and observation agree on "
+        f"{100 * result.agreement:.1f} % of {len(result.cells)} cells -> {args.output}"
+    )
 
 
 if __name__ == "__main__":

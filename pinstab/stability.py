@@ -216,6 +216,17 @@ def _check_scheme(scheme: str) -> None:
         raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(SCHEMES)}")
 
 
+def perturbed_start(scene, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's assembled start, moved ``size`` [rad or m] off the manifold: (q, v) for a run
+    with ``assemble_initial=False`` that shows how a method repairs a violation."""
+    from .assembly import assemble
+    from .simulate import build_system
+
+    system = build_system(scene, "none", "dense")
+    start = assemble(system, scene.q0, scene.v0)
+    return perturbed_configuration(system, start.q, size), start.v
+
+
 def perturbed_configuration(system, q: np.ndarray, size: float) -> np.ndarray:
     """q moved ``size`` [rad or m, tangent-space norm] off the constraint manifold.
 

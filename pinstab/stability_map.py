@@ -12,11 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsWarning
 from .scene import Scene
 from .simulate import build_system, simulate
-from .stability import perturbed_configuration
+from .stability import perturbed_start
 
 MAP_METHODS = ("baumgarte", "mukharlyamov", "pinocchio")
 CONVERGED_RATIO = 1e-2  # final / initial position drift at or below this: converged
@@ -118,9 +117,7 @@ def stability_map(
             raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
     if grid < 2 or steps < 2:
         raise PinstabError("grid and steps must be at least 2")
-    probe = build_system(scene, "none", solver)
-    start = assemble(probe, scene.q0, scene.v0)
-    q_off = perturbed_configuration(probe, start.q, perturbation)
+    q_off, v0 = perturbed_start(scene, perturbation)
     result = StabilityMap(scene.name, method, integrator, steps, perturbation)
     bar = None
     if progress:
@@ -129,7 +126,7 @@ def stability_map(
         bar = tqdm(total=grid * grid, desc=f"stability {scene.name}", unit="run", file=sys.stderr, mininterval=0.5)
     for dt in np.geomspace(*dt_range, grid):
         for kp in np.geomspace(*gain_range, grid):
-            result.cells.append(_cell(scene, method, integrator, float(dt), float(kp), steps, q_off, start.v, solver))
+            result.cells.append(_cell(scene, method, integrator, float(dt), float(kp), steps, q_off, v0, solver))
             if bar is not None:
                 bar.update(1)
     if bar is not None:

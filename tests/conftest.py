@@ -20,3 +20,62 @@ def data_dir() -> Path:
 def random_configuration(model: pin.Model, rng: np.random.Generator, scale: float = 1.0) -> np.ndarray:
     """A configuration a random tangent step away from neutral (valid on every joint group)."""
     return pin.integrate(model, pin.neutral(model), scale * rng.standard_normal(model.nv))
+
+
+FOURBAR_LOOP = {
+    "name": "loop",
+    "kind": "planar-point",
+    "plane": "xy",
+    "frame_a": "coupler",
+    "offset_a": [0.6, 0, 0],
+    "frame_b": "rocker",
+    "offset_b": [0.5, 0, 0],
+}
+
+
+def fourbar_dict(**changes) -> dict:
+    """Scene-file content of the bundled four-bar (closure named ``loop``), with top-level keys replaced."""
+    data = {
+        "robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")},
+        "gravity": [0.0, -9.81, 0.0],
+        "closures": [dict(FOURBAR_LOOP)],
+        "initial": {"q": {"crank": 1.0, "coupler": -0.9, "rocker": 1.6}, "v": {"crank": 3.0}},
+    }
+    data.update(changes)
+    return data
+
+
+def coupler_spring(stiffness: float, damping: float = 0.0, rest_length: float = 0.3, anchor=(0.2, 0.6, 0.0)) -> dict:
+    """A spring-damper from the four-bar coupler's midpoint to a world point."""
+    return {
+        "name": "spring",
+        "kind": "spring-damper",
+        "frame_a": "coupler",
+        "offset_a": [0.3, 0.0, 0.0],
+        "offset_b": list(anchor),
+        "stiffness": stiffness,
+        "damping": damping,
+        "rest_length": rest_length,
+    }
+
+
+def pendulum_scene(length: float, gravity: float, initial: dict | None = None):
+    """The point mass of tests/data/point_mass.urdf on a rod: phi = x^2 + y^2 - l^2 (a user constraint)."""
+    from pinstab import HolonomicConstraint
+    from pinstab.scene import scene_from_dict
+
+    data = {"robot": {"urdf": str(DATA / "point_mass.urdf")}, "gravity": [0.0, -gravity, 0.0]}
+    if initial is not None:
+        data["initial"] = initial
+    scene = scene_from_dict(data, name="pendulum")
+    scene.add_constraint(
+        HolonomicConstraint(
+            "rod",
+            1,
+            residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - length**2]),
+            jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
+            drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
+            nv=2,
+        )
+    )
+    return scene

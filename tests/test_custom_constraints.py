@@ -16,37 +16,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinstab import HolonomicConstraint, PfaffianConstraint, simulate
+from conftest import pendulum_scene
+from pinstab import PfaffianConstraint, simulate
 from pinstab.scene import scene_from_dict
 
 MASS, LENGTH, GRAVITY = 2.0, 0.8, 9.81
-
-
-def pendulum_scene(data_dir):
-    scene = scene_from_dict(
-        {
-            "robot": {"urdf": str(data_dir / "point_mass.urdf")},
-            "gravity": [0.0, -GRAVITY, 0.0],
-            "initial": {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}, "v": {"x": 0.5}},
-        },
-        name="pendulum",
-    )
-    scene.add_constraint(
-        HolonomicConstraint(
-            "rod",
-            1,
-            residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - LENGTH**2]),
-            jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
-            drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
-            nv=2,
-        )
-    )
-    return scene
+PENDULUM_START = {"q": {"x": LENGTH * np.sin(0.9), "y": -LENGTH * np.cos(0.9)}, "v": {"x": 0.5}}
 
 
 @pytest.mark.parametrize("method", ["baumgarte", "projection"])
-def test_pendulum_multiplier_matches_closed_form(data_dir, method):
-    traj = simulate(pendulum_scene(data_dir), method=method, integrator="rk4", dt=1e-3, duration=2.0)
+def test_pendulum_multiplier_matches_closed_form(method):
+    traj = simulate(
+        pendulum_scene(LENGTH, GRAVITY, PENDULUM_START), method=method, integrator="rk4", dt=1e-3, duration=2.0
+    )
     theta = np.arctan2(traj.q[:, 0], -traj.q[:, 1])
     x, y = traj.q[0]
     vx, vy = traj.v[0]

@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from conftest import ROBOTS, random_configuration
+from conftest import coupler_spring, fourbar_dict, random_configuration
 from pinstab import load_scene, simulate
 from pinstab.forces import JointTorque
 from pinstab.kinematics import Kinematics
@@ -14,36 +14,7 @@ from pinstab.scene import scene_from_dict
 
 
 def spring_scene(stiffness=40.0, damping=0.0, rest=0.3):
-    return scene_from_dict(
-        {
-            "robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")},
-            "gravity": [0.0, -9.81, 0.0],
-            "closures": [
-                {
-                    "name": "loop",
-                    "kind": "planar-point",
-                    "plane": "xy",
-                    "frame_a": "coupler",
-                    "offset_a": [0.6, 0, 0],
-                    "frame_b": "rocker",
-                    "offset_b": [0.5, 0, 0],
-                }
-            ],
-            "forces": [
-                {
-                    "name": "spring",
-                    "kind": "spring-damper",
-                    "frame_a": "coupler",
-                    "offset_a": [0.3, 0.0, 0.0],
-                    "offset_b": [0.2, 0.6, 0.0],
-                    "stiffness": stiffness,
-                    "damping": damping,
-                    "rest_length": rest,
-                }
-            ],
-            "initial": {"q": {"crank": 1.0, "coupler": -0.9, "rocker": 1.6}, "v": {"crank": 3.0}},
-        }
-    )
+    return scene_from_dict(fourbar_dict(forces=[coupler_spring(stiffness, damping, rest)]))
 
 
 def test_spring_force_is_minus_energy_gradient():

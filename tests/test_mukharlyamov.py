@@ -6,18 +6,17 @@ import numpy as np
 import pytest
 
 import pinstab
+from conftest import coupler_spring, fourbar_dict, pendulum_scene
 from pinstab import DivergenceError, SolverError, UnstableGainsError, UnstableGainsWarning, simulate
 from pinstab.cli import main
 from pinstab.scene import scene_from_dict
 from pinstab.simulate import build_system
-from pinstab.stability import perturbed_configuration
+from pinstab.stability import perturbed_start
 
 
 def off_manifold_start(scene_name="fourbar", size=0.05):
     scene = pinstab.load_scene(scene_name)
-    system = build_system(scene, "none", "dense")
-    start = pinstab.assemble(system, scene.q0, scene.v0)
-    return scene, perturbed_configuration(system, start.q, size), start.v
+    return (scene, *perturbed_start(scene, size))
 
 
 @pytest.mark.parametrize("integrator", ["semi-implicit-euler", "rk4"])
@@ -59,21 +58,11 @@ def test_held_rk4_keeps_its_accuracy():
     assert extended.position_drift.max() < baumgarte.position_drift.max()
 
 
-def test_inertial_variant_is_a_spring_damper_on_the_violation(data_dir):
+def test_inertial_variant_is_a_spring_damper_on_the_violation():
     """Pendulum as a point mass, phi = x^2 + y^2 - l^2: Lambda = m / (4 l^2) is constant on the manifold,
     so with H = k and B = c the violation obeys Lambda phi'' + c phi' + k phi = 0 (closed form)."""
     mass, length = 2.0, 0.8
-    scene = scene_from_dict({"robot": {"urdf": str(data_dir / "point_mass.urdf")}, "gravity": [0.0, -9.81, 0.0]})
-    scene.add_constraint(
-        pinstab.HolonomicConstraint(
-            "rod",
-            1,
-            residual=lambda q, t: np.array([q[0] ** 2 + q[1] ** 2 - length**2]),
-            jacobian=lambda q, t: np.array([[2 * q[0], 2 * q[1]]]),
-            drift=lambda q, v, t: np.array([2 * (v[0] ** 2 + v[1] ** 2)]),
-            nv=2,
-        )
-    )
+    scene = pendulum_scene(length, 9.81)
     inertia = mass / (4 * length**2)
     omega, zeta = 60.0, 0.2
     stiffness, damping = inertia * omega**2, 2 * zeta * omega * inertia
@@ -171,35 +160,7 @@ def test_failure_d_redundant_rows():
 
 
 def stiff_spring_scene():
-    return scene_from_dict(
-        {
-            "robot": {"urdf": str(pinstab.load_scene("fourbar").urdf_path)},
-            "gravity": [0.0, -9.81, 0.0],
-            "closures": [
-                {
-                    "name": "loop",
-                    "kind": "planar-point",
-                    "plane": "xy",
-                    "frame_a": "coupler",
-                    "offset_a": [0.6, 0, 0],
-                    "frame_b": "rocker",
-                    "offset_b": [0.5, 0, 0],
-                }
-            ],
-            "forces": [
-                {
-                    "name": "spring",
-                    "kind": "spring-damper",
-                    "frame_a": "coupler",
-                    "offset_a": [0.3, 0, 0],
-                    "offset_b": [0.3, 0.6, 0],
-                    "stiffness": 1e4,
-                    "rest_length": 0.25,
-                }
-            ],
-            "initial": {"q": {"crank": 1.0, "coupler": -0.9, "rocker": 1.6}, "v": {"crank": 3.0}},
-        }
-    )
+    return scene_from_dict(fourbar_dict(forces=[coupler_spring(1e4, rest_length=0.25, anchor=(0.3, 0.6, 0.0))]))
 
 
 def test_failure_e_stiff_spring_limits_an_explicit_integrator_not_the_stabilization():

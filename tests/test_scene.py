@@ -5,31 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROBOTS
+from conftest import fourbar_dict
 from pinstab import SceneError, load_scene
 from pinstab.scene import scene_from_dict
-
-FOURBAR_URDF = str(ROBOTS / "urdf" / "fourbar.urdf")
-
-
-def fourbar_dict(**changes):
-    data = {
-        "robot": {"urdf": FOURBAR_URDF},
-        "closures": [
-            {
-                "name": "loop",
-                "kind": "planar-point",
-                "plane": "xy",
-                "frame_a": "coupler",
-                "offset_a": [0.6, 0, 0],
-                "frame_b": "rocker",
-                "offset_b": [0.5, 0, 0],
-            }
-        ],
-        "initial": {"q": {"crank": 1.0}},
-    }
-    data.update(changes)
-    return data
 
 
 @pytest.mark.parametrize(

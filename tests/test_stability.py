@@ -100,7 +100,6 @@ def test_spectral_radius_of_empty_matrix_is_zero():
 def test_stability_map_agrees_with_the_criterion(tmp_path):
     """A small map on the four-bar: prediction and observation agree on most cells, both regions occur,
     and the PNG and JSON are written."""
-    import json
 
     import pinstab
     from pinstab.cli import main
@@ -112,7 +111,12 @@ def test_stability_map_agrees_with_the_criterion(tmp_path):
     assert {"converged", "diverged"} <= observed
     png = plot_stability_map(result, tmp_path / "map.png")
     assert png.read_bytes()[:4] == b"\x89PNG"
-    assert main(["stability", "fourbar", "--grid", "3", "--steps", "50", "--json", "--quiet", "-o", str(tmp_path / "m.png")]) == 0
+    assert (
+        main(
+            ["stability", "fourbar", "--grid", "3", "--steps", "50", "--json", "--quiet", "-o", str(tmp_path / "m.png")]
+        )
+        == 0
+    )
 
 
 def test_stability_map_refuses_bad_ranges():
