@@ -121,7 +121,7 @@ class MukharlyamovStabilizer(Stabilizer):
             return stiffness * self._pick, np.diag(damping)
         system.kin.update_jacobians(q0)
         jac = system.constraints.velocity_terms(system.kin, q0, 0.0)[0]
-        inertia = np.linalg.pinv(jac @ np.linalg.solve(system.mass_matrix(q0), jac.T), rcond=RCOND)
+        inertia = np.linalg.pinv(_delassus(jac, system.mass_matrix(q0)), rcond=RCOND)
         weighted = inertia @ np.diag(damping)
         return stiffness * inertia @ self._pick, 0.5 * (weighted + weighted.T)
 
@@ -141,11 +141,11 @@ class MukharlyamovStabilizer(Stabilizer):
 
     def _inertial_matrices(self, system, q, v, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
         """S = D H and K = D B - dD/dt Lambda (D = G M^-1 G^T = Lambda^-1, so D dLambda/dt = -dD/dt Lambda)."""
-        delassus = jac @ np.linalg.solve(mass_matrix, jac.T)
+        delassus = _delassus(jac, mass_matrix)
         q_ahead = system.integrate(q, RATE_STEP * v)
         self._rate_kin.update_jacobians(q_ahead)
         jac_ahead = system.constraints.velocity_terms(self._rate_kin, q_ahead, 0.0)[0]
-        delassus_ahead = jac_ahead @ np.linalg.solve(system.mass_matrix(q_ahead), jac_ahead.T)
+        delassus_ahead = _delassus(jac_ahead, system.mass_matrix(q_ahead))
         delassus_rate = (delassus_ahead - delassus) / RATE_STEP
         inertia = np.linalg.pinv(delassus, rcond=RCOND)
         return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
@@ -170,6 +170,11 @@ class MukharlyamovStabilizer(Stabilizer):
         else:
             report.update(stiffness=float(self.stiffness), damping=float(self.damping))
         return report
+
+
+def _delassus(jac: np.ndarray, mass_matrix: np.ndarray) -> np.ndarray:
+    """G M^-1 G^T, the inverse of the constraint-space inertia Lambda [1/kg, 1/(kg m^2)]."""
+    return jac @ np.linalg.solve(mass_matrix, jac.T)
 
 
 def _on_row_space(
