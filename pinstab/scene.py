@@ -240,7 +240,8 @@ def _build_model(robot: dict[str, Any], base_dir: Path) -> tuple[pin.Model, Path
         if not isinstance(robot["name"], str):
             raise SceneError("robot.name must be a string")
         urdf_path, package_dir = robots.example_robot_urdf(robot["name"])
-        package_dirs = [str(package_dir), str(package_dir.parent)]
+        # meshes are named package://example-robot-data/robots/...: the share/ folder resolves them
+        package_dirs = [str(package_dir), str(package_dir.parent), str(package_dir.parent.parent)]
     else:
         if not isinstance(robot["urdf"], str):
             raise SceneError("robot.urdf must be a path string")

@@ -1,0 +1,1 @@
+"""Seeing a simulation: meshcat recordings (standalone HTML, live) and matplotlib charts."""
