@@ -50,6 +50,54 @@ def _scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--method", default="baumgarte", choices=METHODS, help="stabilization method (default: baumgarte)"
+    )
+    parser.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
+    parser.add_argument(
+        "--solver",
+        default=None,
+        choices=SOLVERS,
+        help="KKT backend (default: proxsuite; pinocchio for method pinocchio)",
+    )
+    parser.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
+    parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
+    parser.add_argument(
+        "--kp",
+        type=float,
+        default=None,
+        help="Baumgarte Kp = beta^2 [1/s^2] (default: 100); mukharlyamov: stiffness H (default: automatic gains)",
+    )
+    parser.add_argument(
+        "--kd",
+        type=float,
+        default=None,
+        help="Baumgarte Kd = 2 alpha [1/s] (default: 20); mukharlyamov: damping B (default: automatic gains)",
+    )
+    parser.add_argument(
+        "--variant", choices=VARIANTS, default=None, help="mukharlyamov: kinematic (A = E) or inertial (A = Lambda)"
+    )
+    parser.add_argument(
+        "--decay", type=float, default=None, help="mukharlyamov automatic gains: decay factor r per step"
+    )
+    parser.add_argument(
+        "--no-hold",
+        dest="hold",
+        action="store_false",
+        default=None,
+        help="mukharlyamov with heun/rk4: evaluate the term at every stage instead of holding it over the step",
+    )
+    parser.add_argument("--strict", action="store_true", help="refuse gains predicted unstable instead of warning")
+    parser.add_argument(
+        "--drift-limit",
+        type=float,
+        default=1.0,
+        help="position drift [m or rad] that counts as divergence (default: 1)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pinstab", description="Constrained multibody simulation with measurable constraint stabilization."
@@ -62,49 +110,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="simulate a scene and report drift and energy")
     _scene_arguments(run)
-    run.add_argument("--method", default="baumgarte", choices=METHODS, help="stabilization method (default: baumgarte)")
-    run.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
-    run.add_argument(
-        "--solver",
-        default=None,
-        choices=SOLVERS,
-        help="KKT backend (default: proxsuite; pinocchio for method pinocchio)",
-    )
-    run.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
-    run.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
-    run.add_argument(
-        "--kp",
-        type=float,
-        default=None,
-        help="Baumgarte Kp = beta^2 [1/s^2] (default: 100); mukharlyamov: stiffness H (default: automatic gains)",
-    )
-    run.add_argument(
-        "--kd",
-        type=float,
-        default=None,
-        help="Baumgarte Kd = 2 alpha [1/s] (default: 20); mukharlyamov: damping B (default: automatic gains)",
-    )
-    run.add_argument(
-        "--variant", choices=VARIANTS, default=None, help="mukharlyamov: kinematic (A = E) or inertial (A = Lambda)"
-    )
-    run.add_argument("--decay", type=float, default=None, help="mukharlyamov automatic gains: decay factor r per step")
-    run.add_argument(
-        "--no-hold",
-        dest="hold",
-        action="store_false",
-        default=None,
-        help="mukharlyamov with heun/rk4: evaluate the term at every stage instead of holding it over the step",
-    )
-    run.add_argument("--strict", action="store_true", help="refuse gains predicted unstable instead of warning")
-    run.add_argument(
-        "--drift-limit",
-        type=float,
-        default=1.0,
-        help="position drift [m or rad] that counts as divergence (default: 1)",
-    )
+    _run_options(run)
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error and constraint forces")
 
+    record = sub.add_parser("record", help="simulate and write a standalone HTML recording (or stream it live)")
+    _scene_arguments(record)
+    _run_options(record)
+    record.add_argument("-o", "--output", metavar="OUT.html", help="the recording to write")
+    record.add_argument("--fps", type=float, default=30.0, help="frames per second of the recording (default: 30)")
+    record.add_argument("--live", action="store_true", help="stream to a meshcat server on 127.0.0.1 instead")
+
+    plot = sub.add_parser("plot", help="chart a saved run (drift, energy error, constraint forces)")
+    plot.add_argument("run_file", metavar="RUN.npz")
+    plot.add_argument("-o", "--output", metavar="OUT.png", required=True)
+    plot.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     stability = sub.add_parser("stability", help="map observed vs predicted stability over a (dt, gain) grid")
     _scene_arguments(stability)
     stability.add_argument("--method", default="baumgarte", choices=MAP_METHODS, help="(default: baumgarte)")
@@ -145,7 +165,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
-            result = {"check": _check, "run": _run, "stability": _stability}[args.command](args)
+            commands = {"check": _check, "run": _run, "record": _record, "plot": _plot, "stability": _stability}
+            result = commands[args.command](args)
     except DivergenceError as exc:
         _fail(exc, args)
         return EXIT_DIVERGED
@@ -233,12 +254,11 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
+def _simulate(args: argparse.Namespace):
+    """Load the scene and simulate it with the run options; returns (scene, trajectory)."""
     from .scene import load_scene
     from .simulate import simulate
 
-    if args.save:
-        _check_output_path(args.save, ".npz")
     scene = load_scene(args.scene, **_parameters(args.param))
     trajectory = simulate(
         scene,
@@ -256,10 +276,12 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         drift_limit=args.drift_limit,
         progress=not args.quiet,
     )
-    if args.save:
-        trajectory.save(args.save)
+    return scene, trajectory
+
+
+def _run_summary(args: argparse.Namespace, scene, trajectory) -> dict[str, Any]:
     info = trajectory.info
-    result = {
+    return {
         "scene": scene.name,
         "method": info["method"],
         "integrator": info["integrator"],
@@ -270,9 +292,59 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         "diverged": False,
         "parameters": info["parameters"],
     }
+
+
+def _run(args: argparse.Namespace) -> dict[str, Any]:
+    from .viz.plots import plot_trajectory
+
     if args.save:
+        _check_output_path(args.save, ".npz")
+    if args.plot:
+        _check_output_path(args.plot, ".png")
+    scene, trajectory = _simulate(args)
+    result = _run_summary(args, scene, trajectory)
+    if args.save:
+        trajectory.save(args.save)
         result["saved"] = args.save
+    if args.plot:
+        plot_trajectory(trajectory, args.plot)
+        result["plot"] = args.plot
     return result
+
+
+def _record(args: argparse.Namespace) -> dict[str, Any]:
+    import time
+
+    from .simulate import build_system
+    from .viz.recording import play_live, write_recording
+
+    if not args.live and not args.output:
+        raise PinstabError("record: give -o OUT.html for a recording, or --live to stream to a meshcat viewer")
+    if args.output:
+        _check_output_path(args.output, ".html")
+    start = time.perf_counter()
+    scene, trajectory = _simulate(args)
+    system = build_system(scene, args.method, args.solver, args.kp, args.kd, args.variant, args.decay, args.hold)
+    result = _run_summary(args, scene, trajectory)
+    if args.live:
+        result["live_url"] = play_live(scene, system, trajectory, fps=args.fps)
+    if args.output:
+        recording = write_recording(scene, system, trajectory, args.output, fps=args.fps)
+        result.update(
+            recording=str(recording.path), size_bytes=recording.size_bytes, frames=recording.frames, fps=recording.fps
+        )
+    result["record_wall_s"] = time.perf_counter() - start
+    return result
+
+
+def _plot(args: argparse.Namespace) -> dict[str, Any]:
+    from .trajectory import Trajectory
+    from .viz.plots import plot_trajectory
+
+    _check_output_path(args.output, ".png")
+    trajectory = Trajectory.load(args.run_file)
+    plot_trajectory(trajectory, args.output)
+    return {"run": args.run_file, "plot": args.output, "steps": trajectory.steps}
 
 
 def _check_output_path(path: str, suffix: str) -> None:

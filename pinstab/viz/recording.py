@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import base64
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -253,9 +254,12 @@ document.title = "pinstab ready: {title}";
 
 
 def play_live(scene: Scene, system: ConstrainedSystem, trajectory: Trajectory, fps: float = 30.0, viewer=None) -> str:
-    """Stream the motion in real time to a meshcat server on 127.0.0.1; returns the viewer's URL."""
+    """Stream the motion in real time to a meshcat server (started on 127.0.0.1 unless ``viewer`` is
+    given); returns the viewer's URL."""
     times, states = frame_states(trajectory, scene.model, fps)
-    viewer = meshcat.Visualizer() if viewer is None else viewer
+    if viewer is None:
+        viewer = meshcat.Visualizer()
+        print(f"pinstab record: live viewer at {viewer.window.web_url}", file=sys.stderr, flush=True)
     player = ScenePlayer(scene, system, viewer)
     player.frame_camera(states)
     start = time.perf_counter()
@@ -264,4 +268,4 @@ def play_live(scene: Scene, system: ConstrainedSystem, trajectory: Trajectory, f
         if delay > 0:
             time.sleep(delay)
         player.pose(viewer, q, float(t))
-    return viewer.url() if hasattr(viewer, "url") else ""
+    return getattr(viewer.window, "web_url", "")
