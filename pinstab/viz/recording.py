@@ -128,8 +128,8 @@ class ScenePlayer:
             overlay.load(viewer)
 
     def frame_camera(self, states: np.ndarray) -> None:
-        """Turn the scene so that its gravity points down in the viewer, and aim the camera at the
-        region the joints sweep over ``states``."""
+        """Turn the scene so that its gravity points down in the viewer, and place the camera so that
+        the region the joints sweep over ``states`` is in view."""
         gravity = self.scene.model.gravity.linear
         turn = _rotation_onto(
             gravity / np.linalg.norm(gravity) if np.linalg.norm(gravity) > 0 else -np.eye(3)[2], -np.eye(3)[2]
@@ -143,10 +143,12 @@ class ScenePlayer:
         points = np.array(points)
         low, high = points.min(axis=0), points.max(axis=0)
         centre, extent = (low + high) / 2, max(float(np.max(high - low)), 0.2)
-        offset = extent * np.array([0.9, -2.2, 0.7])  # from the front (-y), a little from the side and above
-        self.viewer["/Cameras/default"].set_transform(pin.SE3(np.eye(3), centre).homogeneous)
-        # the camera object lives in three.js's y-up frame: world (x, y, z) -> (x, z, -y)
-        self.viewer["/Cameras/default/rotated/<object>"].set_property("position", [offset[0], offset[2], -offset[1]])
+        # the viewer's orbit target stays at the origin; the camera sits in front (-y), a little to the
+        # side and above the swept region. Its object lives in three.js's y-up frame: (x, y, z) -> (x, z, -y)
+        position = centre + extent * np.array([0.9, -2.2, 0.7])
+        self.viewer["/Cameras/default/rotated/<object>"].set_property(
+            "position", [position[0], position[2], -position[1]]
+        )
 
     def pose(self, frame, q: np.ndarray, t: float) -> None:
         """Place every visual and overlay for configuration q in ``frame`` (a viewer or an animation frame)."""
