@@ -60,7 +60,7 @@ class ConstrainedSystem:
         Raises:
             DivergenceError: the state (or an integrator stage) is not finite.
         """
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+        if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise DivergenceError(f"non-finite state reached at t = {t:.6g} s", t, q, v)
         self.kin.update(q, v)
         tau = self.applied_force(v, t)
@@ -71,7 +71,7 @@ class ConstrainedSystem:
             rhs = rhs + gamma
         problem = KKTProblem(q, v, tau, self.kin.mass_matrix, tau - self.kin.bias, values.jacobian, rhs)
         solution = self.solver.solve(problem)
-        if not np.all(np.isfinite(solution.acceleration)):
+        if not np.isfinite(solution.acceleration).all():
             raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
         return Evaluation(solution.acceleration, solution.multipliers, values)
 

@@ -34,8 +34,15 @@ class DenseSolver(KKTSolver):
         if jac.shape[0] == 0:
             return KKTSolution(free_acceleration, np.zeros(0))
         delassus = jac @ minv_gt
-        eigenvalues, eigenvectors = np.linalg.eigh(delassus)
-        if eigenvalues[0] <= RANK_TOLERANCE * max(eigenvalues[-1], 1e-300):
+        # Cholesky of the Delassus matrix: it fails, or leaves a tiny pivot, exactly when G loses rank
+        try:
+            factor = np.linalg.cholesky(delassus)
+            pivots = np.diagonal(factor) ** 2
+            deficient = pivots.min() <= RANK_TOLERANCE * max(float(np.diagonal(delassus).max()), 1e-300)
+        except np.linalg.LinAlgError:
+            deficient = True
+        if deficient:
+            eigenvalues, eigenvectors = np.linalg.eigh(delassus)
             raise SolverError(self._rank_message(eigenvalues, eigenvectors))
         multipliers = np.linalg.solve(delassus, problem.rhs - jac @ free_acceleration)
         return KKTSolution(free_acceleration + minv_gt @ multipliers, multipliers)
