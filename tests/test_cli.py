@@ -67,25 +67,8 @@ def test_unknown_scene_exits_2_listing_bundled_scenes(capsys):
 
 
 def test_divergence_exits_3_with_json(capsys):
-    code, out, err = run_cli(
-        capsys,
-        "run",
-        "fourbar",
-        "--method",
-        "baumgarte",
-        "--kp",
-        "1e6",
-        "--kd",
-        "2e3",
-        "--integrator",
-        "euler",
-        "--dt",
-        "1e-2",
-        "--duration",
-        "5",
-        "--json",
-        "--quiet",
-    )
+    argv = "run fourbar --method baumgarte --kp 1e6 --kd 2e3 --integrator euler --dt 1e-2 --duration 5 --json --quiet"
+    code, out, err = run_cli(capsys, *argv.split())
     assert code == 3
     result = json.loads(out)
     assert result["diverged"] is True and result["diverged_at"] < 5.0

@@ -189,24 +189,8 @@ def test_run_json_reports_the_spectral_radius(capsys):
 
 
 def test_strict_refusal_exits_2_before_stepping(capsys):
-    code = main(
-        [
-            "run",
-            "fourbar",
-            "--method",
-            "baumgarte",
-            "--kp",
-            "1e6",
-            "--kd",
-            "2e3",
-            "--integrator",
-            "semi-implicit-euler",
-            "--dt",
-            "1e-3",
-            "--json",
-            "--strict",
-        ]
-    )
+    argv = "run fourbar --method baumgarte --kp 1e6 --kd 2e3 --integrator semi-implicit-euler --dt 1e-3 --json --strict"
+    code = main(argv.split())
     out, err = capsys.readouterr()
     assert code == 2 and out == ""
     assert "rho(R(tau W)) = 1.618 >= 1" in err and "Stable for dt < 0.000828 s" in err and "mukharlyamov" in err
