@@ -9,19 +9,22 @@ import pinocchio as pin
 
 from .constraints import ConstraintValues
 from .errors import DivergenceError
+from .forces import JointTorque
 from .kinematics import Kinematics
 from .scene import Scene
-from .solvers import KKTProblem, KKTSolver
+from .solvers import KKTProblem, KKTSolver, PinocchioSolver
+from .stabilizers import BaumgarteStabilizer, NoStabilizer, PostStabilizer, ProjectionStabilizer
 from .stabilizers.base import Stabilizer
 
 
 @dataclass
 class Evaluation:
-    """Dynamics at one state: accelerations [m/s^2, rad/s^2], multipliers, constraint values."""
+    """Dynamics at one state: accelerations [m/s^2, rad/s^2], multipliers, constraint values (None on
+    the direct Pinocchio path, which does not form them)."""
 
     acceleration: np.ndarray
     multipliers: np.ndarray
-    values: ConstraintValues
+    values: ConstraintValues | None
 
 
 class ConstrainedSystem:
@@ -42,6 +45,16 @@ class ConstrainedSystem:
         self.stabilizer = stabilizer
         self.solver = solver
         self._energy_data = scene.model.createData()
+        # Pinocchio can do the whole evaluation itself when its corrector is the method's term and no
+        # force element needs pinstab's kinematics: the direct path (checked inside, general path if not)
+        self.direct = (
+            isinstance(solver, PinocchioSolver)
+            and solver.direct_capable
+            and stabilizer.baumgarte_gains() == (solver.kp, solver.kd)
+            and isinstance(stabilizer, (BaumgarteStabilizer, NoStabilizer, ProjectionStabilizer, PostStabilizer))
+            and all(isinstance(element, JointTorque) for element in scene.forces)
+            and len(self.constraints.constraints) == len(solver.closures)
+        )
 
     @property
     def nv(self) -> int:
@@ -62,6 +75,12 @@ class ConstrainedSystem:
         """
         if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise DivergenceError(f"non-finite state reached at t = {t:.6g} s", t, q, v)
+        if self.direct:
+            solution = self.solver.direct(q, v, self.applied_force(v, t))
+            if solution is not None:
+                if not np.isfinite(solution.acceleration).all():
+                    raise DivergenceError(f"non-finite acceleration from Pinocchio at t = {t:.6g} s", t, q, v)
+                return Evaluation(solution.acceleration, solution.multipliers, None)
         self.kin.update(q, v)
         tau = self.applied_force(v, t)
         values = self.constraints.values(self.kin, q, v, t, with_drift=True)

@@ -148,3 +148,50 @@ def test_pinocchio_solver_hands_missed_constraints_to_proxqp():
     # on the manifold with matching gains, no fallback is needed
     traj = simulate(scene, method="pinocchio", dt=1e-3, duration=0.2)
     assert traj.info["solver_fallbacks"] == 0
+
+
+@pytest.mark.parametrize("scene_name", ["fourbar", "slider-crank", "fivebar"])
+def test_direct_pinocchio_path_equals_the_general_one(scene_name):
+    """The direct path (Pinocchio's data only) gives the accelerations and multipliers of the general
+    path (pinstab kinematics + the same solver) along a trajectory, off the manifold included."""
+    scene = load_scene(scene_name)
+    if scene_name == "slider-crank":
+        scene.forces[:] = [f for f in scene.forces if f.name == "motor"]  # the damper needs pinstab's kinematics
+    direct = build_system(scene, "pinocchio", None, 10.0, 2 * np.sqrt(10.0))
+    assert direct.direct
+    general = build_system(scene, "pinocchio", None, 10.0, 2 * np.sqrt(10.0))
+    general.direct = False
+    traj = simulate(
+        scene,
+        method="baumgarte",
+        integrator="semi-implicit-euler",
+        dt=1e-3,
+        duration=0.3,
+        solver="proxsuite",
+        assemble_initial=False,
+    )
+    for q, v in zip(traj.q[::30], traj.v[::30], strict=True):
+        expected = general.dynamics(q, v, 0.1)
+        got = direct.dynamics(q, v, 0.1)
+        assert got.values is None
+        np.testing.assert_allclose(
+            got.acceleration, expected.acceleration, atol=1e-9 * max(1.0, np.abs(expected.acceleration).max())
+        )
+        np.testing.assert_allclose(
+            got.multipliers, expected.multipliers, atol=1e-7 * max(1.0, np.abs(expected.multipliers).max())
+        )
+    assert direct.solver.fallbacks == 0
+
+
+def test_direct_path_hands_a_missed_check_to_the_general_path():
+    scene = load_scene("fourbar")
+    system = build_system(scene, "pinocchio", None)
+    system.solver.kp = 55.0  # the check now expects another corrector than the one Pinocchio applies
+    evaluation = system.dynamics(scene.q0, scene.v0, 0.0)  # off the manifold: the two disagree
+    assert evaluation.values is not None and system.solver.fallbacks >= 1
+
+
+def test_direct_path_is_only_taken_where_it_applies():
+    assert not build_system(load_scene("delta"), "pinocchio", None).direct  # weld closures
+    assert not build_system(load_scene("slider-crank"), "pinocchio", None).direct  # a spring-damper element
+    assert not build_system(load_scene("fourbar"), "baumgarte", "proxsuite").direct

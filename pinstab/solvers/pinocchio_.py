@@ -65,6 +65,17 @@ class PinocchioSolver(KKTSolver):
         self.settings = pin.ProximalSettings(1e-14, 1e-12, mu, 50)
         self._checked_planar = False
         self._fallback = ProxsuiteSolver()
+        self.kp, self.kd = float(kp), float(kd)
+        # direct mode (see direct()): point-like closures only, each a 3-D contact in world axes
+        self.direct_capable = all(c.kind in ("point", "planar-point") for c in self.closures)
+        if self.direct_capable and self.closures:
+            self._rows = np.zeros((sum(c.rows for c in self.closures), 3 * len(self.closures)))
+            start = 0
+            for index, closure in enumerate(self.closures):
+                self._rows[start : start + closure.rows, 3 * index : 3 * index + 3] = closure.selection
+                start += closure.rows
+            self._target = np.zeros(3 * len(self.closures))
+            self._data_list = list(self.datas)
 
     def _rigid_model(self, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
         frame_a = self.model.frames[closure.frame_a]
@@ -123,6 +134,34 @@ class PinocchioSolver(KKTSolver):
         residual_force = problem.mass_matrix @ acceleration - problem.free_force
         multipliers = np.linalg.lstsq(problem.jacobian.T, residual_force, rcond=1e-12)[0]
         return KKTSolution(np.array(acceleration), multipliers)
+
+    def direct(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> KKTSolution | None:
+        """Pinocchio's constraint dynamics with its own Baumgarte corrector, checked from Pinocchio's own
+        data (no pinstab kinematics pass): the constraint Jacobian, the contact points and their drift
+        accelerations give ``G a + gamma0 = -Kp phi - Kd G v``, which must hold to RESIDUAL_TOLERANCE.
+
+        Returns None when the check fails (the caller solves the problem the general way). Only for
+        point and planar-point closures (``direct_capable``).
+        """
+        if not self._checked_planar:
+            self._check_planar(KKTProblem(q, v, tau, None, None, None, None))
+        model, data, datas = self.model, self.data, self.datas
+        acceleration = pin.constraintDynamics(model, data, q, v, tau, self.models, datas, self.settings)
+        if not self.closures:
+            return KKTSolution(acceleration, np.zeros(0))
+        jac = pin.getConstraintsJacobian(model, data, self.models, datas)
+        target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
+        for index, contact in enumerate(self._data_list):
+            rows = slice(3 * index, 3 * index + 3)
+            target[rows] = contact.contact2_acceleration_drift.linear - contact.contact1_acceleration_drift.linear
+            target[rows] -= self.kp * (contact.oMc1.translation - contact.oMc2.translation)
+        rhs = self._rows @ (target - self.kd * (jac @ v))
+        residual = self._rows @ (jac @ acceleration) - rhs
+        # Euclidean form of the check in _meets_constraints (dot products are the cheapest reductions)
+        if not residual @ residual <= RESIDUAL_TOLERANCE**2 * (1.0 + rhs @ rhs):
+            self.fallbacks += 1
+            return None
+        return KKTSolution(acceleration, self._rows @ data.lambda_c)
 
     @staticmethod
     def _meets_constraints(problem: KKTProblem, acceleration: np.ndarray) -> bool:
