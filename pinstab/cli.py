@@ -125,6 +125,26 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("run_file", metavar="RUN.npz")
     plot.add_argument("-o", "--output", metavar="OUT.png", required=True)
     plot.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    bench = sub.add_parser("bench", help="work-precision sweep with peers, overhead and scaling; charts and tables")
+    bench.add_argument("scene", help="bundled scene name or a .toml file")
+    bench.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter")
+    bench.add_argument(
+        "--methods", nargs="+", default=["baumgarte", "mukharlyamov", "projection", "pinocchio"], choices=METHODS
+    )
+    bench.add_argument("--integrators", nargs="+", default=["semi-implicit-euler", "rk4"], choices=INTEGRATORS)
+    bench.add_argument("--dts", nargs="+", type=float, default=[4e-3, 2e-3, 1e-3], help="steps [s]")
+    bench.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (default: 2)")
+    bench.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for results.json/.csv and charts")
+    bench.add_argument(
+        "--scheduler", metavar="ADDRESS", help="join a Dask scheduler (tcp://host:port); default: local cluster"
+    )
+    bench.add_argument("--serial", action="store_true", help="run in this process instead of on Dask")
+    bench.add_argument(
+        "--tolerance", type=float, default=1e-6, help="trajectory error for the cost comparison [rad, m]"
+    )
+    bench.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    bench.add_argument("--quiet", action="store_true", help="no progress bar")
+
     stability = sub.add_parser("stability", help="map observed vs predicted stability over a (dt, gain) grid")
     _scene_arguments(stability)
     stability.add_argument("--method", default="baumgarte", choices=MAP_METHODS, help="(default: baumgarte)")
@@ -165,7 +185,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
-            commands = {"check": _check, "run": _run, "record": _record, "plot": _plot, "stability": _stability}
+            commands = {
+                "check": _check,
+                "run": _run,
+                "record": _record,
+                "plot": _plot,
+                "stability": _stability,
+                "bench": _bench,
+            }
             result = commands[args.command](args)
     except DivergenceError as exc:
         _fail(exc, args)
@@ -356,6 +383,49 @@ def _check_output_path(path: str, suffix: str) -> None:
         raise PinstabError(f"{path}: the output must be a {suffix} file")
     if not target.parent.is_dir():
         raise PinstabError(f"{path}: folder {target.parent} does not exist")
+
+
+def _bench(args: argparse.Namespace) -> dict[str, Any]:
+    from pathlib import Path
+
+    from .bench.overhead import measure_overhead
+    from .bench.scaling import scaling
+    from .bench.workprecision import cheapest_within, default_configs, sweep, write_outputs
+    from .scene import load_scene
+
+    parameters = _parameters(args.param)
+    scene = load_scene(args.scene, **parameters)  # validates the scene before any work
+    for dt in args.dts:
+        if not dt > 0:
+            raise PinstabError(f"--dts: steps must be positive, got {dt}")
+    out_dir = Path(args.output)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise PinstabError(f"{out_dir} exists and is not a folder")
+    configs = default_configs(args.methods, args.integrators, sorted(args.dts))
+    reference, results = sweep(
+        str(scene.source or args.scene), parameters, configs, args.duration, args.scheduler, args.serial, not args.quiet
+    )
+    ours = cheapest_within(results, args.tolerance, peer=False)
+    peer = cheapest_within(results, args.tolerance, peer=True)
+    extra: dict[str, Any] = {"duration": args.duration, "tolerance": args.tolerance}
+    extra["cheapest"] = {
+        "pinstab": None if ours is None else ours.row(),
+        "pinocchio-native": None if peer is None else peer.row(),
+        "cost_ratio_pinstab_over_pinocchio_native": (
+            None if ours is None or peer is None else ours.cpu_per_sim_s / peer.cpu_per_sim_s
+        ),
+    }
+    extra["overhead"] = measure_overhead(scene)
+    extra["overhead_ratio"] = extra["overhead"]["overhead_ratio"]
+    if scene.parameters and "N" in scene.parameters and scene.name == "nfourbar":
+        extra["scaling"] = scaling()
+        extra["scaling_exponent"] = extra["scaling"]["scaling_exponent"]
+    summary = write_outputs(out_dir, scene.name, reference, results, extra)
+    if not args.json:
+        return {k: v for k, v in summary.items() if k not in ("results", "overhead", "scaling")} | {
+            "output": str(out_dir)
+        }
+    return summary
 
 
 def _stability(args: argparse.Namespace) -> dict[str, Any]:

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import PinstabError
 from .files import atomic_output
@@ -135,3 +136,19 @@ class Trajectory:
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None
+
+
+def configurations_at(t: np.ndarray, q: np.ndarray, model: pin.Model, times: np.ndarray) -> np.ndarray:
+    """Configurations sampled at ``times`` [s] from samples (t, q), interpolated on the configuration
+    group (``pin.interpolate``) and held at the ends."""
+    states = []
+    last = len(t) - 2
+    for time_s in times:
+        k = min(max(int(np.searchsorted(t, time_s, side="right")) - 1, 0), max(last, 0))
+        if last < 0:
+            states.append(q[0].copy())
+            continue
+        span = t[k + 1] - t[k]
+        u = 0.0 if span <= 0 else min(max((time_s - t[k]) / span, 0.0), 1.0)
+        states.append(pin.interpolate(model, q[k], q[k + 1], u))
+    return np.array(states)

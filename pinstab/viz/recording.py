@@ -30,7 +30,7 @@ from ..errors import PinstabError
 from ..files import atomic_output
 from ..scene import Scene
 from ..system import ConstrainedSystem
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, configurations_at
 from .geometry import visual_model
 
 ROOT = "pinstab"
@@ -188,14 +188,7 @@ def frame_states(trajectory: Trajectory, model: pin.Model, fps: float) -> tuple[
         raise PinstabError(f"fps must be a positive number, got {fps}")
     times = np.arange(0.0, trajectory.t[-1] + 0.5 / fps, 1.0 / fps)
     times = times[times <= trajectory.t[-1] + 1e-12]
-    states = []
-    for t in times:
-        k = min(int(np.searchsorted(trajectory.t, t, side="right")) - 1, len(trajectory.t) - 2)
-        k = max(k, 0)
-        span = trajectory.t[k + 1] - trajectory.t[k]
-        u = 0.0 if span <= 0 else min(max((t - trajectory.t[k]) / span, 0.0), 1.0)
-        states.append(pin.interpolate(model, trajectory.q[k], trajectory.q[k + 1], u))
-    return times, np.array(states)
+    return times, configurations_at(trajectory.t, trajectory.q, model, times)
 
 
 def write_recording(

@@ -1,0 +1,1 @@
+"""Benchmarks: work-precision sweeps with peers, per-step overhead, scaling (issue 5)."""

@@ -1,0 +1,283 @@
+"""Work-precision sweeps: CPU cost against accuracy for methods x integrators x steps, peers included.
+
+Each configuration is simulated from the same assembled start; the metrics are CPU seconds per
+simulated second (the whole ``simulate`` loop, recording included; the peer's bare loop), position
+and velocity drift, the trajectory error against a reference, and the energy error. The reference is
+the same scene at the smallest step / 16 with ``projection`` + ``rk4`` (stated in the results as
+``reference``). Configurations run on Dask (an embedded LocalCluster, or a scheduler address) or
+serially; both give the same figures but the timings.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..assembly import assemble
+from ..errors import PinstabError
+from ..files import atomic_output
+from ..scene import load_scene
+from ..simulate import build_system, simulate
+from ..trajectory import configurations_at
+from .peers import native_pinocchio
+
+PEER_GAINS = (10.0, 2.0 * math.sqrt(10.0))  # Pinocchio's closed-chain example
+SWEPT_KP = (1.0, 10.0, 100.0, 1e3, 1e4)
+
+
+@dataclass(frozen=True)
+class Config:
+    """One run: a pinstab method (``peer`` None) or a peer (``pinocchio-native``) at gains (kp, kd)."""
+
+    method: str
+    integrator: str
+    dt: float
+    peer: str | None = None
+    kp: float | None = None
+    kd: float | None = None
+
+    @property
+    def curve(self) -> str:
+        if self.peer is None:
+            return f"{self.method} + {self.integrator}"
+        return f"{self.peer} Kp={self.kp:g} + {self.integrator}"
+
+
+@dataclass
+class Result:
+    """The measured figures of one configuration (NaN where a run diverged)."""
+
+    config: Config
+    cpu_per_sim_s: float = math.nan
+    max_position_drift: float = math.nan
+    max_velocity_drift: float = math.nan
+    trajectory_error: float = math.nan
+    energy_error: float = math.nan
+    diverged: bool = False
+    note: str = ""
+    drift_series: list[float] = field(default_factory=list)
+    drift_times: list[float] = field(default_factory=list)
+
+    def row(self) -> dict[str, Any]:
+        row = {**asdict(self.config), "curve": self.config.curve}
+        for key in ("cpu_per_sim_s", "max_position_drift", "max_velocity_drift", "trajectory_error", "energy_error"):
+            value = getattr(self, key)
+            row[key] = value if math.isfinite(value) else None
+        row.update(diverged=self.diverged, note=self.note)
+        return row
+
+
+@dataclass
+class Reference:
+    """The reference motion every configuration is compared with."""
+
+    kind: str
+    t: np.ndarray
+    q: np.ndarray
+
+
+def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float, dt: float) -> Reference:
+    """The scene at ``dt`` [s] with projection + RK4 (``dt`` is the smallest step / 16)."""
+    scene = load_scene(scene_name, **parameters)
+    fine = simulate(scene, method="projection", integrator="rk4", dt=dt, duration=duration, solver="proxsuite")
+    return Reference(f"{scene.name} at dt = {dt:g} s with projection + rk4", fine.t, fine.q)
+
+
+def run_config(
+    scene_name: str, parameters: dict[str, Any], config: Config, duration: float, reference: Reference
+) -> Result:
+    """Simulate one configuration and measure it (a pure function of its arguments, for Dask)."""
+    import warnings
+
+    from ..errors import UnstableGainsWarning
+
+    scene = load_scene(scene_name, **parameters)
+    result = Result(config)
+    steps = int(round(duration / config.dt))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnstableGainsWarning)
+            if config.peer is None:
+                start = time.process_time()
+                traj = simulate(
+                    scene,
+                    method=config.method,
+                    integrator=config.integrator,
+                    dt=config.dt,
+                    duration=duration,
+                    kp=config.kp,
+                    kd=config.kd,
+                )
+                cpu = time.process_time() - start
+                t, q, v = traj.t, traj.q, traj.v
+            else:
+                system = build_system(scene, "none", "proxsuite")
+                start_state = assemble(system, scene.q0, scene.v0)
+                q, v, cpu = native_pinocchio(
+                    scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd
+                )
+                t = np.arange(steps + 1) * config.dt
+    except PinstabError as exc:
+        result.diverged, result.note = True, type(exc).__name__
+        return result
+    metrics = _measure(scene, t, q, v, reference)
+    if metrics is None:
+        result.diverged, result.note = True, "non-finite state"
+        return result
+    result.cpu_per_sim_s = cpu / duration
+    result.max_position_drift, result.max_velocity_drift, result.trajectory_error, result.energy_error, drift = metrics
+    stride = max(1, len(t) // 400)
+    result.drift_series, result.drift_times = drift, [float(x) for x in t[::stride]]
+    return result
+
+
+def _measure(scene, t, q, v, reference: Reference):
+    if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        return None
+    system = build_system(scene, "none", "proxsuite")
+    position, velocity, energy = [], [], []
+    for qk, vk in zip(q, v, strict=True):
+        values = system.constraint_values(qk, vk, 0.0)
+        position.append(float(np.max(np.abs(values.phi), initial=0.0)))
+        velocity.append(float(np.max(np.abs(values.velocity_residual), initial=0.0)))
+        energy.append(system.energy(qk, vk))
+    expected = configurations_at(reference.t, reference.q, scene.model, t)
+    error = max(float(np.max(np.abs(pin.difference(scene.model, a, b)))) for a, b in zip(q, expected, strict=True))
+    thinned = position[:: max(1, len(position) // 400)]
+    return max(position), max(velocity), error, float(np.max(np.abs(np.array(energy) - energy[0]))), thinned
+
+
+def default_configs(methods: list[str], integrators: list[str], dts: list[float]) -> list[Config]:
+    """pinstab's methods, plus the Pinocchio-native peer at its example gains and at swept gains."""
+    configs = [Config(m, i, dt) for m in methods for i in integrators for dt in dts]
+    for kp in SWEPT_KP:
+        kd = PEER_GAINS[1] if kp == PEER_GAINS[0] else 2.0 * math.sqrt(kp)
+        configs += [Config("pinocchio-native", "semi-implicit-euler", dt, "pinocchio-native", kp, kd) for dt in dts]
+    return configs
+
+
+def sweep(
+    scene_name: str,
+    parameters: dict[str, Any],
+    configs: list[Config],
+    duration: float,
+    scheduler: str | None = None,
+    serial: bool = False,
+    progress: bool = False,
+) -> tuple[Reference, list[Result]]:
+    """Run every configuration (on Dask unless ``serial``) and return the reference and results."""
+    if not configs:
+        raise PinstabError("bench: no configuration to run")
+    reference = reference_motion(scene_name, parameters, duration, min(c.dt for c in configs) / 16)
+    if serial:
+        results = []
+        for config in _bar(configs, progress):
+            results.append(run_config(scene_name, parameters, config, duration, reference))
+        return reference, results
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise PinstabError("bench sweeps run on Dask: pip install 'pinstab[bench]' (or use --serial)") from None
+    cluster = None
+    try:
+        if scheduler is None:
+            cluster = LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
+            )
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=30)
+    except OSError as exc:
+        raise PinstabError(f"bench: cannot reach the Dask scheduler {scheduler!r}: {exc}") from None
+    try:
+        shared = client.scatter(reference, broadcast=True)
+        futures = {
+            client.submit(run_config, scene_name, parameters, c, duration, shared, pure=False): i
+            for i, c in enumerate(configs)
+        }
+        results: list[Result | None] = [None] * len(configs)
+        for future in _bar(as_completed(futures), progress, total=len(configs)):
+            results[futures[future]] = future.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return reference, results  # type: ignore[return-value]
+
+
+def _bar(iterable, enabled: bool, total: int | None = None):
+    if not enabled:
+        return iterable
+    from tqdm import tqdm
+
+    return tqdm(iterable, total=total, desc="bench", unit="run", file=sys.stderr, mininterval=0.5)
+
+
+def cheapest_within(results: list[Result], tolerance: float, peer: bool) -> Result | None:
+    """The lowest-cost run (pinstab's or the peer's) whose trajectory error is within ``tolerance``."""
+    eligible = [
+        r for r in results if (r.config.peer is not None) == peer and not r.diverged and r.trajectory_error <= tolerance
+    ]
+    return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
+
+
+def write_outputs(
+    out_dir: Path, scene_name: str, reference: Reference, results: list[Result], extra: dict[str, Any]
+) -> dict[str, Any]:
+    """results.json, results.csv, work_precision.png and drift.png in ``out_dir``; returns the JSON."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = [r.row() for r in results]
+    summary = {"scene": scene_name, "reference": reference.kind, **extra, "results": rows}
+    with atomic_output(out_dir / "results.json", ".json", "results") as temp:
+        Path(temp).write_text(json.dumps(summary, indent=1))
+    with atomic_output(out_dir / "results.csv", ".csv", "results") as temp, open(temp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    _charts(out_dir, scene_name, reference, results)
+    return summary
+
+
+def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[Result]) -> None:
+    from ..plotting import pyplot, save_figure
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 5.5), dpi=110)
+    curves: dict[str, list[Result]] = {}
+    for r in results:
+        curves.setdefault(r.config.curve, []).append(r)
+    for name, runs in sorted(curves.items()):
+        runs = sorted((r for r in runs if not r.diverged and r.trajectory_error > 0), key=lambda r: r.config.dt)
+        if runs:
+            style = "--" if runs[0].config.peer else "-"
+            ax.loglog(
+                [r.cpu_per_sim_s for r in runs], [r.trajectory_error for r in runs], style, marker="o", ms=3, label=name
+            )
+    ax.set_xlabel("CPU time per simulated second [s/s]")
+    ax.set_ylabel("trajectory error max |q - q_ref| [rad, m]")
+    ax.set_title(f"{scene_name}: work-precision (reference: {reference.kind})", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    save_figure(fig, out_dir / "work_precision.png")
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=110)
+    smallest = min(r.config.dt for r in results)
+    for r in results:
+        if r.config.dt == smallest and r.drift_series and (r.config.peer is None or r.config.kp == PEER_GAINS[0]):
+            series = np.maximum(np.array(r.drift_series), np.finfo(float).tiny)
+            ax.semilogy(r.drift_times, series, label=r.config.curve)
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel("position drift max |phi| [m]")
+    ax.set_title(f"{scene_name}: drift at dt = {smallest:g} s", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    save_figure(fig, out_dir / "drift.png")
