@@ -405,16 +405,16 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
     reference, results = sweep(
         str(scene.source or args.scene), parameters, configs, args.duration, args.scheduler, args.serial, not args.quiet
     )
-    ours = cheapest_within(results, args.tolerance, peer=False)
-    peer = cheapest_within(results, args.tolerance, peer=True)
+    ours = cheapest_within(results, args.tolerance, None)
     extra: dict[str, Any] = {"duration": args.duration, "tolerance": args.tolerance}
-    extra["cheapest"] = {
-        "pinstab": None if ours is None else ours.row(),
-        "pinocchio-native": None if peer is None else peer.row(),
-        "cost_ratio_pinstab_over_pinocchio_native": (
+    cheapest: dict[str, Any] = {"pinstab": None if ours is None else ours.row()}
+    for peer_name in ("pinocchio-native", "mujoco"):
+        peer = cheapest_within(results, args.tolerance, peer_name)
+        cheapest[peer_name] = None if peer is None else peer.row()
+        cheapest[f"cost_ratio_pinstab_over_{peer_name}"] = (
             None if ours is None or peer is None else ours.cpu_per_sim_s / peer.cpu_per_sim_s
-        ),
-    }
+        )
+    extra["cheapest"] = cheapest
     extra["overhead"] = measure_overhead(scene)
     extra["overhead_ratio"] = extra["overhead"]["overhead_ratio"]
     if scene.parameters and "N" in scene.parameters and scene.name == "nfourbar":

@@ -28,6 +28,7 @@ from ..files import atomic_output
 from ..scene import load_scene
 from ..simulate import build_system, simulate
 from ..trajectory import configurations_at
+from .mujoco_peer import DEFAULT_SOLREF, STIFF_SOLREF, run_mujoco
 from .peers import native_pinocchio
 
 PEER_GAINS = (10.0, 2.0 * math.sqrt(10.0))  # Pinocchio's closed-chain example
@@ -44,11 +45,14 @@ class Config:
     peer: str | None = None
     kp: float | None = None
     kd: float | None = None
+    solref: tuple[float, float] | None = None
 
     @property
     def curve(self) -> str:
         if self.peer is None:
             return f"{self.method} + {self.integrator}"
+        if self.peer == "mujoco":
+            return f"mujoco solref={self.solref[0]:g} + {self.integrator}"
         return f"{self.peer} Kp={self.kp:g} + {self.integrator}"
 
 
@@ -122,9 +126,14 @@ def run_config(
             else:
                 system = build_system(scene, "none", "proxsuite")
                 start_state = assemble(system, scene.q0, scene.v0)
-                q, v, cpu = native_pinocchio(
-                    scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd
-                )
+                if config.peer == "mujoco":
+                    q, v, cpu = run_mujoco(
+                        scene, start_state.q, start_state.v, config.dt, steps, config.integrator, config.solref
+                    )
+                else:
+                    q, v, cpu = native_pinocchio(
+                        scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd
+                    )
                 t = np.arange(steps + 1) * config.dt
     except PinstabError as exc:
         result.diverged, result.note = True, type(exc).__name__
@@ -156,13 +165,25 @@ def _measure(scene, t, q, v, reference: Reference):
     return max(position), max(velocity), error, float(np.max(np.abs(np.array(energy) - energy[0]))), thinned
 
 
-def default_configs(methods: list[str], integrators: list[str], dts: list[float]) -> list[Config]:
-    """pinstab's methods, plus the Pinocchio-native peer at its example gains and at swept gains."""
+def default_configs(methods: list[str], integrators: list[str], dts: list[float], mujoco: bool = True) -> list[Config]:
+    """pinstab's methods, the Pinocchio-native peer at its example gains and at swept gains, and (when
+    installed and ``mujoco``) MuJoCo at its default and at a stiff ``solref``, RK4."""
     configs = [Config(m, i, dt) for m in methods for i in integrators for dt in dts]
     for kp in SWEPT_KP:
         kd = PEER_GAINS[1] if kp == PEER_GAINS[0] else 2.0 * math.sqrt(kp)
         configs += [Config("pinocchio-native", "semi-implicit-euler", dt, "pinocchio-native", kp, kd) for dt in dts]
+    if mujoco and _has_mujoco():
+        for solref in (DEFAULT_SOLREF, STIFF_SOLREF):
+            configs += [Config("mujoco", "rk4", dt, "mujoco", solref=solref) for dt in dts if solref[0] >= 2 * dt]
     return configs
+
+
+def _has_mujoco() -> bool:
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def sweep(
@@ -243,8 +264,34 @@ def write_outputs(
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+    with atomic_output(out_dir / "results.md", ".md", "results") as temp:
+        Path(temp).write_text(_markdown(summary))
     _charts(out_dir, scene_name, reference, results)
     return summary
+
+
+def _markdown(summary: dict[str, Any]) -> str:
+    """The results as a Markdown table, cheapest first among those within the tolerance."""
+
+    def number(value: Any) -> str:
+        return "—" if value is None else f"{value:.2e}"
+
+    lines = [
+        f"# {summary['scene']}: work-precision, {summary['duration']:g} s simulated",
+        "",
+        f"Reference: {summary['reference']}. Cost: CPU seconds per simulated second.",
+        "",
+        "| configuration | dt [s] | cost [s/s] | trajectory error | max drift [m] | energy error [J] |",
+        "|---|---|---|---|---|---|",
+    ]
+    rows = sorted(summary["results"], key=lambda r: (r["cpu_per_sim_s"] is None, r["cpu_per_sim_s"] or 0.0))
+    for row in rows:
+        status = " (diverged)" if row["diverged"] else ""
+        lines.append(
+            f"| {row['curve']}{status} | {row['dt']:g} | {number(row['cpu_per_sim_s'])} | "
+            f"{number(row['trajectory_error'])} | {number(row['max_position_drift'])} | {number(row['energy_error'])} |"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[Result]) -> None:
