@@ -88,3 +88,23 @@ def test_mujoco_peer_models_the_same_mechanism():
     stiff, default = results
     assert stiff.trajectory_error < 1e-3
     assert default.max_position_drift > 10 * stiff.max_position_drift
+
+
+def test_cheapest_within_picks_per_peer():
+    from pinstab.bench.workprecision import Result, cheapest_within
+
+    runs = [
+        Result(Config("projection", "rk4", 2e-3), cpu_per_sim_s=0.5, trajectory_error=5e-7),
+        Result(Config("baumgarte", "rk4", 4e-3), cpu_per_sim_s=0.2, trajectory_error=1e-3),
+        Result(Config("mujoco", "rk4", 1e-3, "mujoco", solref=(0.002, 1.0)), cpu_per_sim_s=0.03, trajectory_error=4e-2),
+        Result(
+            Config("pinocchio-native", "semi-implicit-euler", 1e-3, "pinocchio-native", 10.0, 6.3),
+            cpu_per_sim_s=0.01,
+            trajectory_error=5e-7,
+            diverged=True,
+        ),
+    ]
+    assert cheapest_within(runs, 1e-6, None).config.method == "projection"
+    assert cheapest_within(runs, 1e-6, "mujoco") is None  # never reaches the tolerance
+    assert cheapest_within(runs, 1e-6, "pinocchio-native") is None  # diverged runs do not count
+    assert cheapest_within(runs, 1e-1, "mujoco").cpu_per_sim_s == 0.03

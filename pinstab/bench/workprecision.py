@@ -243,11 +243,10 @@ def _bar(iterable, enabled: bool, total: int | None = None):
     return tqdm(iterable, total=total, desc="bench", unit="run", file=sys.stderr, mininterval=0.5)
 
 
-def cheapest_within(results: list[Result], tolerance: float, peer: bool) -> Result | None:
-    """The lowest-cost run (pinstab's or the peer's) whose trajectory error is within ``tolerance``."""
-    eligible = [
-        r for r in results if (r.config.peer is not None) == peer and not r.diverged and r.trajectory_error <= tolerance
-    ]
+def cheapest_within(results: list[Result], tolerance: float, peer: str | None) -> Result | None:
+    """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``)
+    whose trajectory error is within ``tolerance`` [rad, m]."""
+    eligible = [r for r in results if r.config.peer == peer and not r.diverged and r.trajectory_error <= tolerance]
     return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
 
 
