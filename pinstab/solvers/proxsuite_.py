@@ -14,6 +14,12 @@ from ..errors import SolverError
 from .base import KKTProblem, KKTSolution, KKTSolver
 
 
+SOLVED = (
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE,
+)
+
+
 class ProxsuiteSolver(KKTSolver):
     """ProxQP dense backend.
 
@@ -33,6 +39,9 @@ class ProxsuiteSolver(KKTSolver):
         qp.settings.eps_rel = self.eps_abs
         qp.settings.verbose = False
         qp.settings.max_iter = 1000
+        # at a singular configuration -gamma0 can leave range(G) by rounding: take the closest
+        # feasible accelerations (least-squares constraint rows) instead of declaring infeasibility
+        qp.settings.primal_infeasibility_solving = True
         return qp
 
     def solve(self, problem: KKTProblem) -> KKTSolution:
@@ -45,14 +54,14 @@ class ProxsuiteSolver(KKTSolver):
             self._qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
             self._qp.update(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
         self._qp.solve()
-        if self._qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+        if self._qp.results.info.status not in SOLVED:
             # a warm start far from the answer (a state changing fast) can stall: retry cold
             self._qp = self._fresh(nv, rows)
             self._qp.init(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
             self._qp.solve()
         results = self._qp.results
         status = results.info.status
-        if status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+        if status not in SOLVED:
             raise SolverError(
                 f"proxsuite: ProxQP did not solve the constrained dynamics ({status.name}, primal residual "
                 f"{results.info.pri_res:.3g}, dual residual {results.info.dua_res:.3g}). Either the constraints are "
