@@ -13,7 +13,6 @@ import proxsuite
 from ..errors import SolverError
 from .base import KKTProblem, KKTSolution, KKTSolver
 
-
 NEARLY = 1e-7  # relative residual accepted when ProxQP stops on its iteration limit
 
 SOLVED = (
