@@ -108,3 +108,20 @@ def test_cheapest_within_picks_per_peer():
     assert cheapest_within(runs, 1e-6, "mujoco") is None  # never reaches the tolerance
     assert cheapest_within(runs, 1e-6, "pinocchio-native") is None  # diverged runs do not count
     assert cheapest_within(runs, 1e-1, "mujoco").cpu_per_sim_s == 0.03
+
+
+def test_native_peer_applies_the_scene_forces():
+    """slider-crank (motor + damper): Pinocchio's own loop and pinstab's pinocchio method, same gains
+    and scheme, produce the same motion, so the peer simulates the same system."""
+    reference, results = sweep(
+        "slider-crank",
+        {},
+        [
+            Config("pinocchio-native", "semi-implicit-euler", 2e-3, "pinocchio-native", 10.0, 2 * math.sqrt(10.0)),
+            Config("pinocchio", "semi-implicit-euler", 2e-3, kp=10.0, kd=2 * math.sqrt(10.0)),
+        ],
+        0.5,
+        serial=True,
+    )
+    native, ours = results
+    assert native.trajectory_error == pytest.approx(ours.trajectory_error, rel=1e-6)
