@@ -297,7 +297,8 @@ def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[
     from ..plotting import pyplot, save_figure
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 5.5), dpi=110)
+    fig, ax = plt.subplots(figsize=(10.5, 5.5), dpi=110)
+    ax.set_prop_cycle(color=plt.get_cmap("tab20").colors)
     curves: dict[str, list[Result]] = {}
     for r in results:
         curves.setdefault(r.config.curve, []).append(r)
@@ -312,7 +313,7 @@ def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[
     ax.set_ylabel("trajectory error max |q - q_ref| [rad, m]")
     ax.set_title(f"{scene_name}: work-precision (reference: {reference.kind})", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="dashed: peers", title_fontsize=7)
     save_figure(fig, out_dir / "work_precision.png")
 
     fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=110)
