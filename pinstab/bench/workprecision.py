@@ -90,10 +90,47 @@ class Reference:
 
 
 def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float, dt: float) -> Reference:
-    """The scene at ``dt`` [s] with projection + RK4 (``dt`` is the smallest step / 16)."""
+    """The independent parallelogram model for the N-four-bar; otherwise the scene at ``dt`` [s]
+    with projection + RK4 (``dt`` is the smallest step / 16)."""
     scene = load_scene(scene_name, **parameters)
+    if scene.name == "nfourbar":
+        return _parallelogram_reference(scene, duration, dt)
     fine = simulate(scene, method="projection", integrator="rk4", dt=dt, duration=duration, solver="proxsuite")
     return Reference(f"{scene.name} at dt = {dt:g} s with projection + rk4", fine.t, fine.q)
+
+
+def _parallelogram_reference(scene, duration: float, dt: float) -> Reference:
+    """The N-four-bar's cranks stay parallel and its couplers level: one pendulum ODE in the crank
+    angle th from the vertical, I th'' = m g L ((N + 1)/2 + N) sin(th) with I = (N + 1) m L^2 / 3 + N m L^2,
+    from th = 0, th' = -1 rad/s, integrated by classical RK4 at ``dt`` [s]."""
+    n = int(scene.parameters.get("N", 10))
+    length, mass = float(scene.parameters.get("link_length", 1.0)), float(scene.parameters.get("link_mass", 1.0))
+    gravity = float(np.linalg.norm(scene.model.gravity.linear))
+    inertia = (n + 1) * mass * length**2 / 3 + n * mass * length**2
+    stiffness = mass * gravity * length * ((n + 1) / 2 + n) / inertia
+
+    def rate(state: np.ndarray) -> np.ndarray:
+        return np.array([state[1], stiffness * math.sin(state[0])])
+
+    steps = int(round(duration / dt))
+    angles = np.empty(steps + 1)
+    state = np.array([0.0, -1.0])
+    angles[0] = state[0]
+    for k in range(1, steps + 1):
+        k1 = rate(state)
+        k2 = rate(state + dt / 2 * k1)
+        k3 = rate(state + dt / 2 * k2)
+        k4 = rate(state + dt * k3)
+        state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        angles[k] = state[0]
+    model = scene.model
+    cranks = [model.joints[model.getJointId(f"crank{k}_joint")].idx_q for k in range(n + 1)]
+    couplers = [model.joints[model.getJointId(f"coupler{k}_joint")].idx_q for k in range(1, n + 1)]
+    q = np.tile(pin.neutral(model), (steps + 1, 1))
+    q[:, cranks] = angles[:, None]
+    q[:, couplers] = -angles[:, None]
+    kind = f"nfourbar N={n}: parallelogram pendulum (independent model), RK4 at dt = {dt:g} s"
+    return Reference(kind, np.arange(steps + 1) * dt, q)
 
 
 def run_config(
