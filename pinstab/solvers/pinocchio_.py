@@ -97,10 +97,10 @@ class PinocchioSolver(KKTSolver):
         rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
         return rcm
 
-    def _check_planar(self, problem: KKTProblem) -> None:
+    def _check_planar(self, q: np.ndarray) -> None:
         """planar-point rows stand in for 3-D contacts only if the third row is identically zero."""
         data = self.model.createData()
-        pin.computeJointJacobians(self.model, data, problem.q)
+        pin.computeJointJacobians(self.model, data, q)
         pin.updateFramePlacements(self.model, data)
         for closure in self.closures:
             if closure.kind != "planar-point":
@@ -124,7 +124,7 @@ class PinocchioSolver(KKTSolver):
 
     def solve(self, problem: KKTProblem) -> KKTSolution:
         if not self._checked_planar:
-            self._check_planar(problem)
+            self._check_planar(problem.q)
         acceleration = pin.constraintDynamics(
             self.model, self.data, problem.q, problem.v, problem.tau, self.models, self.datas, self.settings
         )
@@ -144,7 +144,7 @@ class PinocchioSolver(KKTSolver):
         point and planar-point closures (``direct_capable``).
         """
         if not self._checked_planar:
-            self._check_planar(KKTProblem(q, v, tau, None, None, None, None))
+            self._check_planar(q)
         model, data, datas = self.model, self.data, self.datas
         acceleration = pin.constraintDynamics(model, data, q, v, tau, self.models, datas, self.settings)
         if not self.closures:

@@ -26,6 +26,7 @@ import umsgpack
 from meshcat.animation import Animation, AnimationFrameVisualizer
 from pinocchio.visualize import MeshcatVisualizer
 
+from ..constraints import FrameClosure
 from ..errors import PinstabError
 from ..files import atomic_output
 from ..scene import Scene
@@ -75,7 +76,7 @@ class ClosurePoints:
     def __init__(self, system: ConstrainedSystem, radius: float) -> None:
         self.system = system
         self.radius = radius
-        self.closures = [c for c in system.constraints.constraints if hasattr(c, "frame_a")]
+        self.closures = [c for c in system.constraints.constraints if isinstance(c, FrameClosure)]
 
     def _path(self, name: str, side: str) -> str:
         return f"{ROOT}/closures/{name}/{side}"
