@@ -8,6 +8,16 @@ import pinocchio as pin
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
+def symmetric_mass_matrix(
+    model: pin.Model, data: pin.Data, q: np.ndarray, out: np.ndarray, lower: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """M(q) [kg, kg m^2] into ``out``, lower triangle filled from the upper (crba may fill only the
+    upper one); ``lower`` is ``np.tril_indices(nv, -1)``."""
+    out[:] = pin.crba(model, data, q)
+    out[lower] = out.T[lower]
+    return out
+
+
 class Kinematics:
     """Owns a Pinocchio ``Data`` and updates everything the constraint layer reads, once per state.
 
@@ -22,13 +32,12 @@ class Kinematics:
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
         self._zero_acceleration = np.zeros(model.nv)
-        self._lower = np.tril_indices(model.nv, -1)
+        self.lower = np.tril_indices(model.nv, -1)
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
         model, data = self.model, self.data
-        self.mass_matrix[:] = pin.crba(model, data, q)
-        self.mass_matrix[self._lower] = self.mass_matrix.T[self._lower]
+        symmetric_mass_matrix(model, data, q, self.mass_matrix, self.lower)
         self.bias[:] = pin.nonLinearEffects(model, data, q, v)
         pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
         pin.computeJointJacobians(model, data)

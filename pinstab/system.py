@@ -10,7 +10,7 @@ import pinocchio as pin
 from .constraints import ConstraintValues
 from .errors import DivergenceError
 from .forces import JointTorque
-from .kinematics import Kinematics
+from .kinematics import Kinematics, symmetric_mass_matrix
 from .scene import Scene
 from .solvers import KKTProblem, KKTSolver, PinocchioSolver
 from .stabilizers import BaumgarteStabilizer, NoStabilizer, PostStabilizer, ProjectionStabilizer
@@ -101,10 +101,8 @@ class ConstrainedSystem:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia M(q), symmetric [kg, kg m^2]."""
-        matrix = pin.crba(self.model, self._energy_data, q).copy()
-        lower = np.tril_indices(self.model.nv, -1)
-        matrix[lower] = matrix.T[lower]
-        return matrix
+        nv = self.model.nv
+        return symmetric_mass_matrix(self.model, self._energy_data, q, np.empty((nv, nv)), self.kin.lower)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
         """Kinetic + gravity + spring energy [J]; placements at q must be current in ``kin``."""
