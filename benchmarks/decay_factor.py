@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import pinstab
-from pinstab.stability import perturbed_start
+from pinstab.assembly import perturbed_start
 
 DECAYS = (0.0, 0.3, 0.5, 0.7, 0.9, 0.97)
 STEPS = (1e-4, 1e-3, 1e-2)
@@ -49,7 +49,7 @@ def measure(scene, integrator, dt, q_off, v0, **method):
 
 def main() -> None:
     scene = pinstab.load_scene("fourbar")
-    q_off, v0 = perturbed_start(scene, 0.05)
+    q_off, v0 = perturbed_start(pinstab.ConstrainedModel(scene), 0.05)
     rows = []
     for integrator, hold in MODES:
         for dt in STEPS:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import pinstab
-from pinstab.stability import perturbed_start
+from pinstab.assembly import perturbed_start
 
 STEPS = (1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2e-2)
 TARGET = 1e-10
@@ -34,7 +34,7 @@ OUT = Path(__file__).parent / "results" / "repair_steps.json"
 
 def main() -> None:
     scene = pinstab.load_scene("fourbar")
-    q_off, v0 = perturbed_start(scene, 0.05)
+    q_off, v0 = perturbed_start(pinstab.ConstrainedModel(scene), 0.05)
     rows = []
     print(f"{'dt [s]':>8}  " + "  ".join(f"{name:>40}" for name in CONFIGURATIONS))
     for dt in STEPS:

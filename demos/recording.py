@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 
 import pinstab
-from pinstab.simulate import build_system
+from pinstab.model import ConstrainedModel
 from pinstab.viz.browser import screenshot
 from pinstab.viz.recording import write_recording
 
@@ -28,7 +28,7 @@ def main() -> None:
 
     scene = pinstab.load_scene(args.scene)
     trajectory = pinstab.simulate(scene, dt=1e-3, duration=args.duration, progress=True)
-    recording = write_recording(scene, build_system(scene, "baumgarte", None), trajectory, args.output)
+    recording = write_recording(ConstrainedModel(scene), trajectory, args.output)
     print(f"{recording.path}: {recording.size_bytes / 1e6:.1f} MB, {recording.frames} frames at {recording.fps:g} fps")
     if args.still:
         print(f"still at t = {args.time} s: {screenshot(recording.path, args.still, args.time, size=(900, 650))}")

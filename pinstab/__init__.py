@@ -8,10 +8,20 @@ Public API::
 """
 
 from .assembly import AssemblyReport, assemble
-from .constraints import Constraint, FrameClosure, HolonomicConstraint, PfaffianConstraint
+from .constraints import (
+    CONSTRAINT_KINDS,
+    Constraint,
+    FrameClosure,
+    FrictionCone,
+    HolonomicConstraint,
+    PfaffianConstraint,
+    PointContact,
+    RowKind,
+)
 from .errors import (
     AssemblyError,
     ConstraintError,
+    ContactInfeasibleError,
     DivergenceError,
     PinstabError,
     ProjectionError,
@@ -20,34 +30,53 @@ from .errors import (
     UnstableGainsError,
     UnstableGainsWarning,
 )
+from .forces import FORCE_KINDS, ForceElement
 from .integrators import INTEGRATORS
+from .model import ConstrainedModel
+from .registry import NoOptions, Registry
+from .runinfo import RunInfo, SolverStatistics
 from .scene import Scene, load_scene
-from .simulate import build_system, simulate
+from .simulate import simulate
 from .solvers import SOLVERS
-from .stabilizers import METHODS
-from .system import ConstrainedSystem
+from .stabilizers import STABILIZERS, Stabilizer
+from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 
+METHODS = STABILIZERS  # the registered method names (a registry iterates over its names)
 __version__ = "0.1.0"
 
 __all__ = [
+    "CONSTRAINT_KINDS",
+    "FORCE_KINDS",
     "INTEGRATORS",
     "METHODS",
     "SOLVERS",
+    "STABILIZERS",
     "AssemblyError",
     "AssemblyReport",
+    "ConstrainedModel",
     "ConstrainedSystem",
     "Constraint",
     "ConstraintError",
+    "ContactInfeasibleError",
     "DivergenceError",
+    "ForceElement",
     "FrameClosure",
+    "FrictionCone",
     "HolonomicConstraint",
+    "NoOptions",
     "PfaffianConstraint",
     "PinstabError",
+    "PointContact",
     "ProjectionError",
+    "Registry",
+    "RowKind",
+    "RunInfo",
     "Scene",
     "SceneError",
     "SolverError",
+    "SolverStatistics",
+    "Stabilizer",
     "Trajectory",
     "UnstableGainsError",
     "UnstableGainsWarning",

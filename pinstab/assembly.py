@@ -9,11 +9,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .errors import AssemblyError
+from .errors import AssemblyError, PinstabError
 from .projection import project_velocities
+from .runinfo import AssemblySummary
 
 if TYPE_CHECKING:
-    from .system import ConstrainedSystem
+    from .model import ConstrainedModel
 
 
 @dataclass
@@ -35,9 +36,13 @@ class AssemblyReport:
     velocity_residual: float
     displacement: float
 
+    def summary(self) -> AssemblySummary:
+        """The figures a run reports (without the state)."""
+        return AssemblySummary(self.iterations, self.residual, self.velocity_residual, self.displacement)
+
 
 def assemble(
-    system: ConstrainedSystem,
+    model: ConstrainedModel,
     q: np.ndarray,
     v: np.ndarray,
     t: float = 0.0,
@@ -52,16 +57,16 @@ def assemble(
             residual), e.g. link lengths that cannot close.
     """
     q_start = q.copy()
-    mask = system.constraints.holonomic_mask
+    mask = model.constraints.holonomic_mask
     damping = 1e-6
-    phi, jac = _residual(system, q, t, mask)
+    phi, jac = _residual(model, q, t, mask)
     cost = float(phi @ phi)
     iterations = 0
     while iterations < max_iterations and np.max(np.abs(phi), initial=0.0) > tolerance:
         iterations += 1
         step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(phi)), phi)
-        trial = system.integrate(q, step)
-        trial_phi, trial_jac = _residual(system, trial, t, mask)
+        trial = model.integrate(q, step)
+        trial_phi, trial_jac = _residual(model, trial, t, mask)
         trial_cost = float(trial_phi @ trial_phi)
         if np.isfinite(trial_cost) and trial_cost < cost:
             q, phi, jac, cost = trial, trial_phi, trial_jac, trial_cost
@@ -72,29 +77,50 @@ def assemble(
                 break
     residual = float(np.max(np.abs(phi), initial=0.0))
     if residual > tolerance:
-        worst = _worst_constraint(system, phi, mask)
+        worst = _worst_constraint(model, phi, mask)
         raise AssemblyError(
             f"assembly failed: the closures cannot be met from the given configuration; residual "
             f"{residual:.3g} (largest on closure {worst!r}) after {iterations} iterations. Check the link "
             "lengths and closure offsets, or start from a configuration nearer a closed one.",
             residual,
         )
-    v = project_velocities(system, q, v, t, np.linalg.inv(system.mass_matrix(q)))
-    velocity_residual = float(np.max(np.abs(system.constraint_values(q, v, t).velocity_residual), initial=0.0))
-    displacement = float(np.linalg.norm(pin.difference(system.model, q_start, q)))
+    v = project_velocities(model, q, v, t, np.linalg.inv(model.mass_matrix(q)))
+    velocity_residual = float(np.max(np.abs(model.constraint_values(q, v, t).velocity_residual), initial=0.0))
+    displacement = float(np.linalg.norm(pin.difference(model.model, q_start, q)))
     return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement)
 
 
-def _residual(system: ConstrainedSystem, q: np.ndarray, t: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    values = system.constraint_values(q, np.zeros(system.nv), t)
+def _residual(model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    values = model.constraint_values(q, np.zeros(model.nv), t)
     return values.phi[mask], values.jacobian[mask]
 
 
-def _worst_constraint(system: ConstrainedSystem, phi: np.ndarray, mask: np.ndarray) -> str:
-    full = np.zeros(system.constraints.rows)
+def _worst_constraint(model: ConstrainedModel, phi: np.ndarray, mask: np.ndarray) -> str:
+    full = np.zeros(model.constraints.rows)
     full[mask] = phi
     worst_row = int(np.argmax(np.abs(full)))
-    for name, rows in system.constraints.slices.items():
+    for name, rows in model.constraints.slices.items():
         if rows.start <= worst_row < rows.stop:
             return name
     return "?"
+
+
+def perturbed_start(model: ConstrainedModel, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's assembled start, moved ``size`` [rad or m] off the manifold: (q, v) for a run
+    with ``assemble_initial=False`` that shows how a method repairs a violation."""
+    start = assemble(model, model.scene.q0, model.scene.v0)
+    return perturbed_configuration(model, start.q, size), start.v
+
+
+def perturbed_configuration(model: ConstrainedModel, q: np.ndarray, size: float) -> np.ndarray:
+    """q moved ``size`` [rad or m, tangent-space norm] off the constraint manifold.
+
+    The displacement is along ``G^T 1`` (normalized), a direction that changes every constraint row
+    to first order and has no component along the manifold.
+    """
+    jac = model.constraint_values(q, np.zeros(model.nv), 0.0).jacobian
+    direction = jac.T @ np.ones(jac.shape[0])
+    norm = np.linalg.norm(direction)
+    if norm == 0.0:
+        raise PinstabError("the scene has no constraint rows to perturb")
+    return model.integrate(q, size * direction / norm)

@@ -17,11 +17,13 @@ import numpy as np
 from . import __version__
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .integrators import INTEGRATORS
+from .registry import Registry, option_fields
 from .solvers import SOLVERS
-from .stability_map import MAP_METHODS
-from .stabilizers import METHODS, VARIANTS
+from .stability_map import map_methods
+from .stabilizers import STABILIZERS
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 2, 3
+METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
 
 
 def _parameters(pairs: list[str]) -> dict[str, Any]:
@@ -50,9 +52,32 @@ def _scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def _add_registry_options(parser: argparse.ArgumentParser, registry: Registry, prefix: str) -> None:
+    """One flag per option of the registry's entries (shared by entries with the same option), its
+    help naming the entries that take it; only flags given on the command line reach the namespace."""
+    flags: dict[str, list] = {}
+    for entry in registry.entries():
+        for option in option_fields(entry.options):
+            flags.setdefault(option.flag, []).append((entry.name, option))
+    group = parser.add_argument_group(f"{registry.kind} options")
+    for flag, users in flags.items():
+        option = users[0][1]
+        described = "; ".join(f"{name}: {item.help}" for name, item in users)
+        common = dict(dest=prefix + option.name, default=argparse.SUPPRESS, help=described)
+        if option.kind is bool:
+            group.add_argument(flag, action="store_false" if option.default else "store_true", **common)
+        else:
+            group.add_argument(flag, type=option.kind, choices=option.choices, **common)
+
+
+def _given_options(args: argparse.Namespace, prefix: str) -> dict[str, Any]:
+    """The registry options given on the command line (their flags' dests carry ``prefix``)."""
+    return {key[len(prefix) :]: value for key, value in vars(args).items() if key.startswith(prefix)}
+
+
 def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--method", default="baumgarte", choices=METHODS, help="stabilization method (default: baumgarte)"
+        "--method", default="baumgarte", choices=STABILIZERS, help="stabilization method (default: baumgarte)"
     )
     parser.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
     parser.add_argument(
@@ -63,31 +88,8 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
-    parser.add_argument(
-        "--kp",
-        type=float,
-        default=None,
-        help="Baumgarte Kp = beta^2 [1/s^2] (default: 100); mukharlyamov: stiffness H (default: automatic gains)",
-    )
-    parser.add_argument(
-        "--kd",
-        type=float,
-        default=None,
-        help="Baumgarte Kd = 2 alpha [1/s] (default: 20); mukharlyamov: damping B (default: automatic gains)",
-    )
-    parser.add_argument(
-        "--variant", choices=VARIANTS, default=None, help="mukharlyamov: kinematic (A = E) or inertial (A = Lambda)"
-    )
-    parser.add_argument(
-        "--decay", type=float, default=None, help="mukharlyamov automatic gains: decay factor r per step"
-    )
-    parser.add_argument(
-        "--no-hold",
-        dest="hold",
-        action="store_false",
-        default=None,
-        help="mukharlyamov with heun/rk4: evaluate the term at every stage instead of holding it over the step",
-    )
+    _add_registry_options(parser, STABILIZERS, METHOD_OPTION)
+    _add_registry_options(parser, SOLVERS, SOLVER_OPTION)
     parser.add_argument("--strict", action="store_true", help="refuse gains predicted unstable instead of warning")
     parser.add_argument(
         "--drift-limit",
@@ -129,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("scene", help="bundled scene name or a .toml file")
     bench.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter")
     bench.add_argument(
-        "--methods", nargs="+", default=["baumgarte", "mukharlyamov", "projection", "pinocchio"], choices=METHODS
+        "--methods", nargs="+", default=["baumgarte", "mukharlyamov", "projection", "pinocchio"], choices=STABILIZERS
     )
     bench.add_argument("--integrators", nargs="+", default=["semi-implicit-euler", "rk4"], choices=INTEGRATORS)
     bench.add_argument("--dts", nargs="+", type=float, default=[4e-3, 2e-3, 1e-3], help="steps [s]")
@@ -147,7 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     stability = sub.add_parser("stability", help="map observed vs predicted stability over a (dt, gain) grid")
     _scene_arguments(stability)
-    stability.add_argument("--method", default="baumgarte", choices=MAP_METHODS, help="(default: baumgarte)")
+    stability.add_argument(
+        "--method", default="baumgarte", choices=map_methods(), help="a method with gains kp, kd (default: baumgarte)"
+    )
     stability.add_argument(
         "--integrator", default="semi-implicit-euler", choices=INTEGRATORS, help="(default: semi-implicit-euler)"
     )
@@ -250,14 +254,14 @@ def _clean(value: Any) -> Any:
 
 def _check(args: argparse.Namespace) -> dict[str, Any]:
     from .assembly import assemble
+    from .model import ConstrainedModel
     from .scene import load_scene
-    from .simulate import build_system
 
     scene = load_scene(args.scene, **_parameters(args.param))
-    system = build_system(scene, "none", "proxsuite")
-    report = assemble(system, scene.q0, scene.v0)
-    values = system.constraint_values(report.q, report.v, 0.0)
-    rows = system.constraints.rows
+    model = ConstrainedModel(scene)
+    report = assemble(model, scene.q0, scene.v0)
+    values = model.constraint_values(report.q, report.v, 0.0)
+    rows = model.constraints.rows
     if rows:
         singular_values = np.linalg.svd(values.jacobian, compute_uv=False)
         rank = int(np.sum(singular_values > 1e-9 * max(singular_values[0], 1.0)))
@@ -275,7 +279,8 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
         "assembly_iterations": report.iterations,
         "assembly_velocity_residual": report.velocity_residual,
         "constraints": {
-            c.name: {"rows": c.rows, "holonomic": c.holonomic, "frame": c.force_frame} for c in scene.constraints
+            c.name: {"rows": c.rows, "holonomic": c.holonomic, "kind": c.row_kind.value, "frame": c.force_frame}
+            for c in scene.constraints
         },
         "locked_joints": scene.locked_joints,
     }
@@ -294,14 +299,11 @@ def _simulate(args: argparse.Namespace):
         dt=args.dt,
         duration=args.duration,
         solver=args.solver,
-        kp=args.kp,
-        kd=args.kd,
-        variant=args.variant,
-        decay=args.decay,
-        hold=args.hold,
+        solver_options=_given_options(args, SOLVER_OPTION),
         strict=args.strict,
         drift_limit=args.drift_limit,
         progress=not args.quiet,
+        **_given_options(args, METHOD_OPTION),
     )
     return scene, trajectory
 
@@ -310,14 +312,15 @@ def _run_summary(args: argparse.Namespace, scene, trajectory) -> dict[str, Any]:
     info = trajectory.info
     return {
         "scene": scene.name,
-        "method": info["method"],
-        "integrator": info["integrator"],
-        "solver": info["solver"],
-        "dt": args.dt,
+        "method": info.method,
+        "integrator": info.integrator,
+        "solver": info.solver,
+        "dt": info.dt,
         "duration": args.duration,
         **trajectory.summary(),
         "diverged": False,
-        "parameters": info["parameters"],
+        "parameters": info.parameters,
+        "direct": info.direct,
     }
 
 
@@ -342,7 +345,7 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
 def _record(args: argparse.Namespace) -> dict[str, Any]:
     import time
 
-    from .simulate import build_system
+    from .model import ConstrainedModel
     from .viz.recording import play_live, write_recording
 
     if not args.live and not args.output:
@@ -351,12 +354,12 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
         _check_output_path(args.output, ".html")
     start = time.perf_counter()
     scene, trajectory = _simulate(args)
-    system = build_system(scene, args.method, args.solver, args.kp, args.kd, args.variant, args.decay, args.hold)
+    model = ConstrainedModel(scene)
     result = _run_summary(args, scene, trajectory)
     if args.live:
-        result["live_url"] = play_live(scene, system, trajectory, fps=args.fps)
+        result["live_url"] = play_live(model, trajectory, fps=args.fps)
     if args.output:
-        recording = write_recording(scene, system, trajectory, args.output, fps=args.fps)
+        recording = write_recording(model, trajectory, args.output, fps=args.fps)
         result.update(
             recording=str(recording.path), size_bytes=recording.size_bytes, frames=recording.frames, fps=recording.fps
         )

@@ -33,6 +33,19 @@ class SolverError(PinstabError):
     """A KKT solve failed or is not applicable to the scene (e.g. rank loss with ``dense``)."""
 
 
+class ContactInfeasibleError(SolverError):
+    """Sticking contacts that cannot hold: the force they need is outside a friction cone, or pulls.
+
+    Attributes:
+        contacts: the contacts named, worst first. time: when [s].
+    """
+
+    def __init__(self, message: str, contacts: list[str], time: float) -> None:
+        super().__init__(message)
+        self.contacts = contacts
+        self.time = time
+
+
 class ProjectionError(PinstabError):
     """Coordinate projection onto the constraint manifold did not converge."""
 

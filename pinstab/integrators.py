@@ -7,22 +7,17 @@ carried back to the tangent space at the step's start point with ``pin.dDifferen
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import pinocchio as pin
 
-from .errors import PinstabError, choices
+from .registry import NoOptions, Registry
 
 if TYPE_CHECKING:
     from .system import ConstrainedSystem, Evaluation
 
-INTEGRATORS = ("euler", "semi-implicit-euler", "heun", "rk4")
 
-
-@dataclass
-class Step:
+class Step(NamedTuple):
     """A step's end state and the dynamics evaluated at its start (for multipliers)."""
 
     q: np.ndarray
@@ -31,37 +26,37 @@ class Step:
 
 
 class Integrator:
-    """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``."""
+    """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``.
+
+    Args:
+        system: the stepping system (its ``dynamics`` and its model's group operations).
+        options: the integrator's options (none for the built-in schemes).
+    """
 
     name = ""
 
-    def __init__(self, system: ConstrainedSystem) -> None:
+    def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
         self.system = system
-        model = system.model
-        self.flat = all(model.joints[j].nv == 1 for j in range(1, model.njoints))
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> Step:
+        """One step of ``dt`` [s] from (q, v) at time t [s]."""
         raise NotImplementedError
-
-    def _to_start_tangent(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
-        if self.flat:
-            return v_stage
-        return pin.dDifference(self.system.model, q, q_stage, pin.ArgumentPosition.ARG1) @ v_stage
 
     def _runge_kutta(self, q, v, t, dt, nodes, weights) -> Step:
         system = self.system
+        model = system.model
         first = system.dynamics(q, v, t)
         velocity_slopes, acceleration_slopes = [v], [first.acceleration]
         for stage, (row, node) in enumerate(nodes, start=1):
             dq = dt * sum(c * k for c, k in zip(row, velocity_slopes, strict=False))  # row covers the slopes so far
             v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes, strict=False))
-            q_stage = system.integrate(q, dq)
+            q_stage = model.integrate(q, dq)
             evaluation = system.dynamics(q_stage, v_stage, t + node * dt, stage)
-            velocity_slopes.append(self._to_start_tangent(q, q_stage, v_stage))
+            velocity_slopes.append(model.to_start_tangent(q, q_stage, v_stage))
             acceleration_slopes.append(evaluation.acceleration)
         dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes, strict=True))
         dv = dt * sum(w * k for w, k in zip(weights, acceleration_slopes, strict=True))
-        return Step(system.integrate(q, dq), v + dv, first)
+        return Step(model.integrate(q, dq), v + dv, first)
 
 
 class Euler(Integrator):
@@ -71,7 +66,7 @@ class Euler(Integrator):
 
     def step(self, q, v, t, dt):
         first = self.system.dynamics(q, v, t)
-        return Step(self.system.integrate(q, dt * v), v + dt * first.acceleration, first)
+        return Step(self.system.model.integrate(q, dt * v), v + dt * first.acceleration, first)
 
 
 class SemiImplicitEuler(Integrator):
@@ -82,7 +77,7 @@ class SemiImplicitEuler(Integrator):
     def step(self, q, v, t, dt):
         first = self.system.dynamics(q, v, t)
         v_new = v + dt * first.acceleration
-        return Step(self.system.integrate(q, dt * v_new), v_new, first)
+        return Step(self.system.model.integrate(q, dt * v_new), v_new, first)
 
 
 class Heun(Integrator):
@@ -105,9 +100,9 @@ class RK4(Integrator):
         return self._runge_kutta(q, v, t, dt, self.NODES, self.WEIGHTS)
 
 
-def make_integrator(name: str, system: ConstrainedSystem) -> Integrator:
-    """Integrator by name (one of :data:`INTEGRATORS`)."""
-    classes = {cls.name: cls for cls in (Euler, SemiImplicitEuler, Heun, RK4)}
-    if name not in classes:
-        raise PinstabError(f"unknown integrator {name!r}; valid integrators: {choices(INTEGRATORS)}")
-    return classes[name](system)
+INTEGRATORS: Registry[Integrator] = Registry("integrator")
+"""Integrators. A factory is ``factory(system, options) -> Integrator``."""
+INTEGRATORS.register("euler", Euler, summary="explicit Euler, order 1")
+INTEGRATORS.register("semi-implicit-euler", SemiImplicitEuler, summary="symplectic Euler (v first), order 1")
+INTEGRATORS.register("heun", Heun, summary="Heun's method, order 2")
+INTEGRATORS.register("rk4", RK4, summary="classical Runge-Kutta, order 4")

@@ -11,7 +11,7 @@ import numpy as np
 from .errors import ProjectionError
 
 if TYPE_CHECKING:
-    from .system import ConstrainedSystem
+    from .model import ConstrainedModel
 
 RCOND = 1e-12
 
@@ -24,7 +24,7 @@ def weighted_correction(inverse_mass: np.ndarray, jacobian: np.ndarray, residual
 
 
 def project_positions(
-    system: ConstrainedSystem,
+    model: ConstrainedModel,
     q: np.ndarray,
     t: float,
     inverse_mass: np.ndarray,
@@ -37,16 +37,16 @@ def project_positions(
         ProjectionError: the residual is still above ``tolerance`` [m or rad] after
             ``max_iterations``.
     """
-    mask = system.constraints.holonomic_mask
+    mask = model.constraints.holonomic_mask
     for iteration in range(max_iterations + 1):
-        values = system.constraint_values(q, np.zeros(system.nv), t)
+        values = model.constraint_values(q, np.zeros(model.nv), t)
         phi = values.phi[mask]
         worst = float(np.max(np.abs(phi), initial=0.0))
         if worst <= tolerance:
             return q, iteration
         if iteration == max_iterations or not np.isfinite(worst):
             break
-        q = system.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], phi))
+        q = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], phi))
     raise ProjectionError(
         f"coordinate projection did not converge: residual {worst:.3g} after {max_iterations} iterations "
         f"at t = {t:.6g} s (tolerance {tolerance:.1g}); the state is far from the constraint manifold or "
@@ -55,8 +55,8 @@ def project_positions(
 
 
 def project_velocities(
-    system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray
+    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray
 ) -> np.ndarray:
     """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric."""
-    values = system.constraint_values(q, v, t)
+    values = model.constraint_values(q, v, t)
     return v + weighted_correction(inverse_mass, values.jacobian, values.velocity_residual)

@@ -6,64 +6,59 @@ import math
 import sys
 import time
 import warnings
+from collections.abc import Mapping
 from contextlib import closing, nullcontext
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning, choices
-from .integrators import make_integrator
+from .errors import DivergenceError, PinstabError, SolverError, UnstableGainsError, UnstableGainsWarning
+from .integrators import INTEGRATORS
+from .runinfo import RunInfo
 from .scene import Scene, load_scene
-from .solvers import SOLVERS, DenseSolver, KKTSolver, PinocchioSolver, ProxsuiteSolver
 from .stability import largest_stable_step
-from .stabilizers import Stabilizer, make_stabilizer
-from .system import ConstrainedSystem
+from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 MAX_STEPS = 20_000_000  # every step is recorded; beyond this the arrays alone reach gigabytes
+GRID_SLACK = 1e-9  # a duration within this fraction of a step of a whole number of steps is that number
 
 
-def make_solver(name: str, scene: Scene, stabilizer: Stabilizer) -> KKTSolver:
-    """KKT backend by name; ``pinocchio`` takes the stabilizer's Baumgarte gains into its corrector."""
-    if stabilizer.required_solver is not None and name != stabilizer.required_solver:
-        raise PinstabError(f"method {stabilizer.name!r} runs on solver {stabilizer.required_solver!r}, not {name!r}")
-    if name == "proxsuite":
-        return ProxsuiteSolver()
-    if name == "dense":
-        rows = scene.constraint_set
-        return DenseSolver([c.name for c in rows.constraints for _ in range(c.rows)])
-    if name == "pinocchio":
-        gains = stabilizer.baumgarte_gains()
-        if gains is None:
+class TimeGrid(NamedTuple):
+    """The steps of a run: ``steps`` steps of ``dt`` [s], the last shortened so that it ends at
+    ``duration`` [s] exactly."""
+
+    dt: float
+    duration: float
+    steps: int
+
+    @classmethod
+    def of(cls, dt: float, duration: float) -> TimeGrid:
+        """The grid of ``dt`` over ``duration``.
+
+        Raises:
+            PinstabError: non-positive or non-finite arguments, or more than :data:`MAX_STEPS` steps.
+        """
+        for label, value in (("dt", dt), ("duration", duration)):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
+                raise PinstabError(f"{label} must be a positive number, got {value!r}")
+        ratio = duration / dt
+        whole = round(ratio)
+        steps = whole if abs(ratio - whole) <= GRID_SLACK * max(1.0, ratio) else math.ceil(ratio)
+        steps = max(steps, 1)
+        if steps > MAX_STEPS:
             raise PinstabError(
-                f"solver 'pinocchio' cannot apply the stabilization term of method {stabilizer.name!r} "
-                "(Pinocchio only applies its own Baumgarte corrector); use solver 'proxsuite' or 'dense'"
+                f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed the {MAX_STEPS:,} a trajectory records; "
+                "use a larger dt or a shorter duration"
             )
-        return PinocchioSolver(scene.model, scene.constraints, *gains)
-    raise PinstabError(f"unknown solver {name!r}; valid solvers: {choices(SOLVERS)}")
+        return cls(float(dt), float(duration), steps)
 
-
-def build_system(
-    scene: Scene,
-    method: str,
-    solver: str | None,
-    kp: float | None = None,
-    kd: float | None = None,
-    variant: str | None = None,
-    decay: float | None = None,
-    hold: bool | None = None,
-) -> ConstrainedSystem:
-    """A :class:`ConstrainedSystem` for the named method and solver (solver None: the method's own or proxsuite).
-
-    Methods with step-dependent gains (``mukharlyamov``) need ``system.stabilizer.bind(...)`` before
-    ``system.dynamics``; :func:`simulate` does it.
-    """
-    stabilizer = make_stabilizer(method, kp, kd, variant, decay, hold)
-    solver_name = solver or stabilizer.required_solver or "proxsuite"
-    return ConstrainedSystem(scene, stabilizer, make_solver(solver_name, scene, stabilizer))
+    def time(self, k: int) -> float:
+        """The time of sample k [s]: k dt, and ``duration`` exactly at the last."""
+        return self.duration if k == self.steps else k * self.dt
 
 
 def simulate(
@@ -73,33 +68,31 @@ def simulate(
     dt: float = 1e-3,
     duration: float = 1.0,
     solver: str | None = None,
-    kp: float | None = None,
-    kd: float | None = None,
-    variant: str | None = None,
-    decay: float | None = None,
-    hold: bool | None = None,
+    *,
+    solver_options: Mapping[str, Any] | None = None,
     strict: bool = False,
     drift_limit: float = DEFAULT_DRIFT_LIMIT,
     progress: bool = False,
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
     assemble_initial: bool = True,
+    **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
 
     Args:
         scene: a :class:`Scene`, a scene file path or a bundled scene name.
-        method: stabilization method (``none``, ``baumgarte``, ``projection``, ``post``, ``pinocchio``).
-        integrator: ``euler``, ``semi-implicit-euler``, ``heun`` or ``rk4``.
-        dt: time step [s].
+        method: a registered stabilization method (``none``, ``baumgarte``, ``mukharlyamov``,
+            ``projection``, ``post``, ``pinocchio``, or one registered by the user).
+        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``).
+        dt: time step [s]; the last step is shortened so that the run ends at ``duration`` exactly.
         duration: simulated time [s].
-        solver: ``proxsuite`` (default), ``pinocchio`` or ``dense``.
-        kp, kd: Baumgarte gains [1/s^2], [1/s] (``baumgarte``, ``pinocchio``), or the stiffness
-            and damping of ``mukharlyamov`` (omit both for automatic gains).
-        variant: ``mukharlyamov``: ``kinematic`` (default) or ``inertial``.
-        decay: ``mukharlyamov`` automatic gains: decay factor r per step (default 0 kinematic, 0.3 inertial).
-        hold: ``mukharlyamov`` with heun or rk4: evaluate the term once per step and hold it
-            (default True) rather than at every stage.
+        solver: a registered KKT backend (``proxsuite`` by default, ``pinocchio``, ``dense``).
+        solver_options: the backend's options (e.g. ``{"eps_abs": 1e-10}`` for proxsuite).
+        method_options: the method's options, e.g. ``kp``, ``kd`` [1/s^2], [1/s] (``baumgarte``,
+            ``pinocchio``; for ``mukharlyamov`` the stiffness and damping, omitted for automatic
+            gains), ``variant``, ``decay``, ``hold`` (``mukharlyamov``). An option the method does not
+            take is refused, naming the ones it takes.
         strict: refuse (:class:`UnstableGainsError`) instead of warning when the gains are
             predicted unstable (rho(R(tau W)) >= 1) at this step and integrator.
         drift_limit: position drift [m or rad] above which the run stops with DivergenceError; a
@@ -122,84 +115,86 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    for label, value in (("dt", dt), ("duration", duration), ("drift_limit", drift_limit)):
-        if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-            raise PinstabError(f"{label} must be a positive number, got {value!r}")
-    steps = int(round(duration / dt))
-    if steps < 1:
-        raise PinstabError(f"duration {duration} s is shorter than one step of dt = {dt} s")
-    if steps > MAX_STEPS:
-        raise PinstabError(
-            f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed the {MAX_STEPS:,} a trajectory records; "
-            "use a larger dt or a shorter duration"
-        )
-    system = build_system(scene, method, solver, kp, kd, variant, decay, hold)
-    stepper = make_integrator(integrator, system)
+    grid = TimeGrid.of(dt, duration)
+    if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
+        raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    system = build_system(scene, method, solver, solver_options, **method_options)
+    stepper = INTEGRATORS.build(integrator, system)
+    model = system.model
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
-    if q.shape != (scene.model.nq,) or v.shape != (scene.model.nv,):
-        raise PinstabError(f"q0 must have {scene.model.nq} entries and v0 {scene.model.nv}")
+    if q.shape != (model.nq,) or v.shape != (model.nv,):
+        raise PinstabError(f"q0 must have {model.nq} entries and v0 {model.nv}")
     report: AssemblyReport | None = None
     if assemble_initial:
-        report = assemble(system, q, v)
+        report = assemble(model, q, v)
         q, v = report.q, report.v
-    system.stabilizer.bind(system, dt, integrator, q)
+    system.stabilizer.bind(model, grid.dt, integrator, q)
     start_radius = _refuse_unstable_gains(system, q, v, strict)
 
-    recorder = _Recorder(system, steps)
+    info = _info(scene, system, integrator, grid, report, method, solver_options)
+    recorder = _Recorder(system, grid.steps)
     recorder.warned = start_radius is not None and start_radius >= 1.0
     recorder.record(0, 0.0, q, v)
-    bar = _progress_bar(steps, scene.name, progress)
+    bar = _progress_bar(grid.steps, scene.name, progress)
     start = time.perf_counter()
     t = 0.0
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
     with np.errstate(over="ignore", invalid="ignore"), nullcontext() if bar is None else closing(bar):
-        for k in range(1, steps + 1):
+        for k in range(1, grid.steps + 1):
+            t_next = grid.time(k)
+            step_size = t_next - t
+            failure = ""
             try:
-                step = stepper.step(q, v, t, dt)
-            except DivergenceError:
-                recorder.record(k, k * dt, np.full_like(q, np.nan), np.full_like(v, np.nan))
+                step = stepper.step(q, v, t, step_size)
+            except (DivergenceError, SolverError) as exc:
+                if isinstance(exc, SolverError) and not recorder.warned:
+                    raise
+                # with gains predicted unstable, a solve that fails is the blow-up the criterion foresaw
+                failure = f" (the KKT solve failed: {exc})" if isinstance(exc, SolverError) else ""
+                recorder.record(k, t_next, np.full_like(q, np.nan), np.full_like(v, np.nan))
                 drift = math.nan
             else:
                 recorder.multipliers[k - 1] = step.start.multipliers
-                correction = system.stabilizer.correct(system, step.q, step.v, k * dt)
+                correction = system.stabilizer.correct(model, step.q, step.v, t_next)
                 recorder.corrections[k] = correction.iterations
                 q_next, v_next = correction.q, correction.v
-                drift = recorder.record(k, k * dt, q_next, v_next)
+                drift = recorder.record(k, t_next, q_next, v_next)
                 # a velocity residual that would carry the constraint past the limit within one step
-                drift = max(drift, recorder.velocity_drift[k] * dt)
+                drift = max(drift, recorder.velocity_drift[k] * step_size)
             if not drift <= drift_limit:
                 recorder.wall_time = time.perf_counter() - start
-                partial = recorder.trajectory(k, _info(scene, system, integrator, dt, report))
+                partial = recorder.trajectory(k, _finish(info, system, k, t_next))
                 reason = (
-                    "a non-finite state"
+                    f"a non-finite state{failure}"
                     if not np.isfinite(drift)
                     else f"drift {drift:.3g} > {drift_limit:g} (position residual, or velocity residual x dt)"
                 )
                 raise DivergenceError(
-                    f"simulation diverged at t = {k * dt:.6g} s (step {k}): {reason}; the last finite state is at "
+                    f"simulation diverged at t = {t_next:.6g} s (step {k}): {reason}; the last finite state is at "
                     f"t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
                     t,
                     q,
                     v,
                     partial,
                 )
-            q, v, t = q_next, v_next, k * dt
+            q, v, t = q_next, v_next, t_next
             if bar is not None:
                 bar.update(1)
-        recorder.multipliers[steps] = system.dynamics(q, v, t).multipliers
+        recorder.multipliers[grid.steps] = system.dynamics(q, v, t).multipliers
     recorder.wall_time = time.perf_counter() - start
-    return recorder.trajectory(steps, _info(scene, system, integrator, dt, report))
+    return recorder.trajectory(grid.steps, _finish(info, system, grid.steps, t))
 
 
 class _Recorder:
     def __init__(self, system: ConstrainedSystem, steps: int) -> None:
         self.system = system
+        self.model = system.model
         n = steps + 1
         self.t = np.zeros(n)
-        self.q = np.zeros((n, system.model.nq))
-        self.v = np.zeros((n, system.model.nv))
-        self.multipliers = np.full((n, system.constraints.rows), np.nan)
+        self.q = np.zeros((n, self.model.nq))
+        self.v = np.zeros((n, self.model.nv))
+        self.multipliers = np.full((n, self.model.constraints.rows), np.nan)
         self.position_drift = np.zeros(n)
         self.velocity_drift = np.zeros(n)
         self.energy = np.zeros(n)
@@ -213,11 +208,9 @@ class _Recorder:
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             self.position_drift[k] = self.velocity_drift[k] = self.energy[k] = np.nan
             return math.nan
-        values = self.system.constraint_values(q, v, t)
-        self.position_drift[k] = np.max(np.abs(values.phi), initial=0.0)
-        self.velocity_drift[k] = np.max(np.abs(values.velocity_residual), initial=0.0)
-        self.energy[k] = self.system.energy(q, v)
-        radius = self.system.stabilizer.spectral_radius(self.system, q, v, t)
+        self.position_drift[k], self.velocity_drift[k] = self.model.violation(q, v, t)
+        self.energy[k] = self.model.energy(q, v)
+        radius = self.system.stabilizer.spectral_radius(self.model, q, v, t)
         if radius is not None:
             self.spectral_radius[k] = radius
             if radius >= 1.0 and not self.warned and k > 0:
@@ -232,7 +225,7 @@ class _Recorder:
                 )
         return float(self.position_drift[k])
 
-    def trajectory(self, last: int, info: dict[str, Any]) -> Trajectory:
+    def trajectory(self, last: int, info: RunInfo) -> Trajectory:
         n = last + 1
         return Trajectory(
             t=self.t[:n].copy(),
@@ -250,37 +243,47 @@ class _Recorder:
 
 
 def _info(
-    scene: Scene, system: ConstrainedSystem, integrator: str, dt: float, report: AssemblyReport | None
-) -> dict[str, Any]:
-    constraints = system.constraints
-    return {
-        "scene": scene.name,
-        "method": system.stabilizer.name,
-        "integrator": integrator,
-        "solver": system.solver.name,
-        "solver_fallbacks": system.solver.fallbacks,
-        "dt": dt,
-        "parameters": system.stabilizer.parameters(),
-        "scene_parameters": scene.parameters,
-        "constraint_rows": {name: [s.start, s.stop] for name, s in constraints.slices.items()},
-        "force_frames": {c.name: c.force_frame for c in constraints.constraints},
-        "assembly": None
-        if report is None
-        else {
-            "iterations": report.iterations,
-            "residual": report.residual,
-            "velocity_residual": report.velocity_residual,
-        },
-    }
+    scene: Scene,
+    system: ConstrainedSystem,
+    integrator: str,
+    grid: TimeGrid,
+    report: AssemblyReport | None,
+    method: str,
+    solver_options: Mapping[str, Any] | None,
+) -> RunInfo:
+    constraints = system.model.constraints
+    return RunInfo(
+        scene=scene.name,
+        method=method,
+        integrator=integrator,
+        solver=system.solver.name,
+        dt=grid.dt,
+        parameters=system.stabilizer.parameters(),
+        solver_options=dict(solver_options or {}),
+        scene_parameters=scene.parameters,
+        constraint_rows={name: [s.start, s.stop] for name, s in constraints.slices.items()},
+        row_kinds={c.name: c.row_kind.value for c in constraints.constraints},
+        force_frames={c.name: c.force_frame for c in constraints.constraints},
+        assembly=None if report is None else report.summary(),
+        direct=system.direct,
+    )
+
+
+def _finish(info: RunInfo, system: ConstrainedSystem, steps: int, t_end: float) -> RunInfo:
+    """The run info with the steps taken, the end time [s] and the solver's statistics so far."""
+    info.steps, info.t_end = steps, t_end
+    info.solver_statistics = system.solver.statistics
+    info.parameters = system.stabilizer.parameters()
+    return info
 
 
 def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:
     """Warn (or refuse with ``strict``) before stepping when rho(R(tau W)) >= 1 at the start; returns rho."""
     stabilizer = system.stabilizer
-    radius = stabilizer.spectral_radius(system, q, v, 0.0)
+    radius = stabilizer.spectral_radius(system.model, q, v, 0.0)
     if radius is None or radius < 1.0:
         return radius
-    bound = largest_stable_step(*stabilizer.deviation_gains(system, q, v), stabilizer.scheme)
+    bound = largest_stable_step(*stabilizer.deviation_gains(system.model, q, v), stabilizer.scheme)
     step = stabilizer.step
     gains = stabilizer.parameters()
     described = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in gains.items())

@@ -214,28 +214,3 @@ def largest_stable_step(
 def _check_scheme(scheme: str) -> None:
     if scheme not in SCHEMES:
         raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(SCHEMES)}")
-
-
-def perturbed_start(scene, size: float) -> tuple[np.ndarray, np.ndarray]:
-    """The scene's assembled start, moved ``size`` [rad or m] off the manifold: (q, v) for a run
-    with ``assemble_initial=False`` that shows how a method repairs a violation."""
-    from .assembly import assemble
-    from .simulate import build_system
-
-    system = build_system(scene, "none", "dense")
-    start = assemble(system, scene.q0, scene.v0)
-    return perturbed_configuration(system, start.q, size), start.v
-
-
-def perturbed_configuration(system, q: np.ndarray, size: float) -> np.ndarray:
-    """q moved ``size`` [rad or m, tangent-space norm] off the constraint manifold.
-
-    The displacement is along ``G^T 1`` (normalized), a direction that changes every constraint row
-    to first order and has no component along the manifold.
-    """
-    jac = system.constraint_values(q, np.zeros(system.nv), 0.0).jacobian
-    direction = jac.T @ np.ones(jac.shape[0])
-    norm = np.linalg.norm(direction)
-    if norm == 0.0:
-        raise PinstabError("the scene has no constraint rows to perturb")
-    return system.integrate(q, size * direction / norm)

@@ -3,6 +3,7 @@ rho(R(tau W)) = 1 of the discrete criterion (MATH.md 3.3)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import warnings
@@ -12,12 +13,24 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DivergenceError, PinstabError, UnstableGainsWarning
+from .assembly import perturbed_start
+from .errors import DivergenceError, PinstabError, UnstableGainsWarning, choices
+from .model import ConstrainedModel
 from .scene import Scene
-from .simulate import build_system, simulate
-from .stability import perturbed_start
+from .simulate import simulate
+from .stabilizers import STABILIZERS
+from .system import build_system
 
-MAP_METHODS = ("baumgarte", "mukharlyamov", "pinocchio")
+
+def map_methods() -> list[str]:
+    """The registered methods a map can sweep: those whose options include gains ``kp`` and ``kd``."""
+    return [
+        entry.name
+        for entry in STABILIZERS.entries()
+        if {"kp", "kd"} <= {item.name for item in dataclasses.fields(entry.options)}
+    ]
+
+
 CONVERGED_RATIO = 1e-2  # final / initial position drift at or below this: converged
 DIVERGED_RATIO = 1e3  # above this (the runs stop there) or non-finite: diverged; in between: bounded
 
@@ -110,14 +123,17 @@ def stability_map(
         solver: KKT backend for the runs (``dense`` is the fastest on non-redundant scenes).
         progress: progress bar on stderr.
     """
-    if method not in MAP_METHODS:
-        raise PinstabError(f"stability maps take methods {', '.join(MAP_METHODS)}, not {method!r}")
+    if method not in map_methods():
+        raise PinstabError(
+            f"stability maps take methods with gains kp and kd: {choices(map_methods())}, not {method!r}"
+        )
     for label, (low, high) in (("dt range", dt_range), ("gain range", gain_range)):
         if not (0 < low < high) or not math.isfinite(high):
             raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
     if grid < 2 or steps < 2:
         raise PinstabError("grid and steps must be at least 2")
-    q_off, v0 = perturbed_start(scene, perturbation)
+    model = ConstrainedModel(scene)
+    q_off, v0 = perturbed_start(model, perturbation)
     result = StabilityMap(scene.name, method, integrator, steps, perturbation)
     bar = None
     if progress:
@@ -126,7 +142,7 @@ def stability_map(
         bar = tqdm(total=grid * grid, desc=f"stability {scene.name}", unit="run", file=sys.stderr, mininterval=0.5)
     for dt in np.geomspace(*dt_range, grid):
         for kp in np.geomspace(*gain_range, grid):
-            result.cells.append(_cell(scene, method, integrator, float(dt), float(kp), steps, q_off, v0, solver))
+            result.cells.append(_cell(model, method, integrator, float(dt), float(kp), steps, q_off, v0, solver))
             if bar is not None:
                 bar.update(1)
     if bar is not None:
@@ -134,12 +150,13 @@ def stability_map(
     return result
 
 
-def _cell(scene, method, integrator, dt, kp, steps, q_off, v0, solver) -> Cell:
+def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0, solver) -> Cell:
     kd = 2.0 * math.sqrt(kp)
-    system = build_system(scene, method, solver, kp, kd)
-    system.stabilizer.bind(system, dt, integrator, q_off)
-    radius = system.stabilizer.spectral_radius(system, q_off, v0, 0.0)
-    initial = float(np.max(np.abs(system.constraint_values(q_off, v0, 0.0).phi)))
+    system = build_system(model, method, solver, kp=kp, kd=kd)
+    system.stabilizer.bind(model, dt, integrator, q_off)
+    radius = system.stabilizer.spectral_radius(model, q_off, v0, 0.0)
+    initial = model.violation(q_off, v0, 0.0)[0]
+    scene = model.scene
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnstableGainsWarning)
         try:

@@ -1,20 +1,22 @@
-"""A scene's equations of motion with a stabilizer and a KKT backend: (q, v, t) -> (a, lambda)."""
+"""The stepping system: a :class:`~pinstab.model.ConstrainedModel` with a stabilizer and a KKT backend,
+``(q, v, t) -> (a, lambda)`` (MATH.md eq. 3)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from .constraints import ConstraintValues
-from .errors import DivergenceError
-from .forces import JointTorque
-from .kinematics import Kinematics, symmetric_mass_matrix
+from .errors import DivergenceError, PinstabError
+from .model import ConstrainedModel
 from .scene import Scene
-from .solvers import KKTProblem, KKTSolver, PinocchioSolver
-from .stabilizers import BaumgarteStabilizer, NoStabilizer, PostStabilizer, ProjectionStabilizer
-from .stabilizers.base import Stabilizer
+from .solvers import SOLVERS, KKTProblem, KKTSolver
+from .stabilizers import STABILIZERS, Stabilizer
+
+DEFAULT_SOLVER = "proxsuite"
 
 
 @dataclass
@@ -31,41 +33,26 @@ class ConstrainedSystem:
     """MATH.md eq. (3): ``M a + h = tau + G^T lambda``, ``G a = -gamma0 + gamma_stab``.
 
     Args:
-        scene: the scene (model, constraints, force elements).
+        model: the constrained model.
         stabilizer: provides gamma_stab and post-step corrections.
         solver: the KKT backend.
+
+    Attributes:
+        direct: the whole evaluation runs on the solver's own path (Pinocchio computing its own
+            kinematics and applying the stabilizer's Baumgarte term in its corrector), checked there
+            and done the general way when the check fails.
     """
 
-    def __init__(self, scene: Scene, stabilizer: Stabilizer, solver: KKTSolver) -> None:
-        self.scene = scene
-        self.model = scene.model
-        self.kin = Kinematics(scene.model)
-        self.constraints = scene.constraint_set
-        self.forces = scene.forces
+    def __init__(self, model: ConstrainedModel, stabilizer: Stabilizer, solver: KKTSolver) -> None:
+        self.model = model
         self.stabilizer = stabilizer
         self.solver = solver
-        self._energy_data = scene.model.createData()
-        # Pinocchio can do the whole evaluation itself when its corrector is the method's term and no
-        # force element needs pinstab's kinematics: the direct path (checked inside, general path if not)
         self.direct = (
-            isinstance(solver, PinocchioSolver)
-            and solver.direct_capable
-            and stabilizer.baumgarte_gains() == (solver.kp, solver.kd)
-            and isinstance(stabilizer, (BaumgarteStabilizer, NoStabilizer, ProjectionStabilizer, PostStabilizer))
-            and all(isinstance(element, JointTorque) for element in scene.forces)
-            and len(self.constraints.constraints) == len(solver.closures)
+            solver.direct_capable
+            and solver.corrector_gains is not None
+            and stabilizer.baumgarte_gains() == solver.corrector_gains
+            and not model.forces_need_kinematics
         )
-
-    @property
-    def nv(self) -> int:
-        return self.model.nv
-
-    def applied_force(self, v: np.ndarray, t: float) -> np.ndarray:
-        """Sum of force elements [N, N m]; kinematics must be current."""
-        tau = np.zeros(self.model.nv)
-        for element in self.forces:
-            tau += element.generalized_force(self.kin, v, t)
-        return tau
 
     def dynamics(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> Evaluation:
         """Accelerations and multipliers at (q, v, t); ``stage`` is the integrator's stage index.
@@ -75,43 +62,65 @@ class ConstrainedSystem:
         """
         if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise DivergenceError(f"non-finite state reached at t = {t:.6g} s", t, q, v)
+        model = self.model
         if self.direct:
-            solution = self.solver.direct(q, v, self.applied_force(v, t))
+            solution = self.solver.direct(q, v, model.applied_force(v, t))
             if solution is not None:
                 if not np.isfinite(solution.acceleration).all():
                     raise DivergenceError(f"non-finite acceleration from Pinocchio at t = {t:.6g} s", t, q, v)
                 return Evaluation(solution.acceleration, solution.multipliers, None)
-        self.kin.update(q, v)
-        tau = self.applied_force(v, t)
-        values = self.constraints.values(self.kin, q, v, t, with_drift=True)
+        terms = model.dynamics_terms(q, v, t)
+        values = terms.values
         rhs = -values.drift
-        gamma = self.stabilizer.stabilization_term(self, q, v, t, values, stage)
+        gamma = self.stabilizer.stabilization_term(model, q, v, t, values, stage)
         if gamma is not None:
             rhs = rhs + gamma
-        problem = KKTProblem(q, v, tau, self.kin.mass_matrix, tau - self.kin.bias, values.jacobian, rhs)
+        problem = KKTProblem(
+            q,
+            v,
+            t,
+            terms.tau,
+            terms.mass_matrix,
+            terms.tau - terms.bias,
+            values.jacobian,
+            rhs,
+            model.constraints.layout,
+        )
         solution = self.solver.solve(problem)
         if not np.isfinite(solution.acceleration).all():
             raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
         return Evaluation(solution.acceleration, solution.multipliers, values)
 
-    def constraint_values(self, q: np.ndarray, v: np.ndarray, t: float) -> ConstraintValues:
-        """phi, G, g at (q, v, t) without drift terms (one Jacobian pass)."""
-        self.kin.update_jacobians(q)
-        return self.constraints.values(self.kin, q, v, t, with_drift=False)
 
-    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        """Joint-space inertia M(q), symmetric [kg, kg m^2]."""
-        nv = self.model.nv
-        return symmetric_mass_matrix(self.model, self._energy_data, q, np.empty((nv, nv)), self.kin.lower)
+def build_stabilizer(method: str, options: Mapping[str, Any] | Any | None = None) -> Stabilizer:
+    """A stabilizer by method name with its options (a mapping of option names, or the options
+    dataclass); unknown methods and options are refused naming the valid ones."""
+    return STABILIZERS.build(method, options=options)
 
-    def energy(self, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic + gravity + spring energy [J]; placements at q must be current in ``kin``."""
-        data = self._energy_data
-        kinetic = pin.computeKineticEnergy(self.model, data, q, v)
-        potential = pin.computePotentialEnergy(self.model, data, q)
-        springs = sum(element.potential_energy(self.kin) for element in self.forces)
-        return float(kinetic + potential + springs)
 
-    def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """q (+) dq on the configuration group."""
-        return pin.integrate(self.model, q, dq)
+def build_system(
+    scene: Scene | ConstrainedModel,
+    method: str = "baumgarte",
+    solver: str | None = None,
+    solver_options: Mapping[str, Any] | Any | None = None,
+    **method_options: Any,
+) -> ConstrainedSystem:
+    """A :class:`ConstrainedSystem` for the named method and solver.
+
+    Args:
+        scene: a scene, or its constrained model.
+        method: a registered stabilization method.
+        solver: a registered KKT backend; None: the method's own, else ``proxsuite``.
+        solver_options: the backend's options.
+        method_options: the method's options (e.g. ``kp``, ``kd``).
+
+    Methods with step-dependent gains (``mukharlyamov``) need ``system.stabilizer.bind(...)`` before
+    ``system.dynamics``; :func:`~pinstab.simulate.simulate` does it.
+    """
+    model = scene if isinstance(scene, ConstrainedModel) else ConstrainedModel(scene)
+    stabilizer = build_stabilizer(method, method_options)
+    name = solver or stabilizer.required_solver or DEFAULT_SOLVER
+    if stabilizer.required_solver is not None and name != stabilizer.required_solver:
+        raise PinstabError(f"method {method!r} runs on solver {stabilizer.required_solver!r}, not {name!r}")
+    backend = SOLVERS.build(name, model, stabilizer.baumgarte_gains(), options=solver_options)
+    return ConstrainedSystem(model, stabilizer, backend)

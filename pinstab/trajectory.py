@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +12,7 @@ import pinocchio as pin
 
 from .errors import PinstabError
 from .files import atomic_output
+from .runinfo import RunInfo
 
 
 @dataclass
@@ -28,7 +29,8 @@ class Trajectory:
         spectral_radius: rho(R(tau W)) of the deviation dynamics per sample (methods with a
             stabilization term; NaN otherwise).
         wall_time: wall-clock time of the stepping loop [s].
-        info: scene, method, integrator, solver, dt, gains, assembly report, constraint layout.
+        info: scene, method, integrator, solver, step and end time, options, constraint layout,
+            assembly report, solver statistics (:class:`~pinstab.runinfo.RunInfo`).
     """
 
     t: np.ndarray
@@ -39,7 +41,7 @@ class Trajectory:
     velocity_drift: np.ndarray
     energy: np.ndarray
     wall_time: float
-    info: dict[str, Any] = field(default_factory=dict)
+    info: RunInfo
     correction_iterations: np.ndarray | None = None
     spectral_radius: np.ndarray | None = None
 
@@ -55,7 +57,7 @@ class Trajectory:
 
     def multipliers_of(self, constraint: str) -> np.ndarray:
         """The multiplier rows of one constraint (n+1, rows), in the frame ``force_frames[name]``."""
-        slices = self.info.get("constraint_rows", {})
+        slices = self.info.constraint_rows
         if constraint not in slices:
             raise PinstabError(f"no constraint named {constraint!r}; constraints: {', '.join(slices) or '(none)'}")
         start, stop = slices[constraint]
@@ -64,11 +66,13 @@ class Trajectory:
     def summary(self) -> dict[str, Any]:
         """The figures ``pinstab run --json`` prints."""
         finite_energy = self.energy[np.isfinite(self.energy)]
-        assembly = self.info.get("assembly") or {}
+        assembly = self.info.assembly
+        statistics = self.info.solver_statistics
         corrections = self.correction_iterations
         radii = self.spectral_radius
         summary = {
             "steps": self.steps,
+            "t_end": float(self.t[-1]),
             "wall_s": self.wall_time,
             "max_position_drift": float(np.max(self.position_drift)),
             "max_velocity_drift": float(np.max(self.velocity_drift)),
@@ -76,11 +80,13 @@ class Trajectory:
             "final_velocity_drift": float(self.velocity_drift[-1]),
             "energy_start": float(finite_energy[0]) if finite_energy.size else None,
             "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
-            "assembly_iterations": assembly.get("iterations"),
-            "assembly_residual": assembly.get("residual"),
+            "assembly_iterations": None if assembly is None else assembly.iterations,
+            "assembly_residual": None if assembly is None else assembly.residual,
             "correction_iterations_total": int(corrections.sum()),
             "correction_iterations_max": int(corrections.max()),
-            "solver_fallbacks": self.info.get("solver_fallbacks", 0),
+            "solver_fallbacks": statistics.fallbacks,
+            "solver_status": statistics.status_counts,
+            "solver_worst_residual": max(statistics.worst_primal_residual, statistics.worst_dual_residual),
         }
         if np.any(np.isfinite(radii)):
             summary["max_spectral_radius"] = float(np.nanmax(radii))
@@ -110,7 +116,7 @@ class Trajectory:
                 velocity_drift=self.velocity_drift,
                 energy=self.energy,
                 wall_time=self.wall_time,
-                info=json.dumps(self.info),
+                info=json.dumps(self.info.to_dict()),
                 correction_iterations=self.correction_iterations,
                 spectral_radius=self.spectral_radius,
             )
@@ -130,7 +136,7 @@ class Trajectory:
                     velocity_drift=data["velocity_drift"],
                     energy=data["energy"],
                     wall_time=float(data["wall_time"]),
-                    info=json.loads(str(data["info"])),
+                    info=RunInfo.from_dict(json.loads(str(data["info"]))),
                     correction_iterations=data["correction_iterations"],
                     spectral_radius=data["spectral_radius"],
                 )

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import ROBOTS
-from pinstab import AssemblyError, assemble, build_system, load_scene
+from pinstab import AssemblyError, ConstrainedModel, assemble, load_scene
 from pinstab.scene import scene_from_dict
 
 
@@ -22,7 +22,7 @@ def coupler_gap(q):
 
 def test_fourbar_assembles_from_its_guess():
     scene = load_scene("fourbar")
-    system = build_system(scene, "none", "proxsuite")
+    system = ConstrainedModel(scene)
     assert coupler_gap(scene.q0) > 1e-2
     report = assemble(system, scene.q0, scene.v0)
     assert coupler_gap(report.q) < 1e-12
@@ -32,7 +32,7 @@ def test_fourbar_assembles_from_its_guess():
 
 def test_a_closed_configuration_is_left_alone():
     scene = load_scene("fourbar")
-    system = build_system(scene, "none", "proxsuite")
+    system = ConstrainedModel(scene)
     closed = assemble(system, scene.q0, scene.v0)
     again = assemble(system, closed.q, closed.v)
     assert again.iterations == 0
@@ -43,7 +43,7 @@ def test_a_closed_configuration_is_left_alone():
 @pytest.mark.parametrize("name", ["slider-crank", "fivebar", "delta", "nfourbar"])
 def test_bundled_scenes_assemble(name):
     scene = load_scene(name)
-    report = assemble(build_system(scene, "none", "proxsuite"), scene.q0, scene.v0)
+    report = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
     assert report.residual < 1e-12
     assert report.velocity_residual < 1e-10
 
@@ -65,6 +65,6 @@ def test_lengths_that_cannot_close_raise_with_the_residual():
     }
     scene = scene_from_dict(data)
     with pytest.raises(AssemblyError, match="too-long") as info:
-        assemble(build_system(scene, "none", "proxsuite"), scene.q0, scene.v0)
+        assemble(ConstrainedModel(scene), scene.q0, scene.v0)
     # the best the linkage can do: coupler 2 m from B, rocker 0.5 m from D, |BD| <= 0.8 m -> gap >= 0.7 m
     assert info.value.residual > 0.4

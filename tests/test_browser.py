@@ -12,7 +12,7 @@ import pytest
 from matplotlib.image import imread
 
 import pinstab
-from pinstab.simulate import build_system
+from pinstab.model import ConstrainedModel
 from pinstab.viz.browser import chromium, screenshot
 from pinstab.viz.recording import write_recording
 
@@ -24,7 +24,7 @@ def recording(tmp_path_factory):
     scene = pinstab.load_scene("fourbar")
     trajectory = pinstab.simulate(scene, dt=1e-3, duration=1.0)
     path = tmp_path_factory.mktemp("recording") / "fourbar.html"
-    return write_recording(scene, build_system(scene, "baumgarte", None), trajectory, path, fps=30)
+    return write_recording(ConstrainedModel(scene), trajectory, path, fps=30)
 
 
 def test_recording_is_self_contained(recording):

@@ -15,7 +15,8 @@ from pinstab.scene import scene_from_dict
     [
         (
             {"robto": {}},
-            r"unknown key 'robto'; valid keys: closures, description, forces, generator, gravity, initial, name, robot",
+            r"unknown key 'robto'; valid keys: closures, contacts, description, forces, generator, gravity, initial, "
+            r"name, robot",
         ),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (
@@ -31,7 +32,7 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a closure kind; valid kinds: planar-point, point, weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: planar-point, plane-contact, point, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
@@ -47,7 +48,7 @@ from pinstab.scene import scene_from_dict
         ),
         (
             {"forces": [{"kind": "motor"}]},
-            r"kind 'motor' is not a force kind; valid kinds: joint-torque, spring-damper",
+            r"kind 'motor' is not a force kind; valid kinds: external-force, joint-torque, spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},

@@ -40,7 +40,7 @@ def test_trajectory_round_trip(tmp_path):
     back = Trajectory.load(path)
     np.testing.assert_array_equal(back.q, traj.q)
     np.testing.assert_array_equal(back.multipliers, traj.multipliers)
-    assert back.info["constraint_rows"] == {"end-effector": [0, 3]}
+    assert back.info.constraint_rows == {"end-effector": [0, 3]}
     assert back.multipliers_of("end-effector").shape == (traj.steps + 1, 3)
     assert list(tmp_path.iterdir()) == [path]
 

@@ -57,7 +57,7 @@ def test_baumgarte_reproduces_pinocchio_corrector(scene_name, solver):
         assemble_initial=False,
     )
     assert traj.position_drift[0] > 1e-3
-    system = build_system(scene, "baumgarte", solver, kp, kd)
+    system = build_system(scene, "baumgarte", solver, kp=kp, kd=kd)
     states = list(zip(traj.q[::25], traj.v[::25], strict=True))
     native = native_accelerations(scene, kp, kd, states)
     for (q, v), expected in zip(states, native, strict=True):
@@ -138,16 +138,16 @@ def test_pinocchio_solver_hands_missed_constraints_to_proxqp():
     sees G a != rhs off the manifold and solves with ProxQP instead, which meets the rows."""
     scene = load_scene("fourbar")
     native = PinocchioSolver(scene.model, scene.constraints, kp=0.0, kd=0.0)
-    system = build_system(scene, "baumgarte", "proxsuite", 100.0, 20.0)
+    system = build_system(scene, "baumgarte", "proxsuite", kp=100.0, kd=20.0)
     system.solver = native
     q, v = scene.q0, scene.v0  # not assembled: phi is about 0.1 m
     evaluation = system.dynamics(q, v, 0.0)
-    assert native.fallbacks == 1
-    reference = build_system(scene, "baumgarte", "dense", 100.0, 20.0).dynamics(q, v, 0.0)
+    assert native.statistics.fallbacks == 1
+    reference = build_system(scene, "baumgarte", "dense", kp=100.0, kd=20.0).dynamics(q, v, 0.0)
     np.testing.assert_allclose(evaluation.acceleration, reference.acceleration, atol=1e-8)
     # on the manifold with matching gains, no fallback is needed
     traj = simulate(scene, method="pinocchio", dt=1e-3, duration=0.2)
-    assert traj.info["solver_fallbacks"] == 0
+    assert traj.info.solver_statistics.fallbacks == 0
 
 
 @pytest.mark.parametrize("scene_name", ["fourbar", "slider-crank", "fivebar"])
@@ -157,9 +157,9 @@ def test_direct_pinocchio_path_equals_the_general_one(scene_name):
     scene = load_scene(scene_name)
     if scene_name == "slider-crank":
         scene.forces[:] = [f for f in scene.forces if f.name == "motor"]  # the damper needs pinstab's kinematics
-    direct = build_system(scene, "pinocchio", None, 10.0, 2 * np.sqrt(10.0))
+    direct = build_system(scene, "pinocchio", None, kp=10.0, kd=2 * np.sqrt(10.0))
     assert direct.direct
-    general = build_system(scene, "pinocchio", None, 10.0, 2 * np.sqrt(10.0))
+    general = build_system(scene, "pinocchio", None, kp=10.0, kd=2 * np.sqrt(10.0))
     general.direct = False
     traj = simulate(
         scene,
@@ -180,7 +180,7 @@ def test_direct_pinocchio_path_equals_the_general_one(scene_name):
         np.testing.assert_allclose(
             got.multipliers, expected.multipliers, atol=1e-7 * max(1.0, np.abs(expected.multipliers).max())
         )
-    assert direct.solver.fallbacks == 0
+    assert direct.solver.statistics.fallbacks == 0
 
 
 def test_direct_path_hands_a_missed_check_to_the_general_path():
@@ -188,7 +188,7 @@ def test_direct_path_hands_a_missed_check_to_the_general_path():
     system = build_system(scene, "pinocchio", None)
     system.solver.kp = 55.0  # the check now expects another corrector than the one Pinocchio applies
     evaluation = system.dynamics(scene.q0, scene.v0, 0.0)  # off the manifold: the two disagree
-    assert evaluation.values is not None and system.solver.fallbacks >= 1
+    assert evaluation.values is not None and system.solver.statistics.fallbacks >= 1
 
 
 def test_direct_path_is_only_taken_where_it_applies():

@@ -9,7 +9,7 @@ import pytest
 
 import pinstab
 from pinstab.cli import main
-from pinstab.simulate import build_system
+from pinstab.model import ConstrainedModel
 from pinstab.viz.plots import trajectory_figure
 from pinstab.viz.recording import CommandRecorder, drift_color, frame_states, play_live
 
@@ -52,9 +52,7 @@ def test_live_mode_streams_every_frame_to_the_viewer():
     scene = pinstab.load_scene("fourbar")
     trajectory = pinstab.simulate(scene, dt=1e-3, duration=0.2)
     window = CommandRecorder()
-    play_live(
-        scene, build_system(scene, "baumgarte", None), trajectory, fps=50, viewer=meshcat.Visualizer(window=window)
-    )
+    play_live(ConstrainedModel(scene), trajectory, fps=50, viewer=meshcat.Visualizer(window=window))
     transforms = sum(command.count(b"set_transform") for command in window.commands)
     assert transforms >= 11 * 3  # 11 frames x 3 links at least
 

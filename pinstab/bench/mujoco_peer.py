@@ -54,7 +54,7 @@ def mjcf(scene: Scene, dt: float, integrator: str, solref: tuple[float, float]) 
     sites: dict[int, list[str]] = {}
     equalities, tendons = [], []
     for constraint in scene.constraints:
-        if not isinstance(constraint, FrameClosure) or constraint.kind == "weld":
+        if not isinstance(constraint, FrameClosure) or constraint.kind not in ("point", "planar-point"):
             raise PinstabError(f"MuJoCo peer: constraint {constraint.name!r} is not a point closure")
         a, b = f"{constraint.name}/a", f"{constraint.name}/b"
         _site_for(model, constraint.frame_a, pin.SE3.Identity(), a, sites)

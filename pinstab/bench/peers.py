@@ -8,7 +8,6 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
-from ..forces import JointTorque
 from ..kinematics import Kinematics
 from ..scene import Scene
 from ..solvers import PinocchioSolver
@@ -29,7 +28,7 @@ def native_step(scene: Scene, dt: float, kp: float, kd: float) -> NativeStep:
     solver = PinocchioSolver(scene.model, scene.constraints, kp, kd)
     model, data, models, datas, settings = solver.model, solver.data, solver.models, solver.datas, solver.settings
     forces = scene.forces
-    needs_kinematics = any(not isinstance(element, JointTorque) for element in forces)
+    needs_kinematics = any(element.needs_kinematics for element in forces)
     kin = Kinematics(model)
     zero = np.zeros(model.nv)
 

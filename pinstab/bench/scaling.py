@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from ..assembly import assemble
-from ..integrators import make_integrator
+from ..integrators import INTEGRATORS
 from ..scene import load_scene
-from ..simulate import build_system
+from ..system import build_system
 
 SIZES = (1, 2, 5, 10, 20, 40)
 PATHS = {
@@ -24,9 +24,9 @@ def step_time(n: int, method: str, solver: str | None, dt: float = 1e-3, steps: 
     """Median seconds per semi-implicit-Euler step (5 rounds) of nfourbar N = n."""
     scene = load_scene("nfourbar", N=n)
     system = build_system(scene, method, solver)
-    start = assemble(system, scene.q0, scene.v0)
-    system.stabilizer.bind(system, dt, "semi-implicit-euler", start.q)
-    stepper = make_integrator("semi-implicit-euler", system)
+    start = assemble(system.model, scene.q0, scene.v0)
+    system.stabilizer.bind(system.model, dt, "semi-implicit-euler", start.q)
+    stepper = INTEGRATORS.build("semi-implicit-euler", system)
     rounds = []
     for _ in range(5):
         q, v, t = start.q.copy(), start.v.copy(), 0.0

@@ -25,8 +25,9 @@ import pinocchio as pin
 from ..assembly import assemble
 from ..errors import PinstabError
 from ..files import atomic_output
+from ..model import ConstrainedModel
 from ..scene import load_scene
-from ..simulate import build_system, simulate
+from ..simulate import simulate
 from ..trajectory import configurations_at
 from .mujoco_peer import DEFAULT_SOLREF, STIFF_SOLREF, run_mujoco
 from .peers import native_pinocchio
@@ -155,14 +156,12 @@ def run_config(
                     integrator=config.integrator,
                     dt=config.dt,
                     duration=duration,
-                    kp=config.kp,
-                    kd=config.kd,
+                    **({} if config.kp is None else {"kp": config.kp, "kd": config.kd}),
                 )
                 cpu = time.process_time() - start
                 t, q, v = traj.t, traj.q, traj.v
             else:
-                system = build_system(scene, "none", "proxsuite")
-                start_state = assemble(system, scene.q0, scene.v0)
+                start_state = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
                 if config.peer == "mujoco":
                     q, v, cpu = run_mujoco(
                         scene, start_state.q, start_state.v, config.dt, steps, config.integrator, config.solref
@@ -189,13 +188,13 @@ def run_config(
 def _measure(scene, t, q, v, reference: Reference):
     if not (np.isfinite(q).all() and np.isfinite(v).all()):
         return None
-    system = build_system(scene, "none", "proxsuite")
+    model = ConstrainedModel(scene)
     position, velocity, energy = [], [], []
     for qk, vk in zip(q, v, strict=True):
-        values = system.constraint_values(qk, vk, 0.0)
-        position.append(float(np.max(np.abs(values.phi), initial=0.0)))
-        velocity.append(float(np.max(np.abs(values.velocity_residual), initial=0.0)))
-        energy.append(system.energy(qk, vk))
+        position_drift, velocity_drift = model.violation(qk, vk, 0.0)
+        position.append(position_drift)
+        velocity.append(velocity_drift)
+        energy.append(model.energy(qk, vk))
     expected = configurations_at(reference.t, reference.q, scene.model, t)
     error = max(float(np.max(np.abs(pin.difference(scene.model, a, b)))) for a, b in zip(q, expected, strict=True))
     thinned = position[:: max(1, len(position) // 400)]

@@ -1,16 +1,27 @@
-"""Constraint families: loop closures between frames, user-defined holonomic and Pfaffian rows."""
+"""Constraint families: loop closures between frames, plane contacts, user-defined holonomic and
+Pfaffian rows. Every module here registers its scene-file kinds in :data:`CONSTRAINT_KINDS`."""
 
-from .base import Constraint
+from ..registry import load_extensions
+from .base import CONSTRAINT_KINDS, Constraint, FrictionCone, RowKind, VelocityTerms
+from .contacts import PointContact
 from .custom import HolonomicConstraint, PfaffianConstraint
-from .loops import CLOSURE_KINDS, FrameClosure
-from .stack import ConstraintSet, ConstraintValues
+from .loops import FrameClosure
+from .stack import ConeRows, ConstraintSet, ConstraintValues, RowLayout
+
+load_extensions(__name__, __path__)
 
 __all__ = [
-    "CLOSURE_KINDS",
+    "CONSTRAINT_KINDS",
+    "ConeRows",
     "Constraint",
     "ConstraintSet",
     "ConstraintValues",
     "FrameClosure",
+    "FrictionCone",
     "HolonomicConstraint",
     "PfaffianConstraint",
+    "PointContact",
+    "RowKind",
+    "RowLayout",
+    "VelocityTerms",
 ]

@@ -1,12 +1,73 @@
-"""The interface every constraint family implements (MATH.md section 1)."""
+"""The interface every constraint family implements (MATH.md section 1), its row kinds, and the
+registry of constraint kinds that scene files name."""
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from ..errors import ConstraintError
 from ..kinematics import Kinematics
+from ..registry import Registry
+
+if TYPE_CHECKING:
+    pass
+
+
+class RowKind(StrEnum):
+    """How a block's rows enter the dynamics.
+
+    * ``equality``: ``G a = rhs``, multiplier free (closures, user rows).
+    * ``unilateral``: ``G a >= rhs`` with multiplier >= 0 and complementarity (a normal contact
+      force that can only push, a joint limit); its position residual phi >= 0 is a gap.
+    * ``cone``: a sticking point contact: ``G a = rhs`` on its 3 rows (normal first, then two
+      tangents), the force (multipliers) inside the Coulomb cone ``|f_t| <= mu f_n``.
+    """
+
+    EQUALITY = "equality"
+    UNILATERAL = "unilateral"
+    CONE = "cone"
+
+
+@dataclass(frozen=True)
+class FrictionCone:
+    """A Coulomb friction cone and its linearization.
+
+    Attributes:
+        mu: friction coefficient [-]. facets: sides of the inscribed pyramid a solver without conic
+        support uses (every force inside the pyramid is inside the cone).
+    """
+
+    mu: float
+    facets: int = 8
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mu) and self.mu >= 0):
+            raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
+        if not isinstance(self.facets, int) or self.facets < 3:
+            raise ConstraintError(f"a linearized friction cone needs at least 3 facets, got {self.facets!r}")
+
+    @property
+    def inscribed_mu(self) -> float:
+        """The friction coefficient of the inscribed pyramid: mu cos(pi / facets)."""
+        return self.mu * math.cos(math.pi / self.facets)
+
+    def facet_matrix(self) -> np.ndarray:
+        """``facets x 3`` rows c with ``c . (f_n, f_t1, f_t2) <= 0`` the pyramid's facets."""
+        angles = 2.0 * math.pi * np.arange(self.facets) / self.facets
+        return np.column_stack([-np.full(self.facets, self.inscribed_mu), np.cos(angles), np.sin(angles)])
+
+
+class VelocityTerms(NamedTuple):
+    """``G`` (rows x nv) and the explicit time term ``g_t`` (rows,) of ``g = G v + g_t``."""
+
+    jacobian: np.ndarray
+    time_term: np.ndarray
 
 
 class Constraint(ABC):
@@ -22,21 +83,32 @@ class Constraint(ABC):
         rows: number of rows.
         holonomic: whether ``residual`` is defined.
         force_frame: the frame in which this block's multipliers are expressed (human-readable).
+        row_kind: how the rows enter the dynamics (:class:`RowKind`); equality by default.
+        friction: the cone of a ``cone`` block (3 rows: normal, tangent, tangent), else None.
     """
 
     name: str
     rows: int
     holonomic: bool
     force_frame: str
+    row_kind: RowKind = RowKind.EQUALITY
+    friction: FrictionCone | None = None
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""
         raise NotImplementedError(f"constraint {self.name} is not holonomic")
 
     @abstractmethod
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         """(G, g_t): rows x nv Jacobian and explicit time term; needs Jacobians updated at q."""
 
     @abstractmethod
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """gamma0 = dG/dt v + d g_t/dt; needs a full :meth:`Kinematics.update` at (q, v)."""
+
+
+CONSTRAINT_KINDS: Registry[Constraint] = Registry("constraint kind")
+"""Scene-file constraint kinds: ``kind = NAME`` in ``[[closures]]`` / ``[[contacts]]``. A factory is
+``parse(table, tables, name, where) -> Constraint``: it reads its own keys from the scene table
+through :class:`~pinstab.tables.SceneTables` (which adds frames to the model) and names ``where``
+in its errors."""

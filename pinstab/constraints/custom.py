@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import ConstraintError
 from ..kinematics import Kinematics
-from .base import Constraint
+from .base import Constraint, RowKind, VelocityTerms
 
 ArrayFn = Callable[..., np.ndarray]
 
@@ -41,6 +41,8 @@ class HolonomicConstraint(Constraint):
             constraints); zero when omitted.
         nv: velocity dimension of the model.
         force_frame: what the multipliers mean, for reports.
+        unilateral: ``phi >= 0`` instead of ``phi = 0`` (a joint limit, a gap): the rows enter the
+            dynamics as ``G a >= rhs`` with multipliers >= 0 (:class:`RowKind` ``unilateral``).
     """
 
     holonomic = True
@@ -55,8 +57,10 @@ class HolonomicConstraint(Constraint):
         nv: int,
         time_derivative: ArrayFn | None = None,
         force_frame: str = "generalized (user-defined rows)",
+        unilateral: bool = False,
     ) -> None:
         self.name, self.rows, self.nv = name, int(rows), int(nv)
+        self.row_kind = RowKind.UNILATERAL if unilateral else RowKind.EQUALITY
         self._residual, self._jacobian, self._drift = residual, jacobian, drift
         self._time_derivative = time_derivative
         self.force_frame = force_frame
@@ -64,11 +68,11 @@ class HolonomicConstraint(Constraint):
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         return _checked(self.name, "residual", self._residual(q, t), (self.rows,))
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         jac = _checked(self.name, "jacobian", self._jacobian(q, t), (self.rows, self.nv))
         if self._time_derivative is None:
-            return jac, np.zeros(self.rows)
-        return jac, _checked(self.name, "time_derivative", self._time_derivative(q, t), (self.rows,))
+            return VelocityTerms(jac, np.zeros(self.rows))
+        return VelocityTerms(jac, _checked(self.name, "time_derivative", self._time_derivative(q, t), (self.rows,)))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         return _checked(self.name, "drift", self._drift(q, v, t), (self.rows,))
@@ -103,11 +107,11 @@ class PfaffianConstraint(Constraint):
         self._matrix, self._drift, self._bias = matrix, drift, bias
         self.force_frame = force_frame
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         mat = _checked(self.name, "matrix", self._matrix(q, t), (self.rows, self.nv))
         if self._bias is None:
-            return mat, np.zeros(self.rows)
-        return mat, _checked(self.name, "bias", self._bias(q, t), (self.rows,))
+            return VelocityTerms(mat, np.zeros(self.rows))
+        return VelocityTerms(mat, _checked(self.name, "bias", self._bias(q, t), (self.rows,)))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         return _checked(self.name, "drift", self._drift(q, v, t), (self.rows,))

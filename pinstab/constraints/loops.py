@@ -10,11 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..errors import ConstraintError, choices
+from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
-from .base import Constraint
+from ..tables import WORLD, SceneTables
+from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
+CLOSURE_KEYS = {"name", "kind", "frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b"}
 PLANES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
 
@@ -62,12 +64,7 @@ class FrameClosure(Constraint):
         self.frame_a = frame_a
         self.frame_b = frame_b
         self.world_placement_b = world_placement_b if world_placement_b is not None else pin.SE3.Identity()
-        if kind == "point":
-            self.selection = np.eye(3)
-        elif kind == "planar-point":
-            self.selection = plane_basis(plane)
-        else:
-            self.selection = np.eye(3)
+        self.selection = plane_basis(plane) if kind == "planar-point" else np.eye(3)
         self.rows = 6 if kind == "weld" else self.selection.shape[0]
         self.force_frame = (
             "world axes (force on a) + log3(R_b^T R_a) axes (moment on a)"
@@ -93,15 +90,15 @@ class FrameClosure(Constraint):
             return linear
         return np.concatenate([linear, pin.log3(omb.rotation.T @ oma.rotation)])
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         jac = self._relative_jacobian(kin)
         linear = self.selection @ jac[:3]
         if self.kind != "weld":
-            return linear, np.zeros(self.rows)
+            return VelocityTerms(linear, np.zeros(self.rows))
         oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
         rel = omb.rotation.T @ oma.rotation
         angular = pin.Jlog3(rel) @ oma.rotation.T @ jac[3:]
-        return np.vstack([linear, angular]), np.zeros(self.rows)
+        return VelocityTerms(np.vstack([linear, angular]), np.zeros(self.rows))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         acc_a = kin.drift_acceleration(self.frame_a)
@@ -156,3 +153,41 @@ def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:
         ) / (2.0 * (angle * np.sin(angle)) ** 2)
         coeff_rate = dcoeff * float(theta @ theta_rate) / angle
     return 0.5 * hat_rate + coeff_rate * hat @ hat + coeff * (hat_rate @ hat + hat @ hat_rate)
+
+
+def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, float]:
+    if kind != "planar-point":
+        return "xy"
+    raw = entry.get("plane")
+    if isinstance(raw, str) and raw in PLANES:
+        return raw
+    if isinstance(raw, list):
+        return tuple(SceneTables.vector(raw, 3, f"{where}.plane", None))  # type: ignore[return-value]
+    raise SceneError(f"{where}: 'plane' must be one of {choices(PLANES)} or a normal vector, got {raw!r}")
+
+
+def parse_closure(kind: str):
+    """The scene-table reader of closure kind ``kind``: frames a and b (``world`` by default) with
+    offsets [m] and rpy angles [rad]; ``plane`` for ``planar-point``."""
+
+    def parse(entry: dict, tables: SceneTables, name: str, where: str) -> FrameClosure:
+        tables.check_keys(entry, CLOSURE_KEYS | ({"plane"} if kind == "planar-point" else set()), where)
+        if "frame_a" not in entry:
+            raise SceneError(f"{where}: 'frame_a' is required")
+        plane = _plane(entry, kind, where)
+        offset_a = tables.placement(entry, "offset_a", "rpy_a", where)
+        offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
+        frame_a = tables.point_frame(entry["frame_a"], offset_a, f"{name}/a", f"{where}.frame_a")
+        if entry.get("frame_b", WORLD) == WORLD:
+            return FrameClosure(name, kind, frame_a, None, offset_b, plane)
+        frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")
+        return FrameClosure(name, kind, frame_a, frame_b, None, plane)
+
+    return parse
+
+
+CONSTRAINT_KINDS.register("point", parse_closure("point"), summary="3 rows: two frame points coincide (world axes)")
+CONSTRAINT_KINDS.register(
+    "planar-point", parse_closure("planar-point"), summary="2 rows: two frame points coincide within a plane"
+)
+CONSTRAINT_KINDS.register("weld", parse_closure("weld"), summary="6 rows: two frames coincide (position and rotation)")

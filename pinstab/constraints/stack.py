@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import ConstraintError
 from ..kinematics import Kinematics
-from .base import Constraint
+from .base import Constraint, FrictionCone, RowKind, VelocityTerms
 
 
 @dataclass
@@ -30,6 +30,47 @@ class ConstraintValues:
     drift: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class ConeRows:
+    """The three rows of a sticking contact with friction: normal row, then the two tangent rows."""
+
+    name: str
+    rows: tuple[int, int, int]
+    cone: FrictionCone
+
+
+@dataclass(frozen=True)
+class RowLayout:
+    """What a KKT backend needs to know about the rows besides G and the right-hand side.
+
+    Attributes:
+        names: the constraint block of each row.
+        unilateral: mask of ``unilateral`` rows (``G a >= rhs``, multiplier >= 0).
+        cones: the ``cone`` row triples (sticking, force inside the friction cone).
+    """
+
+    names: tuple[str, ...]
+    unilateral: np.ndarray
+    cones: tuple[ConeRows, ...]
+
+    @property
+    def kinds(self) -> frozenset[RowKind]:
+        """The row kinds present (equality included when some row is neither unilateral nor cone)."""
+        kinds = set()
+        if self.unilateral.any():
+            kinds.add(RowKind.UNILATERAL)
+        if self.cones:
+            kinds.add(RowKind.CONE)
+        if len(self.names) > int(self.unilateral.sum()) + 3 * len(self.cones):
+            kinds.add(RowKind.EQUALITY)
+        return frozenset(kinds)
+
+    @property
+    def equality_only(self) -> bool:
+        """No unilateral and no cone rows."""
+        return not self.cones and not self.unilateral.any()
+
+
 class ConstraintSet:
     """An ordered list of constraint blocks with their row slices."""
 
@@ -47,8 +88,20 @@ class ConstraintSet:
             start += c.rows
         self.rows = start
         self.holonomic_mask = np.zeros(self.rows, dtype=bool)
+        unilateral = np.zeros(self.rows, dtype=bool)
+        cones = []
         for c in self.constraints:
-            self.holonomic_mask[self.slices[c.name]] = c.holonomic
+            rows = self.slices[c.name]
+            self.holonomic_mask[rows] = c.holonomic
+            unilateral[rows] = c.row_kind == RowKind.UNILATERAL
+            if c.row_kind == RowKind.CONE:
+                if c.rows != 3 or c.friction is None:
+                    raise ConstraintError(
+                        f"constraint {c.name}: cone rows come as 3 (normal, t1, t2) with a friction cone"
+                    )
+                cones.append(ConeRows(c.name, (rows.start, rows.start + 1, rows.start + 2), c.friction))
+        names = tuple(c.name for c in self.constraints for _ in range(c.rows))
+        self.layout = RowLayout(names, unilateral, tuple(cones))
 
     @property
     def holonomic(self) -> list[Constraint]:
@@ -62,14 +115,14 @@ class ConstraintSet:
                 phi[self.slices[c.name]] = c.residual(kin, q, t)
         return phi
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         """(G, g_t); Jacobians must be current."""
         jac = np.zeros((self.rows, self.nv))
         time_term = np.zeros(self.rows)
         for c in self.constraints:
             rows = self.slices[c.name]
             jac[rows], time_term[rows] = c.velocity_terms(kin, q, t)
-        return jac, time_term
+        return VelocityTerms(jac, time_term)
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """gamma0; needs a full kinematics update at (q, v)."""
@@ -84,3 +137,13 @@ class ConstraintSet:
         jac, time_term = self.velocity_terms(kin, q, t)
         drift = self.drift(kin, q, v, t) if with_drift else None
         return ConstraintValues(phi, jac, time_term, jac @ v + time_term, drift)
+
+    def violation(self, values: ConstraintValues) -> tuple[float, float]:
+        """(position, velocity) violation: max |phi|, |g| over the rows, where a unilateral row counts
+        only its penetration (phi < 0) and its approach (g < 0) [m or rad, m/s or rad/s]."""
+        phi, rate = values.phi, values.velocity_residual
+        if self.layout.unilateral.any():
+            one_sided = self.layout.unilateral
+            phi = np.where(one_sided, np.minimum(phi, 0.0), phi)
+            rate = np.where(one_sided, np.minimum(rate, 0.0), rate)
+        return float(np.max(np.abs(phi), initial=0.0)), float(np.max(np.abs(rate), initial=0.0))

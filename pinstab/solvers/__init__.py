@@ -1,10 +1,21 @@
-"""KKT backends (MATH.md eq. 4-5): ``proxsuite`` (default), ``pinocchio``, ``dense``."""
+"""KKT backends (MATH.md eq. 4-5), one per module, each registered in :data:`SOLVERS`:
+``proxsuite`` (default), ``pinocchio``, ``dense``."""
 
-from .base import KKTProblem, KKTSolution, KKTSolver
+from ..registry import load_extensions
+from .base import SOLVERS, KKTProblem, KKTSolution, KKTSolver, solvers_with
 from .dense_ import DenseSolver
 from .pinocchio_ import PinocchioSolver
 from .proxsuite_ import ProxsuiteSolver
 
-SOLVERS = ("proxsuite", "pinocchio", "dense")
+load_extensions(__name__, __path__)
 
-__all__ = ["SOLVERS", "DenseSolver", "KKTProblem", "KKTSolution", "KKTSolver", "PinocchioSolver", "ProxsuiteSolver"]
+__all__ = [
+    "SOLVERS",
+    "DenseSolver",
+    "KKTProblem",
+    "KKTSolution",
+    "KKTSolver",
+    "PinocchioSolver",
+    "ProxsuiteSolver",
+    "solvers_with",
+]

@@ -1,54 +1,166 @@
-"""The constrained-dynamics problem handed to a KKT backend, and what comes back (MATH.md eq. 4-5)."""
+"""The constrained-dynamics problem handed to a KKT backend, what comes back (MATH.md eq. 4-5), how
+a solve is judged, and the registry of backends."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from ..constraints import RowKind, RowLayout
+from ..errors import SolverError, choices
+from ..registry import Registry
+from ..runinfo import SolverStatistics
+
+if TYPE_CHECKING:
+    from ..model import ConstrainedModel
+
+# a solve is accepted when its residuals, relative to the size of the terms they balance, are below
+# this, whatever status flag the backend raised (a singular configuration can make ProxQP report
+# infeasibility with residuals at round-off)
+ACCEPTED_RESIDUAL = 1e-8
 
 
 @dataclass
 class KKTProblem:
-    """``M a = f + G^T lambda``, ``G a = rhs``.
+    """``M a = f + G^T lambda`` with ``G a = rhs`` on equality and cone rows, ``G a >= rhs`` on
+    unilateral rows, lambda >= 0 on unilateral rows and inside the friction cone on cone rows.
 
     Attributes:
-        q, v: state (some backends recompute the dynamics themselves).
+        q, v: state (some backends recompute the dynamics themselves). t: time [s], for messages.
         tau: applied generalized forces (force elements) [N, N m].
         mass_matrix: M [kg, kg m^2].
         free_force: f = tau - h [N, N m].
         jacobian: G (s x nv).
         rhs: -gamma0 + gamma_stab [m/s^2, rad/s^2].
+        layout: row names, unilateral rows and cone triples.
     """
 
     q: np.ndarray
     v: np.ndarray
+    t: float
     tau: np.ndarray
     mass_matrix: np.ndarray
     free_force: np.ndarray
     jacobian: np.ndarray
     rhs: np.ndarray
+    layout: RowLayout
 
 
 @dataclass
 class KKTSolution:
-    """Accelerations [m/s^2, rad/s^2] (nv,) and multipliers (s,) [N, N m]."""
+    """A solve's answer and how good it is.
+
+    Attributes:
+        acceleration: [m/s^2, rad/s^2] (nv,). multipliers: (s,) [N, N m].
+        status: the backend's word for the outcome. iterations: the backend's iterations.
+        primal_residual: ``|G a - rhs|`` relative to its terms. dual_residual: ``|M a - f - G^T lambda|``
+        relative to its terms.
+    """
 
     acceleration: np.ndarray
     multipliers: np.ndarray
+    status: str = "solved"
+    iterations: int = 0
+    primal_residual: float = 0.0
+    dual_residual: float = 0.0
+
+
+def relative_residual(residual: np.ndarray, *terms: np.ndarray) -> float:
+    """``max |residual| / max (sum of |terms|)``: how far an equation misses, against the size of the
+    terms that should balance (0 when everything is zero) [-]."""
+    if residual.size == 0:
+        return 0.0
+    worst = float(np.max(np.abs(residual)))
+    scale = float(np.max(sum(np.abs(term) for term in terms)))
+    if worst == 0.0:
+        return 0.0
+    return worst / scale if scale > 0 else float("inf")
+
+
+def residuals(problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray) -> tuple[float, float]:
+    """(primal, dual) relative residuals of a candidate answer; the primal one on the rows that are
+    equalities at the acceleration level (equality and cone rows; unilateral rows count when violated)."""
+    jac = problem.jacobian
+    achieved = jac @ acceleration
+    miss = achieved - problem.rhs
+    unilateral = problem.layout.unilateral
+    if unilateral.any():
+        miss = np.where(unilateral, np.minimum(miss, 0.0), miss)
+    # the accelerations the applied and bias forces alone would cause set the scale too: a mechanism at
+    # rest has a ~ 0 and rhs ~ 0, where rounding alone would look large against them
+    natural = np.abs(problem.free_force) / np.diagonal(problem.mass_matrix)
+    primal = relative_residual(miss, np.abs(jac) @ (np.abs(acceleration) + natural), problem.rhs)
+    inertial = problem.mass_matrix @ acceleration
+    reaction = jac.T @ multipliers
+    dual = relative_residual(
+        inertial - problem.free_force - reaction,
+        np.abs(problem.mass_matrix) @ np.abs(acceleration),
+        problem.free_force,
+        np.abs(jac.T) @ np.abs(multipliers),
+    )
+    return primal, dual
 
 
 class KKTSolver(ABC):
     """A backend that solves :class:`KKTProblem`.
 
     Attributes:
-        fallbacks: how many solves were handed to a rank-robust backend after this one missed
-            the acceleration-level constraint (only backends with a fallback count them).
+        name: the registered name.
+        row_kinds: the row kinds it solves (a problem with others is refused when the solver is built).
+        direct_capable: whether :meth:`direct` can compute the whole evaluation from (q, v, tau).
+        corrector_gains: (Kp, Kd) the backend applies itself (Pinocchio's corrector), else None.
+        statistics: counts and worst residuals of its solves.
     """
 
-    name: str
-    fallbacks: int = 0
+    name: str = ""
+    row_kinds: frozenset[RowKind] = frozenset({RowKind.EQUALITY})
+    direct_capable: bool = False
+    corrector_gains: tuple[float, float] | None = None
+
+    def __init__(self) -> None:
+        self.statistics = SolverStatistics()
 
     @abstractmethod
     def solve(self, problem: KKTProblem) -> KKTSolution:
         """Solve one KKT system; raise :class:`~pinstab.errors.SolverError` on failure."""
+
+    def direct(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> KKTSolution | None:
+        """The whole evaluation without pinstab's kinematics pass, or None (solve the general way)."""
+        return None
+
+    def record(self, solution: KKTSolution) -> KKTSolution:
+        """Count a solve in :attr:`statistics` and return it."""
+        self.statistics.record(solution.status, solution.iterations, solution.primal_residual, solution.dual_residual)
+        return solution
+
+
+SOLVERS: Registry[KKTSolver] = Registry("solver")
+"""KKT backends. A factory is ``factory(model, corrector_gains, options) -> KKTSolver`` with the
+:class:`~pinstab.model.ConstrainedModel` and the stabilizer's Baumgarte gains (None when its term is
+not of Baumgarte form); the class attribute ``row_kinds`` says which rows it solves."""
+
+
+def solvers_with(kinds: frozenset[RowKind]) -> list[str]:
+    """The registered solvers whose ``row_kinds`` cover ``kinds``."""
+    return [entry.name for entry in SOLVERS.entries() if kinds <= getattr(entry.factory, "row_kinds", frozenset())]
+
+
+def check_row_kinds(solver: type[KKTSolver], model: ConstrainedModel) -> None:
+    """Refuse a model whose rows the solver does not take, naming the rows and the solvers that do.
+
+    Raises:
+        SolverError: some row kind of the model is not in ``solver.row_kinds``.
+    """
+    needed = model.constraints.layout.kinds
+    missing = needed - solver.row_kinds
+    if not missing:
+        return
+    blocks = [c.name for c in model.constraints.constraints if c.row_kind in missing]
+    kinds = ", ".join(sorted(kind.value for kind in missing))
+    raise SolverError(
+        f"solver {solver.name!r} does not take {kinds} rows (constraints {', '.join(blocks)}); "
+        f"solvers that do: {choices(solvers_with(needed))}"
+    )

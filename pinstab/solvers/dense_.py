@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..errors import SolverError
-from .base import KKTProblem, KKTSolution, KKTSolver
+from ..registry import NoOptions
+from .base import SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, residuals
+
+if TYPE_CHECKING:
+    from ..model import ConstrainedModel
 
 RANK_TOLERANCE = 1e-10
 
@@ -19,8 +25,9 @@ class DenseSolver(KKTSolver):
 
     name = "dense"
 
-    def __init__(self, row_names: list[str]) -> None:
-        self.row_names = row_names
+    def __init__(self, row_names: list[str] | tuple[str, ...]) -> None:
+        super().__init__()
+        self.row_names = list(row_names)
 
     def solve(self, problem: KKTProblem) -> KKTSolution:
         jac = problem.jacobian
@@ -32,7 +39,7 @@ class DenseSolver(KKTSolver):
             ) from None
         free_acceleration, minv_gt = solved[:, 0], solved[:, 1:]
         if jac.shape[0] == 0:
-            return KKTSolution(free_acceleration, np.zeros(0))
+            return self.record(KKTSolution(free_acceleration, np.zeros(0)))
         delassus = jac @ minv_gt
         # Cholesky of the Delassus matrix: it fails, or leaves a tiny pivot, exactly when G loses rank
         try:
@@ -45,7 +52,9 @@ class DenseSolver(KKTSolver):
             eigenvalues, eigenvectors = np.linalg.eigh(delassus)
             raise SolverError(self._rank_message(eigenvalues, eigenvectors))
         multipliers = np.linalg.solve(delassus, problem.rhs - jac @ free_acceleration)
-        return KKTSolution(free_acceleration + minv_gt @ multipliers, multipliers)
+        acceleration = free_acceleration + minv_gt @ multipliers
+        primal, dual = residuals(problem, acceleration, multipliers)
+        return self.record(KKTSolution(acceleration, multipliers, "solved", 0, primal, dual))
 
     def _rank_message(self, eigenvalues: np.ndarray, eigenvectors: np.ndarray) -> str:
         scale = max(eigenvalues[-1], 1e-300)
@@ -59,3 +68,10 @@ class DenseSolver(KKTSolver):
             "a singular configuration, so the multipliers are not unique. Use solver 'proxsuite' (or "
             "'pinocchio'), which handle rank loss."
         )
+
+
+@SOLVERS.register("dense", options=NoOptions, summary="numpy elimination through the Delassus matrix (no rank loss)")
+def make_dense(model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: NoOptions) -> DenseSolver:
+    """The dense backend for a model with equality rows only."""
+    check_row_kinds(DenseSolver, model)
+    return DenseSolver(model.constraints.layout.names)

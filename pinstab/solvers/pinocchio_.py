@@ -7,21 +7,25 @@ term can only be Pinocchio's Baumgarte corrector (scalar Kp, Kd); ``desired_cont
 is not used by Pinocchio 4.1's algorithm, so no other term can be injected.
 
 Pinocchio's proximal solve can lose the constraints near singular configurations, so every solve is
-checked: when ``|G a - rhs|`` exceeds ``RESIDUAL_TOLERANCE`` (relative to the size of the terms)
-the same problem is solved again by ProxQP and the fallback is counted.
+checked: when ``|G a - rhs|`` exceeds :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL` (relative to
+the size of the terms) the same problem is solved again by ProxQP and the fallback is counted.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
 import numpy as np
 import pinocchio as pin
 
-from ..constraints import Constraint, FrameClosure
+from ..constraints import Constraint, FrameClosure, RowKind
 from ..errors import SolverError
-from .base import KKTProblem, KKTSolution, KKTSolver
+from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, residuals
 from .proxsuite_ import ProxsuiteSolver
 
-RESIDUAL_TOLERANCE = 1e-8
+if TYPE_CHECKING:
+    from ..model import ConstrainedModel
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,
@@ -46,13 +50,14 @@ class PinocchioSolver(KKTSolver):
     def __init__(
         self, model: pin.Model, constraints: list[Constraint], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12
     ) -> None:
+        super().__init__()
         self.model = model
         self.data = model.createData()
         self.models = pin.StdVec_RigidConstraintModel()
         self.datas = pin.StdVec_RigidConstraintData()
         self.closures: list[FrameClosure] = []
         for constraint in constraints:
-            if not isinstance(constraint, FrameClosure):
+            if not isinstance(constraint, FrameClosure) or constraint.row_kind != RowKind.EQUALITY:
                 raise SolverError(
                     f"solver pinocchio: constraint {constraint.name!r} is not a frame closure; Pinocchio's "
                     "constraintDynamics only takes point/weld closures. Use solver 'proxsuite' or 'dense'."
@@ -66,6 +71,7 @@ class PinocchioSolver(KKTSolver):
         self._checked_planar = False
         self._fallback = ProxsuiteSolver()
         self.kp, self.kd = float(kp), float(kd)
+        self.corrector_gains = (self.kp, self.kd)
         # direct mode (see direct()): point-like closures only, each a 3-D contact in world axes
         self.direct_capable = all(c.kind in ("point", "planar-point") for c in self.closures)
         if self.direct_capable and self.closures:
@@ -75,6 +81,7 @@ class PinocchioSolver(KKTSolver):
                 self._rows[start : start + closure.rows, 3 * index : 3 * index + 3] = closure.selection
                 start += closure.rows
             self._target = np.zeros(3 * len(self.closures))
+            self._abs_rows = np.abs(self._rows)
             self._data_list = list(self.datas)
 
     def _rigid_model(self, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
@@ -128,17 +135,25 @@ class PinocchioSolver(KKTSolver):
         acceleration = pin.constraintDynamics(
             self.model, self.data, problem.q, problem.v, problem.tau, self.models, self.datas, self.settings
         )
-        if not self._meets_constraints(problem, acceleration):
-            self.fallbacks += 1
-            return self._fallback.solve(problem)
+        acceleration = np.array(acceleration)
         residual_force = problem.mass_matrix @ acceleration - problem.free_force
         multipliers = np.linalg.lstsq(problem.jacobian.T, residual_force, rcond=1e-12)[0]
-        return KKTSolution(np.array(acceleration), multipliers)
+        primal, dual = residuals(problem, acceleration, multipliers)
+        if np.all(np.isfinite(acceleration)) and not primal <= ACCEPTED_RESIDUAL:
+            return self._fall_back(problem)
+        iterations = int(self.settings.iter)
+        return self.record(KKTSolution(acceleration, multipliers, "solved", iterations, primal, dual))
+
+    def _fall_back(self, problem: KKTProblem) -> KKTSolution:
+        """Solve with ProxQP (counted as a fallback; its statistics join this backend's)."""
+        self.statistics.fallbacks += 1
+        solution = self._fallback.solve(problem)
+        return self.record(KKTSolution(**{**solution.__dict__, "status": f"fallback {solution.status}"}))
 
     def direct(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> KKTSolution | None:
         """Pinocchio's constraint dynamics with its own Baumgarte corrector, checked from Pinocchio's own
         data (no pinstab kinematics pass): the constraint Jacobian, the contact points and their drift
-        accelerations give ``G a + gamma0 = -Kp phi - Kd G v``, which must hold to RESIDUAL_TOLERANCE.
+        accelerations give ``G a + gamma0 = -Kp phi - Kd G v``, which must hold to ACCEPTED_RESIDUAL (relative).
 
         Returns None when the check fails (the caller solves the problem the general way). Only for
         point and planar-point closures (``direct_capable``).
@@ -148,7 +163,7 @@ class PinocchioSolver(KKTSolver):
         model, data, datas = self.model, self.data, self.datas
         acceleration = pin.constraintDynamics(model, data, q, v, tau, self.models, datas, self.settings)
         if not self.closures:
-            return KKTSolution(acceleration, np.zeros(0))
+            return self.record(KKTSolution(acceleration, np.zeros(0)))
         jac = pin.getConstraintsJacobian(model, data, self.models, datas)
         target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
         for index, contact in enumerate(self._data_list):
@@ -157,17 +172,43 @@ class PinocchioSolver(KKTSolver):
             target[rows] -= self.kp * (contact.oMc1.translation - contact.oMc2.translation)
         rhs = self._rows @ (target - self.kd * (jac @ v))
         residual = self._rows @ (jac @ acceleration) - rhs
-        # Euclidean form of the check in _meets_constraints (dot products are the cheapest reductions)
-        if not residual @ residual <= RESIDUAL_TOLERANCE**2 * (1.0 + rhs @ rhs):
-            self.fallbacks += 1
+        # the residual against the size of its terms, in the Euclidean norm (dot products are the
+        # cheapest reductions): |G a - rhs| <= tol (|rhs| + | |G| |a| |)
+        terms = self._abs_rows @ (np.abs(jac) @ np.abs(acceleration))
+        scale = rhs @ rhs + terms @ terms
+        if not residual @ residual <= ACCEPTED_RESIDUAL**2 * scale:
+            self.statistics.fallbacks += 1
             return None
-        return KKTSolution(acceleration, self._rows @ data.lambda_c)
+        primal = float(np.sqrt(residual @ residual / scale)) if scale > 0 else 0.0
+        return self.record(
+            KKTSolution(acceleration, self._rows @ data.lambda_c, "solved", int(self.settings.iter), primal)
+        )
 
-    @staticmethod
-    def _meets_constraints(problem: KKTProblem, acceleration: np.ndarray) -> bool:
-        """Is ``G a = rhs`` met (a finite answer that lost the constraints is handed on)?"""
-        if not np.all(np.isfinite(acceleration)):
-            return True  # the system reports the divergence
-        achieved = problem.jacobian @ acceleration
-        scale = 1.0 + np.abs(problem.rhs).max(initial=0.0) + np.abs(achieved).max(initial=0.0)
-        return bool(np.abs(achieved - problem.rhs).max(initial=0.0) <= RESIDUAL_TOLERANCE * scale)
+
+@dataclass(frozen=True)
+class PinocchioOptions:
+    """Options of the ``pinocchio`` backend."""
+
+    mu: float = field(default=1e-12, metadata={"help": "pinocchio: proximal regularization of constraintDynamics"})
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.mu, float | int) and 0 <= self.mu < 1):
+            raise ValueError(f"mu must be in [0, 1), got {self.mu!r}")
+
+
+@SOLVERS.register("pinocchio", options=PinocchioOptions, summary="Pinocchio's constraintDynamics and its corrector")
+def make_pinocchio(
+    model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: PinocchioOptions
+) -> PinocchioSolver:
+    """Pinocchio's backend; it applies the stabilizer's Baumgarte gains in its own corrector.
+
+    Raises:
+        SolverError: the stabilizer's term is not of Baumgarte form, or a row is not an equality.
+    """
+    if corrector_gains is None:
+        raise SolverError(
+            "solver 'pinocchio' applies only its own Baumgarte corrector, not this method's stabilization term; "
+            "use solver 'proxsuite' or 'dense'"
+        )
+    check_row_kinds(PinocchioSolver, model)
+    return PinocchioSolver(model.model, model.constraints.constraints, *corrector_gains, mu=options.mu)

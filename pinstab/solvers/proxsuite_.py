@@ -1,83 +1,277 @@
-"""``proxsuite``: Gauss's principle as an equality QP solved by ProxQP, warm-started.
+"""``proxsuite``: Gauss's principle as a QP solved by ProxQP, scaled, warm-started, judged by residuals.
 
-``min_a 1/2 a^T M a - f^T a  s.t.  G a = rhs`` (MATH.md eq. 5). The proximal method keeps the
-problem well-posed when G is rank-deficient (redundant or singular rows): the accelerations stay
-unique, the multipliers are the minimum-norm ones the proximal iterations converge to.
+Equality rows only (closures, user rows): ``min_a 1/2 a^T M a - f^T a  s.t.  G a = rhs`` (MATH.md
+eq. 5). The proximal method keeps the problem well-posed when G is rank-deficient (redundant or
+singular rows): the accelerations stay unique, the multipliers are the minimum-norm ones.
+
+With unilateral or cone rows the variables are the accelerations and the multipliers together,
+``x = (a, lambda)``: the same objective plus a tiny ``eps/2 |lambda|^2`` that picks the smallest of
+equivalent force distributions (a statically indeterminate grasp), subject to ``M a - G^T lambda = f``,
+``G a = rhs`` on equality and cone rows, ``G a >= rhs`` and ``lambda >= 0`` on unilateral rows, and
+the inscribed pyramid of each friction cone (``facets`` sides, so every answer is inside the exact
+cone). A sticking contact that would need a force outside its cone is reported as
+:class:`~pinstab.errors.ContactInfeasibleError`, naming the contact.
+
+Scaling: ProxQP's tolerances and infeasibility thresholds are absolute, so the problem is scaled
+before it is handed over: accelerations by the square root of M's diagonal (relative to its mean),
+the objective by that mean, each constraint row by its norm. The scaled problem is the same for a
+mechanism in millimetres and grams as in metres and kilograms. A solve is accepted by its residuals
+(:data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`, relative), not by ProxQP's status flag.
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
 import numpy as np
 import proxsuite
 
-from ..errors import SolverError
-from .base import KKTProblem, KKTSolution, KKTSolver
+from ..constraints import ConeRows, RowKind
+from ..errors import ContactInfeasibleError, SolverError
+from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, residuals
 
-NEARLY = 1e-7  # relative residual accepted when ProxQP stops on its iteration limit
+if TYPE_CHECKING:
+    from ..model import ConstrainedModel
 
-SOLVED = (
-    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,
-    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE,
-)
+FORCE_REGULARIZATION = 1e-9  # eps of the (a, lambda) form, in scaled units
+CONE_TOLERANCE = 1e-8  # a facet may be exceeded by this much relative to the normal force
+
+
+@dataclass(frozen=True)
+class ProxsuiteOptions:
+    """Options of the ``proxsuite`` backend."""
+
+    eps_abs: float = field(default=1e-12, metadata={"help": "proxsuite: accuracy of the scaled residuals"})
+    max_iter: int = field(default=1000, metadata={"help": "proxsuite: iterations per solve"})
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.eps_abs, float | int) and 0 < self.eps_abs < 1):
+            raise ValueError(f"eps_abs must be in (0, 1), got {self.eps_abs!r}")
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
+
+
+@dataclass
+class _Scaling:
+    """Diagonal scalings: a = x / column, objective / inertia, rows / row."""
+
+    column: np.ndarray
+    inertia: float
+    row: np.ndarray
+
+    @classmethod
+    def of(cls, problem: KKTProblem) -> _Scaling:
+        diagonal = np.diagonal(problem.mass_matrix)
+        inertia = float(np.mean(diagonal))
+        if not (inertia > 0 and np.all(diagonal > 0)):
+            raise SolverError("proxsuite: the joint-space inertia matrix has a non-positive diagonal")
+        column = np.sqrt(diagonal / inertia)
+        norms = np.max(np.abs(problem.jacobian / column), axis=1, initial=0.0)
+        return cls(column, inertia, np.where(norms > 0, norms, 1.0))
 
 
 class ProxsuiteSolver(KKTSolver):
     """ProxQP dense backend.
 
     Args:
-        eps_abs: absolute accuracy of the primal and dual residuals.
+        options: :class:`ProxsuiteOptions`.
     """
 
     name = "proxsuite"
+    row_kinds = frozenset({RowKind.EQUALITY, RowKind.UNILATERAL, RowKind.CONE})
 
-    def __init__(self, eps_abs: float = 1e-12) -> None:
-        self.eps_abs = eps_abs
+    def __init__(self, options: ProxsuiteOptions | None = None) -> None:
+        super().__init__()
+        self.options = options or ProxsuiteOptions()
         self._qp: proxsuite.proxqp.dense.QP | None = None
+        self._shape: tuple[int, int, int] | None = None
 
-    def _fresh(self, nv: int, rows: int) -> proxsuite.proxqp.dense.QP:
-        qp = proxsuite.proxqp.dense.QP(nv, rows, 0)
-        qp.settings.eps_abs = self.eps_abs
-        qp.settings.eps_rel = self.eps_abs
+    def _fresh(self, n: int, n_eq: int, n_in: int, closest_feasible: bool) -> proxsuite.proxqp.dense.QP:
+        qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
+        qp.settings.eps_abs = self.options.eps_abs
+        qp.settings.eps_rel = self.options.eps_abs
         qp.settings.verbose = False
-        qp.settings.max_iter = 1000
+        qp.settings.max_iter = self.options.max_iter
         # at a singular configuration -gamma0 can leave range(G) by rounding: take the closest
         # feasible accelerations (least-squares constraint rows) instead of declaring infeasibility
-        qp.settings.primal_infeasibility_solving = True
+        qp.settings.primal_infeasibility_solving = closest_feasible
         return qp
 
-    def solve(self, problem: KKTProblem) -> KKTSolution:
-        nv, rows = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
-        neg_f = -problem.free_force
-        if self._qp is None or self._qp.model.dim != nv or self._qp.model.n_eq != rows:
-            self._qp = self._fresh(nv, rows)
-            self._qp.init(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+    def _run(self, matrices: tuple, n_in: int, closest_feasible: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Solve (warm start when the shape is unchanged, one cold retry); returns (x, y, z)."""
+        hessian, gradient, a_eq, b_eq, c_in, upper = matrices
+        n, n_eq = hessian.shape[0], a_eq.shape[0]
+        shape = (n, n_eq, n_in)
+        lower = None if c_in is None else np.full(n_in, -1e30)
+        if self._qp is None or self._shape != shape:
+            self._qp, self._shape = self._fresh(n, n_eq, n_in, closest_feasible), shape
+            self._qp.init(hessian, gradient, a_eq, b_eq, c_in, lower, upper)
         else:
             self._qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            self._qp.update(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+            self._qp.update(hessian, gradient, a_eq, b_eq, c_in, lower, upper)
         self._qp.solve()
-        if self._qp.results.info.status not in SOLVED:
+        if self._qp.results.info.status not in _SOLVED:
             # a warm start far from the answer (a state changing fast) can stall: retry cold
-            self._qp = self._fresh(nv, rows)
-            self._qp.init(problem.mass_matrix, neg_f, problem.jacobian, problem.rhs, None, None, None)
+            self._qp = self._fresh(n, n_eq, n_in, closest_feasible)
+            self._qp.init(hessian, gradient, a_eq, b_eq, c_in, lower, upper)
             self._qp.solve()
         results = self._qp.results
-        status = results.info.status
-        if status not in SOLVED and not self._nearly_solved(problem):
-            raise SolverError(
-                f"proxsuite: ProxQP did not solve the constrained dynamics ({status.name}, primal residual "
-                f"{results.info.pri_res:.3g}, dual residual {results.info.dua_res:.3g}). Either the constraints are "
-                "inconsistent (conflicting closures, not merely redundant) or the run is blowing up (reduce dt or "
-                "the gains)"
-            )
-        return KKTSolution(np.array(results.x), -np.array(results.y))
+        return np.array(results.x), np.array(results.y), np.array(results.z)
 
-    def _nearly_solved(self, problem: KKTProblem) -> bool:
-        """Next to a singular configuration ProxQP may stop on its iteration limit a little above
-        eps_abs; accept the answer when the constraint rows still hold to NEARLY relative."""
+    def solve(self, problem: KKTProblem) -> KKTSolution:
+        scaling = _Scaling.of(problem)
+        if problem.layout.equality_only:
+            acceleration, multipliers = self._solve_equalities(problem, scaling)
+        else:
+            acceleration, multipliers = self._solve_with_inequalities(problem, scaling)
         info = self._qp.results.info
-        if info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED:
+        primal, dual = residuals(problem, acceleration, multipliers)
+        solution = KKTSolution(acceleration, multipliers, info.status.name, int(info.iter), primal, dual)
+        inside = problem.layout.equality_only or self._inside_cones(problem, multipliers)
+        if not (primal <= ACCEPTED_RESIDUAL and dual <= ACCEPTED_RESIDUAL and inside):
+            self._refuse(problem, solution)
+        return self.record(solution)
+
+    # -- equality rows: Gauss in the accelerations -------------------------------------------------
+    def _solve_equalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
+        column, row = scaling.column, scaling.row
+        hessian = problem.mass_matrix / np.outer(column, column) / scaling.inertia
+        gradient = -problem.free_force / column / scaling.inertia
+        rows = problem.jacobian / column / row[:, None]
+        x, y, _ = self._run((hessian, gradient, rows, problem.rhs / row, None, None), 0, True)
+        return x / column, -scaling.inertia * y / row
+
+    # -- unilateral and cone rows: accelerations and forces together ----------------------------------
+    def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
+        x = self._run(*self._inequality_qp(problem, scaling, with_cones=True))[0]
+        return self._unscale(x, problem, scaling)
+
+    def _inequality_qp(self, problem: KKTProblem, scaling: _Scaling, with_cones: bool) -> tuple[tuple, int, bool]:
+        """The scaled (a, lambda) QP: matrices, inequality count, closest-feasible setting."""
+        nv, s = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
+        column, row, inertia = scaling.column, scaling.row, scaling.inertia
+        rows = problem.jacobian / column / row[:, None]  # A = R G C^-1, lambda = inertia * z / row
+        hessian = np.zeros((nv + s, nv + s))
+        hessian[:nv, :nv] = problem.mass_matrix / np.outer(column, column) / inertia
+        hessian[nv:, nv:] = FORCE_REGULARIZATION * np.eye(s)
+        gradient = np.concatenate([-problem.free_force / column / inertia, np.zeros(s)])
+        unilateral = problem.layout.unilateral
+        equal = ~unilateral
+        newton_euler = np.hstack([hessian[:nv, :nv], -rows.T])
+        accelerations = np.hstack([rows[equal], np.zeros((int(equal.sum()), s))])
+        a_eq = np.vstack([newton_euler, accelerations])
+        b_eq = np.concatenate([-gradient[:nv], (problem.rhs / row)[equal]])
+        blocks, bounds = [], []
+        picked = np.flatnonzero(unilateral)
+        if picked.size:
+            blocks.append(np.hstack([-rows[picked], np.zeros((picked.size, s))]))  # G a >= rhs
+            bounds.append(-(problem.rhs / row)[picked])
+            sign = np.zeros((picked.size, nv + s))
+            sign[np.arange(picked.size), nv + picked] = -1.0  # lambda >= 0
+            blocks.append(sign)
+            bounds.append(np.zeros(picked.size))
+        if with_cones:
+            for cone in problem.layout.cones:
+                facets = cone.cone.facet_matrix() / row[list(cone.rows)]  # on z = lambda * row / inertia
+                block = np.zeros((facets.shape[0] + 1, nv + s))
+                block[:-1, nv + np.array(cone.rows)] = facets / np.linalg.norm(facets, axis=1, keepdims=True)
+                block[-1, nv + cone.rows[0]] = -1.0  # f_n >= 0
+                blocks.append(block)
+                bounds.append(np.zeros(block.shape[0]))
+        c_in = np.vstack(blocks) if blocks else None
+        upper = np.concatenate(bounds) if bounds else None
+        n_in = 0 if c_in is None else c_in.shape[0]
+        return (hessian, gradient, a_eq, b_eq, c_in, upper), n_in, False
+
+    @staticmethod
+    def _unscale(x: np.ndarray, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
+        nv = problem.mass_matrix.shape[0]
+        return x[:nv] / scaling.column, scaling.inertia * x[nv:] / scaling.row
+
+    # -- judging ------------------------------------------------------------------------------------
+    @staticmethod
+    def _inside_cones(problem: KKTProblem, multipliers: np.ndarray) -> bool:
+        """Every cone force inside its linearized cone and every unilateral multiplier >= 0 (to
+        CONE_TOLERANCE of the largest force)."""
+        scale = float(np.max(np.abs(multipliers), initial=0.0))
+        slack = CONE_TOLERANCE * scale
+        if np.any(multipliers[problem.layout.unilateral] < -slack):
             return False
-        scale = 1.0 + float(np.abs(problem.rhs).max(initial=0.0))
-        return info.pri_res <= NEARLY * scale and info.dua_res <= NEARLY * (
-            1.0 + float(np.abs(problem.free_force).max())
+        for cone in problem.layout.cones:
+            if np.max(cone.cone.facet_matrix() @ multipliers[list(cone.rows)], initial=0.0) > slack:
+                return False
+        return True
+
+    def _refuse(self, problem: KKTProblem, solution: KKTSolution) -> None:
+        if problem.layout.cones:
+            self._explain_cones(problem)
+        raise SolverError(
+            f"proxsuite: ProxQP did not solve the constrained dynamics at t = {problem.t:.6g} s ({solution.status}, "
+            f"relative residuals: constraint rows {solution.primal_residual:.3g}, equations of motion "
+            f"{solution.dual_residual:.3g}; accepted: {ACCEPTED_RESIDUAL:g}). Either the constraints are inconsistent "
+            "(conflicting closures, not merely redundant) or the run is blowing up (reduce dt or the gains)"
         )
+
+    def _explain_cones(self, problem: KKTProblem) -> None:
+        """Solve without the cones (the smallest forces that hold every contact) and name the contacts
+        whose force would leave its cone.
+
+        Raises:
+            ContactInfeasibleError: when some contact needs a force outside its cone.
+        """
+        scaling = _Scaling.of(problem)
+        x = self._run(*self._inequality_qp(problem, scaling, with_cones=False))[0]
+        self._qp, self._shape = None, None  # the next solve has cones again
+        _, forces = self._unscale(x, problem, scaling)
+        failing = [(_needed(cone, forces), cone) for cone in problem.layout.cones]
+        failing = sorted(
+            ((need, cone) for need, cone in failing if need[0] > cone.cone.inscribed_mu or need[1]), key=_worst
+        )
+        if not failing:
+            return
+        described = "; ".join(_describe(cone, need) for need, cone in failing)
+        raise ContactInfeasibleError(
+            f"sticking contacts cannot hold at t = {problem.t:.6g} s: {described}. The applied forces are outside "
+            "the friction cone, so the contact would slide or open (contacts that switch are not modelled yet); "
+            "reduce the push or raise mu",
+            [cone.name for _, cone in failing],
+            problem.t,
+        )
+
+
+def _needed(cone: ConeRows, forces: np.ndarray) -> tuple[float, bool]:
+    """(|f_t| / f_n the contact needs, whether it needs to pull)."""
+    normal, first, second = forces[list(cone.rows)]
+    tangential = math.hypot(first, second)
+    if normal <= 0:
+        return (math.inf if tangential > 0 else 0.0), normal < 0
+    return tangential / normal, False
+
+
+def _worst(item: tuple[tuple[float, bool], ConeRows]) -> float:
+    return -item[0][0]
+
+
+def _describe(cone: ConeRows, need: tuple[float, bool]) -> str:
+    if need[1]:
+        return f"contact {cone.name!r} would need to pull (negative normal force)"
+    return (
+        f"contact {cone.name!r} needs |f_t|/f_n = {need[0]:.4g} > mu = {cone.cone.mu:g} "
+        f"(linearized {cone.cone.inscribed_mu:.4g} with {cone.cone.facets} facets)"
+    )
+
+
+_SOLVED = (
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE,
+)
+
+
+@SOLVERS.register("proxsuite", options=ProxsuiteOptions, summary="ProxQP: redundancy, singularities, contacts, cones")
+def make_proxsuite(
+    model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: ProxsuiteOptions
+) -> ProxsuiteSolver:
+    """The ProxQP backend (takes every row kind)."""
+    return ProxsuiteSolver(options)

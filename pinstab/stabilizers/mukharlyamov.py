@@ -24,6 +24,7 @@ its accuracy (benchmarks/decay_factor.py: drift 8e-6 instead of 3e-11 at dt = 1e
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,10 +33,10 @@ from ..constraints import ConstraintValues
 from ..errors import PinstabError, choices
 from ..kinematics import Kinematics
 from ..stability import place_gains
-from .base import Stabilizer
+from .base import STABILIZERS, DeviationGains, Stabilizer
 
 if TYPE_CHECKING:
-    from ..system import ConstrainedSystem
+    from ..model import ConstrainedModel
 
 VARIANTS = ("kinematic", "inertial")
 MULTISTAGE = ("heun", "rk4")
@@ -48,50 +49,79 @@ RATE_STEP = 1e-7  # [s] forward-difference step for dA/dt in the inertial varian
 RCOND = 1e-10
 
 
-class MukharlyamovStabilizer(Stabilizer):
-    """Extended-system stabilization.
+@dataclass(frozen=True)
+class MukharlyamovOptions:
+    """Extended-system stabilization settings.
 
-    Args:
+    Attributes:
         variant: ``kinematic`` (A = E) or ``inertial`` (A = Lambda(q)).
-        stiffness: H = stiffness E [1/s^2 kinematic, N/m inertial]; None for automatic gains.
-        damping: B = damping E [1/s kinematic, N s/m inertial]; None for automatic gains.
-        decay: per-step decay factor r in [0, 1) of the automatic gains (default
-            :data:`DEFAULT_DECAY` of the variant).
+        kp: the stiffness H = kp E [1/s^2 kinematic, N/m inertial]; None for automatic gains.
+        kd: the damping B = kd E [1/s kinematic, N s/m inertial]; None for automatic gains.
+        decay: per-step decay factor r in [0, 1) of the automatic gains (None: the variant's
+            :data:`DEFAULT_DECAY`).
         hold: with a multi-stage integrator (heun, rk4), evaluate the term at the first stage and
             hold it over the step (the ``held`` amplification matrix) instead of at every stage.
     """
 
+    variant: str = field(
+        default="kinematic",
+        metadata={"help": "kinematic (A = E) or inertial (A = Lambda)", "choices": VARIANTS},
+    )
+    kp: float | None = field(default=None, metadata={"help": "stiffness H (default: automatic gains)"})
+    kd: float | None = field(default=None, metadata={"help": "damping B (default: automatic gains)"})
+    decay: float | None = field(default=None, metadata={"help": "automatic gains: decay factor r per step"})
+    hold: bool = field(
+        default=True,
+        metadata={"flag": "--no-hold", "help": "with heun/rk4, evaluate the term at every stage instead of holding it"},
+    )
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ValueError(f"unknown variant {self.variant!r}; valid variants: {choices(VARIANTS)}")
+        if (self.kp is None) != (self.kd is None):
+            raise ValueError("give both stiffness (--kp) and damping (--kd), or neither for automatic gains")
+        for label in ("kp", "kd"):
+            value = getattr(self, label)
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, float | int) or not math.isfinite(value) or value < 0
+            ):
+                raise ValueError(
+                    f"{'stiffness' if label == 'kp' else 'damping'} must be a finite number >= 0, got {value!r}"
+                )
+        if self.decay is not None:
+            if self.kp is not None:
+                raise ValueError("the decay factor sets automatic gains; it cannot be combined with --kp/--kd")
+            if not (isinstance(self.decay, float | int) and 0.0 <= self.decay < 1.0):
+                raise ValueError(f"decay factor r must be in [0, 1), got {self.decay!r}")
+        if not isinstance(self.hold, bool):
+            raise ValueError(f"hold must be true or false, got {self.hold!r}")
+
+
+@STABILIZERS.register(
+    "mukharlyamov", options=MukharlyamovOptions, summary="extended system: deviation dynamics with placed gains"
+)
+class MukharlyamovStabilizer(Stabilizer):
+    """Extended-system stabilization.
+
+    Args:
+        options: :class:`MukharlyamovOptions`.
+    """
+
     name = "mukharlyamov"
 
-    def __init__(
-        self,
-        variant: str = "kinematic",
-        stiffness: float | None = None,
-        damping: float | None = None,
-        decay: float | None = None,
-        hold: bool = True,
-    ) -> None:
-        if variant not in VARIANTS:
-            raise PinstabError(f"mukharlyamov: unknown variant {variant!r}; valid variants: {choices(VARIANTS)}")
-        if (stiffness is None) != (damping is None):
-            raise PinstabError(
-                "mukharlyamov: give both stiffness (--kp) and damping (--kd), or neither for automatic gains"
-            )
-        for label, value in (("stiffness", stiffness), ("damping", damping)):
-            if value is not None and (not math.isfinite(value) or value < 0):
-                raise PinstabError(f"mukharlyamov: {label} must be a finite number >= 0, got {value}")
-        decay = DEFAULT_DECAY.get(variant, 0.0) if decay is None else decay
-        if not (0.0 <= decay < 1.0):
-            raise PinstabError(f"mukharlyamov: decay factor r must be in [0, 1), got {decay}")
-        self.variant, self.decay = variant, float(decay)
-        self.stiffness, self.damping = stiffness, damping
-        self.automatic = stiffness is None
-        self.hold = hold
+    def __init__(self, options: MukharlyamovOptions | None = None) -> None:
+        options = options or MukharlyamovOptions()
+        variant = options.variant
+        self.variant = variant
+        self.decay = float(DEFAULT_DECAY[variant] if options.decay is None else options.decay)
+        self.stiffness, self.damping = options.kp, options.kd
+        self.automatic = options.kp is None
+        self.hold = options.hold
         self._bound = False
 
     # -- set-up --------------------------------------------------------------------------------
-    def bind(self, system: ConstrainedSystem, step: float, integrator: str, q: np.ndarray) -> None:
-        super().bind(system, step, integrator, q)
+    def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray) -> None:
+        super().bind(model, step, integrator, q)
         mask = self.mask
         self.constant_gains = self.variant == "kinematic"
         self.holding = self.hold and integrator in MULTISTAGE
@@ -109,24 +139,23 @@ class MukharlyamovStabilizer(Stabilizer):
         if self.variant == "kinematic":
             self._s_scalar, self._k_diagonal = rate_stiffness, rate_damping
         else:
-            self._rate_kin = Kinematics(system.model)
-            self._h_matrix, self._b_matrix = self._physical_gains(system, q, rate_stiffness, rate_damping)
+            self._rate_kin = Kinematics(model.model)
+            self._h_matrix, self._b_matrix = self._physical_gains(model, q, rate_stiffness, rate_damping)
         self._bound = True
 
     def _physical_gains(
-        self, system: ConstrainedSystem, q0: np.ndarray, stiffness: float, damping: np.ndarray
+        self, model: ConstrainedModel, q0: np.ndarray, stiffness: float, damping: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """H (s x m, zero-padded) and B (s x s) of the inertial variant; automatic ones scale Lambda(q0)."""
         if not self.automatic:
             return stiffness * self._pick, np.diag(damping)
-        system.kin.update_jacobians(q0)
-        jac = system.constraints.velocity_terms(system.kin, q0, 0.0)[0]
-        inertia = np.linalg.pinv(_delassus(jac, system.mass_matrix(q0)), rcond=RCOND)
+        jac = model.constraint_values(q0, np.zeros(model.nv), 0.0).jacobian
+        inertia = np.linalg.pinv(_delassus(jac, model.mass_matrix(q0)), rcond=RCOND)
         weighted = inertia @ np.diag(damping)
         return stiffness * inertia @ self._pick, 0.5 * (weighted + weighted.T)
 
     # -- the term ----------------------------------------------------------------------------------
-    def stabilization_term(self, system, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
+    def stabilization_term(self, model, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
         if not self._bound:
             raise PinstabError("mukharlyamov: bind() the stabilizer to a step and an integrator before use")
         if self.holding and stage > 0:
@@ -134,29 +163,29 @@ class MukharlyamovStabilizer(Stabilizer):
         if self.variant == "kinematic":
             term = -self._s_scalar * values.phi - self._k_diagonal * values.velocity_residual
         else:
-            stiffness, damping = self._inertial_matrices(system, q, v, values.jacobian, system.kin.mass_matrix)
+            stiffness, damping = self._inertial_matrices(model, q, v, values.jacobian, model.kin.mass_matrix)
             term = -stiffness @ values.phi[self.mask] - damping @ values.velocity_residual
         self._held_term = term
         return term
 
-    def _inertial_matrices(self, system, q, v, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
+    def _inertial_matrices(self, model, q, v, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
         """S = D H and K = D B - dD/dt Lambda (D = G M^-1 G^T = Lambda^-1, so D dLambda/dt = -dD/dt Lambda)."""
         delassus = _delassus(jac, mass_matrix)
-        q_ahead = system.integrate(q, RATE_STEP * v)
+        q_ahead = model.integrate(q, RATE_STEP * v)
         self._rate_kin.update_jacobians(q_ahead)
-        jac_ahead = system.constraints.velocity_terms(self._rate_kin, q_ahead, 0.0)[0]
-        delassus_ahead = _delassus(jac_ahead, system.mass_matrix(q_ahead))
+        jac_ahead = model.constraints.velocity_terms(self._rate_kin, q_ahead, 0.0).jacobian
+        delassus_ahead = _delassus(jac_ahead, model.mass_matrix(q_ahead))
         delassus_rate = (delassus_ahead - delassus) / RATE_STEP
         inertia = np.linalg.pinv(delassus, rcond=RCOND)
         return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
 
     # -- the criterion -------------------------------------------------------------------------------
-    def deviation_gains(self, system, q, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def deviation_gains(self, model, q, v) -> DeviationGains:
         if self.variant == "kinematic":
-            return self._s_scalar * self._pick, np.diag(self._k_diagonal), self.mask
-        system.kin.update(q, v)
-        jac = system.constraints.velocity_terms(system.kin, q, 0.0)[0]
-        stiffness, damping = self._inertial_matrices(system, q, v, jac, system.kin.mass_matrix)
+            return DeviationGains(self._s_scalar * self._pick, np.diag(self._k_diagonal), self.mask)
+        model.kin.update(q, v)
+        jac = model.constraints.velocity_terms(model.kin, q, 0.0).jacobian
+        stiffness, damping = self._inertial_matrices(model, q, v, jac, model.kin.mass_matrix)
         return _on_row_space(jac, stiffness, damping, self.mask)
 
     def parameters(self) -> dict[str, float | str]:
@@ -177,18 +206,16 @@ def _delassus(jac: np.ndarray, mass_matrix: np.ndarray) -> np.ndarray:
     return jac @ np.linalg.solve(mass_matrix, jac.T)
 
 
-def _on_row_space(
-    jac: np.ndarray, stiffness: np.ndarray, damping: np.ndarray, mask: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _on_row_space(jac: np.ndarray, stiffness: np.ndarray, damping: np.ndarray, mask: np.ndarray) -> DeviationGains:
     """Restrict S, K to the deviations that can occur: g = G v lies in range(G), and so (to first
     order) does phi. With redundant rows Lambda = pinv(G M^-1 G^T) leaves the redundant direction
     without stiffness or damping, a marginal eigenvalue of R that says nothing about stability.
     Only applied when every row is holonomic (then S is square)."""
     if not mask.all():
-        return stiffness, damping, mask
+        return DeviationGains(stiffness, damping, mask)
     left, singular, _ = np.linalg.svd(jac, full_matrices=False)
     rank = int(np.sum(singular > 1e-9 * max(singular[0], 1e-300))) if singular.size else 0
     if rank == len(mask):
-        return stiffness, damping, mask
+        return DeviationGains(stiffness, damping, mask)
     basis = left[:, :rank]
-    return basis.T @ stiffness @ basis, basis.T @ damping @ basis, np.ones(rank, dtype=bool)
+    return DeviationGains(basis.T @ stiffness @ basis, basis.T @ damping @ basis, np.ones(rank, dtype=bool))

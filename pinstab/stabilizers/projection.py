@@ -4,52 +4,81 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import PinstabError
 from ..projection import project_positions, project_velocities, weighted_correction
-from .base import Correction, Stabilizer
+from ..registry import NoOptions
+from .base import STABILIZERS, Correction, Stabilizer
 
 if TYPE_CHECKING:
-    from ..system import ConstrainedSystem
+    from ..model import ConstrainedModel
 
 
+@dataclass(frozen=True)
+class ProjectionOptions:
+    """Coordinate projection settings."""
+
+    tolerance: float = field(
+        default=1e-13,
+        metadata={"flag": "--projection-tolerance", "help": "position residual projection reaches [m or rad]"},
+    )
+    max_iterations: int = field(
+        default=20, metadata={"flag": "--projection-iterations", "help": "Gauss-Newton iterations per step"}
+    )
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.tolerance, float | int) and self.tolerance > 0):
+            raise ValueError(f"tolerance must be > 0, got {self.tolerance!r}")
+        if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
+            raise ValueError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
+
+
+@STABILIZERS.register("projection", options=ProjectionOptions, summary="project q and v onto the manifold every step")
 class ProjectionStabilizer(Stabilizer):
     """Project q onto phi = 0 by Gauss-Newton, then v onto G v + g_t = 0, after every step.
 
     Args:
-        tolerance: position residual to reach [m or rad].
-        max_iterations: Gauss-Newton iterations before :class:`~pinstab.errors.ProjectionError`.
+        options: tolerance [m or rad] and iterations before :class:`~pinstab.errors.ProjectionError`.
     """
 
     name = "projection"
 
-    def __init__(self, tolerance: float = 1e-13, max_iterations: int = 20) -> None:
-        if not tolerance > 0 or max_iterations < 1:
-            raise PinstabError("projection: tolerance must be > 0 and max_iterations >= 1")
-        self.tolerance, self.max_iterations = tolerance, max_iterations
+    def __init__(self, options: ProjectionOptions | None = None) -> None:
+        options = options or ProjectionOptions()
+        self.tolerance, self.max_iterations = options.tolerance, options.max_iterations
 
-    def correct(self, system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
-        inverse_mass = np.linalg.inv(system.mass_matrix(q))
-        q, iterations = project_positions(system, q, t, inverse_mass, self.tolerance, self.max_iterations)
-        return Correction(q, project_velocities(system, q, v, t, inverse_mass), iterations)
+    def baumgarte_gains(self) -> tuple[float, float]:
+        return (0.0, 0.0)
 
-    def parameters(self) -> dict[str, float]:
+    def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
+        inverse_mass = np.linalg.inv(model.mass_matrix(q))
+        q, iterations = project_positions(model, q, t, inverse_mass, self.tolerance, self.max_iterations)
+        return Correction(q, project_velocities(model, q, v, t, inverse_mass), iterations)
+
+    def parameters(self) -> dict[str, float | str]:
         return {"tolerance": self.tolerance, "max_iterations": self.max_iterations}
 
 
+@STABILIZERS.register("post", options=NoOptions, summary="one projection step per step (Ascher et al. 1995)")
 class PostStabilizer(Stabilizer):
     """One post-stabilization step: ``q <- q (+) (-F phi)``, ``v <- v - F g`` with
     ``F = M^-1 G^T (G M^-1 G^T)^+`` evaluated once, at the uncorrected state."""
 
     name = "post"
 
-    def correct(self, system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
-        values = system.constraint_values(q, v, t)
-        inverse_mass = np.linalg.inv(system.mass_matrix(q))
-        mask = system.constraints.holonomic_mask
-        q_new = system.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], values.phi[mask]))
+    def __init__(self, options: NoOptions | None = None) -> None:
+        pass
+
+    def baumgarte_gains(self) -> tuple[float, float]:
+        return (0.0, 0.0)
+
+    def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
+        values = model.constraint_values(q, v, t)
+        inverse_mass = np.linalg.inv(model.mass_matrix(q))
+        mask = model.constraints.holonomic_mask
+        q_new = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], values.phi[mask]))
         v_new = v + weighted_correction(inverse_mass, values.jacobian, values.velocity_residual)
         return Correction(q_new, v_new, 1)

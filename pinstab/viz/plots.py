@@ -34,18 +34,18 @@ def trajectory_figure(trajectory: Trajectory):
     drift_axis.legend(fontsize=8)
     energy_axis.plot(t, trajectory.energy - trajectory.energy[0], color="tab:green")
     energy_axis.set_ylabel("energy error E(t) - E(0) [J]")
-    for name, (start, stop) in info.get("constraint_rows", {}).items():
+    for name, (start, stop) in info.constraint_rows.items():
         norms = np.linalg.norm(trajectory.multipliers[:, start:stop], axis=1)
         force_axis.plot(t, norms, label=name)
     force_axis.set_ylabel("constraint force |lambda| [N]")
     force_axis.set_xlabel("time t [s]")
-    if info.get("constraint_rows"):
+    if info.constraint_rows:
         force_axis.legend(fontsize=8)
     for axis in axes:
         axis.grid(True, alpha=0.3)
-    method = info.get("method", "?")
+    method = info.method
     fig.suptitle(
-        f"{info.get('scene', '')}: {method} + {info.get('integrator', '?')}, dt = {info.get('dt', '?')} s", fontsize=10
+        f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10
     )
     fig.tight_layout()
     return fig

@@ -29,8 +29,8 @@ from pinocchio.visualize import MeshcatVisualizer
 from ..constraints import FrameClosure
 from ..errors import PinstabError
 from ..files import atomic_output
+from ..model import ConstrainedModel
 from ..scene import Scene
-from ..system import ConstrainedSystem
 from ..trajectory import Trajectory, configurations_at
 from .geometry import visual_model
 
@@ -73,10 +73,10 @@ class ClosurePoints:
     """The two points of every frame closure (or the point and its world anchor), as spheres coloured
     by that closure's position residual at the frame: green at 1e-10 m, red at 1e-4 m and above."""
 
-    def __init__(self, system: ConstrainedSystem, radius: float) -> None:
-        self.system = system
+    def __init__(self, model: ConstrainedModel, radius: float) -> None:
+        self.model = model
         self.radius = radius
-        self.closures = [c for c in system.constraints.constraints if isinstance(c, FrameClosure)]
+        self.closures = [c for c in model.constraints.constraints if isinstance(c, FrameClosure)]
 
     def _path(self, name: str, side: str) -> str:
         return f"{ROOT}/closures/{name}/{side}"
@@ -88,7 +88,7 @@ class ClosurePoints:
                 viewer[self._path(closure.name, side)].set_object(mg.Sphere(self.radius), material)
 
     def update(self, frame, q: np.ndarray, t: float) -> None:
-        kin = self.system.kin
+        kin = self.model.kin
         kin.update_positions(q)
         for closure in self.closures:
             residual = float(np.max(np.abs(closure.residual(kin, q, t)), initial=0.0))
@@ -119,12 +119,13 @@ class Recording:
 class ScenePlayer:
     """The robot of a scene in a meshcat viewer (recording or live), with overlays."""
 
-    def __init__(self, scene: Scene, system: ConstrainedSystem, viewer: meshcat.Visualizer) -> None:
-        self.scene, self.system, self.viewer = scene, system, viewer
+    def __init__(self, model: ConstrainedModel, viewer: meshcat.Visualizer) -> None:
+        scene = model.scene
+        self.scene, self.viewer = scene, viewer
         self.robot = MeshcatVisualizer(scene.model, None, visual_model(scene))
         self.robot.initViewer(viewer=viewer)
         self.robot.loadViewerModel(rootNodeName=ROOT)
-        self.overlays: list[Overlay] = [ClosurePoints(system, radius=_marker_radius(scene))]
+        self.overlays: list[Overlay] = [ClosurePoints(model, radius=_marker_radius(scene))]
         for overlay in self.overlays:
             overlay.load(viewer)
 
@@ -192,17 +193,16 @@ def frame_states(trajectory: Trajectory, model: pin.Model, fps: float) -> tuple[
     return times, configurations_at(trajectory.t, trajectory.q, model, times)
 
 
-def write_recording(
-    scene: Scene, system: ConstrainedSystem, trajectory: Trajectory, path: str | Path, fps: float = 30.0
-) -> Recording:
-    """Write a standalone HTML file replaying ``trajectory`` at ``fps`` frames per second.
+def write_recording(model: ConstrainedModel, trajectory: Trajectory, path: str | Path, fps: float = 30.0) -> Recording:
+    """Write a standalone HTML file replaying ``trajectory`` of ``model`` at ``fps`` frames per second.
 
     Opening ``file.html#t=1.5`` shows the motion paused at 1.5 s (used by the browser test).
     """
+    scene = model.scene
     times, states = frame_states(trajectory, scene.model, fps)
     recorder = CommandRecorder()
     viewer = meshcat.Visualizer(window=recorder)
-    player = ScenePlayer(scene, system, viewer)
+    player = ScenePlayer(model, viewer)
     player.frame_camera(states)
     player.pose(viewer, states[0], float(times[0]))
     animation = Animation(default_framerate=fps)
@@ -249,14 +249,14 @@ document.title = "pinstab ready: {title}";
 """
 
 
-def play_live(scene: Scene, system: ConstrainedSystem, trajectory: Trajectory, fps: float = 30.0, viewer=None) -> str:
-    """Stream the motion in real time to a meshcat server (started on 127.0.0.1 unless ``viewer`` is
-    given); returns the viewer's URL."""
-    times, states = frame_states(trajectory, scene.model, fps)
+def play_live(model: ConstrainedModel, trajectory: Trajectory, fps: float = 30.0, viewer=None) -> str:
+    """Stream the motion of ``model`` in real time to a meshcat server (started on 127.0.0.1 unless
+    ``viewer`` is given); returns the viewer's URL."""
+    times, states = frame_states(trajectory, model.model, fps)
     if viewer is None:
         viewer = meshcat.Visualizer()
         print(f"pinstab record: live viewer at {viewer.window.web_url}", file=sys.stderr, flush=True)
-    player = ScenePlayer(scene, system, viewer)
+    player = ScenePlayer(model, viewer)
     player.frame_camera(states)
     start = time.perf_counter()
     for t, q in zip(times, states, strict=True):

@@ -1,0 +1,92 @@
+"""Point contacts of a body point with a fixed world plane (the ground, a table top).
+
+Kind ``plane-contact``: a point on body a touching the plane ``{x : n . (x - p0) = 0}``. Without
+``mu`` the contact is frictionless: one ``unilateral`` row, the gap ``n . (p_a - p0) >= 0``, whose
+multiplier (the normal force [N]) can only push. With ``mu`` it is a sticking contact with Coulomb
+friction: three ``cone`` rows in the contact frame (normal, then two tangents) that hold the point at
+its anchor, the force kept inside ``|f_t| <= mu f_n``. The anchor is the point's projection on the
+plane at the scene's declared initial configuration. Contacts that open, close or slide over a run are
+not modelled here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import SceneError
+from ..tables import SceneTables
+from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
+from .loops import FrameClosure
+
+CONTACT_KEYS = {"name", "kind", "frame_a", "offset_a", "normal", "point", "mu", "facets"}
+
+
+def contact_basis(normal: np.ndarray) -> np.ndarray:
+    """Rows (n, t1, t2): the unit normal and two tangents with t1 x t2 = n."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
+    first = np.cross(helper, n)
+    first /= np.linalg.norm(first)
+    return np.vstack([n, first, np.cross(n, first)])
+
+
+class PointContact(FrameClosure):
+    """A body point on a world plane: 1 unilateral row (frictionless) or 3 cone rows (friction).
+
+    Args:
+        name: unique name. frame_a: the operational frame at the contact point of body a.
+        anchor: the world point [m] the contact holds (on the plane).
+        normal: the plane's normal (world axes; into body a, i.e. the direction it is pushed).
+        friction: the Coulomb cone, or None for a frictionless contact.
+
+    The multipliers are the contact force on body a [N] in the contact frame (normal, t1, t2).
+    """
+
+    def __init__(
+        self, name: str, frame_a: int, anchor: np.ndarray, normal: np.ndarray, friction: FrictionCone | None
+    ) -> None:
+        super().__init__(name, "point", frame_a, None, pin.SE3(np.eye(3), np.asarray(anchor, dtype=float)))
+        basis = contact_basis(normal)
+        self.kind = "contact"
+        self.friction = friction
+        self.row_kind = RowKind.UNILATERAL if friction is None else RowKind.CONE
+        self.selection = basis[:1] if friction is None else basis
+        self.rows = self.selection.shape[0]
+        self.force_frame = "contact frame (normal, t1, t2), force on a"
+
+
+def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str) -> PointContact:
+    """Scene table: ``frame_a`` + ``offset_a`` [m], ``normal`` (default +z), ``point`` on the plane
+    [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone."""
+    tables.check_keys(entry, CONTACT_KEYS, where)
+    if "frame_a" not in entry:
+        raise SceneError(f"{where}: 'frame_a' is required")
+    normal = tables.vector(entry.get("normal", [0.0, 0.0, 1.0]), 3, f"{where}.normal", None)
+    if np.linalg.norm(normal) < 1e-12:
+        raise SceneError(f"{where}.normal must be a non-zero vector")
+    normal = normal / np.linalg.norm(normal)
+    point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
+    offset = tables.placement(entry, "offset_a", "rpy_a", where)
+    frame = tables.point_frame(entry["frame_a"], offset, f"{name}/a", f"{where}.frame_a")
+    start = tables.initial_placement(frame).translation
+    anchor = start - normal * float(normal @ (start - point))
+    friction = None
+    if "mu" in entry:
+        facets = entry.get("facets", 8)
+        if isinstance(facets, bool) or not isinstance(facets, int) or facets < 3:
+            raise SceneError(f"{where}.facets must be an integer >= 3, got {facets!r}")
+        mu = tables.number(entry, "mu", where)
+        if mu < 0:
+            raise SceneError(f"{where}.mu must be >= 0, got {mu}")
+        friction = FrictionCone(mu, facets)
+    elif "facets" in entry:
+        raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
+    return PointContact(name, frame, anchor, normal, friction)
+
+
+CONSTRAINT_KINDS.register(
+    "plane-contact",
+    parse_plane_contact,
+    summary="a body point on a world plane: frictionless (1 unilateral row) or sticking with friction mu (3 cone rows)",
+)

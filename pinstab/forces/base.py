@@ -1,0 +1,37 @@
+"""Force elements: what they provide, and the registry of force kinds scene files name."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ..kinematics import Kinematics
+from ..registry import Registry
+
+
+class ForceElement(ABC):
+    """Something that adds a generalized force and possibly potential energy.
+
+    Attributes:
+        name: unique name.
+        needs_kinematics: whether :meth:`generalized_force` reads frame placements or Jacobians
+            (False lets a solver that computes its own kinematics skip pinstab's pass).
+    """
+
+    name: str
+    needs_kinematics: bool = True
+
+    @abstractmethod
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        """Generalized force [N, N m] (nv,); needs placements and Jacobians current."""
+
+    def potential_energy(self, kin: Kinematics) -> float:
+        """Stored energy [J]; zero for non-conservative elements."""
+        return 0.0
+
+
+FORCE_KINDS: Registry[ForceElement] = Registry("force kind")
+"""Scene-file force kinds: ``kind = NAME`` in ``[[forces]]``. A factory is
+``parse(table, tables, name, where) -> ForceElement`` reading its own keys through
+:class:`~pinstab.tables.SceneTables`."""

@@ -1,0 +1,41 @@
+"""``external-force``: a constant force (and moment) in world axes applied at a point of a body."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SceneError
+from ..kinematics import Kinematics
+from ..tables import SceneTables
+from .base import FORCE_KINDS, ForceElement
+
+EXTERNAL_KEYS = {"name", "kind", "frame", "offset", "force", "moment"}
+
+
+class ExternalForce(ForceElement):
+    """A constant wrench on a body: ``tau = J_p^T f + J_w^T m`` with the frame's world-aligned Jacobian.
+
+    Args:
+        name: element name. frame: the operational frame at the point of application.
+        force: [N], world axes. moment: [N m], world axes.
+    """
+
+    def __init__(self, name: str, frame: int, force: np.ndarray, moment: np.ndarray) -> None:
+        self.name, self.frame = name, frame
+        self.wrench = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
+
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        return kin.jacobian(self.frame).T @ self.wrench
+
+
+@FORCE_KINDS.register("external-force", summary="a constant world-axes force [N] and moment [N m] at a body point")
+def parse_external_force(entry: dict, tables: SceneTables, name: str, where: str) -> ExternalForce:
+    """Scene table: ``frame`` + ``offset`` [m], ``force`` [N] and ``moment`` [N m] in world axes."""
+    tables.check_keys(entry, EXTERNAL_KEYS, where)
+    if "frame" not in entry:
+        raise SceneError(f"{where}: 'frame' is required")
+    offset = tables.placement(entry, "offset", "rpy", where)
+    frame = tables.point_frame(entry["frame"], offset, f"{name}/point", f"{where}.frame")
+    force = tables.vector(entry.get("force", [0.0, 0.0, 0.0]), 3, f"{where}.force", "force")
+    moment = tables.vector(entry.get("moment", [0.0, 0.0, 0.0]), 3, f"{where}.moment", "torque")
+    return ExternalForce(name, frame, force, moment)

@@ -1,0 +1,119 @@
+"""``ConstrainedModel``: a scene's mechanics, independent of how it is stepped.
+
+It owns the Pinocchio model and one kinematics pass per state, the stacked constraint rows and the
+force elements, and answers what the stabilizers, projection, assembly, stability maps and the viewer
+ask: constraint values, mass matrix, energy, the terms of the KKT system, and integration on the
+configuration group. The stepping system (:mod:`pinstab.system`) adds a stabilizer and a solver.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from .constraints import ConstraintSet, ConstraintValues
+from .kinematics import Kinematics, symmetric_mass_matrix
+from .scene import Scene
+
+
+class DynamicsTerms(NamedTuple):
+    """The unconstrained dynamics and the constraint rows at one state.
+
+    Attributes:
+        mass_matrix: M [kg, kg m^2]. bias: h = C v + g [N, N m]. tau: applied forces [N, N m].
+        values: constraint values with drift terms.
+    """
+
+    mass_matrix: np.ndarray
+    bias: np.ndarray
+    tau: np.ndarray
+    values: ConstraintValues
+
+
+class ConstrainedModel:
+    """A scene's model, kinematics, constraint set and force elements.
+
+    Args:
+        scene: the scene.
+
+    Attributes:
+        scene: the scene. model: its Pinocchio model. kin: the kinematics pass.
+        constraints: the stacked constraint rows. forces: the force elements.
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.model = scene.model
+        self.kin = Kinematics(scene.model)
+        self.constraints: ConstraintSet = scene.constraint_set
+        self.forces = scene.forces
+        self._data = scene.model.createData()
+        self.flat = all(self.model.joints[j].nv == 1 for j in range(1, self.model.njoints))
+
+    @property
+    def nv(self) -> int:
+        """Velocity dimension."""
+        return self.model.nv
+
+    @property
+    def nq(self) -> int:
+        """Configuration dimension."""
+        return self.model.nq
+
+    @property
+    def forces_need_kinematics(self) -> bool:
+        """Whether some force element reads frame placements or Jacobians."""
+        return any(element.needs_kinematics for element in self.forces)
+
+    def applied_force(self, v: np.ndarray, t: float) -> np.ndarray:
+        """Sum of the force elements [N, N m]; ``kin`` must be current where they need it."""
+        tau = np.zeros(self.model.nv)
+        for element in self.forces:
+            tau += element.generalized_force(self.kin, v, t)
+        return tau
+
+    def dynamics_terms(self, q: np.ndarray, v: np.ndarray, t: float) -> DynamicsTerms:
+        """One full kinematics pass at (q, v): M, h, applied forces and constraint values with drift."""
+        self.kin.update(q, v)
+        tau = self.applied_force(v, t)
+        values = self.constraints.values(self.kin, q, v, t, with_drift=True)
+        return DynamicsTerms(self.kin.mass_matrix, self.kin.bias, tau, values)
+
+    def constraint_values(self, q: np.ndarray, v: np.ndarray, t: float) -> ConstraintValues:
+        """phi, G, g at (q, v, t) without drift terms (one Jacobian pass)."""
+        self.kin.update_jacobians(q)
+        return self.constraints.values(self.kin, q, v, t, with_drift=False)
+
+    def violation(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[float, float]:
+        """(position, velocity) constraint violation at (q, v, t) [m or rad, m/s or rad/s]."""
+        return self.constraints.violation(self.constraint_values(q, v, t))
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Joint-space inertia M(q), symmetric [kg, kg m^2]."""
+        nv = self.model.nv
+        return symmetric_mass_matrix(self.model, self._data, q, np.empty((nv, nv)), self.kin.lower)
+
+    def energy(self, q: np.ndarray, v: np.ndarray) -> float:
+        """Kinetic + gravity + spring energy [J]; placements at q must be current in ``kin``."""
+        data = self._data
+        kinetic = pin.computeKineticEnergy(self.model, data, q, v)
+        potential = pin.computePotentialEnergy(self.model, data, q)
+        springs = sum(element.potential_energy(self.kin) for element in self.forces)
+        return float(kinetic + potential + springs)
+
+    def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """q (+) dq on the configuration group."""
+        return pin.integrate(self.model, q, dq)
+
+    def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """The tangent vector dq with q0 (+) dq = q1."""
+        return pin.difference(self.model, q0, q1)
+
+    def to_start_tangent(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
+        """A velocity at ``q_stage`` carried to the tangent space at ``q`` (exact ``dexp^-1`` through
+        ``pin.dDifference``; the identity on models of 1-DOF joints)."""
+        if self.flat:
+            return v_stage
+        return pin.dDifference(self.model, q, q_stage, pin.ArgumentPosition.ARG1) @ v_stage

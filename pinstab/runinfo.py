@@ -1,0 +1,127 @@
+"""What a run reports besides its samples: ``RunInfo`` (scene, method, integrator, solver, step, end
+time, constraint layout, assembly report, solver statistics). It round-trips through the JSON of
+``pinstab run --json`` and the NPZ trajectory files."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from .errors import PinstabError
+
+
+@dataclass
+class SolverStatistics:
+    """Counts and worst residuals over a run's KKT solves.
+
+    Attributes:
+        solves: KKT solves. status_counts: solves per backend status (e.g. ``PROXQP_SOLVED``).
+        iterations_total, iterations_max: the backend's iterations (0 for direct factorizations).
+        worst_primal_residual: largest ``|G a - rhs|`` relative to the size of its terms [-].
+        worst_dual_residual: largest ``|M a - f - G^T lambda|`` relative to its terms [-].
+        fallbacks: solves handed to a rank-robust backend after this one missed the constraints.
+    """
+
+    solves: int = 0
+    status_counts: dict[str, int] = field(default_factory=dict)
+    iterations_total: int = 0
+    iterations_max: int = 0
+    worst_primal_residual: float = 0.0
+    worst_dual_residual: float = 0.0
+    fallbacks: int = 0
+
+    def record(self, status: str, iterations: int, primal: float, dual: float) -> None:
+        """Add one solve."""
+        self.solves += 1
+        self.status_counts[status] = self.status_counts.get(status, 0) + 1
+        self.iterations_total += iterations
+        self.iterations_max = max(self.iterations_max, iterations)
+        if math.isfinite(primal):
+            self.worst_primal_residual = max(self.worst_primal_residual, primal)
+        if math.isfinite(dual):
+            self.worst_dual_residual = max(self.worst_dual_residual, dual)
+
+    def merged(self, other: SolverStatistics) -> SolverStatistics:
+        """The statistics of both."""
+        counts = Counter(self.status_counts)
+        counts.update(other.status_counts)
+        return SolverStatistics(
+            self.solves + other.solves,
+            dict(counts),
+            self.iterations_total + other.iterations_total,
+            max(self.iterations_max, other.iterations_max),
+            max(self.worst_primal_residual, other.worst_primal_residual),
+            max(self.worst_dual_residual, other.worst_dual_residual),
+            self.fallbacks + other.fallbacks,
+        )
+
+
+@dataclass(frozen=True)
+class AssemblySummary:
+    """The assembly of the initial state: LM iterations, residual [m or rad], velocity residual
+    [m/s or rad/s], displacement from the declared configuration (tangent norm)."""
+
+    iterations: int
+    residual: float
+    velocity_residual: float
+    displacement: float
+
+
+@dataclass
+class RunInfo:
+    """Everything a run reports besides its samples.
+
+    Attributes:
+        scene, method, integrator, solver: names. dt: step [s]. t_end: simulated end time [s].
+        steps: steps taken. parameters: the method's options. solver_options: the solver's.
+        scene_parameters: generator parameters of the scene.
+        constraint_rows: constraint name -> [first row, last row + 1].
+        row_kinds: constraint name -> ``equality`` | ``unilateral`` | ``cone``.
+        force_frames: constraint name -> the frame its multipliers are expressed in.
+        assembly: the assembly of the initial state, or None when it was skipped.
+        solver_statistics: the KKT solves of the run.
+        direct: whether the dynamics ran on Pinocchio's own path (see :mod:`pinstab.system`).
+    """
+
+    scene: str
+    method: str
+    integrator: str
+    solver: str
+    dt: float
+    t_end: float = 0.0
+    steps: int = 0
+    parameters: dict[str, Any] = field(default_factory=dict)
+    solver_options: dict[str, Any] = field(default_factory=dict)
+    scene_parameters: dict[str, Any] = field(default_factory=dict)
+    constraint_rows: dict[str, list[int]] = field(default_factory=dict)
+    row_kinds: dict[str, str] = field(default_factory=dict)
+    force_frames: dict[str, str] = field(default_factory=dict)
+    assembly: AssemblySummary | None = None
+    solver_statistics: SolverStatistics = field(default_factory=SolverStatistics)
+    direct: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (nested dataclasses as dicts)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunInfo:
+        """The inverse of :meth:`to_dict`.
+
+        Raises:
+            PinstabError: a key is missing or unknown.
+        """
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise PinstabError(f"run info: unknown field {unknown[0]!r}")
+        values = dict(data)
+        try:
+            if values.get("assembly") is not None:
+                values["assembly"] = AssemblySummary(**values["assembly"])
+            values["solver_statistics"] = SolverStatistics(**values.get("solver_statistics", {}))
+            return cls(**values)
+        except TypeError as exc:
+            raise PinstabError(f"run info: {exc}") from None

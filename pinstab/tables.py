@@ -1,0 +1,135 @@
+"""Reading scene-file tables: keys, numbers with units, vectors, placements, and the model's frames
+and joints by name. Every failure is a :class:`~pinstab.errors.SceneError` naming the item and the
+valid alternatives. Constraint and force kinds read their own tables through :class:`SceneTables`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import SceneError, choices
+from .units import quantity
+
+WORLD = "world"
+FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
+
+
+def check_keys(table: dict[str, Any], allowed: set[str], where: str) -> None:
+    """Refuse a key outside ``allowed``."""
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise SceneError(f"{where}: unknown key {unknown[0]!r}; valid keys: {choices(allowed)}")
+
+
+def table(value: Any, where: str) -> dict[str, Any]:
+    """A required TOML table."""
+    if value is None:
+        raise SceneError(f"scene: the [{where}] table is required")
+    if not isinstance(value, dict):
+        raise SceneError(f"{where} must be a table, got {type(value).__name__}")
+    return value
+
+
+def list_of_tables(value: Any, where: str) -> list[dict[str, Any]]:
+    """A TOML array of tables (``[[where]]``)."""
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise SceneError(f"{where} must be an array of tables ([[{where}]])")
+    return value
+
+
+def vector(value: Any, size: int, where: str, dimension: str | None) -> np.ndarray:
+    """A list of ``size`` numbers (SI, or with units of ``dimension``)."""
+    if not isinstance(value, list) or len(value) != size:
+        raise SceneError(f"{where} must be a list of {size} numbers, got {value!r}")
+    if dimension is None:
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            raise SceneError(f"{where} must be a list of {size} numbers, got {value!r}")
+        out = np.array(value, dtype=float)
+        if not np.all(np.isfinite(out)):
+            raise SceneError(f"{where} has a non-finite entry")
+        return out
+    return np.array([quantity(x, dimension, where) for x in value])
+
+
+def placement(entry: dict[str, Any], offset_key: str, rpy_key: str, where: str) -> pin.SE3:
+    """An SE3 from an offset [m] and roll-pitch-yaw angles [rad] (both optional, zero by default)."""
+    offset = vector(entry.get(offset_key, [0.0, 0.0, 0.0]), 3, f"{where}.{offset_key}", "length")
+    rpy = vector(entry.get(rpy_key, [0.0, 0.0, 0.0]), 3, f"{where}.{rpy_key}", "angle")
+    return pin.SE3(pin.rpy.rpyToMatrix(rpy), offset)
+
+
+def joint_id(model: pin.Model, name: Any, where: str) -> int:
+    """A joint's index; SceneError listing the joints otherwise."""
+    if not isinstance(name, str) or not model.existJointName(name) or name == "universe":
+        valid = [n for n in model.names if n != "universe"]
+        raise SceneError(f"{where}: unknown joint {name!r}; valid joints: {choices(valid)}")
+    return model.getJointId(name)
+
+
+def frame_id(model: pin.Model, name: Any, where: str) -> int:
+    """A frame's index; a link (BODY) frame wins over a joint frame of the same name."""
+    if isinstance(name, str):
+        for frame_type in FRAME_PREFERENCE:
+            if model.existFrame(name, frame_type):
+                return model.getFrameId(name, frame_type)
+    valid = [f.name for f in model.frames if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)]
+    raise SceneError(f"{where}: unknown frame {name!r}; valid frames: {WORLD}, {choices(valid)}")
+
+
+class SceneTables:
+    """What a constraint or force kind needs to read its scene table: the (reduced) model, to which
+    it may add operational frames at its points.
+
+    Args:
+        model: the scene's Pinocchio model (frames are added to it).
+        q0: the scene's declared initial configuration.
+    """
+
+    def __init__(self, model: pin.Model, q0: np.ndarray) -> None:
+        self.model = model
+        self.q0 = q0
+
+    check_keys = staticmethod(check_keys)
+    vector = staticmethod(vector)
+    placement = staticmethod(placement)
+    quantity = staticmethod(quantity)
+
+    def joint_id(self, name: Any, where: str) -> int:
+        """A joint's index by name."""
+        return joint_id(self.model, name, where)
+
+    def frame_id(self, name: Any, where: str) -> int:
+        """A frame's index by name."""
+        return frame_id(self.model, name, where)
+
+    def point_frame(self, frame_name: Any, offset: pin.SE3, new_name: str, where: str) -> int:
+        """Add an operational frame ``new_name`` at ``offset`` in frame ``frame_name``; its index."""
+        parent = self.frame_id(frame_name, where)
+        frame = self.model.frames[parent]
+        return self.model.addFrame(
+            pin.Frame(new_name, frame.parentJoint, parent, frame.placement * offset, pin.FrameType.OP_FRAME)
+        )
+
+    def initial_placement(self, frame: int) -> pin.SE3:
+        """World placement of a frame at the declared initial configuration."""
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, self.q0)
+        return data.oMf[frame]
+
+    def number(self, entry: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
+        """A plain number (dimensionless) from ``entry[key]``."""
+        value = entry.get(key, default)
+        if value is None:
+            raise SceneError(f"{where}: {key!r} is required")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise SceneError(f"{where}.{key} must be a finite number, got {value!r}")
+        return float(value)
+
+    def name(self, entry: dict[str, Any], default: str, where: str) -> str:
+        """The entry's ``name`` (a string) or ``default``."""
+        value = entry.get("name", default)
+        if not isinstance(value, str) or not value:
+            raise SceneError(f"{where}.name must be a non-empty string, got {value!r}")
+        return value
