@@ -57,14 +57,18 @@ def assemble(
             residual), e.g. link lengths that cannot close.
     """
     q_start = q.copy()
+    threshold = model.position_tolerance(tolerance)
     mask = model.constraints.holonomic_mask
-    damping = 1e-6
     phi, jac = _residual(model, q, t, mask)
+    # Levenberg-Marquardt damping relative to J J^T, so the path (and the point of the manifold it
+    # reaches) does not depend on the units
+    unit = max(float(np.max(np.sum(jac * jac, axis=1), initial=0.0)), np.finfo(float).tiny)
+    damping = 1e-6
     cost = float(phi @ phi)
     iterations = 0
-    while iterations < max_iterations and np.max(np.abs(phi), initial=0.0) > tolerance:
+    while iterations < max_iterations and np.max(np.abs(phi), initial=0.0) > threshold:
         iterations += 1
-        step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * np.eye(len(phi)), phi)
+        step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * unit * np.eye(len(phi)), phi)
         trial = model.integrate(q, step)
         trial_phi, trial_jac = _residual(model, trial, t, mask)
         trial_cost = float(trial_phi @ trial_phi)
@@ -76,7 +80,7 @@ def assemble(
             if damping > 1e8:
                 break
     residual = float(np.max(np.abs(phi), initial=0.0))
-    if residual > tolerance:
+    if residual > threshold:
         worst = _worst_constraint(model, phi, mask)
         raise AssemblyError(
             f"assembly failed: the closures cannot be met from the given configuration; residual "

@@ -41,6 +41,7 @@ class ConstrainedModel:
     Attributes:
         scene: the scene. model: its Pinocchio model. kin: the kinematics pass.
         constraints: the stacked constraint rows. forces: the force elements.
+        length_scale: the largest joint or frame offset [m], the mechanism's size.
     """
 
     def __init__(self, scene: Scene) -> None:
@@ -51,6 +52,14 @@ class ConstrainedModel:
         self.forces = scene.forces
         self._data = scene.model.createData()
         self.flat = all(self.model.joints[j].nv == 1 for j in range(1, self.model.njoints))
+        placements = [*self.model.jointPlacements, *(frame.placement for frame in self.model.frames)]
+        self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
+
+    def position_tolerance(self, tolerance: float) -> float:
+        """An absolute position tolerance [m or rad] for a relative one: ``tolerance`` times the
+        mechanism's size in metres, at least 1 (rounding in the coordinates grows with their size;
+        angles are of order 1)."""
+        return tolerance * max(1.0, self.length_scale)
 
     @property
     def nv(self) -> int:

@@ -34,22 +34,23 @@ def project_positions(
     """Gauss-Newton on phi(q) = 0 from q; returns (q on the manifold, iterations).
 
     Raises:
-        ProjectionError: the residual is still above ``tolerance`` [m or rad] after
-            ``max_iterations``.
+        ProjectionError: the residual is still above ``tolerance`` (relative: see
+            :meth:`~pinstab.model.ConstrainedModel.position_tolerance`) after ``max_iterations``.
     """
+    threshold = model.position_tolerance(tolerance)
     mask = model.constraints.holonomic_mask
     for iteration in range(max_iterations + 1):
         values = model.constraint_values(q, np.zeros(model.nv), t)
         phi = values.phi[mask]
         worst = float(np.max(np.abs(phi), initial=0.0))
-        if worst <= tolerance:
+        if worst <= threshold:
             return q, iteration
         if iteration == max_iterations or not np.isfinite(worst):
             break
         q = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], phi))
     raise ProjectionError(
         f"coordinate projection did not converge: residual {worst:.3g} after {max_iterations} iterations "
-        f"at t = {t:.6g} s (tolerance {tolerance:.1g}); the state is far from the constraint manifold or "
+        f"at t = {t:.6g} s (tolerance {threshold:.1g}); the state is far from the constraint manifold or "
         "at a singular configuration. Reduce dt or use another method."
     )
 
