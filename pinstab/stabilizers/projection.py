@@ -23,7 +23,10 @@ class ProjectionOptions:
 
     tolerance: float = field(
         default=1e-13,
-        metadata={"flag": "--projection-tolerance", "help": "position residual projection reaches [m or rad per m of mechanism size, at least 1 m]"},
+        metadata={
+            "flag": "--projection-tolerance",
+            "help": "position residual projection reaches [m or rad per m of mechanism size, at least 1 m]",
+        },
     )
     max_iterations: int = field(
         default=20, metadata={"flag": "--projection-iterations", "help": "Gauss-Newton iterations per step"}
