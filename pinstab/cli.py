@@ -67,7 +67,8 @@ def _add_registry_options(parser: argparse.ArgumentParser, registry: Registry, p
         if option.kind is bool:
             group.add_argument(flag, action="store_false" if option.default else "store_true", **common)
         else:
-            group.add_argument(flag, type=option.kind, choices=option.choices, **common)
+            metavar = None if option.choices else option.name.upper()
+            group.add_argument(flag, type=option.kind, choices=option.choices, metavar=metavar, **common)
 
 
 def _given_options(args: argparse.Namespace, prefix: str) -> dict[str, Any]:

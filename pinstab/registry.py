@@ -71,6 +71,7 @@ class Entry(Generic[T]):
     Attributes:
         name: the name users give. factory: builds the extension (its last argument is the options).
         options: the options dataclass. summary: one line for listings. kind: e.g. ``method``.
+        capabilities: what the extension supports, to be asked before one is built (a solver's row kinds).
     """
 
     name: str
@@ -78,6 +79,7 @@ class Entry(Generic[T]):
     options: type
     summary: str
     kind: str
+    capabilities: frozenset = frozenset()
 
 
 class Registry(Generic[T]):
@@ -98,6 +100,7 @@ class Registry(Generic[T]):
         *,
         options: type = NoOptions,
         summary: str = "",
+        capabilities: frozenset | set | tuple = frozenset(),
         replace: bool = False,
     ) -> Any:
         """Register ``factory`` under ``name``; without ``factory``, a decorator that registers what it
@@ -112,7 +115,7 @@ class Registry(Generic[T]):
         def add(target: Callable[..., T]) -> Callable[..., T]:
             if name in self._entries and not replace:
                 raise PinstabError(f"{self.kind} {name!r} is already registered; pass replace=True to override it")
-            self._entries[name] = Entry(name, target, options, summary, self.kind)
+            self._entries[name] = Entry(name, target, options, summary, self.kind, frozenset(capabilities))
             return target
 
         return add if factory is None else add(factory)

@@ -3,6 +3,7 @@ a solve is judged, and the registry of backends."""
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -68,40 +69,42 @@ class KKTSolution:
     dual_residual: float = 0.0
 
 
-def relative_residual(residual: np.ndarray, *terms: np.ndarray) -> float:
-    """``max |residual| / max (sum of |terms|)``: how far an equation misses, against the size of the
-    terms that should balance (0 when everything is zero) [-]."""
-    if residual.size == 0:
-        return 0.0
-    worst = float(np.max(np.abs(residual)))
-    scale = float(np.max(sum(np.abs(term) for term in terms)))
-    if worst == 0.0:
-        return 0.0
-    return worst / scale if scale > 0 else float("inf")
-
-
 def residuals(problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray) -> tuple[float, float]:
-    """(primal, dual) relative residuals of a candidate answer; the primal one on the rows that are
-    equalities at the acceleration level (equality and cone rows; unilateral rows count when violated)."""
-    jac = problem.jacobian
-    achieved = jac @ acceleration
-    miss = achieved - problem.rhs
-    unilateral = problem.layout.unilateral
-    if unilateral.any():
-        miss = np.where(unilateral, np.minimum(miss, 0.0), miss)
-    # the accelerations the applied and bias forces alone would cause set the scale too: a mechanism at
-    # rest has a ~ 0 and rhs ~ 0, where rounding alone would look large against them
-    natural = np.abs(problem.free_force) / np.diagonal(problem.mass_matrix)
-    primal = relative_residual(miss, np.abs(jac) @ (np.abs(acceleration) + natural), problem.rhs)
-    inertial = problem.mass_matrix @ acceleration
-    reaction = jac.T @ multipliers
-    dual = relative_residual(
-        inertial - problem.free_force - reaction,
-        np.abs(problem.mass_matrix) @ np.abs(acceleration),
-        problem.free_force,
-        np.abs(jac.T) @ np.abs(multipliers),
+    """(primal, dual) relative residuals of a candidate answer [-], in the Euclidean norm against a
+    bound on the size of the terms that should balance (0 when everything is zero):
+
+    * primal: ``|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M))`` on the rows that are
+      equalities at the acceleration level (a unilateral row counts only when violated); the
+      accelerations the forces alone would cause set the scale too, so that a mechanism at rest
+      (a ~ 0, rhs ~ 0) is not judged on rounding alone;
+    * dual: ``|M a - f - G^T lambda| / (|f| + |M|_F |a| + |G|_F |lambda|)``.
+    """
+    jac, rhs, mass = problem.jacobian, problem.rhs, problem.mass_matrix
+    flat_jac = jac.ravel()
+    jac_size = math.sqrt(float(flat_jac @ flat_jac))
+    force = problem.free_force
+    force_size = math.sqrt(float(force @ force))
+    acceleration_size = math.sqrt(float(acceleration @ acceleration))
+    miss = jac @ acceleration - rhs
+    if problem.layout.unilateral.any():
+        miss = np.where(problem.layout.unilateral, np.minimum(miss, 0.0), miss)
+    natural = force_size / float(np.min(np.diagonal(mass)))
+    primal = _ratio(miss, math.sqrt(float(rhs @ rhs)) + jac_size * (acceleration_size + natural))
+    flat_mass = mass.ravel()
+    unbalanced = mass @ acceleration - force - jac.T @ multipliers
+    dual_scale = (
+        force_size
+        + math.sqrt(float(flat_mass @ flat_mass)) * acceleration_size
+        + jac_size * math.sqrt(float(multipliers @ multipliers))
     )
-    return primal, dual
+    return primal, _ratio(unbalanced, dual_scale)
+
+
+def _ratio(residual: np.ndarray, scale: float) -> float:
+    size = math.sqrt(float(residual @ residual))
+    if size == 0.0:
+        return 0.0
+    return size / scale if scale > 0 else math.inf
 
 
 class KKTSolver(ABC):
@@ -140,12 +143,12 @@ class KKTSolver(ABC):
 SOLVERS: Registry[KKTSolver] = Registry("solver")
 """KKT backends. A factory is ``factory(model, corrector_gains, options) -> KKTSolver`` with the
 :class:`~pinstab.model.ConstrainedModel` and the stabilizer's Baumgarte gains (None when its term is
-not of Baumgarte form); the class attribute ``row_kinds`` says which rows it solves."""
+not of Baumgarte form); an entry's capabilities are the row kinds its solver takes."""
 
 
 def solvers_with(kinds: frozenset[RowKind]) -> list[str]:
-    """The registered solvers whose ``row_kinds`` cover ``kinds``."""
-    return [entry.name for entry in SOLVERS.entries() if kinds <= getattr(entry.factory, "row_kinds", frozenset())]
+    """The registered solvers whose row kinds cover ``kinds``."""
+    return [entry.name for entry in SOLVERS.entries() if kinds <= entry.capabilities]
 
 
 def check_row_kinds(solver: type[KKTSolver], model: ConstrainedModel) -> None:

@@ -70,7 +70,12 @@ class DenseSolver(KKTSolver):
         )
 
 
-@SOLVERS.register("dense", options=NoOptions, summary="numpy elimination through the Delassus matrix (no rank loss)")
+@SOLVERS.register(
+    "dense",
+    options=NoOptions,
+    summary="numpy elimination through the Delassus matrix (no rank loss)",
+    capabilities=DenseSolver.row_kinds,
+)
 def make_dense(model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: NoOptions) -> DenseSolver:
     """The dense backend for a model with equality rows only."""
     check_row_kinds(DenseSolver, model)

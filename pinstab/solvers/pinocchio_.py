@@ -13,6 +13,7 @@ the size of the terms) the same problem is solved again by ProxQP and the fallba
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -81,7 +82,6 @@ class PinocchioSolver(KKTSolver):
                 self._rows[start : start + closure.rows, 3 * index : 3 * index + 3] = closure.selection
                 start += closure.rows
             self._target = np.zeros(3 * len(self.closures))
-            self._abs_rows = np.abs(self._rows)
             self._data_list = list(self.datas)
 
     def _rigid_model(self, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
@@ -173,13 +173,13 @@ class PinocchioSolver(KKTSolver):
         rhs = self._rows @ (target - self.kd * (jac @ v))
         residual = self._rows @ (jac @ acceleration) - rhs
         # the residual against the size of its terms, in the Euclidean norm (dot products are the
-        # cheapest reductions): |G a - rhs| <= tol (|rhs| + | |G| |a| |)
-        terms = self._abs_rows @ (np.abs(jac) @ np.abs(acceleration))
-        scale = rhs @ rhs + terms @ terms
+        # cheapest reductions): |G a - rhs| <= tol (|rhs| + |G|_F |a|), squared
+        flat = jac.ravel()
+        scale = rhs @ rhs + (flat @ flat) * (acceleration @ acceleration)
         if not residual @ residual <= ACCEPTED_RESIDUAL**2 * scale:
             self.statistics.fallbacks += 1
             return None
-        primal = float(np.sqrt(residual @ residual / scale)) if scale > 0 else 0.0
+        primal = math.sqrt(residual @ residual / scale) if scale > 0 else 0.0
         return self.record(
             KKTSolution(acceleration, self._rows @ data.lambda_c, "solved", int(self.settings.iter), primal)
         )
@@ -189,14 +189,22 @@ class PinocchioSolver(KKTSolver):
 class PinocchioOptions:
     """Options of the ``pinocchio`` backend."""
 
-    mu: float = field(default=1e-12, metadata={"help": "pinocchio: proximal regularization of constraintDynamics"})
+    mu: float = field(
+        default=1e-12,
+        metadata={"flag": "--pinocchio-mu", "help": "proximal regularization of constraintDynamics (default 1e-12)"},
+    )
 
     def __post_init__(self) -> None:
         if not (isinstance(self.mu, float | int) and 0 <= self.mu < 1):
             raise ValueError(f"mu must be in [0, 1), got {self.mu!r}")
 
 
-@SOLVERS.register("pinocchio", options=PinocchioOptions, summary="Pinocchio's constraintDynamics and its corrector")
+@SOLVERS.register(
+    "pinocchio",
+    options=PinocchioOptions,
+    summary="Pinocchio's constraintDynamics and its corrector",
+    capabilities=PinocchioSolver.row_kinds,
+)
 def make_pinocchio(
     model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: PinocchioOptions
 ) -> PinocchioSolver:

@@ -6,7 +6,8 @@ singular rows): the accelerations stay unique, the multipliers are the minimum-n
 
 With unilateral or cone rows the variables are the accelerations and the multipliers together,
 ``x = (a, lambda)``: the same objective plus a tiny ``eps/2 |lambda|^2`` that picks the smallest of
-equivalent force distributions (a statically indeterminate grasp), subject to ``M a - G^T lambda = f``,
+equivalent force distributions (a statically indeterminate grasp; polished afterwards to the exact
+minimum-norm forces when those keep every cone), subject to ``M a - G^T lambda = f``,
 ``G a = rhs`` on equality and cone rows, ``G a >= rhs`` and ``lambda >= 0`` on unilateral rows, and
 the inscribed pyramid of each friction cone (``facets`` sides, so every answer is inside the exact
 cone). A sticking contact that would need a force outside its cone is reported as
@@ -36,15 +37,19 @@ if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 FORCE_REGULARIZATION = 1e-9  # eps of the (a, lambda) form, in scaled units
-CONE_TOLERANCE = 1e-8  # a facet may be exceeded by this much relative to the normal force
+CONE_TOLERANCE = 1e-8  # a facet or sign may be missed by this much relative to the forces in play
 
 
 @dataclass(frozen=True)
 class ProxsuiteOptions:
     """Options of the ``proxsuite`` backend."""
 
-    eps_abs: float = field(default=1e-12, metadata={"help": "proxsuite: accuracy of the scaled residuals"})
-    max_iter: int = field(default=1000, metadata={"help": "proxsuite: iterations per solve"})
+    eps_abs: float = field(
+        default=1e-12, metadata={"flag": "--proxsuite-eps", "help": "accuracy of the scaled residuals (default 1e-12)"}
+    )
+    max_iter: int = field(
+        default=1000, metadata={"flag": "--proxsuite-max-iter", "help": "iterations per solve (default 1000)"}
+    )
 
     def __post_init__(self) -> None:
         if not (isinstance(self.eps_abs, float | int) and 0 < self.eps_abs < 1):
@@ -146,7 +151,14 @@ class ProxsuiteSolver(KKTSolver):
     # -- unilateral and cone rows: accelerations and forces together ----------------------------------
     def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
         x = self._run(*self._inequality_qp(problem, scaling, with_cones=True))[0]
-        return self._unscale(x, problem, scaling)
+        acceleration, forces = self._unscale(x, problem, scaling)
+        # the tiny regularization leaves the forces' null-space part (an internal force of a statically
+        # indeterminate contact set) converged only loosely: take the smallest forces with the same
+        # resultant G^T lambda (least squares, minimum norm) when they keep every cone and sign
+        smallest = np.linalg.lstsq(problem.jacobian.T, problem.jacobian.T @ forces, rcond=None)[0]
+        if self._inside_cones(problem, smallest):
+            forces = smallest
+        return acceleration, forces
 
     def _inequality_qp(self, problem: KKTProblem, scaling: _Scaling, with_cones: bool) -> tuple[tuple, int, bool]:
         """The scaled (a, lambda) QP: matrices, inequality count, closest-feasible setting."""
@@ -195,7 +207,7 @@ class ProxsuiteSolver(KKTSolver):
     def _inside_cones(problem: KKTProblem, multipliers: np.ndarray) -> bool:
         """Every cone force inside its linearized cone and every unilateral multiplier >= 0 (to
         CONE_TOLERANCE of the largest force)."""
-        scale = float(np.max(np.abs(multipliers), initial=0.0))
+        scale = float(np.max(np.abs(multipliers), initial=0.0)) + float(np.max(np.abs(problem.free_force)))
         slack = CONE_TOLERANCE * scale
         if np.any(multipliers[problem.layout.unilateral] < -slack):
             return False
@@ -269,7 +281,12 @@ _SOLVED = (
 )
 
 
-@SOLVERS.register("proxsuite", options=ProxsuiteOptions, summary="ProxQP: redundancy, singularities, contacts, cones")
+@SOLVERS.register(
+    "proxsuite",
+    options=ProxsuiteOptions,
+    summary="ProxQP: redundancy, singularities, contacts, cones",
+    capabilities=ProxsuiteSolver.row_kinds,
+)
 def make_proxsuite(
     model: ConstrainedModel, corrector_gains: tuple[float, float] | None, options: ProxsuiteOptions
 ) -> ProxsuiteSolver:

@@ -44,8 +44,6 @@ def trajectory_figure(trajectory: Trajectory):
     for axis in axes:
         axis.grid(True, alpha=0.3)
     method = info.method
-    fig.suptitle(
-        f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10
-    )
+    fig.suptitle(f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10)
     fig.tight_layout()
     return fig
