@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pinocchio as pin
 
 from .errors import AssemblyError, PinstabError
 from .projection import project_velocities
@@ -90,7 +89,7 @@ def assemble(
         )
     v = project_velocities(model, q, v, t, np.linalg.inv(model.mass_matrix(q)))
     velocity_residual = float(np.max(np.abs(model.constraint_values(q, v, t).velocity_residual), initial=0.0))
-    displacement = float(np.linalg.norm(pin.difference(model.model, q_start, q)))
+    displacement = float(np.linalg.norm(model.difference(q_start, q)))
     return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement)
 
 

@@ -5,7 +5,6 @@ time, constraint layout, assembly report, solver statistics). It round-trips thr
 from __future__ import annotations
 
 import math
-from collections import Counter
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -42,20 +41,6 @@ class SolverStatistics:
             self.worst_primal_residual = max(self.worst_primal_residual, primal)
         if math.isfinite(dual):
             self.worst_dual_residual = max(self.worst_dual_residual, dual)
-
-    def merged(self, other: SolverStatistics) -> SolverStatistics:
-        """The statistics of both."""
-        counts = Counter(self.status_counts)
-        counts.update(other.status_counts)
-        return SolverStatistics(
-            self.solves + other.solves,
-            dict(counts),
-            self.iterations_total + other.iterations_total,
-            max(self.iterations_max, other.iterations_max),
-            max(self.worst_primal_residual, other.worst_primal_residual),
-            max(self.worst_dual_residual, other.worst_dual_residual),
-            self.fallbacks + other.fallbacks,
-        )
 
 
 @dataclass(frozen=True)

@@ -92,12 +92,6 @@ class ConstrainedSystem:
         return Evaluation(solution.acceleration, solution.multipliers, values)
 
 
-def build_stabilizer(method: str, options: Mapping[str, Any] | Any | None = None) -> Stabilizer:
-    """A stabilizer by method name with its options (a mapping of option names, or the options
-    dataclass); unknown methods and options are refused naming the valid ones."""
-    return STABILIZERS.build(method, options=options)
-
-
 def build_system(
     scene: Scene | ConstrainedModel,
     method: str = "baumgarte",
@@ -118,7 +112,7 @@ def build_system(
     ``system.dynamics``; :func:`~pinstab.simulate.simulate` does it.
     """
     model = scene if isinstance(scene, ConstrainedModel) else ConstrainedModel(scene)
-    stabilizer = build_stabilizer(method, method_options)
+    stabilizer = STABILIZERS.build(method, options=method_options)
     name = solver or stabilizer.required_solver or DEFAULT_SOLVER
     if stabilizer.required_solver is not None and name != stabilizer.required_solver:
         raise PinstabError(f"method {method!r} runs on solver {stabilizer.required_solver!r}, not {name!r}")

@@ -8,8 +8,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from conftest import DATA
-from pinstab import ConstrainedModel, ContactInfeasibleError, SolverError, assemble, simulate
+from conftest import ROBOTS
+from pinstab import ConstrainedModel, ContactInfeasibleError, SolverError, assemble, load_scene, simulate
 from pinstab.cli import main
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
@@ -23,7 +23,7 @@ def box_scene(push=(1.0, 0.0, 0.0), mu: float | None = MU, height: float = 0.0):
     friction = {} if mu is None else {"mu": mu}
     return scene_from_dict(
         {
-            "robot": {"urdf": str(DATA / "box.urdf"), "free_flyer": True},
+            "robot": {"urdf": str(ROBOTS / "urdf" / "box.urdf"), "free_flyer": True},
             "gravity": [0.0, 0.0, -GRAVITY],
             "contacts": [
                 {"name": f"c{i}", "kind": "plane-contact", "frame_a": "box", "offset_a": list(corner), **friction}
@@ -143,19 +143,22 @@ def test_push_outside_the_cone_names_the_contacts(capsys, tmp_path):
         contact_forces(box_scene(push=(6.0, 0.0, 0.0)))
     assert sorted(info.value.contacts) == ["c0", "c1", "c2", "c3"]
     # the same through the CLI: exit 2, one-paragraph message
-    contacts = "".join(
-        f'[[contacts]]\nname = "c{i}"\nkind = "plane-contact"\nframe_a = "box"\noffset_a = {list(c)}\nmu = 0.5\n'
-        for i, c in enumerate(CORNERS)
-    )
+    bundled = (ROBOTS / "box-push.toml").read_text()
     path = tmp_path / "box.toml"
     path.write_text(
-        f'gravity = [0.0, 0.0, -9.81]\n[robot]\nurdf = "{DATA / "box.urdf"}"\nfree_flyer = true\n{contacts}'
-        '[[forces]]\nname = "push"\nkind = "external-force"\nframe = "box"\nforce = [6.0, 0.0, 0.0]\n'
-        "[initial.q]\nroot_joint = [0.0, 0.0, 0.025, 0.0, 0.0, 0.0, 1.0]\n"
+        bundled.replace('force = ["1 N", 0.0, 0.0]', 'force = ["6 N", 0.0, 0.0]').replace(
+            'urdf = "urdf/box.urdf"', f'urdf = "{ROBOTS / "urdf" / "box.urdf"}"'
+        )
     )
     assert main(["run", str(path), "--duration", "0.01", "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "sticking contacts cannot hold" in err and "Traceback" not in err
+    assert "sticking contacts cannot hold" in err and "front-left" in err and "Traceback" not in err
+
+
+def test_bundled_box_scene_is_the_one_tested_here():
+    """``box-push`` (robots/box-push.toml) gives the forces of the box checked above."""
+    bundled, _, _ = contact_forces(load_scene("box-push"))
+    np.testing.assert_allclose(bundled, contact_forces(box_scene())[0], atol=1e-12)
 
 
 def test_frictionless_contacts_let_the_box_slide_and_lift():

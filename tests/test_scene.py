@@ -69,7 +69,8 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 def test_unknown_scene_lists_bundled_scenes():
     with pytest.raises(
         SceneError,
-        match=r"no scene named 'nope'.*Bundled scenes: delta, fivebar, fourbar, nfourbar, panda-anchor, slider-crank",
+        match=r"no scene named 'nope'.*Bundled scenes: box-push, delta, fivebar, fourbar, nfourbar, panda-anchor, "
+        r"slider-crank",
     ):
         load_scene("nope")
 

@@ -49,7 +49,7 @@ class FrictionCone:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mu) and self.mu >= 0):
             raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
-        if not isinstance(self.facets, int) or self.facets < 3:
+        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or self.facets < 3:
             raise ConstraintError(f"a linearized friction cone needs at least 3 facets, got {self.facets!r}")
 
     @property

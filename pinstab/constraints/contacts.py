@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..errors import SceneError
+from ..errors import ConstraintError, SceneError
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
 from .loops import FrameClosure
@@ -73,13 +73,10 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     anchor = start - normal * float(normal @ (start - point))
     friction = None
     if "mu" in entry:
-        facets = entry.get("facets", 8)
-        if isinstance(facets, bool) or not isinstance(facets, int) or facets < 3:
-            raise SceneError(f"{where}.facets must be an integer >= 3, got {facets!r}")
-        mu = tables.number(entry, "mu", where)
-        if mu < 0:
-            raise SceneError(f"{where}.mu must be >= 0, got {mu}")
-        friction = FrictionCone(mu, facets)
+        try:
+            friction = FrictionCone(tables.number(entry, "mu", where), entry.get("facets", 8))
+        except ConstraintError as exc:
+            raise SceneError(f"{where}: {exc}") from None
     elif "facets" in entry:
         raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
     return PointContact(name, frame, anchor, normal, friction)
