@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from .constraints import ConstraintSet, ConstraintValues
+from .constraints import ConstraintSet, ConstraintValues, Violation
 from .kinematics import Kinematics, symmetric_mass_matrix
 from .scene import Scene
 
@@ -95,8 +95,8 @@ class ConstrainedModel:
         self.kin.update_jacobians(q)
         return self.constraints.values(self.kin, q, v, t, with_drift=False)
 
-    def violation(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[float, float]:
-        """(position, velocity) constraint violation at (q, v, t) [m or rad, m/s or rad/s]."""
+    def violation(self, q: np.ndarray, v: np.ndarray, t: float) -> Violation:
+        """The constraint violation at (q, v, t) [m or rad, m/s or rad/s]."""
         return self.constraints.violation(self.constraint_values(q, v, t))
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:

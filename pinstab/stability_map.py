@@ -155,7 +155,7 @@ def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0,
     system = build_system(model, method, solver, kp=kp, kd=kd)
     system.stabilizer.bind(model, dt, integrator, q_off)
     radius = system.stabilizer.spectral_radius(model, q_off, v0, 0.0)
-    initial = model.violation(q_off, v0, 0.0)[0]
+    initial = model.violation(q_off, v0, 0.0).position
     scene = model.scene
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnstableGainsWarning)

@@ -6,7 +6,7 @@ from .base import CONSTRAINT_KINDS, Constraint, FrictionCone, RowKind, VelocityT
 from .contacts import PointContact
 from .custom import HolonomicConstraint, PfaffianConstraint
 from .loops import FrameClosure
-from .stack import ConeRows, ConstraintSet, ConstraintValues, RowLayout
+from .stack import ConeRows, ConstraintSet, ConstraintValues, RowLayout, Violation
 
 load_extensions(__name__, __path__)
 
@@ -24,4 +24,5 @@ __all__ = [
     "RowKind",
     "RowLayout",
     "VelocityTerms",
+    "Violation",
 ]

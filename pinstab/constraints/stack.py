@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,6 +29,14 @@ class ConstraintValues:
     time_term: np.ndarray
     velocity_residual: np.ndarray
     drift: np.ndarray | None = None
+
+
+class Violation(NamedTuple):
+    """How far a state is from the constraints: max |phi| [m or rad] and max |g| [m/s or rad/s]
+    (a unilateral row counts only its penetration and its approach)."""
+
+    position: float
+    velocity: float
 
 
 @dataclass(frozen=True)
@@ -138,12 +147,12 @@ class ConstraintSet:
         drift = self.drift(kin, q, v, t) if with_drift else None
         return ConstraintValues(phi, jac, time_term, jac @ v + time_term, drift)
 
-    def violation(self, values: ConstraintValues) -> tuple[float, float]:
-        """(position, velocity) violation: max |phi|, |g| over the rows, where a unilateral row counts
+    def violation(self, values: ConstraintValues) -> Violation:
+        """The violation at ``values``: max |phi|, |g| over the rows, where a unilateral row counts
         only its penetration (phi < 0) and its approach (g < 0) [m or rad, m/s or rad/s]."""
         phi, rate = values.phi, values.velocity_residual
         if self.layout.unilateral.any():
             one_sided = self.layout.unilateral
             phi = np.where(one_sided, np.minimum(phi, 0.0), phi)
             rate = np.where(one_sided, np.minimum(rate, 0.0), rate)
-        return float(np.max(np.abs(phi), initial=0.0)), float(np.max(np.abs(rate), initial=0.0))
+        return Violation(float(np.max(np.abs(phi), initial=0.0)), float(np.max(np.abs(rate), initial=0.0)))
