@@ -1,5 +1,6 @@
 """Projection onto the constraint manifold (MATH.md 3.4): positions by M-weighted Gauss-Newton,
 velocities by the M-weighted least-change projection. Redundancy-safe (least-squares Delassus solves).
+A unilateral row is projected only while it is closed or penetrating (and, for velocities, approaching).
 """
 
 from __future__ import annotations
@@ -38,9 +39,9 @@ def project_positions(
             :meth:`~pinstab.model.ConstrainedModel.position_tolerance`) after ``max_iterations``.
     """
     threshold = model.position_tolerance(tolerance)
-    mask = model.constraints.holonomic_mask
     for iteration in range(max_iterations + 1):
         values = model.constraint_values(q, np.zeros(model.nv), t)
+        mask = model.constraints.enforced_positions(values.phi)
         phi = values.phi[mask]
         worst = float(np.max(np.abs(phi), initial=0.0))
         if worst <= threshold:
@@ -58,6 +59,8 @@ def project_positions(
 def project_velocities(
     model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray
 ) -> np.ndarray:
-    """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric."""
+    """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric
+    (open or separating unilateral rows left out)."""
     values = model.constraint_values(q, v, t)
-    return v + weighted_correction(inverse_mass, values.jacobian, values.velocity_residual)
+    rows = model.constraints.enforced_velocities(values)
+    return v + weighted_correction(inverse_mass, values.jacobian[rows], values.velocity_residual[rows])

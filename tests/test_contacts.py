@@ -174,6 +174,17 @@ def test_frictionless_contacts_let_the_box_slide_and_lift():
     np.testing.assert_allclose(acceleration[:3], [0.0, 0.0, (15.0 - MASS * GRAVITY) / MASS], atol=1e-9)
 
 
+@pytest.mark.parametrize("method", ["baumgarte", "projection", "post"])
+def test_frictionless_box_lifts_off_as_a_free_body(method):
+    """A 15 N lift at the centre: the contacts open and stay open (no method pulls the box back to
+    the table), and the height follows z0 + a t^2 / 2 with a = (15 - m g) / m."""
+    traj = simulate(box_scene(push=(0.0, 0.0, 15.0), mu=None), method=method, dt=1e-3, duration=0.2)
+    expected = 0.025 + 0.5 * (15.0 - MASS * GRAVITY) / MASS * traj.t**2
+    np.testing.assert_allclose(traj.q[:, 2], expected, rtol=0, atol=1e-9)
+    assert np.abs(traj.multipliers[:-1]).max() < 1e-9
+    assert traj.position_drift.max() == 0.0  # open unilateral rows are no violation
+
+
 @pytest.mark.parametrize("solver", ["dense", "pinocchio"])
 def test_solvers_without_inequalities_refuse_naming_those_that_have_them(solver):
     with pytest.raises(

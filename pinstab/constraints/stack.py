@@ -147,6 +147,17 @@ class ConstraintSet:
         drift = self.drift(kin, q, v, t) if with_drift else None
         return ConstraintValues(phi, jac, time_term, jac @ v + time_term, drift)
 
+    def enforced_positions(self, phi: np.ndarray) -> np.ndarray:
+        """The rows whose position residual a projection drives to zero: the holonomic rows, but not a
+        unilateral row that is open (phi > 0, a gap)."""
+        return self.holonomic_mask & ~(self.layout.unilateral & (phi > 0.0))
+
+    def enforced_velocities(self, values: ConstraintValues) -> np.ndarray:
+        """The rows whose velocity residual a projection drives to zero: every row, but not a
+        unilateral row that is open (phi > 0) or separating (g >= 0)."""
+        unilateral = self.layout.unilateral
+        return ~(unilateral & ((values.phi > 0.0) | (values.velocity_residual >= 0.0)))
+
     def violation(self, values: ConstraintValues) -> Violation:
         """The violation at ``values``: max |phi|, |g| over the rows, where a unilateral row counts
         only its penetration (phi < 0) and its approach (g < 0) [m or rad, m/s or rad/s]."""

@@ -81,7 +81,8 @@ class PostStabilizer(Stabilizer):
     def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
         values = model.constraint_values(q, v, t)
         inverse_mass = np.linalg.inv(model.mass_matrix(q))
-        mask = model.constraints.holonomic_mask
+        mask = model.constraints.enforced_positions(values.phi)
+        rows = model.constraints.enforced_velocities(values)
         q_new = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], values.phi[mask]))
-        v_new = v + weighted_correction(inverse_mass, values.jacobian, values.velocity_residual)
+        v_new = v + weighted_correction(inverse_mass, values.jacobian[rows], values.velocity_residual[rows])
         return Correction(q_new, v_new, 1)
