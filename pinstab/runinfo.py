@@ -19,7 +19,8 @@ class SolverStatistics:
         solves: KKT solves. status_counts: solves per backend status (e.g. ``PROXQP_SOLVED``).
         iterations_total, iterations_max: the backend's iterations (0 for direct factorizations).
         worst_primal_residual: largest ``|G a - rhs|`` relative to the size of its terms [-].
-        worst_dual_residual: largest ``|M a - f - G^T lambda|`` relative to its terms [-].
+        worst_dual_residual: largest ``|M a - f - G^T lambda|`` relative to its terms [-] (backends
+            that satisfy it by construction, dense elimination, do not measure it).
         fallbacks: solves handed to a rank-robust backend after this one missed the constraints.
     """
 

@@ -58,7 +58,7 @@ class KKTSolution:
         acceleration: [m/s^2, rad/s^2] (nv,). multipliers: (s,) [N, N m].
         status: the backend's word for the outcome. iterations: the backend's iterations.
         primal_residual: ``|G a - rhs|`` relative to its terms. dual_residual: ``|M a - f - G^T lambda|``
-        relative to its terms.
+        relative to its terms; NaN where the backend does not measure it (exact by construction).
     """
 
     acceleration: np.ndarray
@@ -69,35 +69,36 @@ class KKTSolution:
     dual_residual: float = 0.0
 
 
-def residuals(problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray) -> tuple[float, float]:
-    """(primal, dual) relative residuals of a candidate answer [-], in the Euclidean norm against a
-    bound on the size of the terms that should balance (0 when everything is zero):
-
-    * primal: ``|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M))`` on the rows that are
-      equalities at the acceleration level (a unilateral row counts only when violated); the
-      accelerations the forces alone would cause set the scale too, so that a mechanism at rest
-      (a ~ 0, rhs ~ 0) is not judged on rounding alone;
-    * dual: ``|M a - f - G^T lambda| / (|f| + |M|_F |a| + |G|_F |lambda|)``.
-    """
-    jac, rhs, mass = problem.jacobian, problem.rhs, problem.mass_matrix
-    flat_jac = jac.ravel()
-    jac_size = math.sqrt(float(flat_jac @ flat_jac))
+def primal_residual(problem: KKTProblem, acceleration: np.ndarray) -> float:
+    """How far ``G a = rhs`` is missed, relative [-]: ``|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min
+    diag M))`` in the Euclidean norm, on the rows that are equalities at the acceleration level (a
+    unilateral row counts only when violated). The accelerations the forces alone would cause set the
+    scale too, so that a mechanism at rest (a ~ 0, rhs ~ 0) is not judged on rounding alone."""
+    jac, rhs = problem.jacobian, problem.rhs
+    flat = jac.ravel()
     force = problem.free_force
-    force_size = math.sqrt(float(force @ force))
-    acceleration_size = math.sqrt(float(acceleration @ acceleration))
+    natural = math.sqrt(float(force @ force)) / float(np.min(np.diagonal(problem.mass_matrix)))
     miss = jac @ acceleration - rhs
     if problem.layout.unilateral.any():
         miss = np.where(problem.layout.unilateral, np.minimum(miss, 0.0), miss)
-    natural = force_size / float(np.min(np.diagonal(mass)))
-    primal = _ratio(miss, math.sqrt(float(rhs @ rhs)) + jac_size * (acceleration_size + natural))
-    flat_mass = mass.ravel()
-    unbalanced = mass @ acceleration - force - jac.T @ multipliers
-    dual_scale = (
-        force_size
-        + math.sqrt(float(flat_mass @ flat_mass)) * acceleration_size
-        + jac_size * math.sqrt(float(multipliers @ multipliers))
+    scale = math.sqrt(float(rhs @ rhs)) + math.sqrt(float(flat @ flat)) * (
+        math.sqrt(float(acceleration @ acceleration)) + natural
     )
-    return primal, _ratio(unbalanced, dual_scale)
+    return _ratio(miss, scale)
+
+
+def residuals(problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray) -> tuple[float, float]:
+    """(primal, dual) relative residuals of a candidate answer [-]: :func:`primal_residual`, and
+    ``|M a - f - G^T lambda| / (|f| + |M|_F |a| + |G|_F |lambda|)`` (Euclidean norms)."""
+    jac, mass, force = problem.jacobian, problem.mass_matrix, problem.free_force
+    flat_jac, flat_mass = jac.ravel(), mass.ravel()
+    unbalanced = mass @ acceleration - force - jac.T @ multipliers
+    scale = (
+        math.sqrt(float(force @ force))
+        + math.sqrt(float(flat_mass @ flat_mass)) * math.sqrt(float(acceleration @ acceleration))
+        + math.sqrt(float(flat_jac @ flat_jac)) * math.sqrt(float(multipliers @ multipliers))
+    )
+    return primal_residual(problem, acceleration), _ratio(unbalanced, scale)
 
 
 def _ratio(residual: np.ndarray, scale: float) -> float:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import SolverError
 from ..registry import NoOptions
-from .base import SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, residuals
+from .base import SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, primal_residual
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
@@ -53,8 +54,9 @@ class DenseSolver(KKTSolver):
             raise SolverError(self._rank_message(eigenvalues, eigenvectors))
         multipliers = np.linalg.solve(delassus, problem.rhs - jac @ free_acceleration)
         acceleration = free_acceleration + minv_gt @ multipliers
-        primal, dual = residuals(problem, acceleration, multipliers)
-        return self.record(KKTSolution(acceleration, multipliers, "solved", 0, primal, dual))
+        # the equations of motion hold by construction (a = M^-1 (f + G^T lambda)): only the rows are measured
+        primal = primal_residual(problem, acceleration)
+        return self.record(KKTSolution(acceleration, multipliers, "solved", 0, primal, math.nan))
 
     def _rank_message(self, eigenvalues: np.ndarray, eigenvectors: np.ndarray) -> str:
         scale = max(eigenvalues[-1], 1e-300)

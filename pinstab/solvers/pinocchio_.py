@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
 from ..errors import SolverError
-from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, residuals
+from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, primal_residual
 from .proxsuite_ import ProxsuiteSolver
 
 if TYPE_CHECKING:
@@ -138,11 +138,12 @@ class PinocchioSolver(KKTSolver):
         acceleration = np.array(acceleration)
         residual_force = problem.mass_matrix @ acceleration - problem.free_force
         multipliers = np.linalg.lstsq(problem.jacobian.T, residual_force, rcond=1e-12)[0]
-        primal, dual = residuals(problem, acceleration, multipliers)
+        primal = primal_residual(problem, acceleration)
         if np.all(np.isfinite(acceleration)) and not primal <= ACCEPTED_RESIDUAL:
             return self._fall_back(problem)
+        # the multipliers are the least-squares ones of M a - f = G^T lambda: not measured again
         iterations = int(self.settings.iter)
-        return self.record(KKTSolution(acceleration, multipliers, "solved", iterations, primal, dual))
+        return self.record(KKTSolution(acceleration, multipliers, "solved", iterations, primal, math.nan))
 
     def _fall_back(self, problem: KKTProblem) -> KKTSolution:
         """Solve with ProxQP (counted as a fallback; its statistics join this backend's)."""

@@ -16,8 +16,10 @@ cone). A sticking contact that would need a force outside its cone is reported a
 Scaling: ProxQP's tolerances and infeasibility thresholds are absolute, so the problem is scaled
 before it is handed over: accelerations by the square root of M's diagonal (relative to its mean),
 the objective by that mean, each constraint row by its norm. The scaled problem is the same for a
-mechanism in millimetres and grams as in metres and kilograms. A solve is accepted by its residuals
-(:data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`, relative), not by ProxQP's status flag.
+mechanism in millimetres and grams as in metres and kilograms. A solve is accepted by its residuals:
+ProxQP's own when it reports them within its tolerance (relative ones on the scaled problem), and
+otherwise pinstab's, recomputed on the unscaled problem and accepted below
+:data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL` (relative) whatever flag ProxQP raised.
 """
 
 from __future__ import annotations
@@ -132,6 +134,13 @@ class ProxsuiteSolver(KKTSolver):
         else:
             acceleration, multipliers = self._solve_with_inequalities(problem, scaling)
         info = self._qp.results.info
+        if info.status in _SOLVED:
+            # ProxQP met eps_abs + eps_rel on the scaled problem, whose terms are of order one: its own
+            # residuals are relative ones, and computing them again would cost more than the solve
+            solution = KKTSolution(
+                acceleration, multipliers, info.status.name, int(info.iter), info.pri_res, info.dua_res
+            )
+            return self.record(solution)
         primal, dual = residuals(problem, acceleration, multipliers)
         solution = KKTSolution(acceleration, multipliers, info.status.name, int(info.iter), primal, dual)
         inside = problem.layout.equality_only or self._inside_cones(problem, multipliers)
