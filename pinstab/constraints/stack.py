@@ -111,6 +111,8 @@ class ConstraintSet:
                 cones.append(ConeRows(c.name, (rows.start, rows.start + 1, rows.start + 2), c.friction))
         names = tuple(c.name for c in self.constraints for _ in range(c.rows))
         self.layout = RowLayout(names, unilateral, tuple(cones))
+        self._has_unilateral = bool(unilateral.any())
+        self._every_row = np.ones(self.rows, dtype=bool)
 
     @property
     def holonomic(self) -> list[Constraint]:
@@ -150,11 +152,15 @@ class ConstraintSet:
     def enforced_positions(self, phi: np.ndarray) -> np.ndarray:
         """The rows whose position residual a projection drives to zero: the holonomic rows, but not a
         unilateral row that is open (phi > 0, a gap)."""
+        if not self._has_unilateral:
+            return self.holonomic_mask
         return self.holonomic_mask & ~(self.layout.unilateral & (phi > 0.0))
 
     def enforced_velocities(self, values: ConstraintValues) -> np.ndarray:
         """The rows whose velocity residual a projection drives to zero: every row, but not a
         unilateral row that is open (phi > 0) or separating (g >= 0)."""
+        if not self._has_unilateral:
+            return self._every_row
         unilateral = self.layout.unilateral
         return ~(unilateral & ((values.phi > 0.0) | (values.velocity_residual >= 0.0)))
 
@@ -162,7 +168,7 @@ class ConstraintSet:
         """The violation at ``values``: max |phi|, |g| over the rows, where a unilateral row counts
         only its penetration (phi < 0) and its approach (g < 0) [m or rad, m/s or rad/s]."""
         phi, rate = values.phi, values.velocity_residual
-        if self.layout.unilateral.any():
+        if self._has_unilateral:
             one_sided = self.layout.unilateral
             phi = np.where(one_sided, np.minimum(phi, 0.0), phi)
             rate = np.where(one_sided, np.minimum(rate, 0.0), rate)

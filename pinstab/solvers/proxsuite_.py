@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 FORCE_REGULARIZATION = 1e-9  # eps of the (a, lambda) form, in scaled units
+RESCALE_EVERY = 64  # solves between refreshes of the scaling (it follows the configuration slowly)
 CONE_TOLERANCE = 1e-8  # a facet or sign may be missed by this much relative to the forces in play
 
 
@@ -60,23 +61,36 @@ class ProxsuiteOptions:
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Scaling:
-    """Diagonal scalings: a = x / column, objective / inertia, rows / row."""
+    """Diagonal scalings: a = x / column, objective / inertia, rows / row; with the factors the
+    equality form multiplies by (computed once: the scaling is refreshed every RESCALE_EVERY solves,
+    it only needs the right orders of magnitude)."""
 
     column: np.ndarray
     inertia: float
     row: np.ndarray
+    hessian_factor: np.ndarray
+    gradient_factor: np.ndarray
+    rows_factor: np.ndarray
 
     @classmethod
     def of(cls, problem: KKTProblem) -> _Scaling:
         diagonal = np.diagonal(problem.mass_matrix)
-        inertia = float(np.mean(diagonal))
-        if not (inertia > 0 and np.all(diagonal > 0)):
+        inertia = float(diagonal.sum()) / len(diagonal)
+        if not (inertia > 0 and float(diagonal.min()) > 0):
             raise SolverError("proxsuite: the joint-space inertia matrix has a non-positive diagonal")
         column = np.sqrt(diagonal / inertia)
         norms = np.max(np.abs(problem.jacobian / column), axis=1, initial=0.0)
-        return cls(column, inertia, np.where(norms > 0, norms, 1.0))
+        row = np.where(norms > 0, norms, 1.0)
+        inverse = 1.0 / column
+        return cls(
+            column, inertia, row, np.outer(inverse, inverse) / inertia, inverse / inertia, np.outer(1.0 / row, inverse)
+        )
+
+    def fits(self, problem: KKTProblem) -> bool:
+        """Whether the problem has the shape these scalings were made for."""
+        return self.rows_factor.shape == problem.jacobian.shape
 
 
 class ProxsuiteSolver(KKTSolver):
@@ -94,6 +108,15 @@ class ProxsuiteSolver(KKTSolver):
         self.options = options or ProxsuiteOptions()
         self._qp: proxsuite.proxqp.dense.QP | None = None
         self._shape: tuple[int, int, int] | None = None
+        self._scaling: _Scaling | None = None
+        self._scaled_solves = 0
+
+    def _scaling_for(self, problem: KKTProblem) -> _Scaling:
+        """The problem's scaling, computed afresh every RESCALE_EVERY solves or when the shape changes."""
+        if self._scaling is None or self._scaled_solves >= RESCALE_EVERY or not self._scaling.fits(problem):
+            self._scaling, self._scaled_solves = _Scaling.of(problem), 0
+        self._scaled_solves += 1
+        return self._scaling
 
     def _fresh(self, n: int, n_eq: int, n_in: int, closest_feasible: bool) -> proxsuite.proxqp.dense.QP:
         qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
@@ -128,7 +151,7 @@ class ProxsuiteSolver(KKTSolver):
         return np.array(results.x), np.array(results.y), np.array(results.z)
 
     def solve(self, problem: KKTProblem) -> KKTSolution:
-        scaling = _Scaling.of(problem)
+        scaling = self._scaling_for(problem)
         if problem.layout.equality_only:
             acceleration, multipliers = self._solve_equalities(problem, scaling)
         else:
@@ -150,12 +173,11 @@ class ProxsuiteSolver(KKTSolver):
 
     # -- equality rows: Gauss in the accelerations -------------------------------------------------
     def _solve_equalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
-        column, row = scaling.column, scaling.row
-        hessian = problem.mass_matrix / np.outer(column, column) / scaling.inertia
-        gradient = -problem.free_force / column / scaling.inertia
-        rows = problem.jacobian / column / row[:, None]
-        x, y, _ = self._run((hessian, gradient, rows, problem.rhs / row, None, None), 0, True)
-        return x / column, -scaling.inertia * y / row
+        hessian = problem.mass_matrix * scaling.hessian_factor
+        gradient = -problem.free_force * scaling.gradient_factor
+        rows = problem.jacobian * scaling.rows_factor
+        x, y, _ = self._run((hessian, gradient, rows, problem.rhs / scaling.row, None, None), 0, True)
+        return x / scaling.column, -scaling.inertia * y / scaling.row
 
     # -- unilateral and cone rows: accelerations and forces together ----------------------------------
     def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
