@@ -76,16 +76,32 @@ def _given_options(args: argparse.Namespace, prefix: str) -> dict[str, Any]:
     return {key[len(prefix) :]: value for key, value in vars(args).items() if key.startswith(prefix)}
 
 
+def _listed(registry: Registry) -> str:
+    """Each registered entry with its one-line summary, for a flag's help."""
+    return "; ".join(f"{entry.name}: {entry.summary}" if entry.summary else entry.name for entry in registry.entries())
+
+
 def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--method", default="baumgarte", choices=STABILIZERS, help="stabilization method (default: baumgarte)"
+        "--method",
+        default="baumgarte",
+        choices=STABILIZERS,
+        metavar="METHOD",
+        help=f"stabilization method (default: baumgarte). {_listed(STABILIZERS)}",
     )
-    parser.add_argument("--integrator", default="rk4", choices=INTEGRATORS, help="integrator (default: rk4)")
+    parser.add_argument(
+        "--integrator",
+        default="rk4",
+        choices=INTEGRATORS,
+        metavar="INTEGRATOR",
+        help=f"integrator (default: rk4). {_listed(INTEGRATORS)}",
+    )
     parser.add_argument(
         "--solver",
         default=None,
         choices=SOLVERS,
-        help="KKT backend (default: proxsuite; pinocchio for method pinocchio)",
+        metavar="SOLVER",
+        help=f"KKT backend (default: proxsuite; pinocchio for method pinocchio). {_listed(SOLVERS)}",
     )
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")

@@ -296,7 +296,7 @@ def _read_kinds(data: dict[str, Any], key: str, label: str, kinds: Registry, tab
 def _check_unique(names: list[str]) -> None:
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
-        raise SceneError(f"closure and force names must be unique; repeated: {', '.join(repeated)}")
+        raise SceneError(f"constraint and force names must be unique; repeated: {', '.join(repeated)}")
 
 
 __all__ = ["Scene", "load_scene", "scene_from_dict"]

@@ -273,7 +273,6 @@ def _finish(info: RunInfo, system: ConstrainedSystem, steps: int, t_end: float) 
     """The run info with the steps taken, the end time [s] and the solver's statistics so far."""
     info.steps, info.t_end = steps, t_end
     info.solver_statistics = system.solver.statistics
-    info.parameters = system.stabilizer.parameters()
     return info
 
 

@@ -7,16 +7,14 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING, NamedTuple
+from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ConstraintError
 from ..kinematics import Kinematics
 from ..registry import Registry
-
-if TYPE_CHECKING:
-    pass
 
 
 class RowKind(StrEnum):
@@ -57,6 +55,7 @@ class FrictionCone:
         """The friction coefficient of the inscribed pyramid: mu cos(pi / facets)."""
         return self.mu * math.cos(math.pi / self.facets)
 
+    @cached_property
     def facet_matrix(self) -> np.ndarray:
         """``facets x 3`` rows c with ``c . (f_n, f_t1, f_t2) <= 0`` the pyramid's facets."""
         angles = 2.0 * math.pi * np.arange(self.facets) / self.facets

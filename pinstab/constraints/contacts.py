@@ -17,18 +17,14 @@ import pinocchio as pin
 from ..errors import ConstraintError, SceneError
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
-from .loops import FrameClosure
+from .loops import FrameClosure, plane_basis
 
 CONTACT_KEYS = {"name", "kind", "frame_a", "offset_a", "normal", "point", "mu", "facets"}
 
 
 def contact_basis(normal: np.ndarray) -> np.ndarray:
-    """Rows (n, t1, t2): the unit normal and two tangents with t1 x t2 = n."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
-    first = np.cross(helper, n)
-    first /= np.linalg.norm(first)
-    return np.vstack([n, first, np.cross(n, first)])
+    """Rows (n, t1, t2): the unit normal and the plane's two tangents, t1 x t2 = n."""
+    return np.vstack([np.asarray(normal, dtype=float) / np.linalg.norm(normal), plane_basis(normal)])
 
 
 class PointContact(FrameClosure):

@@ -13,6 +13,7 @@ the size of the terms) the same problem is solved again by ProxQP and the fallba
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -72,7 +73,6 @@ class PinocchioSolver(KKTSolver):
         self._checked_planar = False
         self._fallback = ProxsuiteSolver()
         self.kp, self.kd = float(kp), float(kd)
-        self.corrector_gains = (self.kp, self.kd)
         # direct mode (see direct()): point-like closures only, each a 3-D contact in world axes
         self.direct_capable = all(c.kind in ("point", "planar-point") for c in self.closures)
         if self.direct_capable and self.closures:
@@ -103,6 +103,11 @@ class PinocchioSolver(KKTSolver):
         rcm.name = closure.name
         rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
         return rcm
+
+    @property
+    def corrector_gains(self) -> tuple[float, float]:
+        """(Kp, Kd) of the corrector Pinocchio applies [1/s^2, 1/s]."""
+        return (self.kp, self.kd)
 
     def _check_planar(self, q: np.ndarray) -> None:
         """planar-point rows stand in for 3-D contacts only if the third row is identically zero."""
@@ -149,7 +154,7 @@ class PinocchioSolver(KKTSolver):
         """Solve with ProxQP (counted as a fallback; its statistics join this backend's)."""
         self.statistics.fallbacks += 1
         solution = self._fallback.solve(problem)
-        return self.record(KKTSolution(**{**solution.__dict__, "status": f"fallback {solution.status}"}))
+        return self.record(dataclasses.replace(solution, status=f"fallback {solution.status}"))
 
     def direct(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> KKTSolution | None:
         """Pinocchio's constraint dynamics with its own Baumgarte corrector, checked from Pinocchio's own
@@ -182,7 +187,7 @@ class PinocchioSolver(KKTSolver):
             return None
         primal = math.sqrt(residual @ residual / scale) if scale > 0 else 0.0
         return self.record(
-            KKTSolution(acceleration, self._rows @ data.lambda_c, "solved", int(self.settings.iter), primal)
+            KKTSolution(acceleration, self._rows @ data.lambda_c, "solved", int(self.settings.iter), primal, math.nan)
         )
 
 

@@ -181,7 +181,7 @@ class ProxsuiteSolver(KKTSolver):
 
     # -- unilateral and cone rows: accelerations and forces together ----------------------------------
     def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
-        x = self._run(*self._inequality_qp(problem, scaling, with_cones=True))[0]
+        x = self._run(*self._inequality_qp(problem, scaling, with_cones=True), closest_feasible=False)[0]
         acceleration, forces = self._unscale(x, problem, scaling)
         # the tiny regularization leaves the forces' null-space part (an internal force of a statically
         # indeterminate contact set) converged only loosely: take the smallest forces with the same
@@ -191,15 +191,16 @@ class ProxsuiteSolver(KKTSolver):
             forces = smallest
         return acceleration, forces
 
-    def _inequality_qp(self, problem: KKTProblem, scaling: _Scaling, with_cones: bool) -> tuple[tuple, int, bool]:
-        """The scaled (a, lambda) QP: matrices, inequality count, closest-feasible setting."""
+    @staticmethod
+    def _inequality_qp(problem: KKTProblem, scaling: _Scaling, with_cones: bool) -> tuple[tuple, int]:
+        """The scaled (a, lambda) QP: its matrices and its number of inequalities."""
         nv, s = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
-        column, row, inertia = scaling.column, scaling.row, scaling.inertia
-        rows = problem.jacobian / column / row[:, None]  # A = R G C^-1, lambda = inertia * z / row
+        row = scaling.row
+        rows = problem.jacobian * scaling.rows_factor  # A = R G C^-1, lambda = inertia * z / row
         hessian = np.zeros((nv + s, nv + s))
-        hessian[:nv, :nv] = problem.mass_matrix / np.outer(column, column) / inertia
+        hessian[:nv, :nv] = problem.mass_matrix * scaling.hessian_factor
         hessian[nv:, nv:] = FORCE_REGULARIZATION * np.eye(s)
-        gradient = np.concatenate([-problem.free_force / column / inertia, np.zeros(s)])
+        gradient = np.concatenate([-problem.free_force * scaling.gradient_factor, np.zeros(s)])
         unilateral = problem.layout.unilateral
         equal = ~unilateral
         newton_euler = np.hstack([hessian[:nv, :nv], -rows.T])
@@ -217,7 +218,7 @@ class ProxsuiteSolver(KKTSolver):
             bounds.append(np.zeros(picked.size))
         if with_cones:
             for cone in problem.layout.cones:
-                facets = cone.cone.facet_matrix() / row[list(cone.rows)]  # on z = lambda * row / inertia
+                facets = cone.cone.facet_matrix / row[list(cone.rows)]  # on z = lambda * row / inertia
                 block = np.zeros((facets.shape[0] + 1, nv + s))
                 block[:-1, nv + np.array(cone.rows)] = facets / np.linalg.norm(facets, axis=1, keepdims=True)
                 block[-1, nv + cone.rows[0]] = -1.0  # f_n >= 0
@@ -226,7 +227,7 @@ class ProxsuiteSolver(KKTSolver):
         c_in = np.vstack(blocks) if blocks else None
         upper = np.concatenate(bounds) if bounds else None
         n_in = 0 if c_in is None else c_in.shape[0]
-        return (hessian, gradient, a_eq, b_eq, c_in, upper), n_in, False
+        return (hessian, gradient, a_eq, b_eq, c_in, upper), n_in
 
     @staticmethod
     def _unscale(x: np.ndarray, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
@@ -243,7 +244,7 @@ class ProxsuiteSolver(KKTSolver):
         if np.any(multipliers[problem.layout.unilateral] < -slack):
             return False
         for cone in problem.layout.cones:
-            if np.max(cone.cone.facet_matrix() @ multipliers[list(cone.rows)], initial=0.0) > slack:
+            if np.max(cone.cone.facet_matrix @ multipliers[list(cone.rows)], initial=0.0) > slack:
                 return False
         return True
 
@@ -264,8 +265,8 @@ class ProxsuiteSolver(KKTSolver):
         Raises:
             ContactInfeasibleError: when some contact needs a force outside its cone.
         """
-        scaling = _Scaling.of(problem)
-        x = self._run(*self._inequality_qp(problem, scaling, with_cones=False))[0]
+        scaling = self._scaling_for(problem)
+        x = self._run(*self._inequality_qp(problem, scaling, with_cones=False), closest_feasible=False)[0]
         self._qp, self._shape = None, None  # the next solve has cones again
         _, forces = self._unscale(x, problem, scaling)
         failing = [(_needed(cone, forces), cone) for cone in problem.layout.cones]
