@@ -1,4 +1,5 @@
-"""Per-step overhead (issue 5, item 3): pinstab's stabilized step against Pinocchio's native step.
+"""What simulate() costs over a hand-written Pinocchio loop (issue 9): same scheme, dt and gains, both
+storing q and v every step, interleaved.
 
 python benchmarks/overhead.py          # prints the table, writes benchmarks/results/overhead.json
 """
@@ -20,9 +21,11 @@ def main() -> None:
     for name, parameters in SCENES.items():
         result = measure_overhead(pinstab.load_scene(name, **parameters))
         results[name] = result
-        print(f"{name}: native {result['native_us']:.1f} us/step")
-        for label, step in result["step_us"].items():
-            print(f"  {label:45s} {step:8.1f} us/step  ratio {result['ratios'][label]:6.1f}")
+        for scheme, entry in result["schemes"].items():
+            print(
+                f"{name:9s} {scheme:20s} hand-written {entry['hand_written_us']:7.1f} us/step  "
+                f"simulate() {entry['simulate_us']:7.1f} us/step  ratio {entry['ratio']:5.2f}  ({entry['path']} path)"
+            )
     OUT.parent.mkdir(exist_ok=True)
     OUT.write_text(json.dumps(results, indent=1))
     print(f"-> {OUT}")

@@ -101,7 +101,10 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         choices=SOLVERS,
         metavar="SOLVER",
-        help=f"KKT backend (default: proxsuite; pinocchio for method pinocchio). {_listed(SOLVERS)}",
+        help=(
+            "KKT backend (default: Pinocchio's own algorithm where the scene and method allow it, else "
+            f"proxsuite; naming one keeps every evaluation on it). {_listed(SOLVERS)}"
+        ),
     )
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
@@ -113,6 +116,13 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=1.0,
         help="position drift [m or rad] that counts as divergence (default: 1)",
+    )
+    parser.add_argument(
+        "--record-every",
+        type=int,
+        default=1,
+        metavar="K",
+        help="keep a sample every K steps and the last (default: 1, every step)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -320,6 +330,7 @@ def _simulate(args: argparse.Namespace):
         strict=args.strict,
         drift_limit=args.drift_limit,
         progress=not args.quiet,
+        record_every=args.record_every,
         **_given_options(args, METHOD_OPTION),
     )
     return scene, trajectory
@@ -337,7 +348,9 @@ def _run_summary(args: argparse.Namespace, scene, trajectory) -> dict[str, Any]:
         **trajectory.summary(),
         "diverged": False,
         "parameters": info.parameters,
-        "direct": info.direct,
+        "path": info.path,
+        "path_reason": info.path_reason,
+        "record_every": info.record_every,
     }
 
 

@@ -1,62 +1,53 @@
 """Explicit integrators on the configuration Lie group: ``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``.
 
-Positions advance with ``pin.integrate``. For the Runge-Kutta schemes every stage velocity is
-carried back to the tangent space at the step's start point with ``pin.dDifference`` (exact
-``dexp^-1``, Runge-Kutta-Munthe-Kaas), which is the identity on models made of 1-DOF joints.
+Positions advance with ``pin.integrate`` (plain addition on models whose joints all have one
+coordinate). For the Runge-Kutta schemes every stage velocity is carried back to the tangent space at
+the step's start point with ``pin.dDifference`` (exact ``dexp^-1``, Runge-Kutta-Munthe-Kaas), which
+is the identity on models made of 1-DOF joints.
+
+A step calls ``system.acceleration(q, v, t, stage)``: Pinocchio's own algorithm on the native path,
+pinstab's KKT solve on the general one (:mod:`pinstab.system`).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .registry import NoOptions, Registry
 
 if TYPE_CHECKING:
-    from .system import ConstrainedSystem, Evaluation
-
-
-class Step(NamedTuple):
-    """A step's end state and the dynamics evaluated at its start (for multipliers)."""
-
-    q: np.ndarray
-    v: np.ndarray
-    start: Evaluation
+    from .system import ConstrainedSystem
 
 
 class Integrator:
     """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``.
 
     Args:
-        system: the stepping system (its ``dynamics`` and its model's group operations).
+        system: the stepping system (its ``acceleration`` and its model's group operations).
         options: the integrator's options (none for the built-in schemes).
+
+    Attributes:
+        stages: acceleration evaluations per step.
     """
 
     name = ""
+    stages = 1
 
     def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
         self.system = system
+        model = system.model
+        self.integrate = np.add if model.euclidean else model.integrate  # the same sum, without a call layer
+        self.tangent = None if model.flat else model.to_start_tangent
 
-    def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> Step:
-        """One step of ``dt`` [s] from (q, v) at time t [s]."""
+    def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """One step of ``dt`` [s] from (q, v) at time t [s]; returns the end state (q, v)."""
         raise NotImplementedError
 
-    def _runge_kutta(self, q, v, t, dt, nodes, weights) -> Step:
-        system = self.system
-        model = system.model
-        first = system.dynamics(q, v, t)
-        velocity_slopes, acceleration_slopes = [v], [first.acceleration]
-        for stage, (row, node) in enumerate(nodes, start=1):
-            dq = dt * sum(c * k for c, k in zip(row, velocity_slopes, strict=False))  # row covers the slopes so far
-            v_stage = v + dt * sum(c * k for c, k in zip(row, acceleration_slopes, strict=False))
-            q_stage = model.integrate(q, dq)
-            evaluation = system.dynamics(q_stage, v_stage, t + node * dt, stage)
-            velocity_slopes.append(model.to_start_tangent(q, q_stage, v_stage))
-            acceleration_slopes.append(evaluation.acceleration)
-        dq = dt * sum(w * k for w, k in zip(weights, velocity_slopes, strict=True))
-        dv = dt * sum(w * k for w, k in zip(weights, acceleration_slopes, strict=True))
-        return Step(model.integrate(q, dq), v + dv, first)
+    def slope(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
+        """A stage velocity as a slope in the tangent space at the step's start q."""
+        return v_stage if self.tangent is None else self.tangent(q, q_stage, v_stage)
 
 
 class Euler(Integrator):
@@ -65,8 +56,7 @@ class Euler(Integrator):
     name = "euler"
 
     def step(self, q, v, t, dt):
-        first = self.system.dynamics(q, v, t)
-        return Step(self.system.model.integrate(q, dt * v), v + dt * first.acceleration, first)
+        return self.integrate(q, dt * v), v + dt * self.system.acceleration(q, v, t, 0)
 
 
 class SemiImplicitEuler(Integrator):
@@ -75,29 +65,48 @@ class SemiImplicitEuler(Integrator):
     name = "semi-implicit-euler"
 
     def step(self, q, v, t, dt):
-        first = self.system.dynamics(q, v, t)
-        v_new = v + dt * first.acceleration
-        return Step(self.system.model.integrate(q, dt * v_new), v_new, first)
+        v_new = v + dt * self.system.acceleration(q, v, t, 0)
+        return self.integrate(q, dt * v_new), v_new
 
 
 class Heun(Integrator):
     """Heun's two-stage Runge-Kutta method. Order 2."""
 
     name = "heun"
+    stages = 2
 
     def step(self, q, v, t, dt):
-        return self._runge_kutta(q, v, t, dt, nodes=[((1.0,), 1.0)], weights=(0.5, 0.5))
+        acceleration = self.system.acceleration
+        a1 = acceleration(q, v, t, 0)
+        q2, v2 = self.integrate(q, dt * v), v + dt * a1
+        a2 = acceleration(q2, v2, t + dt, 1)
+        half = 0.5 * dt
+        return self.integrate(q, half * (v + self.slope(q, q2, v2))), v + half * (a1 + a2)
 
 
 class RK4(Integrator):
     """Classical four-stage Runge-Kutta. Order 4."""
 
     name = "rk4"
-    NODES = [((0.5,), 0.5), ((0.0, 0.5), 0.5), ((0.0, 0.0, 1.0), 1.0)]
-    WEIGHTS = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
+    stages = 4
 
     def step(self, q, v, t, dt):
-        return self._runge_kutta(q, v, t, dt, self.NODES, self.WEIGHTS)
+        acceleration, integrate, slope = self.system.acceleration, self.integrate, self.slope
+        half = 0.5 * dt
+        a1 = acceleration(q, v, t, 0)
+        v2 = v + half * a1
+        q2 = integrate(q, half * v)
+        a2 = acceleration(q2, v2, t + half, 1)
+        k2 = slope(q, q2, v2)
+        v3 = v + half * a2
+        q3 = integrate(q, half * k2)
+        a3 = acceleration(q3, v3, t + half, 2)
+        k3 = slope(q, q3, v3)
+        v4 = v + dt * a3
+        q4 = integrate(q, dt * k3)
+        a4 = acceleration(q4, v4, t + dt, 3)
+        sixth = dt / 6.0
+        return integrate(q, sixth * (v + 2.0 * (k2 + k3) + slope(q, q4, v4))), v + sixth * (a1 + 2.0 * (a2 + a3) + a4)
 
 
 INTEGRATORS: Registry[Integrator] = Registry("integrator")

@@ -42,6 +42,9 @@ class ConstrainedModel:
         scene: the scene. model: its Pinocchio model. kin: the kinematics pass.
         constraints: the stacked constraint rows. forces: the force elements.
         length_scale: the largest joint or frame offset [m], the mechanism's size.
+        flat: every joint has one velocity coordinate. euclidean: and one configuration coordinate.
+        forces_need_kinematics: some force element reads frame placements or Jacobians.
+        no_force: a read-only zero vector (nv,), the applied force of a scene without force elements.
     """
 
     def __init__(self, scene: Scene) -> None:
@@ -50,8 +53,13 @@ class ConstrainedModel:
         self.kin = Kinematics(scene.model)
         self.constraints: ConstraintSet = scene.constraint_set
         self.forces = scene.forces
+        self.forces_need_kinematics = any(element.needs_kinematics for element in self.forces)
         self._data = scene.model.createData()
-        self.flat = all(self.model.joints[j].nv == 1 for j in range(1, self.model.njoints))
+        joints = [self.model.joints[j] for j in range(1, self.model.njoints)]
+        self.flat = all(joint.nv == 1 for joint in joints)
+        self.euclidean = self.flat and all(joint.nq == 1 for joint in joints)  # q (+) dq = q + dq
+        self.no_force = np.zeros(self.model.nv)
+        self.no_force.flags.writeable = False
         placements = [*self.model.jointPlacements, *(frame.placement for frame in self.model.frames)]
         self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
 
@@ -71,13 +79,10 @@ class ConstrainedModel:
         """Configuration dimension."""
         return self.model.nq
 
-    @property
-    def forces_need_kinematics(self) -> bool:
-        """Whether some force element reads frame placements or Jacobians."""
-        return any(element.needs_kinematics for element in self.forces)
-
     def applied_force(self, v: np.ndarray, t: float) -> np.ndarray:
         """Sum of the force elements [N, N m]; ``kin`` must be current where they need it."""
+        if not self.forces:
+            return self.no_force
         tau = np.zeros(self.model.nv)
         for element in self.forces:
             tau += element.generalized_force(self.kin, v, t)
@@ -114,7 +119,7 @@ class ConstrainedModel:
 
     def integrate(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """q (+) dq on the configuration group."""
-        return pin.integrate(self.model, q, dq)
+        return q + dq if self.euclidean else pin.integrate(self.model, q, dq)
 
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """The tangent vector dq with q0 (+) dq = q1."""

@@ -68,7 +68,11 @@ class RunInfo:
         force_frames: constraint name -> the frame its multipliers are expressed in.
         assembly: the assembly of the initial state, or None when it was skipped.
         solver_statistics: the KKT solves of the run.
-        direct: whether the dynamics ran on Pinocchio's own path (see :mod:`pinstab.system`).
+        path: ``native`` (Pinocchio's own algorithm evaluated the dynamics) or ``general`` (pinstab's
+            kinematics and KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``.
+        record_every: a sample was kept every this many steps (and at the last).
+        correction_iterations_total, correction_iterations_max: post-step correction iterations over
+            every step (projection, post).
     """
 
     scene: str
@@ -86,7 +90,11 @@ class RunInfo:
     force_frames: dict[str, str] = field(default_factory=dict)
     assembly: AssemblySummary | None = None
     solver_statistics: SolverStatistics = field(default_factory=SolverStatistics)
-    direct: bool = False
+    path: str = "general"
+    path_reason: str = ""
+    record_every: int = 1
+    correction_iterations_total: int = 0
+    correction_iterations_max: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

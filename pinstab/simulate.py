@@ -2,63 +2,28 @@
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 import warnings
 from collections.abc import Mapping
 from contextlib import closing, nullcontext
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .errors import DivergenceError, PinstabError, SolverError, UnstableGainsError, UnstableGainsWarning
+from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integrators import INTEGRATORS
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
+from .series import StateSeries
 from .stability import largest_stable_step
+from .stepping import StepLoop, TimeGrid
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
-MAX_STEPS = 20_000_000  # every step is recorded; beyond this the arrays alone reach gigabytes
-GRID_SLACK = 1e-9  # a duration within this fraction of a step of a whole number of steps is that number
-
-
-class TimeGrid(NamedTuple):
-    """The steps of a run: ``steps`` steps of ``dt`` [s], the last shortened so that it ends at
-    ``duration`` [s] exactly."""
-
-    dt: float
-    duration: float
-    steps: int
-
-    @classmethod
-    def of(cls, dt: float, duration: float) -> TimeGrid:
-        """The grid of ``dt`` over ``duration``.
-
-        Raises:
-            PinstabError: non-positive or non-finite arguments, or more than :data:`MAX_STEPS` steps.
-        """
-        for label, value in (("dt", dt), ("duration", duration)):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
-                raise PinstabError(f"{label} must be a positive number, got {value!r}")
-        ratio = duration / dt
-        whole = round(ratio)
-        steps = whole if abs(ratio - whole) <= GRID_SLACK * max(1.0, ratio) else math.ceil(ratio)
-        steps = max(steps, 1)
-        if steps > MAX_STEPS:
-            raise PinstabError(
-                f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed the {MAX_STEPS:,} a trajectory records; "
-                "use a larger dt or a shorter duration"
-            )
-        return cls(float(dt), float(duration), steps)
-
-    def time(self, k: int) -> float:
-        """The time of sample k [s]: k dt, and ``duration`` exactly at the last."""
-        return self.duration if k == self.steps else k * self.dt
 
 
 def simulate(
@@ -76,6 +41,7 @@ def simulate(
     q0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
     assemble_initial: bool = True,
+    record_every: int = 1,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -87,7 +53,9 @@ def simulate(
         integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``).
         dt: time step [s]; the last step is shortened so that the run ends at ``duration`` exactly.
         duration: simulated time [s].
-        solver: a registered KKT backend (``proxsuite`` by default, ``pinocchio``, ``dense``).
+        solver: a registered KKT backend (``proxsuite``, ``pinocchio``, ``dense``); None (default):
+            Pinocchio's own algorithm where the scene and the method allow it (the native path,
+            ``info.path``), else the method's backend or ``proxsuite``.
         solver_options: the backend's options (e.g. ``{"eps_abs": 1e-10}`` for proxsuite).
         method_options: the method's options, e.g. ``kp``, ``kd`` [1/s^2], [1/s] (``baumgarte``,
             ``pinocchio``; for ``mukharlyamov`` the stiffness and damping, omitted for automatic
@@ -101,9 +69,12 @@ def simulate(
         q0, v0: initial state overriding the scene's.
         assemble_initial: make the initial state consistent first (off: start as given, e.g. to
             study how a method removes an initial violation).
+        record_every: keep a sample every this many steps (and the last); every step is stepped and
+            checked either way.
 
     Returns:
-        The :class:`Trajectory`.
+        The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
+        samples when first read.
 
     Raises:
         DivergenceError: non-finite state or drift above ``drift_limit``; carries the last finite
@@ -115,7 +86,7 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    grid = TimeGrid.of(dt, duration)
+    grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
     system = build_system(scene, method, solver, solver_options, **method_options)
@@ -129,117 +100,40 @@ def simulate(
     if assemble_initial:
         report = assemble(model, q, v)
         q, v = report.q, report.v
-    system.stabilizer.bind(model, grid.dt, integrator, q)
+    system.bind(grid.dt, integrator, q)
     start_radius = _refuse_unstable_gains(system, q, v, strict)
 
-    info = _info(scene, system, integrator, grid, report, method, solver_options)
-    recorder = _Recorder(system, grid.steps)
-    recorder.warned = start_radius is not None and start_radius >= 1.0
-    recorder.record(0, 0.0, q, v)
+    info = _info(scene, system, integrator, grid, report, method, solver_options, record_every)
+    loop = StepLoop(system, stepper, grid, record_every, drift_limit, start_radius is not None and start_radius >= 1)
     bar = _progress_bar(grid.steps, scene.name, progress)
     start = time.perf_counter()
-    t = 0.0
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
     with np.errstate(over="ignore", invalid="ignore"), nullcontext() if bar is None else closing(bar):
-        for k in range(1, grid.steps + 1):
-            t_next = grid.time(k)
-            step_size = t_next - t
-            failure = ""
-            try:
-                step = stepper.step(q, v, t, step_size)
-            except (DivergenceError, SolverError) as exc:
-                if isinstance(exc, SolverError) and not recorder.warned:
-                    raise
-                # with gains predicted unstable, a solve that fails is the blow-up the criterion foresaw
-                failure = f" (the KKT solve failed: {exc})" if isinstance(exc, SolverError) else ""
-                recorder.record(k, t_next, np.full_like(q, np.nan), np.full_like(v, np.nan))
-                drift = math.nan
-            else:
-                recorder.multipliers[k - 1] = step.start.multipliers
-                correction = system.stabilizer.correct(model, step.q, step.v, t_next)
-                recorder.corrections[k] = correction.iterations
-                q_next, v_next = correction.q, correction.v
-                drift = recorder.record(k, t_next, q_next, v_next)
-                # a velocity residual that would carry the constraint past the limit within one step
-                drift = max(drift, recorder.velocity_drift[k] * step_size)
-            if not drift <= drift_limit:
-                recorder.wall_time = time.perf_counter() - start
-                partial = recorder.trajectory(k, _finish(info, system, k, t_next))
-                reason = (
-                    f"a non-finite state{failure}"
-                    if not np.isfinite(drift)
-                    else f"drift {drift:.3g} > {drift_limit:g} (position residual, or velocity residual x dt)"
-                )
-                raise DivergenceError(
-                    f"simulation diverged at t = {t_next:.6g} s (step {k}): {reason}; the last finite state is at "
-                    f"t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
-                    t,
-                    q,
-                    v,
-                    partial,
-                )
-            q, v, t = q_next, v_next, t_next
-            if bar is not None:
-                bar.update(1)
-        recorder.multipliers[grid.steps] = system.dynamics(q, v, t).multipliers
-    recorder.wall_time = time.perf_counter() - start
-    return recorder.trajectory(grid.steps, _finish(info, system, grid.steps, t))
+        try:
+            loop.run(q, v, bar)
+        except DivergenceError as exc:
+            exc.trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
+            raise
+    return _trajectory(loop, system, info, time.perf_counter() - start)
 
 
-class _Recorder:
-    def __init__(self, system: ConstrainedSystem, steps: int) -> None:
-        self.system = system
-        self.model = system.model
-        n = steps + 1
-        self.t = np.zeros(n)
-        self.q = np.zeros((n, self.model.nq))
-        self.v = np.zeros((n, self.model.nv))
-        self.multipliers = np.full((n, self.model.constraints.rows), np.nan)
-        self.position_drift = np.zeros(n)
-        self.velocity_drift = np.zeros(n)
-        self.energy = np.zeros(n)
-        self.corrections = np.zeros(n, dtype=int)
-        self.spectral_radius = np.full(n, np.nan)
-        self.warned = False  # one warning per run when rho first reaches 1 mid-run
-        self.wall_time = 0.0
-
-    def record(self, k: int, t: float, q: np.ndarray, v: np.ndarray) -> float:
-        self.t[k], self.q[k], self.v[k] = t, q, v
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            self.position_drift[k] = self.velocity_drift[k] = self.energy[k] = np.nan
-            return math.nan
-        self.position_drift[k], self.velocity_drift[k] = self.model.violation(q, v, t)
-        self.energy[k] = self.model.energy(q, v)
-        radius = self.system.stabilizer.spectral_radius(self.model, q, v, t)
-        if radius is not None:
-            self.spectral_radius[k] = radius
-            if radius >= 1.0 and not self.warned and k > 0:
-                self.warned = True
-                warnings.warn(
-                    UnstableGainsWarning(
-                        f"at t = {t:.6g} s the deviation dynamics of method {self.system.stabilizer.name} reached "
-                        f"rho(R(tau W)) = {radius:.4g} >= 1 (state-dependent gains): constraint errors may grow "
-                        "from here"
-                    ),
-                    stacklevel=4,
-                )
-        return float(self.position_drift[k])
-
-    def trajectory(self, last: int, info: RunInfo) -> Trajectory:
-        n = last + 1
-        return Trajectory(
-            t=self.t[:n].copy(),
-            q=self.q[:n].copy(),
-            v=self.v[:n].copy(),
-            multipliers=self.multipliers[:n].copy(),
-            position_drift=self.position_drift[:n].copy(),
-            velocity_drift=self.velocity_drift[:n].copy(),
-            energy=self.energy[:n].copy(),
-            wall_time=self.wall_time,
-            info=info,
-            correction_iterations=self.corrections[:n].copy(),
-            spectral_radius=self.spectral_radius[:n].copy(),
-        )
+def _trajectory(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, wall_time: float) -> Trajectory:
+    """The trajectory of the samples kept so far, with the run info completed."""
+    records = loop.records
+    n = records.count
+    last = int(records.steps[n - 1])
+    info.steps, info.t_end = last, float(records.t[n - 1])
+    info.solver_statistics = system.statistics
+    info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
+    return Trajectory(
+        records.t[:n].copy(),
+        records.q[:n].copy(),
+        records.v[:n].copy(),
+        wall_time,
+        info,
+        correction_iterations=records.corrections[:n].copy(),
+        series=StateSeries(system),
+    )
 
 
 def _info(
@@ -250,13 +144,14 @@ def _info(
     report: AssemblyReport | None,
     method: str,
     solver_options: Mapping[str, Any] | None,
+    record_every: int,
 ) -> RunInfo:
     constraints = system.model.constraints
     return RunInfo(
         scene=scene.name,
         method=method,
         integrator=integrator,
-        solver=system.solver.name,
+        solver="pinocchio" if system.path == "native" else system.solver.name,
         dt=grid.dt,
         parameters=system.stabilizer.parameters(),
         solver_options=dict(solver_options or {}),
@@ -265,15 +160,10 @@ def _info(
         row_kinds={c.name: c.row_kind.value for c in constraints.constraints},
         force_frames={c.name: c.force_frame for c in constraints.constraints},
         assembly=None if report is None else report.summary(),
-        direct=system.direct,
+        path=system.path,
+        path_reason=system.path_reason,
+        record_every=record_every,
     )
-
-
-def _finish(info: RunInfo, system: ConstrainedSystem, steps: int, t_end: float) -> RunInfo:
-    """The run info with the steps taken, the end time [s] and the solver's statistics so far."""
-    info.steps, info.t_end = steps, t_end
-    info.solver_statistics = system.solver.statistics
-    return info
 
 
 def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:

@@ -3,20 +3,27 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .constraints import ConstraintValues
+from .constraints import ConstraintValues, FrameClosure
 from .errors import DivergenceError, PinstabError
 from .model import ConstrainedModel
+from .native import NATIVE_KINDS, NativeDynamics, non_planar_closure, unsupported_constraint
+from .runinfo import SolverStatistics
 from .scene import Scene
 from .solvers import SOLVERS, KKTProblem, KKTSolver
+from .solvers.base import ACCEPTED_RESIDUAL
 from .stabilizers import STABILIZERS, Stabilizer
 
 DEFAULT_SOLVER = "proxsuite"
+NATIVE_SOLVER = "pinocchio"  # the backend whose algorithm the native path runs
+NATIVE_MU = 1e-12  # proximal regularization of the native solve (the pinocchio backend's own option when named)
 
 
 @dataclass
@@ -35,27 +42,140 @@ class ConstrainedSystem:
     Args:
         model: the constrained model.
         stabilizer: provides gamma_stab and post-step corrections.
-        solver: the KKT backend.
+        solver: the KKT backend of the general path.
+        native_obstacle: why the native path may not be taken whatever the scene (a solver was named
+            that is not Pinocchio's), or None.
 
     Attributes:
-        direct: the whole evaluation runs on the solver's own path (Pinocchio computing its own
-            kinematics and applying the stabilizer's Baumgarte term in its corrector), checked there
-            and done the general way when the check fails.
+        path: ``native`` (Pinocchio's ``constraintDynamics`` with the stabilizer's Baumgarte gains in
+            its corrector, :mod:`pinstab.native`) or ``general`` (pinstab's kinematics, the
+            stabilizer's term and the KKT backend); chosen by :meth:`bind`.
+        path_reason: why the general path was taken ("" on the native path).
+        acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
+        native: Pinocchio's dynamics on the native path, else None.
     """
 
-    def __init__(self, model: ConstrainedModel, stabilizer: Stabilizer, solver: KKTSolver) -> None:
+    def __init__(
+        self, model: ConstrainedModel, stabilizer: Stabilizer, solver: KKTSolver, native_obstacle: str | None = None
+    ) -> None:
         self.model = model
         self.stabilizer = stabilizer
         self.solver = solver
-        self.direct = (
-            solver.direct_capable
-            and solver.corrector_gains is not None
-            and stabilizer.baumgarte_gains() == solver.corrector_gains
-            and not model.forces_need_kinematics
-        )
+        self.native: NativeDynamics | None = None
+        self.path = "general"
+        self.path_reason = "not bound to a step yet"
+        self.acceleration: Callable[[np.ndarray, np.ndarray, float, int], np.ndarray] = self._general_acceleration
+        self._native_obstacle = native_obstacle
+        self._checking = True  # check every native solve (until one passes)
+        self._native_solves = 0
+        self._audit = SolverStatistics()
+
+    # -- choosing the path -------------------------------------------------------------------------
+    def bind(self, step: float, integrator: str, q: np.ndarray) -> None:
+        """Bind the stabilizer to the step [s], the integrator and the start configuration, and take the
+        native path when the scene, the method and the solver allow it."""
+        self.stabilizer.bind(self.model, step, integrator, q)
+        reason = self.native_obstacle(q)
+        if reason is not None:
+            self.path, self.path_reason, self.native = "general", reason, None
+            self.acceleration = self._general_acceleration
+            return
+        gains = self.stabilizer.baumgarte_gains()
+        native = self.solver.native
+        if native is None:
+            closures = [c for c in self.model.constraints.constraints if isinstance(c, FrameClosure)]
+            native = NativeDynamics(self.model.model, closures, *gains, mu=NATIVE_MU)
+        native.set_gains(*gains)
+        self.native = native
+        self.path, self.path_reason = "native", ""
+        self.acceleration = self._native_acceleration
+        self._checking = True
+
+    def native_obstacle(self, q: np.ndarray) -> str | None:
+        """Why the native path cannot run this system from configuration q, or None."""
+        if self._native_obstacle is not None:
+            return self._native_obstacle
+        constraints = self.model.constraints.constraints
+        reason = unsupported_constraint(constraints, NATIVE_KINDS)
+        if reason is not None:
+            return reason
+        if self.stabilizer.baumgarte_gains() is None:
+            return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
+        closures = [c for c in constraints if isinstance(c, FrameClosure)]
+        name = non_planar_closure(self.model.model, closures, q)
+        if name is not None:
+            return f"planar-point closure {name!r} is not on a planar mechanism"
+        return None
+
+    # -- evaluations ---------------------------------------------------------------------------------
+    def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        model = self.model
+        if model.forces:
+            if model.forces_need_kinematics:
+                model.kin.update_jacobians(q)
+            acceleration = self.native.acceleration(q, v, model.applied_force(v, t))
+        else:
+            acceleration = self.native.acceleration(q, v, model.no_force)
+        self._native_solves += 1
+        if self._checking:
+            return self._checked(q, v, t, stage, acceleration)
+        return acceleration
+
+    def _checked(self, q: np.ndarray, v: np.ndarray, t: float, stage: int, acceleration: np.ndarray) -> np.ndarray:
+        """The native solve if it passes :meth:`NativeDynamics.residual`, else the general path's."""
+        residual = self.native.residual(v, acceleration)
+        if residual <= ACCEPTED_RESIDUAL:
+            self._audit.record("native checked", 0, residual, math.nan)
+            self._checking = False
+            return acceleration
+        self._audit.fallbacks += 1
+        return self._general_acceleration(q, v, t, stage)
+
+    def audit(self, q: np.ndarray, v: np.ndarray, t: float) -> None:
+        """On the native path, check a solve at (q, v, t) from scratch; when it fails (near a singular
+        configuration) every native solve is checked, a failed one solved the general way, until one
+        passes. The stepping loop calls this periodically."""
+        if self.native is None:
+            return
+        self._checking = False
+        model = self.model
+        if model.forces_need_kinematics:
+            model.kin.update_jacobians(q)
+        acceleration = self.native.acceleration(q, v, model.applied_force(v, t))
+        residual = self.native.residual(v, acceleration)
+        if residual <= ACCEPTED_RESIDUAL:
+            self._audit.record("native checked", 0, residual, math.nan)
+        else:
+            self._checking = True
+
+    def _general_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        return self.dynamics(q, v, t, stage).acceleration
+
+    def multipliers(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The constraint multipliers at (q, v, t) on the chosen path [N, N m]."""
+        if self.native is None:
+            return self.dynamics(q, v, t).multipliers
+        self._native_acceleration(q, v, t)
+        return self.native.multipliers()
+
+    @property
+    def statistics(self) -> SolverStatistics:
+        """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
+        ``native``), the checked ones and the fallbacks."""
+        merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
+        if self.native is None:
+            return merged
+        audit = self._audit
+        merged.solves += self._native_solves
+        merged.status_counts["native"] = self._native_solves
+        merged.status_counts["native checked"] = audit.status_counts.get("native checked", 0)
+        merged.worst_primal_residual = max(merged.worst_primal_residual, audit.worst_primal_residual)
+        merged.fallbacks += audit.fallbacks
+        return merged
 
     def dynamics(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> Evaluation:
-        """Accelerations and multipliers at (q, v, t); ``stage`` is the integrator's stage index.
+        """Accelerations and multipliers at (q, v, t) on the general path; ``stage`` is the integrator's
+        stage index.
 
         Raises:
             DivergenceError: the state (or an integrator stage) is not finite.
@@ -63,12 +183,6 @@ class ConstrainedSystem:
         if not (np.isfinite(q).all() and np.isfinite(v).all()):
             raise DivergenceError(f"non-finite state reached at t = {t:.6g} s", t, q, v)
         model = self.model
-        if self.direct:
-            solution = self.solver.direct(q, v, model.applied_force(v, t))
-            if solution is not None:
-                if not np.isfinite(solution.acceleration).all():
-                    raise DivergenceError(f"non-finite acceleration from Pinocchio at t = {t:.6g} s", t, q, v)
-                return Evaluation(solution.acceleration, solution.multipliers, None)
         terms = model.dynamics_terms(q, v, t)
         values = terms.values
         rhs = -values.drift
@@ -104,12 +218,14 @@ def build_system(
     Args:
         scene: a scene, or its constrained model.
         method: a registered stabilization method.
-        solver: a registered KKT backend; None: the method's own, else ``proxsuite``.
+        solver: a registered KKT backend; None: the native path where the scene allows it (see
+            :meth:`ConstrainedSystem.bind`), the method's own backend or ``proxsuite`` elsewhere.
+            Naming ``proxsuite`` or ``dense`` keeps every evaluation on the general path.
         solver_options: the backend's options.
         method_options: the method's options (e.g. ``kp``, ``kd``).
 
-    Methods with step-dependent gains (``mukharlyamov``) need ``system.stabilizer.bind(...)`` before
-    ``system.dynamics``; :func:`~pinstab.simulate.simulate` does it.
+    ``system.bind(step, integrator, q0)`` chooses the path (and gives step-dependent gains, e.g.
+    ``mukharlyamov``'s, their values); :func:`~pinstab.simulate.simulate` does it.
     """
     model = scene if isinstance(scene, ConstrainedModel) else ConstrainedModel(scene)
     stabilizer = STABILIZERS.build(method, options=method_options)
@@ -117,4 +233,5 @@ def build_system(
     if stabilizer.required_solver is not None and name != stabilizer.required_solver:
         raise PinstabError(f"method {method!r} runs on solver {stabilizer.required_solver!r}, not {name!r}")
     backend = SOLVERS.build(name, model, stabilizer.baumgarte_gains(), options=solver_options)
-    return ConstrainedSystem(model, stabilizer, backend)
+    obstacle = None if solver in (None, NATIVE_SOLVER) else f"solver {solver!r} was named"
+    return ConstrainedSystem(model, stabilizer, backend, obstacle)

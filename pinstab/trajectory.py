@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -15,45 +14,86 @@ from .files import atomic_output
 from .runinfo import RunInfo
 
 
-@dataclass
+class SeriesSource(Protocol):
+    """What computes a trajectory's derived series from its samples (:class:`pinstab.series.StateSeries`)."""
+
+    def drift_and_energy(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]: ...
+
+    def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+
+    def spectral_radius(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+
+
 class Trajectory:
-    """A simulated motion, sampled at every step.
+    """A simulated motion, sampled every ``info.record_every`` steps and at the last.
+
+    The states are stored while stepping; the derived series (drift, energy, multipliers, spectral
+    radius) are computed from them when first read (``series``), or given (a loaded file).
 
     Attributes:
-        t: times [s] (n+1,).
-        q: configurations (n+1, nq). v: velocities (n+1, nv) [rad/s, m/s].
-        multipliers: constraint multipliers (n+1, s) [N, N m]; see ``force_frames``.
+        t: times [s] (n,). q: configurations (n, nq). v: velocities (n, nv) [rad/s, m/s].
+        multipliers: constraint multipliers (n, s) [N, N m]; see ``info.force_frames``.
         position_drift: max |phi| per sample [m or rad]. velocity_drift: max |g| [m/s or rad/s].
         energy: total mechanical energy [J].
-        correction_iterations: post-step projection iterations per sample (projection, post).
+        correction_iterations: post-step projection iterations of each sampled step (projection, post).
         spectral_radius: rho(R(tau W)) of the deviation dynamics per sample (methods with a
             stabilization term; NaN otherwise).
         wall_time: wall-clock time of the stepping loop [s].
-        info: scene, method, integrator, solver, step and end time, options, constraint layout,
+        info: scene, method, integrator, solver, path, step and end time, options, constraint layout,
             assembly report, solver statistics (:class:`~pinstab.runinfo.RunInfo`).
     """
 
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    multipliers: np.ndarray
-    position_drift: np.ndarray
-    velocity_drift: np.ndarray
-    energy: np.ndarray
-    wall_time: float
-    info: RunInfo
-    correction_iterations: np.ndarray | None = None
-    spectral_radius: np.ndarray | None = None
+    DERIVED = ("multipliers", "position_drift", "velocity_drift", "energy", "spectral_radius")
 
-    def __post_init__(self) -> None:
-        if self.correction_iterations is None:
-            self.correction_iterations = np.zeros(len(self.t), dtype=int)
-        if self.spectral_radius is None:
-            self.spectral_radius = np.full(len(self.t), np.nan)
+    def __init__(
+        self,
+        t: np.ndarray,
+        q: np.ndarray,
+        v: np.ndarray,
+        wall_time: float,
+        info: RunInfo,
+        *,
+        correction_iterations: np.ndarray | None = None,
+        series: SeriesSource | None = None,
+        **derived: np.ndarray,
+    ) -> None:
+        unknown = sorted(set(derived) - set(self.DERIVED))
+        if unknown:
+            raise PinstabError(f"unknown trajectory series {unknown[0]!r}; series: {', '.join(self.DERIVED)}")
+        self.t, self.q, self.v = t, q, v
+        self.wall_time, self.info = wall_time, info
+        self.correction_iterations = (
+            np.zeros(len(t), dtype=int) if correction_iterations is None else correction_iterations
+        )
+        self._series = series
+        self._derived: dict[str, np.ndarray] = dict(derived)
+        if series is None:
+            missing = [name for name in self.DERIVED if name not in derived and name != "spectral_radius"]
+            if missing:
+                raise PinstabError(f"a trajectory without its system needs the series {', '.join(missing)}")
+            self._derived.setdefault("spectral_radius", np.full(len(t), np.nan))
+
+    def _get(self, name: str) -> np.ndarray:
+        if name not in self._derived:
+            series = self._series
+            if name == "multipliers":
+                self._derived[name] = series.multipliers(self.t, self.q, self.v)
+            elif name == "spectral_radius":
+                self._derived[name] = series.spectral_radius(self.t, self.q, self.v)
+            else:
+                self._derived.update(series.drift_and_energy(self.t, self.q, self.v))
+        return self._derived[name]
+
+    multipliers = property(lambda self: self._get("multipliers"), doc="(n, s) [N, N m]")
+    position_drift = property(lambda self: self._get("position_drift"), doc="(n,) [m or rad]")
+    velocity_drift = property(lambda self: self._get("velocity_drift"), doc="(n,) [m/s or rad/s]")
+    energy = property(lambda self: self._get("energy"), doc="(n,) [J]")
+    spectral_radius = property(lambda self: self._get("spectral_radius"), doc="(n,) [-]")
 
     @property
     def steps(self) -> int:
-        return len(self.t) - 1
+        """Steps taken (the samples may be fewer: see ``info.record_every``)."""
+        return self.info.steps
 
     def multipliers_of(self, constraint: str) -> np.ndarray:
         """The multiplier rows of one constraint (n+1, rows), in the frame ``force_frames[name]``."""
@@ -68,7 +108,6 @@ class Trajectory:
         finite_energy = self.energy[np.isfinite(self.energy)]
         assembly = self.info.assembly
         statistics = self.info.solver_statistics
-        corrections = self.correction_iterations
         radii = self.spectral_radius
         summary = {
             "steps": self.steps,
@@ -82,8 +121,8 @@ class Trajectory:
             "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
             "assembly_iterations": None if assembly is None else assembly.iterations,
             "assembly_residual": None if assembly is None else assembly.residual,
-            "correction_iterations_total": int(corrections.sum()),
-            "correction_iterations_max": int(corrections.max()),
+            "correction_iterations_total": self.info.correction_iterations_total,
+            "correction_iterations_max": self.info.correction_iterations_max,
             "solver_fallbacks": statistics.fallbacks,
             "solver_status": statistics.status_counts,
             "solver_worst_residual": max(statistics.worst_primal_residual, statistics.worst_dual_residual),

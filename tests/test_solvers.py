@@ -7,6 +7,7 @@ import pinocchio as pin
 import pytest
 
 from pinstab import SolverError, build_system, load_scene, simulate
+from pinstab.native import NativeDynamics
 from pinstab.scene import scene_from_dict
 from pinstab.solvers import PinocchioSolver
 
@@ -137,7 +138,7 @@ def test_pinocchio_solver_hands_missed_constraints_to_proxqp():
     """Pinocchio with no corrector cannot apply a Baumgarte term it does not know: the residual check
     sees G a != rhs off the manifold and solves with ProxQP instead, which meets the rows."""
     scene = load_scene("fourbar")
-    native = PinocchioSolver(scene.model, scene.constraints, kp=0.0, kd=0.0)
+    native = PinocchioSolver(NativeDynamics(scene.model, scene.constraints, kp=0.0, kd=0.0))
     system = build_system(scene, "baumgarte", "proxsuite", kp=100.0, kd=20.0)
     system.solver = native
     q, v = scene.q0, scene.v0  # not assembled: phi is about 0.1 m
@@ -151,16 +152,18 @@ def test_pinocchio_solver_hands_missed_constraints_to_proxqp():
 
 
 @pytest.mark.parametrize("scene_name", ["fourbar", "slider-crank", "fivebar"])
-def test_direct_pinocchio_path_equals_the_general_one(scene_name):
-    """The direct path (Pinocchio's data only) gives the accelerations and multipliers of the general
-    path (pinstab kinematics + the same solver) along a trajectory, off the manifold included."""
+def test_native_path_equals_the_general_one(scene_name):
+    """The native path (Pinocchio's algorithm with its corrector) gives the accelerations and
+    multipliers of the general path (pinstab kinematics + ProxQP, same gains) along a trajectory, off
+    the manifold included; the slider-crank's motor and damper are applied on both."""
     scene = load_scene(scene_name)
-    if scene_name == "slider-crank":
-        scene.forces[:] = [f for f in scene.forces if f.name == "motor"]  # the damper needs pinstab's kinematics
-    direct = build_system(scene, "pinocchio", None, kp=10.0, kd=2 * np.sqrt(10.0))
-    assert direct.direct
-    general = build_system(scene, "pinocchio", None, kp=10.0, kd=2 * np.sqrt(10.0))
-    general.direct = False
+    gains = dict(kp=10.0, kd=2 * np.sqrt(10.0))
+    native = build_system(scene, "baumgarte", None, **gains)
+    native.bind(1e-3, "rk4", scene.q0)
+    assert native.path == "native" and native.path_reason == ""
+    general = build_system(scene, "baumgarte", "proxsuite", solver_options={"eps_abs": 1e-12}, **gains)
+    general.bind(1e-3, "rk4", scene.q0)
+    assert general.path == "general" and "proxsuite" in general.path_reason
     traj = simulate(
         scene,
         method="baumgarte",
@@ -172,26 +175,46 @@ def test_direct_pinocchio_path_equals_the_general_one(scene_name):
     )
     for q, v in zip(traj.q[::30], traj.v[::30], strict=True):
         expected = general.dynamics(q, v, 0.1)
-        got = direct.dynamics(q, v, 0.1)
-        assert got.values is None
+        got = native.acceleration(q, v, 0.1, 0)
         np.testing.assert_allclose(
-            got.acceleration, expected.acceleration, atol=1e-9 * max(1.0, np.abs(expected.acceleration).max())
+            got, expected.acceleration, atol=1e-9 * max(1.0, np.abs(expected.acceleration).max())
         )
         np.testing.assert_allclose(
-            got.multipliers, expected.multipliers, atol=1e-7 * max(1.0, np.abs(expected.multipliers).max())
+            native.multipliers(q, v, 0.1),
+            expected.multipliers,
+            atol=1e-7 * max(1.0, np.abs(expected.multipliers).max()),
         )
-    assert direct.solver.statistics.fallbacks == 0
+    assert native.statistics.fallbacks == 0
 
 
-def test_direct_path_hands_a_missed_check_to_the_general_path():
+def test_native_path_hands_a_missed_check_to_the_general_path():
+    """A native solve that misses its rows (here: the check expects another corrector than the one
+    Pinocchio applies) is solved again the general way, counted as a fallback."""
     scene = load_scene("fourbar")
-    system = build_system(scene, "pinocchio", None)
-    system.solver.kp = 55.0  # the check now expects another corrector than the one Pinocchio applies
-    evaluation = system.dynamics(scene.q0, scene.v0, 0.0)  # off the manifold: the two disagree
-    assert evaluation.values is not None and system.solver.statistics.fallbacks >= 1
+    system = build_system(scene, "baumgarte", None)
+    system.bind(1e-3, "rk4", scene.q0)
+    system.native.kp = 55.0
+    expected = build_system(scene, "baumgarte", "dense").dynamics(scene.q0, scene.v0, 0.0).acceleration
+    got = system.acceleration(scene.q0, scene.v0, 0.0, 0)  # off the manifold: the two disagree
+    assert system.statistics.fallbacks == 1
+    np.testing.assert_allclose(got, expected, atol=1e-8 * np.abs(expected).max())
 
 
-def test_direct_path_is_only_taken_where_it_applies():
-    assert not build_system(load_scene("delta"), "pinocchio", None).direct  # weld closures
-    assert not build_system(load_scene("slider-crank"), "pinocchio", None).direct  # a spring-damper element
-    assert not build_system(load_scene("fourbar"), "baumgarte", "proxsuite").direct
+@pytest.mark.parametrize(
+    ("scene_name", "method", "solver", "integrator", "reason"),
+    [
+        ("delta", "baumgarte", None, "rk4", "weld"),
+        ("box-push", "baumgarte", None, "rk4", "cone rows"),
+        ("fourbar", "baumgarte", "proxsuite", "rk4", "solver 'proxsuite' was named"),
+        ("fourbar", "mukharlyamov", None, "rk4", "not Baumgarte"),  # its term is held over the RK4 stages
+        ("fourbar", "mukharlyamov", None, "semi-implicit-euler", ""),
+        ("fourbar", "projection", None, "rk4", ""),
+        ("slider-crank", "baumgarte", None, "heun", ""),
+    ],
+)
+def test_native_path_is_taken_where_it_applies(scene_name, method, solver, integrator, reason):
+    scene = load_scene(scene_name)
+    system = build_system(scene, method, solver)
+    system.bind(1e-3, integrator, scene.q0)
+    assert system.path == ("general" if reason else "native")
+    assert reason in system.path_reason

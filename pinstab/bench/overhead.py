@@ -1,79 +1,51 @@
-"""Per-step overhead: pinstab's stabilized step against Pinocchio's native step, both driven from
-Python and timed interleaved in one process."""
+"""What ``simulate()`` costs over a hand-written loop of Pinocchio calls: the same scheme, step and
+gains, both storing q and v every step, timed interleaved in one process (CPU time)."""
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
 import numpy as np
 
 from ..assembly import assemble
-from ..integrators import INTEGRATORS
 from ..model import ConstrainedModel
 from ..scene import Scene
-from ..system import build_system
-from .peers import native_step
+from ..simulate import simulate
+from .peers import PEER_SCHEMES, native_pinocchio
 
-CANDIDATES = {
-    "pinocchio (method), semi-implicit-euler": dict(method="pinocchio", solver=None),
-    "baumgarte + dense, semi-implicit-euler": dict(method="baumgarte", solver="dense"),
-    "mukharlyamov + dense, semi-implicit-euler": dict(method="mukharlyamov", solver="dense"),
-}
+KP, KD = 100.0, 20.0  # [1/s^2], [1/s]: pinstab's default Baumgarte gains, given to both
 
 
-def _native(scene: Scene, q0, v0, dt):
-    step = native_step(scene, dt, 10.0, 2 * math.sqrt(10.0))
+def measure_overhead(scene: Scene, dt: float = 1e-3, duration: float = 2.0, rounds: int = 5) -> dict[str, Any]:
+    """CPU seconds of ``simulate(scene, "baumgarte", scheme, dt, duration)`` (default recording, the
+    whole call: set-up, assembly and stepping) and of the hand-written loop from the assembled start,
+    for semi-implicit Euler and RK4, median of ``rounds`` interleaved rounds.
 
-    def run(steps: int) -> None:
-        q, v, t = q0.copy(), v0.copy(), 0.0
-        for _ in range(steps):
-            q, v = step(q, v, t)
-            t += dt
-
-    return run
-
-
-def _pinstab(scene: Scene, q0, v0, dt, method, solver):
-    system = build_system(scene, method, solver)
-    model = system.model
-    system.stabilizer.bind(model, dt, "semi-implicit-euler", q0)
-    stepper = INTEGRATORS.build("semi-implicit-euler", system)
-    stabilizer = system.stabilizer
-
-    def run(steps: int) -> None:
-        q, v, t = q0.copy(), v0.copy(), 0.0
-        for _ in range(steps):
-            step = stepper.step(q, v, t, dt)
-            t += dt
-            correction = stabilizer.correct(model, step.q, step.v, t)
-            q, v = correction.q, correction.v
-
-    return run
-
-
-def measure_overhead(scene: Scene, dt: float = 1e-3, steps: int = 500, rounds: int = 7) -> dict[str, Any]:
-    """Median seconds per step of the native loop (with the scene's forces) and of each pinstab
-    candidate (one integrator step plus the stabilizer's correction, as ``simulate`` runs it, without
-    its per-step recording), timed interleaved; ``overhead_ratio`` is the fastest candidate over
-    native."""
+    Returns:
+        per scheme the microseconds per step of each and their ratio; ``overhead_ratio``: the larger
+        ratio, ``path``: the path ``simulate`` took.
+    """
     start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
-    runners = {"native": _native(scene, start.q, start.v, dt)}
-    runners.update({label: _pinstab(scene, start.q, start.v, dt, **options) for label, options in CANDIDATES.items()})
-    timings: dict[str, list[float]] = {label: [] for label in runners}
-    for _ in range(rounds):
-        for label, run in runners.items():
-            began = time.perf_counter()
-            run(steps)
-            timings[label].append((time.perf_counter() - began) / steps)
-    best = {label: float(np.median(values)) for label, values in timings.items()}
-    ratios = {label: best[label] / best["native"] for label in CANDIDATES}
-    fastest = min(ratios, key=ratios.get)
-    return {
-        "native_us": best["native"] * 1e6,
-        "step_us": {label: best[label] * 1e6 for label in CANDIDATES},
-        "ratios": ratios,
-        "fastest": fastest,
-        "overhead_ratio": ratios[fastest],
-    }
+    steps = round(duration / dt)
+    result: dict[str, Any] = {"dt": dt, "duration": duration, "steps": steps, "kp": KP, "kd": KD, "schemes": {}}
+    for scheme in PEER_SCHEMES:
+        hand, ours = [], []
+        path = ""
+        for _ in range(rounds):
+            began = time.process_time()
+            native_pinocchio(scene, start.q, start.v, dt, steps, KP, KD, scheme)
+            hand.append(time.process_time() - began)
+            began = time.process_time()
+            trajectory = simulate(scene, "baumgarte", scheme, dt, duration, kp=KP, kd=KD)
+            ours.append(time.process_time() - began)
+            path = trajectory.info.path
+        hand_s, ours_s = float(np.median(hand)), float(np.median(ours))
+        result["schemes"][scheme] = {
+            "hand_written_us": hand_s / steps * 1e6,
+            "simulate_us": ours_s / steps * 1e6,
+            "ratio": ours_s / hand_s,
+            "path": path,
+        }
+    result["overhead_ratio"] = max(entry["ratio"] for entry in result["schemes"].values())
+    return result

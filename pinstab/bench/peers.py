@@ -1,4 +1,5 @@
-"""Peers run in the same process and measured the same way: Pinocchio's native constraintDynamics loop."""
+"""Peers run in the same process and measured the same way: a hand-written loop over Pinocchio's
+``constraintDynamics`` (semi-implicit Euler or RK4)."""
 
 from __future__ import annotations
 
@@ -8,50 +9,83 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from ..errors import PinstabError
 from ..kinematics import Kinematics
+from ..native import NativeDynamics
 from ..scene import Scene
-from ..solvers import PinocchioSolver
 
 NativeStep = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 
 
-def native_step(scene: Scene, dt: float, kp: float, kd: float) -> NativeStep:
-    """One step of Pinocchio's own loop: ``a = constraintDynamics`` with its Baumgarte corrector
-    (Kp [1/s^2], Kd [1/s]), then semi-implicit Euler, driven from Python as its examples do. The
-    scene's force elements are applied as a Pinocchio user would: joint torques directly,
-    spring-dampers through a frame kinematics pass (``computeJointJacobians`` +
-    ``updateFramePlacements``) each step.
+PEER_SCHEMES = ("semi-implicit-euler", "rk4")
+
+
+def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "semi-implicit-euler") -> NativeStep:
+    """One step of a hand-written loop over Pinocchio: ``a = constraintDynamics`` with its Baumgarte
+    corrector (Kp [1/s^2], Kd [1/s]), then semi-implicit Euler or classical RK4 with ``pin.integrate``,
+    as a Pinocchio user writes it. The scene's force elements are applied as a Pinocchio user would:
+    joint torques directly, spring-dampers through a frame kinematics pass (``computeJointJacobians``
+    + ``updateFramePlacements``) each evaluation.
 
     Returns:
         ``step(q, v, t) -> (q, v)`` for a step of ``dt`` [s] from time t [s].
+
+    Raises:
+        PinstabError: an unknown scheme.
     """
-    solver = PinocchioSolver(scene.model, scene.constraints, kp, kd)
-    model, data, models, datas, settings = solver.model, solver.data, solver.models, solver.datas, solver.settings
+    if scheme not in PEER_SCHEMES:
+        raise PinstabError(f"unknown peer scheme {scheme!r}; schemes: {', '.join(PEER_SCHEMES)}")
+    native = NativeDynamics(scene.model, scene.constraints, kp, kd)
+    model, data, models, datas, settings = native.model, native.data, native.models, native.datas, native.settings
     forces = scene.forces
     needs_kinematics = any(element.needs_kinematics for element in forces)
     kin = Kinematics(model)
     zero = np.zeros(model.nv)
+    integrate, dynamics = pin.integrate, pin.constraintDynamics
 
-    def step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def acceleration(q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        if not forces:
+            return dynamics(model, data, q, v, zero, models, datas, settings)
         if needs_kinematics:
             kin.update_jacobians(q)
-        tau = sum((element.generalized_force(kin, v, t) for element in forces), zero) if forces else zero
-        a = pin.constraintDynamics(model, data, q, v, tau, models, datas, settings)
-        v = v + dt * a
-        return pin.integrate(model, q, dt * v), v
+        tau = sum((element.generalized_force(kin, v, t) for element in forces), zero)
+        return dynamics(model, data, q, v, tau, models, datas, settings)
 
-    return step
+    def euler_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        v = v + dt * acceleration(q, v, t)
+        return integrate(model, q, dt * v), v
+
+    half, sixth = 0.5 * dt, dt / 6.0
+
+    def rk4_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        a1 = acceleration(q, v, t)
+        v2 = v + half * a1
+        a2 = acceleration(integrate(model, q, half * v), v2, t + half)
+        v3 = v + half * a2
+        a3 = acceleration(integrate(model, q, half * v2), v3, t + half)
+        v4 = v + dt * a3
+        a4 = acceleration(integrate(model, q, dt * v3), v4, t + dt)
+        return integrate(model, q, sixth * (v + 2.0 * (v2 + v3) + v4)), v + sixth * (a1 + 2.0 * (a2 + a3) + a4)
+
+    return euler_step if scheme == "semi-implicit-euler" else rk4_step
 
 
 def native_pinocchio(
-    scene: Scene, q0: np.ndarray, v0: np.ndarray, dt: float, steps: int, kp: float, kd: float
+    scene: Scene,
+    q0: np.ndarray,
+    v0: np.ndarray,
+    dt: float,
+    steps: int,
+    kp: float,
+    kd: float,
+    scheme: str = "semi-implicit-euler",
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """:func:`native_step` run for ``steps`` steps from (q0, v0).
+    """:func:`native_step` run for ``steps`` steps from (q0, v0), storing q and v every step.
 
     Returns:
         (q samples (steps+1, nq), v samples (steps+1, nv), CPU seconds of the loop).
     """
-    step = native_step(scene, dt, kp, kd)
+    step = native_step(scene, dt, kp, kd, scheme)
     qs, vs = np.empty((steps + 1, scene.model.nq)), np.empty((steps + 1, scene.model.nv))
     q, v = q0.copy(), v0.copy()
     qs[0], vs[0] = q, v

@@ -17,6 +17,7 @@ from ..runinfo import SolverStatistics
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
+    from ..native import NativeDynamics
 
 # a solve is accepted when its residuals, relative to the size of the terms they balance, are below
 # this, whatever status flag the backend raised (a singular configuration can make ProxQP report
@@ -114,15 +115,14 @@ class KKTSolver(ABC):
     Attributes:
         name: the registered name.
         row_kinds: the row kinds it solves (a problem with others is refused when the solver is built).
-        direct_capable: whether :meth:`direct` can compute the whole evaluation from (q, v, tau).
-        corrector_gains: (Kp, Kd) the backend applies itself (Pinocchio's corrector), else None.
+        native: the backend's Pinocchio dynamics when it runs Pinocchio's algorithm (the native path
+            then shares it), else None.
         statistics: counts and worst residuals of its solves.
     """
 
     name: str = ""
     row_kinds: frozenset[RowKind] = frozenset({RowKind.EQUALITY})
-    direct_capable: bool = False
-    corrector_gains: tuple[float, float] | None = None
+    native: NativeDynamics | None = None
 
     def __init__(self) -> None:
         self.statistics = SolverStatistics()
@@ -130,10 +130,6 @@ class KKTSolver(ABC):
     @abstractmethod
     def solve(self, problem: KKTProblem) -> KKTSolution:
         """Solve one KKT system; raise :class:`~pinstab.errors.SolverError` on failure."""
-
-    def direct(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> KKTSolution | None:
-        """The whole evaluation without pinstab's kinematics pass, or None (solve the general way)."""
-        return None
 
     def record(self, solution: KKTSolution) -> KKTSolution:
         """Count a solve in :attr:`statistics` and return it."""

@@ -46,11 +46,13 @@ class Stabilizer:
         name: method name.
         required_solver: a KKT backend the method implies (``pinocchio``), else None.
         constant_gains: S and K do not depend on the state, so rho is computed once per run.
+        corrects: the method corrects the state after every step (:meth:`correct`).
     """
 
     name = "none"
     required_solver: str | None = None
     constant_gains = True
+    corrects = False
 
     def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray) -> None:
         """Called once before a run with the step [s], the integrator name and the start configuration."""

@@ -179,6 +179,14 @@ class MukharlyamovStabilizer(Stabilizer):
         inertia = np.linalg.pinv(delassus, rcond=RCOND)
         return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
 
+    def baumgarte_gains(self) -> tuple[float, float] | None:
+        """(S, K) once bound, when the term is Baumgarte's: the kinematic variant on holonomic rows with
+        the term evaluated at every stage (not held)."""
+        if not self._bound or self.variant != "kinematic" or self.holding or not self.mask.all():
+            return None
+        damping = float(self._k_diagonal[0]) if len(self._k_diagonal) else 0.0
+        return (float(self._s_scalar), damping)
+
     # -- the criterion -------------------------------------------------------------------------------
     def deviation_gains(self, model, q, v) -> DeviationGains:
         if self.variant == "kinematic":

@@ -48,6 +48,7 @@ class ProjectionStabilizer(Stabilizer):
     """
 
     name = "projection"
+    corrects = True
 
     def __init__(self, options: ProjectionOptions | None = None) -> None:
         options = options or ProjectionOptions()
@@ -71,6 +72,7 @@ class PostStabilizer(Stabilizer):
     ``F = M^-1 G^T (G M^-1 G^T)^+`` evaluated once, at the uncorrected state."""
 
     name = "post"
+    corrects = True
 
     def __init__(self, options: NoOptions | None = None) -> None:
         pass

@@ -1,0 +1,157 @@
+"""The native path: Pinocchio's own ``constraintDynamics`` evaluates a scene's accelerations.
+
+A scene whose constraints are all ``point`` or ``planar-point`` closures (``planar-point`` only on a
+planar mechanism, where the out-of-plane row is identically redundant) and whose stabilization term
+is Baumgarte's (``none``, ``baumgarte``, kinematic ``mukharlyamov``, ``projection``, ``post``) can be
+evaluated by one call into Pinocchio: its sparse constrained Cholesky with the corrector
+``-Kp phi - Kd G v`` (Kp [1/s^2], Kd [1/s]). No pinstab kinematics pass and no per-closure Python.
+
+Pinocchio's proximal solve can lose the constraints at a singular configuration without saying so
+(its own residual is measured on its factorization), so :meth:`NativeDynamics.residual` checks a
+solve from scratch: the constraint Jacobian, the contact points and their drift accelerations give
+``G a - rhs``. That check reads every closure, so the stepping loop runs it at the start and at its
+periodic checks, and on every evaluation while a check has failed recently (see
+:mod:`pinstab.simulate`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from .constraints import Constraint, FrameClosure, RowKind
+from .kinematics import LWA
+
+CONTACT_TYPES = {
+    "point": pin.ContactType.CONTACT_3D,
+    "planar-point": pin.ContactType.CONTACT_3D,
+    "weld": pin.ContactType.CONTACT_6D,
+}
+"""Closure kinds Pinocchio's algorithm takes, as contacts in world axes."""
+NATIVE_KINDS = ("point", "planar-point")
+"""Closure kinds of the native path (a weld's rotation rows and moment axes differ from pinstab's)."""
+
+PLANAR_TOLERANCE = 1e-12  # [m per rad]: out-of-plane Jacobian entries of a planar mechanism's closure
+
+
+def rigid_constraint(model: pin.Model, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
+    """Pinocchio's model of a closure: a 3-D (point-like) or 6-D (weld) contact between frame a and
+    frame b (or the world), in LOCAL_WORLD_ALIGNED, with the corrector (Kp [1/s^2], Kd [1/s])."""
+    frame_a = model.frames[closure.frame_a]
+    if closure.frame_b is None:
+        joint_b, placement_b = 0, closure.world_placement_b
+    else:
+        frame_b = model.frames[closure.frame_b]
+        joint_b, placement_b = frame_b.parentJoint, frame_b.placement
+    rcm = pin.RigidConstraintModel(
+        CONTACT_TYPES[closure.kind], model, frame_a.parentJoint, frame_a.placement, joint_b, placement_b, LWA
+    )
+    rcm.name = closure.name
+    rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
+    return rcm
+
+
+def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...] = tuple(CONTACT_TYPES)) -> str | None:
+    """Why these constraints cannot run on Pinocchio's algorithm with closures of ``kinds`` (naming the
+    first that cannot), or None."""
+    for constraint in constraints:
+        if not isinstance(constraint, FrameClosure):
+            return f"constraint {constraint.name!r} is a {type(constraint).__name__}, not a frame closure"
+        if constraint.row_kind != RowKind.EQUALITY:
+            return f"constraint {constraint.name!r} has {constraint.row_kind.value} rows (Pinocchio's take equalities)"
+        if constraint.kind not in kinds:
+            return f"constraint {constraint.name!r} is a {constraint.kind} closure, not one of {', '.join(kinds)}"
+    return None
+
+
+def non_planar_closure(model: pin.Model, closures: list[FrameClosure], q: np.ndarray) -> str | None:
+    """The first ``planar-point`` closure whose out-of-plane motion the joints do not block at q (so
+    it has no 3-D contact equivalent), or None."""
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    for closure in closures:
+        if closure.kind != "planar-point":
+            continue
+        jac = pin.getFrameJacobian(model, data, closure.frame_a, LWA)[:3]
+        if closure.frame_b is not None:
+            jac = jac - pin.getFrameJacobian(model, data, closure.frame_b, LWA)[:3]
+        normal = np.cross(closure.selection[0], closure.selection[1])
+        if np.abs(normal @ jac).max() > PLANAR_TOLERANCE:
+            return closure.name
+    return None
+
+
+class NativeDynamics:
+    """Pinocchio's ``constraintDynamics`` for frame closures with its Baumgarte corrector.
+
+    Args:
+        model: the Pinocchio model.
+        closures: frame closures (see :func:`unsupported_constraint`); :meth:`multipliers` and
+            :meth:`residual` take point and planar-point closures only.
+        kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
+        mu: proximal regularization of Pinocchio's solve.
+
+    Attributes:
+        rows: selection from Pinocchio's contact rows to the closures' rows.
+    """
+
+    def __init__(
+        self, model: pin.Model, closures: list[FrameClosure], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12
+    ) -> None:
+        self.model = model
+        self.data = model.createData()
+        self.closures = closures
+        self.models = pin.StdVec_RigidConstraintModel()
+        self.datas = pin.StdVec_RigidConstraintData()
+        for closure in closures:
+            self.models.append(rigid_constraint(model, closure, kp, kd))
+        for rcm in self.models:
+            self.datas.append(rcm.createData())
+        pin.initConstraintDynamics(model, self.data, self.models, self.datas)
+        self.settings = pin.ProximalSettings(1e-14, 1e-12, mu, 50)
+        self.kp, self.kd = float(kp), float(kd)
+        widths = [6 if closure.kind == "weld" else 3 for closure in closures]
+        self.rows = np.zeros((sum(c.rows for c in closures), sum(widths)))
+        row = column = 0
+        for closure, width in zip(closures, widths, strict=True):
+            block = np.eye(6) if width == 6 else closure.selection
+            self.rows[row : row + closure.rows, column : column + width] = block
+            row, column = row + closure.rows, column + width
+        self._target = np.zeros(sum(widths))
+        self._data_list = list(self.datas)
+
+    def set_gains(self, kp: float, kd: float) -> None:
+        """Set the corrector's Kp [1/s^2] and Kd [1/s] on every closure."""
+        self.kp, self.kd = float(kp), float(kd)
+        for rcm in self.models:
+            rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(self.kp, self.kd))
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m]."""
+        return pin.constraintDynamics(self.model, self.data, q, v, tau, self.models, self.datas, self.settings)
+
+    def multipliers(self) -> np.ndarray:
+        """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""
+        return self.rows @ self.data.lambda_c
+
+    def residual(self, v: np.ndarray, acceleration: np.ndarray) -> float:
+        """How far the last :meth:`acceleration` misses ``G a + gamma0 = -Kp phi - Kd G v``, relative to
+        the size of its terms (Euclidean norms): ``|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2)`` [-],
+        from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts."""
+        model, data = self.model, self.data
+        jac = pin.getConstraintsJacobian(model, data, self.models, self.datas)
+        target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
+        for index, contact in enumerate(self._data_list):
+            rows = slice(3 * index, 3 * index + 3)
+            target[rows] = contact.contact2_acceleration_drift.linear - contact.contact1_acceleration_drift.linear
+            target[rows] -= self.kp * (contact.oMc1.translation - contact.oMc2.translation)
+        rhs = self.rows @ (target - self.kd * (jac @ v))
+        residual = self.rows @ (jac @ acceleration) - rhs
+        flat = jac.ravel()
+        scale = rhs @ rhs + (flat @ flat) * (acceleration @ acceleration)
+        if not math.isfinite(scale):
+            return math.nan
+        return math.sqrt(residual @ residual / scale) if scale > 0 else 0.0
