@@ -155,3 +155,45 @@ class NativeDynamics:
         if not math.isfinite(scale):
             return math.nan
         return math.sqrt(residual @ residual / scale) if scale > 0 else 0.0
+
+
+class NativeProjector:
+    """The M-weighted projections of :mod:`pinstab.projection` with Pinocchio's algorithms, for the
+    closures of the native path.
+
+    The position step is one ``constraintDynamics`` call on a gravity-free copy of the model at zero
+    velocity and zero force with the corrector Kp = 1, Kd = 0: the free acceleration and the drift
+    vanish, so the solution is ``a = argmin |a|_M subject to G a = -phi``, i.e. the Gauss-Newton step
+    ``-M^-1 G^T (G M^-1 G^T)^-1 phi``, and ``phi = -G a`` is read from it with Pinocchio's constraint
+    Jacobian. The velocity projection reuses that call's factorization of the KKT matrix
+    ``[[-mu I, G], [G^T, M]]``: solving it for ``(G v, 0)`` gives ``M^-1 G^T (G M^-1 G^T)^-1 G v``.
+    (``impulseDynamics`` is not used: it ignores the second body of a closure between two bodies.)
+
+    Args:
+        model: the Pinocchio model. closures: point and planar-point closures.
+    """
+
+    def __init__(self, model: pin.Model, closures: list[FrameClosure]) -> None:
+        free = pin.Model(model)
+        free.gravity = pin.Motion.Zero()
+        self.dynamics = NativeDynamics(free, closures, kp=1.0, kd=0.0)
+        self._zero = np.zeros(model.nv)
+        self._rhs = np.zeros(self.dynamics.rows.shape[1] + model.nv)
+        self._factored: np.ndarray | None = None  # the configuration of the last factorization
+        self._jacobian = np.zeros((self.dynamics.rows.shape[1], model.nv))
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        dynamics = self.dynamics
+        step = dynamics.acceleration(q, self._zero, self._zero)
+        self._factored = q
+        self._jacobian = pin.getConstraintsJacobian(dynamics.model, dynamics.data, dynamics.models, dynamics.datas)
+        phi = dynamics.rows @ (self._jacobian @ step)  # = -phi
+        return step, float(np.max(np.abs(phi), initial=0.0))
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        if self._factored is not q and not np.array_equal(self._factored, q):
+            self.position_step(q, t)
+        rhs = self._rhs
+        rows = len(rhs) - len(v)
+        rhs[:rows] = self._jacobian @ v
+        return v - self.dynamics.data.constraint_chol.solve(rhs)[rows:]

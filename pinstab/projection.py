@@ -1,11 +1,14 @@
 """Projection onto the constraint manifold (MATH.md 3.4): positions by M-weighted Gauss-Newton,
 velocities by the M-weighted least-change projection. Redundancy-safe (least-squares Delassus solves).
 A unilateral row is projected only while it is closed or penetrating (and, for velocities, approaching).
+
+A :class:`Projector` gives the two projections on one path: :class:`GeneralProjector` from pinstab's
+rows, :class:`pinstab.native.NativeProjector` from Pinocchio's algorithms.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -24,11 +27,49 @@ def weighted_correction(inverse_mass: np.ndarray, jacobian: np.ndarray, residual
     return -minv_jt @ np.linalg.lstsq(delassus, residual, rcond=RCOND)[0]
 
 
+class Projector(Protocol):
+    """The projections a post-step correction is made of, on one path (general or native)."""
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        """The M-weighted Gauss-Newton step ``dq = -M^-1 G^T (G M^-1 G^T)^+ phi`` at q and max |phi|
+        there [m or rad] (enforced rows only)."""
+        ...
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)`` at q [m/s or rad/s]."""
+        ...
+
+
+class GeneralProjector:
+    """Projections from pinstab's constraint rows (any constraint kind; unilateral rows only while
+    closed or approaching).
+
+    Args:
+        model: the constrained model.
+    """
+
+    def __init__(self, model: ConstrainedModel) -> None:
+        self.model = model
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        model = self.model
+        values = model.constraint_values(q, np.zeros(model.nv), t)
+        mask = model.constraints.enforced_positions(values.phi)
+        phi = values.phi[mask]
+        worst = float(np.max(np.abs(phi), initial=0.0))
+        inverse_mass = np.linalg.inv(model.mass_matrix(q))
+        return weighted_correction(inverse_mass, values.jacobian[mask], phi), worst
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        model = self.model
+        return project_velocities(model, q, v, t, np.linalg.inv(model.mass_matrix(q)))
+
+
 def project_positions(
     model: ConstrainedModel,
+    projector: Projector,
     q: np.ndarray,
     t: float,
-    inverse_mass: np.ndarray,
     tolerance: float,
     max_iterations: int,
 ) -> tuple[np.ndarray, int]:
@@ -40,15 +81,12 @@ def project_positions(
     """
     threshold = model.position_tolerance(tolerance)
     for iteration in range(max_iterations + 1):
-        values = model.constraint_values(q, np.zeros(model.nv), t)
-        mask = model.constraints.enforced_positions(values.phi)
-        phi = values.phi[mask]
-        worst = float(np.max(np.abs(phi), initial=0.0))
+        step, worst = projector.position_step(q, t)
         if worst <= threshold:
             return q, iteration
         if iteration == max_iterations or not np.isfinite(worst):
             break
-        q = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], phi))
+        q = model.integrate(q, step)
     raise ProjectionError(
         f"coordinate projection did not converge: residual {worst:.3g} after {max_iterations} iterations "
         f"at t = {t:.6g} s (tolerance {threshold:.1g}); the state is far from the constraint manifold or "

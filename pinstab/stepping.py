@@ -165,7 +165,7 @@ class StepLoop:
         step = self.stepper.step
         stabilizer = self.system.stabilizer
         correct = stabilizer.correct if stabilizer.corrects else None
-        model = self.system.model
+        model, projector = self.system.model, self.system.projector
         grid = self.grid
         dt, last, every = grid.dt, grid.steps, self.every
         rq, rv, corrections = self.records.q, self.records.v, self.records.corrections
@@ -174,7 +174,7 @@ class StepLoop:
             q, v = step(q, v, t, dt if k != last else grid.duration - t)
             iterations = 0
             if correct is not None:
-                correction = correct(model, q, v, grid.time(k))
+                correction = correct(model, projector, q, v, grid.time(k))
                 q, v, iterations = correction.q, correction.v, correction.iterations
                 self.correction_total += iterations
                 self.correction_max = max(self.correction_max, iterations)

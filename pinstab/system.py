@@ -14,7 +14,8 @@ import numpy as np
 from .constraints import ConstraintValues, FrameClosure
 from .errors import DivergenceError, PinstabError
 from .model import ConstrainedModel
-from .native import NATIVE_KINDS, NativeDynamics, non_planar_closure, unsupported_constraint
+from .native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
+from .projection import GeneralProjector, Projector
 from .runinfo import SolverStatistics
 from .scene import Scene
 from .solvers import SOLVERS, KKTProblem, KKTSolver
@@ -53,6 +54,7 @@ class ConstrainedSystem:
         path_reason: why the general path was taken ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
+        projector: the projections of post-step corrections on the chosen path.
     """
 
     def __init__(
@@ -62,6 +64,7 @@ class ConstrainedSystem:
         self.stabilizer = stabilizer
         self.solver = solver
         self.native: NativeDynamics | None = None
+        self.projector: Projector = GeneralProjector(model)
         self.path = "general"
         self.path_reason = "not bound to a step yet"
         self.acceleration: Callable[[np.ndarray, np.ndarray, float, int], np.ndarray] = self._general_acceleration
@@ -79,6 +82,7 @@ class ConstrainedSystem:
         if reason is not None:
             self.path, self.path_reason, self.native = "general", reason, None
             self.acceleration = self._general_acceleration
+            self.projector = GeneralProjector(self.model)
             return
         gains = self.stabilizer.baumgarte_gains()
         native = self.solver.native
@@ -87,6 +91,8 @@ class ConstrainedSystem:
             native = NativeDynamics(self.model.model, closures, *gains, mu=NATIVE_MU)
         native.set_gains(*gains)
         self.native = native
+        if self.stabilizer.corrects:
+            self.projector = NativeProjector(self.model.model, native.closures)
         self.path, self.path_reason = "native", ""
         self.acceleration = self._native_acceleration
         self._checking = True

@@ -15,6 +15,7 @@ from ..stability import amplification, spectral_radius
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
+    from ..projection import Projector
 
 
 @dataclass
@@ -84,8 +85,11 @@ class Stabilizer:
         term), else None. The base class says None: a new method must claim the form to get it."""
         return None
 
-    def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
-        """Correct the state after a step; the default leaves it as it is."""
+    def correct(
+        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
+    ) -> Correction:
+        """Correct the state after a step with the path's projections (:mod:`pinstab.projection`); the
+        default leaves it as it is."""
         return Correction(q, v)
 
     def spectral_radius(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> float | None:

@@ -9,12 +9,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..projection import project_positions, project_velocities, weighted_correction
+from ..projection import project_positions
 from ..registry import NoOptions
 from .base import STABILIZERS, Correction, Stabilizer
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
+    from ..projection import Projector
 
 
 @dataclass(frozen=True)
@@ -57,10 +58,11 @@ class ProjectionStabilizer(Stabilizer):
     def baumgarte_gains(self) -> tuple[float, float]:
         return (0.0, 0.0)
 
-    def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
-        inverse_mass = np.linalg.inv(model.mass_matrix(q))
-        q, iterations = project_positions(model, q, t, inverse_mass, self.tolerance, self.max_iterations)
-        return Correction(q, project_velocities(model, q, v, t, inverse_mass), iterations)
+    def correct(
+        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
+    ) -> Correction:
+        q, iterations = project_positions(model, projector, q, t, self.tolerance, self.max_iterations)
+        return Correction(q, projector.velocity_projection(q, v, t), iterations)
 
     def parameters(self) -> dict[str, float | str]:
         return {"tolerance": self.tolerance, "max_iterations": self.max_iterations}
@@ -80,11 +82,8 @@ class PostStabilizer(Stabilizer):
     def baumgarte_gains(self) -> tuple[float, float]:
         return (0.0, 0.0)
 
-    def correct(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Correction:
-        values = model.constraint_values(q, v, t)
-        inverse_mass = np.linalg.inv(model.mass_matrix(q))
-        mask = model.constraints.enforced_positions(values.phi)
-        rows = model.constraints.enforced_velocities(values)
-        q_new = model.integrate(q, weighted_correction(inverse_mass, values.jacobian[mask], values.phi[mask]))
-        v_new = v + weighted_correction(inverse_mass, values.jacobian[rows], values.velocity_residual[rows])
-        return Correction(q_new, v_new, 1)
+    def correct(
+        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
+    ) -> Correction:
+        step, _ = projector.position_step(q, t)
+        return Correction(model.integrate(q, step), projector.velocity_projection(q, v, t), 1)
