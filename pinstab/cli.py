@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
+from .bench.workprecision import MUJOCO_DTS, PEER_DTS
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .integrators import INTEGRATORS
 from .registry import Registry, option_fields
@@ -160,8 +161,24 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--methods", nargs="+", default=["baumgarte", "mukharlyamov", "projection", "pinocchio"], choices=STABILIZERS
     )
-    bench.add_argument("--integrators", nargs="+", default=["semi-implicit-euler", "rk4"], choices=INTEGRATORS)
-    bench.add_argument("--dts", nargs="+", type=float, default=[4e-3, 2e-3, 1e-3], help="steps [s]")
+    bench.add_argument(
+        "--integrators", nargs="+", default=["semi-implicit-euler", "rk4", "dop853"], choices=INTEGRATORS
+    )
+    bench.add_argument("--dts", nargs="+", type=float, default=[4e-3, 2e-3, 1e-3], help="pinstab's steps [s]")
+    bench.add_argument(
+        "--peer-dts",
+        nargs="+",
+        type=float,
+        default=list(PEER_DTS),
+        help="the hand-written Pinocchio loop's steps [s] (default: 4, 2, 1, 0.75, 0.5, 0.25 ms)",
+    )
+    bench.add_argument(
+        "--mujoco-dts",
+        nargs="+",
+        type=float,
+        default=list(MUJOCO_DTS),
+        help="MuJoCo's steps [s], each with solref 2 dt (default: 1e-3, 1e-4, 1e-5)",
+    )
     bench.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (default: 2)")
     bench.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for results.json/.csv and charts")
     bench.add_argument(
@@ -428,13 +445,20 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
 
     parameters = _parameters(args.param)
     scene = load_scene(args.scene, **parameters)  # validates the scene before any work
-    for dt in args.dts:
-        if not dt > 0:
-            raise PinstabError(f"--dts: steps must be positive, got {dt}")
+    for flag, steps in (("--dts", args.dts), ("--peer-dts", args.peer_dts), ("--mujoco-dts", args.mujoco_dts)):
+        for dt in steps:
+            if not dt > 0:
+                raise PinstabError(f"{flag}: steps must be positive, got {dt}")
     out_dir = Path(args.output)
     if out_dir.exists() and not out_dir.is_dir():
         raise PinstabError(f"{out_dir} exists and is not a folder")
-    configs = default_configs(args.methods, args.integrators, sorted(args.dts))
+    configs = default_configs(
+        args.methods,
+        args.integrators,
+        sorted(args.dts),
+        peer_dts=tuple(sorted(args.peer_dts)),
+        mujoco_dts=tuple(sorted(args.mujoco_dts)),
+    )
     reference, results = sweep(
         str(scene.source or args.scene), parameters, configs, args.duration, args.scheduler, args.serial, not args.quiet
     )

@@ -31,7 +31,22 @@ POLYNOMIALS = {
     "heun": (1.0, 1.0, 0.5),
     "rk4": (1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0),
 }
-SCHEMES = ("euler", "semi-implicit-euler", "heun", "rk4", "held")
+SCHEMES = ["euler", "semi-implicit-euler", "heun", "rk4", "held"]
+"""The schemes R is known for (an integrator's module adds its polynomial with :func:`register_polynomial`)."""
+
+
+def register_polynomial(scheme: str, coefficients: tuple[float, ...]) -> None:
+    """Make a Runge-Kutta scheme known by its stability polynomial p (lowest degree first; for a tableau
+    (a, b): 1, then b^T a^(k-1) 1 for k = 1, 2, ...), so that R = p(tau W)."""
+    POLYNOMIALS[scheme] = coefficients
+    if scheme not in SCHEMES:
+        SCHEMES.append(scheme)
+
+
+def is_multistage(scheme: str) -> bool:
+    """Whether ``scheme`` evaluates the dynamics more than once per step (a Runge-Kutta scheme of
+    order >= 2)."""
+    return len(POLYNOMIALS.get(scheme, ())) > 2
 
 
 def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray) -> np.ndarray:

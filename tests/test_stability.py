@@ -25,6 +25,13 @@ def one_step(scheme, stiffness, damping, step, y):
         k1 = rate(y)
         k2 = rate(y + step * k1)
         return y + step / 2 * (k1 + k2)
+    if scheme == "dop853":  # the tableau stage by stage (the criterion uses its stability polynomial)
+        from pinstab.integrators import DormandPrince853 as tableau
+
+        slopes = []
+        for stage in range(tableau.stages):
+            slopes.append(rate(y + step * sum(c * k for c, k in zip(tableau.coupling[stage, :stage], slopes))))
+        return y + step * sum(b * k for b, k in zip(tableau.weights, slopes, strict=True))
     if scheme == "rk4":
         k1 = rate(y)
         k2 = rate(y + step / 2 * k1)

@@ -19,7 +19,7 @@ from ..forces import JointTorque, SpringDamper
 from ..scene import Scene
 
 DEFAULT_SOLREF = (0.02, 1.0)  # MuJoCo's default: time constant 0.02 s, damping ratio 1
-STIFF_SOLREF = (0.002, 1.0)  # a stiff setting (MuJoCo needs the time constant >= 2 steps)
+MUJOCO_SCHEMES = {"euler": "Euler", "semi-implicit-euler": "Euler", "implicitfast": "implicitfast", "rk4": "RK4"}
 JOINT_AXES = {"RX": (1, 0, 0), "RY": (0, 1, 0), "RZ": (0, 0, 1), "PX": (1, 0, 0), "PY": (0, 1, 0), "PZ": (0, 0, 1)}
 
 
@@ -90,9 +90,11 @@ def mjcf(scene: Scene, dt: float, integrator: str, solref: tuple[float, float]) 
         )
 
     roots = "".join(body(j) for j in range(1, model.njoints) if model.parents[j] == 0)
-    scheme = {"rk4": "RK4", "euler": "Euler", "semi-implicit-euler": "Euler"}.get(integrator)
+    scheme = MUJOCO_SCHEMES.get(integrator)
     if scheme is None:
-        raise PinstabError(f"MuJoCo peer: integrator {integrator!r} has no MuJoCo counterpart (euler, rk4)")
+        raise PinstabError(
+            f"MuJoCo peer: integrator {integrator!r} has no MuJoCo counterpart ({', '.join(MUJOCO_SCHEMES)})"
+        )
     return (
         f'<mujoco model="{scene.name}"><option timestep="{dt:.17g}" gravity="{_vec(model.gravity.linear)}" '
         f'integrator="{scheme}"/><worldbody>{"".join(sites.get(0, []))}{roots}</worldbody>'
@@ -101,9 +103,18 @@ def mjcf(scene: Scene, dt: float, integrator: str, solref: tuple[float, float]) 
 
 
 def run_mujoco(
-    scene: Scene, q0: np.ndarray, v0: np.ndarray, dt: float, steps: int, integrator: str, solref: tuple[float, float]
+    scene: Scene,
+    q0: np.ndarray,
+    v0: np.ndarray,
+    dt: float,
+    steps: int,
+    integrator: str,
+    solref: tuple[float, float],
+    every: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Simulate with MuJoCo from (q0, v0); returns q, v samples in Pinocchio's ordering and CPU seconds."""
+    """Simulate with MuJoCo from (q0, v0), keeping a sample every ``every`` steps; returns the q, v
+    samples in Pinocchio's ordering and the CPU seconds of the loop. Without joint torques the steps
+    between samples run inside MuJoCo (``mj_step(model, data, nstep)``), its fastest way."""
     try:
         import mujoco
     except ImportError:
@@ -117,12 +128,17 @@ def run_mujoco(
     pin_v = [model.joints[j].idx_v for j in range(1, model.njoints)]
     mj_data.qpos[position], mj_data.qvel[velocity] = q0[pin_q], v0[pin_v]
     torques = [element for element in scene.forces if isinstance(element, JointTorque)]
-    qs, vs = np.empty((steps + 1, model.nq)), np.empty((steps + 1, model.nv))
+    samples = steps // every + 1
+    qs, vs = np.empty((samples, model.nq)), np.empty((samples, model.nv))
     qs[0], vs[0] = q0, v0
     start = time.process_time()
-    for k in range(1, steps + 1):
-        for element in torques:
-            mj_data.qfrc_applied[velocity[pin_v.index(element.dof)]] = element.torque(mj_data.time)
-        mujoco.mj_step(mj_model, mj_data)
+    for k in range(1, samples):
+        if torques:
+            for _ in range(every):
+                for element in torques:
+                    mj_data.qfrc_applied[velocity[pin_v.index(element.dof)]] = element.torque(mj_data.time)
+                mujoco.mj_step(mj_model, mj_data)
+        else:
+            mujoco.mj_step(mj_model, mj_data, every)
         qs[k, pin_q], vs[k, pin_v] = mj_data.qpos[position], mj_data.qvel[velocity]
     return qs, vs, time.process_time() - start

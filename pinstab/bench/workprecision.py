@@ -1,10 +1,11 @@
 """Work-precision sweeps: CPU cost against accuracy for methods x integrators x steps, peers included.
 
 Each configuration is simulated from the same assembled start; the metrics are CPU seconds per
-simulated second (the whole ``simulate`` loop, recording included; the peer's bare loop), position
-and velocity drift, the trajectory error against a reference, and the energy error. The reference is
-the same scene at the smallest step / 16 with ``projection`` + ``rk4`` (stated in the results as
-``reference``). Configurations run on Dask (an embedded LocalCluster, or a scheduler address) or
+simulated second (the whole ``simulate()`` call for pinstab; the peers' bare loops), position and
+velocity drift, the trajectory error against a reference, and the energy error. The reference is an
+independent minimal-coordinate model for the four-bar and the N-four-bar, else the scene with
+``projection`` + ``dop853`` at a small step (stated in the results as ``reference``); every run keeps
+the samples on the reference's grid. Configurations run on Dask (an embedded LocalCluster, or a scheduler address) or
 serially; both give the same figures but the timings.
 """
 
@@ -29,11 +30,18 @@ from ..model import ConstrainedModel
 from ..scene import load_scene
 from ..simulate import simulate
 from ..trajectory import configurations_at
-from .mujoco_peer import DEFAULT_SOLREF, STIFF_SOLREF, run_mujoco
-from .peers import native_pinocchio
+from .fourbar_reference import fourbar_reference
+from .mujoco_peer import run_mujoco
+from .peers import PEER_SCHEMES, native_pinocchio
 
 PEER_GAINS = (10.0, 2.0 * math.sqrt(10.0))  # Pinocchio's closed-chain example
-SWEPT_KP = (1.0, 10.0, 100.0, 1e3, 1e4)
+SWEPT_KP = (10.0, 100.0, 1e3, 1e4)  # the hand-written loop's gains, Kd = 2 sqrt(Kp) (10: the example's Kd)
+PEER_DTS = (4e-3, 2e-3, 1e-3, 7.5e-4, 5e-4, 2.5e-4)  # [s] the hand-written loop's steps
+MUJOCO_INTEGRATORS = ("euler", "implicitfast", "rk4")
+MUJOCO_DTS = (1e-3, 1e-4, 1e-5)  # [s], each with solref time constant 2 dt (MuJoCo's stiffest advised)
+FOURBAR_REFERENCE_STEP = 1e-4  # [s] RK4 on the crank-angle equation: 2e-10 rad from the run at 2e-4 over 10 s
+NFOURBAR_REFERENCE_STEP = 6.25e-5  # [s] RK4 on the parallelogram pendulum
+GENERIC_REFERENCE_STEP = 5e-4  # [s] projection + dop853 (7e-12 rad on the four-bar at 2e-3 against its reference)
 
 
 @dataclass(frozen=True)
@@ -53,7 +61,8 @@ class Config:
         if self.peer is None:
             return f"{self.method} + {self.integrator}"
         if self.peer == "mujoco":
-            return f"mujoco solref={self.solref[0]:g} + {self.integrator}"
+            tied = self.solref is not None and math.isclose(self.solref[0], 2 * self.dt)
+            return f"mujoco solref={'2 dt' if tied else f'{self.solref[0]:g}'} + {self.integrator}"
         return f"{self.peer} Kp={self.kp:g} + {self.integrator}"
 
 
@@ -83,21 +92,29 @@ class Result:
 
 @dataclass
 class Reference:
-    """The reference motion every configuration is compared with."""
+    """The reference motion every configuration is compared with, sampled every ``dt`` [s]."""
 
     kind: str
     t: np.ndarray
     q: np.ndarray
+    dt: float
 
 
-def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float, dt: float) -> Reference:
-    """The independent parallelogram model for the N-four-bar; otherwise the scene at ``dt`` [s]
-    with projection + RK4 (``dt`` is the smallest step / 16)."""
+def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float) -> Reference:
+    """The four-bar's crank-angle equation and the N-four-bar's parallelogram pendulum (independent
+    minimal-coordinate models); any other scene simulated with projection + dop853 at
+    :data:`GENERIC_REFERENCE_STEP`."""
     scene = load_scene(scene_name, **parameters)
     if scene.name == "nfourbar":
-        return _parallelogram_reference(scene, duration, dt)
-    fine = simulate(scene, method="projection", integrator="rk4", dt=dt, duration=duration, solver="proxsuite")
-    return Reference(f"{scene.name} at dt = {dt:g} s with projection + rk4", fine.t, fine.q)
+        return _parallelogram_reference(scene, duration, NFOURBAR_REFERENCE_STEP)
+    start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
+    if scene.name == "fourbar" and not parameters:
+        dt = FOURBAR_REFERENCE_STEP
+        t, q = fourbar_reference(scene, start.q, start.v, duration, dt)
+        return Reference(f"fourbar: crank-angle equation (independent model), RK4 at dt = {dt:g} s", t, q, dt)
+    dt = GENERIC_REFERENCE_STEP
+    fine = simulate(scene, method="projection", integrator="dop853", dt=dt, duration=duration)
+    return Reference(f"{scene.name} at dt = {dt:g} s with projection + dop853", fine.t, fine.q, dt)
 
 
 def _parallelogram_reference(scene, duration: float, dt: float) -> Reference:
@@ -131,7 +148,7 @@ def _parallelogram_reference(scene, duration: float, dt: float) -> Reference:
     q[:, cranks] = angles[:, None]
     q[:, couplers] = -angles[:, None]
     kind = f"nfourbar N={n}: parallelogram pendulum (independent model), RK4 at dt = {dt:g} s"
-    return Reference(kind, np.arange(steps + 1) * dt, q)
+    return Reference(kind, np.arange(steps + 1) * dt, q, dt)
 
 
 def run_config(
@@ -145,6 +162,7 @@ def run_config(
     scene = load_scene(scene_name, **parameters)
     result = Result(config)
     steps = int(round(duration / config.dt))
+    every = max(1, round(reference.dt / config.dt))  # the samples the error is measured on
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UnstableGainsWarning)
@@ -156,6 +174,7 @@ def run_config(
                     integrator=config.integrator,
                     dt=config.dt,
                     duration=duration,
+                    record_every=every,
                     **({} if config.kp is None else {"kp": config.kp, "kd": config.kd}),
                 )
                 cpu = time.process_time() - start
@@ -164,13 +183,14 @@ def run_config(
                 start_state = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
                 if config.peer == "mujoco":
                     q, v, cpu = run_mujoco(
-                        scene, start_state.q, start_state.v, config.dt, steps, config.integrator, config.solref
+                        scene, start_state.q, start_state.v, config.dt, steps, config.integrator, config.solref, every
                     )
+                    t = np.arange(len(q)) * every * config.dt
                 else:
                     q, v, cpu = native_pinocchio(
-                        scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd
+                        scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd, config.integrator
                     )
-                t = np.arange(steps + 1) * config.dt
+                    t = np.arange(steps + 1) * config.dt
     except PinstabError as exc:
         result.diverged, result.note = True, type(exc).__name__
         return result
@@ -195,22 +215,50 @@ def _measure(scene, t, q, v, reference: Reference):
         position.append(position_drift)
         velocity.append(velocity_drift)
         energy.append(model.energy(qk, vk))
-    expected = configurations_at(reference.t, reference.q, scene.model, t)
-    error = max(float(np.max(np.abs(pin.difference(scene.model, a, b)))) for a, b in zip(q, expected, strict=True))
+    error = _trajectory_error(scene.model, t, q, reference)
     thinned = position[:: max(1, len(position) // 400)]
     return max(position), max(velocity), error, float(np.max(np.abs(np.array(energy) - energy[0]))), thinned
 
 
-def default_configs(methods: list[str], integrators: list[str], dts: list[float], mujoco: bool = True) -> list[Config]:
-    """pinstab's methods, the Pinocchio-native peer at its example gains and at swept gains, and (when
-    installed and ``mujoco``) MuJoCo at its default and at a stiff ``solref``, RK4."""
+def _trajectory_error(model: pin.Model, t: np.ndarray, q: np.ndarray, reference: Reference) -> float:
+    """max |q - q_ref| [rad, m] over the samples on the reference's grid (all of them for steps that are
+    multiples of its step; interpolated on the group where no sample falls on it)."""
+    index = t / reference.dt
+    on_grid = (np.abs(index - np.round(index)) < 1e-6) & (np.round(index) < len(reference.t))
+    if on_grid.any():
+        expected = reference.q[np.round(index[on_grid]).astype(int)]
+        samples = q[on_grid]
+    else:
+        expected, samples = configurations_at(reference.t, reference.q, model, t), q
+    return max(float(np.max(np.abs(pin.difference(model, a, b)))) for a, b in zip(samples, expected, strict=True))
+
+
+def default_configs(
+    methods: list[str],
+    integrators: list[str],
+    dts: list[float],
+    mujoco: bool = True,
+    peer_dts: tuple[float, ...] = PEER_DTS,
+    mujoco_dts: tuple[float, ...] = MUJOCO_DTS,
+) -> list[Config]:
+    """pinstab's methods x integrators x ``dts``; the hand-written Pinocchio loop with semi-implicit
+    Euler and RK4 at every one of ``peer_dts`` and the gains :data:`SWEPT_KP`; and (when installed and
+    ``mujoco``) MuJoCo with its Euler, implicitfast and RK4 integrators at ``mujoco_dts`` with
+    ``solref`` time constant 2 dt."""
     configs = [Config(m, i, dt) for m in methods for i in integrators for dt in dts]
     for kp in SWEPT_KP:
         kd = PEER_GAINS[1] if kp == PEER_GAINS[0] else 2.0 * math.sqrt(kp)
-        configs += [Config("pinocchio-native", "semi-implicit-euler", dt, "pinocchio-native", kp, kd) for dt in dts]
+        configs += [
+            Config("pinocchio-native", scheme, dt, "pinocchio-native", kp, kd)
+            for scheme in PEER_SCHEMES
+            for dt in peer_dts
+        ]
     if mujoco and _has_mujoco():
-        for solref in (DEFAULT_SOLREF, STIFF_SOLREF):
-            configs += [Config("mujoco", "rk4", dt, "mujoco", solref=solref) for dt in dts if solref[0] >= 2 * dt]
+        configs += [
+            Config("mujoco", scheme, dt, "mujoco", solref=(2 * dt, 1.0))
+            for scheme in MUJOCO_INTEGRATORS
+            for dt in mujoco_dts
+        ]
     return configs
 
 
@@ -234,7 +282,7 @@ def sweep(
     """Run every configuration (on Dask unless ``serial``) and return the reference and results."""
     if not configs:
         raise PinstabError("bench: no configuration to run")
-    reference = reference_motion(scene_name, parameters, duration, min(c.dt for c in configs) / 16)
+    reference = reference_motion(scene_name, parameters, duration)
     if serial:
         results = []
         for config in _bar(configs, progress):

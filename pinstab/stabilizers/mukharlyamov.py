@@ -32,14 +32,13 @@ import numpy as np
 from ..constraints import ConstraintValues
 from ..errors import PinstabError, choices
 from ..kinematics import Kinematics
-from ..stability import place_gains
+from ..stability import is_multistage, place_gains
 from .base import STABILIZERS, DeviationGains, Stabilizer
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 VARIANTS = ("kinematic", "inertial")
-MULTISTAGE = ("heun", "rk4")
 # per-step decay factor r of the automatic gains, measured by benchmarks/decay_factor.py: dead-beat
 # (r = 0) repairs a violation fastest and leaves the lowest drift in every kinematic row; the
 # inertial variant's rate follows Lambda(q), which changes ~2x over the four-bar's motion, and
@@ -124,7 +123,7 @@ class MukharlyamovStabilizer(Stabilizer):
         super().bind(model, step, integrator, q)
         mask = self.mask
         self.constant_gains = self.variant == "kinematic"
-        self.holding = self.hold and integrator in MULTISTAGE
+        self.holding = self.hold and is_multistage(integrator)
         if self.holding:
             self.scheme = "held"
         if self.automatic:
