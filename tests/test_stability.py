@@ -30,7 +30,9 @@ def one_step(scheme, stiffness, damping, step, y):
 
         slopes = []
         for stage in range(tableau.stages):
-            slopes.append(rate(y + step * sum(c * k for c, k in zip(tableau.coupling[stage, :stage], slopes))))
+            slopes.append(
+                rate(y + step * sum(c * k for c, k in zip(tableau.coupling[stage, :stage], slopes, strict=True)))
+            )
         return y + step * sum(b * k for b, k in zip(tableau.weights, slopes, strict=True))
     if scheme == "rk4":
         k1 = rate(y)

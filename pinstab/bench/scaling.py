@@ -2,39 +2,29 @@
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import numpy as np
 
-from ..assembly import assemble
-from ..integrators import INTEGRATORS
 from ..scene import load_scene
-from ..system import build_system
+from ..simulate import simulate
 
 SIZES = (1, 2, 5, 10, 20, 40)
 PATHS = {
-    "pinocchio (method)": dict(method="pinocchio", solver=None),
+    "native (no solver named)": dict(method="baumgarte", solver=None),
     "baumgarte + dense": dict(method="baumgarte", solver="dense"),
     "baumgarte + proxsuite": dict(method="baumgarte", solver="proxsuite"),
 }
 
 
 def step_time(n: int, method: str, solver: str | None, dt: float = 1e-3, steps: int = 200) -> float:
-    """Median seconds per semi-implicit-Euler step (5 rounds) of nfourbar N = n."""
+    """Median seconds per semi-implicit-Euler step of ``simulate()``'s stepping loop (its
+    ``wall_time``, 5 runs) on nfourbar N = n."""
     scene = load_scene("nfourbar", N=n)
-    system = build_system(scene, method, solver)
-    start = assemble(system.model, scene.q0, scene.v0)
-    system.stabilizer.bind(system.model, dt, "semi-implicit-euler", start.q)
-    stepper = INTEGRATORS.build("semi-implicit-euler", system)
     rounds = []
     for _ in range(5):
-        q, v, t = start.q.copy(), start.v.copy(), 0.0
-        began = time.perf_counter()
-        for _ in range(steps):
-            step = stepper.step(q, v, t, dt)
-            q, v, t = step.q, step.v, t + dt
-        rounds.append((time.perf_counter() - began) / steps)
+        trajectory = simulate(scene, method, "semi-implicit-euler", dt, steps * dt, solver)
+        rounds.append(trajectory.wall_time / steps)
     return float(np.median(rounds))
 
 
