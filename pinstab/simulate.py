@@ -125,13 +125,13 @@ def _trajectory(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, wall_t
     info.steps, info.t_end = last, float(records.t[n - 1])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
-    return Trajectory(
-        records.t[:n].copy(),
-        records.q[:n].copy(),
-        records.v[:n].copy(),
+    return Trajectory(  # views of the samples: no second copy of a long run
+        records.t[:n],
+        records.q[:n],
+        records.v[:n],
         wall_time,
         info,
-        correction_iterations=records.corrections[:n].copy(),
+        correction_iterations=records.corrections[:n],
         series=StateSeries(system),
     )
 
