@@ -6,12 +6,13 @@ python benchmarks/memory.py            # prints the table, writes benchmarks/res
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from pinstab.bench import save_results
 
 OUT = Path(__file__).parent / "results" / "memory.json"
 CHILD = (
@@ -54,9 +55,7 @@ def main() -> None:
                 f"1e6 steps, --record-every {every:3d}: peak {peak:7.1f} MiB, baseline (10 steps) {baseline:6.1f} MiB, "
                 f"growth {peak - baseline:6.1f} MiB, file {size:6.1f} MiB, {wall:5.1f} s"
             )
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(results, indent=1))
-    print(f"-> {OUT}")
+    save_results(OUT, results)
 
 
 if __name__ == "__main__":

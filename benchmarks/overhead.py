@@ -7,10 +7,10 @@ python benchmarks/overhead.py          # prints the table, writes benchmarks/res
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pinstab
+from pinstab.bench import save_results
 from pinstab.bench.overhead import measure_overhead
 
 SCENES = {"fourbar": ("fourbar", {}), "nfourbar": ("nfourbar", {"N": 10}), "nfourbar N=40": ("nfourbar", {"N": 40})}
@@ -27,9 +27,7 @@ def main() -> None:
                 f"{name:13s} {scheme:20s} hand-written {entry['hand_written_us']:7.1f} us/step  "
                 f"simulate() {entry['simulate_us']:7.1f} us/step  ratio {entry['ratio']:5.2f}  ({entry['path']} path)"
             )
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(results, indent=1))
-    print(f"-> {OUT}")
+    save_results(OUT, results)
 
 
 if __name__ == "__main__":

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import json
 import pstats
 from pathlib import Path
 
 import pinstab
+from pinstab.bench import save_results
 
 SCENES = {"fourbar": {}, "nfourbar": {"N": 10}}
 OUT = Path(__file__).parent / "results"
@@ -66,10 +66,7 @@ def main() -> None:
         print(f"{name}: {result['profiled_us_per_step']:.1f} us/step under the profiler")
         for key, share in list(result["share"].items())[:8]:
             print(f"  {key:40s} {100 * share:5.1f} %  {result['us_per_step'][key]:8.1f} us/step")
-    OUT.mkdir(exist_ok=True)
-    path = OUT / f"profile-{args.label}.json"
-    path.write_text(json.dumps(results, indent=1))
-    print(f"-> {path}")
+    save_results(OUT / f"profile-{args.label}.json", results)
 
 
 if __name__ == "__main__":

@@ -165,20 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--integrators", nargs="+", default=["semi-implicit-euler", "rk4", "dop853"], choices=INTEGRATORS
     )
     bench.add_argument("--dts", nargs="+", type=float, default=[4e-3, 2e-3, 1e-3], help="pinstab's steps [s]")
-    bench.add_argument(
-        "--peer-dts",
-        nargs="+",
-        type=float,
-        default=list(PEER_DTS),
-        help="the hand-written Pinocchio loop's steps [s] (default: 4, 2, 1, 0.75, 0.5, 0.25 ms)",
-    )
-    bench.add_argument(
-        "--mujoco-dts",
-        nargs="+",
-        type=float,
-        default=list(MUJOCO_DTS),
-        help="MuJoCo's steps [s], each with solref 2 dt (default: 1e-3, 1e-4, 1e-5)",
-    )
+    for flag, steps, whose in (
+        ("--peer-dts", PEER_DTS, "the hand-written Pinocchio loop's steps [s]"),
+        ("--mujoco-dts", MUJOCO_DTS, "MuJoCo's steps [s], each with solref 2 dt"),
+    ):
+        listed = ", ".join(f"{dt:g}" for dt in steps)
+        bench.add_argument(flag, nargs="+", type=float, default=list(steps), help=f"{whose} (default: {listed})")
     bench.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (default: 2)")
     bench.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for results.json/.csv and charts")
     bench.add_argument(
