@@ -149,12 +149,24 @@ class StepLoop:
         k = 0
         while k < steps:
             stop = min(k + CHECK_STEPS, steps)
+            counts = (self.correction_total, self.correction_max)
             try:
                 q_end, v_end = self.advance(q, v, k, stop)
                 self.check(q_end, v_end, stop)
-            except (Failure, DivergenceError, SolverError):
+            except (Failure, DivergenceError, SolverError) as exc:
+                self.correction_total, self.correction_max = counts  # the replay counts its steps again
                 self.locate(q, v, k, stop)
-                raise AssertionError("unreachable: a replayed chunk diverges") from None
+                # the replay passed every check (a warm-started solver took another path): report the chunk
+                if isinstance(exc, Failure):
+                    raise DivergenceError(
+                        f"simulation diverged by t = {self.grid.time(stop):.6g} s (step {stop}): {exc}; the last "
+                        f"checked state is at t = {self.grid.time(k):.6g} s. Reduce dt, change the gains, or use "
+                        "another method.",
+                        self.grid.time(k),
+                        q,
+                        v,
+                    ) from None
+                raise
             if progress is not None:
                 progress.update(stop - k)
             q, v, k = q_end, v_end, stop

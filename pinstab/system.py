@@ -68,7 +68,7 @@ class ConstrainedSystem:
         self.path = "general"
         self.path_reason = "not bound to a step yet"
         self.acceleration: Callable[[np.ndarray, np.ndarray, float, int], np.ndarray] = self._general_acceleration
-        self._native_obstacle = native_obstacle
+        self._named_solver = native_obstacle
         self._checking = True  # check every native solve (until one passes)
         self._native_solves = 0
         self._audit = SolverStatistics()
@@ -99,8 +99,8 @@ class ConstrainedSystem:
 
     def native_obstacle(self, q: np.ndarray) -> str | None:
         """Why the native path cannot run this system from configuration q, or None."""
-        if self._native_obstacle is not None:
-            return self._native_obstacle
+        if self._named_solver is not None:
+            return self._named_solver
         constraints = self.model.constraints.constraints
         reason = unsupported_constraint(constraints, NATIVE_KINDS)
         if reason is not None:
@@ -114,14 +114,17 @@ class ConstrainedSystem:
         return None
 
     # -- evaluations ---------------------------------------------------------------------------------
-    def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+    def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Pinocchio's accelerations at (q, v, t) under the scene's forces, unchecked."""
         model = self.model
-        if model.forces:
-            if model.forces_need_kinematics:
-                model.kin.update_jacobians(q)
-            acceleration = self.native.acceleration(q, v, model.applied_force(v, t))
-        else:
-            acceleration = self.native.acceleration(q, v, model.no_force)
+        if not model.forces:
+            return self.native.acceleration(q, v, model.no_force)
+        if model.forces_need_kinematics:
+            model.kin.update_jacobians(q)
+        return self.native.acceleration(q, v, model.applied_force(v, t))
+
+    def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        acceleration = self._native_solve(q, v, t)
         self._native_solves += 1
         if self._checking:
             return self._checked(q, v, t, stage, acceleration)
@@ -143,26 +146,20 @@ class ConstrainedSystem:
         passes. The stepping loop calls this periodically."""
         if self.native is None:
             return
-        self._checking = False
-        model = self.model
-        if model.forces_need_kinematics:
-            model.kin.update_jacobians(q)
-        acceleration = self.native.acceleration(q, v, model.applied_force(v, t))
-        residual = self.native.residual(v, acceleration)
-        if residual <= ACCEPTED_RESIDUAL:
+        residual = self.native.residual(v, self._native_solve(q, v, t))
+        self._checking = not residual <= ACCEPTED_RESIDUAL
+        if not self._checking:
             self._audit.record("native checked", 0, residual, math.nan)
-        else:
-            self._checking = True
 
     def _general_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         return self.dynamics(q, v, t, stage).acceleration
 
     def multipliers(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """The constraint multipliers at (q, v, t) on the chosen path [N, N m]."""
-        if self.native is None:
-            return self.dynamics(q, v, t).multipliers
-        self._native_acceleration(q, v, t)
-        return self.native.multipliers()
+        """The constraint multipliers at (q, v, t) [N, N m]: Pinocchio's on the native path when its solve
+        passes the check, else the general path's."""
+        if self.native is not None and self.native.residual(v, self._native_solve(q, v, t)) <= ACCEPTED_RESIDUAL:
+            return self.native.multipliers()
+        return self.dynamics(q, v, t).multipliers
 
     @property
     def statistics(self) -> SolverStatistics:
