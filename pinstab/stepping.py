@@ -206,8 +206,7 @@ class StepLoop:
         if not math.isfinite(q @ q + v @ v):
             raise Failure("a non-finite state")
         position, velocity = system.model.violation(q, v, t)
-        step = t - grid.time(k - 1) if k > 0 else grid.dt
-        drift = max(position, velocity * step)
+        drift = max(position, velocity * (t - grid.time(k - 1)))
         if not drift <= self.drift_limit:
             if not math.isfinite(drift):
                 raise Failure("a non-finite state")

@@ -117,8 +117,6 @@ class ConstrainedSystem:
     def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Pinocchio's accelerations at (q, v, t) under the scene's forces, unchecked."""
         model = self.model
-        if not model.forces:
-            return self.native.acceleration(q, v, model.no_force)
         if model.forces_need_kinematics:
             model.kin.update_jacobians(q)
         return self.native.acceleration(q, v, model.applied_force(v, t))

@@ -112,6 +112,16 @@ class SceneTables:
             pin.Frame(new_name, frame.parentJoint, parent, frame.placement * offset, pin.FrameType.OP_FRAME)
         )
 
+    def attached_frame(
+        self, entry: dict[str, Any], frame_key: str, offset_key: str, rpy_key: str, new_name: str, where: str
+    ) -> int:
+        """The operational frame ``new_name`` at ``entry[offset_key]`` [m] and ``entry[rpy_key]`` [rad] in
+        the required frame ``entry[frame_key]``; its index."""
+        if frame_key not in entry:
+            raise SceneError(f"{where}: {frame_key!r} is required")
+        offset = placement(entry, offset_key, rpy_key, where)
+        return self.point_frame(entry[frame_key], offset, new_name, f"{where}.{frame_key}")
+
     def initial_placement(self, frame: int) -> pin.SE3:
         """World placement of a frame at the declared initial configuration."""
         data = self.model.createData()

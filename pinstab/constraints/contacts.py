@@ -56,15 +56,12 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     """Scene table: ``frame_a`` + ``offset_a`` [m], ``normal`` (default +z), ``point`` on the plane
     [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone."""
     tables.check_keys(entry, CONTACT_KEYS, where)
-    if "frame_a" not in entry:
-        raise SceneError(f"{where}: 'frame_a' is required")
+    frame = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     normal = tables.vector(entry.get("normal", [0.0, 0.0, 1.0]), 3, f"{where}.normal", None)
     if np.linalg.norm(normal) < 1e-12:
         raise SceneError(f"{where}.normal must be a non-zero vector")
     normal = normal / np.linalg.norm(normal)
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
-    offset = tables.placement(entry, "offset_a", "rpy_a", where)
-    frame = tables.point_frame(entry["frame_a"], offset, f"{name}/a", f"{where}.frame_a")
     start = tables.initial_placement(frame).translation
     anchor = start - normal * float(normal @ (start - point))
     friction = None

@@ -172,12 +172,9 @@ def parse_closure(kind: str):
 
     def parse(entry: dict, tables: SceneTables, name: str, where: str) -> FrameClosure:
         tables.check_keys(entry, CLOSURE_KEYS | ({"plane"} if kind == "planar-point" else set()), where)
-        if "frame_a" not in entry:
-            raise SceneError(f"{where}: 'frame_a' is required")
+        frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
         plane = _plane(entry, kind, where)
-        offset_a = tables.placement(entry, "offset_a", "rpy_a", where)
         offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-        frame_a = tables.point_frame(entry["frame_a"], offset_a, f"{name}/a", f"{where}.frame_a")
         if entry.get("frame_b", WORLD) == WORLD:
             return FrameClosure(name, kind, frame_a, None, offset_b, plane)
         frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")

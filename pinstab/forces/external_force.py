@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement
@@ -32,10 +31,7 @@ class ExternalForce(ForceElement):
 def parse_external_force(entry: dict, tables: SceneTables, name: str, where: str) -> ExternalForce:
     """Scene table: ``frame`` + ``offset`` [m], ``force`` [N] and ``moment`` [N m] in world axes."""
     tables.check_keys(entry, EXTERNAL_KEYS, where)
-    if "frame" not in entry:
-        raise SceneError(f"{where}: 'frame' is required")
-    offset = tables.placement(entry, "offset", "rpy", where)
-    frame = tables.point_frame(entry["frame"], offset, f"{name}/point", f"{where}.frame")
+    frame = tables.attached_frame(entry, "frame", "offset", "rpy", f"{name}/point", where)
     force = tables.vector(entry.get("force", [0.0, 0.0, 0.0]), 3, f"{where}.force", "force")
     moment = tables.vector(entry.get("moment", [0.0, 0.0, 0.0]), 3, f"{where}.moment", "torque")
     return ExternalForce(name, frame, force, moment)

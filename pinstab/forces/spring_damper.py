@@ -64,10 +64,7 @@ def parse_spring_damper(entry: dict, tables: SceneTables, name: str, where: str)
     """Scene table: ``frame_a`` + ``offset_a``, ``frame_b`` (default world) + ``offset_b`` [m],
     ``stiffness`` [N/m], ``damping`` [N s/m], ``rest_length`` [m]."""
     tables.check_keys(entry, SPRING_KEYS, where)
-    if "frame_a" not in entry:
-        raise SceneError(f"{where}: 'frame_a' is required")
-    placement_a = tables.placement(entry, "offset_a", "rpy_a", where)
-    frame_a = tables.point_frame(entry["frame_a"], placement_a, f"{name}/a", f"{where}.frame_a")
+    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     offset_b = tables.vector(entry.get("offset_b", [0.0, 0.0, 0.0]), 3, f"{where}.offset_b", "length")
     frame_b = None
     if entry.get("frame_b", WORLD) != WORLD:
