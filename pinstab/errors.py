@@ -46,6 +46,18 @@ class ContactInfeasibleError(SolverError):
         self.time = time
 
 
+class GraspLostError(ContactInfeasibleError):
+    """A sticking fingertip contact would have to pull on the object or slide over it.
+
+    Attributes:
+        contacts: the contact named (one). time: when [s]. margin: the violated margin (negative) [N or N m].
+    """
+
+    def __init__(self, message: str, contact: str, time: float, margin: float) -> None:
+        super().__init__(message, [contact], time)
+        self.margin = margin
+
+
 class ProjectionError(PinstabError):
     """Coordinate projection onto the constraint manifold did not converge."""
 

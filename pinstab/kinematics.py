@@ -21,9 +21,10 @@ def symmetric_mass_matrix(
 class Kinematics:
     """Owns a Pinocchio ``Data`` and updates everything the constraint layer reads, once per state.
 
-    After :meth:`update`, ``mass_matrix`` [kg, kg m^2] and ``bias`` (h = C v + g) [N, N m] hold the
-    joint-space dynamics, and the frame accessors return world-aligned quantities at (q, v) with
-    zero joint acceleration (so accelerations are the drift terms).
+    ``q`` is the configuration of the last update. After :meth:`update`, ``mass_matrix`` [kg, kg m^2]
+    and ``bias`` (h = C v + g) [N, N m] hold the joint-space dynamics, and the frame accessors return
+    world-aligned quantities at (q, v) with zero joint acceleration (so accelerations are the drift
+    terms).
     """
 
     def __init__(self, model: pin.Model) -> None:
@@ -33,10 +34,12 @@ class Kinematics:
         self.bias = np.zeros(model.nv)
         self._zero_acceleration = np.zeros(model.nv)
         self.lower = np.tril_indices(model.nv, -1)
+        self.q = pin.neutral(model)
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
         model, data = self.model, self.data
+        self.q = q
         symmetric_mass_matrix(model, data, q, self.mass_matrix, self.lower)
         self.bias[:] = pin.nonLinearEffects(model, data, q, v)
         pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
@@ -45,11 +48,13 @@ class Kinematics:
 
     def update_positions(self, q: np.ndarray) -> None:
         """Placements only (enough for residuals)."""
+        self.q = q
         pin.forwardKinematics(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
 
     def update_jacobians(self, q: np.ndarray) -> None:
         """Placements and Jacobians (enough for residuals and constraint Jacobians)."""
+        self.q = q
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
 

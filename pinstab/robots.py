@@ -35,16 +35,16 @@ def example_robot_data_dir() -> Path | None:
 
 
 def example_robot_names() -> dict[str, Path]:
-    """example-robot-data robot names (``panda``, ``ur5``, ...) mapped to their URDF files."""
+    """example-robot-data robot names mapped to their URDF files: every ``<name>.urdf`` in a
+    description's ``urdf/`` or ``robots/`` folder (``panda``, ``ur5``, ``allegro_right_hand``,
+    ``finger_edu``, ...)."""
     base = example_robot_data_dir()
     if base is None:
         return {}
     names: dict[str, Path] = {}
     for description in sorted(base.glob("*_description")):
-        name = description.name.removesuffix("_description")
-        urdf = description / "urdf" / f"{name}.urdf"
-        if urdf.is_file():
-            names[name] = urdf
+        for urdf in sorted([*description.glob("urdf/*.urdf"), *description.glob("robots/*.urdf")]):
+            names.setdefault(urdf.stem, urdf)
     return names
 
 

@@ -21,11 +21,23 @@ from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
 from .errors import SceneError, choices
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
+from .objects import SceneObject, add_objects, place_objects
 from .registry import Registry
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
 
-TOP_KEYS = {"name", "description", "robot", "generator", "gravity", "closures", "contacts", "forces", "initial"}
+TOP_KEYS = {
+    "name",
+    "description",
+    "robot",
+    "generator",
+    "gravity",
+    "objects",
+    "closures",
+    "contacts",
+    "forces",
+    "initial",
+}
 ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints"}
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
@@ -46,6 +58,7 @@ class Scene:
         urdf_path: URDF file (None for generated robots); package_dirs: where meshes are found.
         locked_joints: joints removed from the model, with the positions they were locked at.
         parameters: generator parameters the scene was built with.
+        objects: rigid objects added to the robot (free-flyer bodies after its joints).
     """
 
     name: str
@@ -62,6 +75,7 @@ class Scene:
     full_model: pin.Model | None = None
     source: Path | None = None
     parameters: dict[str, Any] = field(default_factory=dict)
+    objects: list[SceneObject] = field(default_factory=list)
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -156,7 +170,7 @@ def scene_from_dict(
     check_keys(initial, INITIAL_KEYS, "initial")
     q_table = table(initial.get("q", {}), "initial.q")
     v_table = table(initial.get("v", {}), "initial.v")
-    q_full = _configuration(full_model, q_table)
+    q_full = _configuration(full_model, {j: x for j, x in q_table.items() if full_model.existJointName(j)})
 
     locked = robot.get("locked_joints", [])
     if not isinstance(locked, list) or not all(isinstance(j, str) for j in locked):
@@ -171,6 +185,7 @@ def scene_from_dict(
         vector(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity", "acceleration"), np.zeros(3)
     )
 
+    objects = add_objects(model, data.get("objects", []), base_dir)
     for j in list(q_table):
         if j in locked:
             q_table.pop(j)
@@ -178,12 +193,14 @@ def scene_from_dict(
         if j in locked:
             raise SceneError(f"initial.v: joint {j!r} is locked (robot.locked_joints); it cannot move")
     q0 = _configuration(model, q_table)
+    place_objects(objects, q0, set(q_table))
     v0 = _velocity(model, v_table)
 
-    tables = SceneTables(model, q0)
+    tables = SceneTables(model, q0, {item.name: item for item in objects})
     constraints: list[Constraint] = []
     for key, (label, kinds) in KIND_TABLES.items():
         constraints += _read_kinds(data, key, label, kinds, tables)
+    tables.constraints = {c.name: c for c in constraints}
     forces: list[ForceElement] = _read_kinds(data, "forces", "force", FORCE_KINDS, tables)
     _check_unique([c.name for c in constraints] + [f.name for f in forces])
     return Scene(
@@ -201,6 +218,7 @@ def scene_from_dict(
         full_model=full_model,
         source=source,
         parameters=used_parameters,
+        objects=objects,
     )
 
 

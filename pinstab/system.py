@@ -204,6 +204,8 @@ class ConstrainedSystem:
         solution = self.solver.solve(problem)
         if not np.isfinite(solution.acceleration).all():
             raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
+        if model.constraints.force_limited:
+            model.constraints.check_forces(solution.multipliers, t)
         return Evaluation(solution.acceleration, solution.multipliers, values)
 
 

@@ -84,12 +84,22 @@ class SceneTables:
 
     Args:
         model: the scene's Pinocchio model (frames are added to it).
-        q0: the scene's declared initial configuration.
+        q0: the scene's declared initial configuration (a kind may move joints in it, in place: a
+            fingertip contact closes its gap).
+        objects: the scene's rigid objects by name (:class:`~pinstab.objects.SceneObject`).
+
+    Attributes:
+        claimed_joints: joints a kind has positioned in ``q0``, with the item that did (a later item
+            leaves them alone).
+        constraints: the scene's constraint blocks by name, once they are read (force kinds see them).
     """
 
-    def __init__(self, model: pin.Model, q0: np.ndarray) -> None:
+    def __init__(self, model: pin.Model, q0: np.ndarray, objects: dict[str, Any] | None = None) -> None:
         self.model = model
         self.q0 = q0
+        self.objects = objects or {}
+        self.claimed_joints: dict[int, str] = {}
+        self.constraints: dict[str, Any] = {}
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)

@@ -20,6 +20,8 @@ UNITS: dict[str, dict[str, float]] = {
     "damping": {"N*s/m": 1.0, "Ns/m": 1.0},
     "torque": {"N*m": 1.0, "Nm": 1.0},
     "force": {"N": 1.0},
+    "mass": {"kg": 1.0, "g": 1e-3},
+    "density": {"kg/m^3": 1.0, "g/cm^3": 1e3},
     "velocity": {"m/s": 1.0, "mm/s": 1e-3},
     "angular-velocity": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
 }

@@ -16,7 +16,7 @@ from pinstab.scene import scene_from_dict
         (
             {"robto": {}},
             r"unknown key 'robto'; valid keys: closures, contacts, description, forces, generator, gravity, initial, "
-            r"name, robot",
+            r"name, objects, robot",
         ),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (
@@ -32,7 +32,7 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a constraint kind; valid kinds: planar-point, plane-contact, point, weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: grasp-contact, planar-point, plane-contact, point, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
@@ -48,7 +48,7 @@ from pinstab.scene import scene_from_dict
         ),
         (
             {"forces": [{"kind": "motor"}]},
-            r"kind 'motor' is not a force kind; valid kinds: external-force, joint-torque, spring-damper",
+            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-hold, joint-torque, spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},
@@ -69,7 +69,7 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 def test_unknown_scene_lists_bundled_scenes():
     with pytest.raises(
         SceneError,
-        match=r"no scene named 'nope'.*Bundled scenes: box-push, delta, fivebar, fourbar, nfourbar, panda-anchor, "
+        match=r"no scene named 'nope'.*Bundled scenes: allegro-sphere, box-push, delta, fivebar, fourbar, nfourbar, panda-anchor, "
         r"slider-crank",
     ):
         load_scene("nope")

@@ -84,6 +84,8 @@ class Constraint(ABC):
         force_frame: the frame in which this block's multipliers are expressed (human-readable).
         row_kind: how the rows enter the dynamics (:class:`RowKind`); equality by default.
         friction: the cone of a ``cone`` block (3 rows: normal, tangent, tangent), else None.
+        limits_force: the block's equality rows hold only while their multipliers stay within limits
+            (a contact that can only push, a friction cone): :meth:`check_force` after every solve.
     """
 
     name: str
@@ -92,6 +94,7 @@ class Constraint(ABC):
     force_frame: str
     row_kind: RowKind = RowKind.EQUALITY
     friction: FrictionCone | None = None
+    limits_force: bool = False
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""
@@ -104,6 +107,16 @@ class Constraint(ABC):
     @abstractmethod
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """gamma0 = dG/dt v + d g_t/dt; needs a full :meth:`Kinematics.update` at (q, v)."""
+
+    def margins(self, force: np.ndarray) -> dict[str, float]:
+        """How far this block's multipliers are inside their limits, by name [N or N m] (>= 0: held);
+        empty for a block without limits."""
+        return {}
+
+    def check_force(self, force: np.ndarray, t: float) -> None:
+        """Raise a :class:`~pinstab.errors.PinstabError` naming the block and the time ``t`` [s] when its
+        multipliers ``force`` are outside their limits (blocks with ``limits_force``)."""
+        return None
 
 
 CONSTRAINT_KINDS: Registry[Constraint] = Registry("constraint kind")

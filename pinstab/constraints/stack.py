@@ -112,7 +112,14 @@ class ConstraintSet:
         names = tuple(c.name for c in self.constraints for _ in range(c.rows))
         self.layout = RowLayout(names, unilateral, tuple(cones))
         self._has_unilateral = bool(unilateral.any())
+        self.force_limited = [(c, self.slices[c.name]) for c in self.constraints if c.limits_force]
         self._every_row = np.ones(self.rows, dtype=bool)
+
+    def check_forces(self, multipliers: np.ndarray, t: float) -> None:
+        """Every block with force limits checks its multipliers at time ``t`` [s] (raises when one is
+        outside)."""
+        for constraint, rows in self.force_limited:
+            constraint.check_force(multipliers[rows], t)
 
     @property
     def holonomic(self) -> list[Constraint]:

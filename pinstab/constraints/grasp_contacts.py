@@ -1,0 +1,322 @@
+"""Sticking fingertip contacts on a scene object [MLS ch. 5] (MATH.md section 4).
+
+Kind ``grasp-contact``: the fingertip is a sphere of ``radius`` [m] centred at the ``finger`` frame's
+origin, touching ``object`` (a scene object). At the scene's start the finger's joints are moved (least
+change, Gauss-Newton on the signed distance; the object stays put) until the sphere touches the object's
+surface; the contact frame C sits at the touching point, its z axis the normal into the object, and
+from then on the contact holds that material point of the object on that material point of the
+fingertip. The contact ``model`` picks the rows, the wrench components C transmits:
+
+* ``frictionless`` 1 row: the normal; ``point-friction`` 3: the point; ``soft-finger`` 4: the point and
+  the spin about the normal; ``rigid`` 6: the point and the relative rotation.
+
+Rows: ``R_C^T (p_o - p_f)`` (C's axes, p_o on the object, p_f on the fingertip) then
+``log3(R_f^T R_o)`` of the two frames that coincide with C at the start. The multipliers are the force
+[N] and moment [N m] of the finger on the object in C (the finger receives the opposite). They are
+equality rows; every solve checks that the contact only pushes (normal force >= 0) and stays inside its
+friction cone (|f_t| <= mu f_n, soft finger also |m_z| <= torsion f_n), else
+:class:`~pinstab.errors.GraspLostError` names the contact and the time.
+"""
+
+from __future__ import annotations
+
+import math
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from ..errors import GraspLostError, SceneError, choices
+from ..grasp import WRENCH_BASES
+from ..kinematics import Kinematics
+from ..tables import SceneTables
+from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .loops import FrameClosure, plane_basis
+
+GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
+FRICTION_MODELS = ("point-friction", "soft-finger")
+GAP_TOLERANCE = 1e-10  # [m] a fingertip this close to the surface touches it
+GAP_ITERATIONS = 60
+MARGIN_SLACK = 1e-9  # relative: a margin above -slack (1 + |force|) holds (rounding in the solve)
+
+
+def _skew(x: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+class GraspContact(Constraint):
+    """A sticking contact of a fingertip on an object, the rows of its contact model.
+
+    Args:
+        name: unique name. model: a key of :data:`~pinstab.grasp.WRENCH_BASES`.
+        object_frame: operational frame on the object at C. finger_frame: operational frame on the
+            fingertip, coinciding with C at the start. object_name, finger_name: for messages.
+        mu: friction coefficient [-]. torsion: the soft finger's torsional coefficient [m].
+        radius: the fingertip sphere's radius [m].
+    """
+
+    holonomic = True
+
+    def __init__(
+        self,
+        name: str,
+        model: str,
+        object_frame: int,
+        finger_frame: int,
+        object_name: str,
+        finger_name: str,
+        mu: float = 0.0,
+        torsion: float = 0.0,
+        radius: float = 0.0,
+    ) -> None:
+        self.name, self.kind, self.model = name, "grasp-contact", model
+        self.object_frame, self.finger_frame = object_frame, finger_frame
+        self.object_name, self.finger_name = object_name, finger_name
+        self.mu, self.torsion, self.radius = mu, torsion, radius
+        self.components = np.flatnonzero(WRENCH_BASES[model].any(axis=1))  # of (fx, fy, fz, mx, my, mz) in C
+        self.rows = len(self.components)
+        self.limits_force = model != "rigid"
+        self.angular = bool(self.components[-1] >= 3)
+        # the rotation rows are a weld's between the object's and the finger's copy of C
+        self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
+        self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
+
+    # -- rows ----------------------------------------------------------------------------------------
+    def _point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """(R_C, d = p_o - p_f) in world axes."""
+        on_object = kin.placement(self.object_frame)
+        return on_object.rotation, on_object.translation - kin.placement(self.finger_frame).translation
+
+    def _select(self, linear: np.ndarray, angular) -> np.ndarray:
+        full = linear if angular is None else np.concatenate([linear, angular])
+        return full[self.components]
+
+    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
+        rotation, difference = self._point_difference(kin)
+        angular = self._weld.residual(kin, q, t)[3:] if self._weld else None
+        return self._select(rotation.T @ difference, angular)
+
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        rotation, difference = self._point_difference(kin)
+        jac_o = kin.jacobian(self.object_frame)
+        jac_f = kin.jacobian(self.finger_frame)
+        # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
+        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + _skew(difference) @ jac_o[3:])
+        jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, q, t)[0][3:]])
+        return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        rotation, difference = self._point_difference(kin)
+        velocity_o, velocity_f = kin.velocity(self.object_frame), kin.velocity(self.finger_frame)
+        omega = velocity_o.angular
+        rate = velocity_o.linear - velocity_f.linear
+        acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
+        # d2/dt2 R^T d at zero joint acceleration
+        linear = rotation.T @ (
+            acc_o.linear
+            - acc_f.linear
+            - 2.0 * _cross(omega, rate)
+            + _cross(omega, _cross(omega, difference))
+            - _cross(acc_o.angular, difference)
+        )
+        angular = self._weld.drift(kin, q, v, t)[3:] if self._weld else None
+        return self._select(linear, angular)
+
+    # -- forces --------------------------------------------------------------------------------------
+    def wrench(self, force: np.ndarray) -> np.ndarray:
+        """The contact's multipliers as the full wrench (fx, fy, fz, mx, my, mz) in C [N, N m]."""
+        full = np.zeros(6)
+        full[self.components] = force
+        return full
+
+    def margins(self, force: np.ndarray) -> dict[str, float]:
+        """How far the contact force (this block's multipliers) is inside what the contact can carry:
+        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` mu f_n - |f_t| [N] and, for a soft finger,
+        ``torsion`` torsion f_n - |m_z| [N m]. A rigid contact carries anything (no margins)."""
+        if self.model == "rigid":
+            return {}
+        wrench = self.wrench(force)
+        margins = {"normal": float(wrench[2])}
+        if self.model in FRICTION_MODELS:
+            margins["friction"] = float(self.mu * wrench[2] - math.hypot(wrench[0], wrench[1]))
+        if self.model == "soft-finger":
+            margins["torsion"] = float(self.torsion * wrench[2] - abs(wrench[5]))
+        return margins
+
+    def check_force(self, force: np.ndarray, t: float) -> None:
+        """Raise :class:`GraspLostError` when the contact would have to pull or slide."""
+        margins = self.margins(force)
+        slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(force), initial=0.0)))
+        wrench = self.wrench(force)
+        if margins.get("normal", 0.0) < slack:
+            raise GraspLostError(
+                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
+                f"would have to pull: normal force {wrench[2]:.4g} N < 0",
+                self.name,
+                t,
+                margins["normal"],
+            )
+        if margins.get("friction", 0.0) < slack:
+            raise GraspLostError(
+                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
+                f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
+                f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
+                self.name,
+                t,
+                margins["friction"],
+            )
+        if margins.get("torsion", 0.0) < slack:
+            raise GraspLostError(
+                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
+                f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
+                f"{self.torsion * wrench[2]:.4g} N m",
+                self.name,
+                t,
+                margins["torsion"],
+            )
+
+    def slip(self, kin: Kinematics) -> float:
+        """Distance between the contact's material points on the object and on the fingertip [m] (the
+        creep of a sticking contact); placements must be current."""
+        return float(np.linalg.norm(self._point_difference(kin)[1]))
+
+
+# -- scene table ---------------------------------------------------------------------------------------
+def _signed_distance(sphere: coal.Sphere, centre: np.ndarray, item, object_placement: pin.SE3):
+    """(distance [m], point on the object, unit normal from the fingertip into the object) to the
+    nearest of the object's shapes."""
+    best = None
+    for shape, local in item.geometries:
+        placed = object_placement * local
+        result = coal.DistanceResult()
+        distance = coal.distance(
+            sphere,
+            coal.Transform3s(np.eye(3), centre),
+            shape,
+            coal.Transform3s(placed.rotation, placed.translation),
+            coal.DistanceRequest(),
+            result,
+        )
+        if best is None or distance < best[0]:
+            best = (float(distance), np.array(result.getNearestPoint2()), np.array(result.normal))
+    return best
+
+
+def _touch(tables: SceneTables, frame: int, item, radius: float, name: str, where: str) -> tuple[float, np.ndarray]:
+    """Move the finger's joints (not the object, not joints an earlier contact placed) until the
+    fingertip sphere touches the object; (remaining gap [m], normal) at the touching configuration."""
+    model, q = tables.model, tables.q0
+    joints = [j for j in model.supports[model.frames[frame].parentJoint] if j > 0]
+    free = [j for j in joints if j not in tables.claimed_joints]
+    columns = [k for j in free for k in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
+    sphere = coal.Sphere(radius)
+    data = model.createData()
+    object_placement = None
+    for _ in range(GAP_ITERATIONS):
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        object_placement = data.oMf[item.frame]
+        gap, _, normal = _signed_distance(sphere, data.oMf[frame].translation, item, object_placement)
+        if abs(gap) <= GAP_TOLERANCE or not columns:
+            break
+        row = -normal @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+        step = np.zeros(model.nv)
+        sub = row[columns]
+        if float(sub @ sub) < 1e-24:
+            break
+        step[columns] = -sub * gap / float(sub @ sub)
+        q[:] = pin.integrate(model, q, step)
+    if abs(gap) > 10.0 * GAP_TOLERANCE:
+        claimed = sorted({tables.claimed_joints[j] for j in joints if j in tables.claimed_joints})
+        reason = (
+            f"joints {', '.join(model.names[j] for j in free)} cannot close it"
+            if columns
+            else "no joint of its own moves the fingertip"
+            + (f" (contacts {', '.join(claimed)} placed the shared ones)" if claimed else "")
+        )
+        raise SceneError(
+            f"{where}: fingertip {name!r} cannot reach object {item.name!r}: a gap of {gap:.4g} m remains at "
+            f"the start ({reason}); change initial.q or the object's position"
+        )
+    for j in free:
+        tables.claimed_joints[j] = where
+    return gap, normal
+
+
+def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> GraspContact:
+    """Scene table: ``finger`` (a frame at the fingertip sphere's centre), ``object`` (a scene object),
+    ``model`` (default ``point-friction``), ``radius`` [m] of the fingertip sphere, ``mu`` for
+    ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
+    tables.check_keys(entry, GRASP_KEYS, where)
+    model_name = entry.get("model", "point-friction")
+    if model_name not in WRENCH_BASES:
+        raise SceneError(f"{where}: unknown contact model {model_name!r}; models: {choices(WRENCH_BASES)}")
+    objects = tables.objects
+    if entry.get("object") not in objects:
+        bodies = f"; {entry.get('object')!r} is a body of the robot, not an object" if _is_frame(tables, entry) else ""
+        raise SceneError(
+            f"{where}.object: {entry.get('object')!r} is not an object of the scene{bodies}; objects: "
+            f"{choices(objects)} (declare one in [[objects]])"
+        )
+    item = objects[entry["object"]]
+    if "finger" not in entry:
+        raise SceneError(f"{where}: 'finger' (the frame at the fingertip sphere's centre) is required")
+    finger = tables.frame_id(entry["finger"], f"{where}.finger")
+    if tables.model.frames[finger].parentJoint == item.joint:
+        raise SceneError(f"{where}.finger: frame {entry['finger']!r} is on object {item.name!r} itself")
+    if "radius" not in entry:
+        raise SceneError(f"{where}: 'radius' (the fingertip sphere's radius, > 0) is required")
+    radius = tables.quantity(entry["radius"], "length", f"{where}.radius")
+    if not radius > 0:
+        raise SceneError(f"{where}.radius must be > 0, got {entry['radius']!r}")
+    mu = _coefficient(tables, entry, "mu", model_name in FRICTION_MODELS, model_name, where)
+    torsion = _coefficient(tables, entry, "torsion", model_name == "soft-finger", model_name, where)
+    _, normal = _touch(tables, finger, item, radius, str(entry["finger"]), where)
+    placements = tables.initial_placement
+    centre = placements(finger).translation
+    rotation = np.column_stack([*plane_basis(normal), normal])  # x, y tangents, z the inward normal
+    contact = pin.SE3(rotation, centre + radius * normal)
+    object_frame = _frame_at(tables, item.frame, contact, f"{name}/object")
+    finger_frame = _frame_at(tables, finger, contact, f"{name}/finger")
+    return GraspContact(
+        name, model_name, object_frame, finger_frame, item.name, str(entry["finger"]), mu, torsion, radius
+    )
+
+
+def _is_frame(tables: SceneTables, entry: dict) -> bool:
+    name = entry.get("object")
+    return isinstance(name, str) and tables.model.existFrame(name)
+
+
+def _coefficient(tables: SceneTables, entry: dict, key: str, needed: bool, model_name: str, where: str) -> float:
+    if not needed:
+        if key in entry:
+            raise SceneError(f"{where}: a {model_name!r} contact takes no {key!r}")
+        return 0.0
+    if key not in entry:
+        raise SceneError(f"{where}: a {model_name!r} contact needs {key!r} (>= 0)")
+    value = tables.number(entry, key, where)
+    if value < 0:
+        raise SceneError(f"{where}.{key} must be >= 0, got {value!r}")
+    return value
+
+
+def _frame_at(tables: SceneTables, parent: int, world: pin.SE3, name: str) -> int:
+    """An operational frame on ``parent``'s body at the world placement ``world`` (at the start)."""
+    local = tables.initial_placement(parent).actInv(world)
+    frame = tables.model.frames[parent]
+    return tables.model.addFrame(
+        pin.Frame(name, frame.parentJoint, parent, frame.placement * local, pin.FrameType.OP_FRAME)
+    )
+
+
+CONSTRAINT_KINDS.register(
+    "grasp-contact",
+    parse_grasp_contact,
+    summary="a fingertip sphere sticking on an object: frictionless 1, point-friction 3, soft-finger 4, rigid 6 rows",
+)

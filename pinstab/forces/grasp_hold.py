@@ -1,0 +1,118 @@
+"""``grasp-hold``: joint torques that hold a grasped object where the scene starts it.
+
+Per state, with the contact rows ``A = [A_hand, A_object]`` of the grasp's contacts (multipliers: the
+fingers' forces on the object in the contact frames):
+
+* the contact forces ``lambda*`` that carry the object's weight (``A_object^T lambda* = g_object``, the
+  least-squares answer) plus the internal force (null space of ``A_object^T``) closest to pressing every
+  contact with ``squeeze`` [N] along its normal;
+* the joint torques that make those forces an equilibrium of the hand:
+  ``tau = g_hand - A_hand^T lambda* - K (theta - theta_0) - D theta_dot`` (gravity compensated, joint
+  stiffness ``K`` [N m/rad] about the start and damping ``D`` [N m s/rad]).
+
+At rest at the start this is an exact equilibrium (the object does not move); a disturbance (an
+external force on the object) moves the grasp to a new one through the stiffness. It is a hold, not
+an object-level controller.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import SceneError, choices
+from ..kinematics import Kinematics
+from ..tables import SceneTables
+from .base import FORCE_KINDS, ForceElement
+
+HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "stiffness", "damping"}
+
+
+class GraspHold(ForceElement):
+    """Hold torques on the hand joints for the contacts ``contacts`` on one object.
+
+    Args:
+        name: element name. model: the scene model. contacts: the grasp contact blocks (objects with
+            ``velocity_terms``, ``rows``, ``components``). object_columns: the object's velocity indices.
+        squeeze: normal force per contact [N]. stiffness: [N m/rad]. damping: [N m s/rad].
+        q_start: the configuration the stiffness pulls the hand joints back to.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        model: pin.Model,
+        contacts: list[Any],
+        object_columns: np.ndarray,
+        squeeze: float,
+        stiffness: float,
+        damping: float,
+        q_start: np.ndarray,
+    ) -> None:
+        self.name, self.model, self.contacts = name, model, contacts
+        self.object_columns = object_columns
+        hand = np.ones(model.nv, dtype=bool)
+        hand[object_columns] = False
+        self.hand_columns = np.flatnonzero(hand)
+        self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
+        self.q_start = q_start.copy()
+        self._data = model.createData()
+        self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
+
+    def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """(contact rows A (s x nv), the held contact forces lambda* (s,) [N, N m]) at ``kin``'s state."""
+        rows = np.vstack([c.velocity_terms(kin, kin.q, 0.0).jacobian for c in self.contacts])
+        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
+        carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
+        weight, *_ = np.linalg.lstsq(carrier, gravity[self.object_columns], rcond=None)
+        _, singular, vt = np.linalg.svd(carrier)
+        rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
+        internal = vt[rank:].T
+        if internal.size:
+            weight = weight + internal @ (internal.T @ (self.pressing - weight))
+        return rows, weight
+
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        rows, forces = self.hold_forces(kin)
+        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
+        tau = np.zeros(self.model.nv)
+        hand = self.hand_columns
+        deviation = pin.difference(self.model, self.q_start, kin.q)[hand]
+        tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
+        return tau
+
+
+@FORCE_KINDS.register(
+    "grasp-hold", summary="hand joint torques that hold a grasped object: weight, squeeze, joint stiffness and damping"
+)
+def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) -> GraspHold:
+    """Scene table: ``object``, ``contacts`` (names; default: every grasp contact on the object),
+    ``squeeze`` [N] per contact, ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0)."""
+    tables.check_keys(entry, HOLD_KEYS, where)
+    if entry.get("object") not in tables.objects:
+        raise SceneError(
+            f"{where}.object: {entry.get('object')!r} is not an object; objects: {choices(tables.objects)}"
+        )
+    item = tables.objects[entry["object"]]
+    grasp = {c.name: c for c in tables.constraints.values() if getattr(c, "object_name", None) == item.name}
+    names = entry.get("contacts", list(grasp))
+    if not isinstance(names, list) or not names:
+        raise SceneError(f"{where}.contacts must name grasp contacts on {item.name!r}; contacts: {choices(grasp)}")
+    for contact in names:
+        if contact not in grasp:
+            raise SceneError(
+                f"{where}.contacts: {contact!r} is not a grasp contact on {item.name!r}; contacts: {choices(grasp)}"
+            )
+    values = {}
+    for key, dimension in (("squeeze", "force"), ("stiffness", None), ("damping", None)):
+        if dimension is None:
+            values[key] = tables.number(entry, key, where, default=0.0)
+        else:
+            values[key] = tables.quantity(entry.get(key, 0.0), dimension, f"{where}.{key}")
+        if values[key] < 0:
+            raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
+    joint = tables.model.joints[item.joint]
+    columns = np.arange(joint.idx_v, joint.idx_v + joint.nv)
+    return GraspHold(name, tables.model, [grasp[c] for c in names], columns, q_start=tables.q0, **values)
