@@ -1,4 +1,5 @@
-"""The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation, map ``stability``.
+"""The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation, analyse a ``grasp``, map
+``stability``.
 
 Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence.
 """
@@ -45,7 +46,7 @@ def _parameters(pairs: list[str]) -> dict[str, Any]:
 
 def _scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "scene", help="bundled scene name (fourbar, slider-crank, fivebar, delta, nfourbar) or a .toml file"
+        "scene", help="bundled scene name (fourbar, nfourbar, allegro-sphere, ...: see README) or a .toml file"
     )
     parser.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
@@ -138,6 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
     check = sub.add_parser("check", help="assemble a scene and report its constraint structure")
     _scene_arguments(check)
 
+    grasp = sub.add_parser("grasp", help="analyse a scene's grasps: grasp map, hand Jacobian, force closure, quality")
+    _scene_arguments(grasp)
+    grasp.add_argument(
+        "--facets", type=int, default=8, help="sides of the pyramids that linearize the friction cones (default: 8)"
+    )
+
     run = sub.add_parser("run", help="simulate a scene and report drift and energy")
     _scene_arguments(run)
     _run_options(run)
@@ -227,6 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.showwarning = _show_warning(args.command)
             commands = {
                 "check": _check,
+                "grasp": _grasp,
                 "run": _run,
                 "record": _record,
                 "plot": _plot,
@@ -267,6 +275,9 @@ def _fail(exc: PinstabError, args: argparse.Namespace) -> None:
 def _emit(result: dict[str, Any], args: argparse.Namespace) -> None:
     if args.json:
         print(json.dumps(_clean(result)))
+        return
+    if args.command in TEXT_FORMATS:
+        print(TEXT_FORMATS[args.command](result))
         return
     width = max(len(k) for k in result)
     for key, value in result.items():
@@ -320,6 +331,41 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
         },
         "locked_joints": scene.locked_joints,
     }
+
+
+def _grasp(args: argparse.Namespace) -> dict[str, Any]:
+    from .grasp_report import analyse_scene_grasps
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, **_parameters(args.param))
+    grasps = analyse_scene_grasps(scene, facets=args.facets)
+    return {"scene": scene.name, "objects": {name: grasp.to_json() for name, grasp in grasps.items()}}
+
+
+def _grasp_text(result: dict[str, Any]) -> str:
+    """``pinstab grasp`` without ``--json``: each object's figures as lines a person reads."""
+    return "\n".join(_object_grasp_text(name, figures) for name, figures in result["objects"].items())
+
+
+def _object_grasp_text(name: str, figures: dict[str, Any]) -> str:
+    rows, columns = figures["grasp_map_shape"]
+    unresisted = figures["unresisted_wrench"]
+    closure = "yes" if figures["force_closure"] else f"no (unresisted wrench {np.round(unresisted, 3).tolist()})"
+    lines = [
+        f"object {name}: {len(figures['contacts'])} contacts "
+        + ", ".join(f"{c} ({v['model']})" for c, v in figures["contacts"].items()),
+        f"  grasp map G: {rows} x {columns}, rank {figures['grasp_map_rank']}, "
+        f"smallest singular value {figures['smallest_singular_value']:.4g}",
+        f"  hand Jacobian J_h: {' x '.join(map(str, figures['hand_jacobian_shape']))}, rank "
+        f"{figures['hand_jacobian_rank']}, manipulable: {'yes' if figures['manipulable'] else 'no'}",
+        f"  force closure: {closure}",
+        f"  internal forces: dimension {figures['internal_force_dimension']}",
+        f"  quality (Ferrari-Canny, length {figures['quality_length_m']:.4g} m): {figures['quality']:.4g} N",
+    ]
+    return "\n".join(lines)
+
+
+TEXT_FORMATS = {"grasp": _grasp_text}
 
 
 def _simulate(args: argparse.Namespace):

@@ -42,7 +42,8 @@ class SceneObject:
         joint: index of its free-flyer joint in the scene model. frame: index of its body frame.
         idx_q: the first index of its configuration ``[x, y, z, qx, qy, qz, qw]``.
         mass: [kg]. placement: its initial world placement.
-        geometries: contact geometry, ``(coal shape, placement in the object frame)`` pairs.
+        geometries: contact geometry, ``(coal shape, placement in the object frame)`` pairs (a URDF's
+            ``<collision>`` elements; none: nothing can touch the object).
         visuals: geometry objects for the viewer, attached to the object's joint.
     """
 
@@ -142,8 +143,6 @@ def _urdf_body(entry: dict[str, Any], base_dir: Path, where: str):
     if body.inertias[0].mass <= 0:
         raise SceneError(f"{where}.urdf: the links of {path.name} have no mass")
     shapes = [(g.geometry, g.placement) for g in collision.geometryObjects]
-    if not shapes:
-        raise SceneError(f"{where}.urdf: {path.name} has no <collision> geometry to touch")
     return body.inertias[0], shapes, list(visual.geometryObjects)
 
 

@@ -4,6 +4,8 @@ drift, energy, multipliers and the spectral radius of the deviation dynamics."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -54,3 +56,38 @@ class StateSeries:
             radius = stabilizer.spectral_radius(model, q[k], v[k], float(t[k]))
             out[k] = math.nan if radius is None else radius
         return out
+
+    def contact_figures(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> dict[str, Any]:
+        """Over the samples, for a scene with contacts: the smallest normal force [N], friction-cone
+        margin mu f_n - |f_t| [N] and torsion margin [N m] (>= 0: held), the largest slip of a sticking
+        contact's material points [m], overall and per contact; empty without contacts."""
+        model = self.system.model
+        limited = model.constraints.force_limited
+        sticking = [c for c in model.constraints.constraints if c.slip(model.kin) is not None]
+        if not limited and not sticking:
+            return {}
+        forces = multipliers()
+        per_contact: dict[str, dict[str, float]] = {}
+        finite = np.flatnonzero(np.isfinite(forces).all(axis=1))
+        for constraint, rows in limited:
+            margins = [constraint.margins(forces[k, rows]) for k in finite]
+            for key in margins[0] if margins else ():
+                label = "min_normal_force" if key == "normal" else f"min_{'cone' if key == 'friction' else key}_margin"
+                per_contact.setdefault(constraint.name, {})[label] = min(m[key] for m in margins)
+        for k in finite:
+            model.kin.update_positions(q[k])
+            for constraint in sticking:
+                entry = per_contact.setdefault(constraint.name, {})
+                entry["max_slip"] = max(entry.get("max_slip", 0.0), constraint.slip(model.kin))
+        figures: dict[str, Any] = {}
+        for label in ("min_normal_force", "min_cone_margin", "min_torsion_margin"):
+            values = [entry[label] for entry in per_contact.values() if label in entry]
+            if values:
+                figures[label] = min(values)
+        slips = [entry["max_slip"] for entry in per_contact.values() if "max_slip" in entry]
+        if slips:
+            figures["max_contact_slip"] = max(slips)
+        figures["contacts"] = per_contact
+        return figures

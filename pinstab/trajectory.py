@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -22,6 +23,10 @@ class SeriesSource(Protocol):
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
 
     def spectral_radius(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+
+    def contact_figures(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> dict[str, Any]: ...
 
 
 class Trajectory:
@@ -130,6 +135,8 @@ class Trajectory:
         if np.any(np.isfinite(radii)):
             summary["max_spectral_radius"] = float(np.nanmax(radii))
         summary["drift_growth_exponent"] = self.drift_growth_exponent()
+        if self._series is not None:
+            summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
         return summary
 
     def drift_growth_exponent(self) -> float | None:

@@ -113,6 +113,11 @@ class Constraint(ABC):
         empty for a block without limits."""
         return {}
 
+    def slip(self, kin: Kinematics) -> float | None:
+        """For a sticking contact: the distance between the material points it holds together [m] (its
+        creep); None for other blocks. Placements must be current."""
+        return None
+
     def check_force(self, force: np.ndarray, t: float) -> None:
         """Raise a :class:`~pinstab.errors.PinstabError` naming the block and the time ``t`` [s] when its
         multipliers ``force`` are outside their limits (blocks with ``limits_force``)."""

@@ -15,6 +15,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError
+from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
 from .loops import FrameClosure, plane_basis
@@ -50,6 +51,12 @@ class PointContact(FrameClosure):
         self.selection = basis[:1] if friction is None else basis
         self.rows = self.selection.shape[0]
         self.force_frame = "contact frame (normal, t1, t2), force on a"
+
+    def slip(self, kin: Kinematics) -> float | None:
+        """A sticking contact's distance from its anchor [m]; None when frictionless (it may slide)."""
+        if self.friction is None:
+            return None
+        return float(np.linalg.norm(kin.placement(self.frame_a).translation - self.world_placement_b.translation))
 
 
 def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str) -> PointContact:

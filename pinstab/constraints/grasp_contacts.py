@@ -180,9 +180,12 @@ class GraspContact(Constraint):
                 margins["torsion"],
             )
 
-    def slip(self, kin: Kinematics) -> float:
+    def slip(self, kin: Kinematics) -> float | None:
         """Distance between the contact's material points on the object and on the fingertip [m] (the
-        creep of a sticking contact); placements must be current."""
+        creep of a sticking contact); None for a frictionless contact, which may slide. Placements must
+        be current."""
+        if self.model == "frictionless":
+            return None
         return float(np.linalg.norm(self._point_difference(kin)[1]))
 
 
@@ -264,6 +267,8 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
             f"{choices(objects)} (declare one in [[objects]])"
         )
     item = objects[entry["object"]]
+    if not item.geometries:
+        raise SceneError(f"{where}.object: object {item.name!r} has no collision geometry for a fingertip to touch")
     if "finger" not in entry:
         raise SceneError(f"{where}: 'finger' (the frame at the fingertip sphere's centre) is required")
     finger = tables.frame_id(entry["finger"], f"{where}.finger")
@@ -274,8 +279,8 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     radius = tables.quantity(entry["radius"], "length", f"{where}.radius")
     if not radius > 0:
         raise SceneError(f"{where}.radius must be > 0, got {entry['radius']!r}")
-    mu = _coefficient(tables, entry, "mu", model_name in FRICTION_MODELS, model_name, where)
-    torsion = _coefficient(tables, entry, "torsion", model_name == "soft-finger", model_name, where)
+    mu = _coefficient(tables, entry, "mu", None, model_name in FRICTION_MODELS, model_name, where)
+    torsion = _coefficient(tables, entry, "torsion", "length", model_name == "soft-finger", model_name, where)
     _, normal = _touch(tables, finger, item, radius, str(entry["finger"]), where)
     placements = tables.initial_placement
     centre = placements(finger).translation
@@ -293,14 +298,21 @@ def _is_frame(tables: SceneTables, entry: dict) -> bool:
     return isinstance(name, str) and tables.model.existFrame(name)
 
 
-def _coefficient(tables: SceneTables, entry: dict, key: str, needed: bool, model_name: str, where: str) -> float:
+def _coefficient(
+    tables: SceneTables, entry: dict, key: str, dimension: str | None, needed: bool, model_name: str, where: str
+) -> float:
+    """A friction coefficient (``dimension`` None: a plain number; else a quantity) >= 0 that the contact
+    model needs, refused when it takes none."""
     if not needed:
         if key in entry:
             raise SceneError(f"{where}: a {model_name!r} contact takes no {key!r}")
         return 0.0
     if key not in entry:
         raise SceneError(f"{where}: a {model_name!r} contact needs {key!r} (>= 0)")
-    value = tables.number(entry, key, where)
+    if dimension is None:
+        value = tables.number(entry, key, where)
+    else:
+        value = tables.quantity(entry[key], dimension, f"{where}.{key}")
     if value < 0:
         raise SceneError(f"{where}.{key} must be >= 0, got {value!r}")
     return value
