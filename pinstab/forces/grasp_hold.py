@@ -61,22 +61,23 @@ class GraspHold(ForceElement):
         self._data = model.createData()
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
 
-    def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        """(contact rows A (s x nv), the held contact forces lambda* (s,) [N, N m]) at ``kin``'s state."""
+    def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(contact rows A (s x nv), the held contact forces lambda* (s,) [N, N m], the generalized
+        gravity g(q) [N, N m]) at ``kin``'s state."""
         rows = np.vstack([c.velocity_terms(kin, kin.q, 0.0).jacobian for c in self.contacts])
         gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
-        weight, *_ = np.linalg.lstsq(carrier, gravity[self.object_columns], rcond=None)
-        _, singular, vt = np.linalg.svd(carrier)
+        left, singular, right = np.linalg.svd(carrier, full_matrices=True)
         rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
-        internal = vt[rank:].T
-        if internal.size:
-            weight = weight + internal @ (internal.T @ (self.pressing - weight))
-        return rows, weight
+        # least squares: the smallest forces that carry the object's weight, then the internal force
+        # (null space of A_object^T) closest to the squeeze
+        forces = right[:rank].T @ ((left[:, :rank].T @ gravity[self.object_columns]) / singular[:rank])
+        internal = right[rank:].T
+        forces = forces + internal @ (internal.T @ self.pressing)
+        return rows, forces, gravity
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        rows, forces = self.hold_forces(kin)
-        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
+        rows, forces, gravity = self.hold_forces(kin)
         tau = np.zeros(self.model.nv)
         hand = self.hand_columns
         deviation = pin.difference(self.model, self.q_start, kin.q)[hand]
