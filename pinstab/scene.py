@@ -23,6 +23,7 @@ from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
 from .objects import SceneObject, add_objects, place_objects
 from .registry import Registry
+from .robot_copies import compose_copies, parse_copies
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
 
@@ -38,7 +39,7 @@ TOP_KEYS = {
     "forces",
     "initial",
 }
-ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints"}
+ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints", "copies"}
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
 KIND_TABLES = {"closures": ("closure", CONSTRAINT_KINDS), "contacts": ("contact", CONSTRAINT_KINDS)}
@@ -249,6 +250,10 @@ def _build_model(robot: dict[str, Any], base_dir: Path) -> tuple[pin.Model, Path
         if not urdf_path.is_file():
             raise SceneError(f"robot.urdf: file {urdf_path} does not exist")
         package_dirs = [str(urdf_path.parent)]
+    if "copies" in robot:  # one document of prefixed copies; package_dirs still resolve the meshes
+        copies = parse_copies(robot["copies"])
+        urdf_text = compose_copies(urdf_path.read_text() if urdf_text is None else urdf_text, copies)
+        urdf_path = None
     try:
         if urdf_text is not None:
             model = pin.buildModelFromXML(urdf_text, *root)

@@ -32,7 +32,8 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a constraint kind; valid kinds: grasp-contact, planar-point, plane-contact, point, weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: grasp-contact, planar-point, plane-contact, point, "
+            r"weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
@@ -69,8 +70,8 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 def test_unknown_scene_lists_bundled_scenes():
     with pytest.raises(
         SceneError,
-        match=r"no scene named 'nope'.*Bundled scenes: allegro-sphere, box-push, delta, fivebar, fourbar, nfourbar, panda-anchor, "
-        r"slider-crank",
+        match=r"no scene named 'nope'.*Bundled scenes: allegro-box, allegro-sphere, box-push, delta, fivebar, fourbar, "
+        r"nfourbar, panda-anchor, slider-crank, trifinger-cube",
     ):
         load_scene("nope")
 
