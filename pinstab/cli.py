@@ -446,7 +446,11 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
     if args.output:
         recording = write_recording(model, trajectory, args.output, fps=args.fps)
         result.update(
-            recording=str(recording.path), size_bytes=recording.size_bytes, frames=recording.frames, fps=recording.fps
+            recording=str(recording.path),
+            size_bytes=recording.size_bytes,
+            frames=recording.frames,
+            fps=recording.fps,
+            force_scale=recording.force_scale,
         )
     result["record_wall_s"] = time.perf_counter() - start
     return result

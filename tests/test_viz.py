@@ -1,17 +1,31 @@
-"""Recordings and charts written headless: sizes, frames, units on the axes, errors on bad input."""
+"""Recordings and charts written headless: sizes, frames, units on the axes, errors on bad input; the
+contact-force arrows and friction cones measured in the recorded animation."""
 
 from __future__ import annotations
 
+import base64
 import json
+import math
+import re
 
 import numpy as np
+import pinocchio as pin
 import pytest
+import umsgpack
 
 import pinstab
 from pinstab.cli import main
+from pinstab.errors import SceneError
 from pinstab.model import ConstrainedModel
+from pinstab.scene import scene_from_dict
+from pinstab.trajectory import configurations_at
+from pinstab.viz import contacts
+from pinstab.viz.geometry import visual_model
 from pinstab.viz.plots import trajectory_figure
-from pinstab.viz.recording import CommandRecorder, drift_color, frame_states, play_live
+from pinstab.viz.recording import CommandRecorder, drift_color, frame_states, play_live, swept_region, write_recording
+
+CONTACTS = ("index", "middle", "ring", "thumb")
+FPS = 100.0  # frames at 0, 0.01, ..., 0.05 s
 
 
 def test_record_cli_reports_size_and_frames(capsys, tmp_path):
@@ -82,3 +96,152 @@ def test_plot_axes_carry_units(tmp_path):
 def test_bad_outputs_are_refused(capsys, argv, message):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+# -- contact forces: the allegro-sphere recording, decoded ------------------------------------------------
+@pytest.fixture(scope="module")
+def allegro(tmp_path_factory):
+    """(scene, model, trajectory, recording, commands) of a 0.05 s allegro-sphere run at dt = 1 ms."""
+    scene = pinstab.load_scene("allegro-sphere")
+    trajectory = pinstab.simulate(scene, dt=1e-3, duration=0.05)
+    model = ConstrainedModel(scene)
+    recording = write_recording(model, trajectory, tmp_path_factory.mktemp("allegro") / "allegro.html", fps=FPS)
+    return scene, model, trajectory, recording, _commands(recording.path.read_text())
+
+
+def _commands(page: str) -> list[dict]:
+    """The meshcat commands a recording embeds, decoded."""
+    start = page.index("var commands = [")
+    listing = page[start : page.index("];", start)]
+    return [umsgpack.unpackb(base64.b64decode(text)) for text in re.findall(r'"([A-Za-z0-9+/=]+)"', listing)]
+
+
+def _tracks(commands: list[dict]) -> dict[str, dict[str, list]]:
+    """Animation node path -> track name -> its value at every frame."""
+    (animation,) = [c for c in commands if c["type"] == "set_animation"]
+    return {
+        item["path"]: {track["name"]: [key["value"] for key in track["keys"]] for track in item["clip"]["tracks"]}
+        for item in animation["animations"]
+    }
+
+
+def _node(name: str, part: str) -> str:
+    return f"/meshcat/{contacts.ContactForces.path(name, part)}"
+
+
+def _forces_at(trajectory, name: str, time_s: float) -> np.ndarray:
+    """A contact's multipliers at ``time_s`` [s], linear between the samples (np.interp per row)."""
+    block = trajectory.multipliers_of(name)
+    return np.array([np.interp(time_s, trajectory.t, block[:, row]) for row in range(block.shape[1])])
+
+
+def test_allegro_recording_draws_the_ball_and_an_arrow_and_a_cone_per_contact(allegro):
+    """The ball is a sphere of radius 35 mm; each of the 4 contacts has one shaft, one head and one cone, the
+    cone's base radius / height = mu = 0.8 (half-angle atan(mu)); the scale is stated in the result."""
+    *_, recording, commands = allegro
+    objects = {c["path"]: c["object"]["geometries"][0] for c in commands if c["type"] == "set_object"}
+    ball = objects["/meshcat/pinstab/visuals/ball/shape"]
+    assert ball["type"] == "SphereGeometry" and ball["radius"] == pytest.approx(0.035, abs=1e-15)
+    for part in ("arrow/shaft", "arrow/head", "cone"):
+        assert sorted(path for path in objects if path.endswith(part) and "/contacts/" in path) == sorted(
+            _node(name, part) for name in CONTACTS
+        )
+    for name in CONTACTS:
+        cone = objects[_node(name, "cone")]
+        assert cone["radiusTop"] == 0.0 and cone["radiusBottom"] / cone["height"] == pytest.approx(0.8, abs=1e-12)
+    assert recording.frames == 6 and recording.force_scale > 0
+
+
+def test_arrows_measure_the_trajectory_forces_in_the_contact_frame(allegro):
+    """At every frame and contact: arrow length = |f| / force_scale (f the multipliers interpolated at the
+    frame time) within 1e-9 m, its direction = R_C f / |f| within 1e-9, its tip at the contact point within
+    1e-9 m; the longest arrow of the recording is FORCE_FRACTION x the scene's extent."""
+    scene, model, trajectory, recording, commands = allegro
+    tracks = _tracks(commands)
+    times, states = frame_states(trajectory, scene.model, FPS)
+    np.testing.assert_allclose(states, configurations_at(trajectory.t, trajectory.q, scene.model, times))
+    constraints = {c.name: c for c in model.constraints.constraints}
+    lengths = []
+    for frame, (time_s, q) in enumerate(zip(times, states, strict=True)):
+        model.kin.update_positions(q)
+        for name in CONTACTS:
+            force = _forces_at(trajectory, name, float(time_s))
+            contact = model.kin.placement(constraints[name].object_frame)
+            arrow, shaft = tracks[_node(name, "arrow")], tracks[_node(name, "arrow/shaft")]
+            length = -(shaft[".position"][frame][1] - shaft[".scale"][frame][1] / 2)  # tail below the tip
+            assert abs(length - np.linalg.norm(force) / recording.force_scale) < 1e-9
+            x, y, z, w = arrow[".quaternion"][frame]
+            direction = pin.Quaternion(w, x, y, z).toRotationMatrix()[:, 1]
+            assert np.abs(direction - contact.rotation @ force / np.linalg.norm(force)).max() < 1e-9
+            assert np.abs(np.array(arrow[".position"][frame]) - contact.translation).max() < 1e-9
+            lengths.append(length)
+    extent = swept_region(scene.model, states).extent
+    assert max(lengths) == pytest.approx(contacts.FORCE_FRACTION * extent, abs=1e-9)
+
+
+def test_a_contact_inside_its_cone_at_the_start_is_coloured_inside(allegro):
+    """At t = 0 every contact force is inside its friction cone (margins > 0, |f_t| / (mu f_n) < 1) and its
+    arrow has the colour of that usage: green-dominant, not the outside red."""
+    _, model, trajectory, _, commands = allegro
+    tracks = _tracks(commands)
+    constraints = {c.name: c for c in model.constraints.constraints}
+    for name in CONTACTS:
+        force = _forces_at(trajectory, name, 0.0)
+        assert min(constraints[name].margins(force).values()) > 0
+        usage = math.hypot(force[0], force[1]) / (0.8 * force[2])
+        color = tracks[f"{_node(name, 'arrow/shaft')}/<object>"][".material.color"][0]
+        assert usage < 1 and np.abs(np.array(color) - contacts.usage_color(usage)).max() < 1e-12
+        assert color[1] > color[0] + 0.2 and tuple(color) != contacts.RED
+
+
+def test_usage_colours_turn_red_outside_the_cone_or_pulling(allegro):
+    """Green along the normal, amber on the cone, red past it, pulling or unknown; a grasp contact's usage
+    is |f_t| / (mu f_n), infinite when it pulls."""
+    _, model, *_ = allegro
+    view = contacts.GraspView(model.constraints.constraints[0])
+    assert view.usage(np.array([0.3, 0.4, 1.0])) == pytest.approx(0.5 / 0.8, abs=1e-15)
+    assert view.usage(np.array([0.0, 0.0, -1.0])) == math.inf
+    assert contacts.usage_color(0.0) == pytest.approx(tuple(contacts.GREEN), abs=1e-15)
+    assert contacts.usage_color(1.0) == pytest.approx(tuple(contacts.AMBER), abs=1e-15)
+    for usage in (1.01, math.inf, math.nan):
+        assert contacts.usage_color(usage) == contacts.RED
+
+
+def test_plane_contacts_get_arrows_along_their_multipliers(tmp_path):
+    """box-push: each plane contact's arrow is (t1, t2, n) force rows of length |f| / force_scale (1e-9 m),
+    pointing along the plane's push (+z mostly) at the first frame."""
+    scene = pinstab.load_scene("box-push")
+    trajectory = pinstab.simulate(scene, dt=1e-3, duration=0.02)
+    recording = write_recording(ConstrainedModel(scene), trajectory, tmp_path / "box.html", fps=FPS)
+    tracks = _tracks(_commands(recording.path.read_text()))
+    for name in ("front-left", "front-right", "back-left", "back-right"):
+        force = trajectory.multipliers_of(name)[0]  # (n, t1, t2) force on the box
+        shaft = tracks[_node(name, "arrow/shaft")]
+        length = -(shaft[".position"][0][1] - shaft[".scale"][0][1] / 2)
+        assert abs(length - np.linalg.norm(force) / recording.force_scale) < 1e-9
+        x, y, z, w = tracks[_node(name, "arrow")][".quaternion"][0]
+        assert pin.Quaternion(w, x, y, z).toRotationMatrix()[2, 1] > 0.99  # pushed up by the table
+
+
+def test_visual_model_adds_the_objects_and_finds_package_meshes_of_urdf_text(tmp_path):
+    """The ball's visual is in the geometry model on the ball's joint; a URDF given as text finds its
+    package:// mesh through scene.package_dirs (SceneError naming the mesh without them)."""
+    scene = pinstab.load_scene("allegro-sphere")
+    (ball,) = [g for g in visual_model(scene).geometryObjects if g.name == "ball/shape"]
+    assert ball.parentJoint == scene.objects[0].joint and ball.geometry.radius == 0.035
+    (tmp_path / "tinypkg").mkdir()
+    (tmp_path / "tinypkg" / "tri.stl").write_text(
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+        "endfacet\nendsolid t\n"
+    )
+    urdf = (
+        "<robot name='r'><link name='base'><visual><geometry>"
+        "<mesh filename='package://tinypkg/tri.stl'/></geometry></visual></link></robot>"
+    )
+    scene = scene_from_dict({"robot": {"urdf_text": urdf}})
+    scene.package_dirs = []
+    with pytest.raises(SceneError, match="package://tinypkg/tri.stl"):
+        visual_model(scene)
+    scene.package_dirs = [str(tmp_path)]
+    (mesh,) = visual_model(scene).geometryObjects
+    assert mesh.meshPath == str(tmp_path / "tinypkg" / "tri.stl")

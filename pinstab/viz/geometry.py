@@ -1,4 +1,4 @@
-"""The visual geometry of a scene's (reduced) model, from its URDF."""
+"""The visual geometry of a scene's (reduced) model, from its URDF, and of its objects."""
 
 from __future__ import annotations
 
@@ -11,13 +11,26 @@ from ..scene import Scene
 def visual_model(scene: Scene) -> pin.GeometryModel:
     """Visual geometry objects (meshes and primitives) attached to ``scene.model``'s frames.
 
-    Built from the scene's URDF for the full model and reduced with the same locked joints, so its
-    frame indices are those of ``scene.model`` (the closure frames the scene adds come after them).
+    Built from the scene's URDF (file or text; ``package://`` meshes found in ``scene.package_dirs``) for
+    the full model and reduced with the same locked joints, so its frame indices are those of
+    ``scene.model`` (the closure frames the scene adds come after them); then the visuals of the scene's
+    objects, already attached to their joints in ``scene.model``.
     """
+    geometry = _robot_geometry(scene)
+    for item in scene.objects:
+        for visual in item.visuals:
+            geometry.addGeometryObject(visual)
+    return geometry
+
+
+def _robot_geometry(scene: Scene) -> pin.GeometryModel:
+    """The robot's visuals, reduced like ``scene.model``."""
     full = scene.full_model if scene.full_model is not None else scene.model
     try:
         if scene.urdf_text is not None:
-            geometry = pin.buildGeomFromUrdfString(full, scene.urdf_text, pin.GeometryType.VISUAL)
+            geometry = pin.buildGeomFromUrdfString(
+                full, scene.urdf_text, pin.GeometryType.VISUAL, package_dirs=scene.package_dirs
+            )
         else:
             geometry = pin.buildGeomFromUrdf(
                 full, str(scene.urdf_path), pin.GeometryType.VISUAL, package_dirs=scene.package_dirs

@@ -4,8 +4,9 @@ nor a network to open one.
 
 The recording is built by driving Pinocchio's MeshcatVisualizer against a window object that keeps
 the commands instead of sending them to a server; the same overlay code serves the live viewer.
-Overlays (:class:`Overlay`) draw extra objects per frame — here the loop-closure point pairs,
-coloured by their drift; later ones (contact forces, prescribed paths) plug in the same way.
+Overlays (:class:`Overlay`) draw extra objects per frame — the loop-closure point pairs, coloured by
+their drift, and the contact forces with their friction cones (:mod:`pinstab.viz.contacts`); later
+ones (prescribed paths) plug in the same way.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import base64
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -23,7 +25,7 @@ import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
 import umsgpack
-from meshcat.animation import Animation, AnimationFrameVisualizer
+from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
 from ..constraints import FrameClosure
@@ -32,12 +34,18 @@ from ..files import atomic_output
 from ..model import ConstrainedModel
 from ..scene import Scene
 from ..trajectory import Trajectory, configurations_at
+from .contacts import ContactForces
 from .geometry import visual_model
+from .nodes import ROOT, rotation_onto, set_color, set_pose
 
-ROOT = "pinstab"
 VIEWER_JS = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
 # drift colour scale [m]: green at or below the first, red at or above the second (log-interpolated)
 DRIFT_GOOD, DRIFT_BAD = 1e-10, 1e-4
+MIN_EXTENT = 0.1  # [m] the smallest region the camera frames
+GRID_MIN_EXTENT = 0.5  # [m] smaller regions hide meshcat's grid (0.5 m cells) and axes, which would cross them
+# where the camera sits by default, from the centre of the swept region, in units of its extent: in
+# front (-y), a little to the side and above
+CAMERA_OFFSET = (0.9, -2.2, 0.7)
 
 
 class CommandRecorder:
@@ -73,6 +81,8 @@ class ClosurePoints:
     """The two points of every frame closure (or the point and its world anchor), as spheres coloured
     by that closure's position residual at the frame: green at 1e-10 m, red at 1e-4 m and above."""
 
+    OPACITY = 0.85
+
     def __init__(self, model: ConstrainedModel, radius: float) -> None:
         self.model = model
         self.radius = radius
@@ -84,7 +94,7 @@ class ClosurePoints:
     def load(self, viewer) -> None:
         for closure in self.closures:
             for side in ("a", "b"):
-                material = mg.MeshLambertMaterial(color=0x22BB33, opacity=0.85, transparent=True)
+                material = mg.MeshLambertMaterial(color=0x22BB33, opacity=self.OPACITY, transparent=True)
                 viewer[self._path(closure.name, side)].set_object(mg.Sphere(self.radius), material)
 
     def update(self, frame, q: np.ndarray, t: float) -> None:
@@ -92,62 +102,90 @@ class ClosurePoints:
         kin.update_positions(q)
         for closure in self.closures:
             residual = float(np.max(np.abs(closure.residual(kin, q, t)), initial=0.0))
-            color = list(drift_color(residual))
+            color = drift_color(residual)
             points = {"a": kin.placement(closure.frame_a).translation}
             points["b"] = (
                 closure.world_placement_b if closure.frame_b is None else kin.placement(closure.frame_b)
             ).translation
             for side, point in points.items():
                 node = frame[self._path(closure.name, side)]
-                node.set_transform(pin.SE3(np.eye(3), point).homogeneous)
-                if isinstance(node, AnimationFrameVisualizer):
-                    node.set_property("material.color", "color", color)
-                else:
-                    node.set_property("color", [*color, 0.85])
+                set_pose(node, pin.SE3(np.eye(3), point))
+                set_color(node, color, self.OPACITY)
 
 
 @dataclass
 class Recording:
-    """What :func:`write_recording` wrote: file [path], size [bytes], frames and their rate [1/s]."""
+    """What :func:`write_recording` wrote: file [path], size [bytes], frames and their rate [1/s], and
+    the contact arrows' scale [N/m] (an arrow is |f| / force_scale long; None without contacts)."""
 
     path: Path
     size_bytes: int
     frames: int
     fps: float
+    force_scale: float | None = None
+
+
+@dataclass
+class Region:
+    """Where a motion happens: ``turn`` (rotation putting gravity down in the viewer), and the centre
+    [m] and extent [m] (largest side, at least MIN_EXTENT) of the box the joints sweep, turned."""
+
+    turn: np.ndarray
+    centre: np.ndarray
+    extent: float
+
+
+def swept_region(model: pin.Model, states: np.ndarray) -> Region:
+    """The region the joint origins of ``model`` sweep over ``states`` (50 of them at most)."""
+    gravity = model.gravity.linear
+    down = -np.eye(3)[2]
+    turn = rotation_onto(gravity / np.linalg.norm(gravity) if np.linalg.norm(gravity) > 0 else down, down)
+    data = model.createData()
+    points = []
+    for q in states[:: max(1, len(states) // 50)]:
+        pin.forwardKinematics(model, data, q)
+        points.extend(turn @ placement.translation for placement in data.oMi)
+    points = np.array(points)
+    low, high = points.min(axis=0), points.max(axis=0)
+    return Region(turn, (low + high) / 2, max(float(np.max(high - low)), MIN_EXTENT))
 
 
 class ScenePlayer:
-    """The robot of a scene in a meshcat viewer (recording or live), with overlays."""
+    """The robot of a scene in a meshcat viewer (recording or live), with overlays, for the frames
+    ``times`` [s], ``states`` of ``trajectory``."""
 
-    def __init__(self, model: ConstrainedModel, viewer: meshcat.Visualizer) -> None:
+    def __init__(
+        self,
+        model: ConstrainedModel,
+        viewer: meshcat.Visualizer,
+        trajectory: Trajectory,
+        times: np.ndarray,
+        states: np.ndarray,
+    ) -> None:
         scene = model.scene
         self.scene, self.viewer = scene, viewer
+        self.region = swept_region(scene.model, states)
         self.robot = MeshcatVisualizer(scene.model, None, visual_model(scene))
         self.robot.initViewer(viewer=viewer)
         self.robot.loadViewerModel(rootNodeName=ROOT)
-        self.overlays: list[Overlay] = [ClosurePoints(model, radius=_marker_radius(scene))]
+        self.forces = ContactForces(model, trajectory, times, self.region.extent)
+        self.overlays: list[Overlay] = [ClosurePoints(model, radius=_marker_radius(scene)), self.forces]
         for overlay in self.overlays:
             overlay.load(viewer)
 
-    def frame_camera(self, states: np.ndarray) -> None:
-        """Turn the scene so that its gravity points down in the viewer, and place the camera so that
-        the region the joints sweep over ``states`` is in view."""
-        gravity = self.scene.model.gravity.linear
-        turn = _rotation_onto(
-            gravity / np.linalg.norm(gravity) if np.linalg.norm(gravity) > 0 else -np.eye(3)[2], -np.eye(3)[2]
-        )
-        self.viewer[ROOT].set_transform(pin.SE3(turn, np.zeros(3)).homogeneous)
-        data = self.scene.model.createData()
-        points = []
-        for q in states[:: max(1, len(states) // 50)]:
-            pin.forwardKinematics(self.scene.model, data, q)
-            points.extend(turn @ placement.translation for placement in data.oMi)
-        points = np.array(points)
-        low, high = points.min(axis=0), points.max(axis=0)
-        centre, extent = (low + high) / 2, max(float(np.max(high - low)), 0.2)
-        # the viewer's orbit target stays at the origin; the camera sits in front (-y), a little to the
-        # side and above the swept region. Its object lives in three.js's y-up frame: (x, y, z) -> (x, z, -y)
-        position = centre + extent * np.array([0.9, -2.2, 0.7])
+    def frame_camera(self, offset: Sequence[float] = CAMERA_OFFSET) -> None:
+        """Turn the scene so that its gravity points down in the viewer, move the centre of the swept
+        region to the viewer's orbit target (the origin; grid and axes move along, or hide in a small
+        region), and place the camera at ``offset`` from it, in units of the region's extent (turned
+        world axes: z up)."""
+        region = self.region
+        self.viewer[ROOT].set_transform(pin.SE3(region.turn, -region.centre).homogeneous)
+        for helper in ("/Grid", "/Axes"):
+            self.viewer[helper].set_transform(pin.SE3(np.eye(3), -region.centre).homogeneous)
+            if region.extent < GRID_MIN_EXTENT:
+                self.viewer[helper].set_property("visible", False)
+        # the camera object lives in three.js's y-up frame: (x, y, z) -> (x, z, -y)
+        position = region.extent * np.asarray(offset, dtype=float)
         self.viewer["/Cameras/default/rotated/<object>"].set_property(
             "position", [position[0], position[2], -position[1]]
         )
@@ -162,20 +200,6 @@ class ScenePlayer:
             frame[robot.getViewerNodeName(visual, pin.GeometryType.VISUAL)].set_transform(transform)
         for overlay in self.overlays:
             overlay.update(frame, q, t)
-
-
-def _rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector a onto unit vector b."""
-    axis = np.cross(a, b)
-    sine, cosine = np.linalg.norm(axis), float(a @ b)
-    if sine < 1e-12:
-        if cosine > 0:
-            return np.eye(3)
-        # opposite: half a turn about any axis perpendicular to a
-        other = np.eye(3)[int(np.argmin(np.abs(a)))]
-        perpendicular = np.cross(a, other) / np.linalg.norm(np.cross(a, other))
-        return pin.exp3(np.pi * perpendicular)
-    return pin.exp3(axis / sine * math.atan2(sine, cosine))
 
 
 def _marker_radius(scene: Scene) -> float:
@@ -193,8 +217,15 @@ def frame_states(trajectory: Trajectory, model: pin.Model, fps: float) -> tuple[
     return times, configurations_at(trajectory.t, trajectory.q, model, times)
 
 
-def write_recording(model: ConstrainedModel, trajectory: Trajectory, path: str | Path, fps: float = 30.0) -> Recording:
-    """Write a standalone HTML file replaying ``trajectory`` of ``model`` at ``fps`` frames per second.
+def write_recording(
+    model: ConstrainedModel,
+    trajectory: Trajectory,
+    path: str | Path,
+    fps: float = 30.0,
+    camera: Sequence[float] = CAMERA_OFFSET,
+) -> Recording:
+    """Write a standalone HTML file replaying ``trajectory`` of ``model`` at ``fps`` frames per second,
+    seen from ``camera`` (offset from the centre of the motion, in units of its extent, z up).
 
     Opening ``file.html#t=1.5`` shows the motion paused at 1.5 s (used by the browser test).
     """
@@ -202,8 +233,8 @@ def write_recording(model: ConstrainedModel, trajectory: Trajectory, path: str |
     times, states = frame_states(trajectory, scene.model, fps)
     recorder = CommandRecorder()
     viewer = meshcat.Visualizer(window=recorder)
-    player = ScenePlayer(model, viewer)
-    player.frame_camera(states)
+    player = ScenePlayer(model, viewer, trajectory, times, states)
+    player.frame_camera(camera)
     player.pose(viewer, states[0], float(times[0]))
     animation = Animation(default_framerate=fps)
     for index, (t, q) in enumerate(zip(times, states, strict=True)):
@@ -213,7 +244,7 @@ def write_recording(model: ConstrainedModel, trajectory: Trajectory, path: str |
     html = _page(scene.name, recorder.commands)
     with atomic_output(path, ".html", "recording") as temp:
         Path(temp).write_text(html, encoding="utf-8")
-    return Recording(Path(path), Path(path).stat().st_size, len(times), fps)
+    return Recording(Path(path), Path(path).stat().st_size, len(times), fps, player.forces.scale)
 
 
 def _page(title: str, commands: list[bytes]) -> str:
@@ -256,8 +287,8 @@ def play_live(model: ConstrainedModel, trajectory: Trajectory, fps: float = 30.0
     if viewer is None:
         viewer = meshcat.Visualizer()
         print(f"pinstab record: live viewer at {viewer.window.web_url}", file=sys.stderr, flush=True)
-    player = ScenePlayer(model, viewer)
-    player.frame_camera(states)
+    player = ScenePlayer(model, viewer, trajectory, times, states)
+    player.frame_camera()
     start = time.perf_counter()
     for t, q in zip(times, states, strict=True):
         delay = t - (time.perf_counter() - start)
