@@ -5,11 +5,11 @@ frictionless contacts (unilateral rows) against closed forms; refusals."""
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 from conftest import ROBOTS
 from pinstab import ConstrainedModel, ContactInfeasibleError, SolverError, assemble, load_scene, simulate
+from pinstab.bench.admm_peer import admm_contact_forces
 from pinstab.cli import main
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
@@ -57,56 +57,6 @@ def contact_forces(scene, method="baumgarte", solver="proxsuite"):
     return np.array(forces), evaluation.acceleration, start
 
 
-def admm_contact_forces(scene, q, v, tau, mu):
-    """Pinocchio 4.1's own contact solver on the same problem: a PointContactConstraintModel per
-    corner (world point first, so that the force is the ground's on the box, normal = 3rd component)
-    with its Coulomb cone, the Delassus matrix G M^-1 G^T and the drift G a_free + gamma0 at the
-    acceleration level, solved by ADMMConstraintSolver. Returns world-axes forces (4, 3) [N]."""
-    model = scene.model
-    data = model.createData()
-    pin.computeJointJacobians(model, data, q)
-    pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
-    pin.updateFramePlacements(model, data)
-    models, datas = pin.StdVec_ConstraintModel(), pin.StdVec_ConstraintData()
-    for index in range(len(CORNERS)):
-        frame_id = model.getFrameId(f"c{index}/a")
-        frame = model.frames[frame_id]
-        contact = pin.PointContactConstraintModel(
-            model, 0, data.oMf[frame_id].copy(), frame.parentJoint, frame.placement
-        )
-        contact.setFriction(mu)
-        models.append(contact)
-        datas.append(models[len(models) - 1].createData())
-    for contact, contact_data in zip(models, datas, strict=True):
-        contact.calc(model, data, contact_data)
-    drift = np.concatenate([d.extract().constraint_acceleration_error.copy() for d in datas])
-    rotations = [d.extract().oMc1.rotation.copy() for d in datas]
-    jacobian = pin.getConstraintsJacobian(model, data, models, datas)
-    mass = pin.crba(model, data, q)
-    mass = np.triu(mass) + np.triu(mass, 1).T
-    free = np.linalg.solve(mass, tau - pin.nle(model, data, q, v))
-    delassus = jacobian @ np.linalg.solve(mass, jacobian.T)
-    settings = pin.ADMMSolverSettings()
-    settings.max_iterations = 10000
-    for name in ("absolute_feasibility_tol", "relative_feasibility_tol"):
-        setattr(settings, name, 1e-12)
-    for name in ("absolute_complementarity_tol", "relative_complementarity_tol"):
-        setattr(settings, name, 1e-12)
-    result = pin.ADMMSolverResult()
-    solver = pin.ADMMConstraintSolver(3 * len(CORNERS))
-    converged = solver.solve(
-        pin.DelassusOperatorDense(0.5 * (delassus + delassus.T)),
-        jacobian @ free + drift,
-        models,
-        datas,
-        settings,
-        result,
-    )
-    assert converged
-    impulses = result.retrieveConstraintImpulses()
-    return np.array([rotation @ impulses[3 * i : 3 * i + 3] for i, rotation in enumerate(rotations)])
-
-
 @pytest.mark.parametrize("height", [0.0, 0.02])
 def test_sticking_box_forces_balance_and_match_pinocchio_admm(height):
     """A 1 N push (inside the cone: 1 N < mu m g = 4.9 N): the normal forces carry m g to 1e-9 N,
@@ -125,7 +75,7 @@ def test_sticking_box_forces_balance_and_match_pinocchio_admm(height):
     model = ConstrainedModel(scene)
     model.kin.update(start.q, start.v)
     tau = model.applied_force(start.v, 0.0)
-    np.testing.assert_allclose(admm_contact_forces(scene, start.q, start.v, tau, MU), forces, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(admm_contact_forces(scene, start.q, start.v, tau), forces, rtol=0, atol=1e-9)
 
 
 def test_sticking_box_stays_put_over_a_run():

@@ -1,0 +1,527 @@
+"""Pinocchio 4.1's own contact solver as a peer: ADMM on Coulomb cones (``pin.ADMMConstraintSolver``).
+
+Each contact of a scene becomes a ``pin.PointContactConstraintModel``. Pinocchio's convention: the
+residual is ``e = R_c1^T (p_c2 - p_c1)`` in the axes of the frame c1 on joint 1, the multiplier is the
+force of body 1 on body 2 in c1's axes, and the friction cone's normal is c1's z axis (3rd component).
+
+* ``grasp-contact`` (``point-friction``): joint 1 is the object's, c1 the contact frame C on the object
+  turned by pi about its x axis (axes ``(x, -y, -z)``: the normal out of the object, the direction in
+  which the object pushes the finger); joint 2 is the finger's, c2 the finger's copy of C. Then
+  ``e = -F R_C^T (p_o - p_f)`` with ``F = diag(1, -1, -1)``: pinstab's rows up to the fixed map F, at
+  every state (also where the two material points have crept apart), and pinstab's multipliers (the
+  force of the finger on the object in C) are ``-F`` times Pinocchio's. (With joint 1 the finger's, the
+  residual would be in the finger's axes: equal on the constraint manifold only.)
+* ``plane-contact`` with ``mu``: joint 1 is the world, c1 at the anchor with axes ``(t1, t2, n)``; joint
+  2 the body. Pinocchio's multiplier is the ground's force on the body in ``(t1, t2, n)``, pinstab's the
+  same in ``(n, t1, t2)``.
+
+At the acceleration level the contact problem is the NCP ``D f + g in K*``, ``f in K`` with the Delassus
+matrix ``D = J M^-1 J^T`` and ``g = J a_free + gamma + Kd J v + Kp e`` (``gamma``: Pinocchio's drift
+``constraint_acceleration_error``; ``Kp``, ``Kd``: Baumgarte's gains on Pinocchio's own errors, 0 for the
+plain drift). Sticking contacts inside their cones solve ``J a = -gamma - Kd J v - Kp e``: the rows
+pinstab solves with ``method="none"`` (Kp = Kd = 0) or ``"baumgarte"`` (its Kp, Kd).
+
+The stepping loop (:func:`run_peer`) applies the scene's ``grasp-hold`` and ``external-force`` elements
+natively from the same Pinocchio pass, and steps either at the acceleration level (semi-implicit Euler
+or RK4, an ADMM solve per stage, Baumgarte's corrector) or at the velocity level as Pinocchio's example
+``admm-constraint-solver.py`` does (impulses on ``g = J v_free + (erp / dt) e``, with a compliance).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from ..constraints import PointContact
+from ..constraints.grasp_contacts import GraspContact
+from ..errors import PinstabError
+from ..forces import ExternalForce
+from ..forces.grasp_hold import GraspHold
+from ..scene import Scene
+
+FLIP = np.diag([1.0, -1.0, -1.0])  # C turned by pi about x: the normal out of the object
+PLANE_ORDER = np.eye(3)[[2, 0, 1]]  # (t1, t2, n) -> pinstab's (n, t1, t2)
+ACCELERATION_SCHEMES = ("semi-implicit-euler", "rk4")
+PEER_SCHEMES = (*ACCELERATION_SCHEMES, "velocity-level")
+
+
+@dataclass(frozen=True)
+class PeerContact:
+    """One contact as a Pinocchio constraint model.
+
+    Attributes:
+        name: the scene's contact name. model: Pinocchio's constraint model.
+        to_pinstab: 3 x 3: pinstab's multipliers = ``to_pinstab @`` Pinocchio's.
+        axes: 3 x 3: the world axes of pinstab's multipliers are ``oMc1.rotation @ axes``.
+    """
+
+    name: str
+    model: pin.PointContactConstraintModel
+    to_pinstab: np.ndarray
+    axes: np.ndarray
+
+
+def _grasp_contact(model: pin.Model, contact: GraspContact) -> PeerContact:
+    if contact.model != "point-friction":
+        raise PinstabError(
+            f"ADMM peer: grasp contact {contact.name!r} is {contact.model!r}; only point-friction contacts have a "
+            "PointContactConstraintModel counterpart"
+        )
+    on_object, on_finger = model.frames[contact.object_frame], model.frames[contact.finger_frame]
+    link = pin.PointContactConstraintModel(
+        model,
+        on_object.parentJoint,
+        on_object.placement * pin.SE3(FLIP, np.zeros(3)),
+        on_finger.parentJoint,
+        on_finger.placement,
+    )
+    link.setFriction(contact.mu)
+    return PeerContact(contact.name, link, -FLIP, FLIP)
+
+
+def _plane_contact(model: pin.Model, contact: PointContact) -> PeerContact:
+    if contact.friction is None:
+        raise PinstabError(f"ADMM peer: plane contact {contact.name!r} is frictionless; give it a mu (a cone)")
+    normal, first, second = contact.selection
+    anchor = pin.SE3(np.column_stack([first, second, normal]), contact.world_placement_b.translation)
+    frame = model.frames[contact.frame_a]
+    link = pin.PointContactConstraintModel(model, 0, anchor, frame.parentJoint, frame.placement)
+    link.setFriction(contact.friction.mu)
+    return PeerContact(contact.name, link, PLANE_ORDER, PLANE_ORDER.T)
+
+
+def peer_contacts(scene: Scene) -> list[PeerContact]:
+    """The scene's contacts as Pinocchio constraint models, in the scene's order.
+
+    Raises:
+        PinstabError: a constraint other than a point-friction grasp contact or a plane contact with mu.
+    """
+    contacts = []
+    for constraint in scene.constraints:
+        if isinstance(constraint, GraspContact):
+            contacts.append(_grasp_contact(scene.model, constraint))
+        elif isinstance(constraint, PointContact):
+            contacts.append(_plane_contact(scene.model, constraint))
+        else:
+            raise PinstabError(
+                f"ADMM peer: constraint {constraint.name!r} ({constraint.kind}) is not a contact; the peer takes "
+                "point-friction grasp contacts and plane contacts with mu"
+            )
+    return contacts
+
+
+@dataclass(frozen=True)
+class AdmmSolution:
+    """One ADMM solve.
+
+    Attributes:
+        forces: the contact forces in pinstab's convention, stacked in the scene's order like
+            ``trajectory.multipliers`` [N] (for a velocity-level solve: the impulse over the step / dt).
+        names: the contacts' names. iterations: ADMM iterations. converged: ADMM's flag.
+        primal_feasibility, dual_feasibility, complementarity: ADMM's residuals at the end [m/s^2 or
+            m/s, the velocity/acceleration units of g; complementarity their product with forces].
+        motion: the generalized acceleration (acceleration level) [m/s^2, rad/s^2] or the velocity at the
+            step's end (velocity level) [m/s, rad/s] the solve gives.
+    """
+
+    forces: np.ndarray
+    names: tuple[str, ...]
+    iterations: int
+    converged: bool
+    primal_feasibility: float
+    dual_feasibility: float
+    complementarity: float
+    motion: np.ndarray = field(repr=False)
+
+    def by_contact(self) -> dict[str, np.ndarray]:
+        """The forces per contact name, 3 each [N]."""
+        return {name: self.forces[3 * i : 3 * i + 3] for i, name in enumerate(self.names)}
+
+
+@dataclass(frozen=True)
+class ContactTerms:
+    """Pinocchio's terms at one state.
+
+    Attributes:
+        mass: M [kg, kg m^2] (symmetric). bias: h = C v + g [N, N m]. jacobian: J (3 n x nv).
+        position: e [m]. velocity: J v [m/s]. drift: gamma, J's rate times v [m/s^2].
+    """
+
+    mass: np.ndarray
+    bias: np.ndarray
+    jacobian: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    drift: np.ndarray
+
+
+def _mass_solves(terms: ContactTerms, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M^-1 J^T, the free acceleration M^-1 (tau - h) [m/s^2, rad/s^2]) in one solve."""
+    solved = np.linalg.solve(terms.mass, np.column_stack([terms.jacobian.T, tau - terms.bias]))
+    return solved[:, :-1], solved[:, -1]
+
+
+def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettings:
+    """ADMM's settings with every feasibility and complementarity tolerance (absolute and relative)
+    at ``tolerance`` and the spectral rho rule of Pinocchio's example."""
+    settings = pin.ADMMSolverSettings()
+    settings.max_iterations = max_iterations
+    for name in ("feasibility", "complementarity"):
+        setattr(settings, f"absolute_{name}_tol", tolerance)
+        setattr(settings, f"relative_{name}_tol", tolerance)
+    settings.admm_update_rule = pin.ADMMUpdateRule.SPECTRAL
+    return settings
+
+
+class AdmmContactPeer:
+    """The contact problem of a scene's contacts, solved by Pinocchio's ADMM.
+
+    Args:
+        scene: a scene whose constraints are point-friction grasp contacts and plane contacts with mu.
+        tolerance: ADMM's absolute and relative feasibility and complementarity tolerances.
+        max_iterations: ADMM's iteration limit.
+        compliance: the compliance R added to the Delassus matrix's diagonal [(m/s)/(N s) at the velocity
+            level, (m/s^2)/N at the acceleration level], 0 for rigid contacts.
+        warm_start: start each solve from the previous one's forces.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        tolerance: float = 1e-12,
+        max_iterations: int = 10_000,
+        compliance: float = 0.0,
+        warm_start: bool = False,
+    ) -> None:
+        self.model = scene.model
+        self.data = self.model.createData()
+        self.contacts = peer_contacts(scene)
+        self.models, self.datas = pin.StdVec_ConstraintModel(), pin.StdVec_ConstraintData()
+        for contact in self.contacts:
+            self.models.append(contact.model)
+            self.datas.append(self.models[len(self.models) - 1].createData())
+        self.size = 3 * len(self.contacts)
+        self.to_pinstab = np.zeros((self.size, self.size))
+        for i, contact in enumerate(self.contacts):
+            self.to_pinstab[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = contact.to_pinstab
+        self.names = tuple(contact.name for contact in self.contacts)
+        self.settings = admm_settings(tolerance, max_iterations)
+        self.solver = pin.ADMMConstraintSolver(self.size)
+        self.result = pin.ADMMSolverResult()
+        self.compliance = compliance
+        self.warm_start = warm_start
+        self._zero = np.zeros(self.model.nv)
+
+    def terms(self, q: np.ndarray, v: np.ndarray) -> ContactTerms:
+        """One Pinocchio pass at (q, v): M, h, the contacts' Jacobian, errors and drift."""
+        model, data = self.model, self.data
+        pin.computeJointJacobians(model, data, q)
+        pin.forwardKinematics(model, data, q, v, self._zero)
+        for contact_model, contact_data in zip(self.models, self.datas, strict=True):
+            contact_model.calc(model, data, contact_data)
+        extracted = [contact_data.extract() for contact_data in self.datas]
+        jacobian = pin.getConstraintsJacobian(model, data, self.models, self.datas)
+        mass = pin.crba(model, data, q)
+        return ContactTerms(
+            np.triu(mass) + np.triu(mass, 1).T,
+            pin.nle(model, data, q, v),
+            jacobian,
+            np.concatenate([d.constraint_position_error for d in extracted]),
+            jacobian @ v,
+            np.concatenate([d.constraint_acceleration_error for d in extracted]),
+        )
+
+    def world_forces(self, solution: AdmmSolution) -> np.ndarray:
+        """The last solve's forces in world axes, one row per contact (n, 3) [N]: on the body of a plane
+        contact, of the finger on the object for a grasp contact; ``datas`` must be of that solve."""
+        rows = []
+        for i, (contact, contact_data) in enumerate(zip(self.contacts, self.datas, strict=True)):
+            rotation = contact_data.extract().oMc1.rotation
+            rows.append(rotation @ contact.axes @ solution.forces[3 * i : 3 * i + 3])
+        return np.array(rows)
+
+    def _solve(self, mass_inverse_jt: np.ndarray, jacobian: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """ADMM on ``D f + g``, D = J M^-1 J^T (+ compliance): the forces in Pinocchio's convention."""
+        delassus = jacobian @ mass_inverse_jt
+        operator = pin.DelassusOperatorDense(0.5 * (delassus + delassus.T))
+        if self.compliance:
+            operator.updateCompliance(self.compliance)
+        if self.warm_start and self.result.isValid():
+            self.result.setConstraintImpulseGuess(self.result.retrieveConstraintImpulses().copy())
+        self.solver.solve(operator, g, self.models, self.datas, self.settings, self.result)
+        return self.result.retrieveConstraintImpulses().copy()
+
+    def _solution(self, pinocchio_forces: np.ndarray, motion: np.ndarray, scale: float) -> AdmmSolution:
+        """The last solve's result; pinstab's forces are ``scale`` times the converted ones."""
+        result = self.result
+        return AdmmSolution(
+            self.to_pinstab @ pinocchio_forces * scale,
+            self.names,
+            int(result.iterations),
+            bool(result.converged),
+            float(result.primal_feasibility),
+            float(result.dual_feasibility),
+            float(result.complementarity),
+            motion,
+        )
+
+    def solve(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, kp: float = 0.0, kd: float = 0.0) -> AdmmSolution:
+        """The contact forces at (q, v) under the applied generalized forces ``tau`` [N, N m], at the
+        acceleration level with Baumgarte's ``kp`` [1/s^2] and ``kd`` [1/s] (0: the plain drift).
+
+        Returns:
+            the solution; its ``motion`` is the acceleration a [m/s^2, rad/s^2].
+        """
+        return self.acceleration_solve(self.terms(q, v), tau, kp, kd)
+
+    def acceleration_solve(self, terms: ContactTerms, tau: np.ndarray, kp: float, kd: float) -> AdmmSolution:
+        """:meth:`solve` on the terms of a pass at the state (:meth:`terms`)."""
+        mass_inverse_jt, free = _mass_solves(terms, tau)
+        g = terms.jacobian @ free + terms.drift + kd * terms.velocity + kp * terms.position
+        forces = self._solve(mass_inverse_jt, terms.jacobian, g)
+        return self._solution(forces, free + mass_inverse_jt @ forces, 1.0)
+
+    def impulse_step(self, terms: ContactTerms, v: np.ndarray, tau: np.ndarray, dt: float, erp: float) -> AdmmSolution:
+        """A velocity-level step from Pinocchio's example: ``v_free = v + dt M^-1 (tau - h)``, impulses
+        on ``g = J v_free + (erp / dt) e`` (``erp``: the fraction [-] of the position error removed per
+        step), forces = impulses / dt [N].
+
+        Returns:
+            the solution; its ``motion`` is the velocity at the step's end [m/s, rad/s].
+        """
+        mass_inverse_jt, acceleration = _mass_solves(terms, tau)
+        free = v + dt * acceleration
+        g = terms.jacobian @ free + (erp / dt) * terms.position
+        impulses = self._solve(mass_inverse_jt, terms.jacobian, g)
+        return self._solution(impulses, free + mass_inverse_jt @ impulses, 1.0 / dt)
+
+
+def admm_contact_forces(scene: Scene, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """World-axes contact forces (n, 3) [N] of Pinocchio's ADMM (tolerances 1e-12) at (q, v) under the
+    applied forces ``tau`` [N, N m], acceleration level without Baumgarte terms: on the body of each
+    plane contact, of the finger on the object for each grasp contact.
+
+    Raises:
+        PinstabError: ADMM did not converge.
+    """
+    peer = AdmmContactPeer(scene)
+    solution = peer.solve(q, v, tau)
+    if not solution.converged:
+        raise PinstabError(f"ADMM did not converge in {solution.iterations} iterations")
+    return peer.world_forces(solution)
+
+
+# -- the scene's force elements, from the peer's own Pinocchio pass ---------------------------------------
+class PeerForces:
+    """The applied forces of the scene's ``grasp-hold`` and ``external-force`` elements, computed from
+    the peer's Pinocchio data and contact Jacobian (pinstab's rows are ``to_pinstab @ J``).
+
+    Raises:
+        PinstabError: another force element.
+    """
+
+    def __init__(self, scene: Scene, peer: AdmmContactPeer) -> None:
+        self.peer = peer
+        self.holds, self.pushes = [], []
+        for element in scene.forces:
+            if isinstance(element, GraspHold):
+                index = [peer.names.index(contact.name) for contact in element.contacts]
+                rows = np.concatenate([np.arange(3 * i, 3 * i + 3) for i in index])
+                self.holds.append((element, rows))
+            elif isinstance(element, ExternalForce):
+                self.pushes.append(element)
+            else:
+                raise PinstabError(f"ADMM peer: force element {element.name!r} is not a grasp hold or external force")
+
+    def __call__(self, q: np.ndarray, v: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
+        """tau [N, N m] at (q, v); the peer's ``terms`` at q must be current (``jacobian`` its J)."""
+        model, data = self.peer.model, self.peer.data
+        tau = np.zeros(model.nv)
+        world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        for push in self.pushes:
+            tau += pin.getFrameJacobian(model, data, push.frame, world).T @ push.wrench
+        if self.holds:
+            gravity = pin.computeGeneralizedGravity(model, data, q)
+            rows = self.peer.to_pinstab @ jacobian
+            for hold, selected in self.holds:
+                tau += _hold(hold, rows[selected], gravity, q, v)
+        return tau
+
+
+def _hold(hold: GraspHold, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:class:`GraspHold`'s torques [N m] with pinstab's contact rows ``rows`` (see its docstring)."""
+    carrier = rows[:, hold.object_columns].T
+    weight, *_ = np.linalg.lstsq(carrier, gravity[hold.object_columns], rcond=None)
+    _, singular, vt = np.linalg.svd(carrier)
+    rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
+    internal = vt[rank:].T
+    if internal.size:
+        weight = weight + internal @ (internal.T @ (hold.pressing - weight))
+    hand = hold.hand_columns
+    deviation = pin.difference(hold.model, hold.q_start, q)[hand]
+    tau = np.zeros(len(v))
+    tau[hand] = gravity[hand] - rows[:, hand].T @ weight - hold.stiffness * deviation - hold.damping * v[hand]
+    return tau
+
+
+# -- the stepping loop ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PeerRun:
+    """A run of the peer loop, kept every ``record_every`` steps.
+
+    Attributes:
+        t: [s]. q, v: the states. forces: the contact forces of the step from each kept state, pinstab's
+            convention [N]. cpu_s: CPU seconds of the loop. iterations: ADMM iterations per solve
+            (mean, max). worst_primal, worst_dual, worst_complementarity: ADMM's largest residuals.
+        failed: ADMM solves that did not converge.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    forces: np.ndarray
+    cpu_s: float
+    iterations: tuple[float, int]
+    worst_primal: float
+    worst_dual: float
+    worst_complementarity: float
+    failed: int
+
+
+@dataclass
+class _Statistics:
+    iterations: list[int] = field(default_factory=list)
+    primal: float = 0.0
+    dual: float = 0.0
+    complementarity: float = 0.0
+    failed: int = 0
+
+    def add(self, solution: AdmmSolution) -> AdmmSolution:
+        self.iterations.append(solution.iterations)
+        self.primal = max(self.primal, solution.primal_feasibility)
+        self.dual = max(self.dual, solution.dual_feasibility)
+        self.complementarity = max(self.complementarity, solution.complementarity)
+        self.failed += not solution.converged
+        return solution
+
+
+@dataclass(frozen=True)
+class PeerSettings:
+    """The peer loop's settings.
+
+    Attributes:
+        scheme: one of :data:`PEER_SCHEMES`. dt: step [s].
+        kp, kd: Baumgarte's gains [1/s^2], [1/s] (acceleration-level schemes).
+        erp: the fraction of the position error removed per step [-] (velocity level).
+        compliance: the contacts' compliance (see :class:`AdmmContactPeer`).
+        tolerance: ADMM's tolerances. warm_start: start each solve from the previous forces.
+    """
+
+    scheme: str
+    dt: float
+    kp: float = 100.0
+    kd: float = 20.0
+    erp: float = 0.2
+    compliance: float = 0.0
+    tolerance: float = 1e-12
+    warm_start: bool = True
+
+
+def _acceleration_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: _Statistics):
+    """``step(q, v) -> (q, v, forces at q)`` of semi-implicit Euler or RK4 on ADMM's accelerations (RK4 on
+    the configuration group: stage velocities carried back to q's tangent space with ``pin.dDifference``,
+    as pinstab's RK4 does)."""
+    model, dt, kp, kd = peer.model, settings.dt, settings.kp, settings.kd
+    integrate = pin.integrate
+
+    def solve(q: np.ndarray, v: np.ndarray) -> AdmmSolution:
+        terms = peer.terms(q, v)
+        return statistics.add(peer.acceleration_solve(terms, forces(q, v, terms.jacobian), kp, kd))
+
+    def euler(q: np.ndarray, v: np.ndarray):
+        first = solve(q, v)
+        v = v + dt * first.motion
+        return integrate(model, q, dt * v), v, first.forces
+
+    half, sixth = 0.5 * dt, dt / 6.0
+    stage_position = pin.ArgumentPosition.ARG1
+
+    def slope(q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
+        """A stage velocity carried to the tangent space at q (the free flyer's dexp^-1)."""
+        return pin.dDifference(model, q, q_stage, stage_position) @ v_stage
+
+    def rk4(q: np.ndarray, v: np.ndarray):
+        first = solve(q, v)
+        a1 = first.motion
+        v2, q2 = v + half * a1, integrate(model, q, half * v)
+        a2 = solve(q2, v2).motion
+        k2 = slope(q, q2, v2)
+        v3, q3 = v + half * a2, integrate(model, q, half * k2)
+        a3 = solve(q3, v3).motion
+        k3 = slope(q, q3, v3)
+        v4, q4 = v + dt * a3, integrate(model, q, dt * k3)
+        a4 = solve(q4, v4).motion
+        q_next = integrate(model, q, sixth * (v + 2.0 * (k2 + k3) + slope(q, q4, v4)))
+        return q_next, v + sixth * (a1 + 2.0 * (a2 + a3) + a4), first.forces
+
+    return euler if settings.scheme == "semi-implicit-euler" else rk4
+
+
+def _velocity_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: _Statistics):
+    """``step(q, v) -> (q, v, forces)`` of the velocity-level scheme (impulses, then q with v_next)."""
+    model, dt, erp = peer.model, settings.dt, settings.erp
+
+    def step(q: np.ndarray, v: np.ndarray):
+        terms = peer.terms(q, v)
+        solution = statistics.add(peer.impulse_step(terms, v, forces(q, v, terms.jacobian), dt, erp))
+        return pin.integrate(model, q, dt * solution.motion), solution.motion, solution.forces
+
+    return step
+
+
+def run_peer(
+    scene: Scene, q0: np.ndarray, v0: np.ndarray, settings: PeerSettings, duration: float, record_every: int = 1
+) -> PeerRun:
+    """Step the scene from (q0, v0) for ``duration`` [s] with Pinocchio's ADMM, keeping every
+    ``record_every``-th state (and its step's contact forces); the last state's forces are solved
+    after the loop (not timed).
+
+    Raises:
+        PinstabError: an unknown scheme, or what :func:`peer_contacts` and :class:`PeerForces` refuse.
+    """
+    if settings.scheme not in PEER_SCHEMES:
+        raise PinstabError(f"unknown ADMM peer scheme {settings.scheme!r}; schemes: {', '.join(PEER_SCHEMES)}")
+    peer = AdmmContactPeer(scene, settings.tolerance, compliance=settings.compliance, warm_start=settings.warm_start)
+    forces = PeerForces(scene, peer)
+    statistics = _Statistics()
+    build = _velocity_step if settings.scheme == "velocity-level" else _acceleration_step
+    step = build(peer, forces, settings, statistics)
+    steps = round(duration / settings.dt)
+    kept = steps // record_every + 1
+    qs, vs, fs = np.empty((kept, len(q0))), np.empty((kept, len(v0))), np.empty((kept, peer.size))
+    q, v = q0.copy(), v0.copy()
+    qs[0], vs[0] = q, v
+    began = time.process_time()
+    for k in range(1, steps + 1):
+        q, v, contact = step(q, v)
+        if (k - 1) % record_every == 0:
+            fs[(k - 1) // record_every] = contact
+        if k % record_every == 0:
+            qs[k // record_every], vs[k // record_every] = q, v
+    cpu = time.process_time() - began
+    fs[-1] = step(q, v)[2]
+    return PeerRun(
+        np.arange(kept) * record_every * settings.dt,
+        qs,
+        vs,
+        fs,
+        cpu,
+        (float(np.mean(statistics.iterations)), int(np.max(statistics.iterations))),
+        statistics.primal,
+        statistics.dual,
+        statistics.complementarity,
+        statistics.failed,
+    )
