@@ -36,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..constraints import PointContact
-from ..constraints.grasp_contacts import GraspContact
+from ..constraints.grasp_contacts import FingertipContact
 from ..errors import PinstabError
 from ..forces import ExternalForce
 from ..forces.grasp_hold import GraspHold
@@ -64,7 +64,7 @@ class PeerContact:
     axes: np.ndarray
 
 
-def _grasp_contact(model: pin.Model, contact: GraspContact) -> PeerContact:
+def _grasp_contact(model: pin.Model, contact: FingertipContact) -> PeerContact:
     if contact.model != "point-friction":
         raise PinstabError(
             f"ADMM peer: grasp contact {contact.name!r} is {contact.model!r}; only point-friction contacts have a "
@@ -101,7 +101,7 @@ def peer_contacts(scene: Scene) -> list[PeerContact]:
     """
     contacts = []
     for constraint in scene.constraints:
-        if isinstance(constraint, GraspContact):
+        if isinstance(constraint, FingertipContact):
             contacts.append(_grasp_contact(scene.model, constraint))
         elif isinstance(constraint, PointContact):
             contacts.append(_plane_contact(scene.model, constraint))

@@ -5,6 +5,7 @@ from ..registry import load_extensions
 from .base import CONSTRAINT_KINDS, Constraint, FrictionCone, RowKind, VelocityTerms
 from .contacts import PointContact
 from .custom import HolonomicConstraint, PfaffianConstraint
+from .grasp_contacts import FingertipContact
 from .loops import FrameClosure
 from .stack import ConeRows, ConstraintSet, ConstraintValues, RowLayout, Violation
 
@@ -16,6 +17,7 @@ __all__ = [
     "Constraint",
     "ConstraintSet",
     "ConstraintValues",
+    "FingertipContact",
     "FrameClosure",
     "FrictionCone",
     "HolonomicConstraint",

@@ -49,7 +49,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-class GraspContact(Constraint):
+class FingertipContact(Constraint):
     """A sticking contact of a fingertip on an object, the rows of its contact model.
 
     Args:
@@ -251,7 +251,7 @@ def _touch(tables: SceneTables, frame: int, item, radius: float, name: str, wher
     return gap, normal
 
 
-def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> GraspContact:
+def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> FingertipContact:
     """Scene table: ``finger`` (a frame at the fingertip sphere's centre), ``object`` (a scene object),
     ``model`` (default ``point-friction``), ``radius`` [m] of the fingertip sphere, ``mu`` for
     ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
@@ -288,7 +288,7 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     contact = pin.SE3(rotation, centre + radius * normal)
     object_frame = _frame_at(tables, item.frame, contact, f"{name}/object")
     finger_frame = _frame_at(tables, finger, contact, f"{name}/finger")
-    return GraspContact(
+    return FingertipContact(
         name, model_name, object_frame, finger_frame, item.name, str(entry["finger"]), mu, torsion, radius
     )
 

@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from ..constraints import PointContact
 from ..constraints.contacts import contact_basis
-from ..constraints.grasp_contacts import FRICTION_MODELS, GraspContact
+from ..constraints.grasp_contacts import FRICTION_MODELS, FingertipContact
 from ..kinematics import Kinematics
 from ..model import ConstrainedModel
 from ..trajectory import Trajectory
@@ -73,7 +73,7 @@ def _usage(normal: float, pairs: list[tuple[float, float]]) -> float:
 class GraspView:
     """A fingertip contact: the force of the finger on the object, the cone about the object's normal."""
 
-    def __init__(self, contact: GraspContact) -> None:
+    def __init__(self, contact: FingertipContact) -> None:
         self.contact, self.name = contact, contact.name
         self.mu = contact.mu if contact.model in FRICTION_MODELS else None
 
@@ -119,7 +119,7 @@ def contact_views(model: ConstrainedModel) -> list[ContactView]:
     """The grasp and plane contacts of ``model``, in constraint order."""
     views: list[ContactView] = []
     for constraint in model.constraints.constraints:
-        if isinstance(constraint, GraspContact):
+        if isinstance(constraint, FingertipContact):
             views.append(GraspView(constraint))
         elif isinstance(constraint, PointContact):
             views.append(PlaneView(constraint))
