@@ -164,3 +164,23 @@ def test_bad_hold_input_is_named(change, pattern):
 def test_bad_facets_are_refused(capsys):
     code, _, err = run_json(capsys, "grasp", "allegro-sphere", "--facets", "2")
     assert code == 2 and "facets must be a whole number >= 3" in err
+
+
+@pytest.mark.parametrize(
+    ("force", "phrase", "margin"),
+    [
+        ([0.0, 0.0, -0.5, 0.0], "would have to pull: normal force -0.5 N < 0", -0.5),
+        ([0.9, 0.0, 1.0, 0.0], "would slide: tangential force 0.9 N > mu f_n = 0.8 N", 0.8 - 0.9),
+        ([0.0, 0.0, 1.0, 0.006], "would spin: moment about the normal 0.006 N m > torsion f_n = 0.005 N m", -0.001),
+    ],
+)
+def test_a_soft_finger_force_outside_its_limits_is_named(force, phrase, margin):
+    """allegro-box's soft finger (mu 0.8, torsion 5 mm), forces (fx, fy, fz, mz) in its contact frame: each
+    limit has its own message and the violated margin [N or N m]; inside every limit nothing is raised."""
+    contact = load_scene("allegro-box").constraints[0]
+    with pytest.raises(
+        GraspLostError, match=rf"grasp lost at t = 0.25 s: contact 'index' \(link_3.0_tip on box\) {phrase}"
+    ) as info:
+        contact.check_force(np.array(force), 0.25)
+    assert info.value.margin == pytest.approx(margin, abs=1e-12) and info.value.time == 0.25
+    contact.check_force(np.array([0.3, 0.3, 1.0, 0.004]), 0.25)

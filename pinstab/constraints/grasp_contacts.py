@@ -149,36 +149,26 @@ class FingertipContact(Constraint):
         return margins
 
     def check_force(self, force: np.ndarray, t: float) -> None:
-        """Raise :class:`GraspLostError` when the contact would have to pull or slide."""
+        """Raise :class:`GraspLostError` when the contact would have to pull, slide or spin."""
         margins = self.margins(force)
         slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(force), initial=0.0)))
-        wrench = self.wrench(force)
-        if margins.get("normal", 0.0) < slack:
-            raise GraspLostError(
-                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
-                f"would have to pull: normal force {wrench[2]:.4g} N < 0",
-                self.name,
-                t,
-                margins["normal"],
-            )
-        if margins.get("friction", 0.0) < slack:
-            raise GraspLostError(
-                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
-                f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
-                f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
-                self.name,
-                t,
-                margins["friction"],
-            )
-        if margins.get("torsion", 0.0) < slack:
-            raise GraspLostError(
-                f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) "
-                f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
-                f"{self.torsion * wrench[2]:.4g} N m",
-                self.name,
-                t,
-                margins["torsion"],
-            )
+        violated = [key for key in ("normal", "friction", "torsion") if margins.get(key, 0.0) < slack]
+        if not violated:
+            return
+        key, wrench = violated[0], self.wrench(force)
+        why = {
+            "normal": f"would have to pull: normal force {wrench[2]:.4g} N < 0",
+            "friction": f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
+            f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
+            "torsion": f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
+            f"{self.torsion * wrench[2]:.4g} N m",
+        }[key]
+        raise GraspLostError(
+            f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) {why}",
+            self.name,
+            t,
+            margins[key],
+        )
 
     def slip(self, kin: Kinematics) -> float | None:
         """Distance between the contact's material points on the object and on the fingertip [m] (the
