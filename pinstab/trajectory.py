@@ -190,17 +190,19 @@ class Trajectory:
             raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None
 
 
+def sample_weights(t: np.ndarray, time_s: float) -> tuple[int, float]:
+    """(k, u): the time ``time_s`` [s] lies a fraction u in [0, 1] of the way from sample k to k + 1 of the
+    increasing sample times ``t`` [s] (held at the ends; k = 0, u = 0 for a single sample)."""
+    if len(t) < 2:
+        return 0, 0.0
+    k = min(max(int(np.searchsorted(t, time_s, side="right")) - 1, 0), len(t) - 2)
+    span = t[k + 1] - t[k]
+    return k, 0.0 if span <= 0 else min(max((time_s - t[k]) / span, 0.0), 1.0)
+
+
 def configurations_at(t: np.ndarray, q: np.ndarray, model: pin.Model, times: np.ndarray) -> np.ndarray:
     """Configurations sampled at ``times`` [s] from samples (t, q), interpolated on the configuration
     group (``pin.interpolate``) and held at the ends."""
-    states = []
-    last = len(t) - 2
-    for time_s in times:
-        k = min(max(int(np.searchsorted(t, time_s, side="right")) - 1, 0), max(last, 0))
-        if last < 0:
-            states.append(q[0].copy())
-            continue
-        span = t[k + 1] - t[k]
-        u = 0.0 if span <= 0 else min(max((time_s - t[k]) / span, 0.0), 1.0)
-        states.append(pin.interpolate(model, q[k], q[k + 1], u))
-    return np.array(states)
+    if len(t) < 2:
+        return np.array([q[0].copy() for _ in times])
+    return np.array([pin.interpolate(model, q[k], q[k + 1], u) for k, u in (sample_weights(t, x) for x in times)])

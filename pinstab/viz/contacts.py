@@ -25,7 +25,7 @@ from ..constraints.contacts import contact_basis
 from ..constraints.grasp_contacts import FRICTION_MODELS, FingertipContact
 from ..kinematics import Kinematics
 from ..model import ConstrainedModel
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, sample_weights
 from .nodes import ROOT, Y_AXIS, rotation_onto, set_color, set_pose
 
 FORCE_FRACTION = 0.5  # the largest force is drawn this fraction of the scene's size long
@@ -131,9 +131,7 @@ def sample_at(t: np.ndarray, values: np.ndarray, time_s: float) -> np.ndarray:
     at the ends (the weights :func:`~pinstab.trajectory.configurations_at` uses)."""
     if len(t) < 2:
         return values[0]
-    k = min(max(int(np.searchsorted(t, time_s, side="right")) - 1, 0), len(t) - 2)
-    span = t[k + 1] - t[k]
-    u = 0.0 if span <= 0 else min(max((time_s - t[k]) / span, 0.0), 1.0)
+    k, u = sample_weights(t, time_s)
     return (1.0 - u) * values[k] + u * values[k + 1]
 
 
