@@ -5,7 +5,7 @@ Pinocchio 4.1's ADMM contact solver (``pinstab.bench.admm_peer``), each at sever
 Per run: CPU seconds per simulated second (``simulate()``: the whole call; the peer: its loop), the
 largest contact-force difference to the reference run and to pinstab's best run at common times (every
 10 ms), the creep (the largest distance between each contact's material points on ball and fingertip,
-``GraspContact.slip``) and the ball's displacement relative to the fingertips (the ball centre against
+``FingertipContact.slip``) and the ball's displacement relative to the fingertips (the ball centre against
 where the rigid motion best fitting the four fingertip points carries it). "Best" on each side: the
 cheapest run whose forces are within FORCE_TARGET of the reference and whose creep is below CREEP_TARGET;
 the two bests, and pinstab's defaults against the peer with the same scheme and step, are then timed
@@ -76,7 +76,7 @@ def rigid_fit(before: np.ndarray, after: np.ndarray) -> tuple[np.ndarray, np.nda
 
 def creep(model: ConstrainedModel, qs: np.ndarray) -> dict[str, Any]:
     """Over the states ``qs``: per contact the largest distance between its material points on ball
-    and fingertip [m] (``GraspContact.slip``), and the ball's largest displacement relative to the
+    and fingertip [m] (``FingertipContact.slip``), and the ball's largest displacement relative to the
     fingertips [m]: its centre against where the rigid motion best fitting the fingertip points carries
     the start's centre."""
     contacts = model.constraints.constraints
