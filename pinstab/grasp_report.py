@@ -150,3 +150,45 @@ def _object_grasp(model: ConstrainedModel, name: str, contacts: list[Any], facet
         twist_singular_values=np.linalg.svd(twist, compute_uv=False) if twist.size else np.zeros(0),
         row_mismatch=float(np.max(np.abs(rows[:, object_columns] - transpose))),
     )
+
+
+@dataclass
+class ControlSeries:
+    """An object-level controlled run, per recorded sample.
+
+    Attributes:
+        t: times [s]. position_error: |p - p_desired| [m]. orientation_error: |log3(R_d^T R)| [rad].
+        cone_margin: the smallest friction-cone margin over the contacts, mu f_n - |f_t| [N].
+        torques: the controller's joint torques (samples x hand DOF) [N m]. joints: their names.
+        effort_limit: the URDF's limits of those joints [N m] (inf where none).
+    """
+
+    t: np.ndarray
+    position_error: np.ndarray
+    orientation_error: np.ndarray
+    cone_margin: np.ndarray
+    torques: np.ndarray
+    joints: list[str]
+    effort_limit: np.ndarray
+
+
+def control_series(scene: Scene, trajectory: Any, controller: Any) -> ControlSeries:
+    """Tracking errors, cone margins and joint torques of a run of ``scene`` driven by ``controller`` (a
+    ``grasp-control`` force element of the scene), from the trajectory's samples and multipliers."""
+    model = ConstrainedModel(scene)
+    kin = model.kin
+    rows = trajectory.info.constraint_rows
+    forces = trajectory.multipliers
+    n = len(trajectory.t)
+    position, orientation, margin = np.zeros(n), np.zeros(n), np.full(n, np.inf)
+    torques = np.zeros((n, len(controller.hand_columns)))
+    for k, (t, q, v) in enumerate(zip(trajectory.t, trajectory.q, trajectory.v, strict=True)):
+        kin.update(q, v)
+        position[k], orientation[k] = controller.tracking_error(kin.placement(controller.object_frame), float(t))
+        torques[k] = controller.generalized_force(kin, v, float(t))[controller.hand_columns]
+        for contact in controller.contacts:
+            start, stop = rows[contact.name]
+            margin[k] = min(margin[k], contact.margins(forces[k, start:stop]).get("friction", np.inf))
+    by_column = {scene.model.joints[j].idx_v: scene.model.names[j] for j in range(1, scene.model.njoints)}
+    joints = [by_column.get(int(c), f"v[{c}]") for c in controller.hand_columns]
+    return ControlSeries(trajectory.t, position, orientation, margin, torques, joints, controller.effort_limit)

@@ -304,14 +304,15 @@ def _velocity(model: pin.Model, table: dict[str, Any]) -> np.ndarray:
 
 # -- constraints and forces ----------------------------------------------------------------------
 def _read_kinds(data: dict[str, Any], key: str, label: str, kinds: Registry, tables: SceneTables) -> list:
-    """Each entry of the array ``key`` read by the registered kind it names."""
+    """Each entry of the array ``key`` read by the registered kind it names (one object, or a list of them)."""
     built = []
     for index, entry in enumerate(list_of_tables(data.get(key, []), key)):
         kind = entry.get("kind")
         if kind not in kinds:
             raise SceneError(f"{key}[{index}]: kind {kind!r} is not a {kinds.kind}; valid kinds: {choices(kinds)}")
         name = tables.name(entry, f"{label}{index}", f"{key}[{index}]")
-        built.append(kinds.entry(kind).factory(entry, tables, name, f"{label} {name!r}"))
+        made = kinds.entry(kind).factory(entry, tables, name, f"{label} {name!r}")
+        built += made if isinstance(made, list) else [made]  # a kind may read one entry into several blocks
     return built
 
 

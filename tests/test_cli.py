@@ -62,7 +62,8 @@ def test_run_json_has_the_documented_keys(capsys, tmp_path):
 def test_unknown_scene_exits_2_listing_bundled_scenes(capsys):
     code, out, err = run_cli(capsys, "run", "no-such-scene")
     assert code == 2 and out == ""
-    assert "box-push, delta, fivebar, fourbar, nfourbar, panda-anchor, slider-crank" in err
+    listed = "box-push, delta, finger-rolling, fivebar, fourbar, nfourbar, panda-anchor, rolling-disk, slider-crank"
+    assert listed in err
     assert "Traceback" not in err
 
 

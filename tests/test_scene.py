@@ -32,8 +32,8 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a constraint kind; valid kinds: grasp-contact, planar-point, plane-contact, point, "
-            r"weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, grasp-contact, planar-point, "
+            r"plane-contact, point, rolling-contact, rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
@@ -49,7 +49,8 @@ from pinstab.scene import scene_from_dict
         ),
         (
             {"forces": [{"kind": "motor"}]},
-            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-hold, joint-torque, spring-damper",
+            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, joint-torque, "
+            r"spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},
@@ -70,8 +71,8 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 def test_unknown_scene_lists_bundled_scenes():
     with pytest.raises(
         SceneError,
-        match=r"no scene named 'nope'.*Bundled scenes: allegro-box, allegro-sphere, box-push, delta, fivebar, fourbar, "
-        r"nfourbar, panda-anchor, slider-crank, trifinger-cube",
+        match=r"no scene named 'nope'.*Bundled scenes: allegro-box, allegro-lift, allegro-sphere, box-push, delta, "
+        r"finger-rolling, fivebar, fourbar, nfourbar, panda-anchor, rolling-disk, slider-crank, trifinger-cube",
     ):
         load_scene("nope")
 

@@ -86,6 +86,8 @@ class Constraint(ABC):
         friction: the cone of a ``cone`` block (3 rows: normal, tangent, tangent), else None.
         limits_force: the block's equality rows hold only while their multipliers stay within limits
             (a contact that can only push, a friction cone): :meth:`check_force` after every solve.
+        force_partners: blocks whose multipliers come before this block's own in what :meth:`margins`
+            and :meth:`check_force` receive (a rolling contact's normal force is its touching block's).
     """
 
     name: str
@@ -95,6 +97,7 @@ class Constraint(ABC):
     row_kind: RowKind = RowKind.EQUALITY
     friction: FrictionCone | None = None
     limits_force: bool = False
+    force_partners: tuple[str, ...] = ()
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""
@@ -128,4 +131,4 @@ CONSTRAINT_KINDS: Registry[Constraint] = Registry("constraint kind")
 """Scene-file constraint kinds: ``kind = NAME`` in ``[[closures]]`` / ``[[contacts]]``. A factory is
 ``parse(table, tables, name, where) -> Constraint``: it reads its own keys from the scene table
 through :class:`~pinstab.tables.SceneTables` (which adds frames to the model) and names ``where``
-in its errors."""
+in its errors; it returns one Constraint, or a list of blocks (rows of different kinds)."""

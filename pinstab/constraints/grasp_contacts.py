@@ -21,6 +21,7 @@ friction cone (|f_t| <= mu f_n, soft finger also |m_z| <= torsion f_n), else
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import coal
 import numpy as np
@@ -40,13 +41,64 @@ GAP_ITERATIONS = 60
 MARGIN_SLACK = 1e-9  # relative: a margin above -slack (1 + |force|) holds (rounding in the solve)
 
 
-def _skew(x: np.ndarray) -> np.ndarray:
+def skew(x: np.ndarray) -> np.ndarray:
+    """[x]x, the 3 x 3 matrix of the cross product x x . (x a 3-vector)."""
     return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+class ContactLimits(NamedTuple):
+    """What a fingertip contact of a contact ``model`` can carry: a normal force that pushes, a tangential
+    force inside the friction cone (mu [-]) and, for a soft finger, a moment about the normal within
+    ``torsion`` [m] times the normal force. ``contact``, ``finger_name`` and ``object_name`` name it in
+    messages."""
+
+    contact: str
+    model: str
+    mu: float
+    torsion: float
+    finger_name: str
+    object_name: str
+
+    def margins(self, wrench: np.ndarray) -> dict[str, float]:
+        """How far ``wrench`` (fx, fy, fz, mx, my, mz of the finger on the object in C [N, N m]) is inside:
+        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` mu f_n - |f_t| [N] and, for a soft finger,
+        ``torsion`` torsion f_n - |m_z| [N m]. A rigid contact carries anything (no margins)."""
+        if self.model == "rigid":
+            return {}
+        margins = {"normal": float(wrench[2])}
+        if self.model in FRICTION_MODELS:
+            margins["friction"] = float(self.mu * wrench[2] - math.hypot(wrench[0], wrench[1]))
+        if self.model == "soft-finger":
+            margins["torsion"] = float(self.torsion * wrench[2] - abs(wrench[5]))
+        return margins
+
+    def check(self, wrench: np.ndarray, t: float) -> None:
+        """Raise :class:`GraspLostError` at time ``t`` [s] when the contact would have to pull, slide or
+        spin to carry ``wrench`` (in C)."""
+        margins = self.margins(wrench)
+        slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(wrench), initial=0.0)))
+        violated = [key for key in ("normal", "friction", "torsion") if margins.get(key, 0.0) < slack]
+        if not violated:
+            return
+        key = violated[0]
+        why = {
+            "normal": f"would have to pull: normal force {wrench[2]:.4g} N < 0",
+            "friction": f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
+            f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
+            "torsion": f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
+            f"{self.torsion * wrench[2]:.4g} N m",
+        }[key]
+        raise GraspLostError(
+            f"grasp lost at t = {t:.6g} s: contact {self.contact!r} ({self.finger_name} on {self.object_name}) {why}",
+            self.contact,
+            t,
+            margins[key],
+        )
 
 
 class FingertipContact(Constraint):
@@ -78,6 +130,7 @@ class FingertipContact(Constraint):
         self.object_frame, self.finger_frame = object_frame, finger_frame
         self.object_name, self.finger_name = object_name, finger_name
         self.mu, self.torsion, self.radius = mu, torsion, radius
+        self.limits = ContactLimits(name, model, mu, torsion, finger_name, object_name)
         self.components = np.flatnonzero(WRENCH_BASES[model].any(axis=1))  # of (fx, fy, fz, mx, my, mz) in C
         self.rows = len(self.components)
         self.limits_force = model != "rigid"
@@ -106,7 +159,7 @@ class FingertipContact(Constraint):
         jac_o = kin.jacobian(self.object_frame)
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
-        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + _skew(difference) @ jac_o[3:])
+        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + skew(difference) @ jac_o[3:])
         jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, q, t)[0][3:]])
         return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
 
@@ -120,9 +173,9 @@ class FingertipContact(Constraint):
         linear = rotation.T @ (
             acc_o.linear
             - acc_f.linear
-            - 2.0 * _cross(omega, rate)
-            + _cross(omega, _cross(omega, difference))
-            - _cross(acc_o.angular, difference)
+            - 2.0 * cross(omega, rate)
+            + cross(omega, cross(omega, difference))
+            - cross(acc_o.angular, difference)
         )
         angular = self._weld.drift(kin, q, v, t)[3:] if self._weld else None
         return self._select(linear, angular)
@@ -135,40 +188,13 @@ class FingertipContact(Constraint):
         return full
 
     def margins(self, force: np.ndarray) -> dict[str, float]:
-        """How far the contact force (this block's multipliers) is inside what the contact can carry:
-        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` mu f_n - |f_t| [N] and, for a soft finger,
-        ``torsion`` torsion f_n - |m_z| [N m]. A rigid contact carries anything (no margins)."""
-        if self.model == "rigid":
-            return {}
-        wrench = self.wrench(force)
-        margins = {"normal": float(wrench[2])}
-        if self.model in FRICTION_MODELS:
-            margins["friction"] = float(self.mu * wrench[2] - math.hypot(wrench[0], wrench[1]))
-        if self.model == "soft-finger":
-            margins["torsion"] = float(self.torsion * wrench[2] - abs(wrench[5]))
-        return margins
+        """How far the contact force (this block's multipliers) is inside what the contact can carry
+        (:meth:`ContactLimits.margins`); a rigid contact carries anything (no margins)."""
+        return self.limits.margins(self.wrench(force))
 
     def check_force(self, force: np.ndarray, t: float) -> None:
         """Raise :class:`GraspLostError` when the contact would have to pull, slide or spin."""
-        margins = self.margins(force)
-        slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(force), initial=0.0)))
-        violated = [key for key in ("normal", "friction", "torsion") if margins.get(key, 0.0) < slack]
-        if not violated:
-            return
-        key, wrench = violated[0], self.wrench(force)
-        why = {
-            "normal": f"would have to pull: normal force {wrench[2]:.4g} N < 0",
-            "friction": f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
-            f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
-            "torsion": f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
-            f"{self.torsion * wrench[2]:.4g} N m",
-        }[key]
-        raise GraspLostError(
-            f"grasp lost at t = {t:.6g} s: contact {self.name!r} ({self.finger_name} on {self.object_name}) {why}",
-            self.name,
-            t,
-            margins[key],
-        )
+        self.limits.check(self.wrench(force), t)
 
     def slip(self, kin: Kinematics) -> float | None:
         """Distance between the contact's material points on the object and on the fingertip [m] (the
@@ -180,9 +206,38 @@ class FingertipContact(Constraint):
 
 
 # -- scene table ---------------------------------------------------------------------------------------
-def _signed_distance(sphere: coal.Sphere, centre: np.ndarray, item, object_placement: pin.SE3):
-    """(distance [m], point on the object, unit normal from the fingertip into the object) to the
-    nearest of the object's shapes."""
+class Fingertip(NamedTuple):
+    """A contact's fingertip sphere and the object it touches, as its scene table gives them.
+
+    Attributes:
+        frame: the frame at the sphere's centre. name: that frame's name in the table. radius: [m].
+        item: the scene object (a :class:`~pinstab.objects.SceneObject`, with contact geometries).
+    """
+
+    frame: int
+    name: str
+    radius: float
+    item: Any
+
+
+class Nearest(NamedTuple):
+    """The object's shape nearest to a fingertip sphere.
+
+    Attributes:
+        distance: the gap [m] (< 0: overlap). point: the nearest point on the shape (world) [m].
+        normal: unit normal from the fingertip into the object (world). shape: the coal shape.
+        local: its placement in the object frame.
+    """
+
+    distance: float
+    point: np.ndarray
+    normal: np.ndarray
+    shape: coal.CollisionGeometry
+    local: pin.SE3
+
+
+def nearest_shape(sphere: coal.Sphere, centre: np.ndarray, item: Any, object_placement: pin.SE3) -> Nearest:
+    """The nearest of the object's shapes to ``sphere`` centred at ``centre`` (world) [m]."""
     best = None
     for shape, local in item.geometries:
         placed = object_placement * local
@@ -195,29 +250,32 @@ def _signed_distance(sphere: coal.Sphere, centre: np.ndarray, item, object_place
             coal.DistanceRequest(),
             result,
         )
-        if best is None or distance < best[0]:
-            best = (float(distance), np.array(result.getNearestPoint2()), np.array(result.normal))
+        if best is None or distance < best.distance:
+            best = Nearest(float(distance), np.array(result.getNearestPoint2()), np.array(result.normal), shape, local)
     return best
 
 
-def _touch(tables: SceneTables, frame: int, item, radius: float, name: str, where: str) -> tuple[float, np.ndarray]:
-    """Move the finger's joints (not the object, not joints an earlier contact placed) until the
-    fingertip sphere touches the object; (remaining gap [m], normal) at the touching configuration."""
-    model, q = tables.model, tables.q0
+def close_gap(tables: SceneTables, fingertip: Fingertip, where: str) -> Nearest:
+    """Move the finger's joints (not the object, not joints an earlier contact placed) in ``tables.q0``
+    until the fingertip sphere touches the object; the nearest shape at the touching configuration.
+
+    Raises:
+        SceneError: the finger's own joints cannot close the gap (named by ``where``).
+    """
+    model, q, frame, item = tables.model, tables.q0, fingertip.frame, fingertip.item
     joints = [j for j in model.supports[model.frames[frame].parentJoint] if j > 0]
     free = [j for j in joints if j not in tables.claimed_joints]
     columns = [k for j in free for k in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
-    sphere = coal.Sphere(radius)
+    sphere = coal.Sphere(fingertip.radius)
     data = model.createData()
-    object_placement = None
     for _ in range(GAP_ITERATIONS):
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
-        object_placement = data.oMf[item.frame]
-        gap, _, normal = _signed_distance(sphere, data.oMf[frame].translation, item, object_placement)
+        nearest = nearest_shape(sphere, data.oMf[frame].translation, item, data.oMf[item.frame])
+        gap = nearest.distance
         if abs(gap) <= GAP_TOLERANCE or not columns:
             break
-        row = -normal @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+        row = -nearest.normal @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
         step = np.zeros(model.nv)
         sub = row[columns]
         if float(sub @ sub) < 1e-24:
@@ -233,22 +291,17 @@ def _touch(tables: SceneTables, frame: int, item, radius: float, name: str, wher
             + (f" (contacts {', '.join(claimed)} placed the shared ones)" if claimed else "")
         )
         raise SceneError(
-            f"{where}: fingertip {name!r} cannot reach object {item.name!r}: a gap of {gap:.4g} m remains at "
-            f"the start ({reason}); change initial.q or the object's position"
+            f"{where}: fingertip {fingertip.name!r} cannot reach object {item.name!r}: a gap of {gap:.4g} m remains "
+            f"at the start ({reason}); change initial.q or the object's position"
         )
     for j in free:
         tables.claimed_joints[j] = where
-    return gap, normal
+    return nearest
 
 
-def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> FingertipContact:
-    """Scene table: ``finger`` (a frame at the fingertip sphere's centre), ``object`` (a scene object),
-    ``model`` (default ``point-friction``), ``radius`` [m] of the fingertip sphere, ``mu`` for
-    ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
-    tables.check_keys(entry, GRASP_KEYS, where)
-    model_name = entry.get("model", "point-friction")
-    if model_name not in WRENCH_BASES:
-        raise SceneError(f"{where}: unknown contact model {model_name!r}; models: {choices(WRENCH_BASES)}")
+def read_fingertip(entry: dict, tables: SceneTables, where: str) -> Fingertip:
+    """A contact table's ``object`` (a scene object with contact geometry), ``finger`` (a frame at the
+    fingertip sphere's centre, not on the object) and ``radius`` [m] (> 0)."""
     objects = tables.objects
     if entry.get("object") not in objects:
         bodies = f"; {entry.get('object')!r} is a body of the robot, not an object" if _is_frame(tables, entry) else ""
@@ -269,17 +322,35 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     radius = tables.quantity(entry["radius"], "length", f"{where}.radius")
     if not radius > 0:
         raise SceneError(f"{where}.radius must be > 0, got {entry['radius']!r}")
+    return Fingertip(finger, str(entry["finger"]), radius, item)
+
+
+def read_coefficients(entry: dict, tables: SceneTables, model_name: str, where: str) -> tuple[float, float]:
+    """(mu [-], torsion [m]) of a contact ``model_name``: ``mu`` for ``point-friction`` / ``soft-finger``,
+    ``torsion`` for ``soft-finger``, each refused on a model that takes none."""
     mu = _coefficient(tables, entry, "mu", None, model_name in FRICTION_MODELS, model_name, where)
     torsion = _coefficient(tables, entry, "torsion", "length", model_name == "soft-finger", model_name, where)
-    _, normal = _touch(tables, finger, item, radius, str(entry["finger"]), where)
-    placements = tables.initial_placement
-    centre = placements(finger).translation
+    return mu, torsion
+
+
+def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> FingertipContact:
+    """Scene table: ``finger`` (a frame at the fingertip sphere's centre), ``object`` (a scene object),
+    ``model`` (default ``point-friction``), ``radius`` [m] of the fingertip sphere, ``mu`` for
+    ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
+    tables.check_keys(entry, GRASP_KEYS, where)
+    model_name = entry.get("model", "point-friction")
+    if model_name not in WRENCH_BASES:
+        raise SceneError(f"{where}: unknown contact model {model_name!r}; models: {choices(WRENCH_BASES)}")
+    fingertip = read_fingertip(entry, tables, where)
+    mu, torsion = read_coefficients(entry, tables, model_name, where)
+    normal = close_gap(tables, fingertip, where).normal
+    centre = tables.initial_placement(fingertip.frame).translation
     rotation = np.column_stack([*plane_basis(normal), normal])  # x, y tangents, z the inward normal
-    contact = pin.SE3(rotation, centre + radius * normal)
-    object_frame = _frame_at(tables, item.frame, contact, f"{name}/object")
-    finger_frame = _frame_at(tables, finger, contact, f"{name}/finger")
+    contact = pin.SE3(rotation, centre + fingertip.radius * normal)
+    object_frame = _frame_at(tables, fingertip.item.frame, contact, f"{name}/object")
+    finger_frame = _frame_at(tables, fingertip.frame, contact, f"{name}/finger")
     return FingertipContact(
-        name, model_name, object_frame, finger_frame, item.name, str(entry["finger"]), mu, torsion, radius
+        name, model_name, object_frame, finger_frame, fingertip.item.name, fingertip.name, mu, torsion, fingertip.radius
     )
 
 

@@ -112,8 +112,18 @@ class ConstraintSet:
         names = tuple(c.name for c in self.constraints for _ in range(c.rows))
         self.layout = RowLayout(names, unilateral, tuple(cones))
         self._has_unilateral = bool(unilateral.any())
-        self.force_limited = [(c, self.slices[c.name]) for c in self.constraints if c.limits_force]
+        self.force_limited = [(c, self._force_rows(c)) for c in self.constraints if c.limits_force]
         self._every_row = np.ones(self.rows, dtype=bool)
+
+    def _force_rows(self, constraint: Constraint) -> slice | np.ndarray:
+        """The multiplier rows a force-limited block checks: its partners' (``force_partners``), then its own."""
+        if not constraint.force_partners:
+            return self.slices[constraint.name]
+        missing = [name for name in constraint.force_partners if name not in self.slices]
+        if missing:
+            raise ConstraintError(f"constraint {constraint.name}: its force partner {missing[0]!r} is not in the set")
+        parts = [self.slices[name] for name in (*constraint.force_partners, constraint.name)]
+        return np.concatenate([np.arange(part.start, part.stop) for part in parts])
 
     def check_forces(self, multipliers: np.ndarray, t: float) -> None:
         """Every block with force limits checks its multipliers at time ``t`` [s] (raises when one is

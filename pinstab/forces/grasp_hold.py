@@ -92,6 +92,21 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
     """Scene table: ``object``, ``contacts`` (names; default: every grasp contact on the object),
     ``squeeze`` [N] per contact, ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0)."""
     tables.check_keys(entry, HOLD_KEYS, where)
+    _, contacts, columns = grasped_contacts(entry, tables, where)
+    values = {}
+    for key, dimension in (("squeeze", "force"), ("stiffness", None), ("damping", None)):
+        if dimension is None:
+            values[key] = tables.number(entry, key, where, default=0.0)
+        else:
+            values[key] = tables.quantity(entry.get(key, 0.0), dimension, f"{where}.{key}")
+        if values[key] < 0:
+            raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
+    return GraspHold(name, tables.model, contacts, columns, q_start=tables.q0, **values)
+
+
+def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any, list[Any], np.ndarray]:
+    """(the object ``entry['object']``, the grasp contacts ``entry['contacts']`` on it (default: all of
+    them), the object's velocity indices), each checked and named in errors."""
     if entry.get("object") not in tables.objects:
         raise SceneError(
             f"{where}.object: {entry.get('object')!r} is not an object; objects: {choices(tables.objects)}"
@@ -106,14 +121,5 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
             raise SceneError(
                 f"{where}.contacts: {contact!r} is not a grasp contact on {item.name!r}; contacts: {choices(grasp)}"
             )
-    values = {}
-    for key, dimension in (("squeeze", "force"), ("stiffness", None), ("damping", None)):
-        if dimension is None:
-            values[key] = tables.number(entry, key, where, default=0.0)
-        else:
-            values[key] = tables.quantity(entry.get(key, 0.0), dimension, f"{where}.{key}")
-        if values[key] < 0:
-            raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
     joint = tables.model.joints[item.joint]
-    columns = np.arange(joint.idx_v, joint.idx_v + joint.nv)
-    return GraspHold(name, tables.model, [grasp[c] for c in names], columns, q_start=tables.q0, **values)
+    return item, [grasp[c] for c in names], np.arange(joint.idx_v, joint.idx_v + joint.nv)
