@@ -145,6 +145,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--facets", type=int, default=8, help="sides of the pyramids that linearize the friction cones (default: 8)"
     )
 
+    servo = sub.add_parser(
+        "servo", help="realize a scene's prescribed constraints: controls, constraint error, reactions"
+    )
+    _scene_arguments(servo)
+    _run_options(servo)
+    servo.add_argument(
+        "--check", action="store_true", help="only check at the start that the controls can realize them"
+    )
+
     run = sub.add_parser("run", help="simulate a scene and report drift and energy")
     _scene_arguments(run)
     _run_options(run)
@@ -235,6 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             commands = {
                 "check": _check,
                 "grasp": _grasp,
+                "servo": _servo,
                 "run": _run,
                 "record": _record,
                 "plot": _plot,
@@ -363,6 +373,32 @@ def _object_grasp_text(name: str, figures: dict[str, Any]) -> str:
         f"  quality (Ferrari-Canny, length {figures['quality_length_m']:.4g} m): {figures['quality']:.4g} N",
     ]
     return "\n".join(lines)
+
+
+def _servo(args: argparse.Namespace) -> dict[str, Any]:
+    from .assembly import assemble
+    from .scene import load_scene
+    from .system import build_system
+
+    scene = load_scene(args.scene, **_parameters(args.param))
+    if not any(c.prescribed for c in scene.constraints):
+        raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
+    if args.check:
+        system = build_system(scene, args.method)
+        start = assemble(system.model, scene.q0, scene.v0)
+        evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
+        decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
+        return {
+            "scene": scene.name,
+            "realizable": True,
+            "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
+            "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
+        }
+    scene, trajectory = _simulate(args)
+    result = _run_summary(args, scene, trajectory)
+    reactions = trajectory.multipliers[:, ~scene.constraint_set.prescribed_mask]
+    result["max_reaction"] = float(np.nanmax(np.abs(reactions))) if reactions.size else 0.0
+    return result
 
 
 TEXT_FORMATS = {"grasp": _grasp_text}

@@ -58,6 +58,24 @@ class GraspLostError(ContactInfeasibleError):
         self.margin = margin
 
 
+class ServoInfeasibleError(PinstabError):
+    """A prescribed constraint (servoconstraint) that the controls cannot realize at a state.
+
+    Attributes:
+        constraints: the prescribed constraints named (those the unreachable direction involves).
+        time: when [s]. q, v: the state. direction: the unreachable direction over the prescribed rows
+            (unit vector; None when the controls could reach it but their limits forbid it).
+    """
+
+    def __init__(self, message: str, constraints: list[str], time: float, q, v, direction=None) -> None:
+        super().__init__(message)
+        self.constraints = constraints
+        self.time = time
+        self.q = q
+        self.v = v
+        self.direction = direction
+
+
 class ProjectionError(PinstabError):
     """Coordinate projection onto the constraint manifold did not converge."""
 

@@ -59,6 +59,8 @@ def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...]
     for constraint in constraints:
         if not isinstance(constraint, FrameClosure):
             return f"constraint {constraint.name!r} is a {type(constraint).__name__}, not a frame closure"
+        if constraint.prescribed:
+            return f"constraint {constraint.name!r} is prescribed (a servo: the controls realize it)"
         if constraint.row_kind != RowKind.EQUALITY:
             return f"constraint {constraint.name!r} has {constraint.row_kind.value} rows (Pinocchio's take equalities)"
         if constraint.kind not in kinds:

@@ -71,6 +71,7 @@ class RunInfo:
         path: ``native`` (Pinocchio's own algorithm evaluated the dynamics) or ``general`` (pinstab's
             kinematics and KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``.
         record_every: a sample was kept every this many steps (and at the last).
+        controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over
             every step (projection, post).
     """
@@ -95,6 +96,7 @@ class RunInfo:
     record_every: int = 1
     correction_iterations_total: int = 0
     correction_iterations_max: int = 0
+    controls: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from . import robots
+from .actuation import Actuation, read_actuation
 from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
 from .errors import SceneError, choices
 from .forces import FORCE_KINDS, ForceElement
@@ -37,12 +38,18 @@ TOP_KEYS = {
     "closures",
     "contacts",
     "forces",
+    "servos",
+    "actuation",
     "initial",
 }
 ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints", "copies"}
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
-KIND_TABLES = {"closures": ("closure", CONSTRAINT_KINDS), "contacts": ("contact", CONSTRAINT_KINDS)}
+KIND_TABLES = {
+    "closures": ("closure", CONSTRAINT_KINDS),
+    "contacts": ("contact", CONSTRAINT_KINDS),
+    "servos": ("servo", CONSTRAINT_KINDS),  # prescribed constraints: realized by the controls (MATH.md 5)
+}
 
 
 @dataclass
@@ -60,6 +67,7 @@ class Scene:
         locked_joints: joints removed from the model, with the positions they were locked at.
         parameters: generator parameters the scene was built with.
         objects: rigid objects added to the robot (free-flyer bodies after its joints).
+        actuation: the controls' matrix B, names and limits (``[actuation]``), or None.
     """
 
     name: str
@@ -77,6 +85,7 @@ class Scene:
     source: Path | None = None
     parameters: dict[str, Any] = field(default_factory=dict)
     objects: list[SceneObject] = field(default_factory=list)
+    actuation: Actuation | None = None
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -200,7 +209,13 @@ def scene_from_dict(
     tables = SceneTables(model, q0, {item.name: item for item in objects})
     constraints: list[Constraint] = []
     for key, (label, kinds) in KIND_TABLES.items():
-        constraints += _read_kinds(data, key, label, kinds, tables)
+        blocks = _read_kinds(data, key, label, kinds, tables)
+        for block in blocks if key == "servos" else ():
+            block.prescribed = True
+        constraints += blocks
+    actuation = read_actuation(data.get("actuation"), model)
+    if any(c.prescribed for c in constraints) and actuation is None:
+        raise SceneError("scene: [[servos]] need controls to realize them: add an [actuation] table (joints or matrix)")
     tables.constraints = {c.name: c for c in constraints}
     forces: list[ForceElement] = _read_kinds(data, "forces", "force", FORCE_KINDS, tables)
     _check_unique([c.name for c in constraints] + [f.name for f in forces])
@@ -220,6 +235,7 @@ def scene_from_dict(
         source=source,
         parameters=used_parameters,
         objects=objects,
+        actuation=actuation,
     )
 
 

@@ -91,3 +91,18 @@ class StateSeries:
             figures["max_contact_slip"] = max(slips)
         figures["contacts"] = per_contact
         return figures
+
+    def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
+        """For a scene with prescribed constraints: per sample the controls u [N m or N] and the largest
+        prescribed-row residual |sigma| [m or rad]; empty otherwise."""
+        system = self.system
+        if system.servo is None:
+            return {}
+        model = system.model
+        mask = model.constraints.prescribed_mask
+        controls = np.full((len(t), system.servo.actuation.count), np.nan)
+        error = np.full(len(t), np.nan)
+        for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
+            controls[k] = system.controls(q[k], v[k], float(t[k]))
+            error[k] = float(np.max(np.abs(model.constraint_values(q[k], v[k], float(t[k])).phi[mask]), initial=0.0))
+        return {"controls": controls, "servo_error": error}

@@ -151,7 +151,7 @@ def _info(
         scene=scene.name,
         method=method,
         integrator=integrator,
-        solver="pinocchio" if system.path == "native" else system.solver.name,
+        solver="pinocchio" if system.path == "native" else ("servo" if system.servo else system.solver.name),
         dt=grid.dt,
         parameters=system.stabilizer.parameters(),
         solver_options=dict(solver_options or {}),
@@ -163,6 +163,7 @@ def _info(
         path=system.path,
         path_reason=system.path_reason,
         record_every=record_every,
+        controls=list(scene.actuation.names) if system.servo is not None else [],
     )
 
 

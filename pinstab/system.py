@@ -18,6 +18,7 @@ from .native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_cl
 from .projection import GeneralProjector, Projector
 from .runinfo import SolverStatistics
 from .scene import Scene
+from .servo import ServoSolver
 from .solvers import SOLVERS, KKTProblem, KKTSolver
 from .solvers.base import ACCEPTED_RESIDUAL
 from .stabilizers import STABILIZERS, Stabilizer
@@ -30,11 +31,13 @@ NATIVE_MU = 1e-12  # proximal regularization of the native solve (the pinocchio 
 @dataclass
 class Evaluation:
     """Dynamics at one state: accelerations [m/s^2, rad/s^2], multipliers, constraint values (None on
-    the direct Pinocchio path, which does not form them)."""
+    the direct Pinocchio path, which does not form them), and with prescribed constraints the controls
+    u [N m or N] that realize them (their rows' multipliers are then zero)."""
 
     acceleration: np.ndarray
     multipliers: np.ndarray
     values: ConstraintValues | None
+    controls: np.ndarray | None = None
 
 
 class ConstrainedSystem:
@@ -72,6 +75,12 @@ class ConstrainedSystem:
         self._checking = True  # check every native solve (until one passes)
         self._native_solves = 0
         self._audit = SolverStatistics()
+        constraints = model.constraints
+        self.servo = (
+            ServoSolver(constraints.prescribed_mask, constraints.layout.names, model.scene.actuation)
+            if constraints.prescribed
+            else None
+        )
 
     # -- choosing the path -------------------------------------------------------------------------
     def bind(self, step: float, integrator: str, q: np.ndarray) -> None:
@@ -201,12 +210,28 @@ class ConstrainedSystem:
             rhs,
             model.constraints.layout,
         )
+        if self.servo is not None:
+            return self._servo_dynamics(problem, values)
         solution = self.solver.solve(problem)
         if not np.isfinite(solution.acceleration).all():
             raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
         if model.constraints.force_limited:
             model.constraints.check_forces(solution.multipliers, t)
         return Evaluation(solution.acceleration, solution.multipliers, values)
+
+    def _servo_dynamics(self, problem: KKTProblem, values: ConstraintValues) -> Evaluation:
+        """The dynamics with prescribed rows: accelerations, reactions and the controls (:mod:`pinstab.servo`)."""
+        state = (problem.t, problem.q, problem.v)
+        solution = self.servo.solve(problem.mass_matrix, problem.free_force, problem.jacobian, problem.rhs, state)
+        if not np.isfinite(solution.acceleration).all():
+            raise DivergenceError(f"non-finite acceleration at t = {problem.t:.6g} s", problem.t, problem.q, problem.v)
+        if self.model.constraints.force_limited:
+            self.model.constraints.check_forces(solution.multipliers, problem.t)
+        return Evaluation(solution.acceleration, solution.multipliers, values, solution.controls)
+
+    def controls(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The controls u [N m or N] that realize the prescribed constraints at (q, v, t)."""
+        return self.dynamics(q, v, t).controls
 
 
 def build_system(

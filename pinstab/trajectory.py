@@ -28,6 +28,8 @@ class SeriesSource(Protocol):
         self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
     ) -> dict[str, Any]: ...
 
+    def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
+
 
 class Trajectory:
     """A simulated motion, sampled every ``info.record_every`` steps and at the last.
@@ -137,7 +139,23 @@ class Trajectory:
         summary["drift_growth_exponent"] = self.drift_growth_exponent()
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
+            servo = self.servo_figures
+            if servo:
+                names = self.info.controls
+                summary["max_servo_error"] = float(np.nanmax(servo["servo_error"]))
+                summary["controls"] = {
+                    name: {"max_abs": float(np.nanmax(np.abs(column))), "final": float(column[-1])}
+                    for name, column in zip(names, servo["controls"].T, strict=True)
+                }
         return summary
+
+    @property
+    def servo_figures(self) -> dict[str, np.ndarray]:
+        """With prescribed constraints: ``controls`` (n, k) [N m or N] (names in ``info.controls``) and
+        ``servo_error`` (n,), the largest prescribed residual [m or rad]; computed when first read."""
+        if "servo" not in self._derived:
+            self._derived["servo"] = {} if self._series is None else self._series.servo_figures(self.t, self.q, self.v)
+        return self._derived["servo"]
 
     def drift_growth_exponent(self) -> float | None:
         """p in position drift ~ t^p, fitted (log-log) over the second half of the run; None when the

@@ -15,8 +15,8 @@ from pinstab.scene import scene_from_dict
     [
         (
             {"robto": {}},
-            r"unknown key 'robto'; valid keys: closures, contacts, description, forces, generator, gravity, initial, "
-            r"name, objects, robot",
+            r"unknown key 'robto'; valid keys: actuation, closures, contacts, description, forces, generator, "
+            r"gravity, initial, name, objects, robot, servos",
         ),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (
@@ -32,8 +32,8 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, grasp-contact, planar-point, "
-            r"plane-contact, point, rolling-contact, rolling-disk, weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, grasp-contact, joint-relation, "
+            r"planar-point, plane-contact, point, rolling-contact, rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},

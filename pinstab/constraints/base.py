@@ -88,6 +88,8 @@ class Constraint(ABC):
             (a contact that can only push, a friction cone): :meth:`check_force` after every solve.
         force_partners: blocks whose multipliers come before this block's own in what :meth:`margins`
             and :meth:`check_force` receive (a rolling contact's normal force is its touching block's).
+        prescribed: a servoconstraint (MATH.md section 5): the controls realize it, its reaction is zero
+            (a scene's ``[[servos]]``).
     """
 
     name: str
@@ -98,6 +100,7 @@ class Constraint(ABC):
     friction: FrictionCone | None = None
     limits_force: bool = False
     force_partners: tuple[str, ...] = ()
+    prescribed: bool = False
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""

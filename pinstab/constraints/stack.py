@@ -113,6 +113,10 @@ class ConstraintSet:
         self.layout = RowLayout(names, unilateral, tuple(cones))
         self._has_unilateral = bool(unilateral.any())
         self.force_limited = [(c, self._force_rows(c)) for c in self.constraints if c.limits_force]
+        self.prescribed_mask = np.zeros(self.rows, dtype=bool)
+        for c in self.constraints:
+            self.prescribed_mask[self.slices[c.name]] = c.prescribed
+        self.prescribed = [c for c in self.constraints if c.prescribed]
         self._every_row = np.ones(self.rows, dtype=bool)
 
     def _force_rows(self, constraint: Constraint) -> slice | np.ndarray:

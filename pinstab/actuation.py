@@ -1,0 +1,93 @@
+"""Actuation of a scene: the matrix B (nv x k) through which controls u enter the dynamics,
+``M a + h = tau + B u + G^T lambda`` (MATH.md section 5), with the controls' names and limits.
+
+Scene table ``[actuation]``: ``joints = [...]`` (each a 1-DOF joint: u is its torque [N m] or force [N];
+limits from the URDF's effort limits), or ``matrix = [[...], ...]`` (nv rows, k columns, in the model's
+velocity order) with ``names``; optional ``lower`` / ``upper`` (k numbers, [N m or N]) override the limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import SceneError
+from .tables import check_keys, joint_id, table, vector
+
+ACTUATION_KEYS = {"joints", "matrix", "names", "lower", "upper"}
+
+
+@dataclass(frozen=True)
+class Actuation:
+    """B (nv x k), the controls' names, and their bounds [N m or N] (+-inf where none)."""
+
+    matrix: np.ndarray
+    names: tuple[str, ...]
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """k, the number of controls."""
+        return self.matrix.shape[1]
+
+    @property
+    def limited(self) -> bool:
+        """Some control has a finite bound."""
+        return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
+
+
+def read_actuation(value: Any, model: pin.Model) -> Actuation | None:
+    """The scene's ``[actuation]`` table (None when absent)."""
+    if value is None:
+        return None
+    entry = table(value, "actuation")
+    check_keys(entry, ACTUATION_KEYS, "actuation")
+    if ("joints" in entry) == ("matrix" in entry):
+        raise SceneError("actuation: give exactly one of 'joints' (actuated joints) or 'matrix' (B, nv x k)")
+    if "joints" in entry:
+        matrix, names, lower, upper = _joint_actuation(entry["joints"], model)
+    else:
+        matrix, names = _matrix_actuation(entry, model)
+        lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
+    for key in ("lower", "upper"):
+        if key in entry:
+            bound = vector(entry[key], len(names), f"actuation.{key}", None)
+            lower, upper = (bound, upper) if key == "lower" else (lower, bound)
+    if np.any(lower >= upper):
+        raise SceneError(f"actuation: every lower bound must be below its upper bound, got {lower} and {upper}")
+    return Actuation(matrix, names, lower, upper)
+
+
+def _joint_actuation(joints: Any, model: pin.Model) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, np.ndarray]:
+    if not isinstance(joints, list) or not joints or len(set(map(str, joints))) != len(joints):
+        raise SceneError(f"actuation.joints must be a non-empty list of distinct joint names, got {joints!r}")
+    matrix = np.zeros((model.nv, len(joints)))
+    limits = np.zeros(len(joints))
+    for column, name in enumerate(joints):
+        joint = model.joints[joint_id(model, name, "actuation.joints")]
+        if joint.nv != 1:
+            raise SceneError(f"actuation.joints: joint {name!r} has {joint.nv} DOF; an actuated joint has 1")
+        matrix[joint.idx_v, column] = 1.0
+        effort = float(model.effortLimit[joint.idx_v])
+        limits[column] = effort if 0.0 < effort < 1e30 else np.inf
+    return matrix, tuple(joints), -limits, limits
+
+
+def _matrix_actuation(entry: dict[str, Any], model: pin.Model) -> tuple[np.ndarray, tuple[str, ...]]:
+    rows = entry["matrix"]
+    if not isinstance(rows, list) or len(rows) != model.nv:
+        raise SceneError(f"actuation.matrix must have nv = {model.nv} rows (one per velocity coordinate)")
+    width = len(rows[0]) if isinstance(rows[0], list) else 0
+    if width == 0:
+        raise SceneError("actuation.matrix rows must be non-empty lists of numbers")
+    matrix = np.array([vector(row, width, f"actuation.matrix[{i}]", None) for i, row in enumerate(rows)])
+    names = entry.get("names", [f"u{i}" for i in range(width)])
+    if not isinstance(names, list) or len(names) != width or not all(isinstance(n, str) for n in names):
+        raise SceneError(f"actuation.names must be {width} strings, one per column of the matrix")
+    if np.linalg.matrix_rank(matrix) < width:
+        raise SceneError("actuation.matrix: its columns are dependent (two controls act the same way)")
+    return matrix, tuple(names)

@@ -1,0 +1,101 @@
+"""A linear relation between joint coordinates, prescribed in time: ``sum_i c_i q_i = c(t)``.
+
+Kind ``joint-relation``: ``joints = { name = coefficient, ... }`` (1-DOF joints), ``value`` [m or rad] and
+optionally ``sine = { amplitude, omega, phase }`` so that c(t) = value + amplitude sin(omega t + phase)
+(omega [rad/s], phase [rad]). As a closure it couples joints (a gear); as a servo (``[[servos]]``) it
+is a virtual constraint the controls realize (e.g. alpha - beta = c(t)).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import SceneError
+from ..kinematics import Kinematics
+from ..tables import SceneTables
+from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+
+RELATION_KEYS = {"name", "kind", "joints", "value", "sine"}
+SINE_KEYS = {"amplitude", "omega", "phase"}
+
+
+class JointRelation(Constraint):
+    """One holonomic row ``coefficients . q - c(t)`` [m or rad] on 1-DOF joints.
+
+    Args:
+        name: unique name. coefficients: (nv,) row over the velocity coordinates (1-DOF joints only, so
+            q's and v's indices agree through ``indices``). indices: configuration index per coefficient.
+        value, amplitude [m or rad], omega [rad/s], phase [rad]: c(t).
+    """
+
+    holonomic = True
+    rows = 1
+
+    def __init__(
+        self,
+        name: str,
+        row: np.ndarray,
+        q_indices: np.ndarray,
+        v_indices: np.ndarray,
+        value: float,
+        sine: tuple[float, float, float],
+    ) -> None:
+        self.name, self.kind = name, "joint-relation"
+        self.row, self.q_indices, self.v_indices = row, q_indices, v_indices
+        self.value, (self.amplitude, self.omega, self.phase) = value, sine
+        self.force_frame = "generalized force along the relation's row [N m or N]"
+
+    def target(self, t: float) -> tuple[float, float, float]:
+        """(c, dc/dt, d2c/dt2) at time t [s]."""
+        angle = self.omega * t + self.phase
+        a, w = self.amplitude, self.omega
+        return self.value + a * math.sin(angle), a * w * math.cos(angle), -a * w * w * math.sin(angle)
+
+    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
+        return np.array([float(self.row @ q[self.q_indices]) - self.target(t)[0]])
+
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        jacobian = np.zeros((1, kin.model.nv))
+        jacobian[0, self.v_indices] = self.row
+        return VelocityTerms(jacobian, np.array([-self.target(t)[1]]))
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        return np.array([-self.target(t)[2]])
+
+
+def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str) -> JointRelation:
+    """Scene table: ``joints`` {name: coefficient}, ``value``, ``sine`` {amplitude, omega, phase}."""
+    tables.check_keys(entry, RELATION_KEYS, where)
+    joints = entry.get("joints")
+    if not isinstance(joints, dict) or not joints:
+        raise SceneError(f"{where}.joints must be a table of joint names and coefficients, e.g. {{ a = 1, b = -1 }}")
+    row, q_indices, v_indices = [], [], []
+    for joint_name in joints:
+        joint = tables.model.joints[tables.joint_id(joint_name, f"{where}.joints")]
+        if joint.nv != 1 or joint.nq != 1:
+            raise SceneError(f"{where}.joints: joint {joint_name!r} is not a 1-DOF joint with one coordinate")
+        row.append(tables.number(joints, joint_name, f"{where}.joints"))
+        q_indices.append(joint.idx_q)
+        v_indices.append(joint.idx_v)
+    if not any(row):
+        raise SceneError(f"{where}.joints: every coefficient is zero")
+    value = tables.quantity(entry.get("value", 0.0), "coordinate", f"{where}.value")
+    sine = entry.get("sine", {})
+    if not isinstance(sine, dict):
+        raise SceneError(f"{where}.sine must be a table {{ amplitude, omega, phase }}")
+    tables.check_keys(sine, SINE_KEYS, f"{where}.sine")
+    wave = (
+        tables.quantity(sine.get("amplitude", 0.0), "coordinate", f"{where}.sine.amplitude"),
+        tables.quantity(sine.get("omega", 0.0), "angular-velocity", f"{where}.sine.omega"),
+        tables.quantity(sine.get("phase", 0.0), "angle", f"{where}.sine.phase"),
+    )
+    return JointRelation(name, np.array(row), np.array(q_indices), np.array(v_indices), value, wave)
+
+
+CONSTRAINT_KINDS.register(
+    "joint-relation",
+    parse_joint_relation,
+    summary="1 row: sum of coefficient x joint coordinate = value + amplitude sin(omega t + phase)",
+)

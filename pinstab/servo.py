@@ -1,0 +1,150 @@
+"""Dynamics with prescribed constraints (servoconstraints) realized by controls (MATH.md section 5).
+
+At a state, with the real constraint rows G (reactions lambda), the prescribed rows S (no reaction: the
+controls realize them) and the actuation B, solve for (a, lambda, u):
+
+    M a - G^T lambda - B u = f,    G a = rhs_G,    S a = rhs_S.
+
+The real constraints alone give a = a0 + N B u (N = M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1, the motions they
+allow); the prescribed rows then ask D u = rhs_S - S a0 of the decoupling matrix D = S N B (p x k). D's rank
+below p means some direction of the prescribed rows no control reaches at this state:
+:class:`~pinstab.errors.ServoInfeasibleError` names the constraints along it, before any solve fails. With
+more controls than prescribed rows the excess is resolved by the least effort (min |u|^2), and when the
+controls have limits by a ProxSuite QP that respects them (infeasible: the error says which limit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import proxsuite
+
+from .actuation import Actuation
+from .errors import ServoInfeasibleError
+
+RANK_TOLERANCE = 1e-9  # singular values of D below this times its largest (or 1) count as zero
+_SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
+
+
+@dataclass
+class ServoSolution:
+    """(a [m/s^2, rad/s^2], multipliers with zeros on the prescribed rows [N, N m], controls u [N m or N],
+    the decoupling matrix's singular values)."""
+
+    acceleration: np.ndarray
+    multipliers: np.ndarray
+    controls: np.ndarray
+    singular_values: np.ndarray
+
+
+class ServoSolver:
+    """Solves the dynamics with prescribed rows for a fixed row layout.
+
+    Args:
+        prescribed: mask of the prescribed rows. row_names: the constraint of each row. actuation: B and limits.
+    """
+
+    def __init__(self, prescribed: np.ndarray, row_names: tuple[str, ...], actuation: Actuation) -> None:
+        self.prescribed, self.real = prescribed, ~prescribed
+        self.row_names = row_names
+        self.actuation = actuation
+
+    def decoupling(
+        self, mass_matrix: np.ndarray, jacobian: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(D = S N B, N B, M^-1 G^T, (G M^-1 G^T)^+) at a state."""
+        inverse_mass = np.linalg.inv(mass_matrix)
+        real = jacobian[self.real]
+        spread = inverse_mass @ real.T  # M^-1 G^T
+        delassus = np.linalg.pinv(real @ spread, rcond=1e-12) if real.size else np.zeros((0, 0))
+        allowed = inverse_mass - spread @ delassus @ spread.T  # N
+        moved = allowed @ self.actuation.matrix
+        return jacobian[self.prescribed] @ moved, moved, spread, delassus
+
+    def solve(
+        self,
+        mass_matrix: np.ndarray,
+        free_force: np.ndarray,
+        jacobian: np.ndarray,
+        rhs: np.ndarray,
+        state: tuple[float, np.ndarray, np.ndarray],
+    ) -> ServoSolution:
+        """Solve at the state ``(t, q, v)`` (named in errors).
+
+        Raises:
+            ServoInfeasibleError: the decoupling matrix loses rank, or the limits leave no control.
+        """
+        decoupling, moved, spread, delassus = self.decoupling(mass_matrix, jacobian)
+        inverse_mass_force = np.linalg.solve(mass_matrix, free_force)
+        real = jacobian[self.real]
+        base_multipliers = delassus @ (rhs[self.real] - real @ inverse_mass_force)
+        base = inverse_mass_force + spread @ base_multipliers
+        demand = rhs[self.prescribed] - jacobian[self.prescribed] @ base
+        singular = np.linalg.svd(decoupling, compute_uv=False) if decoupling.size else np.zeros(0)
+        self._check_rank(decoupling, singular, state)
+        controls = self._controls(decoupling, demand, state)
+        acceleration = base + moved @ controls
+        multipliers = np.zeros(len(rhs))
+        # lambda = (G M^-1 G^T)^+ (rhs_G - G M^-1 (f + B u))
+        multipliers[self.real] = base_multipliers - delassus @ (
+            real @ np.linalg.solve(mass_matrix, self.actuation.matrix @ controls)
+        )
+        return ServoSolution(acceleration, multipliers, controls, singular)
+
+    def _check_rank(self, decoupling: np.ndarray, singular: np.ndarray, state: tuple) -> None:
+        rows = decoupling.shape[0]
+        largest = max(float(singular[0]) if singular.size else 0.0, 1.0)
+        rank = int(np.count_nonzero(singular > RANK_TOLERANCE * largest))
+        if rank == rows:
+            return
+        left, _, _ = np.linalg.svd(decoupling)
+        direction = left[:, -1] if rows else left
+        names = [n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep]
+        involved = sorted({names[i] for i in np.flatnonzero(np.abs(direction) > 1e-6)})
+        along = " + ".join(f"{direction[i]:.3g} {names[i]}[{i}]" for i in np.flatnonzero(np.abs(direction) > 1e-6))
+        t, q, v = state
+        raise ServoInfeasibleError(
+            f"servo {', '.join(repr(n) for n in involved)} cannot be realized at t = {t:.6g} s: no control reaches "
+            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {rows}; "
+            f"controls: {', '.join(self.actuation.names)}); state q = {np.round(q, 6).tolist()}, "
+            f"v = {np.round(v, 6).tolist()}",
+            involved,
+            t,
+            q,
+            v,
+            direction,
+        )
+
+    def _controls(self, decoupling: np.ndarray, demand: np.ndarray, state: tuple) -> np.ndarray:
+        """The least-effort controls with D u = demand, within the limits."""
+        least = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
+        actuation = self.actuation
+        if not actuation.limited or np.all((least >= actuation.lower) & (least <= actuation.upper)):
+            return least
+        count = actuation.count
+        qp = proxsuite.proxqp.dense.QP(count, decoupling.shape[0], count)
+        qp.settings.eps_abs = 1e-12
+        qp.settings.verbose = False
+        qp.settings.max_iter, qp.settings.max_iter_in = 500, 500
+        lower = np.where(np.isfinite(actuation.lower), actuation.lower, -1e30)
+        upper = np.where(np.isfinite(actuation.upper), actuation.upper, 1e30)
+        qp.init(np.eye(count), np.zeros(count), decoupling, demand, np.eye(count), lower, upper)
+        qp.solve()
+        if qp.results.info.status in _SOLVED:
+            return np.array(qp.results.x)
+        t, q, v = state
+        over = [
+            f"{name} = {value:.4g} outside [{low:g}, {high:g}]"
+            for name, value, low, high in zip(actuation.names, least, actuation.lower, actuation.upper, strict=True)
+            if not low <= value <= high
+        ]
+        names = sorted({n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep})
+        raise ServoInfeasibleError(
+            f"servo {', '.join(repr(n) for n in names)} cannot be realized at t = {t:.6g} s within the control "
+            f"limits: it needs {'; '.join(over)}; state q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()}",
+            names,
+            t,
+            q,
+            v,
+        )
