@@ -7,6 +7,7 @@ Public API::
     traj.summary()["max_position_drift"]
 """
 
+from .actuation import Actuation
 from .assembly import AssemblyReport, assemble
 from .constraints import (
     CONSTRAINT_KINDS,
@@ -23,9 +24,11 @@ from .errors import (
     ConstraintError,
     ContactInfeasibleError,
     DivergenceError,
+    GraspLostError,
     PinstabError,
     ProjectionError,
     SceneError,
+    ServoInfeasibleError,
     SolverError,
     UnstableGainsError,
     UnstableGainsWarning,
@@ -52,6 +55,7 @@ __all__ = [
     "METHODS",
     "SOLVERS",
     "STABILIZERS",
+    "Actuation",
     "AssemblyError",
     "AssemblyReport",
     "ConstrainedModel",
@@ -63,6 +67,7 @@ __all__ = [
     "ForceElement",
     "FrameClosure",
     "FrictionCone",
+    "GraspLostError",
     "HolonomicConstraint",
     "NoOptions",
     "PfaffianConstraint",
@@ -74,6 +79,7 @@ __all__ = [
     "RunInfo",
     "Scene",
     "SceneError",
+    "ServoInfeasibleError",
     "SolverError",
     "SolverStatistics",
     "Stabilizer",

@@ -98,6 +98,16 @@ class Scene:
             raise SceneError(f"constraint name {constraint.name!r} is already used in scene {self.name}")
         self.constraints.append(constraint)
 
+    def add_servo(self, constraint: Constraint, actuation: Actuation | None = None) -> None:
+        """Add a user-defined constraint block as a prescribed constraint (a servo: the controls realize it,
+        its reaction is zero), with the scene's actuation or ``actuation`` (which replaces it)."""
+        if actuation is not None:
+            self.actuation = actuation
+        if self.actuation is None:
+            raise SceneError(f"servo {constraint.name!r}: the scene has no actuation; pass one (pinstab.Actuation)")
+        constraint.prescribed = True
+        self.add_constraint(constraint)
+
     def frame_id(self, name: str) -> int:
         """Index of a frame of the model; SceneError listing the frames otherwise."""
         return frame_id(self.model, name, "frame")
