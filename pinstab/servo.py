@@ -49,6 +49,7 @@ class ServoSolver:
         self.prescribed, self.real = prescribed, ~prescribed
         self.row_names = row_names
         self.actuation = actuation
+        self._last_sign: tuple[float, float] | None = None  # (time [s], sign of det D) of the last solve
 
     def decoupling(
         self, mass_matrix: np.ndarray, jacobian: np.ndarray
@@ -93,20 +94,29 @@ class ServoSolver:
         return ServoSolution(acceleration, multipliers, controls, singular)
 
     def _check_rank(self, decoupling: np.ndarray, singular: np.ndarray, state: tuple) -> None:
+        """Raise when D has rank below p here, or (square D) when its determinant changed sign since the last
+        solve: D was singular in between, where a step may have passed it by."""
         rows = decoupling.shape[0]
         largest = max(float(singular[0]) if singular.size else 0.0, 1.0)
         rank = int(np.count_nonzero(singular > RANK_TOLERANCE * largest))
+        crossed = ""
+        if rank == rows and decoupling.shape[1] == rows:
+            sign = float(np.sign(np.linalg.det(decoupling)))
+            last, self._last_sign = self._last_sign, (state[0], sign)
+            if last is not None and last[1] != sign:
+                crossed = f"; its determinant changed sign since t = {last[0]:.6g} s: it was singular in between"
+                rank = rows - 1
         if rank == rows:
             return
         left, _, _ = np.linalg.svd(decoupling)
         direction = left[:, -1] if rows else left
         names = [n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep]
         involved = sorted({names[i] for i in np.flatnonzero(np.abs(direction) > 1e-6)})
-        along = " + ".join(f"{direction[i]:.3g} {names[i]}[{i}]" for i in np.flatnonzero(np.abs(direction) > 1e-6))
+        along = " + ".join(f"{direction[i]:+.3g} * {names[i]}[{i}]" for i in np.flatnonzero(np.abs(direction) > 1e-6))
         t, q, v = state
         raise ServoInfeasibleError(
             f"servo {', '.join(repr(n) for n in involved)} cannot be realized at t = {t:.6g} s: no control reaches "
-            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {rows}; "
+            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {rows}{crossed}; "
             f"controls: {', '.join(self.actuation.names)}); state q = {np.round(q, 6).tolist()}, "
             f"v = {np.round(v, 6).tolist()}",
             involved,

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
-from conftest import fourbar_dict
+from conftest import ROBOTS, fourbar_dict
 from pinstab import SceneError, load_scene
 from pinstab.scene import scene_from_dict
 
@@ -69,11 +71,9 @@ def test_bad_scene_input_names_the_item(changes, pattern):
 
 
 def test_unknown_scene_lists_bundled_scenes():
-    with pytest.raises(
-        SceneError,
-        match=r"no scene named 'nope'.*Bundled scenes: allegro-box, allegro-lift, allegro-sphere, box-push, delta, "
-        r"finger-rolling, fivebar, fourbar, nfourbar, panda-anchor, rolling-disk, slider-crank, trifinger-cube",
-    ):
+    """The message lists every scene file of robots/ by name, sorted."""
+    bundled = ", ".join(sorted(path.stem for path in ROBOTS.glob("*.toml")))
+    with pytest.raises(SceneError, match=rf"no scene named 'nope'.*Bundled scenes: {re.escape(bundled)}\."):
         load_scene("nope")
 
 
