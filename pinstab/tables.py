@@ -136,7 +136,7 @@ class SceneTables:
         """World placement of a frame at the declared initial configuration."""
         data = self.model.createData()
         pin.framesForwardKinematics(self.model, data, self.q0)
-        return data.oMf[frame]
+        return data.oMf[frame].copy()  # not a view into data, which goes out of scope
 
     def number(self, entry: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
         """A plain number (dimensionless) from ``entry[key]``."""

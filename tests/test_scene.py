@@ -34,8 +34,8 @@ from pinstab.scene import scene_from_dict
         ({"gravity": [0, -9.81]}, r"gravity must be a list of 3 numbers"),
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
-            r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, grasp-contact, joint-relation, "
-            r"planar-point, plane-contact, point, rolling-contact, rolling-disk, weld",
+            r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, frame-orientation, frame-path, "
+            r"grasp-contact, joint-relation, planar-point, plane-contact, point, rolling-contact, rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
