@@ -94,15 +94,20 @@ class StateSeries:
 
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
         """For a scene with prescribed constraints: per sample the controls u [N m or N] and the largest
-        prescribed-row residual |sigma| [m or rad]; empty otherwise."""
+        prescribed-row residual: |sigma| [m or rad] on holonomic rows, the velocity residual [m/s or rad/s]
+        on Pfaffian ones; empty otherwise."""
         system = self.system
         if system.servo is None:
             return {}
         model = system.model
-        mask = model.constraints.prescribed_mask
+        constraints = model.constraints
+        holonomic = constraints.prescribed_mask & constraints.holonomic_mask
+        pfaffian = constraints.prescribed_mask & ~constraints.holonomic_mask
         controls = np.full((len(t), system.servo.actuation.count), np.nan)
         error = np.full(len(t), np.nan)
         for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
             controls[k] = system.controls(q[k], v[k], float(t[k]))
-            error[k] = float(np.max(np.abs(model.constraint_values(q[k], v[k], float(t[k])).phi[mask]), initial=0.0))
+            values = model.constraint_values(q[k], v[k], float(t[k]))
+            residual = np.concatenate([values.phi[holonomic], values.velocity_residual[pfaffian]])
+            error[k] = float(np.max(np.abs(residual), initial=0.0))
         return {"controls": controls, "servo_error": error}
