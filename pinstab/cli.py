@@ -153,6 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     servo.add_argument(
         "--check", action="store_true", help="only check at the start that the controls can realize them"
     )
+    servo.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
+    servo.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error, constraint forces and controls")
 
     run = sub.add_parser("run", help="simulate a scene and report drift and energy")
     _scene_arguments(run)
@@ -394,11 +396,13 @@ def _servo(args: argparse.Namespace) -> dict[str, Any]:
             "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
             "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
         }
-    scene, trajectory = _simulate(args)
-    result = _run_summary(args, scene, trajectory)
+    return _run(args, _add_reactions)
+
+
+def _add_reactions(scene, trajectory, result: dict[str, Any]) -> None:
+    """The largest reaction of the real constraints over the run [N, N m] (prescribed rows have none)."""
     reactions = trajectory.multipliers[:, ~scene.constraint_set.prescribed_mask]
     result["max_reaction"] = float(np.nanmax(np.abs(reactions))) if reactions.size else 0.0
-    return result
 
 
 TEXT_FORMATS = {"grasp": _grasp_text}
@@ -445,7 +449,8 @@ def _run_summary(args: argparse.Namespace, scene, trajectory) -> dict[str, Any]:
     }
 
 
-def _run(args: argparse.Namespace) -> dict[str, Any]:
+def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
+    """Simulate, summarize (``add(scene, trajectory, result)`` adds figures), save and chart when asked."""
     from .viz.plots import plot_trajectory
 
     if args.save:
@@ -454,6 +459,8 @@ def _run(args: argparse.Namespace) -> dict[str, Any]:
         _check_output_path(args.plot, ".png")
     scene, trajectory = _simulate(args)
     result = _run_summary(args, scene, trajectory)
+    if add is not None:
+        add(scene, trajectory, result)
     if args.save:
         trajectory.save(args.save)
         result["saved"] = args.save
