@@ -8,7 +8,6 @@ schema.
 from __future__ import annotations
 
 import copy
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,15 @@ from .registry import Registry
 from .robot_copies import compose_copies, parse_copies
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
+from .validation import (
+    check_closures,
+    check_configuration,
+    check_depth,
+    check_links,
+    check_locked_joints,
+    check_model,
+    read_scene_file,
+)
 
 TOP_KEYS = {
     "name",
@@ -130,12 +138,7 @@ def load_scene(path_or_name: str | Path, **parameters: Any) -> Scene:
             item and lists the valid alternatives.
     """
     path = _locate(path_or_name)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {path}: not valid TOML: {exc}") from None
-    except OSError as exc:
-        raise SceneError(f"scene file {path}: cannot be read: {exc.strerror}") from None
+    data = read_scene_file(path)
     return scene_from_dict(data, name=path.stem, base_dir=path.parent, parameters=parameters, source=path)
 
 
@@ -162,6 +165,7 @@ def scene_from_dict(
     source: Path | None = None,
 ) -> Scene:
     """Build a :class:`Scene` from parsed scene-file content (see :func:`load_scene`)."""
+    check_depth(data, f"scene file {source}" if source else f"scene {name}")
     data = copy.deepcopy(data)
     base_dir = base_dir or Path.cwd()
     check_keys(data, TOP_KEYS, "scene")
@@ -185,16 +189,19 @@ def scene_from_dict(
     robot = table(data.get("robot"), "robot")
     check_keys(robot, ROBOT_KEYS, "robot")
     full_model, urdf_path, urdf_text, package_dirs = _build_model(robot, base_dir)
+    check_links(urdf_text, urdf_path, triangle="name" not in robot)
 
     initial = table(data.get("initial", {}), "initial")
     check_keys(initial, INITIAL_KEYS, "initial")
     q_table = table(initial.get("q", {}), "initial.q")
     v_table = table(initial.get("v", {}), "initial.v")
     q_full = _configuration(full_model, {j: x for j, x in q_table.items() if full_model.existJointName(j)})
+    check_configuration(full_model, q_full, "initial.q")
 
     locked = robot.get("locked_joints", [])
     if not isinstance(locked, list) or not all(isinstance(j, str) for j in locked):
         raise SceneError("robot.locked_joints must be a list of joint names")
+    check_locked_joints(locked)
     locked_ids = [joint_id(full_model, j, "robot.locked_joints") for j in locked]
     if locked_ids:
         model = pin.buildReducedModel(full_model, locked_ids, q_full)
@@ -213,7 +220,9 @@ def scene_from_dict(
         if j in locked:
             raise SceneError(f"initial.v: joint {j!r} is locked (robot.locked_joints); it cannot move")
     q0 = _configuration(model, q_table)
+    check_configuration(model, q0, "initial.q")
     place_objects(objects, q0, set(q_table))
+    check_model(model)
     v0 = _velocity(model, v_table)
 
     tables = SceneTables(model, q0, {item.name: item for item in objects})
@@ -226,6 +235,7 @@ def scene_from_dict(
     actuation = read_actuation(data.get("actuation"), model)
     if any(c.prescribed for c in constraints) and actuation is None:
         raise SceneError("scene: [[servos]] need controls to realize them: add an [actuation] table (joints or matrix)")
+    check_closures(model, constraints)
     tables.constraints = {c.name: c for c in constraints}
     forces: list[ForceElement] = _read_kinds(data, "forces", "force", FORCE_KINDS, tables)
     _check_unique([c.name for c in constraints] + [f.name for f in forces])

@@ -1,0 +1,195 @@
+"""Physical validity checked when a scene loads: the scene file (size, encoding, nesting), the robot's
+links (masses and inertias), frame names, locked joints, closures and the initial configuration.
+
+Every failure is a :class:`~pinstab.errors.SceneError` naming the item. The checks are one pass over
+the file, the URDF's links and the model's joints and frames (no Pinocchio data is allocated: that
+grows with nv^2 and more): they cost little next to a simulation.
+
+The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
+inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
+impossible but positive definite inertia, harmless to the numerics); a URDF of the scene (``robot.urdf``,
+``robot.urdf_text``) is held to it.
+
+Quaternions (free-flyer and spherical joints) and unit complex numbers (planar joints) in ``initial.q``
+are normalized when their norm is within :data:`UNIT_TOLERANCE` of 1 (rounded values such as 0.7071),
+and refused otherwise (a zero norm, or a norm that is rather a mistake than a rounding).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree
+
+import numpy as np
+import pinocchio as pin
+
+from .constraints import Constraint, FrameClosure
+from .errors import SceneError
+from .tables import WORLD
+
+MAX_SCENE_BYTES = 1_000_000
+MAX_DEPTH = 20
+UNIT_TOLERANCE = 1e-3
+INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+# (first, end) of the unit part of a joint's configuration: quaternion [qx, qy, qz, qw] or [cos, sin]
+UNIT_PARTS = {"JointModelFreeFlyer": (3, 7), "JointModelSpherical": (0, 4), "JointModelPlanar": (2, 4)}
+
+
+# -- scene files ---------------------------------------------------------------------------------
+def read_scene_file(path: Path) -> dict[str, Any]:
+    """The parsed content of a scene file: at most :data:`MAX_SCENE_BYTES` bytes of UTF-8 TOML."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_SCENE_BYTES:
+            raise SceneError(f"scene file {path}: {size} bytes, more than the limit of {MAX_SCENE_BYTES} bytes")
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise SceneError(f"scene file {path}: cannot be read: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"scene file {path}: not UTF-8 text (byte {exc.start}: {raw[exc.start]:#04x})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"scene file {path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"scene file {path}: tables or arrays nested more than {MAX_DEPTH} levels deep") from None
+
+
+def check_depth(data: Any, where: str) -> None:
+    """Refuse tables or arrays nested more than :data:`MAX_DEPTH` levels deep (without recursion)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise SceneError(f"{where}: tables or arrays nested more than {MAX_DEPTH} levels deep")
+        children = value.values() if isinstance(value, dict) else value if isinstance(value, list) else ()
+        stack += [(child, depth + 1) for child in children if isinstance(child, (dict, list))]
+
+
+# -- robot links ---------------------------------------------------------------------------------
+def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -> None:
+    """Every link's mass [kg] finite and >= 0, its inertia [kg m^2] positive semidefinite and, when
+    ``triangle``, with each principal moment at most the sum of the other two."""
+    text = urdf_text if urdf_text is not None else urdf_path.read_text(encoding="utf-8")
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is not None:
+            _check_inertial(inertial, f"robot link {link.get('name')!r}", triangle)
+
+
+def _number(element: ElementTree.Element | None, key: str, what: str, where: str) -> float:
+    text = None if element is None else element.get(key)
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise SceneError(f"{where}: {what} {text!r} is not a finite number")
+    return value
+
+
+def _check_inertial(inertial: ElementTree.Element, where: str, triangle: bool) -> None:
+    mass = _number(inertial.find("mass"), "value", "mass", where)
+    if mass < 0:
+        raise SceneError(f"{where}: mass {mass} kg is negative")
+    element = inertial.find("inertia")
+    ixx, ixy, ixz, iyy, iyz, izz = (_number(element, key, f"inertia {key}", where) for key in INERTIA_KEYS)
+    moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
+    tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
+    if moments[0] < -tolerance:
+        raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
+    if triangle and moments[2] > moments[0] + moments[1] + tolerance:
+        raise SceneError(
+            f"{where}: inertia violates the triangle inequality: {_moments(moments)} "
+            "(each must be at most the sum of the other two)"
+        )
+
+
+def _moments(moments: np.ndarray) -> str:
+    return f"principal moments {np.round(moments, 12).tolist()} kg m^2"
+
+
+# -- the model -----------------------------------------------------------------------------------
+def check_locked_joints(locked: list[str]) -> None:
+    """Refuse a joint listed twice in ``robot.locked_joints``."""
+    repeated = sorted({j for j in locked if locked.count(j) > 1})
+    if repeated:
+        raise SceneError(f"robot.locked_joints: joint {repeated[0]!r} is listed more than once")
+
+
+def check_model(model: pin.Model) -> None:
+    """A model that can move: nv > 0, no frame shadowing ``world``, every moving joint carrying some mass
+    or inertia (on its link or a descendant's: otherwise the mass matrix has a zero row and is singular)."""
+    if model.nv == 0:
+        raise SceneError(
+            "scene: the model has no degree of freedom (nv = 0): every joint is locked or fixed; "
+            "leave a joint out of robot.locked_joints"
+        )
+    _check_world_frames(model)
+    _check_moving_mass(model)
+
+
+def _check_world_frames(model: pin.Model) -> None:
+    for frame in model.frames:
+        if frame.name == WORLD and (frame.parentJoint != 0 or not frame.placement.isIdentity()):
+            raise SceneError(
+                f"robot: frame {WORLD!r} (on joint {model.names[frame.parentJoint]!r}) shadows pinstab's world "
+                "frame; rename the link"
+            )
+
+
+def _check_moving_mass(model: pin.Model) -> None:
+    """One pass from the leaves up (a parent's index is smaller than its children's)."""
+    carries = [inertia.mass > 0 or bool(np.any(inertia.inertia)) for inertia in model.inertias]
+    for joint_id in range(model.njoints - 1, 0, -1):
+        carries[model.parents[joint_id]] |= carries[joint_id]
+    for joint_id in range(1, model.njoints):
+        if not carries[joint_id]:
+            links = [f.name for f in model.frames if f.parentJoint == joint_id and f.type == pin.FrameType.BODY]
+            raise SceneError(
+                f"robot: joint {model.names[joint_id]!r} (link {', '.join(links) or '(none)'}) moves no mass or "
+                "inertia (zero mass and zero inertia on it and its descendants): the mass matrix is singular"
+            )
+
+
+def check_closures(model: pin.Model, constraints: list[Constraint]) -> None:
+    """Refuse a closure between two frames of one rigid body (a frame and itself): its rows are zero."""
+    for constraint in constraints:
+        if not isinstance(constraint, FrameClosure):
+            continue
+        joint_a = model.frames[constraint.frame_a].parentJoint
+        joint_b = 0 if constraint.frame_b is None else model.frames[constraint.frame_b].parentJoint
+        if joint_a == joint_b:
+            raise SceneError(
+                f"constraint {constraint.name!r}: both frames are on the same rigid body (joint "
+                f"{model.names[joint_a]!r}): a closure between a frame and itself; its rows are zero"
+            )
+
+
+# -- configurations ------------------------------------------------------------------------------
+def check_configuration(model: pin.Model, q: np.ndarray, where: str) -> None:
+    """Normalize (in place) each quaternion and unit complex number of ``q`` whose norm is within
+    :data:`UNIT_TOLERANCE` of 1; refuse any other."""
+    for joint_id in range(1, model.njoints):
+        joint = model.joints[joint_id]
+        part = UNIT_PARTS.get(joint.shortname())
+        if part is None:
+            continue
+        unit = q[joint.idx_q + part[0] : joint.idx_q + part[1]]
+        norm = float(np.linalg.norm(unit))
+        if abs(norm - 1.0) > UNIT_TOLERANCE:
+            raise SceneError(
+                f"{where}.{model.names[joint_id]}: {unit.tolist()} is not a unit quaternion or complex number "
+                f"(norm {norm:.6g}; only a norm within {UNIT_TOLERANCE} of 1 is normalized)"
+            )
+        unit /= norm
