@@ -1,13 +1,16 @@
 """The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation, analyse a ``grasp``, map
 ``stability``.
 
-Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence.
+Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence (any blow-up, whatever the solver;
+with ``--json`` the figures up to the last finite state; ``--save`` writes the partial trajectory),
+130 Ctrl-C (one line; ``--save`` writes the partial trajectory). A closed stdout (``| head``) ends quietly.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -24,7 +27,7 @@ from .solvers import SOLVERS
 from .stability_map import map_methods
 from .stabilizers import STABILIZERS
 
-EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED = 0, 2, 3
+EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERRUPTED = 0, 2, 3, 130
 METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
 
 
@@ -240,25 +243,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = build_parser().parse_args(argv)
     try:
+        return _dispatch(args)
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc, args)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    """Run the command and print its result or its error; returns the exit code."""
+    try:
         with warnings.catch_warnings():
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
-            commands = {
-                "check": _check,
-                "grasp": _grasp,
-                "servo": _servo,
-                "run": _run,
-                "record": _record,
-                "plot": _plot,
-                "stability": _stability,
-                "bench": _bench,
-            }
-            result = commands[args.command](args)
-    except DivergenceError as exc:
-        _fail(exc, args)
-        return EXIT_DIVERGED
-    except ProjectionError as exc:
-        _fail(exc, args)
+            result = COMMANDS[args.command](args)
+    except (DivergenceError, ProjectionError) as exc:
+        _fail(exc, args, _save_partial(args, getattr(exc, "finite_trajectory", None)))
         return EXIT_DIVERGED
     except PinstabError as exc:
         _fail(exc, args)
@@ -274,28 +272,77 @@ def _show_warning(command: str):
     return show
 
 
-def _fail(exc: PinstabError, args: argparse.Namespace) -> None:
+def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace) -> int:
+    """Ctrl-C: one line on stderr, the partial trajectory saved when ``--save`` was given; exit 130."""
+    trajectory = getattr(exc, "trajectory", None)
+    where = "" if trajectory is None else f" at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})"
+    saved = _save_partial(args, trajectory)
+    kept = f"; the partial trajectory is saved to {saved}" if saved else ""
+    print(f"pinstab {args.command}: interrupted{where}{kept}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _save_partial(args: argparse.Namespace, trajectory) -> str | None:
+    """Save a stopped run's partial trajectory to ``--save``, if given; returns the path written or None."""
+    path = getattr(args, "save", None)
+    if path is None or trajectory is None:
+        return None
+    try:
+        trajectory.save(path)
+    except (PinstabError, OSError) as exc:
+        print(f"pinstab {args.command}: error: the partial trajectory was not saved: {exc}", file=sys.stderr)
+        return None
+    return path
+
+
+def _fail(exc: PinstabError, args: argparse.Namespace, saved: str | None = None) -> None:
+    """The error on stderr; with ``--json``, a divergence's figures on stdout (:func:`_divergence_payload`)."""
     print(f"pinstab {args.command}: error: {exc}", file=sys.stderr)
+    if saved is not None:
+        print(f"pinstab {args.command}: the partial trajectory is saved to {saved}", file=sys.stderr)
     if getattr(args, "json", False) and isinstance(exc, (DivergenceError, ProjectionError)):
-        payload = {"scene": args.scene, "diverged": True, "error": str(exc)}
-        if isinstance(exc, DivergenceError) and exc.trajectory is not None:
-            payload.update(exc.trajectory.summary())
-            payload["diverged_at"] = exc.time
-        print(json.dumps(_clean(payload)))
+        _write(json.dumps(_clean(_divergence_payload(exc, args, saved))))
+
+
+def _divergence_payload(
+    exc: DivergenceError | ProjectionError, args: argparse.Namespace, saved: str | None
+) -> dict[str, Any]:
+    """A stopped run's JSON: the run's figures up to the last finite state, ``diverged_at`` [s] (the failed
+    step's time) and ``last_finite_state`` (t [s], q, v)."""
+    trajectory = getattr(exc, "finite_trajectory", None)
+    payload = {"scene": args.scene} if trajectory is None else _run_summary(args, trajectory)
+    payload.update(diverged=True, error=str(exc))
+    if isinstance(exc, DivergenceError):
+        payload["diverged_at"] = exc.diverged_at
+        payload["last_finite_state"] = {"t": exc.time, "q": np.asarray(exc.q).tolist(), "v": np.asarray(exc.v).tolist()}
+    if saved is not None:
+        payload["saved"] = saved
+    return payload
+
+
+def _write(text: str) -> None:
+    """Print ``text`` on stdout; a reader that closed it (``| head``) ends the output quietly: stdout is
+    pointed at /dev/null so that the interpreter's last flush does not fail again."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
 
 
 def _emit(result: dict[str, Any], args: argparse.Namespace) -> None:
     if args.json:
-        print(json.dumps(_clean(result)))
+        _write(json.dumps(_clean(result)))
         return
     if args.command in TEXT_FORMATS:
-        print(TEXT_FORMATS[args.command](result))
+        _write(TEXT_FORMATS[args.command](result))
         return
     width = max(len(k) for k in result)
-    for key, value in result.items():
-        if isinstance(value, float):
-            value = f"{value:.6g}"
-        print(f"{key:<{width}}  {value}")
+    lines = [
+        f"{key:<{width}}  {f'{value:.6g}' if isinstance(value, float) else value}" for key, value in result.items()
+    ]
+    _write("\n".join(lines))
 
 
 def _clean(value: Any) -> Any:
@@ -431,10 +478,11 @@ def _simulate(args: argparse.Namespace):
     return scene, trajectory
 
 
-def _run_summary(args: argparse.Namespace, scene, trajectory) -> dict[str, Any]:
+def _run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
+    """The figures of a run (or of a stopped run's samples) that ``run --json`` prints."""
     info = trajectory.info
     return {
-        "scene": scene.name,
+        "scene": info.scene,
         "method": info.method,
         "integrator": info.integrator,
         "solver": info.solver,
@@ -458,7 +506,7 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     if args.plot:
         _check_output_path(args.plot, ".png")
     scene, trajectory = _simulate(args)
-    result = _run_summary(args, scene, trajectory)
+    result = _run_summary(args, trajectory)
     if add is not None:
         add(scene, trajectory, result)
     if args.save:
@@ -483,7 +531,7 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
     start = time.perf_counter()
     scene, trajectory = _simulate(args)
     model = ConstrainedModel(scene)
-    result = _run_summary(args, scene, trajectory)
+    result = _run_summary(args, trajectory)
     if args.live:
         result["live_url"] = play_live(model, trajectory, fps=args.fps)
     if args.output:
@@ -598,6 +646,18 @@ def _stability(args: argparse.Namespace) -> dict[str, Any]:
     if args.output:
         payload["map"] = args.output
     return payload
+
+
+COMMANDS = {
+    "check": _check,
+    "grasp": _grasp,
+    "servo": _servo,
+    "run": _run,
+    "record": _record,
+    "plot": _plot,
+    "stability": _stability,
+    "bench": _bench,
+}
 
 
 if __name__ == "__main__":

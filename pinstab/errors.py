@@ -87,15 +87,21 @@ class DivergenceError(PinstabError):
         time: time of the last finite state [s].
         q: last finite configuration.
         v: last finite velocity.
-        trajectory: the partial trajectory up to and including that state.
+        trajectory: the partial trajectory up to and including that state (from :func:`~pinstab.simulate`:
+            and then the failed step's sample, its state NaN when not reached).
+        finite_trajectory: the partial trajectory ending at the last finite state (from
+            :func:`~pinstab.simulate`; None otherwise).
+        diverged_at: time of the step that failed [s] (None when not located at a step).
     """
 
-    def __init__(self, message: str, time: float, q, v, trajectory=None) -> None:
+    def __init__(self, message: str, time: float, q, v, trajectory=None, diverged_at: float | None = None) -> None:
         super().__init__(message)
         self.time = time
         self.q = q
         self.v = v
         self.trajectory = trajectory
+        self.finite_trajectory = None
+        self.diverged_at = diverged_at
 
 
 def choices(valid: Iterable[str]) -> str:

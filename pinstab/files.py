@@ -26,8 +26,8 @@ def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
     if not target.parent.is_dir():
         raise PinstabError(f"cannot write {target}: folder {target.parent} does not exist")
     handle, temp = tempfile.mkstemp(suffix=suffix, dir=target.parent)
-    os.close(handle)
-    try:
+    try:  # the temporary file goes on every exit path: an error, Ctrl-C, or the rename
+        os.close(handle)
         yield temp
         umask = os.umask(0)
         os.umask(umask)

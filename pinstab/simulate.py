@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import warnings
@@ -24,6 +25,19 @@ from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`simulate`: a KeyboardInterrupt carrying the partial trajectory.
+
+    Attributes:
+        trajectory: the samples up to the last checked state (at most ``CHECK_STEPS`` steps before the
+            interruption), with its run info.
+    """
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        super().__init__(f"interrupted at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})")
+        self.trajectory = trajectory
 
 
 def simulate(
@@ -77,8 +91,11 @@ def simulate(
         samples when first read.
 
     Raises:
-        DivergenceError: non-finite state or drift above ``drift_limit``; carries the last finite
-            state, its time and the partial trajectory.
+        DivergenceError: non-finite state, drift above ``drift_limit``, or a solve or projection that
+            fails on a state reached inside a step; carries the last finite state, its time, the time of
+            the failed step (``diverged_at``), the partial trajectory (ending with the failed step's
+            sample) and ``finite_trajectory``, which ends at the last finite state.
+        Interrupted: Ctrl-C (a KeyboardInterrupt) while stepping; carries the partial trajectory.
         UnstableGainsError: with ``strict``, gains predicted unstable, before any step.
 
     Warns:
@@ -112,15 +129,23 @@ def simulate(
         try:
             loop.run(q, v, bar)
         except DivergenceError as exc:
-            exc.trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
+            wall_time = time.perf_counter() - start
+            exc.trajectory = _trajectory(loop, system, info, wall_time)
+            finite = loop.records.count - 1  # without the failed step's sample
+            exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
             raise
+        except KeyboardInterrupt:
+            raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
     return _trajectory(loop, system, info, time.perf_counter() - start)
 
 
-def _trajectory(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, wall_time: float) -> Trajectory:
-    """The trajectory of the samples kept so far, with the run info completed."""
+def _trajectory(
+    loop: StepLoop, system: ConstrainedSystem, info: RunInfo, wall_time: float, samples: int | None = None
+) -> Trajectory:
+    """The trajectory of the first ``samples`` samples kept (default: all kept so far), with the run info
+    completed; wall_time [s]."""
     records = loop.records
-    n = records.count
+    n = records.count if samples is None else samples
     last = int(records.steps[n - 1])
     info.steps, info.t_end = last, float(records.t[n - 1])
     info.solver_statistics = system.statistics

@@ -17,7 +17,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import DivergenceError, PinstabError, SolverError, UnstableGainsWarning
+from .errors import (
+    ContactInfeasibleError,
+    DivergenceError,
+    PinstabError,
+    ProjectionError,
+    SolverError,
+    UnstableGainsWarning,
+)
 from .integrators import Integrator
 from .system import ConstrainedSystem
 
@@ -69,10 +76,13 @@ class TimeGrid(NamedTuple):
 
 class Records:
     """The samples a run keeps: steps 0, K, 2K, ... and the last, each with t [s], q, v and the
-    correction iterations of that step.
+    correction iterations of that step; one spare slot for a stopped run (see :meth:`end_with`).
 
     Args:
         grid: the run's time grid. every: K. nq, nv: state dimensions.
+
+    Attributes:
+        last: the slot of the run's last step. count: the samples kept (fewer when the run stopped early).
     """
 
     def __init__(self, grid: TimeGrid, every: int, nq: int, nv: int) -> None:
@@ -80,20 +90,23 @@ class Records:
         steps = np.arange(0, grid.steps + 1, every, dtype=np.int64)
         if steps[-1] != grid.steps:
             steps = np.append(steps, grid.steps)
-        self.steps = steps
-        self.t = steps * grid.dt
-        self.t[-1] = grid.time(int(steps[-1]))
         size = len(steps)
-        self.q = np.zeros((size, nq))
-        self.v = np.zeros((size, nv))
-        self.corrections = np.zeros(size, dtype=int)
-        self.count = size  # samples of the run (fewer when it stopped early)
+        self.steps = np.append(steps, grid.steps)  # the spare slot
+        self.t = self.steps * grid.dt
+        self.t[size - 1 :] = grid.time(grid.steps)
+        self.q = np.zeros((size + 1, nq))
+        self.v = np.zeros((size + 1, nv))
+        self.corrections = np.zeros(size + 1, dtype=int)
+        self.last = size - 1
+        self.count = size
 
-    def truncate_at(self, step: int, t: float, q: np.ndarray, v: np.ndarray) -> None:
-        """Keep the samples before ``step`` and end with this state (a run stopped there)."""
-        index = min(int(np.searchsorted(self.steps, step)), len(self.t) - 1)
-        self.steps[index], self.t[index], self.q[index], self.v[index] = step, t, q, v
-        self.count = index + 1
+    def end_with(self, *samples: tuple[int, float, np.ndarray, np.ndarray]) -> None:
+        """Keep the samples before the first of ``samples`` (step, t [s], q, v) and end with these (a run
+        stopped there: its last good state, then at most one more, the failed step's)."""
+        index = min(int(np.searchsorted(self.steps[: self.last + 1], samples[0][0])), self.last)
+        for slot, (step, t, q, v) in enumerate(samples, start=index):
+            self.steps[slot], self.t[slot], self.q[slot], self.v[slot] = step, t, q, v
+        self.count = index + len(samples)
 
 
 class Failure(Exception):
@@ -140,37 +153,38 @@ class StepLoop:
         """Step from (q, v) at t = 0 to the end of the grid; returns the end state.
 
         Raises:
-            DivergenceError: a check failed; at the step where it first fails, with the last good
-                state and the partial trajectory's samples in :attr:`records`.
+            DivergenceError: a check failed, or a solve failed on a state reached inside a step; at the
+                step where it first fails, with the last good state, :attr:`records` ending with it.
+            KeyboardInterrupt: Ctrl-C; :attr:`records` end with the last checked state.
         """
         self.records.q[0], self.records.v[0] = q, v
         self.system.audit(q, v, 0.0)
-        steps = self.grid.steps
         k = 0
-        while k < steps:
-            stop = min(k + CHECK_STEPS, steps)
-            counts = (self.correction_total, self.correction_max)
-            try:
-                q_end, v_end = self.advance(q, v, k, stop)
-                self.check(q_end, v_end, stop)
-            except (Failure, DivergenceError, SolverError) as exc:
-                self.correction_total, self.correction_max = counts  # the replay counts its steps again
-                self.locate(q, v, k, stop)
-                # the replay passed every check (a warm-started solver took another path): report the chunk
-                if isinstance(exc, Failure):
-                    raise DivergenceError(
-                        f"simulation diverged by t = {self.grid.time(stop):.6g} s (step {stop}): {exc}; the last "
-                        f"checked state is at t = {self.grid.time(k):.6g} s. Reduce dt, change the gains, or use "
-                        "another method.",
-                        self.grid.time(k),
-                        q,
-                        v,
-                    ) from None
-                raise
-            if progress is not None:
-                progress.update(stop - k)
-            q, v, k = q_end, v_end, stop
+        try:
+            while k < self.grid.steps:
+                q, v, k = self.chunk(q, v, k, progress)
+        except KeyboardInterrupt:
+            self.records.end_with((k, self.grid.time(k), q, v))
+            raise
         return q, v
+
+    def chunk(self, q: np.ndarray, v: np.ndarray, k: int, progress=None) -> tuple[np.ndarray, np.ndarray, int]:
+        """Steps k+1 .. k + CHECK_STEPS (or to the end) from the checked state (q, v) at step k, then a
+        check; returns the state and its step. On a failure the chunk is replayed step by step."""
+        stop = min(k + CHECK_STEPS, self.grid.steps)
+        counts = (self.correction_total, self.correction_max)
+        try:
+            q_end, v_end = self.advance(q, v, k, stop)
+            self.check(q_end, v_end, stop)
+        except (Failure, DivergenceError, SolverError, ProjectionError) as exc:
+            self.correction_total, self.correction_max = counts  # the replay counts its steps again
+            replayed = self.locate(q, v, k, stop)
+            # the replay passed every check (a warm-started solver took another path): report the chunk
+            reason = f"{exc} (a replay checked after every step passed)"
+            raise self.diverged(k, (stop, *replayed), reason, q, v) from None
+        if progress is not None:
+            progress.update(stop - k)
+        return q_end, v_end, stop
 
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """Steps start+1 .. stop from (q, v) at step ``start``, storing the recorded ones."""
@@ -191,7 +205,7 @@ class StepLoop:
                 self.correction_total += iterations
                 self.correction_max = max(self.correction_max, iterations)
             if k % every == 0 or k == last:
-                index = -1 if k == last else k // every
+                index = self.records.last if k == last else k // every
                 rq[index], rv[index], corrections[index] = q, v, iterations
         return q, v
 
@@ -226,33 +240,57 @@ class StepLoop:
                     stacklevel=4,
                 )
 
-    def locate(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> None:
+    def locate(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """Replay steps start+1 .. stop from (q, v) with a check after each, and raise DivergenceError at
-        the first that fails (a solver error too, when the gains were reported unstable)."""
-        grid = self.grid
+        the first that fails (a failed solve too, when it is a blow-up: see :meth:`solve_failure`);
+        returns the state at ``stop`` when none fails."""
         for k in range(start + 1, stop + 1):
-            t, t_next = grid.time(k - 1), grid.time(k)
+            failed = np.full_like(q, np.nan), np.full_like(v, np.nan)
             try:
                 q_next, v_next = self.advance(q, v, k - 1, k)
+                failed = q_next, v_next
                 self.check(q_next, v_next, k)
-                q, v = q_next, v_next
-                continue
-            except SolverError as exc:
-                if not self.warned:
-                    raise
-                # with gains predicted unstable, a solve that fails is the blow-up the criterion foresaw
-                reason = f"a non-finite state (the KKT solve failed: {exc})"
-                q_next, v_next = np.full_like(q, np.nan), np.full_like(v, np.nan)
-            except DivergenceError:
-                reason = "a non-finite state"
-                q_next, v_next = np.full_like(q, np.nan), np.full_like(v, np.nan)
             except Failure as exc:
                 reason = str(exc)
-            self.records.truncate_at(k, t_next, q_next, v_next)
-            raise DivergenceError(
-                f"simulation diverged at t = {t_next:.6g} s (step {k}): {reason}; the last finite state "
-                f"is at t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
-                t,
-                q,
-                v,
-            )
+            except DivergenceError:
+                reason = "a non-finite state"
+            except ProjectionError as exc:
+                reason = f"the post-step projection failed ({exc})"
+            except SolverError as exc:
+                reason = self.solve_failure(exc, q, v, self.grid.time(k - 1))
+            else:
+                q, v = q_next, v_next
+                continue
+            raise self.diverged(k - 1, (k, *failed), reason, q, v)
+        return q, v
+
+    def solve_failure(self, exc: SolverError, q: np.ndarray, v: np.ndarray, t: float) -> str:
+        """Why a solve that failed during the step from the good state (q, v) at t [s] is a blow-up: the
+        gains were reported unstable, or the solver still solves (q, v) itself, so it failed on a state
+        the step reached (a non-finite or exploding stage). Re-raises ``exc`` when it is not: a contact
+        that cannot hold, or a solver that fails on (q, v) too (the scene or the solver, not the step)."""
+        if not self.warned:
+            if isinstance(exc, ContactInfeasibleError):
+                raise exc
+            try:
+                self.system.dynamics(q, v, t)
+            except SolverError:
+                raise exc from None
+        return f"a non-finite or exploding state (the KKT solve failed: {exc})"
+
+    def diverged(
+        self, good: int, failed: tuple[int, np.ndarray, np.ndarray], reason: str, q: np.ndarray, v: np.ndarray
+    ) -> DivergenceError:
+        """The error of a run whose step ``failed[0]`` failed (``reason``) with the state ``failed[1:]`` (NaN
+        when not reached); the records end with the last good state (q, v), at step ``good``, then that one."""
+        grid = self.grid
+        t, t_failed = grid.time(good), grid.time(failed[0])
+        self.records.end_with((good, t, q, v), (failed[0], t_failed, *failed[1:]))
+        return DivergenceError(
+            f"simulation diverged at t = {t_failed:.6g} s (step {failed[0]}): {reason}; the last finite state "
+            f"is at t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
+            t,
+            q,
+            v,
+            diverged_at=t_failed,
+        )

@@ -111,7 +111,7 @@ class Trajectory:
         return self.multipliers[:, start:stop]
 
     def summary(self) -> dict[str, Any]:
-        """The figures ``pinstab run --json`` prints."""
+        """The figures ``pinstab run --json`` prints; maxima over the finite samples (None when none is)."""
         finite_energy = self.energy[np.isfinite(self.energy)]
         assembly = self.info.assembly
         statistics = self.info.solver_statistics
@@ -120,8 +120,8 @@ class Trajectory:
             "steps": self.steps,
             "t_end": float(self.t[-1]),
             "wall_s": self.wall_time,
-            "max_position_drift": float(np.max(self.position_drift)),
-            "max_velocity_drift": float(np.max(self.velocity_drift)),
+            "max_position_drift": _finite_max(self.position_drift),
+            "max_velocity_drift": _finite_max(self.velocity_drift),
             "final_position_drift": float(self.position_drift[-1]),
             "final_velocity_drift": float(self.velocity_drift[-1]),
             "energy_start": float(finite_energy[0]) if finite_energy.size else None,
@@ -206,6 +206,12 @@ class Trajectory:
                 )
         except (OSError, KeyError, ValueError) as exc:
             raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None
+
+
+def _finite_max(values: np.ndarray) -> float | None:
+    """The largest finite entry of ``values``, or None when there is none."""
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else None
 
 
 def sample_weights(t: np.ndarray, time_s: float) -> tuple[int, float]:

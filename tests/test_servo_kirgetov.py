@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import tomllib
 
 import numpy as np
@@ -163,8 +164,15 @@ def _appell_variant(disk_inertia: float | None = None, as_closure: bool = False)
     (Appell's direct tangency between plate and disk; no actuation)."""
     data = tomllib.loads((ROBOTS / "appell-plate.toml").read_text())
     urdf = (ROBOTS / "urdf" / "appell-plate.urdf").read_text()
-    if disk_inertia is not None:
-        urdf = urdf.replace('izz="0.54"', f'izz="{disk_inertia!r}"')
+    if disk_inertia is not None:  # the transverse moments follow (a thin disk: half each), so it stays a rigid body
+        urdf = re.sub(
+            r'ixx="[^"]*"(.*?)iyy="[^"]*"(.*?)izz="0.54"',
+            lambda m: (
+                f'ixx="{disk_inertia / 2!r}"{m.group(1)}iyy="{disk_inertia / 2!r}"{m.group(2)}izz="{disk_inertia!r}"'
+            ),
+            urdf,
+            count=1,
+        )
     data["robot"] = {"urdf_text": urdf}
     if as_closure:
         data["closures"] = data.pop("servos")

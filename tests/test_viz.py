@@ -235,10 +235,11 @@ def test_visual_model_adds_the_objects_and_finds_package_meshes_of_urdf_text(tmp
         "endfacet\nendsolid t\n"
     )
     urdf = (
-        "<robot name='r'><link name='base'><visual><geometry>"
-        "<mesh filename='package://tinypkg/tri.stl'/></geometry></visual></link></robot>"
+        "<robot name='r'><link name='base'><inertial><mass value='1'/><inertia ixx='1' iyy='1' izz='1' ixy='0' "
+        "ixz='0' iyz='0'/></inertial><visual><geometry><mesh filename='package://tinypkg/tri.stl'/></geometry>"
+        "</visual></link></robot>"
     )
-    scene = scene_from_dict({"robot": {"urdf_text": urdf}})
+    scene = scene_from_dict({"robot": {"urdf_text": urdf, "free_flyer": True}})
     scene.package_dirs = []
     with pytest.raises(SceneError, match="package://tinypkg/tri.stl"):
         visual_model(scene)
