@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import PinstabError, choices
 
@@ -27,10 +28,6 @@ WRENCH_BASES = {
 """B_c per contact model: the wrench components (fx, fy, fz, mx, my, mz in C) the contact transmits."""
 
 RANK_TOLERANCE = 1e-10  # singular values below this times the largest count as zero
-
-
-def _skew(x: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
 
 
 @dataclass(frozen=True)
@@ -74,7 +71,7 @@ class GraspContact:
         adjoint = np.zeros((6, 6))
         adjoint[:3, :3] = rotation
         adjoint[3:, 3:] = rotation
-        adjoint[3:, :3] = _skew(position) @ rotation
+        adjoint[3:, :3] = pin.skew(position) @ rotation
         return adjoint @ self.basis
 
     def cone_generators(self, facets: int) -> np.ndarray:

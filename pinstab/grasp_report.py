@@ -17,6 +17,7 @@ import numpy as np
 
 from .assembly import assemble
 from .errors import PinstabError, choices
+from .forces.grasp_hold import contact_rows
 from .grasp import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
 from .model import ConstrainedModel
 from .scene import Scene
@@ -129,7 +130,7 @@ def _object_grasp(model: ConstrainedModel, name: str, contacts: list[Any], facet
         geometry.append(
             GraspContact(contact.name, contact.model, frame.translation, frame.rotation, contact.mu, contact.torsion)
         )
-    rows = np.vstack([c.velocity_terms(kin, kin.q, 0.0).jacobian for c in contacts])
+    rows = contact_rows(contacts, kin, 0.0)
     in_use = np.flatnonzero(np.any(rows != 0.0, axis=0))
     hand_columns = np.setdiff1d(in_use, object_columns)
     hand = -rows[:, hand_columns]

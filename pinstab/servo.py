@@ -55,7 +55,12 @@ class ServoSolver:
         self, mass_matrix: np.ndarray, jacobian: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(D = S N B, N B, M^-1 G^T, (G M^-1 G^T)^+) at a state."""
-        inverse_mass = np.linalg.inv(mass_matrix)
+        return self._parts(np.linalg.inv(mass_matrix), jacobian)
+
+    def _parts(
+        self, inverse_mass: np.ndarray, jacobian: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`decoupling` from M^-1."""
         real = jacobian[self.real]
         spread = inverse_mass @ real.T  # M^-1 G^T
         delassus = np.linalg.pinv(real @ spread, rcond=1e-12) if real.size else np.zeros((0, 0))
@@ -76,8 +81,9 @@ class ServoSolver:
         Raises:
             ServoInfeasibleError: the decoupling matrix loses rank, or the limits leave no control.
         """
-        decoupling, moved, spread, delassus = self.decoupling(mass_matrix, jacobian)
-        inverse_mass_force = np.linalg.solve(mass_matrix, free_force)
+        inverse_mass = np.linalg.inv(mass_matrix)
+        decoupling, moved, spread, delassus = self._parts(inverse_mass, jacobian)
+        inverse_mass_force = inverse_mass @ free_force
         real = jacobian[self.real]
         base_multipliers = delassus @ (rhs[self.real] - real @ inverse_mass_force)
         base = inverse_mass_force + spread @ base_multipliers
@@ -87,10 +93,8 @@ class ServoSolver:
         controls = self._controls(decoupling, demand, state)
         acceleration = base + moved @ controls
         multipliers = np.zeros(len(rhs))
-        # lambda = (G M^-1 G^T)^+ (rhs_G - G M^-1 (f + B u))
-        multipliers[self.real] = base_multipliers - delassus @ (
-            real @ np.linalg.solve(mass_matrix, self.actuation.matrix @ controls)
-        )
+        # lambda = (G M^-1 G^T)^+ (rhs_G - G M^-1 (f + B u)); G M^-1 = spread^T (M symmetric)
+        multipliers[self.real] = base_multipliers - delassus @ (spread.T @ (self.actuation.matrix @ controls))
         return ServoSolution(acceleration, multipliers, controls, singular)
 
     def _check_rank(self, decoupling: np.ndarray, singular: np.ndarray, state: tuple) -> None:

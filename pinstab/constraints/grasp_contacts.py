@@ -41,11 +41,6 @@ GAP_ITERATIONS = 60
 MARGIN_SLACK = 1e-9  # relative: a margin above -slack (1 + |force|) holds (rounding in the solve)
 
 
-def skew(x: np.ndarray) -> np.ndarray:
-    """[x]x, the 3 x 3 matrix of the cross product x x . (x a 3-vector)."""
-    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
-
-
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
@@ -159,7 +154,7 @@ class FingertipContact(Constraint):
         jac_o = kin.jacobian(self.object_frame)
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
-        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + skew(difference) @ jac_o[3:])
+        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
         jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, q, t)[0][3:]])
         return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
 

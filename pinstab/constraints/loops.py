@@ -131,10 +131,6 @@ class FrameClosure(Constraint):
         )
 
 
-def _skew(x: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
-
-
 def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:
     """Time derivative of ``Jlog3`` along ``theta(t)`` (the right Jacobian inverse of SO(3)).
 
@@ -142,7 +138,7 @@ def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:
     ``c(x) = 1/x^2 - (1 + cos x) / (2 x sin x)``.
     """
     angle = float(np.linalg.norm(theta))
-    hat, hat_rate = _skew(theta), _skew(theta_rate)
+    hat, hat_rate = pin.skew(theta), pin.skew(theta_rate)
     if angle < 1e-4:
         coeff = 1.0 / 12.0 + angle**2 / 720.0
         coeff_rate = float(theta @ theta_rate) / 360.0

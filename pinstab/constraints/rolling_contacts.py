@@ -42,7 +42,7 @@ from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .grasp_contacts import ContactLimits, close_gap, cross, read_coefficients, read_fingertip, skew
+from .grasp_contacts import ContactLimits, close_gap, cross, read_coefficients, read_fingertip
 from .loops import plane_basis
 
 ROLLING_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
@@ -176,7 +176,7 @@ def transported_frame(start: np.ndarray, normal: np.ndarray, rate: np.ndarray) -
     """
     k, k_rate = cross(start, normal), cross(start, rate)
     c, c_rate = float(start @ normal), float(start @ rate)
-    hat, hat_rate = skew(k), skew(k_rate)
+    hat, hat_rate = pin.skew(k), pin.skew(k_rate)
     square = hat @ hat
     rotation = np.eye(3) + hat + square / (1.0 + c)
     rotation_rate = hat_rate + (hat_rate @ hat + hat @ hat_rate) / (1.0 + c) - square * c_rate / (1.0 + c) ** 2
@@ -243,7 +243,7 @@ class RollingGeometry:
         inward = rotation.T @ state.axes[:, 2]
         inward_rate = -rotation.T @ state.hessian @ centre  # object frame
         _, turn_rate = self._transport(inward, inward_rate)
-        return skew(omega) @ state.axes + rotation @ turn_rate @ self.start
+        return pin.skew(omega) @ state.axes + rotation @ turn_rate @ self.start
 
     def normal_rate(self, kin: Kinematics, state: ContactState, centre: np.ndarray) -> np.ndarray:
         """dz_C/dt = omega_o x z_C - H w [1/s] given ``centre`` = w [m/s] (the third column of
@@ -254,7 +254,7 @@ class RollingGeometry:
         """(J_w, J_Omega): w = J_w v, the fingertip centre's velocity relative to the object's motion there,
         and Omega = J_Omega v = omega_o - omega_f (3 x nv each, world axes)."""
         jac_o, jac_f = kin.jacobian(self.object_frame), kin.jacobian(self.finger_frame)
-        return jac_f[:3] - jac_o[:3] + skew(state.offset) @ jac_o[3:], jac_o[3:] - jac_f[3:]
+        return jac_f[:3] - jac_o[:3] + pin.skew(state.offset) @ jac_o[3:], jac_o[3:] - jac_f[3:]
 
     def rates(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(w, dw/dt, Omega, dOmega/dt) at zero joint acceleration (world axes) [m/s, m/s^2, rad/s, rad/s^2]."""
@@ -328,7 +328,7 @@ class RollingNoSlip(Constraint):
         state = self.geometry.state(kin)
         centre, relative = self.geometry.jacobians(kin, state)
         # Delta = v_o(p) - v_f(p) = -w - r z x Omega
-        slip = -centre - self.geometry.radius * skew(state.axes[:, 2]) @ relative
+        slip = -centre - self.geometry.radius * pin.skew(state.axes[:, 2]) @ relative
         rows = state.axes[:, :2].T @ slip
         if not self.spin:
             rows = np.vstack([rows, state.axes[:, 2] @ relative])

@@ -34,7 +34,7 @@ from ..errors import ContactInfeasibleError, SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement
-from .grasp_hold import grasped_contacts
+from .grasp_hold import contact_rows, grasped_contacts
 
 CONTROL_KEYS = {
     "name",
@@ -216,7 +216,7 @@ class GraspControl(ForceElement):
         Raises:
             ContactInfeasibleError: no contact forces move the object inside the cones and the torque limits.
         """
-        rows = np.vstack([c.velocity_terms(kin, kin.q, t).jacobian for c in self.contacts])
+        rows = contact_rows(self.contacts, kin, t)
         object_acc = self.desired_acceleration(kin, v, t)
         acceleration = np.zeros(self.model.nv)
         acceleration[self.object_columns] = object_acc

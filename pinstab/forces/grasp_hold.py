@@ -64,7 +64,7 @@ class GraspHold(ForceElement):
     def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(contact rows A (s x nv), the held contact forces lambda* (s,) [N, N m], the generalized
         gravity g(q) [N, N m]) at ``kin``'s state."""
-        rows = np.vstack([c.velocity_terms(kin, kin.q, 0.0).jacobian for c in self.contacts])
+        rows = contact_rows(self.contacts, kin, 0.0)
         gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
         left, singular, right = np.linalg.svd(carrier, full_matrices=True)
@@ -102,6 +102,11 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
         if values[key] < 0:
             raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
     return GraspHold(name, tables.model, contacts, columns, q_start=tables.q0, **values)
+
+
+def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:
+    """The grasp contacts' rows stacked (s x nv) at ``kin``'s configuration and time t [s]; Jacobians current."""
+    return np.vstack([c.velocity_terms(kin, kin.q, t).jacobian for c in contacts])
 
 
 def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any, list[Any], np.ndarray]:
