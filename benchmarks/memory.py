@@ -1,5 +1,6 @@
-"""Peak memory of a long run (issue 9): 1e6 steps of the four-bar (dt = 1 ms, 1000 s) saved to NPZ,
-against the same command for 10 steps, each in a fresh process (peak resident set size).
+"""Peak memory of a long run (issues 9, 13): 1e6 steps of the four-bar (dt = 1 ms, 1000 s) saved to NPZ,
+against the same command for 10 steps, each in a fresh process (peak resident set size); and the same run
+kept whole under a 100 MB budget, refused before it starts (exit 2).
 
 python benchmarks/memory.py            # prints the table, writes benchmarks/results/memory.json
 """
@@ -13,6 +14,7 @@ import time
 from pathlib import Path
 
 from pinstab.bench import save_results
+from pinstab.memory import samples_bytes
 
 OUT = Path(__file__).parent / "results" / "memory.json"
 CHILD = (
@@ -43,6 +45,7 @@ def main() -> None:
             baseline, _ = peak_mib(0.01, every, Path(folder))
             peak, wall = peak_mib(1000.0, every, Path(folder))
             size = (Path(folder) / f"run-1000-{every}.npz").stat().st_size / 2**20
+            estimate = samples_bytes(1_000_000 // every + 2, 3, 3, 2) / 2**20  # the budget's, for the samples
             results[f"record_every_{every}"] = {
                 "steps": 1_000_000,
                 "baseline_peak_mib": baseline,
@@ -50,11 +53,19 @@ def main() -> None:
                 "growth_mib": peak - baseline,
                 "wall_s": wall,
                 "npz_mib": size,
+                "estimate_mib": estimate,
             }
             print(
                 f"1e6 steps, --record-every {every:3d}: peak {peak:7.1f} MiB, baseline (10 steps) {baseline:6.1f} MiB, "
-                f"growth {peak - baseline:6.1f} MiB, file {size:6.1f} MiB, {wall:5.1f} s"
+                f"growth {peak - baseline:6.1f} MiB (estimate {estimate:.1f}), file {size:6.1f} MiB, {wall:5.1f} s"
             )
+    refused = subprocess.run(
+        [sys.executable, "-m", "pinstab.cli", "run", "fourbar", "--duration", "1000", "--memory-limit", "100MB"],
+        capture_output=True,
+        text=True,
+    )
+    results["refused_under_100MB"] = {"exit": refused.returncode, "message": refused.stderr.strip()}
+    print(f"1e6 steps kept whole, --memory-limit 100MB: exit {refused.returncode}: {refused.stderr.strip()}")
     save_results(OUT, results)
 
 

@@ -25,6 +25,7 @@ from .errors import (
     ContactInfeasibleError,
     DivergenceError,
     GraspLostError,
+    MemoryBudgetError,
     PinstabError,
     ProjectionError,
     SceneError,
@@ -35,6 +36,7 @@ from .errors import (
 )
 from .forces import FORCE_KINDS, ForceElement
 from .integrators import INTEGRATORS
+from .memory import memory_limit
 from .model import ConstrainedModel
 from .registry import NoOptions, Registry
 from .runinfo import RunInfo, SolverStatistics
@@ -68,6 +70,7 @@ __all__ = [
     "FrameClosure",
     "FrictionCone",
     "GraspLostError",
+    "MemoryBudgetError",
     "HolonomicConstraint",
     "NoOptions",
     "PfaffianConstraint",
@@ -90,5 +93,6 @@ __all__ = [
     "assemble",
     "build_system",
     "load_scene",
+    "memory_limit",
     "simulate",
 ]

@@ -3,7 +3,8 @@
 
 Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence (any blow-up, whatever the solver;
 with ``--json`` the figures up to the last finite state; ``--save`` writes the partial trajectory),
-130 Ctrl-C (one line; ``--save`` writes the partial trajectory). A closed stdout (``| head``) ends quietly.
+130 Ctrl-C and 143 SIGTERM (one line; ``--save`` writes the partial trajectory). A closed stdout (``| head``)
+ends quietly.
 """
 
 from __future__ import annotations
@@ -11,9 +12,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -21,13 +25,15 @@ import numpy as np
 from . import __version__
 from .bench.workprecision import MUJOCO_DTS, PEER_DTS
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
+from .files import check_output
 from .integrators import INTEGRATORS
+from .memory import memory_limit
 from .registry import Registry, option_fields
 from .solvers import SOLVERS
 from .stability_map import map_methods
 from .stabilizers import STABILIZERS
 
-EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_INTERRUPTED = 0, 2, 3, 130
+EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_SIGNAL_BASE = 0, 2, 3, 128  # a signal: 128 + its number
 METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
 
 
@@ -55,6 +61,12 @@ def _scene_arguments(parser: argparse.ArgumentParser) -> None:
         "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument(
+        "--memory-limit",
+        metavar="SIZE",
+        help="refuse work whose estimated memory exceeds SIZE, e.g. 4GB, 512MiB (default: 80%% of the memory "
+        "available at the start)",
+    )
 
 
 def _add_registry_options(parser: argparse.ArgumentParser, registry: Registry, prefix: str) -> None:
@@ -242,16 +254,38 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = build_parser().parse_args(argv)
+    received: list[int] = []
+    with _terminate_as_interrupt(received):
+        try:
+            return _dispatch(args)
+        except KeyboardInterrupt as exc:
+            return _interrupted(exc, args, received[0] if received else signal.SIGINT)
+
+
+@contextmanager
+def _terminate_as_interrupt(received: list[int]) -> Iterator[None]:
+    """SIGTERM (``kill``, a batch system's time limit) ends a command the way Ctrl-C does: temporary files
+    removed, the partial trajectory saved; the signal's number is appended to ``received``."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame) -> None:
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        return _dispatch(args)
-    except KeyboardInterrupt as exc:
-        return _interrupted(exc, args)
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _dispatch(args: argparse.Namespace) -> int:
     """Run the command and print its result or its error; returns the exit code."""
     try:
-        with warnings.catch_warnings():
+        limit = getattr(args, "memory_limit", None)
+        with warnings.catch_warnings(), nullcontext() if limit is None else memory_limit(limit):
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
             result = COMMANDS[args.command](args)
@@ -272,14 +306,16 @@ def _show_warning(command: str):
     return show
 
 
-def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace) -> int:
-    """Ctrl-C: one line on stderr, the partial trajectory saved when ``--save`` was given; exit 130."""
+def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace, signum: int) -> int:
+    """Ctrl-C (SIGINT) or SIGTERM: one line on stderr, the partial trajectory saved when ``--save`` was given;
+    exit 128 + the signal's number (130, 143)."""
     trajectory = getattr(exc, "trajectory", None)
     where = "" if trajectory is None else f" at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})"
     saved = _save_partial(args, trajectory)
     kept = f"; the partial trajectory is saved to {saved}" if saved else ""
-    print(f"pinstab {args.command}: interrupted{where}{kept}", file=sys.stderr)
-    return EXIT_INTERRUPTED
+    cause = "interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+    print(f"pinstab {args.command}: {cause}{where}{kept}", file=sys.stderr)
+    return EXIT_SIGNAL_BASE + signum
 
 
 def _save_partial(args: argparse.Namespace, trajectory) -> str | None:
@@ -502,9 +538,9 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     from .viz.plots import plot_trajectory
 
     if args.save:
-        _check_output_path(args.save, ".npz")
+        check_output(args.save, ".npz", "trajectory")
     if args.plot:
-        _check_output_path(args.plot, ".png")
+        check_output(args.plot, ".png", "chart")
     scene, trajectory = _simulate(args)
     result = _run_summary(args, trajectory)
     if add is not None:
@@ -527,7 +563,7 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
     if not args.live and not args.output:
         raise PinstabError("record: give -o OUT.html for a recording, or --live to stream to a meshcat viewer")
     if args.output:
-        _check_output_path(args.output, ".html")
+        check_output(args.output, ".html", "recording")
     start = time.perf_counter()
     scene, trajectory = _simulate(args)
     model = ConstrainedModel(scene)
@@ -551,21 +587,10 @@ def _plot(args: argparse.Namespace) -> dict[str, Any]:
     from .trajectory import Trajectory
     from .viz.plots import plot_trajectory
 
-    _check_output_path(args.output, ".png")
+    check_output(args.output, ".png", "chart")
     trajectory = Trajectory.load(args.run_file)
     plot_trajectory(trajectory, args.output)
     return {"run": args.run_file, "plot": args.output, "steps": trajectory.steps}
-
-
-def _check_output_path(path: str, suffix: str) -> None:
-    """Refuse an output target before the work rather than after it."""
-    from pathlib import Path
-
-    target = Path(path)
-    if target.suffix.lower() != suffix:
-        raise PinstabError(f"{path}: the output must be a {suffix} file")
-    if not target.parent.is_dir():
-        raise PinstabError(f"{path}: folder {target.parent} does not exist")
 
 
 def _bench(args: argparse.Namespace) -> dict[str, Any]:
@@ -623,7 +648,7 @@ def _stability(args: argparse.Namespace) -> dict[str, Any]:
     from .stability_map import plot_stability_map, stability_map
 
     if args.output:
-        _check_output_path(args.output, ".png")
+        check_output(args.output, ".png", "chart")
     scene = load_scene(args.scene, **_parameters(args.param))
     result = stability_map(
         scene,

@@ -76,6 +76,19 @@ class ServoInfeasibleError(PinstabError):
         self.direction = direction
 
 
+class MemoryBudgetError(PinstabError):
+    """What a command would allocate exceeds the memory budget (see :mod:`pinstab.memory`).
+
+    Attributes:
+        estimate: the estimated need [bytes]. limit: the budget [bytes].
+    """
+
+    def __init__(self, message: str, estimate: int, limit: int) -> None:
+        super().__init__(message)
+        self.estimate = estimate
+        self.limit = limit
+
+
 class ProjectionError(PinstabError):
     """Coordinate projection onto the constraint manifold did not converge."""
 

@@ -1,4 +1,10 @@
-"""Output files written atomically: a temporary file in the target folder, renamed into place."""
+"""Output files: checked before the work that fills them (:func:`check_output`), then written atomically
+(:func:`atomic_output`: a temporary file in the target folder, renamed into place).
+
+A temporary file is named ``.<target name>.pinstab-<pid>-<random><suffix>``; it goes on every exit path of
+the writing process, and one left by a process that was killed (``kill -9``, a power cut) is removed by
+the next write to the same target.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +16,53 @@ from pathlib import Path
 
 from .errors import PinstabError
 
+TEMP_MARK = ".pinstab-"
+TEMP_EXTRA = 16  # characters mkstemp adds to the prefix: a pid of up to 7 digits, a dash and 8 random ones
+DEFAULT_NAME_MAX = DEFAULT_PATH_MAX = 255
+
+
+def check_output(path: str | Path, suffix: str, kind: str) -> Path:
+    """Refuse an output target before any work: the suffix, a folder in its place, a missing or unwritable
+    folder, a name or path too long for the file system (the temporary file's name included).
+
+    Args:
+        path: the target file. suffix: its required suffix (``.npz``, ``.png``). kind: what the file is.
+
+    Returns:
+        The target as a Path.
+
+    Raises:
+        PinstabError: naming the path and what is wrong with it.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise PinstabError(f"{path} is a folder; give a file name ending in {suffix}")
+    if target.suffix.lower() != suffix:
+        raise PinstabError(f"{path}: the output must be a {suffix} file ({kind})")
+    folder = target.parent
+    if not folder.is_dir():
+        missing = "is not a folder" if folder.exists() else "does not exist"
+        raise PinstabError(f"cannot write {path}: folder {folder} {missing}")
+    name_max = _path_limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX)
+    name_bytes = len(os.fsencode(_temp_prefix(target))) + TEMP_EXTRA + len(suffix)
+    if name_bytes > name_max:
+        own = len(os.fsencode(target.name))
+        raise PinstabError(
+            f"cannot write {path}: its name is too long ({own} bytes, and its temporary file's {name_bytes}, "
+            f"where the folder's file system allows {name_max}); give a name of at most {own - name_bytes + name_max} "
+            "bytes"
+        )
+    path_max = _path_limit(folder, "PC_PATH_MAX", DEFAULT_PATH_MAX)
+    if len(os.fsencode(str(target.absolute()))) + name_bytes - len(os.fsencode(target.name)) >= path_max:
+        raise PinstabError(f"cannot write {path}: the path is longer than the {path_max} bytes the system allows")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=suffix, dir=folder)
+    except OSError as exc:
+        raise PinstabError(f"cannot write {path}: folder {folder} is not writable ({exc.strerror})") from None
+    os.close(handle)
+    os.remove(probe)
+    return target
+
 
 @contextmanager
 def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
@@ -19,14 +72,14 @@ def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
         path: the target file.
         suffix: required suffix (``.npz``, ``.png``).
         kind: what the file is, for error messages.
+
+    Raises:
+        PinstabError: the target is refused (:func:`check_output`).
     """
-    target = Path(path)
-    if target.suffix.lower() != suffix:
-        raise PinstabError(f"{kind} files are {suffix}; got {target.name!r}")
-    if not target.parent.is_dir():
-        raise PinstabError(f"cannot write {target}: folder {target.parent} does not exist")
-    handle, temp = tempfile.mkstemp(suffix=suffix, dir=target.parent)
-    try:  # the temporary file goes on every exit path: an error, Ctrl-C, or the rename
+    target = check_output(path, suffix, kind)
+    remove_stale_temporaries(target)
+    handle, temp = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=suffix, dir=target.parent)
+    try:  # the temporary file goes on every exit path: an error, Ctrl-C, SIGTERM, or the rename
         os.close(handle)
         yield temp
         umask = os.umask(0)
@@ -36,3 +89,39 @@ def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
     finally:
         if os.path.exists(temp):
             os.remove(temp)
+
+
+def remove_stale_temporaries(target: Path) -> list[Path]:
+    """Remove the temporary files of ``target`` left by writers that no longer run; returns them."""
+    removed = []
+    mark = f".{target.name}{TEMP_MARK}"
+    for entry in os.scandir(target.parent):
+        pid = entry.name[len(mark) :].partition("-")[0] if entry.name.startswith(mark) else ""
+        if pid.isdigit() and not _running(int(pid)):
+            Path(entry.path).unlink(missing_ok=True)
+            removed.append(Path(entry.path))
+    return removed
+
+
+def _temp_prefix(target: Path) -> str:
+    """The name of this process's temporary files for ``target``, before mkstemp's random part."""
+    return f".{target.name}{TEMP_MARK}{os.getpid()}-"
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def _path_limit(folder: Path, name: str, default: int) -> int:
+    """The file system's limit ``name`` (os.pathconf) for ``folder``, or ``default`` when unknown."""
+    try:
+        return os.pathconf(folder, name)
+    except (OSError, ValueError):
+        return default

@@ -15,6 +15,7 @@ import pinocchio as pin
 
 from .constraints import ConstraintSet, ConstraintValues, Violation
 from .kinematics import Kinematics, symmetric_mass_matrix
+from .memory import data_bytes, model_size, new_data, require
 from .scene import Scene
 
 
@@ -50,11 +51,12 @@ class ConstrainedModel:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.model = scene.model
+        require({"two Pinocchio Data": 2 * data_bytes(self.model.nv, self.model.njoints)}, model_size(self.model))
         self.kin = Kinematics(scene.model)
         self.constraints: ConstraintSet = scene.constraint_set
         self.forces = scene.forces
         self.forces_need_kinematics = any(element.needs_kinematics for element in self.forces)
-        self._data = scene.model.createData()
+        self._data = new_data(scene.model)
         joints = [self.model.joints[j] for j in range(1, self.model.njoints)]
         self.flat = all(joint.nv == 1 for joint in joints)
         self.euclidean = self.flat and all(joint.nq == 1 for joint in joints)  # q (+) dq = q + dq

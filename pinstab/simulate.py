@@ -16,6 +16,7 @@ import numpy as np
 from .assembly import AssemblyReport, assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integrators import INTEGRATORS
+from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
@@ -106,6 +107,7 @@ def simulate(
     grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    _require_memory(scene, grid, record_every)
     system = build_system(scene, method, solver, solver_options, **method_options)
     stepper = INTEGRATORS.build(integrator, system)
     model = system.model
@@ -137,6 +139,21 @@ def simulate(
         except KeyboardInterrupt:
             raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
     return _trajectory(loop, system, info, time.perf_counter() - start)
+
+
+def _require_memory(scene: Scene, grid: TimeGrid, record_every: int) -> None:
+    """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples would exceed the budget."""
+    model = scene.model
+    samples = grid.steps // record_every + 2
+    require(
+        {
+            f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
+            * data_bytes(model.nv, model.njoints),
+            f"{samples:,} kept samples": samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows),
+        },
+        f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
+        "keep fewer samples (--record-every, record_every), use a larger step or a shorter duration",
+    )
 
 
 def _trajectory(

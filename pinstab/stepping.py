@@ -31,6 +31,7 @@ from .system import ConstrainedSystem
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
 MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
 MAX_SAMPLES = 20_000_000  # kept samples; beyond this the arrays alone reach gigabytes
+MIN_DT = 1e-12  # [s]; below it t + dt rounds to t after a few hours of simulated time
 GRID_SLACK = 1e-9  # a duration within this fraction of a step of a whole number of steps is that number
 
 
@@ -44,23 +45,27 @@ class TimeGrid(NamedTuple):
 
     @classmethod
     def of(cls, dt: float, duration: float, every: int = 1) -> TimeGrid:
-        """The grid of ``dt`` over ``duration``, keeping a sample every ``every`` steps.
+        """The grid of ``dt`` over ``duration`` (a dt longer than the duration is one step of the duration),
+        keeping a sample every ``every`` steps.
 
         Raises:
-            PinstabError: non-positive or non-finite arguments, more than :data:`MAX_STEPS` steps or
-                more than :data:`MAX_SAMPLES` kept samples.
+            PinstabError: non-positive or non-finite arguments, dt below :data:`MIN_DT`, more than
+                :data:`MAX_STEPS` steps or more than :data:`MAX_SAMPLES` kept samples.
         """
         for label, value in (("dt", dt), ("duration", duration)):
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value <= 0:
                 raise PinstabError(f"{label} must be a positive number, got {value!r}")
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
             raise PinstabError(f"record_every must be a whole number >= 1, got {every!r}")
+        if dt < MIN_DT:
+            raise PinstabError(f"dt = {dt:g} s is below {MIN_DT:g} s, where the time t + dt stops advancing")
+        dt = min(dt, duration)  # one step of the whole duration
         ratio = duration / dt
+        if ratio > MAX_STEPS:
+            raise PinstabError(f"{ratio:.3g} steps (duration {duration:g} s / dt {dt:g} s) exceed {MAX_STEPS:.0e}")
         whole = round(ratio)
         steps = whole if abs(ratio - whole) <= GRID_SLACK * max(1.0, ratio) else math.ceil(ratio)
         steps = max(steps, 1)
-        if steps > MAX_STEPS:
-            raise PinstabError(f"{steps:,} steps (duration {duration} s / dt {dt} s) exceed {MAX_STEPS:,}")
         if steps // every > MAX_SAMPLES:
             raise PinstabError(
                 f"{steps // every + 1:,} samples ({steps:,} steps, one kept every {every}) exceed the "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -188,24 +189,68 @@ class Trajectory:
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
-        """Read a trajectory written by :meth:`save`."""
+        """Read a trajectory written by :meth:`save`.
+
+        Raises:
+            PinstabError: the file is missing, truncated, not an NPZ, or an NPZ of something else (named:
+                the missing array or the one whose shape does not fit).
+        """
+        if Path(path).is_dir():
+            raise PinstabError(f"{path} is a folder, not a pinstab trajectory file (.npz)")
+        if not Path(path).exists():
+            raise PinstabError(f"{path}: the trajectory file does not exist")
+        if not zipfile.is_zipfile(path):
+            raise PinstabError(f"{path}: not a pinstab trajectory file (not an NPZ archive, or a truncated one)")
         try:
             with np.load(path) as data:
-                return cls(
-                    t=data["t"],
-                    q=data["q"],
-                    v=data["v"],
-                    multipliers=data["multipliers"],
-                    position_drift=data["position_drift"],
-                    velocity_drift=data["velocity_drift"],
-                    energy=data["energy"],
-                    wall_time=float(data["wall_time"]),
-                    info=RunInfo.from_dict(json.loads(str(data["info"]))),
-                    correction_iterations=data["correction_iterations"],
-                    spectral_radius=data["spectral_radius"],
-                )
-        except (OSError, KeyError, ValueError) as exc:
-            raise PinstabError(f"{path}: not a pinstab trajectory file ({exc})") from None
+                missing = [name for name in SAVED_ARRAYS if name not in data.files]
+                if missing:
+                    raise PinstabError(
+                        f"{path}: not a pinstab trajectory file (no {', '.join(missing)}; it holds "
+                        f"{', '.join(data.files) or 'nothing'})"
+                    )
+                arrays = {name: data[name] for name in SAVED_ARRAYS}
+                info = RunInfo.from_dict(json.loads(str(arrays.pop("info"))))
+        except PinstabError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+            raise PinstabError(f"{path}: not a readable pinstab trajectory file ({exc})") from None
+        _check_shapes(path, arrays)
+        wall_time = float(arrays.pop("wall_time"))
+        return cls(info=info, wall_time=wall_time, **arrays)
+
+
+SAVED_ARRAYS = (
+    "t",
+    "q",
+    "v",
+    "multipliers",
+    "position_drift",
+    "velocity_drift",
+    "energy",
+    "wall_time",
+    "info",
+    "correction_iterations",
+    "spectral_radius",
+)
+
+
+def _check_shapes(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    """Refuse a file whose arrays do not describe one run: n >= 1 increasing sample times, and every series
+    with n rows of numbers."""
+    t = arrays["t"]
+    if t.ndim != 1 or t.size == 0 or t.dtype.kind not in "fi" or not np.all(np.diff(t) >= 0):
+        raise PinstabError(f"{path}: 't' must be a non-empty increasing list of sample times, got shape {t.shape}")
+    for name, array in arrays.items():
+        if name == "wall_time":
+            ok = array.shape == () and array.dtype.kind in "fi"
+        else:
+            ok = array.dtype.kind in "fi" and array.ndim == (2 if name in ("q", "v", "multipliers") else 1)
+            ok = ok and array.shape[0] == t.size
+        if not ok:
+            raise PinstabError(
+                f"{path}: array {name!r} (shape {array.shape}, {array.dtype}) does not fit {t.size} samples"
+            )
 
 
 def _finite_max(values: np.ndarray) -> float | None:

@@ -1,11 +1,12 @@
 """One divergence contract (issue 13, item 6): every blow-up exits 3 whatever the solver, with the figures up
-to the last finite state and ``--save`` writing the partial trajectory; Ctrl-C exits 130 (partial save);
+to the last finite state and ``--save`` writing the partial trajectory; Ctrl-C exits 130 and SIGTERM 143 (partial save);
 a closed stdout ends quietly; no temporary file survives an interrupted save."""
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -183,3 +184,23 @@ def test_json_piped_into_head_has_no_traceback():
     completed = subprocess.run(["bash", "-c", f"set -o pipefail; {command}"], capture_output=True, text=True)
     assert completed.stdout == '{"scene": '
     assert completed.returncode == 0 and "Traceback" not in completed.stderr and "Error" not in completed.stderr
+
+
+@pytest.mark.parametrize(
+    ("signum", "code", "said"), [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "stopped by SIGTERM")]
+)
+def test_a_real_signal_mid_run_saves_the_partial_trajectory_and_no_temporary_file(tmp_path, signum, code, said):
+    """A real Ctrl-C or ``kill`` (not a monkeypatched one) 5 s into a run of 1e6 steps that takes longer."""
+    path = tmp_path / "partial.npz"
+    argv = ("run", "fourbar", "--duration", "1000", "--record-every", "100", "--quiet", "--save", str(path))
+    process = subprocess.Popen(cli(*argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        process.wait(timeout=5.0)
+    except subprocess.TimeoutExpired:
+        process.send_signal(signum)
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == code and out == "" and "Traceback" not in err
+    assert err.startswith(f"pinstab run: {said} at t = ") and err.count("\n") == 1
+    partial = Trajectory.load(path)
+    assert 0 < partial.t[-1] < 1000 and np.isfinite(partial.q).all()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["partial.npz"]

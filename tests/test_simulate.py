@@ -49,7 +49,7 @@ def test_trajectory_save_refuses_bad_paths(tmp_path):
     traj = simulate("fourbar", dt=1e-3, duration=0.01)
     with pytest.raises(PinstabError, match="folder .* does not exist"):
         traj.save(tmp_path / "missing" / "run.npz")
-    with pytest.raises(PinstabError, match="trajectory files are .npz"):
+    with pytest.raises(PinstabError, match="must be a .npz file"):
         traj.save(tmp_path / "run.csv")
     assert list(tmp_path.iterdir()) == []
 

@@ -89,7 +89,7 @@ def test_plot_axes_carry_units(tmp_path):
         (["record", "fourbar"], "give -o OUT.html"),
         (["record", "fourbar", "-o", "/nonexistent/x.html"], "does not exist"),
         (["record", "fourbar", "-o", "x.png"], "must be a .html file"),
-        (["plot", "missing.npz", "-o", "x.png"], "not a pinstab trajectory file"),
+        (["plot", "missing.npz", "-o", "x.png"], "the trajectory file does not exist"),
         (["run", "fourbar", "--plot", "x.svg"], "must be a .png file"),
     ],
 )
