@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import AssemblyError, PinstabError
+from .errors import AssemblyError, PinstabError, ProjectionError
 from .projection import project_velocities
 from .runinfo import AssemblySummary
+from .validation import singular_mass_error
 
 if TYPE_CHECKING:
     from .model import ConstrainedModel
@@ -40,6 +41,7 @@ class AssemblyReport:
         return AssemblySummary(self.iterations, self.residual, self.velocity_residual, self.displacement)
 
 
+@np.errstate(over="ignore", invalid="ignore")  # overflowing rows end in an AssemblyError naming them
 def assemble(
     model: ConstrainedModel,
     q: np.ndarray,
@@ -67,7 +69,10 @@ def assemble(
     iterations = 0
     while iterations < max_iterations and np.max(np.abs(phi), initial=0.0) > threshold:
         iterations += 1
-        step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * unit * np.eye(len(phi)), phi)
+        try:
+            step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * unit * np.eye(len(phi)), phi)
+        except np.linalg.LinAlgError:  # rows that overflow: the residual check below names the closure
+            break
         trial = model.integrate(q, step)
         trial_phi, trial_jac = _residual(model, trial, t, mask)
         trial_cost = float(trial_phi @ trial_phi)
@@ -79,7 +84,7 @@ def assemble(
             if damping > 1e8:
                 break
     residual = float(np.max(np.abs(phi), initial=0.0))
-    if residual > threshold:
+    if not residual <= threshold:  # NaN too
         worst = _worst_constraint(model, phi, mask)
         raise AssemblyError(
             f"assembly failed: the closures cannot be met from the given configuration; residual "
@@ -87,10 +92,32 @@ def assemble(
             "lengths and closure offsets, or start from a configuration nearer a closed one.",
             residual,
         )
-    v = project_velocities(model, q, v, t, np.linalg.inv(model.mass_matrix(q)))
-    velocity_residual = float(np.max(np.abs(model.constraint_values(q, v, t).velocity_residual), initial=0.0))
+    inverse_mass = _inverse_mass(model, q)
+    try:
+        v = project_velocities(model, q, v, t, inverse_mass)
+    except ProjectionError:
+        v = np.full(model.nv, np.nan)  # the rows or the velocity overflow: refused below
+    rates = model.constraint_values(q, v, t).velocity_residual
+    velocity_residual = float(np.max(np.abs(rates), initial=0.0))
+    if not (np.all(np.isfinite(v)) and np.isfinite(velocity_residual)):
+        worst = _worst_constraint(model, np.where(np.isfinite(rates), rates, np.inf), np.ones(len(rates), bool))
+        raise AssemblyError(
+            f"assembly failed: the initial velocity made consistent with the constraints is not finite (worst on "
+            f"constraint {worst!r}); check initial.v and the constraints' offsets for values too large for floating "
+            "point",
+            residual,
+        )
     displacement = float(np.linalg.norm(model.difference(q_start, q)))
     return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement)
+
+
+def _inverse_mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:
+    """M(q)^-1; a singular mass matrix is a SceneError naming the joints that move no mass."""
+    mass = model.mass_matrix(q)
+    try:
+        return np.linalg.inv(mass)
+    except np.linalg.LinAlgError:
+        raise singular_mass_error(model.scene.model, mass, "the assembled configuration") from None
 
 
 def _residual(model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -99,6 +126,8 @@ def _residual(model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray
 
 
 def _worst_constraint(model: ConstrainedModel, phi: np.ndarray, mask: np.ndarray) -> str:
+    if not model.constraints.rows:
+        return "?"
     full = np.zeros(model.constraints.rows)
     full[mask] = phi
     worst_row = int(np.argmax(np.abs(full)))

@@ -46,6 +46,8 @@ def _parameters(pairs: list[str]) -> dict[str, Any]:
         key, sep, value = pair.partition("=")
         if not sep or not key:
             raise SceneError(f"--param expects NAME=VALUE, got {pair!r}")
+        if key in parsed:
+            raise SceneError(f"--param {key} given twice ({key}={parsed[key]!r} and {pair!r}); give it once")
         try:
             parsed[key] = tomllib.loads(f"x = {value}")["x"]
         except tomllib.TOMLDecodeError:
@@ -558,12 +560,13 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
     import time
 
     from .model import ConstrainedModel
-    from .viz.recording import play_live, write_recording
+    from .viz.recording import check_frames, play_live, write_recording
 
     if not args.live and not args.output:
         raise PinstabError("record: give -o OUT.html for a recording, or --live to stream to a meshcat viewer")
     if args.output:
         check_output(args.output, ".html", "recording")
+    check_frames(args.duration, args.fps)
     start = time.perf_counter()
     scene, trajectory = _simulate(args)
     model = ConstrainedModel(scene)
@@ -598,7 +601,7 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
 
     from .bench.overhead import measure_overhead
     from .bench.scaling import scaling
-    from .bench.workprecision import cheapest_within, default_configs, sweep, write_outputs
+    from .bench.workprecision import cheapest_within, default_configs, make_output_folder, sweep, write_outputs
     from .scene import load_scene
 
     parameters = _parameters(args.param)
@@ -607,9 +610,9 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
         for dt in steps:
             if not dt > 0:
                 raise PinstabError(f"{flag}: steps must be positive, got {dt}")
+    cheapest_within([], args.tolerance, None)  # refuses a tolerance that is not a positive number
     out_dir = Path(args.output)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise PinstabError(f"{out_dir} exists and is not a folder")
+    make_output_folder(out_dir)
     configs = default_configs(
         args.methods,
         args.integrators,

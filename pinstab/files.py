@@ -35,15 +35,20 @@ def check_output(path: str | Path, suffix: str, kind: str) -> Path:
         PinstabError: naming the path and what is wrong with it.
     """
     target = Path(path)
-    if target.is_dir():
+    folder = target.parent
+    try:
+        folder_is_dir, folder_exists = folder.is_dir(), folder.exists()
+    except OSError as exc:  # a folder name over the file system's limit
+        raise PinstabError(f"cannot write {path}: {exc.strerror}") from None
+    if not folder_is_dir:
+        raise PinstabError(
+            f"cannot write {path}: folder {folder} {'is not a folder' if folder_exists else 'does not exist'}"
+        )
+    name_max = _path_limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX)
+    if len(os.fsencode(target.name)) <= name_max and target.is_dir():  # is_dir fails on a name over the limit
         raise PinstabError(f"{path} is a folder; give a file name ending in {suffix}")
     if target.suffix.lower() != suffix:
         raise PinstabError(f"{path}: the output must be a {suffix} file ({kind})")
-    folder = target.parent
-    if not folder.is_dir():
-        missing = "is not a folder" if folder.exists() else "does not exist"
-        raise PinstabError(f"cannot write {path}: folder {folder} {missing}")
-    name_max = _path_limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX)
     name_bytes = len(os.fsencode(_temp_prefix(target))) + TEMP_EXTRA + len(suffix)
     if name_bytes > name_max:
         own = len(os.fsencode(target.name))

@@ -14,6 +14,8 @@ from typing import Any
 from .errors import SceneError, choices
 from .urdf_text import Joint, Rod, UrdfDocument
 
+MAX_LOOPS = 1000  # nfourbar's N: 2001 links (a larger N only makes the scene wait on its URDF)
+
 
 def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> dict[str, Any]:
     """The IFToMM N-four-bar benchmark: N+1 cranks pinned to the ground 1 m apart, N couplers.
@@ -24,12 +26,19 @@ def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> d
     on crank k's tip by a 2-row ``planar-point`` closure in the xy plane. 1 DOF.
 
     Args:
-        n: number of four-bar loops N (>= 1).
+        n: number of four-bar loops N (1 to :data:`MAX_LOOPS`).
         link_length: length of every link [m].
         link_mass: mass of every link [kg].
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise SceneError(f"generator nfourbar: parameter N must be an integer >= 1, got {n!r}")
+    if n > MAX_LOOPS:
+        raise SceneError(f"generator nfourbar: parameter N must be at most {MAX_LOOPS}, got {n!r}")
+    for name, value, unit in (("link_length", link_length, "m"), ("link_mass", link_mass, "kg")):
+        if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
+            raise SceneError(
+                f"generator nfourbar: parameter {name} must be a positive finite number [{unit}], got {value!r}"
+            )
     doc = UrdfDocument(name=f"nfourbar{n}")
     quarter = math.pi / 2.0
     closures = []

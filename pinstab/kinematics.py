@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from .memory import new_data
+
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
@@ -29,7 +31,7 @@ class Kinematics:
 
     def __init__(self, model: pin.Model) -> None:
         self.model = model
-        self.data = model.createData()
+        self.data = new_data(model)
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
         self._zero_acceleration = np.zeros(model.nv)

@@ -23,6 +23,7 @@ import pinocchio as pin
 
 from .constraints import Constraint, FrameClosure, RowKind
 from .kinematics import LWA
+from .memory import new_data
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,
@@ -71,7 +72,7 @@ def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...]
 def non_planar_closure(model: pin.Model, closures: list[FrameClosure], q: np.ndarray) -> str | None:
     """The first ``planar-point`` closure whose out-of-plane motion the joints do not block at q (so
     it has no 3-D contact equivalent), or None."""
-    data = model.createData()
+    data = new_data(model)
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
     for closure in closures:
@@ -104,7 +105,7 @@ class NativeDynamics:
         self, model: pin.Model, closures: list[FrameClosure], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12
     ) -> None:
         self.model = model
-        self.data = model.createData()
+        self.data = new_data(model)
         self.closures = closures
         self.models = pin.StdVec_RigidConstraintModel()
         self.datas = pin.StdVec_RigidConstraintData()

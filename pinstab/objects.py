@@ -65,6 +65,7 @@ def _positive(entry: dict[str, Any], key: str, dimension: str, where: str) -> fl
     return value
 
 
+@np.errstate(over="ignore")  # sizes too large give an infinite inertia, refused by the caller
 def _shape(entry: dict[str, Any], where: str) -> tuple[coal.CollisionGeometry, float, np.ndarray]:
     """(coal shape, volume [m^3], unit-mass inertia diagonal [m^2]) of a box, sphere or cylinder."""
     shape = entry["shape"]
@@ -100,10 +101,10 @@ def _shape_inertia(entry: dict[str, Any], volume: float, unit_inertia: np.ndarra
         if "inertia" in entry:
             raise SceneError(f"{where}: 'inertia' goes with 'mass'; with 'density' it follows from the shape")
         mass = _positive(entry, "density", "density", where) * volume
-        return pin.Inertia(mass, np.zeros(3), np.diag(mass * unit_inertia))
+        return _inertia(mass, np.diag(mass * unit_inertia), where)
     mass = _positive(entry, "mass", "mass", where)
     if "inertia" not in entry:
-        return pin.Inertia(mass, np.zeros(3), np.diag(mass * unit_inertia))
+        return _inertia(mass, np.diag(mass * unit_inertia), where)
     ixx, iyy, izz, ixy, ixz, iyz = vector(entry["inertia"], 6, f"{where}.inertia", None)
     matrix = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
     eigenvalues = np.linalg.eigvalsh(matrix)
@@ -111,6 +112,16 @@ def _shape_inertia(entry: dict[str, Any], volume: float, unit_inertia: np.ndarra
         raise SceneError(
             f"{where}.inertia is not a rigid body's: principal moments {np.round(eigenvalues, 12).tolist()} must be "
             "positive and each at most the sum of the other two"
+        )
+    return _inertia(mass, matrix, where)
+
+
+def _inertia(mass: float, matrix: np.ndarray, where: str) -> pin.Inertia:
+    """The body inertia about the object's centre; refused when the mass [kg] or the inertia [kg m^2]
+    overflowed (a size, mass or density too large for floating point)."""
+    if not (math.isfinite(mass) and np.all(np.isfinite(matrix))):
+        raise SceneError(
+            f"{where}: its mass ({mass:.3g} kg) or inertia is not finite: the size, mass or density is too large"
         )
     return pin.Inertia(mass, np.zeros(3), matrix)
 

@@ -24,7 +24,10 @@ def weighted_correction(inverse_mass: np.ndarray, jacobian: np.ndarray, residual
     """``-M^-1 J^T (J M^-1 J^T)^+ r``: the smallest kinetic-metric change that removes r to first order."""
     minv_jt = inverse_mass @ jacobian.T
     delassus = jacobian @ minv_jt
-    return -minv_jt @ np.linalg.lstsq(delassus, residual, rcond=RCOND)[0]
+    try:
+        return -minv_jt @ np.linalg.lstsq(delassus, residual, rcond=RCOND)[0]
+    except np.linalg.LinAlgError as exc:  # non-finite or overflowing rows: the state is beyond repair
+        raise ProjectionError(f"projection failed: the constraint rows are not finite ({exc})") from None
 
 
 class Projector(Protocol):

@@ -36,6 +36,7 @@ from .validation import (
     read_scene_file,
 )
 
+MAX_GRAVITY = 1e6  # [m/s^2]
 TOP_KEYS = {
     "name",
     "description",
@@ -189,7 +190,6 @@ def scene_from_dict(
     robot = table(data.get("robot"), "robot")
     check_keys(robot, ROBOT_KEYS, "robot")
     full_model, urdf_path, urdf_text, package_dirs = _build_model(robot, base_dir)
-    check_links(urdf_text, urdf_path, triangle="name" not in robot)
 
     initial = table(data.get("initial", {}), "initial")
     check_keys(initial, INITIAL_KEYS, "initial")
@@ -208,9 +208,7 @@ def scene_from_dict(
     else:
         model = full_model.copy()
     locked_positions = {j: float(q_full[full_model.joints[joint_id(full_model, j, "robot")].idx_q]) for j in locked}
-    model.gravity = pin.Motion(
-        vector(data.get("gravity", [0.0, 0.0, -9.81]), 3, "gravity", "acceleration"), np.zeros(3)
-    )
+    model.gravity = pin.Motion(_gravity(data.get("gravity", [0.0, 0.0, -9.81])), np.zeros(3))
 
     objects = add_objects(model, data.get("objects", []), base_dir)
     for j in list(q_table):
@@ -260,6 +258,16 @@ def scene_from_dict(
 
 
 # -- robot --------------------------------------------------------------------------------------
+def _gravity(value: Any) -> np.ndarray:
+    """The gravity vector [m/s^2], at most :data:`MAX_GRAVITY` long (beyond, the dynamics overflow)."""
+    gravity = vector(value, 3, "gravity", "acceleration")
+    if np.max(np.abs(gravity)) > MAX_GRAVITY or np.linalg.norm(gravity) > MAX_GRAVITY:  # no overflow warning
+        raise SceneError(
+            f"gravity {gravity.tolist()} m/s^2 is longer than {MAX_GRAVITY:g} m/s^2 (1e5 g); give it in m/s^2"
+        )
+    return gravity
+
+
 def _build_model(robot: dict[str, Any], base_dir: Path) -> tuple[pin.Model, Path | None, str | None, list[str]]:
     sources = [k for k in ("urdf", "name", "urdf_text") if k in robot]
     if len(sources) != 1:
@@ -290,6 +298,7 @@ def _build_model(robot: dict[str, Any], base_dir: Path) -> tuple[pin.Model, Path
         copies = parse_copies(robot["copies"])
         urdf_text = compose_copies(urdf_path.read_text() if urdf_text is None else urdf_text, copies)
         urdf_path = None
+    check_links(urdf_text, urdf_path, triangle="name" not in robot)  # names what urdfdom would only refuse
     try:
         if urdf_text is not None:
             model = pin.buildModelFromXML(urdf_text, *root)

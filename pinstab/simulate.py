@@ -25,6 +25,11 @@ from .stepping import StepLoop, TimeGrid
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 
+ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
+    "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
+    "lower --decay",
+    None: "or use --method mukharlyamov, whose automatic gains are placed for the step and the integrator",
+}
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 
 
@@ -221,7 +226,7 @@ def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarr
     described = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in gains.items())
     scale = bound / step
     advice = f"stable for dt < {bound:.3g} s with these gains" if bound > 0 else "no step is stable with these gains"
-    if "kp" in gains or "stiffness" in gains:
+    if bound > 0 and ("kp" in gains or "stiffness" in gains):
         kp = gains.get("kp", gains.get("stiffness"))
         kd = gains.get("kd", gains.get("damping"))
         advice += (
@@ -231,8 +236,7 @@ def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarr
     message = (
         f"method {stabilizer.name} ({described}) with {stabilizer.integrator} at dt = {step:g} s: the deviation "
         f"dynamics have spectral radius rho(R(tau W)) = {radius:.4g} >= 1, so constraint errors grow instead of "
-        f"decaying. {advice[0].upper() + advice[1:]}; or use --method mukharlyamov, whose automatic gains are "
-        "placed for the step and the integrator."
+        f"decaying. {advice[0].upper() + advice[1:]}; {ALTERNATIVE.get(stabilizer.name, ALTERNATIVE[None])}."
     )
     if strict:
         raise UnstableGainsError(message)

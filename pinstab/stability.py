@@ -66,8 +66,17 @@ def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask:
 def amplification(
     stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
 ) -> np.ndarray:
-    """R(tau W) of one step of ``scheme`` [dimensionless], per the MATH.md table."""
+    """R(tau W) of one step of ``scheme`` [dimensionless], per the MATH.md table (huge gains overflow its
+    entries to inf or nan, which :func:`spectral_radius` reads as an unbounded radius)."""
     _check_scheme(scheme)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _amplification(stiffness, damping, holonomic_mask, step, scheme)
+
+
+def _amplification(
+    stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
+) -> np.ndarray:
+    """R(tau W) of :func:`amplification`, floating-point overflow left to the caller."""
     w = deviation_matrix(stiffness, damping, holonomic_mask)
     n = w.shape[0]
     if scheme in ("semi-implicit-euler", "held"):
@@ -99,9 +108,12 @@ def amplification(
 
 
 def spectral_radius(matrix: np.ndarray) -> float:
-    """Largest eigenvalue modulus."""
+    """Largest eigenvalue modulus; inf when ``matrix`` has non-finite entries (R(tau W) overflowed: tau W has
+    an eigenvalue beyond the floating-point range of its powers, so the deviations grow without bound)."""
     if matrix.size == 0:
         return 0.0
+    if not np.isfinite(matrix).all():
+        return math.inf
     return float(np.max(np.abs(np.linalg.eigvals(matrix))))
 
 
@@ -203,13 +215,19 @@ def largest_stable_step(
     """The largest tau [s] with rho(R(tau W)) < 1 (scan from small steps, then bisect).
 
     rho depends on tau^2 S and tau K only, so the same bound says which gains are stable at a given
-    step: S (tau_max / tau)^2 and K (tau_max / tau) sit exactly on the boundary.
+    step: S (tau_max / tau)^2 and K (tau_max / tau) sit exactly on the boundary. The scan starts at
+    1e-9 s, or lower for gains so large that tau^2 |S| or tau |K| is not small there.
     """
 
     def radius(tau: float) -> float:
         return spectral_radius(amplification(stiffness, damping, holonomic_mask, tau, scheme))
 
-    steps = np.geomspace(1e-9, upper, 300)
+    largest_stiffness = float(np.max(np.abs(stiffness), initial=0.0))
+    largest_damping = float(np.max(np.abs(damping), initial=0.0))
+    if not math.isfinite(largest_stiffness + largest_damping):
+        return 0.0  # gains that overflowed: no step is stable
+    smallest = min(1e-9, 0.1 / math.sqrt(max(largest_stiffness, 1e-300)), 0.1 / max(largest_damping, 1e-300))
+    steps = np.geomspace(smallest, upper, 300)
     unstable = [i for i, tau in enumerate(steps) if radius(tau) >= 1.0]
     if not unstable:
         return upper

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from .assembly import perturbed_start
-from .errors import DivergenceError, PinstabError, UnstableGainsWarning, choices
+from .errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning, choices
 from .model import ConstrainedModel
 from .scene import Scene
 from .simulate import simulate
@@ -33,6 +33,9 @@ def map_methods() -> list[str]:
 
 CONVERGED_RATIO = 1e-2  # final / initial position drift at or below this: converged
 DIVERGED_RATIO = 1e3  # above this (the runs stop there) or non-finite: diverged; in between: bounded
+MAX_GRID = 200  # cells per axis (40 000 runs)
+MAX_MAP_STEPS = 20_000_000  # grid^2 x steps: 60 x the default 40 x 40 x 200 (about 1.5 h on the four-bar)
+MAX_PERTURBATION = 1.0  # [rad or m]: beyond it the start is far outside the linearization the map checks
 
 
 @dataclass
@@ -117,23 +120,27 @@ def stability_map(
         integrator: the integrator.
         dt_range: smallest and largest step [s] (log-spaced).
         gain_range: smallest and largest Kp [1/s^2] (log-spaced); Kd = 2 sqrt(Kp).
-        grid: cells per axis.
-        steps: steps per run.
-        perturbation: size of the initial violation [rad, tangent norm].
+        grid: cells per axis (2 to :data:`MAX_GRID`).
+        steps: steps per run (at least 2; grid^2 x steps at most :data:`MAX_MAP_STEPS`).
+        perturbation: size of the initial violation [rad, tangent norm] (above 0, at most
+            :data:`MAX_PERTURBATION`).
         solver: KKT backend for the runs (``dense`` is the fastest on non-redundant scenes).
         progress: progress bar on stderr.
+
+    Raises:
+        PinstabError: any argument out of its range, or a scene whose perturbed start violates no
+            position constraint. A run that blows up is a ``diverged`` cell; any other error of a run
+            (the scene cannot be simulated with these options) is raised.
     """
-    if method not in map_methods():
-        raise PinstabError(
-            f"stability maps take methods with gains kp and kd: {choices(map_methods())}, not {method!r}"
-        )
-    for label, (low, high) in (("dt range", dt_range), ("gain range", gain_range)):
-        if not (0 < low < high) or not math.isfinite(high):
-            raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
-    if grid < 2 or steps < 2:
-        raise PinstabError("grid and steps must be at least 2")
+    _check_map_arguments(method, dt_range, gain_range, grid, steps, perturbation)
     model = ConstrainedModel(scene)
     q_off, v0 = perturbed_start(model, perturbation)
+    if not model.violation(q_off, v0, 0.0).position > 0.0:
+        raise PinstabError(
+            f"scene {scene.name}: a start {perturbation:g} off the manifold violates no position constraint (its "
+            "constraints are velocity-level only); a stability map measures how position errors are repaired, "
+            "so it needs holonomic constraints"
+        )
     result = StabilityMap(scene.name, method, integrator, steps, perturbation)
     bar = None
     if progress:
@@ -148,6 +155,38 @@ def stability_map(
     if bar is not None:
         bar.close()
     return result
+
+
+def _check_map_arguments(
+    method: str,
+    dt_range: tuple[float, float],
+    gain_range: tuple[float, float],
+    grid: int,
+    steps: int,
+    perturbation: float,
+) -> None:
+    """Refuse a map's arguments out of range (see :func:`stability_map`), naming the argument."""
+    if method not in map_methods():
+        raise PinstabError(
+            f"stability maps take methods with gains kp and kd: {choices(map_methods())}, not {method!r}"
+        )
+    for label, (low, high) in (("dt range", dt_range), ("gain range", gain_range)):
+        if not (0 < low < high) or not math.isfinite(high):
+            raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
+    for label, value, top in (("grid", grid, MAX_GRID), ("steps", steps, None)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 2 or (top is not None and value > top):
+            bounds = "at least 2" if top is None else f"from 2 to {top}"
+            raise PinstabError(f"{label} must be a whole number {bounds}, got {value!r}")
+    if grid * grid * steps > MAX_MAP_STEPS:
+        raise PinstabError(
+            f"a map of {grid} x {grid} runs of {steps} steps is {grid * grid * steps:,} steps, more than the "
+            f"{MAX_MAP_STEPS:,} a map takes (the default 40 x 40 x 200 is 320,000); use a smaller grid or fewer steps"
+        )
+    if not (isinstance(perturbation, int | float) and 0.0 < perturbation <= MAX_PERTURBATION):
+        raise PinstabError(
+            f"perturbation must be a number above 0 and at most {MAX_PERTURBATION:g} [rad or m], got {perturbation!r} "
+            "(the size of the start's constraint violation; the default is 0.01)"
+        )
 
 
 def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0, solver) -> Cell:
@@ -174,7 +213,7 @@ def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0,
                 assemble_initial=False,
                 drift_limit=DIVERGED_RATIO * initial,
             )
-        except (DivergenceError, PinstabError):
+        except (DivergenceError, ProjectionError):  # blown up (a failed solve on a blown-up state included)
             return Cell(dt, kp, kd, radius, "diverged", math.inf)
     ratio = float(run.position_drift[-1] / initial)
     observed = "converged" if ratio <= CONVERGED_RATIO else ("bounded" if ratio <= DIVERGED_RATIO else "diverged")

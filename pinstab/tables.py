@@ -10,6 +10,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import SceneError, choices
+from .memory import new_data
 from .units import quantity
 
 WORLD = "world"
@@ -134,7 +135,7 @@ class SceneTables:
 
     def initial_placement(self, frame: int) -> pin.SE3:
         """World placement of a frame at the declared initial configuration."""
-        data = self.model.createData()
+        data = new_data(self.model)
         pin.framesForwardKinematics(self.model, data, self.q0)
         return data.oMf[frame].copy()  # not a view into data, which goes out of scope
 

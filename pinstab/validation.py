@@ -3,7 +3,8 @@ links (masses and inertias), frame names, locked joints, closures and the initia
 
 Every failure is a :class:`~pinstab.errors.SceneError` naming the item. The checks are one pass over
 the file, the URDF's links and the model's joints and frames (no Pinocchio data is allocated: that
-grows with nv^2 and more): they cost little next to a simulation.
+grows with nv^2 and more): they cost little next to a simulation. A mass matrix found singular later
+(at assembly) is named by :func:`singular_mass_error`.
 
 The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
 inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
@@ -37,6 +38,9 @@ INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 # (first, end) of the unit part of a joint's configuration: quaternion [qx, qy, qz, qw] or [cos, sin]
 UNIT_PARTS = {"JointModelFreeFlyer": (3, 7), "JointModelSpherical": (0, 4), "JointModelPlanar": (2, 4)}
+MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate beyond it is a mistake
+MOVING_JOINTS = ("revolute", "continuous", "prismatic")
+AXIS_MIN = 1e-9  # a shorter joint axis is no direction
 
 
 # -- scene files ---------------------------------------------------------------------------------
@@ -81,10 +85,38 @@ def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -
         root = ElementTree.fromstring(text)
     except ElementTree.ParseError as exc:
         raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+    _check_tree(root)
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is not None:
             _check_inertial(inertial, f"robot link {link.get('name')!r}", triangle)
+
+
+def _check_tree(root: ElementTree.Element) -> None:
+    """Names defined once, joints between links that exist, moving joints with a non-zero axis (urdfdom
+    would refuse the first two without naming them)."""
+    links = [link.get("name") for link in root.findall("link")]
+    joints = root.findall("joint")
+    for kind, names in (("link", links), ("joint", [joint.get("name") for joint in joints])):
+        twice = sorted({name for name in names if names.count(name) > 1}, key=str)
+        if twice:
+            raise SceneError(f"robot: {kind} {twice[0]!r} is defined twice")
+    for joint in joints:
+        where = f"robot joint {joint.get('name')!r}"
+        for end in ("parent", "child"):
+            element = joint.find(end)
+            link = None if element is None else element.get("link")
+            if link not in links:
+                raise SceneError(f"{where}: {end} link {link!r} does not exist; links: {', '.join(map(str, links))}")
+        axis = joint.find("axis")
+        if joint.get("type") in MOVING_JOINTS and axis is not None:
+            text = axis.get("xyz", "")
+            try:
+                direction = np.array([float(x) for x in text.split()])
+            except ValueError:
+                direction = np.zeros(0)
+            if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < AXIS_MIN:
+                raise SceneError(f"{where}: axis xyz={text!r} is not a non-zero direction of 3 numbers")
 
 
 def _number(element: ElementTree.Element | None, key: str, what: str, where: str) -> float:
@@ -162,6 +194,24 @@ def _check_moving_mass(model: pin.Model) -> None:
             )
 
 
+def singular_mass_error(model: pin.Model, mass: np.ndarray, where: str) -> SceneError:
+    """The error for a mass matrix found singular at ``where``: it names the joints whose combined motion
+    moves no mass or inertia (the largest entries of the eigenvector of the smallest eigenvalue)."""
+    eigenvalues, vectors = np.linalg.eigh(mass)
+    null = np.abs(vectors[:, 0])
+    joints = [
+        model.names[j]
+        for j in range(1, model.njoints)
+        if np.any(null[model.joints[j].idx_v : model.joints[j].idx_v + model.joints[j].nv] > 0.1 * null.max())
+    ]
+    return SceneError(
+        f"robot: the mass matrix is singular at {where} (smallest eigenvalue {eigenvalues[0]:.3g}): moving "
+        f"joints {', '.join(repr(j) for j in joints)} together moves no mass or inertia (a massless link between "
+        "joints that turn or slide alike, e.g. a massless free-flyer root); give that link mass and inertia, or "
+        "lock one of the joints"
+    )
+
+
 def check_closures(model: pin.Model, constraints: list[Constraint]) -> None:
     """Refuse a closure between two frames of one rigid body (a frame and itself): its rows are zero."""
     for constraint in constraints:
@@ -178,8 +228,14 @@ def check_closures(model: pin.Model, constraints: list[Constraint]) -> None:
 
 # -- configurations ------------------------------------------------------------------------------
 def check_configuration(model: pin.Model, q: np.ndarray, where: str) -> None:
-    """Normalize (in place) each quaternion and unit complex number of ``q`` whose norm is within
-    :data:`UNIT_TOLERANCE` of 1; refuse any other."""
+    """Refuse an entry of ``q`` beyond :data:`MAX_COORDINATE` [m or rad]; normalize (in place) each quaternion
+    and unit complex number of ``q`` whose norm is within :data:`UNIT_TOLERANCE` of 1; refuse any other."""
+    for index in np.flatnonzero(~(np.abs(q) <= MAX_COORDINATE)):
+        joint_id = next(j for j in range(1, model.njoints) if index < model.idx_qs[j] + model.nqs[j])
+        raise SceneError(
+            f"{where}.{model.names[joint_id]}: {q[index]:g} is beyond {MAX_COORDINATE:g} m or rad, where "
+            "sines, cosines and positions lose their digits"
+        )
     for joint_id in range(1, model.njoints):
         joint = model.joints[joint_id]
         part = UNIT_PARTS.get(joint.shortname())

@@ -79,3 +79,20 @@ def pendulum_scene(length: float, gravity: float, initial: dict | None = None):
         )
     )
     return scene
+
+
+# Hypothesis profiles for tests/test_fuzz.py, chosen by HYPOTHESIS_PROFILE: "default" (200 examples per
+# property, derandomized so CI is reproducible) or "nightly" (2000 examples, random).
+def _register_hypothesis_profiles() -> None:
+    """Register and load the Hypothesis settings profiles."""
+    import os
+
+    from hypothesis import HealthCheck, settings
+
+    relaxed = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    settings.register_profile("default", max_examples=200, derandomize=True, print_blob=True, **relaxed)
+    settings.register_profile("nightly", max_examples=2000, print_blob=True, **relaxed)
+    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+_register_hypothesis_profiles()

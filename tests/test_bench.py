@@ -10,8 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from pinstab.bench.workprecision import Config, default_configs, run_config, sweep
+from pinstab.bench.workprecision import Config, cheapest_within, check_sweep, default_configs, run_config, sweep
 from pinstab.cli import main
+from pinstab.errors import PinstabError
 
 CONFIGS = [
     Config("baumgarte", "semi-implicit-euler", 2e-3),
@@ -100,6 +101,30 @@ def test_bench_cli_writes_tables_and_charts(tmp_path, capsys):
 def test_bench_refuses_bad_input(capsys):
     assert main(["bench", "fourbar", "--dts", "-1", "-o", "/tmp/x", "--serial"]) == 2
     assert "--dts" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("configs", "duration", "message"),
+    [
+        ([], 1.0, "no configuration to run"),
+        (CONFIGS, 0.0, "duration must be a positive number of seconds, got 0.0"),
+        (CONFIGS, math.nan, "got nan"),
+        ([Config("baumgarte", "rk4", math.inf)], 1.0, "step inf s of baumgarte \\+ rk4 must be a positive number"),
+        ([Config("baumgarte", "rk4", 10.0)], 1.0, "is longer than the duration 1 s"),
+        ([Config("baumgarte", "rk4", 5e-324)], 1.0, "makes inf steps, more than the 1e\\+08 a run takes"),
+        (CONFIGS, 1e308, "6.25e-05 s \\(the runs' or the reference's\\)"),
+    ],
+)
+def test_sweeps_out_of_range_are_refused_before_any_run(configs, duration, message):
+    with pytest.raises(PinstabError, match=message):
+        check_sweep(configs, duration)
+    with pytest.raises(PinstabError, match=message):
+        sweep("fourbar", {}, configs, duration, serial=True)
+
+
+def test_cheapest_within_refuses_a_tolerance_that_is_not_positive():
+    with pytest.raises(PinstabError, match="tolerance must be a positive number"):
+        cheapest_within([], -1.0, None)
 
 
 def test_mujoco_peer_models_the_same_mechanism():

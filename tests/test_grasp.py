@@ -99,3 +99,5 @@ def test_bad_analysis_arguments_are_named():
         analyse_grasp([])
     with pytest.raises(PinstabError, match="facets"):
         analyse_grasp(equator("point-friction", 0.3), facets=2)
+    with pytest.raises(PinstabError, match="facets must be a whole number from 3 to 32, got 33"):
+        analyse_grasp(equator("point-friction", 0.3), facets=33)

@@ -163,7 +163,7 @@ def test_bad_hold_input_is_named(change, pattern):
 
 def test_bad_facets_are_refused(capsys):
     code, _, err = run_json(capsys, "grasp", "allegro-sphere", "--facets", "2")
-    assert code == 2 and "facets must be a whole number >= 3" in err
+    assert code == 2 and "facets must be a whole number from 3 to 32" in err
 
 
 @pytest.mark.parametrize(

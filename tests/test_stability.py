@@ -106,6 +106,18 @@ def test_spectral_radius_of_empty_matrix_is_zero():
     assert spectral_radius(np.zeros((0, 0))) == 0.0
 
 
+def test_gains_that_overflow_r_have_an_unbounded_radius_and_a_scaled_bound():
+    """Kp = 1e308 overflows R(tau W) at dt = 1e-3: rho is inf, not a LinAlgError; the stable step still
+    follows the scaling (S c^2, K c) -> tau / c down to such gains."""
+    mask = np.array([True])
+    assert scalar_radius(1e308, 20.0, 1e-3, "rk4") == np.inf
+    assert spectral_radius(np.array([[np.nan, 0.0], [0.0, 1.0]])) == np.inf
+    unit = largest_stable_step(np.array([[1.0]]), np.array([[2.0]]), mask, "rk4")
+    huge = largest_stable_step(np.array([[1e300]]), np.array([[2e150]]), mask, "rk4")
+    assert huge == pytest.approx(unit / 1e150, rel=1e-6)
+    assert largest_stable_step(np.array([[np.inf]]), np.array([[1.0]]), mask, "rk4") == 0.0
+
+
 def test_stability_map_agrees_with_the_criterion(tmp_path):
     """A small map on the four-bar: prediction and observation agree on most cells, both regions occur,
     and the PNG and JSON are written."""
@@ -136,3 +148,36 @@ def test_stability_map_refuses_bad_ranges():
         stability_map(pinstab.load_scene("fourbar"), dt_range=(1e-2, 1e-3))
     with pytest.raises(pinstab.PinstabError, match="stability maps take methods"):
         stability_map(pinstab.load_scene("fourbar"), method="projection")
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"grid": 201}, "grid must be a whole number from 2 to 200, got 201"),
+        ({"grid": 2.5}, "grid must be a whole number"),
+        ({"steps": 1}, "steps must be a whole number at least 2, got 1"),
+        ({"grid": 200, "steps": 1000}, "40,000,000 steps, more than the 20,000,000 a map takes"),
+        ({"perturbation": 0.0}, "perturbation must be a number above 0 and at most 1"),
+        ({"perturbation": float("nan")}, "got nan"),
+        ({"perturbation": 1.5}, "got 1.5"),
+    ],
+)
+def test_stability_map_refuses_arguments_out_of_range(options, message):
+    import pinstab
+    from pinstab.stability_map import stability_map
+
+    with pytest.raises(pinstab.PinstabError, match=message):
+        stability_map(pinstab.load_scene("fourbar"), **options)
+
+
+def test_stability_map_raises_what_is_not_a_divergence():
+    """A scene the runs cannot simulate is an error, not a map of "diverged" cells; a scene with velocity
+    constraints only has no position error to repair."""
+    import pinstab
+    from pinstab.errors import ServoInfeasibleError
+    from pinstab.stability_map import stability_map
+
+    with pytest.raises(ServoInfeasibleError, match="cannot be realized at t = 0 s"):
+        stability_map(pinstab.load_scene("ring-on-rod"), grid=2, steps=2)
+    with pytest.raises(pinstab.PinstabError, match="violates no position constraint"):
+        stability_map(pinstab.load_scene("rolling-disk"), grid=2, steps=2)

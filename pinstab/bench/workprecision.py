@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from ..assembly import assemble
 from ..errors import PinstabError
-from ..files import atomic_output
+from ..files import atomic_output, check_output
 from ..model import ConstrainedModel
 from ..scene import load_scene
 from ..simulate import simulate
@@ -42,6 +42,7 @@ MUJOCO_DTS = (1e-3, 1e-4, 1e-5)  # [s], each with solref time constant 2 dt (MuJ
 FOURBAR_REFERENCE_STEP = 1e-4  # [s] RK4 on the crank-angle equation: 2e-10 rad from the run at 2e-4 over 10 s
 NFOURBAR_REFERENCE_STEP = 6.25e-5  # [s] RK4 on the parallelogram pendulum
 GENERIC_REFERENCE_STEP = 5e-4  # [s] projection + dop853 (7e-12 rad on the four-bar at 2e-3 against its reference)
+MAX_RUN_STEPS = 10**8  # steps of one run of a sweep (the reference included): beyond, days of work
 
 
 @dataclass(frozen=True)
@@ -279,9 +280,13 @@ def sweep(
     serial: bool = False,
     progress: bool = False,
 ) -> tuple[Reference, list[Result]]:
-    """Run every configuration (on Dask unless ``serial``) and return the reference and results."""
-    if not configs:
-        raise PinstabError("bench: no configuration to run")
+    """Run every configuration (on Dask unless ``serial``) and return the reference and results.
+
+    Raises:
+        PinstabError: no configuration, a duration or step out of range (:func:`check_sweep`), or a
+            scheduler that cannot be reached.
+    """
+    check_sweep(configs, duration)
     reference = reference_motion(scene_name, parameters, duration)
     if serial:
         results = []
@@ -301,8 +306,10 @@ def sweep(
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout=30)
-    except OSError as exc:
-        raise PinstabError(f"bench: cannot reach the Dask scheduler {scheduler!r}: {exc}") from None
+    except (OSError, ValueError) as exc:  # ValueError: an address Dask cannot parse
+        raise PinstabError(
+            f"bench: cannot reach the Dask scheduler {scheduler!r}: {exc} (give tcp://host:port, or --serial)"
+        ) from None
     try:
         shared = client.scatter(reference, broadcast=True)
         futures = {
@@ -319,6 +326,29 @@ def sweep(
     return reference, results  # type: ignore[return-value]
 
 
+def check_sweep(configs: list[Config], duration: float) -> None:
+    """Refuse a sweep before any work: no configuration, a duration [s] that is not a positive number, a
+    configuration's step [s] that is not positive or longer than the duration, or a step (a configuration's
+    or the reference's) that makes more than :data:`MAX_RUN_STEPS` steps over it."""
+    if not configs:
+        raise PinstabError("bench: no configuration to run")
+    if isinstance(duration, bool) or not isinstance(duration, int | float) or not 0 < duration < math.inf:
+        raise PinstabError(f"duration must be a positive number of seconds, got {duration!r}")
+    for config in configs:
+        label = f"step {config.dt!r} s of {config.curve}"
+        if not 0 < config.dt < math.inf:
+            raise PinstabError(f"{label} must be a positive number")
+        if duration / config.dt < 0.5:
+            raise PinstabError(f"{label} is longer than the duration {duration:g} s (no step to take)")
+    finest = min([c.dt for c in configs] + [FOURBAR_REFERENCE_STEP, NFOURBAR_REFERENCE_STEP, GENERIC_REFERENCE_STEP])
+    if duration / finest > MAX_RUN_STEPS:
+        raise PinstabError(
+            f"{duration:g} s at the finest step, {finest:g} s (the runs' or the reference's), makes "
+            f"{duration / finest:.3g} steps, more than the {MAX_RUN_STEPS:.0e} a run takes; use larger steps or a "
+            "shorter duration"
+        )
+
+
 def _bar(iterable, enabled: bool, total: int | None = None):
     if not enabled:
         return iterable
@@ -329,16 +359,35 @@ def _bar(iterable, enabled: bool, total: int | None = None):
 
 def cheapest_within(results: list[Result], tolerance: float, peer: str | None) -> Result | None:
     """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``)
-    whose trajectory error is within ``tolerance`` [rad, m]."""
+    whose trajectory error is within ``tolerance`` [rad, m] (a positive number, else PinstabError)."""
+    if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not 0 < tolerance < math.inf:
+        raise PinstabError(f"tolerance must be a positive number [rad, m], got {tolerance!r}")
     eligible = [r for r in results if r.config.peer == peer and not r.diverged and r.trajectory_error <= tolerance]
     return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
+
+
+def make_output_folder(out_dir: Path) -> None:
+    """Create ``out_dir`` (and its parents) if needed, and check that files can be written in it.
+
+    Raises:
+        PinstabError: a file on its path, no permission, no such place.
+    """
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PinstabError(f"cannot create the output folder {out_dir}: {exc.strerror or exc}") from None
+    check_output(out_dir / "results.json", ".json", "results")
 
 
 def write_outputs(
     out_dir: Path, scene_name: str, reference: Reference, results: list[Result], extra: dict[str, Any]
 ) -> dict[str, Any]:
-    """results.json, results.csv, work_precision.png and drift.png in ``out_dir``; returns the JSON."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    """results.json, results.csv, work_precision.png and drift.png in ``out_dir``; returns the JSON.
+
+    Raises:
+        PinstabError: ``out_dir`` cannot be created (:func:`make_output_folder`).
+    """
+    make_output_folder(out_dir)
     rows = [r.row() for r in results]
     summary = {"scene": scene_name, "reference": reference.kind, **extra, "results": rows}
     with atomic_output(out_dir / "results.json", ".json", "results") as temp:

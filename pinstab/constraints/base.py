@@ -16,6 +16,8 @@ from ..errors import ConstraintError
 from ..kinematics import Kinematics
 from ..registry import Registry
 
+MAX_FACETS = 1000  # sides of a linearized friction cone: more only costs time
+
 
 class RowKind(StrEnum):
     """How a block's rows enter the dynamics.
@@ -47,8 +49,10 @@ class FrictionCone:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mu) and self.mu >= 0):
             raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
-        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or self.facets < 3:
-            raise ConstraintError(f"a linearized friction cone needs at least 3 facets, got {self.facets!r}")
+        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or not 3 <= self.facets <= MAX_FACETS:
+            raise ConstraintError(
+                f"a linearized friction cone needs at least 3 facets (at most {MAX_FACETS}), got {self.facets!r}"
+            )
 
     @property
     def inscribed_mu(self) -> float:
@@ -90,6 +94,7 @@ class Constraint(ABC):
             and :meth:`check_force` receive (a rolling contact's normal force is its touching block's).
         prescribed: a servoconstraint (MATH.md section 5): the controls realize it, its reaction is zero
             (a scene's ``[[servos]]``).
+        nv: the velocity dimension the block was written for (a user block declares it), or None: the model's.
     """
 
     name: str
@@ -101,6 +106,7 @@ class Constraint(ABC):
     limits_force: bool = False
     force_partners: tuple[str, ...] = ()
     prescribed: bool = False
+    nv: int | None = None
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""

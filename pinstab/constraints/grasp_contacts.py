@@ -30,6 +30,7 @@ import pinocchio as pin
 from ..errors import GraspLostError, SceneError, choices
 from ..grasp import WRENCH_BASES
 from ..kinematics import Kinematics
+from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .loops import FrameClosure, plane_basis
@@ -262,7 +263,7 @@ def close_gap(tables: SceneTables, fingertip: Fingertip, where: str) -> Nearest:
     free = [j for j in joints if j not in tables.claimed_joints]
     columns = [k for j in free for k in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)]
     sphere = coal.Sphere(fingertip.radius)
-    data = model.createData()
+    data = new_data(model)
     for _ in range(GAP_ITERATIONS):
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
@@ -298,7 +299,7 @@ def read_fingertip(entry: dict, tables: SceneTables, where: str) -> Fingertip:
     """A contact table's ``object`` (a scene object with contact geometry), ``finger`` (a frame at the
     fingertip sphere's centre, not on the object) and ``radius`` [m] (> 0)."""
     objects = tables.objects
-    if entry.get("object") not in objects:
+    if not isinstance(entry.get("object"), str) or entry["object"] not in objects:
         bodies = f"; {entry.get('object')!r} is a body of the robot, not an object" if _is_frame(tables, entry) else ""
         raise SceneError(
             f"{where}.object: {entry.get('object')!r} is not an object of the scene{bodies}; objects: "
@@ -334,7 +335,7 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
     tables.check_keys(entry, GRASP_KEYS, where)
     model_name = entry.get("model", "point-friction")
-    if model_name not in WRENCH_BASES:
+    if not isinstance(model_name, str) or model_name not in WRENCH_BASES:
         raise SceneError(f"{where}: unknown contact model {model_name!r}; models: {choices(WRENCH_BASES)}")
     fingertip = read_fingertip(entry, tables, where)
     mu, torsion = read_coefficients(entry, tables, model_name, where)

@@ -88,6 +88,9 @@ class ConstraintSet:
         duplicates = sorted({n for n in names if names.count(n) > 1})
         if duplicates:
             raise ConstraintError(f"constraint names must be unique; repeated: {', '.join(duplicates)}")
+        for c in constraints:
+            if c.nv is not None and c.nv != nv:
+                raise ConstraintError(f"constraint {c.name!r} is declared for nv = {c.nv}, but the model has nv = {nv}")
         self.constraints = list(constraints)
         self.nv = nv
         self.slices: dict[str, slice] = {}

@@ -24,6 +24,7 @@ import pinocchio as pin
 
 from ..errors import SceneError, choices
 from ..kinematics import Kinematics
+from ..memory import new_data
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement
 
@@ -58,7 +59,7 @@ class GraspHold(ForceElement):
         self.hand_columns = np.flatnonzero(hand)
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
-        self._data = model.createData()
+        self._data = new_data(model)
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
 
     def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -112,7 +113,7 @@ def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:
 def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any, list[Any], np.ndarray]:
     """(the object ``entry['object']``, the grasp contacts ``entry['contacts']`` on it (default: all of
     them), the object's velocity indices), each checked and named in errors."""
-    if entry.get("object") not in tables.objects:
+    if not isinstance(entry.get("object"), str) or entry["object"] not in tables.objects:
         raise SceneError(
             f"{where}.object: {entry.get('object')!r} is not an object; objects: {choices(tables.objects)}"
         )
@@ -122,7 +123,7 @@ def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any,
     if not isinstance(names, list) or not names:
         raise SceneError(f"{where}.contacts must name grasp contacts on {item.name!r}; contacts: {choices(grasp)}")
     for contact in names:
-        if contact not in grasp:
+        if not isinstance(contact, str) or contact not in grasp:
             raise SceneError(
                 f"{where}.contacts: {contact!r} is not a grasp contact on {item.name!r}; contacts: {choices(grasp)}"
             )

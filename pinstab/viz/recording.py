@@ -31,6 +31,7 @@ from pinocchio.visualize import MeshcatVisualizer
 from ..constraints import FrameClosure
 from ..errors import PinstabError
 from ..files import atomic_output
+from ..memory import new_data
 from ..model import ConstrainedModel
 from ..scene import Scene
 from ..trajectory import Trajectory, configurations_at
@@ -46,6 +47,7 @@ GRID_MIN_EXTENT = 0.5  # [m] smaller regions hide meshcat's grid (0.5 m cells) a
 # where the camera sits by default, from the centre of the swept region, in units of its extent: in
 # front (-y), a little to the side and above
 CAMERA_OFFSET = (0.9, -2.2, 0.7)
+MAX_FRAMES = 100_000  # frames of a recording (55 min at 30 fps; about 1 kB of HTML each)
 
 
 class CommandRecorder:
@@ -140,7 +142,7 @@ def swept_region(model: pin.Model, states: np.ndarray) -> Region:
     gravity = model.gravity.linear
     down = -np.eye(3)[2]
     turn = rotation_onto(gravity / np.linalg.norm(gravity) if np.linalg.norm(gravity) > 0 else down, down)
-    data = model.createData()
+    data = new_data(model)
     points = []
     for q in states[:: max(1, len(states) // 50)]:
         pin.forwardKinematics(model, data, q)
@@ -208,10 +210,25 @@ def _marker_radius(scene: Scene) -> float:
     return max(0.01, 0.02 * max(spans, default=0.5) * 2)
 
 
-def frame_states(trajectory: Trajectory, model: pin.Model, fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """Configurations resampled at ``fps`` [1/s] (interpolated on the configuration group)."""
+def check_frames(duration: float, fps: float) -> None:
+    """Refuse (PinstabError) an ``fps`` [1/s] that is not a positive number, or that makes more than
+    :data:`MAX_FRAMES` frames over ``duration`` [s] (checked before the run and again on its samples)."""
     if not (math.isfinite(fps) and fps > 0):
         raise PinstabError(f"fps must be a positive number, got {fps}")
+    if not duration * fps < MAX_FRAMES:
+        raise PinstabError(
+            f"fps {fps:g} over {duration:g} s makes {duration * fps:.3g} frames, more than the {MAX_FRAMES:,} a "
+            f"recording holds; use --fps {MAX_FRAMES / duration:.3g} or less (the default is 30), or a shorter run"
+        )
+
+
+def frame_states(trajectory: Trajectory, model: pin.Model, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations resampled at ``fps`` [1/s] (interpolated on the configuration group).
+
+    Raises:
+        PinstabError: ``fps`` not a positive number, or more than :data:`MAX_FRAMES` frames.
+    """
+    check_frames(float(trajectory.t[-1]), fps)
     times = np.arange(0.0, trajectory.t[-1] + 0.5 / fps, 1.0 / fps)
     times = times[times <= trajectory.t[-1] + 1e-12]
     return times, configurations_at(trajectory.t, trajectory.q, model, times)
