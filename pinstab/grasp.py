@@ -167,7 +167,7 @@ def _force_closure(primitive: np.ndarray) -> tuple[bool, np.ndarray | None]:
     from scipy.optimize import linprog
 
     count = primitive.shape[1]
-    left, singular, _ = np.linalg.svd(primitive, full_matrices=False)
+    left, singular, _ = np.linalg.svd(primitive, full_matrices=count < 6)  # all 6 left vectors, a small V
     if int(np.count_nonzero(singular > RANK_TOLERANCE * max(float(singular[0]), 1.0))) < 6:
         return False, left[:, -1]  # orthogonal to every primitive wrench
     positive = linprog(np.zeros(count), A_eq=primitive, b_eq=np.zeros(6), bounds=[(1.0, None)] * count)

@@ -40,6 +40,14 @@ def test_antipodal_point_contacts_cannot_resist_a_moment_about_their_axis():
     assert analysis.internal_forces.shape == (6, 1)  # the squeeze along x
 
 
+def test_one_frictionless_contact_leaves_wrenches_it_cannot_push():
+    """Fewer primitive wrenches than 6: the unresisted wrench is still orthogonal to all of them (its only
+    one is the push along the normal +x at the contact point)."""
+    analysis = analyse_grasp([on_sphere("alone", [-1, 0, 0], "frictionless")], length=RADIUS)
+    assert not analysis.force_closure and analysis.rank == 1
+    assert abs(analysis.unresisted[0]) < 1e-12 and np.linalg.norm(analysis.unresisted) == pytest.approx(1.0)
+
+
 @pytest.mark.parametrize("mu", [0.05, 0.5, 2.0])
 def test_antipodal_soft_fingers_are_force_closure_for_every_mu(mu):
     contacts = [
