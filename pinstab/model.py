@@ -63,7 +63,8 @@ class ConstrainedModel:
         self.no_force = np.zeros(self.model.nv)
         self.no_force.flags.writeable = False
         placements = [*self.model.jointPlacements, *(frame.placement for frame in self.model.frames)]
-        self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
+        with np.errstate(over="ignore"):  # an offset too large for floating point is refused at assembly
+            self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
 
     def position_tolerance(self, tolerance: float) -> float:
         """An absolute position tolerance [m or rad] for a relative one: ``tolerance`` times the
