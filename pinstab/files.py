@@ -34,6 +34,42 @@ def check_output(path: str | Path, suffix: str, kind: str) -> Path:
     Raises:
         PinstabError: naming the path and what is wrong with it.
     """
+    target = _checked_target(path, suffix, kind)
+    handle, probe = _temporary(target, suffix)
+    os.close(handle)
+    os.remove(probe)
+    return target
+
+
+@contextmanager
+def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
+    """Yield a temporary path to write; on success it replaces ``path`` (no half-written files).
+
+    Args:
+        path: the target file.
+        suffix: required suffix (``.npz``, ``.png``).
+        kind: what the file is, for error messages.
+
+    Raises:
+        PinstabError: the target is refused (:func:`check_output`).
+    """
+    target = _checked_target(path, suffix, kind)
+    remove_stale_temporaries(target)
+    handle, temp = _temporary(target, suffix)
+    try:  # the temporary file goes on every exit path: an error, Ctrl-C, SIGTERM, or the rename
+        os.close(handle)
+        yield temp
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temp, 0o666 & ~umask)
+        os.replace(temp, target)
+    finally:
+        if os.path.exists(temp):
+            os.remove(temp)
+
+
+def _checked_target(path: str | Path, suffix: str, kind: str) -> Path:
+    """The checks of :func:`check_output` that need no file created: everything but the folder's permission."""
     target = Path(path)
     folder = target.parent
     try:
@@ -60,40 +96,16 @@ def check_output(path: str | Path, suffix: str, kind: str) -> Path:
     path_max = _path_limit(folder, "PC_PATH_MAX", DEFAULT_PATH_MAX)
     if len(os.fsencode(str(target.absolute()))) + name_bytes - len(os.fsencode(target.name)) >= path_max:
         raise PinstabError(f"cannot write {path}: the path is longer than the {path_max} bytes the system allows")
-    try:
-        handle, probe = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=suffix, dir=folder)
-    except OSError as exc:
-        raise PinstabError(f"cannot write {path}: folder {folder} is not writable ({exc.strerror})") from None
-    os.close(handle)
-    os.remove(probe)
     return target
 
 
-@contextmanager
-def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
-    """Yield a temporary path to write; on success it replaces ``path`` (no half-written files).
-
-    Args:
-        path: the target file.
-        suffix: required suffix (``.npz``, ``.png``).
-        kind: what the file is, for error messages.
-
-    Raises:
-        PinstabError: the target is refused (:func:`check_output`).
-    """
-    target = check_output(path, suffix, kind)
-    remove_stale_temporaries(target)
-    handle, temp = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=suffix, dir=target.parent)
-    try:  # the temporary file goes on every exit path: an error, Ctrl-C, SIGTERM, or the rename
-        os.close(handle)
-        yield temp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temp, 0o666 & ~umask)
-        os.replace(temp, target)
-    finally:
-        if os.path.exists(temp):
-            os.remove(temp)
+def _temporary(target: Path, suffix: str) -> tuple[int, str]:
+    """mkstemp's (handle, path) of a new temporary file for ``target``; a folder that refuses it is a
+    PinstabError."""
+    try:
+        return tempfile.mkstemp(prefix=_temp_prefix(target), suffix=suffix, dir=target.parent)
+    except OSError as exc:
+        raise PinstabError(f"cannot write {target}: folder {target.parent} is not writable ({exc.strerror})") from None
 
 
 def remove_stale_temporaries(target: Path) -> list[Path]:

@@ -27,6 +27,8 @@ WRENCH_BASES = {
 }
 """B_c per contact model: the wrench components (fx, fy, fz, mx, my, mz in C) the contact transmits."""
 
+MAX_CONE_FACETS = 1000  # sides of a linearized friction cone in the dynamics (contacts, grasp control): more
+# only costs time
 RANK_TOLERANCE = 1e-10  # singular values below this times the largest count as zero
 MAX_FACETS = 32  # the inscribed pyramid then holds cos(pi / 32) = 99.5 % of the cone; the 6-D hull of the
 # quality grows steeply beyond (64 sides: 11 s, 128: 96 s and 1.2 GB on the Allegro sphere grasp)

@@ -1,8 +1,8 @@
 """The memory budget: what a command will allocate, estimated before it allocates, and refused when the
 estimate exceeds the limit.
 
-The limit is :data:`DEFAULT_FRACTION` of the memory available when it is first asked for (``MemAvailable``
-of ``/proc/meminfo``), or the one set with :func:`memory_limit` (the command line's ``--memory-limit``).
+The limit is :data:`DEFAULT_FRACTION` of the memory available at each check (``MemAvailable`` of
+``/proc/meminfo``), or the one set with :func:`memory_limit` (the command line's ``--memory-limit``).
 The big items are Pinocchio's ``Data`` (its derivative tensors grow with nv^3: about 52 nv^3 bytes, 1.4 GB
 for nv = 301) and the samples a run keeps.
 """
@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from .errors import MemoryBudgetError, PinstabError
 
-DEFAULT_FRACTION = 0.8  # of the memory available at the start
+DEFAULT_FRACTION = 0.8  # of the memory available when checked (before the allocations, at the start)
 DATA_CUBIC, DATA_SQUARE, DATA_FIXED = 6.5, 100, 3000  # doubles per nv^3, nv^2 and joint of a Pinocchio Data
 RUN_DATA_COPIES = 3  # Pinocchio Data a run holds: the constrained model's two and its solver's
 SAMPLE_SERIES = 16  # doubles a kept sample adds besides q, v, multipliers: time, drifts, energy, copies written

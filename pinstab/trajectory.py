@@ -170,21 +170,9 @@ class Trajectory:
 
     def save(self, path: str | Path) -> Path:
         """Write an ``.npz`` file atomically (temp file + rename)."""
+        arrays = {name: getattr(self, name) for name in SAVED_ARRAYS if name != "info"}
         with atomic_output(path, ".npz", "trajectory") as temp:
-            np.savez_compressed(
-                temp,
-                t=self.t,
-                q=self.q,
-                v=self.v,
-                multipliers=self.multipliers,
-                position_drift=self.position_drift,
-                velocity_drift=self.velocity_drift,
-                energy=self.energy,
-                wall_time=self.wall_time,
-                info=json.dumps(self.info.to_dict()),
-                correction_iterations=self.correction_iterations,
-                spectral_radius=self.spectral_radius,
-            )
+            np.savez_compressed(temp, info=json.dumps(self.info.to_dict()), **arrays)
         return Path(path)
 
     @classmethod
@@ -220,7 +208,7 @@ class Trajectory:
         return cls(info=info, wall_time=wall_time, **arrays)
 
 
-SAVED_ARRAYS = (
+SAVED_ARRAYS = (  # what save() writes and load() requires: the attributes of these names, ``info`` as JSON
     "t",
     "q",
     "v",

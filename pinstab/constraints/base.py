@@ -13,10 +13,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ConstraintError
+from ..grasp import MAX_CONE_FACETS
 from ..kinematics import Kinematics
 from ..registry import Registry
-
-MAX_FACETS = 1000  # sides of a linearized friction cone: more only costs time
 
 
 class RowKind(StrEnum):
@@ -49,9 +48,9 @@ class FrictionCone:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mu) and self.mu >= 0):
             raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
-        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or not 3 <= self.facets <= MAX_FACETS:
+        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or not 3 <= self.facets <= MAX_CONE_FACETS:
             raise ConstraintError(
-                f"a linearized friction cone needs at least 3 facets (at most {MAX_FACETS}), got {self.facets!r}"
+                f"a linearized friction cone needs at least 3 facets (at most {MAX_CONE_FACETS}), got {self.facets!r}"
             )
 
     @property

@@ -31,6 +31,7 @@ import pinocchio as pin
 import proxsuite
 
 from ..errors import ContactInfeasibleError, SceneError
+from ..grasp import MAX_CONE_FACETS
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement
@@ -56,7 +57,6 @@ CONTROL_KEYS = {
 }
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 QP_ITERATIONS = 200
-MAX_FACETS = 1000  # sides of a linearized cone, as for a contact's friction cone (constraints.base.MAX_FACETS)
 
 
 @dataclass(frozen=True)
@@ -276,8 +276,8 @@ def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str)
     )
     margin = tables.quantity(entry.get("margin", 0.1), "force", f"{where}.margin")
     facets = entry.get("facets", 8)
-    if isinstance(facets, bool) or not isinstance(facets, int) or not 3 <= facets <= MAX_FACETS:
-        raise SceneError(f"{where}.facets must be a whole number >= 3 (at most {MAX_FACETS}), got {facets!r}")
+    if isinstance(facets, bool) or not isinstance(facets, int) or not 3 <= facets <= MAX_CONE_FACETS:
+        raise SceneError(f"{where}.facets must be a whole number >= 3 (at most {MAX_CONE_FACETS}), got {facets!r}")
     internal = entry.get("internal_forces", True)
     if not isinstance(internal, bool):
         raise SceneError(f"{where}.internal_forces must be true or false, got {internal!r}")
