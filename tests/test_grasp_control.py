@@ -6,14 +6,17 @@ from __future__ import annotations
 
 import math
 import tomllib
+from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
+import proxsuite
 import pytest
 
 from conftest import ROBOTS
 from pinstab import assemble, load_scene, simulate
 from pinstab.errors import ContactInfeasibleError, GraspLostError, SceneError
+from pinstab.forces import grasp_control
 from pinstab.grasp_report import control_series
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
@@ -35,7 +38,7 @@ def lift_run():
 
 def test_the_ball_follows_the_path_inside_the_cones(lift_run):
     """Acceptance: over the 2 s task the position error <= 1 mm and the orientation error <= 1 deg (measured:
-    4e-13 m, 3e-10 deg), every contact force inside its cone (min margin > 0), no GraspLostError; the ball
+    5e-13 m, 3e-9 deg), every contact force inside its cone (min margin > 0), no GraspLostError; the ball
     ends 3 cm higher (against gravity) and turned 20 deg about the vertical, from its states alone (1e-9)."""
     scene, trajectory = lift_run
     series = control_series(scene, trajectory, scene.forces[0])
@@ -67,6 +70,36 @@ def test_the_plan_is_what_the_simulator_solves(lift_run):
     _, forces, acceleration = scene.forces[0].plan(kin, v, t)
     np.testing.assert_allclose(evaluation.acceleration, acceleration, rtol=0, atol=1e-8)
     np.testing.assert_allclose(evaluation.multipliers, forces, rtol=0, atol=1e-8)
+
+
+class RecordingQP:
+    """ProxQP's dense QP, keeping each solve's status and iteration count."""
+
+    solves: list[tuple[str, int]] = []
+    real = proxsuite.proxqp.dense.QP
+
+    def __init__(self, *sizes):
+        self._qp = RecordingQP.real(*sizes)
+
+    def __getattr__(self, name):
+        return getattr(self._qp, name)
+
+    def solve(self):
+        self._qp.solve()
+        RecordingQP.solves.append((self._qp.results.info.status.name, self._qp.results.info.iter))
+
+
+def test_the_internal_force_qp_converges_with_headroom(lift_run, monkeypatch):
+    """Each internal-force QP of the lift solves in at most 60 ProxQP iterations (measured: 30), far from the
+    limit of QP_ITERATIONS = 200: with ProxQP's Ruiz equilibration the same QPs took 400 to 13,000 iterations,
+    varying with the CPU's vector instructions and from run to run, and one failed on the CI machine."""
+    scene, trajectory = lift_run
+    RecordingQP.solves.clear()
+    monkeypatch.setattr(grasp_control.proxsuite.proxqp, "dense", SimpleNamespace(QP=RecordingQP))
+    control_series(scene, trajectory, scene.forces[0])
+    statuses = {status for status, _ in RecordingQP.solves}
+    assert len(RecordingQP.solves) == len(trajectory.t) and statuses == {"PROXQP_SOLVED"}
+    assert max(iterations for _, iterations in RecordingQP.solves) <= 60
 
 
 def test_path_rates_are_the_derivatives_of_the_pose():
@@ -112,7 +145,7 @@ def test_a_margin_beyond_the_torque_limits_is_refused_naming_the_contacts():
     system = build_system(scene, "none", "dense")
     start = assemble(system.model, scene.q0, scene.v0)
     with pytest.raises(
-        ContactInfeasibleError, match=r"grasp control at t = 0 s: no contact forces move the object"
+        ContactInfeasibleError, match=r"grasp control at t = 0 s: no contact forces move the object.*\(ProxQP: PROXQP_"
     ) as info:
         system.dynamics(start.q, start.v, 0.0)
     assert info.value.contacts == ["index", "middle", "ring", "thumb"]

@@ -190,8 +190,8 @@ class GraspControl(ForceElement):
         return particular + posture - pseudo @ (hand_rows @ posture)
 
     def _internal_force_qp(self, carrier: np.ndarray, wrench: np.ndarray, hand_rows: np.ndarray, demand: np.ndarray):
-        """Contact forces lambda with ``carrier lambda = wrench`` minimizing |demand - hand_rows^T lambda|^2
-        (the joint torques), inside the cones with margin and within the effort limits."""
+        """(contact forces lambda with ``carrier lambda = wrench`` minimizing |demand - hand_rows^T lambda|^2
+        (the joint torques), inside the cones with margin and within the effort limits; ProxQP's info)."""
         count = carrier.shape[1]
         hessian = hand_rows @ hand_rows.T + 1e-9 * np.eye(count)
         gradient = -hand_rows @ demand
@@ -205,9 +205,12 @@ class GraspControl(ForceElement):
         qp.settings.verbose = False
         # a small QP converges in tens of iterations; an infeasible one would otherwise run for minutes
         qp.settings.max_iter, qp.settings.max_iter_in = QP_ITERATIONS, QP_ITERATIONS
-        qp.init(hessian, gradient, carrier, wrench, inequality, lower, upper)
+        # no Ruiz equilibration: the problem is already in N and m (Hessian condition ~15 on allegro-lift), and
+        # equilibrating it made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
+        # instructions and from run to run), so that a QP solved here could fail on another machine
+        qp.init(hessian, gradient, carrier, wrench, inequality, lower, upper, compute_preconditioner=False)
         qp.solve()
-        return np.array(qp.results.x), qp.results.info.status in _SOLVED
+        return np.array(qp.results.x), qp.results.info
 
     # -- ForceElement ----------------------------------------------------------------------------------
     def plan(self, kin: Kinematics, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -226,11 +229,12 @@ class GraspControl(ForceElement):
         carrier, wrench = rows[:, self.object_columns].T, needed[self.object_columns]
         hand_rows, demand = rows[:, self.hand_columns], needed[self.hand_columns]
         if self.internal_forces:
-            forces, solved = self._internal_force_qp(carrier, wrench, hand_rows, demand)
-            if not solved:
+            forces, info = self._internal_force_qp(carrier, wrench, hand_rows, demand)
+            if info.status not in _SOLVED:
                 raise ContactInfeasibleError(
                     f"grasp control at t = {t:.6g} s: no contact forces move the object with every force inside "
-                    f"its cone (margin {self.margin:g} N) and every joint torque within its limit",
+                    f"its cone (margin {self.margin:g} N) and every joint torque within its limit (ProxQP: "
+                    f"{info.status.name} after {info.iter} iterations)",
                     [c.name for c in self.contacts],
                     t,
                 )
