@@ -13,8 +13,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from pinstab import load_scene
 from pinstab.bench import save_results
-from pinstab.memory import samples_bytes
+from pinstab.simulate import kept_samples
 
 OUT = Path(__file__).parent / "results" / "memory.json"
 CHILD = (
@@ -40,12 +41,13 @@ def peak_mib(duration: float, every: int, folder: Path) -> tuple[float, float]:
 
 def main() -> None:
     results = {}
+    scene = load_scene("fourbar")
     with tempfile.TemporaryDirectory() as folder:
         for every in (100, 1):
             baseline, _ = peak_mib(0.01, every, Path(folder))
             peak, wall = peak_mib(1000.0, every, Path(folder))
             size = (Path(folder) / f"run-1000-{every}.npz").stat().st_size / 2**20
-            estimate = samples_bytes(1_000_000 // every + 2, 3, 3, 2) / 2**20  # the budget's, for the samples
+            estimate = kept_samples(scene, 1_000_000, every)[1] / 2**20  # the budget's, for the samples
             results[f"record_every_{every}"] = {
                 "steps": 1_000_000,
                 "baseline_peak_mib": baseline,

@@ -601,7 +601,14 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
 
     from .bench.overhead import measure_overhead
     from .bench.scaling import scaling
-    from .bench.workprecision import cheapest_within, default_configs, make_output_folder, sweep, write_outputs
+    from .bench.workprecision import (
+        cheapest_within,
+        check_tolerance,
+        default_configs,
+        make_output_folder,
+        sweep,
+        write_outputs,
+    )
     from .scene import load_scene
 
     parameters = _parameters(args.param)
@@ -610,7 +617,7 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
         for dt in steps:
             if not dt > 0:
                 raise PinstabError(f"{flag}: steps must be positive, got {dt}")
-    cheapest_within([], args.tolerance, None)  # refuses a tolerance that is not a positive number
+    check_tolerance(args.tolerance)
     out_dir = Path(args.output)
     make_output_folder(out_dir)
     configs = default_configs(

@@ -6,7 +6,8 @@ message names the offending item and, where it helps, the valid alternatives.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections import Counter
+from collections.abc import Hashable, Iterable
 
 
 class PinstabError(Exception):
@@ -121,6 +122,11 @@ def choices(valid: Iterable[str]) -> str:
     """Format a list of valid alternatives for an error message."""
     names = sorted(str(name) for name in valid)
     return ", ".join(names) if names else "(none)"
+
+
+def repeated(items: Iterable[Hashable]) -> list:
+    """The items that occur more than once, each once, sorted by their text (for an error message)."""
+    return sorted((item for item, count in Counter(items).items() if count > 1), key=str)
 
 
 class ConstraintError(PinstabError):

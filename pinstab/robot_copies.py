@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import SceneError, repeated
 from .tables import check_keys, vector
 
 COPY_KEYS = {"prefix", "xyz", "rpy"}
@@ -111,11 +111,10 @@ def _mount(copy: RobotCopy, root: str) -> ET.Element:
 
 def _check_unique(composed: ET.Element) -> None:
     for tag in ("link", "joint"):
-        names = [element.get("name") for element in composed.iterfind(tag)]
-        repeated = sorted({name for name in names if names.count(name) > 1})
-        if repeated:
+        collide = repeated(element.get("name") for element in composed.iterfind(tag))
+        if collide:
             raise SceneError(
-                f"{WHERE}: the prefixes make {tag} names collide: {', '.join(repeated)}; choose other prefixes"
+                f"{WHERE}: the prefixes make {tag} names collide: {', '.join(collide)}; choose other prefixes"
             )
 
 

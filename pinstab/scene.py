@@ -18,7 +18,7 @@ import pinocchio as pin
 from . import robots
 from .actuation import Actuation, read_actuation
 from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
-from .errors import SceneError, choices
+from .errors import SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
 from .objects import SceneObject, add_objects, place_objects
@@ -54,10 +54,10 @@ TOP_KEYS = {
 ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints", "copies"}
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
-KIND_TABLES = {
-    "closures": ("closure", CONSTRAINT_KINDS),
-    "contacts": ("contact", CONSTRAINT_KINDS),
-    "servos": ("servo", CONSTRAINT_KINDS),  # prescribed constraints: realized by the controls (MATH.md 5)
+KIND_TABLES = {  # scene array: (what an entry is called, whether its blocks are prescribed)
+    "closures": ("closure", False),
+    "contacts": ("contact", False),
+    "servos": ("servo", True),  # prescribed constraints: realized by the controls (MATH.md 5)
 }
 
 
@@ -225,9 +225,9 @@ def scene_from_dict(
 
     tables = SceneTables(model, q0, {item.name: item for item in objects})
     constraints: list[Constraint] = []
-    for key, (label, kinds) in KIND_TABLES.items():
-        blocks = _read_kinds(data, key, label, kinds, tables)
-        for block in blocks if key == "servos" else ():
+    for key, (label, prescribed) in KIND_TABLES.items():
+        blocks = _read_kinds(data, key, label, CONSTRAINT_KINDS, tables)
+        for block in blocks if prescribed else ():
             block.prescribed = True
         constraints += blocks
     actuation = read_actuation(data.get("actuation"), model)
@@ -363,9 +363,9 @@ def _read_kinds(data: dict[str, Any], key: str, label: str, kinds: Registry, tab
 
 # -- small validators ---------------------------------------------------------------------------
 def _check_unique(names: list[str]) -> None:
-    repeated = sorted({n for n in names if names.count(n) > 1})
-    if repeated:
-        raise SceneError(f"constraint and force names must be unique; repeated: {', '.join(repeated)}")
+    twice = repeated(names)
+    if twice:
+        raise SceneError(f"constraint and force names must be unique; repeated: {', '.join(twice)}")
 
 
 __all__ = ["Scene", "load_scene", "scene_from_dict"]

@@ -106,8 +106,8 @@ class StateSeries:
         controls = np.full((len(t), system.servo.actuation.count), np.nan)
         error = np.full(len(t), np.nan)
         for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
-            controls[k] = system.controls(q[k], v[k], float(t[k]))
-            values = model.constraint_values(q[k], v[k], float(t[k]))
+            evaluation = system.dynamics(q[k], v[k], float(t[k]))  # its values are those at (q, v, t) too
+            controls[k], values = evaluation.controls, evaluation.values
             residual = np.concatenate([values.phi[holonomic], values.velocity_residual[pfaffian]])
             error[k] = float(np.max(np.abs(residual), initial=0.0))
         return {"controls": controls, "servo_error": error}

@@ -29,13 +29,11 @@ _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 @dataclass
 class ServoSolution:
-    """(a [m/s^2, rad/s^2], multipliers with zeros on the prescribed rows [N, N m], controls u [N m or N],
-    the decoupling matrix's singular values)."""
+    """(a [m/s^2, rad/s^2], multipliers with zeros on the prescribed rows [N, N m], controls u [N m or N])."""
 
     acceleration: np.ndarray
     multipliers: np.ndarray
     controls: np.ndarray
-    singular_values: np.ndarray
 
 
 class ServoSolver:
@@ -95,7 +93,7 @@ class ServoSolver:
         multipliers = np.zeros(len(rhs))
         # lambda = (G M^-1 G^T)^+ (rhs_G - G M^-1 (f + B u)); G M^-1 = spread^T (M symmetric)
         multipliers[self.real] = base_multipliers - delassus @ (spread.T @ (self.actuation.matrix @ controls))
-        return ServoSolution(acceleration, multipliers, controls, singular)
+        return ServoSolution(acceleration, multipliers, controls)
 
     def _check_rank(self, decoupling: np.ndarray, singular: np.ndarray, state: tuple) -> None:
         """Raise when D has rank below p here, or (square D) when its determinant changed sign since the last

@@ -146,15 +146,23 @@ def simulate(
     return _trajectory(loop, system, info, time.perf_counter() - start)
 
 
+def kept_samples(scene: Scene, steps: int, record_every: int) -> tuple[int, int]:
+    """(how many samples a run of ``steps`` steps keeping one every ``record_every`` holds at most, their
+    estimated size [bytes])."""
+    samples = steps // record_every + 2
+    model = scene.model
+    return samples, samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows)
+
+
 def _require_memory(scene: Scene, grid: TimeGrid, record_every: int) -> None:
     """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples would exceed the budget."""
     model = scene.model
-    samples = grid.steps // record_every + 2
+    samples, size = kept_samples(scene, grid.steps, record_every)
     require(
         {
             f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
             * data_bytes(model.nv, model.njoints),
-            f"{samples:,} kept samples": samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows),
+            f"{samples:,} kept samples": size,
         },
         f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
         "keep fewer samples (--record-every, record_every), use a larger step or a shorter duration",

@@ -63,20 +63,13 @@ def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask:
     return np.block([[np.zeros((holonomic, holonomic)), pick], [-stiffness, -damping]])
 
 
+@np.errstate(over="ignore", invalid="ignore")
 def amplification(
     stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
 ) -> np.ndarray:
     """R(tau W) of one step of ``scheme`` [dimensionless], per the MATH.md table (huge gains overflow its
     entries to inf or nan, which :func:`spectral_radius` reads as an unbounded radius)."""
     _check_scheme(scheme)
-    with np.errstate(over="ignore", invalid="ignore"):
-        return _amplification(stiffness, damping, holonomic_mask, step, scheme)
-
-
-def _amplification(
-    stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
-) -> np.ndarray:
-    """R(tau W) of :func:`amplification`, floating-point overflow left to the caller."""
     w = deviation_matrix(stiffness, damping, holonomic_mask)
     n = w.shape[0]
     if scheme in ("semi-implicit-euler", "held"):

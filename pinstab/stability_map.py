@@ -135,7 +135,8 @@ def stability_map(
     _check_map_arguments(method, dt_range, gain_range, grid, steps, perturbation)
     model = ConstrainedModel(scene)
     q_off, v0 = perturbed_start(model, perturbation)
-    if not model.violation(q_off, v0, 0.0).position > 0.0:
+    initial = model.violation(q_off, v0, 0.0).position
+    if not initial > 0.0:
         raise PinstabError(
             f"scene {scene.name}: a start {perturbation:g} off the manifold violates no position constraint (its "
             "constraints are velocity-level only); a stability map measures how position errors are repaired, "
@@ -149,7 +150,9 @@ def stability_map(
         bar = tqdm(total=grid * grid, desc=f"stability {scene.name}", unit="run", file=sys.stderr, mininterval=0.5)
     for dt in np.geomspace(*dt_range, grid):
         for kp in np.geomspace(*gain_range, grid):
-            result.cells.append(_cell(model, method, integrator, float(dt), float(kp), steps, q_off, v0, solver))
+            result.cells.append(
+                _cell(model, method, integrator, float(dt), float(kp), steps, q_off, v0, initial, solver)
+            )
             if bar is not None:
                 bar.update(1)
     if bar is not None:
@@ -189,12 +192,12 @@ def _check_map_arguments(
         )
 
 
-def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0, solver) -> Cell:
+def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0, initial, solver) -> Cell:
+    """One map cell: a run from (q_off, v0), whose position violation is ``initial``, at (dt, kp)."""
     kd = 2.0 * math.sqrt(kp)
     system = build_system(model, method, solver, kp=kp, kd=kd)
     system.stabilizer.bind(model, dt, integrator, q_off)
     radius = system.stabilizer.spectral_radius(model, q_off, v0, 0.0)
-    initial = model.violation(q_off, v0, 0.0).position
     scene = model.scene
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnstableGainsWarning)

@@ -78,7 +78,7 @@ class ConstrainedSystem:
         constraints = model.constraints
         self.servo = (
             ServoSolver(constraints.prescribed_mask, constraints.layout.names, model.scene.actuation)
-            if constraints.prescribed
+            if constraints.prescribed_mask.any()
             else None
         )
 
@@ -228,10 +228,6 @@ class ConstrainedSystem:
         if self.model.constraints.force_limited:
             self.model.constraints.check_forces(solution.multipliers, problem.t)
         return Evaluation(solution.acceleration, solution.multipliers, values, solution.controls)
-
-    def controls(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """The controls u [N m or N] that realize the prescribed constraints at (q, v, t)."""
-        return self.dynamics(q, v, t).controls
 
 
 def build_system(

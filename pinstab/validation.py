@@ -28,7 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from .constraints import Constraint, FrameClosure
-from .errors import SceneError
+from .errors import SceneError, repeated
 from .tables import WORLD
 
 MAX_SCENE_BYTES = 1_000_000
@@ -96,9 +96,10 @@ def _check_tree(root: ElementTree.Element) -> None:
     """Names defined once, joints between links that exist, moving joints with a non-zero axis (urdfdom
     would refuse the first two without naming them)."""
     links = [link.get("name") for link in root.findall("link")]
+    known = set(links)
     joints = root.findall("joint")
     for kind, names in (("link", links), ("joint", [joint.get("name") for joint in joints])):
-        twice = sorted({name for name in names if names.count(name) > 1}, key=str)
+        twice = repeated(names)
         if twice:
             raise SceneError(f"robot: {kind} {twice[0]!r} is defined twice")
     for joint in joints:
@@ -106,7 +107,7 @@ def _check_tree(root: ElementTree.Element) -> None:
         for end in ("parent", "child"):
             element = joint.find(end)
             link = None if element is None else element.get("link")
-            if link not in links:
+            if link not in known:
                 raise SceneError(f"{where}: {end} link {link!r} does not exist; links: {', '.join(map(str, links))}")
         axis = joint.find("axis")
         if joint.get("type") in MOVING_JOINTS and axis is not None:
@@ -154,9 +155,9 @@ def _moments(moments: np.ndarray) -> str:
 # -- the model -----------------------------------------------------------------------------------
 def check_locked_joints(locked: list[str]) -> None:
     """Refuse a joint listed twice in ``robot.locked_joints``."""
-    repeated = sorted({j for j in locked if locked.count(j) > 1})
-    if repeated:
-        raise SceneError(f"robot.locked_joints: joint {repeated[0]!r} is listed more than once")
+    twice = repeated(locked)
+    if twice:
+        raise SceneError(f"robot.locked_joints: joint {twice[0]!r} is listed more than once")
 
 
 def check_model(model: pin.Model) -> None:

@@ -40,6 +40,7 @@ from ..constraints.grasp_contacts import FingertipContact
 from ..errors import PinstabError
 from ..forces import ExternalForce
 from ..forces.grasp_hold import GraspHold
+from ..kinematics import symmetric_mass_matrix
 from ..scene import Scene
 
 FLIP = np.diag([1.0, -1.0, -1.0])  # C turned by pi about x: the normal out of the object
@@ -214,19 +215,19 @@ class AdmmContactPeer:
         self.compliance = compliance
         self.warm_start = warm_start
         self._zero = np.zeros(self.model.nv)
+        self._lower = np.tril_indices(self.model.nv, -1)
 
     def terms(self, q: np.ndarray, v: np.ndarray) -> ContactTerms:
         """One Pinocchio pass at (q, v): M, h, the contacts' Jacobian, errors and drift."""
         model, data = self.model, self.data
-        pin.computeJointJacobians(model, data, q)
         pin.forwardKinematics(model, data, q, v, self._zero)
+        pin.computeJointJacobians(model, data)  # from the placements just computed
         for contact_model, contact_data in zip(self.models, self.datas, strict=True):
             contact_model.calc(model, data, contact_data)
         extracted = [contact_data.extract() for contact_data in self.datas]
         jacobian = pin.getConstraintsJacobian(model, data, self.models, self.datas)
-        mass = pin.crba(model, data, q)
         return ContactTerms(
-            np.triu(mass) + np.triu(mass, 1).T,
+            symmetric_mass_matrix(model, data, q, np.empty((model.nv, model.nv)), self._lower),
             pin.nle(model, data, q, v),
             jacobian,
             np.concatenate([d.constraint_position_error for d in extracted]),
@@ -347,24 +348,8 @@ class PeerForces:
             gravity = pin.computeGeneralizedGravity(model, data, q)
             rows = self.peer.to_pinstab @ jacobian
             for hold, selected in self.holds:
-                tau += _hold(hold, rows[selected], gravity, q, v)
+                tau += hold.torques(rows[selected], gravity, q, v)
         return tau
-
-
-def _hold(hold: GraspHold, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """:class:`GraspHold`'s torques [N m] with pinstab's contact rows ``rows`` (see its docstring)."""
-    carrier = rows[:, hold.object_columns].T
-    weight, *_ = np.linalg.lstsq(carrier, gravity[hold.object_columns], rcond=None)
-    _, singular, vt = np.linalg.svd(carrier)
-    rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
-    internal = vt[rank:].T
-    if internal.size:
-        weight = weight + internal @ (internal.T @ (hold.pressing - weight))
-    hand = hold.hand_columns
-    deviation = pin.difference(hold.model, hold.q_start, q)[hand]
-    tau = np.zeros(len(v))
-    tau[hand] = gravity[hand] - rows[:, hand].T @ weight - hold.stiffness * deviation - hold.damping * v[hand]
-    return tau
 
 
 # -- the stepping loop ------------------------------------------------------------------------------------

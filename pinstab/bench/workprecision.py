@@ -357,11 +357,16 @@ def _bar(iterable, enabled: bool, total: int | None = None):
     return tqdm(iterable, total=total, desc="bench", unit="run", file=sys.stderr, mininterval=0.5)
 
 
-def cheapest_within(results: list[Result], tolerance: float, peer: str | None) -> Result | None:
-    """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``)
-    whose trajectory error is within ``tolerance`` [rad, m] (a positive number, else PinstabError)."""
+def check_tolerance(tolerance: float) -> None:
+    """Refuse a trajectory-error tolerance [rad, m] that is not a positive number."""
     if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not 0 < tolerance < math.inf:
         raise PinstabError(f"tolerance must be a positive number [rad, m], got {tolerance!r}")
+
+
+def cheapest_within(results: list[Result], tolerance: float, peer: str | None) -> Result | None:
+    """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``)
+    whose trajectory error is within ``tolerance`` [rad, m] (:func:`check_tolerance`)."""
+    check_tolerance(tolerance)
     eligible = [r for r in results if r.config.peer == peer and not r.diverged and r.trajectory_error <= tolerance]
     return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
 

@@ -3,17 +3,13 @@ registry of constraint kinds that scene files name."""
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from enum import StrEnum
-from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ConstraintError
-from ..grasp import MAX_CONE_FACETS
+from ..grasp import FrictionCone
 from ..kinematics import Kinematics
 from ..registry import Registry
 
@@ -31,38 +27,6 @@ class RowKind(StrEnum):
     EQUALITY = "equality"
     UNILATERAL = "unilateral"
     CONE = "cone"
-
-
-@dataclass(frozen=True)
-class FrictionCone:
-    """A Coulomb friction cone and its linearization.
-
-    Attributes:
-        mu: friction coefficient [-]. facets: sides of the inscribed pyramid a solver without conic
-        support uses (every force inside the pyramid is inside the cone).
-    """
-
-    mu: float
-    facets: int = 8
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.mu) and self.mu >= 0):
-            raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
-        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or not 3 <= self.facets <= MAX_CONE_FACETS:
-            raise ConstraintError(
-                f"a linearized friction cone needs at least 3 facets (at most {MAX_CONE_FACETS}), got {self.facets!r}"
-            )
-
-    @property
-    def inscribed_mu(self) -> float:
-        """The friction coefficient of the inscribed pyramid: mu cos(pi / facets)."""
-        return self.mu * math.cos(math.pi / self.facets)
-
-    @cached_property
-    def facet_matrix(self) -> np.ndarray:
-        """``facets x 3`` rows c with ``c . (f_n, f_t1, f_t2) <= 0`` the pyramid's facets."""
-        angles = 2.0 * math.pi * np.arange(self.facets) / self.facets
-        return np.column_stack([-np.full(self.facets, self.inscribed_mu), np.cos(angles), np.sin(angles)])
 
 
 class VelocityTerms(NamedTuple):

@@ -40,6 +40,7 @@ from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .contacts import contact_basis
+from .grasp_contacts import cross
 
 DISK_KEYS = {"name", "kind", "frame", "offset", "axis", "radius", "normal", "point"}
 FLAT_TOLERANCE = 1e-9  # |n - (n . a) a| below this: the disk lies flat, its contact point is undefined
@@ -115,9 +116,9 @@ class DiskPlaneContact(Constraint):
         axis, towards, size = self.contact_direction(kin)
         omega = kin.velocity(self.frame).angular
         acceleration = kin.drift_acceleration(self.frame)
-        axis_rate = np.cross(omega, axis)
+        axis_rate = cross(omega, axis)
         towards_rate = self._direction_rate(axis, axis_rate, towards, size)
-        rate = np.cross(towards_rate, omega) + np.cross(towards, acceleration.angular)
+        rate = cross(towards_rate, omega) + cross(towards, acceleration.angular)
         return self.selection @ (acceleration.linear + self.radius * rate)
 
     def _direction_rate(self, axis: np.ndarray, axis_rate: np.ndarray, towards: np.ndarray, size: float) -> np.ndarray:

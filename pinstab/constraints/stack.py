@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ConstraintError
+from ..errors import ConstraintError, repeated
 from ..kinematics import Kinematics
 from .base import Constraint, FrictionCone, RowKind, VelocityTerms
 
@@ -84,8 +84,7 @@ class ConstraintSet:
     """An ordered list of constraint blocks with their row slices."""
 
     def __init__(self, constraints: list[Constraint], nv: int) -> None:
-        names = [c.name for c in constraints]
-        duplicates = sorted({n for n in names if names.count(n) > 1})
+        duplicates = repeated(c.name for c in constraints)
         if duplicates:
             raise ConstraintError(f"constraint names must be unique; repeated: {', '.join(duplicates)}")
         for c in constraints:
@@ -100,11 +99,13 @@ class ConstraintSet:
             start += c.rows
         self.rows = start
         self.holonomic_mask = np.zeros(self.rows, dtype=bool)
+        self.prescribed_mask = np.zeros(self.rows, dtype=bool)
         unilateral = np.zeros(self.rows, dtype=bool)
         cones = []
         for c in self.constraints:
             rows = self.slices[c.name]
             self.holonomic_mask[rows] = c.holonomic
+            self.prescribed_mask[rows] = c.prescribed
             unilateral[rows] = c.row_kind == RowKind.UNILATERAL
             if c.row_kind == RowKind.CONE:
                 if c.rows != 3 or c.friction is None:
@@ -116,10 +117,6 @@ class ConstraintSet:
         self.layout = RowLayout(names, unilateral, tuple(cones))
         self._has_unilateral = bool(unilateral.any())
         self.force_limited = [(c, self._force_rows(c)) for c in self.constraints if c.limits_force]
-        self.prescribed_mask = np.zeros(self.rows, dtype=bool)
-        for c in self.constraints:
-            self.prescribed_mask[self.slices[c.name]] = c.prescribed
-        self.prescribed = [c for c in self.constraints if c.prescribed]
         self._every_row = np.ones(self.rows, dtype=bool)
 
     def _force_rows(self, constraint: Constraint) -> slice | np.ndarray:

@@ -31,11 +31,11 @@ import pinocchio as pin
 import proxsuite
 
 from ..errors import ContactInfeasibleError, SceneError
-from ..grasp import MAX_CONE_FACETS
+from ..grasp import MAX_CONE_FACETS, FrictionCone
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement
-from .grasp_hold import contact_rows, grasped_contacts
+from .grasp_hold import contact_rows, grasped_contacts, hand_columns
 
 CONTROL_KEYS = {
     "name",
@@ -127,14 +127,11 @@ class GraspControl(ForceElement):
         self.object_frame, self.object_columns, self.path = object_frame, object_columns, path
         self.kp, self.kd, self.posture_kp, self.posture_kd = gains
         self.margin, self.internal_forces = margin, internal_forces
-        hand = np.ones(model.nv, dtype=bool)
-        hand[object_columns] = False
-        self.hand_columns = np.flatnonzero(hand)
+        self.hand_columns = hand_columns(model.nv, object_columns)
         self.q_start = q_start.copy()
         limits = np.asarray(model.effortLimit, dtype=float)[self.hand_columns]
         self.effort_limit = np.where((limits > 0) & (limits < 1e30), limits, np.inf)
         self.cone_rows, self.cone_bounds = self._cone_constraints(facets)
-        self._qp: Any = None
 
     # -- pieces ----------------------------------------------------------------------------------------
     def _cone_constraints(self, facets: int) -> tuple[np.ndarray, np.ndarray]:
@@ -142,20 +139,18 @@ class GraspControl(ForceElement):
         with ``margin`` [N] to spare (distances to the facets), every pushing contact's normal force >=
         margin; a rigid contact carries anything."""
         total = sum(c.rows for c in self.contacts)
-        angles = 2.0 * math.pi * np.arange(facets) / facets
         rows, offset = [], 0
         for contact in self.contacts:
             column = {int(component): offset + k for k, component in enumerate(contact.components)}
             offset += contact.rows
             if contact.model == "rigid":
                 continue
-            if 0 in column:  # tangential rows: a friction cone
-                inscribed = contact.mu * math.cos(math.pi / facets)
-                scale = math.sqrt(1.0 + inscribed**2)
-                for angle in angles:
+            if 0 in column:  # tangential rows: a friction cone, each facet's row of unit length
+                cone = FrictionCone(contact.mu, facets)
+                for facet in -cone.facet_matrix / math.sqrt(1.0 + cone.inscribed_mu**2):
                     row = np.zeros(total)
-                    row[[column[2], column[0], column[1]]] = [inscribed, -math.cos(angle), -math.sin(angle)]
-                    rows.append(row / scale)
+                    row[[column[2], column[0], column[1]]] = facet
+                    rows.append(row)
             normal = np.zeros(total)
             normal[column[2]] = 1.0
             rows.append(normal)

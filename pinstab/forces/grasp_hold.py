@@ -54,19 +54,15 @@ class GraspHold(ForceElement):
     ) -> None:
         self.name, self.model, self.contacts = name, model, contacts
         self.object_columns = object_columns
-        hand = np.ones(model.nv, dtype=bool)
-        hand[object_columns] = False
-        self.hand_columns = np.flatnonzero(hand)
+        self.hand_columns = hand_columns(model.nv, object_columns)
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
         self._data = new_data(model)
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
 
-    def hold_forces(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(contact rows A (s x nv), the held contact forces lambda* (s,) [N, N m], the generalized
-        gravity g(q) [N, N m]) at ``kin``'s state."""
-        rows = contact_rows(self.contacts, kin, 0.0)
-        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
+    def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+        """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
+        gravity g(q) [N, N m]."""
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
         left, singular, right = np.linalg.svd(carrier, full_matrices=True)
         rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
@@ -74,16 +70,22 @@ class GraspHold(ForceElement):
         # (null space of A_object^T) closest to the squeeze
         forces = right[:rank].T @ ((left[:, :rank].T @ gravity[self.object_columns]) / singular[:rank])
         internal = right[rank:].T
-        forces = forces + internal @ (internal.T @ self.pressing)
-        return rows, forces, gravity
+        return forces + internal @ (internal.T @ self.pressing)
 
-    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        rows, forces, gravity = self.hold_forces(kin)
+    def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
+        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping."""
+        forces = self.held_forces(rows, gravity)
         tau = np.zeros(self.model.nv)
         hand = self.hand_columns
-        deviation = pin.difference(self.model, self.q_start, kin.q)[hand]
+        deviation = pin.difference(self.model, self.q_start, q)[hand]
         tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
         return tau
+
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        rows = contact_rows(self.contacts, kin, 0.0)
+        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
+        return self.torques(rows, gravity, kin.q, v)
 
 
 @FORCE_KINDS.register(
@@ -103,6 +105,13 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
         if values[key] < 0:
             raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
     return GraspHold(name, tables.model, contacts, columns, q_start=tables.q0, **values)
+
+
+def hand_columns(nv: int, object_columns: np.ndarray) -> np.ndarray:
+    """The velocity indices that are not the object's: the hand's (and any other body's)."""
+    hand = np.ones(nv, dtype=bool)
+    hand[object_columns] = False
+    return np.flatnonzero(hand)
 
 
 def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:
