@@ -35,7 +35,7 @@ from .errors import (
     UnstableGainsWarning,
 )
 from .forces import FORCE_KINDS, ForceElement
-from .integrators import INTEGRATORS
+from .integration import INTEGRATORS
 from .memory import memory_limit
 from .model import ConstrainedModel
 from .registry import NoOptions, Registry

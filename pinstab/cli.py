@@ -26,7 +26,7 @@ from . import __version__
 from .bench.workprecision import MUJOCO_DTS, PEER_DTS
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .files import check_output
-from .integrators import INTEGRATORS
+from .integration import INTEGRATORS
 from .memory import memory_limit
 from .registry import Registry, option_fields
 from .solvers import SOLVERS

@@ -15,13 +15,12 @@ import numpy as np
 
 from .assembly import AssemblyReport, assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
-from .integrators import INTEGRATORS
+from .integration import INTEGRATORS, StepLoop, TimeGrid
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
 from .stability import largest_stable_step
-from .stepping import StepLoop, TimeGrid
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
 

@@ -13,9 +13,10 @@ import sys
 import numpy as np
 import pytest
 
-from pinstab import DivergenceError, SolverError, Trajectory, simulate, stepping
+from pinstab import DivergenceError, SolverError, Trajectory, simulate
 from pinstab import scene as scene_module
 from pinstab.cli import main
+from pinstab.integration import stepping
 
 SOLVERS = ("dense", "proxsuite", "pinocchio")
 # projection at dt = 0.5 s: one step passes, the second explodes (energy 6.3 J -> 1.4e3 J after the first);

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinstab import DivergenceError, PinstabError, build_system, load_scene, simulate, stepping
+from pinstab import DivergenceError, PinstabError, build_system, load_scene, simulate
 from pinstab.bench.fourbar_reference import fourbar_reference
 from pinstab.cli import main
+from pinstab.integration import stepping
 
 
 @pytest.mark.parametrize("method", ["projection", "post"])

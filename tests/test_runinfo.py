@@ -10,7 +10,7 @@ import pytest
 
 from pinstab import PinstabError, RunInfo, Trajectory, simulate
 from pinstab.cli import main
-from pinstab.stepping import TimeGrid
+from pinstab.integration import TimeGrid
 
 
 @pytest.mark.parametrize(

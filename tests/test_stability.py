@@ -26,7 +26,7 @@ def one_step(scheme, stiffness, damping, step, y):
         k2 = rate(y + step * k1)
         return y + step / 2 * (k1 + k2)
     if scheme == "dop853":  # the tableau stage by stage (the criterion uses its stability polynomial)
-        from pinstab.integrators import DormandPrince853 as tableau
+        from pinstab.integration.schemes import DormandPrince853 as tableau
 
         slopes = []
         for stage in range(tableau.stages):

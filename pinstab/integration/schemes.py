@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import dop853
-from .registry import NoOptions, Registry
-from .stability import register_polynomial
+from ..registry import NoOptions, Registry
+from ..stability import register_polynomial
+from . import tableaus
 
 if TYPE_CHECKING:
-    from .system import ConstrainedSystem
+    from ..system import ConstrainedSystem
 
 
 class Integrator:
@@ -167,9 +167,9 @@ class DormandPrince853(ExplicitRungeKutta):
 
     name = "dop853"
     stages = 12
-    nodes = np.array(dop853.NODES)
-    coupling = _lower_triangle(dop853.COUPLING, 12)
-    weights = np.array([dop853.WEIGHTS.get(j, 0.0) for j in range(12)])
+    nodes = np.array(tableaus.NODES)
+    coupling = _lower_triangle(tableaus.COUPLING, 12)
+    weights = np.array([tableaus.WEIGHTS.get(j, 0.0) for j in range(12)])
 
 
 register_polynomial(

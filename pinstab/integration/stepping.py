@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import (
+from ..errors import (
     ContactInfeasibleError,
     DivergenceError,
     PinstabError,
@@ -25,8 +25,8 @@ from .errors import (
     SolverError,
     UnstableGainsWarning,
 )
-from .integrators import Integrator
-from .system import ConstrainedSystem
+from ..system import ConstrainedSystem
+from .schemes import Integrator
 
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
 MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
