@@ -21,6 +21,7 @@ from .constraints import (
 )
 from .errors import (
     AssemblyError,
+    BranchChangeWarning,
     ConstraintError,
     ContactInfeasibleError,
     DivergenceError,
@@ -60,6 +61,7 @@ __all__ = [
     "Actuation",
     "AssemblyError",
     "AssemblyReport",
+    "BranchChangeWarning",
     "ConstrainedModel",
     "ConstrainedSystem",
     "Constraint",

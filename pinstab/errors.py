@@ -139,3 +139,8 @@ class UnstableGainsError(PinstabError):
 
 class UnstableGainsWarning(UserWarning):
     """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""
+
+
+class BranchChangeWarning(UserWarning):
+    """The motion left its branch of the constraint manifold at a singular configuration (its tangent space
+    turned by a finite angle at once)."""

@@ -61,6 +61,7 @@ class ConstrainedModel:
         self.flat = all(joint.nv == 1 for joint in joints)
         self.euclidean = self.flat and all(joint.nq == 1 for joint in joints)  # q (+) dq = q + dq
         self.no_force = np.zeros(self.model.nv)
+        self._neutral = pin.neutral(self.model)
         self.no_force.flags.writeable = False
         placements = [*self.model.jointPlacements, *(frame.placement for frame in self.model.frames)]
         with np.errstate(over="ignore"):  # an offset too large for floating point is refused at assembly
@@ -127,6 +128,14 @@ class ConstrainedModel:
     def difference(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """The tangent vector dq with q0 (+) dq = q1."""
         return pin.difference(self.model, q0, q1)
+
+    def magnitude(self, q: np.ndarray) -> np.ndarray:
+        """The size of each coordinate of q in the tangent space (nv,) [rad or m]: |q| on models whose joints
+        have one coordinate each, else |neutral (-) q| (angles of rotations, translations of free flyers);
+        what a relative error tolerance is relative to."""
+        if self.euclidean:
+            return np.abs(q)
+        return np.abs(pin.difference(self.model, self._neutral, q))
 
     def to_start_tangent(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
         """A velocity at ``q_stage`` carried to the tangent space at ``q`` (exact ``dexp^-1`` through

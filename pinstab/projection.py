@@ -18,6 +18,8 @@ if TYPE_CHECKING:
     from .model import ConstrainedModel
 
 RCOND = 1e-12
+ROUNDING_RESIDUAL = 16  # ulps of the mechanism's size: a residual this small is rounding
+CONTRACTION = 0.5  # Gauss-Newton steps that shrink less than this per iteration are rounding-dominated
 
 
 def weighted_correction(inverse_mass: np.ndarray, jacobian: np.ndarray, residual: np.ndarray) -> np.ndarray:
@@ -78,18 +80,33 @@ def project_positions(
 ) -> tuple[np.ndarray, int]:
     """Gauss-Newton on phi(q) = 0 from q; returns (q on the manifold, iterations).
 
+    Converged means near the manifold, not a small residual: where the Jacobian is close to losing
+    rank (a singular configuration, where two branches of the manifold cross) the residual grows only
+    quadratically with the distance across them, so a residual of eps leaves q about sqrt(eps) off its
+    branch. The iteration therefore stops when its last step (the distance to the manifold, to first
+    order) is below the threshold, with the residual below it too; or when the residual is at rounding
+    level or the steps stop contracting (rounding then decides them, not the constraints).
+
     Raises:
         ProjectionError: the residual is still above ``tolerance`` (relative: see
             :meth:`~pinstab.model.ConstrainedModel.position_tolerance`) after ``max_iterations``.
     """
     threshold = model.position_tolerance(tolerance)
+    floor = ROUNDING_RESIDUAL * model.position_tolerance(np.finfo(float).eps)
+    previous = np.inf
     for iteration in range(max_iterations + 1):
         step, worst = projector.position_step(q, t)
-        if worst <= threshold:
+        if not np.isfinite(worst):
+            break
+        size = float(np.max(np.abs(step), initial=0.0))
+        if worst <= threshold and (worst <= floor or size > CONTRACTION * previous):
             return q, iteration
-        if iteration == max_iterations or not np.isfinite(worst):
+        if iteration == max_iterations:
             break
         q = model.integrate(q, step)
+        if worst <= threshold and size <= threshold:
+            return q, iteration + 1
+        previous = size
     raise ProjectionError(
         f"coordinate projection did not converge: residual {worst:.3g} after {max_iterations} iterations "
         f"at t = {t:.6g} s (tolerance {threshold:.1g}); the state is far from the constraint manifold or "

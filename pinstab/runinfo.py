@@ -74,6 +74,10 @@ class RunInfo:
         controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over
             every step (projection, post).
+        passages: the singular passages of the run, each a
+            :class:`~pinstab.integration.passages.Passage` as a dict.
+        error_control: with rtol/atol, the tolerances and the accepted and rejected steps
+            (:meth:`~pinstab.integration.adaptive.ErrorControl.summary`); None for fixed steps.
     """
 
     scene: str
@@ -97,6 +101,8 @@ class RunInfo:
     correction_iterations_total: int = 0
     correction_iterations_max: int = 0
     controls: list[str] = field(default_factory=list)
+    passages: list[dict[str, Any]] = field(default_factory=list)
+    error_control: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

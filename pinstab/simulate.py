@@ -15,7 +15,7 @@ import numpy as np
 
 from .assembly import AssemblyReport, assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
-from .integration import INTEGRATORS, StepLoop, TimeGrid
+from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
@@ -30,6 +30,7 @@ ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
     None: "or use --method mukharlyamov, whose automatic gains are placed for the step and the integrator",
 }
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
+MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
 
 
 class Interrupted(KeyboardInterrupt):
@@ -61,6 +62,8 @@ def simulate(
     v0: np.ndarray | None = None,
     assemble_initial: bool = True,
     record_every: int = 1,
+    rtol: float | None = None,
+    atol: float | None = None,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -90,6 +93,10 @@ def simulate(
             study how a method removes an initial violation).
         record_every: keep a sample every this many steps (and the last); every step is stepped and
             checked either way.
+        rtol: with an embedded pair (``dopri5``, ``dop853``), control the step by its error estimate with
+            this relative tolerance [-] (:mod:`pinstab.integration.adaptive`); ``dt`` is then the step of
+            the samples (taken from the dense output), not of the integration.
+        atol: the absolute tolerance [rad, m, rad/s, m/s] of the error control (default: ``rtol``).
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -111,9 +118,15 @@ def simulate(
     grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
     _require_memory(scene, grid, record_every)
     system = build_system(scene, method, solver, solver_options, **method_options)
     stepper = INTEGRATORS.build(integrator, system)
+    if control is not None and system.stabilizer.step_dependent:
+        raise PinstabError(
+            f"method {method} places its automatic gains for one fixed step; with rtol (error control, steps of "
+            "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
+        )
     model = system.model
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
@@ -124,10 +137,15 @@ def simulate(
         report = assemble(model, q, v)
         q, v = report.q, report.v
     system.bind(grid.dt, integrator, q)
-    start_radius = _refuse_unstable_gains(system, q, v, strict)
+    # with error control the steps vary: the control, not a criterion at one step, keeps them stable
+    start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
+    warned = start_radius is not None and start_radius >= 1
 
     info = _info(scene, system, integrator, grid, report, method, solver_options, record_every)
-    loop = StepLoop(system, stepper, grid, record_every, drift_limit, start_radius is not None and start_radius >= 1)
+    if control is None:
+        loop = StepLoop(system, stepper, grid, record_every, drift_limit, warned)
+    else:
+        loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
     bar = _progress_bar(grid.steps, scene.name, progress)
     start = time.perf_counter()
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
@@ -143,6 +161,26 @@ def simulate(
         except KeyboardInterrupt:
             raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
     return _trajectory(loop, system, info, time.perf_counter() - start)
+
+
+def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
+    """The tolerances of an error-controlled run (``atol`` defaults to ``rtol``).
+
+    Raises:
+        PinstabError: a tolerance that is not a positive number (rtol at least 1e-14: below it the estimate is
+            rounding), or an integrator without an error estimator (naming those that have one).
+    """
+    pairs = embedded_pairs()
+    if integrator not in pairs:
+        raise PinstabError(
+            f"integrator {integrator!r} has no error estimator for rtol/atol; integrators with one: {', '.join(pairs)}"
+        )
+    rtol = atol if rtol is None else rtol
+    atol = rtol if atol is None else atol
+    for label, value, lowest in (("rtol", rtol, MIN_RTOL), ("atol", atol, 0.0)):
+        if isinstance(value, bool) or not isinstance(value, int | float) or not lowest < value < 1.0:
+            raise PinstabError(f"{label} must be a number in ({lowest:g}, 1), got {value!r}")
+    return ErrorControl(float(rtol), float(atol))
 
 
 def kept_samples(scene: Scene, steps: int, record_every: int) -> tuple[int, int]:
@@ -179,6 +217,9 @@ def _trajectory(
     info.steps, info.t_end = last, float(records.t[n - 1])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
+    info.passages = [passage.to_dict() for passage in loop.watch.passages if passage.t <= info.t_end]
+    if isinstance(loop, AdaptiveLoop):
+        info.error_control = loop.control.summary()
     return Trajectory(  # views of the samples: no second copy of a long run
         records.t[:n],
         records.q[:n],

@@ -138,6 +138,12 @@ class Trajectory:
         if np.any(np.isfinite(radii)):
             summary["max_spectral_radius"] = float(np.nanmax(radii))
         summary["drift_growth_exponent"] = self.drift_growth_exponent()
+        summary["dynamics_evaluations"] = statistics.solves
+        if self.info.error_control is not None:
+            summary["error_control"] = self.info.error_control
+        passages = self.info.passages
+        summary["singular_passages"] = passages
+        summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
             servo = self.servo_figures

@@ -51,7 +51,8 @@ def test_runge_kutta_keeps_its_order_on_se3(data_dir, integrator, order):
 
 def test_unknown_integrator_lists_the_valid_ones():
     with pytest.raises(
-        PinstabError, match="unknown integrator 'rk5'; valid integrators: dop853, euler, heun, rk4, semi-implicit-euler"
+        PinstabError,
+        match="unknown integrator 'rk5'; valid integrators: dop853, dopri5, euler, heun, rk4, semi-implicit-euler",
     ):
         simulate("fourbar", integrator="rk5", duration=0.01)
 

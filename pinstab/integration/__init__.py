@@ -1,7 +1,23 @@
 """Time integration: explicit schemes on the configuration group (:mod:`.schemes`, their tableaus in
-:mod:`.tableaus`) and the stepping loop that runs them over a time grid (:mod:`.stepping`)."""
+:mod:`.tableaus`), the stepping loop that runs them over a time grid (:mod:`.stepping`), error control with
+embedded pairs (:mod:`.adaptive`), dense output (:mod:`.dense`) and the planning of steps around singular
+configurations (:mod:`.passages`)."""
 
-from .schemes import INTEGRATORS, ExplicitRungeKutta, Integrator
+from .adaptive import AdaptiveLoop, ErrorControl
+from .passages import Passage
+from .schemes import INTEGRATORS, ExplicitRungeKutta, Integrator, embedded_pairs
 from .stepping import CHECK_STEPS, Records, StepLoop, TimeGrid
 
-__all__ = ["CHECK_STEPS", "INTEGRATORS", "ExplicitRungeKutta", "Integrator", "Records", "StepLoop", "TimeGrid"]
+__all__ = [
+    "CHECK_STEPS",
+    "INTEGRATORS",
+    "AdaptiveLoop",
+    "ErrorControl",
+    "ExplicitRungeKutta",
+    "Integrator",
+    "Passage",
+    "Records",
+    "StepLoop",
+    "TimeGrid",
+    "embedded_pairs",
+]

@@ -25,13 +25,18 @@ from ..errors import (
     SolverError,
     UnstableGainsWarning,
 )
+from ..projection import project_positions
+from ..stabilizers import ProjectionOptions
 from ..system import ConstrainedSystem
+from .dense import Segment
+from .passages import PassageWatch, Plan
 from .schemes import Integrator
 
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
 MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
 MAX_SAMPLES = 20_000_000  # kept samples; beyond this the arrays alone reach gigabytes
 MIN_DT = 1e-12  # [s]; below it t + dt rounds to t after a few hours of simulated time
+PASSAGE_PROJECTION = ProjectionOptions()  # before a singular passage: the projection method's defaults
 GRID_SLACK = 1e-9  # a duration within this fraction of a step of a whole number of steps is that number
 
 
@@ -163,6 +168,7 @@ class StepLoop:
             KeyboardInterrupt: Ctrl-C; :attr:`records` end with the last checked state.
         """
         self.records.q[0], self.records.v[0] = q, v
+        self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt)
         self.system.audit(q, v, 0.0)
         k = 0
         try:
@@ -174,45 +180,123 @@ class StepLoop:
         return q, v
 
     def chunk(self, q: np.ndarray, v: np.ndarray, k: int, progress=None) -> tuple[np.ndarray, np.ndarray, int]:
-        """Steps k+1 .. k + CHECK_STEPS (or to the end) from the checked state (q, v) at step k, then a
-        check; returns the state and its step. On a failure the chunk is replayed step by step."""
+        """Steps k+1 .. k + CHECK_STEPS (or to the end; a step further when a singular passage straddles the
+        chunk's end) from the checked state (q, v) at step k, then a check; returns the state and its step.
+        On a failure the chunk is replayed step by step."""
         stop = min(k + CHECK_STEPS, self.grid.steps)
         counts = (self.correction_total, self.correction_max)
+        saved = self.snapshot()
         try:
-            q_end, v_end = self.advance(q, v, k, stop)
-            self.check(q_end, v_end, stop)
+            q_end, v_end, reached = self.advance(q, v, k, stop)
+            self.check(q_end, v_end, reached)
         except (Failure, DivergenceError, SolverError, ProjectionError) as exc:
             self.correction_total, self.correction_max = counts  # the replay counts its steps again
+            self.restore(saved)
             replayed = self.locate(q, v, k, stop)
             # the replay passed every check (a warm-started solver took another path): report the chunk
             reason = f"{exc} (a replay checked after every step passed)"
-            raise self.diverged(k, (stop, *replayed), reason, q, v) from None
+            raise self.diverged(k, replayed, reason, q, v) from None
         if progress is not None:
-            progress.update(stop - k)
-        return q_end, v_end, stop
+            progress.update(reached - k)
+        return q_end, v_end, reached
 
-    def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
-        """Steps start+1 .. stop from (q, v) at step ``start``, storing the recorded ones."""
+    def snapshot(self) -> tuple:
+        """What a replayed chunk starts from besides the state (the passage watch's samples)."""
+        return self.watch.snapshot()
+
+    def restore(self, state: tuple) -> None:
+        """Return to a :meth:`snapshot`."""
+        self.watch.restore(state)
+
+    def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
+        """Steps start+1 .. stop from (q, v) at step ``start``, storing the recorded ones; returns the state
+        and its step (beyond ``stop`` when the steps planned around a singular passage end there)."""
         step = self.stepper.step
-        stabilizer = self.system.stabilizer
-        correct = stabilizer.correct if stabilizer.corrects else None
-        model, projector = self.system.model, self.system.projector
-        grid = self.grid
-        dt, last, every = grid.dt, grid.steps, self.every
-        rq, rv, corrections = self.records.q, self.records.v, self.records.corrections
-        for k in range(start + 1, stop + 1):
-            t = (k - 1) * dt
+        grid, watch = self.grid, self.watch
+        dt, last = grid.dt, grid.steps
+        k = start
+        while k < stop:
+            t = k * dt
+            if t >= watch.next_due:
+                watch.sample(t, q)
+                plan = watch.plan(t, dt, self.next_grid)
+                if plan is not None:
+                    q, v, k = self.passage(q, v, k, plan)
+                    continue
+            k += 1
             q, v = step(q, v, t, dt if k != last else grid.duration - t)
-            iterations = 0
-            if correct is not None:
-                correction = correct(model, projector, q, v, grid.time(k))
-                q, v, iterations = correction.q, correction.v, correction.iterations
-                self.correction_total += iterations
-                self.correction_max = max(self.correction_max, iterations)
-            if k % every == 0 or k == last:
-                index = self.records.last if k == last else k // every
-                rq[index], rv[index], corrections[index] = q, v, iterations
+            q, v = self.store(q, v, k)
+        return q, v, k
+
+    def store(self, q: np.ndarray, v: np.ndarray, k: int, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Correct the state reached at grid step k (at time t [s] when it is not a grid time: a step of a
+        plan around a singular passage), count the correction and keep the sample when k is recorded."""
+        iterations = 0
+        stabilizer = self.system.stabilizer
+        if stabilizer.corrects:
+            correction = stabilizer.correct(
+                self.system.model, self.system.projector, q, v, self.grid.time(k) if t is None else t
+            )
+            q, v, iterations = correction.q, correction.v, correction.iterations
+            self.correction_total += iterations
+            self.correction_max = max(self.correction_max, iterations)
+        if t is None:
+            self.keep(k, q, v, iterations)
         return q, v
+
+    def keep(self, k: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
+        """Store the sample of grid step k when it is a recorded one."""
+        last = self.grid.steps
+        if k % self.every == 0 or k == last:
+            records = self.records
+            index = records.last if k == last else k // self.every
+            records.q[index], records.v[index], records.corrections[index] = q, v, iterations
+
+    @property
+    def guarded(self) -> bool:
+        """Whether the state is projected onto its branch before a singular passage (methods that do not
+        correct every step, but ``none``)."""
+        stabilizer = self.system.stabilizer
+        return stabilizer.guards_passages and not stabilizer.corrects
+
+    def project(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) projected onto the constraint manifold at t [s] (Gauss-Newton with the projection method's
+        default settings, then the velocities)."""
+        system = self.system
+        settings = PASSAGE_PROJECTION
+        q, _ = project_positions(system.model, system.projector, q, t, settings.tolerance, settings.max_iterations)
+        return q, system.projector.velocity_projection(q, v, t)
+
+    def grid_index(self, t: float) -> int:
+        """The first grid step at or after time t [s] (the last step at most)."""
+        grid = self.grid
+        return min(math.ceil(t / grid.dt - GRID_SLACK), grid.steps)
+
+    def next_grid(self, t: float) -> float:
+        """The first grid time at or after t [s] (the duration at most)."""
+        return self.grid.time(self.grid_index(t))
+
+    def passage(self, q: np.ndarray, v: np.ndarray, k: int, plan: Plan) -> tuple[np.ndarray, np.ndarray, int]:
+        """The steps planned around a singular passage, from (q, v) at grid step k; a grid time inside the
+        straddling step is sampled from its dense output. Returns the state and its grid step."""
+        system, grid = self.system, self.grid
+        t = grid.time(k)
+        for index, end in enumerate(plan.ends):
+            if index == plan.straddle:
+                if self.guarded:
+                    q, v = self.project(q, v, t)
+                start = (t, q, v, system.acceleration(q, v, t, 0))
+            q, v = self.stepper.step(q, v, t, end - t)
+            on_grid = index == len(plan.ends) - 1
+            q, v = self.store(q, v, self.grid_index(end), None if on_grid else end)
+            if index == plan.straddle:
+                segment = Segment(system.model, *start, end, q, v, system.acceleration(q, v, end, 0))
+                for inside in range(self.grid_index(start[0] + GRID_SLACK * grid.dt), self.grid_index(end)):
+                    if start[0] < grid.time(inside) < end:
+                        self.keep(inside, *segment.state(grid.time(inside)))
+                self.watch.locate(segment, start[1], q)
+            t = end
+        return q, v, self.grid_index(plan.ends[-1])
 
     def check(self, q: np.ndarray, v: np.ndarray, k: int) -> None:
         """Check the state after step k.
@@ -245,16 +329,18 @@ class StepLoop:
                     stacklevel=4,
                 )
 
-    def locate(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    def locate(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[int, np.ndarray, np.ndarray]:
         """Replay steps start+1 .. stop from (q, v) with a check after each, and raise DivergenceError at
         the first that fails (a failed solve too, when it is a blow-up: see :meth:`solve_failure`);
-        returns the state at ``stop`` when none fails."""
-        for k in range(start + 1, stop + 1):
-            failed = np.full_like(q, np.nan), np.full_like(v, np.nan)
+        returns the step reached (``stop``, or beyond it after a singular passage) and its state when none
+        fails."""
+        k = start
+        while k < stop:
+            failed = (k + 1, np.full_like(q, np.nan), np.full_like(v, np.nan))
             try:
-                q_next, v_next = self.advance(q, v, k - 1, k)
-                failed = q_next, v_next
-                self.check(q_next, v_next, k)
+                q_next, v_next, reached = self.advance(q, v, k, k + 1)
+                failed = (reached, q_next, v_next)
+                self.check(q_next, v_next, reached)
             except Failure as exc:
                 reason = str(exc)
             except DivergenceError:
@@ -262,12 +348,12 @@ class StepLoop:
             except ProjectionError as exc:
                 reason = f"the post-step projection failed ({exc})"
             except SolverError as exc:
-                reason = self.solve_failure(exc, q, v, self.grid.time(k - 1))
+                reason = self.solve_failure(exc, q, v, self.grid.time(k))
             else:
-                q, v = q_next, v_next
+                q, v, k = q_next, v_next, reached
                 continue
-            raise self.diverged(k - 1, (k, *failed), reason, q, v)
-        return q, v
+            raise self.diverged(k, failed, reason, q, v)
+        return k, q, v
 
     def solve_failure(self, exc: SolverError, q: np.ndarray, v: np.ndarray, t: float) -> str:
         """Why a solve that failed during the step from the good state (q, v) at t [s] is a blow-up: the

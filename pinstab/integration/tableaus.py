@@ -1,11 +1,37 @@
-"""The Dormand-Prince 8(5,3) Runge-Kutta tableau (``dop853``), order 8, 12 stages.
+"""Explicit Runge-Kutta tableaus with embedded error estimators: Dormand-Prince 5(4) (``dopri5``, 7
+stages, the last at the new point) and Dormand-Prince 8(5,3) (``dop853``, 12 stages).
 
-Coefficients as published by E. Hairer, S. P. Norsett and G. Wanner, *Solving Ordinary Differential
-Equations I* (2nd ed., Springer 1993), section II.10, in the digits SciPy's ``dop853_coefficients``
-carries (BSD-3-Clause). Only the order-8 solution is used here (fixed steps, no error estimate).
+Coefficients as published by J. R. Dormand and P. J. Prince, *A family of embedded Runge-Kutta formulae*
+(J. Comp. Appl. Math. 6, 1980) and by E. Hairer, S. P. Norsett and G. Wanner, *Solving Ordinary
+Differential Equations I* (2nd ed., Springer 1993), section II.10, in the digits SciPy's ``rk.py`` and
+``dop853_coefficients`` carry (BSD-3-Clause).
+
+An error estimator is a weight per stage (index ``stages``: the derivative at the new point, which
+Dormand-Prince 5(4) uses and DOP853 does not): the estimate is ``h sum_i e_i k_i``.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Tableau(NamedTuple):
+    """An explicit Runge-Kutta tableau with its error estimators.
+
+    Attributes:
+        nodes: c_i. coupling: the non-zero a_ij, row by row. weights: the non-zero b_j of the solution kept.
+        order: the order of that solution. estimators: one or two error estimators (DOP853: the 5th- and
+            3rd-order ones, combined as Hairer's DOP853 code does). estimator_order: the order the step-size
+            control assumes for the error (the exponent is -1 / (estimator_order + 1)).
+    """
+
+    nodes: tuple[float, ...]
+    coupling: dict[int, dict[int, float]]
+    weights: dict[int, float]
+    order: int
+    estimators: tuple[dict[int, float], ...]
+    estimator_order: int
+
 
 NODES = (
     0.0,
@@ -102,3 +128,42 @@ WEIGHTS: dict[int, float] = {
     11: 4.47106157277725905176885569043e-2,
 }
 """b_j: the non-zero weights of the order-8 solution."""
+
+ESTIMATOR_5: dict[int, float] = {
+    0: 0.1312004499419488073250102996e-1,
+    5: -0.1225156446376204440720569753e1,
+    6: -0.4957589496572501915214079952,
+    7: 0.1664377182454986536961530415e1,
+    8: -0.3503288487499736816886487290,
+    9: 0.3341791187130174790297318841,
+    10: 0.8192320648511571246570742613e-1,
+    11: -0.2235530786388629525884427845e-1,
+}
+"""The 5th-order error estimator of DOP853."""
+
+ESTIMATOR_3: dict[int, float] = {
+    j: WEIGHTS.get(j, 0.0)
+    - {0: 0.244094488188976377952755905512, 8: 0.733846688281611857341361741547}.get(j, 0.0)
+    - {11: 0.220588235294117647058823529412e-1}.get(j, 0.0)
+    for j in range(12)
+}
+"""The 3rd-order error estimator of DOP853 (the weights less a 3rd-order solution's)."""
+
+DOP853 = Tableau(NODES, COUPLING, WEIGHTS, 8, (ESTIMATOR_5, ESTIMATOR_3), 7)
+
+DOPRI5 = Tableau(
+    nodes=(0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0),
+    coupling={
+        1: {0: 1 / 5},
+        2: {0: 3 / 40, 1: 9 / 40},
+        3: {0: 44 / 45, 1: -56 / 15, 2: 32 / 9},
+        4: {0: 19372 / 6561, 1: -25360 / 2187, 2: 64448 / 6561, 3: -212 / 729},
+        5: {0: 9017 / 3168, 1: -355 / 33, 2: 46732 / 5247, 3: 49 / 176, 4: -5103 / 18656},
+    },
+    weights={0: 35 / 384, 2: 500 / 1113, 3: 125 / 192, 4: -2187 / 6784, 5: 11 / 84},
+    order=5,
+    estimators=({0: -71 / 57600, 2: 71 / 16695, 3: -71 / 1920, 4: 17253 / 339200, 5: -22 / 525, 6: 1 / 40},),
+    estimator_order=4,
+)
+"""Dormand-Prince 5(4): 6 stages; its error estimator also uses the derivative at the new point (index 6),
+which is the next step's first stage (first same as last)."""

@@ -48,12 +48,15 @@ class Stabilizer:
         required_solver: a KKT backend the method implies (``pinocchio``), else None.
         constant_gains: S and K do not depend on the state, so rho is computed once per run.
         corrects: the method corrects the state after every step (:meth:`correct`).
+        guards_passages: before a step that straddles a singular configuration the state is projected
+            onto its branch (methods that do not correct every step; :mod:`pinstab.integration.passages`).
     """
 
     name = "none"
     required_solver: str | None = None
     constant_gains = True
     corrects = False
+    guards_passages = True
 
     def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray) -> None:
         """Called once before a run with the step [s], the integrator name and the start configuration."""
@@ -108,6 +111,12 @@ class Stabilizer:
     def parameters(self) -> dict[str, float | str]:
         """The method's parameters, for reports."""
         return {}
+
+    @property
+    def step_dependent(self) -> bool:
+        """Whether the method's term is placed for one fixed step (then steps of varying length, error
+        control, do not suit it)."""
+        return False
 
 
 STABILIZERS: Registry[Stabilizer] = Registry("method")

@@ -118,6 +118,10 @@ class MukharlyamovStabilizer(Stabilizer):
         self.hold = options.hold
         self._bound = False
 
+    @property
+    def step_dependent(self) -> bool:
+        return self.automatic
+
     # -- set-up --------------------------------------------------------------------------------
     def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray) -> None:
         super().bind(model, step, integrator, q)

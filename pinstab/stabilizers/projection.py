@@ -26,7 +26,8 @@ class ProjectionOptions:
         default=1e-13,
         metadata={
             "flag": "--projection-tolerance",
-            "help": "position residual projection reaches [m or rad per m of mechanism size, at least 1 m]",
+            "help": "position residual and Gauss-Newton step projection reaches [m or rad per m of mechanism size, "
+            "at least 1 m]",
         },
     )
     max_iterations: int = field(
