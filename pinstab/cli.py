@@ -110,10 +110,10 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--integrator",
-        default="rk4",
+        default=None,
         choices=INTEGRATORS,
         metavar="INTEGRATOR",
-        help=f"integrator (default: rk4). {_listed(INTEGRATORS)}",
+        help=f"integrator (default: rk4; dop853 with --rtol). {_listed(INTEGRATORS)}",
     )
     parser.add_argument(
         "--solver",
@@ -125,7 +125,16 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
             f"proxsuite; naming one keeps every evaluation on it). {_listed(SOLVERS)}"
         ),
     )
-    parser.add_argument("--dt", type=float, default=1e-3, help="time step [s] (default: 1e-3)")
+    parser.add_argument(
+        "--dt", type=float, default=1e-3, help="time step [s]; with --rtol the step of the samples (default: 1e-3)"
+    )
+    parser.add_argument(
+        "--rtol",
+        type=float,
+        help="error control: steps chosen by the embedded pair's error estimate (dopri5, dop853) to this "
+        "relative tolerance, samples every --dt from its dense output",
+    )
+    parser.add_argument("--atol", type=float, help="absolute tolerance of the error control (default: --rtol)")
     parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
     _add_registry_options(parser, STABILIZERS, METHOD_OPTION)
     _add_registry_options(parser, SOLVERS, SOLVER_OPTION)
@@ -499,10 +508,13 @@ def _simulate(args: argparse.Namespace):
     from .simulate import simulate
 
     scene = load_scene(args.scene, **_parameters(args.param))
+    adaptive = args.rtol is not None or args.atol is not None
     trajectory = simulate(
         scene,
         method=args.method,
-        integrator=args.integrator,
+        integrator=args.integrator or ("dop853" if adaptive else "rk4"),
+        rtol=args.rtol,
+        atol=args.atol,
         dt=args.dt,
         duration=args.duration,
         solver=args.solver,

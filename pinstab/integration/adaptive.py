@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from .stepping import GRID_SLACK, StepLoop
 SAFETY = 0.9
 MIN_FACTOR, MAX_FACTOR = 0.2, 10.0  # bounds of the step-size change per step
 MIN_STEP = 1e-14  # [s per s of simulated time] below this the step cannot advance time reliably
+PI_ALPHA, PI_BETA = 0.7, 0.4  # proportional-integral step control (Gustafsson): exponents in units of 1/(p+1)
 ESTIMATOR_MIX = 0.01  # DOP853: weight of the 3rd-order estimate in the combined error (Hairer's code)
 
 
@@ -63,6 +65,18 @@ class ErrorControl:
         }
 
 
+class Attempt(NamedTuple):
+    """A step tried: its length [s], end state, stage slopes, the derivative at its end when the estimator
+    needs it, and its scaled error [-]."""
+
+    h: float
+    q: np.ndarray
+    v: np.ndarray
+    slopes: np.ndarray
+    end_slope: np.ndarray | None
+    error: float
+
+
 class AdaptiveLoop(StepLoop):
     """Steps a bound system with error control; samples on the grid of the run's ``dt`` (the output step).
 
@@ -79,76 +93,96 @@ class AdaptiveLoop(StepLoop):
         self.needs_end = bool(np.any(stepper.estimators[:, -1]))  # the estimator weighs the new point's slope
         self.exponent = -1.0 / (stepper.tableau.estimator_order + 1)
         self.step_size: float | None = None
+        self.previous_error = 1.0  # the last accepted step's error, for the PI control
+        self.rejected_last = False  # the last step was accepted after a rejection
         self._start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (q, v, a) where the next step starts
 
     def snapshot(self) -> tuple:
-        return super().snapshot(), self.step_size, self._start
+        return super().snapshot(), self.step_size, self.previous_error, self._start
 
     def restore(self, state: tuple) -> None:
-        base, self.step_size, self._start = state
+        base, self.step_size, self.previous_error, self._start = state
         super().restore(base)
 
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
         """Accepted steps from grid step ``start`` to grid step ``stop`` (the last step shortened to end on
         it), the grid samples between them from the dense output."""
-        grid, system, watch, control = self.grid, self.system, self.watch, self.control
+        grid, system, watch = self.grid, self.system, self.watch
         t, t_stop = grid.time(start), grid.time(stop)
         a = self._acceleration_at(q, v, t)
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, a, t)
-        grown = True  # the step may grow after this one (not right after a rejection)
         while t < t_stop - GRID_SLACK * grid.dt:
             if t >= watch.next_due:
                 watch.sample(t, q, self.step_size)
-            proposal = min(self.step_size, t_stop - t)
-            if t_stop - t - proposal < GRID_SLACK * grid.dt:
-                proposal = t_stop - t
+            proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
             h, straddles = watch.limit(t, proposal)
             if straddles and self.guarded:
                 q, v = self.project(q, v, t)
                 a = system.acceleration(q, v, t, 0)
-            q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
-            end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
-            error = self.error_norm(q, v, q_new, v_new, slopes, end_slope, h)
-            if not error <= 1.0:
-                control.rejected += 1
-                factor = MIN_FACTOR if not math.isfinite(error) else max(MIN_FACTOR, SAFETY * error**self.exponent)
-                self.step_size = h * factor
-                grown = False
-                if self.step_size < MIN_STEP * max(1.0, t):
-                    raise DivergenceError(
-                        f"the error control cannot meet rtol = {control.rtol:g}, atol = {control.atol:g} at t = "
-                        f"{t:.6g} s: the step fell to {self.step_size:.3g} s",
-                        t,
-                        q,
-                        v,
-                        diverged_at=t,
-                    )
-                continue
-            control.accepted += 1
-            control.smallest_step = min(control.smallest_step, h)
-            control.largest_step = max(control.largest_step, h)
-            t_new = t + h
-            q_corrected, v_corrected = self.store(q_new, v_new, self.grid_index(t_new), t_new)
-            unchanged = q_corrected is q_new and v_corrected is v_new
-            if end_slope is not None and unchanged:
-                a_new = end_slope[system.model.nv :]
+            step = self.attempt(q, v, a, t, h)
+            t_new = t + step.h
+            q_new, v_new = self.store(step.q, step.v, self.grid_index(t_new), t_new)
+            if step.end_slope is not None and q_new is step.q and v_new is step.v:
+                a_new = step.end_slope[system.model.nv :]  # first same as last
             else:
-                a_new = system.acceleration(q_corrected, v_corrected, t_new, 0)
-            segment = Segment(system.model, t, q, v, a, t_new, q_corrected, v_corrected, a_new)
-            self._sample_grid(segment, q_corrected, v_corrected)
-            if straddles:
-                watch.locate(segment, q, q_corrected)
-            # the step the estimate asks for (also after a step shortened for a passage or a chunk's end:
-            # the error scales as h^(p+1)), growing at most MAX_FACTOR times, and not right after a rejection
-            limited = h < self.step_size * (1.0 - 1e-12)
-            optimal = math.inf if error == 0.0 else h * SAFETY * error**self.exponent
-            growth = (self.step_size if limited else h) * (MAX_FACTOR if grown else 1.0)
-            self.step_size = min(max(optimal, MIN_FACTOR * h), growth)
-            grown = True
-            t, q, v, a = t_new, q_corrected, v_corrected, a_new
+                a_new = system.acceleration(q_new, v_new, t_new, 0)
+            inside = self.grid_between(t, t_new)
+            if straddles or inside:
+                segment = Segment(system.model, t, q, v, a, t_new, q_new, v_new, a_new)
+                self._sample_grid(segment, inside, q_new, v_new)
+                if straddles:
+                    watch.locate(segment, q, q_new)
+            self.step_size = self._next_step(step)
+            t, q, v, a = t_new, q_new, v_new, a_new
         self._start = (q, v, a)
         return q, v, stop
+
+    def attempt(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float) -> Attempt:
+        """Steps from (q, v, a) at t [s], shorter after each rejection, until one meets the tolerance; counts
+        them.
+
+        Raises:
+            DivergenceError: the step fell below :data:`MIN_STEP` (the tolerance cannot be met).
+        """
+        control, size = self.control, self._size(q, v)
+        self.rejected_last = False
+        while True:
+            q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
+            end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
+            error = self.error_norm(size, self._size(q_new, v_new), slopes, end_slope, h)
+            if error <= 1.0:
+                control.accepted += 1
+                control.smallest_step = min(control.smallest_step, h)
+                control.largest_step = max(control.largest_step, h)
+                return Attempt(h, q_new, v_new, slopes, end_slope, error)
+            control.rejected += 1
+            h *= MIN_FACTOR if not math.isfinite(error) else max(MIN_FACTOR, SAFETY * error**self.exponent)
+            self.rejected_last = True
+            if h < MIN_STEP * max(1.0, t):
+                raise DivergenceError(
+                    f"the error control cannot meet rtol = {control.rtol:g}, atol = {control.atol:g} at t = "
+                    f"{t:.6g} s: the step fell to {h:.3g} s",
+                    t,
+                    q,
+                    v,
+                    diverged_at=t,
+                )
+
+    def _next_step(self, step: Attempt) -> float:
+        """The step the estimate asks for [s] after an accepted step: proportional-integral control, at most
+        :data:`MAX_FACTOR` times longer (not longer at all right after a rejection), at least MIN_FACTOR times.
+        A step shortened for a passage or a chunk's end still tells the right step: the error scales as
+        h^(p+1)."""
+        h, error = step.h, step.error
+        limited = h < self.step_size * (1.0 - 1e-12)
+        optimal = math.inf
+        if error > 0.0:
+            optimal = h * SAFETY * error ** (PI_ALPHA * self.exponent)
+            optimal *= max(self.previous_error, 1e-4) ** (-PI_BETA * self.exponent)
+        self.previous_error = error
+        growth = 1.0 if self.rejected_last else MAX_FACTOR
+        return min(max(optimal, MIN_FACTOR * h), (self.step_size if limited else h) * growth)
 
     def _acceleration_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The acceleration at the state the next step starts from (known when it ends the last step)."""
@@ -160,31 +194,29 @@ class AdaptiveLoop(StepLoop):
         """The derivative at the new point, in the start's tangent space: [velocity slope | acceleration]."""
         return np.concatenate((self.pair.slope(q, q_new, v_new), self.system.acceleration(q_new, v_new, t, 0)))
 
+    def _size(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """|y| coordinate by coordinate (2 nv,): :meth:`~pinstab.model.ConstrainedModel.magnitude` of q, |v|."""
+        return np.concatenate((self.system.model.magnitude(q), np.abs(v)))
+
     def error_norm(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        q_new: np.ndarray,
-        v_new: np.ndarray,
-        slopes: np.ndarray,
-        end_slope: np.ndarray | None,
-        h: float,
+        self, size: np.ndarray, size_new: np.ndarray, slopes: np.ndarray, end_slope: np.ndarray | None, h: float
     ) -> float:
-        """The scaled root-mean-square error of a step [-] (accept at <= 1)."""
-        model, control = self.system.model, self.control
-        scale = control.atol + control.rtol * np.concatenate(
-            (np.maximum(model.magnitude(q), model.magnitude(q_new)), np.maximum(np.abs(v), np.abs(v_new)))
-        )
+        """The scaled root-mean-square error of a step [-] (accepted at <= 1): the estimators' weights on the
+        stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``."""
+        control, estimators = self.control, self.pair.estimators
         stages = slopes.shape[0]
-        estimates = [row[:stages] @ slopes for row in self.pair.estimators]
+        estimates = estimators[:, :stages] @ slopes
         if end_slope is not None:
-            estimates = [e + row[stages] * end_slope for e, row in zip(estimates, self.pair.estimators, strict=True)]
-        if len(estimates) == 1:
-            return abs(h) * float(np.linalg.norm(estimates[0] / scale)) / math.sqrt(len(scale))
-        fifth, third = (float(np.sum((estimate / scale) ** 2)) for estimate in estimates)
+            estimates += np.outer(estimators[:, stages], end_slope)
+        scaled = estimates / (control.atol + control.rtol * np.maximum(size, size_new))
+        squares = np.einsum("ij,ij->i", scaled, scaled)
+        count = scaled.shape[1]
+        if len(squares) == 1:
+            return abs(h) * math.sqrt(squares[0] / count)
+        fifth, third = squares  # DOP853: Hairer's combination of the 5th- and 3rd-order estimates
         if fifth == 0.0 and third == 0.0:
             return 0.0
-        return abs(h) * fifth / math.sqrt((fifth + ESTIMATOR_MIX * third) * len(scale))
+        return abs(h) * fifth / math.sqrt((fifth + ESTIMATOR_MIX * third) * count)
 
     def initial_step(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float) -> float:
         """A first step [s] from the size of the state and of its derivatives (Hairer, Norsett and Wanner,
@@ -205,18 +237,21 @@ class AdaptiveLoop(StepLoop):
             second = (0.01 / largest) ** (1.0 / (self.pair.tableau.order + 1))
         return min(100 * first, second, self.grid.duration)
 
-    def _sample_grid(self, segment: Segment, q_end: np.ndarray, v_end: np.ndarray) -> None:
-        """Keep the grid samples in (t0, t1] of an accepted step: its end state where a grid time falls on
-        it, the dense output elsewhere."""
-        grid = self.grid
-        first = math.floor(segment.t0 / grid.dt + GRID_SLACK) + 1
-        last = self.grid_index(segment.t1)
-        for k in range(first, last + 1):
+    def _sample_grid(self, segment: Segment, steps: range, q_end: np.ndarray, v_end: np.ndarray) -> None:
+        """Keep the grid samples of ``steps`` (those in (t0, t1] of an accepted step): its end state where a
+        grid time falls on it, the dense output elsewhere (corrected like a step's end by methods that
+        correct, so that every sample of theirs is on the manifold)."""
+        grid, stabilizer = self.grid, self.system.stabilizer
+        for k in steps:
             time = grid.time(k)
             if abs(time - segment.t1) <= GRID_SLACK * grid.dt:
                 self.keep(k, q_end, v_end)
-            elif time < segment.t1:
-                self.keep(k, *segment.state(time))
+                continue
+            q, v = segment.state(time)
+            if stabilizer.corrects:
+                correction = stabilizer.correct(self.system.model, self.system.projector, q, v, time)
+                q, v = correction.q, correction.v
+            self.keep(k, q, v)
 
 
 def _rms(values: np.ndarray) -> float:

@@ -272,6 +272,17 @@ class StepLoop:
         grid = self.grid
         return min(math.ceil(t / grid.dt - GRID_SLACK), grid.steps)
 
+    def grid_between(self, t0: float, t1: float) -> range:
+        """The grid steps whose times lie in (t0, t1] [s] (with a sliver of a step of slack)."""
+        grid = self.grid
+        first = math.floor(t0 / grid.dt + GRID_SLACK) + 1
+        last = (
+            grid.steps
+            if t1 >= grid.duration - GRID_SLACK * grid.dt
+            else min(math.floor(t1 / grid.dt + GRID_SLACK), grid.steps)
+        )
+        return range(first, last + 1)
+
     def next_grid(self, t: float) -> float:
         """The first grid time at or after t [s] (the duration at most)."""
         return self.grid.time(self.grid_index(t))
