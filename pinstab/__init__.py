@@ -32,6 +32,7 @@ from .errors import (
     SceneError,
     ServoInfeasibleError,
     SolverError,
+    StepTooLargeError,
     UnstableGainsError,
     UnstableGainsWarning,
 )
@@ -87,6 +88,7 @@ __all__ = [
     "ServoInfeasibleError",
     "SolverError",
     "SolverStatistics",
+    "StepTooLargeError",
     "Stabilizer",
     "Trajectory",
     "UnstableGainsError",

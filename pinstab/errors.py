@@ -118,6 +118,11 @@ class DivergenceError(PinstabError):
         self.diverged_at = diverged_at
 
 
+class StepTooLargeError(DivergenceError):
+    """A run failed (a blow-up, a solve, a contact that could not hold) only because its step is too large
+    for the motion: with a smaller one it goes on. The message names dt and a step that works."""
+
+
 def choices(valid: Iterable[str]) -> str:
     """Format a list of valid alternatives for an error message."""
     names = sorted(str(name) for name in valid)

@@ -113,3 +113,11 @@ def test_blow_up_inside_a_step_is_a_divergence(capsys, solver):
     )
     assert code == 3, err
     assert "Traceback" not in err
+
+
+def test_too_large_step_is_named_with_a_suggestion(capsys):
+    """allegro-sphere at dt = 8 ms loses its grasp only because of the step: dt / 2 holds, so the error names dt."""
+    code, out, err = run_cli(capsys, "run", "allegro-sphere", "--dt", "8e-3", "--duration", "0.5", "--json", "--quiet")
+    assert code == 3, err
+    assert "dt = 0.008 s is too large" in err and "--dt 0.004" in err and "Traceback" not in err
+    assert json.loads(out)["diverged"] is True

@@ -23,6 +23,7 @@ from ..errors import (
     PinstabError,
     ProjectionError,
     SolverError,
+    StepTooLargeError,
     UnstableGainsWarning,
 )
 from ..projection import project_positions
@@ -37,6 +38,8 @@ MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
 MAX_SAMPLES = 20_000_000  # kept samples; beyond this the arrays alone reach gigabytes
 MIN_DT = 1e-12  # [s]; below it t + dt rounds to t after a few hours of simulated time
 PASSAGE_PROJECTION = ProjectionOptions()  # before a singular passage: the projection method's defaults
+PROBE_STEPS = 10  # steps of dt past a failed step that a run with a smaller step must get through ...
+PROBE_DIVISORS = (2, 4)  # ... with dt over these, for the failure to be the step's (StepTooLargeError)
 GRID_SLACK = 1e-9  # a duration within this fraction of a step of a whole number of steps is that number
 
 
@@ -317,14 +320,7 @@ class StepLoop:
         """
         system, grid = self.system, self.grid
         t = grid.time(k)
-        if not math.isfinite(q @ q + v @ v):
-            raise Failure("a non-finite state")
-        position, velocity = system.model.violation(q, v, t)
-        drift = max(position, velocity * (t - grid.time(k - 1)))
-        if not drift <= self.drift_limit:
-            if not math.isfinite(drift):
-                raise Failure("a non-finite state")
-            raise Failure(f"drift {drift:.3g} > {self.drift_limit:g} (position residual, or velocity residual x dt)")
+        self.check_state(q, v, t, t - grid.time(k - 1))
         system.audit(q, v, t)
         stabilizer = system.stabilizer
         if not stabilizer.constant_gains and not self.warned:
@@ -339,6 +335,21 @@ class StepLoop:
                     ),
                     stacklevel=4,
                 )
+
+    def check_state(self, q: np.ndarray, v: np.ndarray, t: float, step: float) -> None:
+        """Check the state reached at t [s] by a step of ``step`` [s].
+
+        Raises:
+            Failure: non-finite, or drift above the limit (the velocity residual times the step).
+        """
+        if not math.isfinite(q @ q + v @ v):
+            raise Failure("a non-finite state")
+        position, velocity = self.system.model.violation(q, v, t)
+        drift = max(position, velocity * step)
+        if not drift <= self.drift_limit:
+            if not math.isfinite(drift):
+                raise Failure("a non-finite state")
+            raise Failure(f"drift {drift:.3g} > {self.drift_limit:g} (position residual, or velocity residual x dt)")
 
     def locate(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[int, np.ndarray, np.ndarray]:
         """Replay steps start+1 .. stop from (q, v) with a check after each, and raise DivergenceError at
@@ -359,12 +370,51 @@ class StepLoop:
             except ProjectionError as exc:
                 reason = f"the post-step projection failed ({exc})"
             except SolverError as exc:
+                self.name_step_size(k, failed, str(exc), q, v)
                 reason = self.solve_failure(exc, q, v, self.grid.time(k))
             else:
                 q, v, k = q_next, v_next, reached
                 continue
+            self.name_step_size(k, failed, reason, q, v)
             raise self.diverged(k, failed, reason, q, v)
         return k, q, v
+
+    def name_step_size(
+        self, good: int, failed: tuple[int, np.ndarray, np.ndarray], cause: str, q: np.ndarray, v: np.ndarray
+    ) -> None:
+        """Raise :class:`StepTooLargeError` when the step from (q, v) at grid step ``good`` failed (``cause``)
+        only because dt is too large: the motion goes on with dt / 2 (or dt / 4) for :data:`PROBE_STEPS` steps
+        of dt past that point."""
+        grid = self.grid
+        t = grid.time(good)
+        span = min(PROBE_STEPS * grid.dt, grid.duration - t)
+        for divisor in PROBE_DIVISORS:
+            if self.probe(q, v, t, span, grid.dt / divisor):
+                suggested = grid.dt / divisor
+                reason = (
+                    f"dt = {grid.dt:g} s is too large for this motion: with it the step from t = {t:.6g} s fails "
+                    f"({cause}), with dt = {suggested:g} s the motion goes on past t = {t + span:.6g} s; use "
+                    f"--dt {suggested:g} or smaller (or --rtol, error control)"
+                )
+                raise self.diverged(good, failed, reason, q, v, StepTooLargeError)
+
+    def probe(self, q: np.ndarray, v: np.ndarray, t: float, span: float, step: float) -> bool:
+        """Whether steps of ``step`` [s] from (q, v) at t [s] get through ``span`` [s] with every solve and
+        check passing (the run's records and counters untouched)."""
+        counts = (self.correction_total, self.correction_max)
+        end = t + span
+        try:
+            while t < end - GRID_SLACK * step:
+                h = min(step, end - t)
+                q, v = self.stepper.step(q, v, t, h)
+                q, v = self.store(q, v, 0, t + h)
+                t += h
+                self.check_state(q, v, t, h)
+        except (Failure, DivergenceError, SolverError, ProjectionError):
+            return False
+        finally:
+            self.correction_total, self.correction_max = counts
+        return True
 
     def solve_failure(self, exc: SolverError, q: np.ndarray, v: np.ndarray, t: float) -> str:
         """Why a solve that failed during the step from the good state (q, v) at t [s] is a blow-up: the
@@ -381,18 +431,24 @@ class StepLoop:
         return f"a non-finite or exploding state (the KKT solve failed: {exc})"
 
     def diverged(
-        self, good: int, failed: tuple[int, np.ndarray, np.ndarray], reason: str, q: np.ndarray, v: np.ndarray
+        self,
+        good: int,
+        failed: tuple[int, np.ndarray, np.ndarray],
+        reason: str,
+        q: np.ndarray,
+        v: np.ndarray,
+        error: type[DivergenceError] = DivergenceError,
     ) -> DivergenceError:
         """The error of a run whose step ``failed[0]`` failed (``reason``) with the state ``failed[1:]`` (NaN
         when not reached); the records end with the last good state (q, v), at step ``good``, then that one."""
         grid = self.grid
         t, t_failed = grid.time(good), grid.time(failed[0])
         self.records.end_with((good, t, q, v), (failed[0], t_failed, *failed[1:]))
-        return DivergenceError(
-            f"simulation diverged at t = {t_failed:.6g} s (step {failed[0]}): {reason}; the last finite state "
-            f"is at t = {t:.6g} s. Reduce dt, change the gains, or use another method.",
-            t,
-            q,
-            v,
-            diverged_at=t_failed,
-        )
+        if error is StepTooLargeError:
+            message = f"the run stopped at t = {t_failed:.6g} s (step {failed[0]}): {reason}"
+        else:
+            message = (
+                f"simulation diverged at t = {t_failed:.6g} s (step {failed[0]}): {reason}; the last finite state "
+                f"is at t = {t:.6g} s. Reduce dt, change the gains, or use another method."
+            )
+        return error(message, t, q, v, diverged_at=t_failed)
