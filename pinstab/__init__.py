@@ -8,6 +8,7 @@ Public API::
 """
 
 from .actuation import Actuation
+from .analysis import EXACT_REFERENCES, trajectory_error
 from .assembly import AssemblyReport, assemble
 from .constraints import (
     CONSTRAINT_KINDS,
@@ -47,13 +48,14 @@ from .simulate import simulate
 from .solvers import SOLVERS
 from .stabilizers import STABILIZERS, Stabilizer
 from .system import ConstrainedSystem, build_system
-from .trajectory import Trajectory
+from .trajectory import Comparison, Trajectory
 
 METHODS = STABILIZERS  # the registered method names (a registry iterates over its names)
 __version__ = "0.1.0"
 
 __all__ = [
     "CONSTRAINT_KINDS",
+    "EXACT_REFERENCES",
     "FORCE_KINDS",
     "INTEGRATORS",
     "METHODS",
@@ -63,6 +65,7 @@ __all__ = [
     "AssemblyError",
     "AssemblyReport",
     "BranchChangeWarning",
+    "Comparison",
     "ConstrainedModel",
     "ConstrainedSystem",
     "Constraint",
@@ -99,4 +102,5 @@ __all__ = [
     "load_scene",
     "memory_limit",
     "simulate",
+    "trajectory_error",
 ]

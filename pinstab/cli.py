@@ -16,13 +16,14 @@ import signal
 import sys
 import threading
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import numpy as np
 
 from . import __version__
+from .analysis import check_coordinates, check_reference, trajectory_error
 from .bench.workprecision import MUJOCO_DTS, PEER_DTS
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .files import check_output
@@ -187,6 +188,19 @@ def build_parser() -> argparse.ArgumentParser:
     _run_options(run)
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
     run.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error and constraint forces")
+    run.add_argument(
+        "--reference",
+        metavar="exact|RUN.npz",
+        help="report the trajectory error against the scene's exact motion (exact: fourbar, nfourbar) or a "
+        "saved run of the same scene (--save of a finer or another method)",
+    )
+    run.add_argument(
+        "--error-of",
+        action="append",
+        metavar="NAME",
+        help="coordinate whose error --reference reports: a joint [rad or m], a frame's origin [m] or 'joints' "
+        "(the largest joint error); repeat for several (default: the exact reference's crank, else joints)",
+    )
 
     record = sub.add_parser("record", help="simulate and write a standalone HTML recording (or stream it live)")
     _scene_arguments(record)
@@ -502,12 +516,15 @@ def _add_reactions(scene, trajectory, result: dict[str, Any]) -> None:
 TEXT_FORMATS = {"grasp": _grasp_text}
 
 
-def _simulate(args: argparse.Namespace):
-    """Load the scene and simulate it with the run options; returns (scene, trajectory)."""
+def _simulate(args: argparse.Namespace, before: Callable[[Any], None] | None = None):
+    """Load the scene, check it with ``before(scene)`` when given, and simulate it with the run options;
+    returns (scene, trajectory)."""
     from .scene import load_scene
     from .simulate import simulate
 
     scene = load_scene(args.scene, **_parameters(args.param))
+    if before is not None:
+        before(scene)
     adaptive = args.rtol is not None or args.atol is not None
     trajectory = simulate(
         scene,
@@ -555,10 +572,16 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
         check_output(args.save, ".npz", "trajectory")
     if args.plot:
         check_output(args.plot, ".png", "chart")
-    scene, trajectory = _simulate(args)
+    reference = getattr(args, "reference", None)
+    if reference is None and getattr(args, "error_of", None):
+        raise PinstabError("--error-of names what --reference compares: give --reference exact or RUN.npz")
+    scene, trajectory = _simulate(args, None if reference is None else lambda scene: _check_reference(args, scene))
     result = _run_summary(args, trajectory)
     if add is not None:
         add(scene, trajectory, result)
+    if reference is not None:
+        trajectory.comparison = trajectory_error(trajectory, reference, args.error_of, scene)
+        result["trajectory_error"] = trajectory.comparison.summary(trajectory.t)
     if args.save:
         trajectory.save(args.save)
         result["saved"] = args.save
@@ -566,6 +589,13 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
         plot_trajectory(trajectory, args.plot)
         result["plot"] = args.plot
     return result
+
+
+def _check_reference(args: argparse.Namespace, scene) -> None:
+    """Refuse --reference and --error-of before the run (a scene without an exact motion, a bad file, an
+    unknown coordinate)."""
+    check_reference(args.reference, scene)
+    check_coordinates(scene.model, args.error_of or ())
 
 
 def _record(args: argparse.Namespace) -> dict[str, Any]:

@@ -74,7 +74,7 @@ class Scene:
         q0, v0: initial configuration and velocity as declared (before assembly).
         urdf_path: URDF file (None for generated robots); package_dirs: where meshes are found.
         locked_joints: joints removed from the model, with the positions they were locked at.
-        parameters: generator parameters the scene was built with.
+        parameters: generator parameters the scene was built with. generator: the generator's name, or None.
         objects: rigid objects added to the robot (free-flyer bodies after its joints).
         actuation: the controls' matrix B, names and limits (``[actuation]``), or None.
     """
@@ -93,6 +93,7 @@ class Scene:
     full_model: pin.Model | None = None
     source: Path | None = None
     parameters: dict[str, Any] = field(default_factory=dict)
+    generator: str | None = None
     objects: list[SceneObject] = field(default_factory=list)
     actuation: Actuation | None = None
 
@@ -171,6 +172,7 @@ def scene_from_dict(
     base_dir = base_dir or Path.cwd()
     check_keys(data, TOP_KEYS, "scene")
     used_parameters: dict[str, Any] = {}
+    gen_name = None
     if "generator" in data:
         generator = table(data.pop("generator"), "generator")
         gen_name = generator.pop("name", None)
@@ -252,6 +254,7 @@ def scene_from_dict(
         full_model=full_model,
         source=source,
         parameters=used_parameters,
+        generator=gen_name,
         objects=objects,
         actuation=actuation,
     )

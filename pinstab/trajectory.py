@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import zipfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -32,6 +33,45 @@ class SeriesSource(Protocol):
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
 
+@dataclass
+class Comparison:
+    """The trajectory error of a run against a reference (:func:`pinstab.trajectory_error`).
+
+    Attributes:
+        reference: what the run was compared with, in words.
+        names: the coordinates compared (joint or frame names, or ``joints``). units: theirs (rad, m).
+        error: (n, k) the error of each coordinate at each of the run's samples [rad or m].
+    """
+
+    reference: str
+    names: list[str]
+    units: list[str]
+    error: np.ndarray
+
+    def summary(self, t: np.ndarray) -> dict[str, Any]:
+        """The JSON block: per coordinate the largest error, its time [s] and the final error; the largest."""
+        coordinates = {}
+        for name, unit, column in zip(self.names, self.units, self.error.T, strict=True):
+            finite = np.where(np.isfinite(column), column, -np.inf)
+            worst = int(np.argmax(finite))
+            coordinates[name] = {
+                "max": float(column[worst]),
+                "at": float(t[worst]),
+                "final": float(column[-1]),
+                "unit": unit,
+            }
+        largest = max((entry["max"] for entry in coordinates.values()), default=None)
+        return {"reference": self.reference, "max": largest, "coordinates": coordinates}
+
+    def to_json(self) -> str:
+        return json.dumps({"reference": self.reference, "names": self.names, "units": self.units})
+
+    @classmethod
+    def from_arrays(cls, text: str, error: np.ndarray) -> Comparison:
+        fields = json.loads(text)
+        return cls(fields["reference"], list(fields["names"]), list(fields["units"]), error)
+
+
 class Trajectory:
     """A simulated motion, sampled every ``info.record_every`` steps and at the last.
 
@@ -49,6 +89,7 @@ class Trajectory:
         wall_time: wall-clock time of the stepping loop [s].
         info: scene, method, integrator, solver, path, step and end time, options, constraint layout,
             assembly report, solver statistics (:class:`~pinstab.runinfo.RunInfo`).
+        comparison: the trajectory error against a reference, when one was computed (saved with the run).
     """
 
     DERIVED = ("multipliers", "position_drift", "velocity_drift", "energy", "spectral_radius")
@@ -74,6 +115,7 @@ class Trajectory:
             np.zeros(len(t), dtype=int) if correction_iterations is None else correction_iterations
         )
         self._series = series
+        self.comparison: Comparison | None = None
         self._derived: dict[str, np.ndarray] = dict(derived)
         if series is None:
             missing = [name for name in self.DERIVED if name not in derived and name != "spectral_radius"]
@@ -177,6 +219,8 @@ class Trajectory:
     def save(self, path: str | Path) -> Path:
         """Write an ``.npz`` file atomically (temp file + rename)."""
         arrays = {name: getattr(self, name) for name in SAVED_ARRAYS if name != "info"}
+        if self.comparison is not None:
+            arrays.update(comparison=self.comparison.to_json(), comparison_error=self.comparison.error)
         with atomic_output(path, ".npz", "trajectory") as temp:
             np.savez_compressed(temp, info=json.dumps(self.info.to_dict()), **arrays)
         return Path(path)
@@ -205,13 +249,22 @@ class Trajectory:
                     )
                 arrays = {name: data[name] for name in SAVED_ARRAYS}
                 info = RunInfo.from_dict(json.loads(str(arrays.pop("info"))))
+                comparison = (
+                    Comparison.from_arrays(str(data["comparison"]), data["comparison_error"])
+                    if "comparison" in data.files
+                    else None
+                )
         except PinstabError:
             raise
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
             raise PinstabError(f"{path}: not a readable pinstab trajectory file ({exc})") from None
         _check_shapes(path, arrays)
+        if comparison is not None and comparison.error.shape != (arrays["t"].size, len(comparison.names)):
+            raise PinstabError(f"{path}: the trajectory error's shape {comparison.error.shape} does not fit the run")
         wall_time = float(arrays.pop("wall_time"))
-        return cls(info=info, wall_time=wall_time, **arrays)
+        trajectory = cls(info=info, wall_time=wall_time, **arrays)
+        trajectory.comparison = comparison
+        return trajectory
 
 
 SAVED_ARRAYS = (  # what save() writes and load() requires: the attributes of these names, ``info`` as JSON

@@ -509,6 +509,29 @@ CASES = [
     ),
     Case("map of an unrealizable servo", "stability ring-on-rod", "ServoInfeasibleError", "cannot be realized"),
     Case("map of cones on dense", "stability box-push --grid 2 --steps 2", "SolverError", "does not take cone rows"),
+    # -- trajectory error (--reference, --error-of)
+    Case("reference for a scene without one", "run fivebar --reference exact", "PinstabError", "scenes with one"),
+    Case("reference missing", "run fourbar --reference {tmp}/none.npz", "PinstabError", "does not exist"),
+    Case("reference a folder", "run fourbar --reference {tmp}", "PinstabError", "is a folder"),
+    Case(
+        "reference not a run",
+        "run fourbar --reference {tmp}/run.npz",
+        "PinstabError",
+        "not a pinstab trajectory file",
+        files=(("run.npz", "hello world\n"),),
+    ),
+    Case(
+        "error of an unknown joint", "run fourbar --reference exact --error-of crank9", "PinstabError", "crank, coupler"
+    ),
+    Case("error of without reference", "run fourbar --error-of crank", "PinstabError", "give --reference"),
+    Case(
+        "exact reference under other gravity",
+        "run {scene} --reference exact --duration 0.01",
+        "PinstabError",
+        "assumes gravity along -y",
+        base="nfourbar",
+        changes=(("[generator]", "gravity = [0.0, 0.0, -9.81]\n[generator]"),),
+    ),
     # -- saved runs (plot)
     Case(
         "plot of a truncated archive",

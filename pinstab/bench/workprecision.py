@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..analysis import exact_name, exact_reference
 from ..assembly import assemble
 from ..errors import PinstabError
 from ..files import atomic_output, check_output
@@ -30,7 +31,6 @@ from ..model import ConstrainedModel
 from ..scene import load_scene
 from ..simulate import simulate
 from ..trajectory import configurations_at
-from .fourbar_reference import fourbar_reference
 from .mujoco_peer import run_mujoco
 from .peers import PEER_SCHEMES, native_pinocchio
 
@@ -39,8 +39,7 @@ SWEPT_KP = (10.0, 100.0, 1e3, 1e4)  # the hand-written loop's gains, Kd = 2 sqrt
 PEER_DTS = (4e-3, 2e-3, 1e-3, 7.5e-4, 5e-4, 2.5e-4)  # [s] the hand-written loop's steps
 MUJOCO_INTEGRATORS = ("euler", "implicitfast", "rk4")
 MUJOCO_DTS = (1e-3, 1e-4, 1e-5)  # [s], each with solref time constant 2 dt (MuJoCo's stiffest advised)
-FOURBAR_REFERENCE_STEP = 1e-4  # [s] RK4 on the crank-angle equation: 2e-10 rad from the run at 2e-4 over 10 s
-NFOURBAR_REFERENCE_STEP = 6.25e-5  # [s] RK4 on the parallelogram pendulum
+EXACT_REFERENCE_STEP = 1e-4  # [s] samples of an exact reference (SciPy DOP853 at 1e-12 between them)
 GENERIC_REFERENCE_STEP = 5e-4  # [s] projection + dop853 (7e-12 rad on the four-bar at 2e-3 against its reference)
 MAX_RUN_STEPS = 10**8  # steps of one run of a sweep (the reference included): beyond, days of work
 
@@ -102,54 +101,20 @@ class Reference:
 
 
 def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float) -> Reference:
-    """The four-bar's crank-angle equation and the N-four-bar's parallelogram pendulum (independent
-    minimal-coordinate models); any other scene simulated with projection + dop853 at
+    """The scene's exact motion where it has one (:data:`pinstab.analysis.EXACT_REFERENCES`: the four-bar's
+    crank-angle equation, the N-four-bar's parallelogram pendulum), sampled every
+    :data:`EXACT_REFERENCE_STEP`; any other scene simulated with projection + dop853 at
     :data:`GENERIC_REFERENCE_STEP`."""
     scene = load_scene(scene_name, **parameters)
-    if scene.name == "nfourbar":
-        return _parallelogram_reference(scene, duration, NFOURBAR_REFERENCE_STEP)
     start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
-    if scene.name == "fourbar" and not parameters:
-        dt = FOURBAR_REFERENCE_STEP
-        t, q = fourbar_reference(scene, start.q, start.v, duration, dt)
-        return Reference(f"fourbar: crank-angle equation (independent model), RK4 at dt = {dt:g} s", t, q, dt)
+    if exact_name(scene) is not None:
+        dt = EXACT_REFERENCE_STEP
+        t = np.arange(int(round(duration / dt)) + 1) * dt
+        exact = exact_reference(scene, start.q, start.v, t)
+        return Reference(exact.kind, t, exact.q, dt)
     dt = GENERIC_REFERENCE_STEP
     fine = simulate(scene, method="projection", integrator="dop853", dt=dt, duration=duration)
     return Reference(f"{scene.name} at dt = {dt:g} s with projection + dop853", fine.t, fine.q, dt)
-
-
-def _parallelogram_reference(scene, duration: float, dt: float) -> Reference:
-    """The N-four-bar's cranks stay parallel and its couplers level: one pendulum ODE in the crank
-    angle th from the vertical, I th'' = m g L ((N + 1)/2 + N) sin(th) with I = (N + 1) m L^2 / 3 + N m L^2,
-    from th = 0, th' = -1 rad/s, integrated by classical RK4 at ``dt`` [s]."""
-    n = int(scene.parameters.get("N", 10))
-    length, mass = float(scene.parameters.get("link_length", 1.0)), float(scene.parameters.get("link_mass", 1.0))
-    gravity = float(np.linalg.norm(scene.model.gravity.linear))
-    inertia = (n + 1) * mass * length**2 / 3 + n * mass * length**2
-    stiffness = mass * gravity * length * ((n + 1) / 2 + n) / inertia
-
-    def rate(state: np.ndarray) -> np.ndarray:
-        return np.array([state[1], stiffness * math.sin(state[0])])
-
-    steps = int(round(duration / dt))
-    angles = np.empty(steps + 1)
-    state = np.array([0.0, -1.0])
-    angles[0] = state[0]
-    for k in range(1, steps + 1):
-        k1 = rate(state)
-        k2 = rate(state + dt / 2 * k1)
-        k3 = rate(state + dt / 2 * k2)
-        k4 = rate(state + dt * k3)
-        state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        angles[k] = state[0]
-    model = scene.model
-    cranks = [model.joints[model.getJointId(f"crank{k}_joint")].idx_q for k in range(n + 1)]
-    couplers = [model.joints[model.getJointId(f"coupler{k}_joint")].idx_q for k in range(1, n + 1)]
-    q = np.tile(pin.neutral(model), (steps + 1, 1))
-    q[:, cranks] = angles[:, None]
-    q[:, couplers] = -angles[:, None]
-    kind = f"nfourbar N={n}: parallelogram pendulum (independent model), RK4 at dt = {dt:g} s"
-    return Reference(kind, np.arange(steps + 1) * dt, q, dt)
 
 
 def run_config(
@@ -340,7 +305,7 @@ def check_sweep(configs: list[Config], duration: float) -> None:
             raise PinstabError(f"{label} must be a positive number")
         if duration / config.dt < 0.5:
             raise PinstabError(f"{label} is longer than the duration {duration:g} s (no step to take)")
-    finest = min([c.dt for c in configs] + [FOURBAR_REFERENCE_STEP, NFOURBAR_REFERENCE_STEP, GENERIC_REFERENCE_STEP])
+    finest = min([c.dt for c in configs] + [EXACT_REFERENCE_STEP, GENERIC_REFERENCE_STEP])
     if duration / finest > MAX_RUN_STEPS:
         raise PinstabError(
             f"{duration:g} s at the finest step, {finest:g} s (the runs' or the reference's), makes "

@@ -21,19 +21,20 @@ if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 
-def _hermite_inverse(conditions: int) -> np.ndarray:
-    """The matrix mapping the values (p(0), p'(0), p''(0), p(1), p'(1)[, p''(1)]) to the coefficients c_k
-    of the polynomial p(u) = sum_k c_k u^k that takes them."""
-    points = ((0.0, 0), (0.0, 1), (0.0, 2), (1.0, 0), (1.0, 1), (1.0, 2))[:conditions]
+def _hermite_inverse(*points: tuple[float, int]) -> np.ndarray:
+    """The matrix mapping the values p^(order)(point) at the given (point, order) pairs to the coefficients
+    c_k of the polynomial p(u) = sum_k c_k u^k that takes them."""
+    degree = len(points)
     derivatives = [
-        [math.perm(k, order) * point ** (k - order) if k >= order else 0.0 for k in range(conditions)]
+        [math.perm(k, order) * point ** (k - order) if k >= order else 0.0 for k in range(degree)]
         for point, order in points
     ]
     return np.linalg.inv(np.array(derivatives))
 
 
-QUINTIC = _hermite_inverse(6)
-QUARTIC = _hermite_inverse(5)
+QUINTIC = _hermite_inverse((0.0, 0), (0.0, 1), (0.0, 2), (1.0, 0), (1.0, 1), (1.0, 2))
+QUARTIC = _hermite_inverse((0.0, 0), (0.0, 1), (0.0, 2), (1.0, 0), (1.0, 1))
+CUBIC = _hermite_inverse((0.0, 0), (0.0, 1), (1.0, 0), (1.0, 1))
 
 
 class Segment:
@@ -42,7 +43,7 @@ class Segment:
     Args:
         model: the constrained model (its group operations).
         t0, q0, v0, a0: the start: time [s], configuration, velocity, acceleration.
-        t1, q1, v1, a1: the end.
+        t1, q1, v1, a1: the end. Without accelerations (None: a saved run's samples), cubic Hermite (O(h^4)).
     """
 
     def __init__(
@@ -51,11 +52,11 @@ class Segment:
         t0: float,
         q0: np.ndarray,
         v0: np.ndarray,
-        a0: np.ndarray,
+        a0: np.ndarray | None,
         t1: float,
         q1: np.ndarray,
         v1: np.ndarray,
-        a1: np.ndarray,
+        a1: np.ndarray | None,
     ) -> None:
         self.model, self.t0, self.t1, self.q0 = model, float(t0), float(t1), q0.copy()
         h = self.t1 - self.t0
@@ -64,6 +65,9 @@ class Segment:
             increment, rate = q1 - q0, v1
         else:
             increment, rate = model.difference(q0, q1), model.to_start_tangent(q0, q1, v1)
+        if a0 is None or a1 is None:
+            self.coefficients = CUBIC @ np.array([np.zeros_like(v0), h * v0, increment, h * rate])
+            return
         ends = [np.zeros_like(v0), h * v0, h * h * a0, increment, h * rate]
         inverse = QUARTIC
         if model.flat:

@@ -16,24 +16,32 @@ def plot_trajectory(trajectory: Trajectory, path: str | Path) -> Path:
 
 
 def trajectory_figure(trajectory: Trajectory):
-    """Three panels sharing the time axis [s]:
+    """Panels sharing the time axis [s]:
 
-    * position drift max|phi| [m] and velocity drift max|g| [m/s], log scale;
+    * position drift max|phi| [m] and velocity drift max|g| [m/s], log scale over the positive samples
+      (a drift of exactly 0, at the start of most runs, is left out rather than drawn at 1e-300);
     * energy error E(t) - E(0) [J];
     * the norm of each constraint's multipliers [N];
-    * with prescribed constraints, the controls u that realize them [N m or N].
+    * with prescribed constraints, the controls u that realize them [N m or N];
+    * with a comparison (``--reference``), the trajectory error of each compared coordinate [rad or m].
     """
     plt = pyplot()
     t = trajectory.t
     info = trajectory.info
     servo = trajectory.servo_figures
-    fig, axes = plt.subplots(4 if servo else 3, 1, figsize=(7.5, 10.5 if servo else 8.0), dpi=110, sharex=True)
+    comparison = trajectory.comparison
+    extra = [panel for panel, present in (("servo", servo), ("error", comparison is not None)) if present]
+    fig, axes = plt.subplots(3 + len(extra), 1, figsize=(7.5, 8.0 + 2.5 * len(extra)), dpi=110, sharex=True)
     drift_axis, energy_axis, force_axis = axes[:3]
-    floor = np.finfo(float).tiny
-    drift_axis.semilogy(t, np.maximum(trajectory.position_drift, floor), label="position drift max|phi| [m]")
-    drift_axis.semilogy(t, np.maximum(trajectory.velocity_drift, floor), label="velocity drift max|g| [m/s]")
+    _log_panel(
+        drift_axis,
+        t,
+        {
+            "position drift max|phi| [m]": trajectory.position_drift,
+            "velocity drift max|g| [m/s]": trajectory.velocity_drift,
+        },
+    )
     drift_axis.set_ylabel("constraint drift [m], [m/s]")
-    drift_axis.legend(fontsize=8)
     energy_axis.plot(t, trajectory.energy - trajectory.energy[0], color="tab:green")
     energy_axis.set_ylabel("energy error E(t) - E(0) [J]")
     for name, (start, stop) in info.constraint_rows.items():
@@ -43,10 +51,17 @@ def trajectory_figure(trajectory: Trajectory):
     if info.constraint_rows:
         force_axis.legend(fontsize=8)
     if servo:
+        servo_axis = axes[3 + extra.index("servo")]
         for name, column in zip(info.controls, servo["controls"].T, strict=True):
-            axes[3].plot(t, column, label=name)
-        axes[3].set_ylabel("controls u [N m or N]")
-        axes[3].legend(fontsize=8)
+            servo_axis.plot(t, column, label=name)
+        servo_axis.set_ylabel("controls u [N m or N]")
+        servo_axis.legend(fontsize=8)
+    if comparison is not None:
+        error_axis = axes[3 + extra.index("error")]
+        labels = [f"{name} [{unit}]" for name, unit in zip(comparison.names, comparison.units, strict=True)]
+        _log_panel(error_axis, t, dict(zip(labels, comparison.error.T, strict=True)))
+        error_axis.set_ylabel("trajectory error")
+        error_axis.set_title(f"against {comparison.reference}", fontsize=8)
     axes[-1].set_xlabel("time t [s]")
     for axis in axes:
         axis.grid(True, alpha=0.3)
@@ -54,3 +69,18 @@ def trajectory_figure(trajectory: Trajectory):
     fig.suptitle(f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def _log_panel(axis, t: np.ndarray, series: dict[str, np.ndarray]) -> None:
+    """Log-scale curves of non-negative series over their positive samples (zeros and non-finite values
+    left out, so the axis spans the data); a note when no sample is positive."""
+    positive = False
+    for label, values in series.items():
+        shown = np.where(np.isfinite(values) & (values > 0), values, np.nan)
+        positive = positive or bool(np.any(np.isfinite(shown)))
+        axis.plot(t, shown, label=label)
+    axis.set_yscale("log")
+    if positive:
+        axis.legend(fontsize=8)
+    else:
+        axis.text(0.5, 0.5, "exactly 0 at every sample", transform=axis.transAxes, ha="center", va="center")

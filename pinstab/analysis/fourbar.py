@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import PinstabError
 from ..scene import Scene
+from .references import EXACT_REFERENCES, EXACT_TOLERANCE, Reference, solve_exact, wrapped_like
 
 
 def _rot(angle: float, x: float, y: float) -> tuple[float, float]:
@@ -129,36 +130,22 @@ class FourBarGeometry:
         return -(0.5 * inertia_rate * rate**2 + potential_rate) / inertia, a2, a3
 
 
-def fourbar_reference(
-    scene: Scene, q0: np.ndarray, v0: np.ndarray, duration: float, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The four-bar's motion from (q0, v0) by RK4 on the crank-angle equation at ``dt`` [s].
+@EXACT_REFERENCES.register("fourbar", summary="the crank-angle equation (one coordinate, closed-form loop)")
+def fourbar_motion(scene: Scene, q0: np.ndarray, v0: np.ndarray, times: np.ndarray) -> Reference:
+    """The four-bar's motion from (q0, v0) at ``times`` [s]: the crank-angle equation integrated by SciPy's
+    DOP853 at 1e-13, coupler and rocker angles from the loop in closed form on q0's assembly branch.
 
-    Returns:
-        (times [s] (n+1,), joint configurations (n+1, 3): crank, coupler relative to crank, rocker).
+    Raises:
+        PinstabError: the scene is not the bundled four-bar's structure.
     """
     geometry = FourBarGeometry.of(scene, q0)
-    steps = int(round(duration / dt))
-    theta, rate = float(q0[0]), float(v0[0])
-    angles = np.empty((steps + 1, 3))
 
-    def slope(th: float, w: float) -> tuple[float, float]:
-        return w, geometry.acceleration(th, w)[0]
+    def slope(_: float, state: np.ndarray) -> np.ndarray:
+        return np.array([state[1], geometry.acceleration(state[0], state[1])[0]])
 
-    for k in range(steps + 1):
-        _, a2, a3 = geometry.acceleration(theta, rate)
-        angles[k] = theta, a2, a3
-        if k == steps:
-            break
-        k1 = slope(theta, rate)
-        k2 = slope(theta + 0.5 * dt * k1[0], rate + 0.5 * dt * k1[1])
-        k3 = slope(theta + 0.5 * dt * k2[0], rate + 0.5 * dt * k2[1])
-        k4 = slope(theta + dt * k3[0], rate + dt * k3[1])
-        theta += dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        rate += dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    # continuous angles from the start configuration's windings
-    absolute = np.unwrap(angles, axis=0)
-    start = np.array([q0[0], q0[0] + q0[1], q0[2]])
-    absolute += 2 * math.pi * np.round((start - absolute[0]) / (2 * math.pi))
+    crank = solve_exact(slope, np.array([q0[0], v0[0]]), times)[:, 0]
+    angles = np.array([(theta, *geometry.angles(theta)) for theta in crank])
+    absolute = np.column_stack([crank, wrapped_like(angles[:, 1], q0[0] + q0[1]), wrapped_like(angles[:, 2], q0[2])])
     q = np.column_stack([absolute[:, 0], absolute[:, 1] - absolute[:, 0], absolute[:, 2]])
-    return np.arange(steps + 1) * dt, q
+    kind = f"exact: the crank-angle equation (SciPy DOP853, rtol = atol = {EXACT_TOLERANCE:g})"
+    return Reference(kind, q, ("crank",))
