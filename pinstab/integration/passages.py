@@ -12,7 +12,9 @@ last stage fell 4e-5 rad from the crossing changed the energy by 5e-2 J).
 :class:`PassageWatch` samples the smallest relative singular value ``s = sigma_r / sigma_1`` of G (r:
 the rank at the start, so redundant rows are not mistaken for a singularity) at step ends, densely
 when s is falling towards zero and rarely otherwise; predicts the crossing time t* where s reaches zero
-(s is linear in time there); and plans the steps around it so that t* falls in the middle of the
+(s is linear in time there; a parabola through three samples when it falls faster and faster); no
+sample is further ahead than a quarter of the time s would take to reach zero at the fastest rate it has
+changed so far; and plans the steps around it so that t* falls in the middle of the
 widest gap between the scheme's stage times. After such a step it locates the least s on the step's
 dense output and checks that the motion kept its branch: the tangent space ker G turns across the
 passage no faster than before it (a branch change turns it by a finite angle at once).
@@ -159,7 +161,8 @@ class PassageWatch:
         self.centre, half_width = node_gap(self.points)
         self.margin = half_width / 2
         self.step = step
-        self.samples: list[tuple[float, float, np.ndarray]] = []  # the last two: (t, s, q)
+        self.samples: list[tuple[float, float, np.ndarray]] = []  # the last three: (t, s, q)
+        self.fastest = 0.0  # [1/s] the fastest change of s seen between two samples
         self.next_due = 0.0 if self.active else math.inf
         self.passages: list[Passage] = []
 
@@ -177,35 +180,47 @@ class PassageWatch:
             self.next_due = t + self.step
             return
         previous = self.samples[-1] if self.samples else None
-        self.samples = [*self.samples[-1:], (t, value, q.copy())]
+        self.samples = [*self.samples[-2:], (t, value, q.copy())]
         gap = self.step
         if previous is not None and t > previous[0]:
             elapsed = t - previous[0]
+            self.fastest = max(self.fastest, abs(value - previous[1]) / elapsed)
             if value < previous[1]:
                 remaining = value * elapsed / (previous[1] - value)
                 gap = APPROACH_SHARE * remaining
             else:
                 gap = 2.0 * elapsed
+            if self.fastest > 0:  # s could fall as fast as it has ever changed: a rise is no promise
+                gap = min(gap, APPROACH_SHARE * value / self.fastest)
         # (less a sliver of a step, so that a sample due at a grid time is not missed by rounding)
         self.next_due = t + min(max(gap, self.step), SAMPLE_CAP * self.step) - 1e-6 * self.step
 
     def crossing(self) -> float | None:
-        """The time [s] where s, falling linearly through the last two samples, reaches zero; None when
-        s is not falling."""
+        """The time [s] where s, falling through the last samples, reaches zero: on the line through the last
+        two, or earlier on the parabola through the last three when s falls faster and faster (the line
+        alone would predict the crossing late and let a step straddle it unplanned); None when s is not
+        falling."""
         if len(self.samples) < 2:
             return None
-        (t0, s0, _), (t1, s1, _) = self.samples
+        (t0, s0, _), (t1, s1, _) = self.samples[-2:]
         if not s1 < s0 or t1 <= t0:
             return None
-        return t1 + s1 * (t1 - t0) / (s0 - s1)
+        linear = t1 + s1 * (t1 - t0) / (s0 - s1)
+        if len(self.samples) < 3 or not self.samples[0][1] > s0:
+            return linear
+        times = np.array([sample[0] for sample in self.samples])
+        values = np.array([sample[1] for sample in self.samples])
+        roots = np.roots(np.polyfit(times - t1, values, 2))
+        ahead = [float(root.real) for root in roots if abs(root.imag) < 1e-12 and root.real > 0]
+        return min([linear, *(t1 + root for root in ahead)])
 
     def snapshot(self) -> tuple:
         """The watch's state, for :meth:`restore` (a replayed chunk plans as the first pass did)."""
-        return list(self.samples), self.next_due, len(self.passages)
+        return list(self.samples), self.next_due, len(self.passages), self.fastest
 
     def restore(self, state: tuple) -> None:
         """Return to a :meth:`snapshot`."""
-        samples, self.next_due, count = state
+        samples, self.next_due, count, self.fastest = state
         self.samples = list(samples)
         del self.passages[count:]
 
@@ -221,21 +236,21 @@ class PassageWatch:
         crossing = self.crossing()
         if crossing is None or not start < crossing < start + HORIZON * step:
             return None
+        slack = 1e-6 * step  # grid times are k dt: start + step may exceed the next one by rounding
         if self._clear(start, step, crossing) or crossing - start < self.margin * step:
             # the regular step; when it straddles the crossing, it is located like a planned one
-            return (
-                Plan([start + step], 0) if crossing < start + step and next_grid(start + step) >= start + step else None
-            )
+            end = next_grid(start + step - slack)
+            return Plan([end], 0) if crossing < end and end >= start + step - slack else None
         begin = max(start, crossing - self.centre * step)
         length = step if begin > start else (crossing - start) / self.centre
-        ends = [begin] if begin > start + 1e-6 * step else []
+        ends = [begin] if begin > start + slack else []
         end = begin + length
         ends.append(end)
         straddle = len(ends) - 1
-        grid = next_grid(end)
-        if grid < end:  # the run ends inside the straddling step
+        grid = next_grid(end - slack)
+        if grid < end - slack:  # the run ends inside the straddling step
             return None
-        if grid > end + 1e-6 * step:
+        if grid > end + slack:
             ends.append(grid)
         return Plan(ends, straddle)
 

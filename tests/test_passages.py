@@ -1,0 +1,92 @@
+"""Singular passages of the N-four-bar: every method keeps the exact motion through them, every passage is
+listed, and a change of branch is told apart from a kept branch by the exact motion itself."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from pinstab import BranchChangeWarning, load_scene, simulate, trajectory_error
+from pinstab.integration.passages import PassageWatch, node_gap, tangent_turn
+
+DURATION = 5.0  # [s] five passages (from the upright start at -1 rad/s)
+
+
+def exact_passages(n: int, duration: float) -> np.ndarray:
+    """Times [s] where the exact crank angle crosses pi/2 + k pi (all links aligned), from the pendulum."""
+    inertia, stiffness = (n + 1) / 3 + n, 9.81 * ((n + 1) / 2 + n)
+    t = np.linspace(0.0, duration, 200_001)
+    theta = solve_ivp(
+        lambda _, y: [y[1], stiffness / inertia * np.sin(y[0])],
+        (0.0, duration),
+        [0.0, -1.0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=t,
+    ).y[0]
+    branch = np.floor((theta - np.pi / 2) / np.pi)
+    return t[1:][np.diff(branch) != 0]
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 10, 20])
+@pytest.mark.parametrize("method", ["baumgarte", "projection", "post", "mukharlyamov"])
+def test_every_method_keeps_the_exact_motion_through_the_passages(n, method):
+    """RK4 at 1 ms over 5 s: crank error <= 1e-8 rad against the exact pendulum (the issue's bound is 1e-6;
+    measured 2e-11 ... 1.7e-9 over 20 s, benchmarks/results/singular_passages.json), every exact passage
+    listed within 2 ms with s < 1e-3 and the branch kept."""
+    scene = load_scene("nfourbar", N=n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BranchChangeWarning)
+        run = simulate(scene, method=method, integrator="rk4", dt=1e-3, duration=DURATION)
+    assert trajectory_error(run, "exact", scene=scene).error.max() <= 1e-8
+    passages = run.info.passages
+    expected = exact_passages(n, DURATION)
+    assert len(passages) == len(expected) == 5
+    np.testing.assert_allclose([p["t"] for p in passages], expected, atol=2e-3)
+    assert all(p["branch_kept"] and p["min_relative_singular_value"] < 1e-3 for p in passages)
+    assert all(p["rank"] < p["generic_rank"] == 2 * n for p in passages)
+    assert run.summary()["branch_changes"] == 0
+
+
+def test_a_branch_change_is_reported_where_the_exact_motion_is_lost():
+    """Without stabilization (``none``, N = 10, RK4 1 ms) the motion leaves the parallelogram branch at the
+    fourth passage (t = 3.2 s): the warning and the passage say so, and the exact reference agrees: the
+    crank error is below 1e-6 rad before it (measured 1.8e-7) and above 1e-2 rad 0.4 s after it (5.8e-2)."""
+    scene = load_scene("nfourbar", N=10)
+    with pytest.warns(BranchChangeWarning, match="left its branch at a singular configuration"):
+        run = simulate(scene, method="none", integrator="rk4", dt=1e-3, duration=3.6)
+    kept = [p["branch_kept"] for p in run.info.passages]
+    assert kept == [True, True, True, False]
+    change = run.info.passages[-1]["t"]
+    error = trajectory_error(run, "exact", scene=scene).error[:, 0]
+    assert error[run.t < change - 0.01].max() < 1e-6 and error[-1] > 1e-2
+
+
+def test_large_steps_list_every_passage():
+    """At dt = 20 ms (RK4, baumgarte) the watch samples s often enough not to step over a dip: all five
+    passages of the first 5 s are listed (a doubling schedule alone skipped the second and fourth)."""
+    run = simulate(load_scene("nfourbar", N=5), method="baumgarte", integrator="rk4", dt=2e-2, duration=DURATION)
+    np.testing.assert_allclose([p["t"] for p in run.info.passages], exact_passages(5, DURATION), atol=2e-2)
+
+
+def test_tangent_turn_is_the_largest_principal_angle():
+    """Two planes in R^3 at a dihedral angle a: principal angles (0, a); the turn is a to 1e-12."""
+    for angle in (1e-9, 1e-3, 0.7):
+        before = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
+        after = np.array([[1.0, 0.0], [0.0, np.cos(angle)], [0.0, np.sin(angle)]])
+        assert abs(tangent_turn(before, after) - angle) < 1e-12 * max(1.0, angle)
+
+
+def test_rk4_stage_gap_and_crossing_prediction():
+    """RK4's stages at 0, 1/2, 1: widest gap centred at 3/4 (half-width 1/4). A watch fed s = |t - 0.3|
+    samples predicts the crossing at 0.3 s from two falling samples."""
+    assert node_gap([0.0, 0.5, 0.5, 1.0]) == (0.75, 0.25)  # of the two equal gaps, the later
+    watch = PassageWatch.__new__(PassageWatch)
+    watch.samples = [(0.1, 0.2, None), (0.2, 0.1, None)]
+    assert abs(watch.crossing() - 0.3) < 1e-12
+    watch.samples = [(0.0, 0.3 - 0.0**2, None), (0.1, 0.3 - 0.1**2 * 10, None), (0.15, 0.3 - 0.15**2 * 10, None)]
+    assert abs(watch.crossing() - np.sqrt(0.03)) < 1e-9  # the parabola's root, before the line's
