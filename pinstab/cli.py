@@ -24,12 +24,13 @@ import numpy as np
 
 from . import __version__
 from .analysis import check_coordinates, check_reference, trajectory_error
-from .bench.workprecision import MUJOCO_DTS, PEER_DTS
+from .bench.workprecision import MUJOCO_DTS, PEER_DTS, RTOLS
 from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
 from .files import check_output
 from .integration import INTEGRATORS
 from .memory import memory_limit
 from .registry import Registry, option_fields
+from .simulate import MIN_RTOL
 from .solvers import SOLVERS
 from .stability_map import map_methods
 from .stabilizers import STABILIZERS
@@ -226,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     for flag, steps, whose in (
         ("--peer-dts", PEER_DTS, "the hand-written Pinocchio loop's steps [s]"),
         ("--mujoco-dts", MUJOCO_DTS, "MuJoCo's steps [s], each with solref 2 dt"),
+        ("--rtols", RTOLS, "tolerances of the error-controlled runs, pinstab's dop853 --rtol and SciPy's DOP853"),
     ):
         listed = ", ".join(f"{dt:g}" for dt in steps)
         bench.add_argument(flag, nargs="+", type=float, default=list(steps), help=f"{whose} (default: {listed})")
@@ -644,7 +646,7 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
     from .bench.overhead import measure_overhead
     from .bench.scaling import scaling
     from .bench.workprecision import (
-        cheapest_within,
+        cheapest_table,
         check_tolerance,
         default_configs,
         make_output_folder,
@@ -659,6 +661,9 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
         for dt in steps:
             if not dt > 0:
                 raise PinstabError(f"{flag}: steps must be positive, got {dt}")
+    for rtol in args.rtols:
+        if not MIN_RTOL <= rtol < 1:
+            raise PinstabError(f"--rtols: tolerances must be in [{MIN_RTOL:g}, 1), got {rtol}")
     check_tolerance(args.tolerance)
     out_dir = Path(args.output)
     make_output_folder(out_dir)
@@ -668,20 +673,13 @@ def _bench(args: argparse.Namespace) -> dict[str, Any]:
         sorted(args.dts),
         peer_dts=tuple(sorted(args.peer_dts)),
         mujoco_dts=tuple(sorted(args.mujoco_dts)),
+        rtols=tuple(sorted(args.rtols)),
     )
     reference, results = sweep(
         str(scene.source or args.scene), parameters, configs, args.duration, args.scheduler, args.serial, not args.quiet
     )
-    ours = cheapest_within(results, args.tolerance, None)
     extra: dict[str, Any] = {"duration": args.duration, "tolerance": args.tolerance}
-    cheapest: dict[str, Any] = {"pinstab": None if ours is None else ours.row()}
-    for peer_name in ("pinocchio-native", "mujoco"):
-        peer = cheapest_within(results, args.tolerance, peer_name)
-        cheapest[peer_name] = None if peer is None else peer.row()
-        cheapest[f"cost_ratio_pinstab_over_{peer_name}"] = (
-            None if ours is None or peer is None else ours.cpu_per_sim_s / peer.cpu_per_sim_s
-        )
-    extra["cheapest"] = cheapest
+    extra["cheapest"] = cheapest_table(results, args.tolerance)
     extra["overhead"] = measure_overhead(scene)
     extra["overhead_ratio"] = extra["overhead"]["overhead_ratio"]
     if scene.parameters and "N" in scene.parameters and scene.name == "nfourbar":

@@ -10,7 +10,15 @@ import math
 import numpy as np
 import pytest
 
-from pinstab.bench.workprecision import Config, cheapest_within, check_sweep, default_configs, run_config, sweep
+from pinstab.bench.workprecision import (
+    Config,
+    cheapest_within,
+    check_sweep,
+    default_configs,
+    reference_motion,
+    run_config,
+    sweep,
+)
 from pinstab.cli import main
 from pinstab.errors import PinstabError
 
@@ -82,7 +90,7 @@ def test_default_configs_give_the_peers_their_best():
     if mujoco:
         assert {c.integrator for c in mujoco} == {"euler", "implicitfast", "rk4"} and min(c.dt for c in mujoco) == 1e-5
         assert all(c.solref == (2 * c.dt, 1.0) for c in mujoco)
-    assert sum(c.peer is None for c in configs) == 2
+    assert sum(c.peer is None and c.rtol is None for c in configs) == 2
 
 
 def test_bench_cli_writes_tables_and_charts(tmp_path, capsys):
@@ -178,3 +186,47 @@ def test_native_peer_applies_the_scene_forces():
     )
     native, ours = results
     assert native.trajectory_error == pytest.approx(ours.trajectory_error, rel=1e-6)
+
+
+def test_scipy_peer_is_dop853_over_pinocchio_and_meets_its_tolerance():
+    """SciPy's DOP853 on y' = (v, constraintDynamics) at rtol 1e-10 over 1 s: within 1e-7 rad of the
+    four-bar's exact motion (an independent model), its evaluations counted; a tighter rtol costs more
+    evaluations and gives a smaller error."""
+    from pinstab.bench.scipy_peer import SCIPY_PEER
+
+    reference = reference_motion("fourbar", {}, 1.0)
+    runs = [
+        run_config("fourbar", {}, Config(SCIPY_PEER, "dop853", 1e-2, SCIPY_PEER, 0.0, 0.0, rtol=rtol), 1.0, reference)
+        for rtol in (1e-7, 1e-10)
+    ]
+    assert not any(run.diverged for run in runs)
+    assert runs[1].trajectory_error < 1e-7 and runs[1].trajectory_error < runs[0].trajectory_error / 10
+    assert runs[1].evaluations > runs[0].evaluations > 100
+    row = runs[1].row()
+    assert row["rtol"] == 1e-10 and row["curve"] == "scipy-dop853 Kp=0" and row["evaluations"] == runs[1].evaluations
+
+
+def test_error_controlled_configs_and_the_cheapest_table():
+    """default_configs adds pinstab's dop853 --rtol runs and the SciPy peer at every rtol; the table names
+    the cheapest of each and the ratios."""
+    from pinstab.bench.workprecision import RTOLS, Result, cheapest_table
+
+    configs = default_configs(["baumgarte"], ["rk4"], [1e-3], mujoco=False)
+    assert {c.rtol for c in configs if c.peer is None and c.rtol is not None} == set(RTOLS)
+    assert {(c.kp, c.rtol) for c in configs if c.peer == "scipy-dop853"} >= {(0.0, 1e-9), (100.0, 1e-5)}
+    runs = [
+        Result(Config("baumgarte", "dop853", 1e-2, rtol=1e-8), cpu_per_sim_s=0.01, trajectory_error=5e-7),
+        Result(Config("baumgarte", "rk4", 1e-3), cpu_per_sim_s=0.02, trajectory_error=6e-7),
+        Result(Config("scipy-dop853", "dop853", 1e-2, "scipy-dop853", 0.0, 0.0, rtol=1e-9), 0.04, 0, 0, 4e-7),
+    ]
+    table = cheapest_table(runs, 1e-6)
+    assert table["pinstab-rtol"]["rtol"] == 1e-8 and table["pinstab-fixed-step"]["integrator"] == "rk4"
+    assert table["cost_ratio_pinstab_rtol_over_scipy-dop853"] == pytest.approx(0.25)
+    assert table["mujoco"] is None and table["cost_ratio_pinstab_over_mujoco"] is None
+
+
+def test_bad_rtols_are_refused(capsys):
+    assert main(["bench", "fourbar", "--rtols", "0", "-o", "/tmp/x", "--serial"]) == 2
+    assert "--rtols: tolerances must be in" in capsys.readouterr().err
+    with pytest.raises(PinstabError, match=r"rtol 2.0 of baumgarte \+ dop853 \(rtol\) must be a number in"):
+        check_sweep([Config("baumgarte", "dop853", 1e-2, rtol=2.0)], 1.0)

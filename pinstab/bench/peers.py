@@ -20,12 +20,33 @@ NativeStep = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndar
 PEER_SCHEMES = ("semi-implicit-euler", "rk4")
 
 
+def native_acceleration(scene: Scene, kp: float, kd: float) -> Callable[[np.ndarray, np.ndarray, float], np.ndarray]:
+    """``a(q, v, t)`` [rad/s^2, m/s^2] as a Pinocchio user writes it: ``pin.constraintDynamics`` with its
+    Baumgarte corrector (Kp [1/s^2], Kd [1/s]; 0 and 0 for the bare index-1 equations), the scene's force
+    elements applied as joint torques directly, spring-dampers through a frame kinematics pass
+    (``computeJointJacobians`` + ``updateFramePlacements``) each evaluation."""
+    native = NativeDynamics(scene.model, scene.constraints, kp, kd)
+    model, data, models, datas, settings = native.model, native.data, native.models, native.datas, native.settings
+    forces = scene.forces
+    needs_kinematics = any(element.needs_kinematics for element in forces)
+    kin = Kinematics(model)
+    zero = np.zeros(model.nv)
+    dynamics = pin.constraintDynamics
+
+    def acceleration(q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        if not forces:
+            return dynamics(model, data, q, v, zero, models, datas, settings)
+        if needs_kinematics:
+            kin.update_jacobians(q)
+        tau = sum((element.generalized_force(kin, v, t) for element in forces), zero)
+        return dynamics(model, data, q, v, tau, models, datas, settings)
+
+    return acceleration
+
+
 def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "semi-implicit-euler") -> NativeStep:
-    """One step of a hand-written loop over Pinocchio: ``a = constraintDynamics`` with its Baumgarte
-    corrector (Kp [1/s^2], Kd [1/s]), then semi-implicit Euler or classical RK4 with ``pin.integrate``,
-    as a Pinocchio user writes it. The scene's force elements are applied as a Pinocchio user would:
-    joint torques directly, spring-dampers through a frame kinematics pass (``computeJointJacobians``
-    + ``updateFramePlacements``) each evaluation.
+    """One step of a hand-written loop over Pinocchio: ``a =`` :func:`native_acceleration` (Kp [1/s^2],
+    Kd [1/s]), then semi-implicit Euler or classical RK4 with ``pin.integrate``.
 
     Returns:
         ``step(q, v, t) -> (q, v)`` for a step of ``dt`` [s] from time t [s].
@@ -35,21 +56,9 @@ def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "se
     """
     if scheme not in PEER_SCHEMES:
         raise PinstabError(f"unknown peer scheme {scheme!r}; schemes: {', '.join(PEER_SCHEMES)}")
-    native = NativeDynamics(scene.model, scene.constraints, kp, kd)
-    model, data, models, datas, settings = native.model, native.data, native.models, native.datas, native.settings
-    forces = scene.forces
-    needs_kinematics = any(element.needs_kinematics for element in forces)
-    kin = Kinematics(model)
-    zero = np.zeros(model.nv)
-    integrate, dynamics = pin.integrate, pin.constraintDynamics
-
-    def acceleration(q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        if not forces:
-            return dynamics(model, data, q, v, zero, models, datas, settings)
-        if needs_kinematics:
-            kin.update_jacobians(q)
-        tau = sum((element.generalized_force(kin, v, t) for element in forces), zero)
-        return dynamics(model, data, q, v, tau, models, datas, settings)
+    model = scene.model
+    acceleration = native_acceleration(scene, kp, kd)
+    integrate = pin.integrate
 
     def euler_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         v = v + dt * acceleration(q, v, t)

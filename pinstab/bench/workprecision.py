@@ -29,16 +29,21 @@ from ..errors import PinstabError
 from ..files import atomic_output, check_output
 from ..model import ConstrainedModel
 from ..scene import load_scene
-from ..simulate import simulate
+from ..simulate import MIN_RTOL, simulate
 from ..trajectory import configurations_at
 from .mujoco_peer import run_mujoco
 from .peers import PEER_SCHEMES, native_pinocchio
+from .scipy_peer import SCIPY_PEER, run_scipy
 
 PEER_GAINS = (10.0, 2.0 * math.sqrt(10.0))  # Pinocchio's closed-chain example
 SWEPT_KP = (10.0, 100.0, 1e3, 1e4)  # the hand-written loop's gains, Kd = 2 sqrt(Kp) (10: the example's Kd)
 PEER_DTS = (4e-3, 2e-3, 1e-3, 7.5e-4, 5e-4, 2.5e-4)  # [s] the hand-written loop's steps
 MUJOCO_INTEGRATORS = ("euler", "implicitfast", "rk4")
 MUJOCO_DTS = (1e-3, 1e-4, 1e-5)  # [s], each with solref time constant 2 dt (MuJoCo's stiffest advised)
+RTOLS = (1e-5, 1e-6, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9, 1e-10)  # error-controlled runs: pinstab's and SciPy's
+ADAPTIVE_METHODS = ("baumgarte", "projection")  # pinstab's error-controlled runs (dop853)
+SCIPY_KP = (0.0, 10.0, 100.0)  # the SciPy peer's Baumgarte gains, Kd = 2 sqrt(Kp)
+ADAPTIVE_OUTPUT_STEP = 1e-2  # [s] the samples of error-controlled runs (their dense output)
 EXACT_REFERENCE_STEP = 1e-4  # [s] samples of an exact reference (SciPy DOP853 at 1e-12 between them)
 GENERIC_REFERENCE_STEP = 5e-4  # [s] projection + dop853 (7e-12 rad on the four-bar at 2e-3 against its reference)
 MAX_RUN_STEPS = 10**8  # steps of one run of a sweep (the reference included): beyond, days of work
@@ -46,7 +51,9 @@ MAX_RUN_STEPS = 10**8  # steps of one run of a sweep (the reference included): b
 
 @dataclass(frozen=True)
 class Config:
-    """One run: a pinstab method (``peer`` None) or a peer (``pinocchio-native``) at gains (kp, kd)."""
+    """One run: a pinstab method (``peer`` None) or a peer (``pinocchio-native``, ``mujoco``, ``scipy-dop853``)
+    at gains (kp, kd); with ``rtol``, error-controlled (pinstab's ``--rtol``, SciPy's DOP853) and ``dt`` the
+    step of its samples."""
 
     method: str
     integrator: str
@@ -55,11 +62,14 @@ class Config:
     kp: float | None = None
     kd: float | None = None
     solref: tuple[float, float] | None = None
+    rtol: float | None = None
 
     @property
     def curve(self) -> str:
         if self.peer is None:
-            return f"{self.method} + {self.integrator}"
+            return f"{self.method} + {self.integrator}" + (" (rtol)" if self.rtol is not None else "")
+        if self.peer == SCIPY_PEER:
+            return f"{SCIPY_PEER} Kp={self.kp:g}"
         if self.peer == "mujoco":
             tied = self.solref is not None and math.isclose(self.solref[0], 2 * self.dt)
             return f"mujoco solref={'2 dt' if tied else f'{self.solref[0]:g}'} + {self.integrator}"
@@ -78,6 +88,7 @@ class Result:
     energy_error: float = math.nan
     diverged: bool = False
     note: str = ""
+    evaluations: int | None = None
     drift_series: list[float] = field(default_factory=list)
     drift_times: list[float] = field(default_factory=list)
 
@@ -86,7 +97,7 @@ class Result:
         for key in ("cpu_per_sim_s", "max_position_drift", "max_velocity_drift", "trajectory_error", "energy_error"):
             value = getattr(self, key)
             row[key] = value if math.isfinite(value) else None
-        row.update(diverged=self.diverged, note=self.note)
+        row.update(diverged=self.diverged, note=self.note, evaluations=self.evaluations)
         return row
 
 
@@ -141,13 +152,20 @@ def run_config(
                     dt=config.dt,
                     duration=duration,
                     record_every=every,
+                    rtol=config.rtol,
                     **({} if config.kp is None else {"kp": config.kp, "kd": config.kd}),
                 )
                 cpu = time.process_time() - start
                 t, q, v = traj.t, traj.q, traj.v
+                result.evaluations = traj.info.solver_statistics.solves
             else:
                 start_state = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
-                if config.peer == "mujoco":
+                if config.peer == SCIPY_PEER:
+                    q, v, cpu, result.evaluations = run_scipy(
+                        scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd, config.rtol
+                    )
+                    t = np.arange(steps + 1) * config.dt
+                elif config.peer == "mujoco":
                     q, v, cpu = run_mujoco(
                         scene, start_state.q, start_state.v, config.dt, steps, config.integrator, config.solref, every
                     )
@@ -158,7 +176,7 @@ def run_config(
                     )
                     t = np.arange(steps + 1) * config.dt
     except PinstabError as exc:
-        result.diverged, result.note = True, type(exc).__name__
+        result.diverged, result.note = True, f"{type(exc).__name__}: {exc}"[:200]
         return result
     metrics = _measure(scene, t, q, v, reference)
     if metrics is None:
@@ -206,12 +224,21 @@ def default_configs(
     mujoco: bool = True,
     peer_dts: tuple[float, ...] = PEER_DTS,
     mujoco_dts: tuple[float, ...] = MUJOCO_DTS,
+    rtols: tuple[float, ...] = RTOLS,
 ) -> list[Config]:
-    """pinstab's methods x integrators x ``dts``; the hand-written Pinocchio loop with semi-implicit
-    Euler and RK4 at every one of ``peer_dts`` and the gains :data:`SWEPT_KP`; and (when installed and
-    ``mujoco``) MuJoCo with its Euler, implicitfast and RK4 integrators at ``mujoco_dts`` with
-    ``solref`` time constant 2 dt."""
+    """pinstab's methods x integrators x ``dts``, and its error-controlled dop853 (:data:`ADAPTIVE_METHODS`)
+    at ``rtols``; SciPy's DOP853 over Pinocchio at ``rtols`` and the gains :data:`SCIPY_KP`; the
+    hand-written Pinocchio loop with semi-implicit Euler and RK4 at every one of ``peer_dts`` and the gains
+    :data:`SWEPT_KP`; and (when installed and ``mujoco``) MuJoCo with its Euler, implicitfast and RK4
+    integrators at ``mujoco_dts`` with ``solref`` time constant 2 dt. Error-controlled runs are sampled
+    every :data:`ADAPTIVE_OUTPUT_STEP`."""
     configs = [Config(m, i, dt) for m in methods for i in integrators for dt in dts]
+    configs += [Config(m, "dop853", ADAPTIVE_OUTPUT_STEP, rtol=rtol) for m in ADAPTIVE_METHODS for rtol in rtols]
+    configs += [
+        Config(SCIPY_PEER, "dop853", ADAPTIVE_OUTPUT_STEP, SCIPY_PEER, kp, 2.0 * math.sqrt(kp), rtol=rtol)
+        for kp in SCIPY_KP
+        for rtol in rtols
+    ]
     for kp in SWEPT_KP:
         kd = PEER_GAINS[1] if kp == PEER_GAINS[0] else 2.0 * math.sqrt(kp)
         configs += [
@@ -305,6 +332,8 @@ def check_sweep(configs: list[Config], duration: float) -> None:
             raise PinstabError(f"{label} must be a positive number")
         if duration / config.dt < 0.5:
             raise PinstabError(f"{label} is longer than the duration {duration:g} s (no step to take)")
+        if config.rtol is not None and not MIN_RTOL <= config.rtol < 1:
+            raise PinstabError(f"rtol {config.rtol!r} of {config.curve} must be a number in [{MIN_RTOL:g}, 1)")
     finest = min([c.dt for c in configs] + [EXACT_REFERENCE_STEP, GENERIC_REFERENCE_STEP])
     if duration / finest > MAX_RUN_STEPS:
         raise PinstabError(
@@ -328,12 +357,43 @@ def check_tolerance(tolerance: float) -> None:
         raise PinstabError(f"tolerance must be a positive number [rad, m], got {tolerance!r}")
 
 
-def cheapest_within(results: list[Result], tolerance: float, peer: str | None) -> Result | None:
-    """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``)
-    whose trajectory error is within ``tolerance`` [rad, m] (:func:`check_tolerance`)."""
+def cheapest_within(
+    results: list[Result], tolerance: float, peer: str | None, adaptive: bool | None = None
+) -> Result | None:
+    """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``,
+    ``scipy-dop853``) whose trajectory error is within ``tolerance`` [rad, m] (:func:`check_tolerance`);
+    ``adaptive`` True or False keeps the error-controlled runs or the fixed-step ones only."""
     check_tolerance(tolerance)
-    eligible = [r for r in results if r.config.peer == peer and not r.diverged and r.trajectory_error <= tolerance]
+    eligible = [
+        r
+        for r in results
+        if r.config.peer == peer
+        and (adaptive is None or (r.config.rtol is not None) == adaptive)
+        and not r.diverged
+        and r.trajectory_error <= tolerance
+    ]
     return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
+
+
+PEERS = ("pinocchio-native", "mujoco", SCIPY_PEER)
+
+
+def cheapest_table(results: list[Result], tolerance: float) -> dict[str, Any]:
+    """The cheapest run within ``tolerance`` [rad, m] of pinstab (any), pinstab fixed-step, pinstab
+    error-controlled and each peer (their rows, None where none is), and the cost ratios of pinstab's
+    cheapest, and of its error-controlled cheapest, over each peer's."""
+    table: dict[str, Any] = {}
+    for label, adaptive in (("pinstab", None), ("pinstab-fixed-step", False), ("pinstab-rtol", True)):
+        best = cheapest_within(results, tolerance, None, adaptive)
+        table[label] = None if best is None else best.row()
+    for peer in PEERS:
+        best = cheapest_within(results, tolerance, peer)
+        table[peer] = None if best is None else best.row()
+        for label in ("pinstab", "pinstab-rtol"):
+            ours = table[label]
+            ratio = None if ours is None or best is None else ours["cpu_per_sim_s"] / best.cpu_per_sim_s
+            table[f"cost_ratio_{label.replace('-', '_')}_over_{peer}"] = ratio
+    return table
 
 
 def make_output_folder(out_dir: Path) -> None:
@@ -383,14 +443,15 @@ def _markdown(summary: dict[str, Any]) -> str:
         "",
         f"Reference: {summary['reference']}. Cost: CPU seconds per simulated second.",
         "",
-        "| configuration | dt [s] | cost [s/s] | trajectory error | max drift [m] | energy error [J] |",
-        "|---|---|---|---|---|---|",
+        "| configuration | dt [s] | rtol | cost [s/s] | trajectory error | max drift [m] | energy error [J] |",
+        "|---|---|---|---|---|---|---|",
     ]
     rows = sorted(summary["results"], key=lambda r: (r["cpu_per_sim_s"] is None, r["cpu_per_sim_s"] or 0.0))
     for row in rows:
         status = " (diverged)" if row["diverged"] else ""
         lines.append(
-            f"| {row['curve']}{status} | {row['dt']:g} | {number(row['cpu_per_sim_s'])} | "
+            f"| {row['curve']}{status} | {row['dt']:g} | {'—' if row['rtol'] is None else format(row['rtol'], 'g')} | "
+            f"{number(row['cpu_per_sim_s'])} | "
             f"{number(row['trajectory_error'])} | {number(row['max_position_drift'])} | {number(row['energy_error'])} |"
         )
     return "\n".join(lines) + "\n"
@@ -406,17 +467,33 @@ def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[
     for r in results:
         curves.setdefault(r.config.curve, []).append(r)
     for name, runs in sorted(curves.items()):
-        runs = sorted((r for r in runs if not r.diverged and r.trajectory_error > 0), key=lambda r: r.config.dt)
+        runs = sorted(
+            (r for r in runs if not r.diverged and r.trajectory_error > 0), key=lambda r: (r.config.rtol, r.config.dt)
+        )
         if runs:
-            style = "--" if runs[0].config.peer else "-"
+            config = runs[0].config
+            style = "--" if config.peer else "-"
+            marker = "s" if config.rtol is not None else "o"
             ax.loglog(
-                [r.cpu_per_sim_s for r in runs], [r.trajectory_error for r in runs], style, marker="o", ms=3, label=name
+                [r.cpu_per_sim_s for r in runs],
+                [r.trajectory_error for r in runs],
+                style,
+                marker=marker,
+                ms=4 if config.rtol is not None else 3,
+                lw=2.0 if config.rtol is not None else 1.2,
+                label=name,
             )
     ax.set_xlabel("CPU time per simulated second [s/s]")
     ax.set_ylabel("trajectory error max |q - q_ref| [rad, m]")
     ax.set_title(f"{scene_name}: work-precision (reference: {reference.kind})", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="dashed: peers", title_fontsize=7)
+    ax.legend(
+        fontsize=7,
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        title="dashed: peers; squares: error-controlled (rtol)",
+        title_fontsize=7,
+    )
     save_figure(fig, out_dir / "work_precision.png")
 
     fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=110)
