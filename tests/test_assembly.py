@@ -40,7 +40,7 @@ def test_a_closed_configuration_is_left_alone():
     np.testing.assert_allclose(again.v, closed.v, atol=1e-14)
 
 
-@pytest.mark.parametrize("name", ["slider-crank", "fivebar", "delta", "nfourbar", "box-push"])
+@pytest.mark.parametrize("name", ["slider-crank", "fivebar", "delta", "nfourbar", "box-push", "bricard"])
 def test_bundled_scenes_assemble(name):
     scene = load_scene(name)
     report = assemble(ConstrainedModel(scene), scene.q0, scene.v0)

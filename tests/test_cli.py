@@ -35,7 +35,8 @@ def run_cli(capsys, *argv):
 
 
 @pytest.mark.parametrize(
-    ("scene", "mobility", "redundant"), [("fourbar", 1, 0), ("fivebar", 2, 1), ("delta", 3, 0), ("nfourbar", 1, 0)]
+    ("scene", "mobility", "redundant"),
+    [("fourbar", 1, 0), ("fivebar", 2, 1), ("delta", 3, 0), ("nfourbar", 1, 0), ("bricard", 1, 2)],
 )
 def test_check_reports_mobility(capsys, scene, mobility, redundant):
     code, out, _ = run_cli(capsys, "check", scene, "--json")
