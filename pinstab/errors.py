@@ -59,6 +59,15 @@ class GraspLostError(ContactInfeasibleError):
         self.margin = margin
 
 
+class PainleveError(ContactInfeasibleError):
+    """At an event no assignment of contact modes is consistent, or two consistent ones move differently
+    (Painleve's paradox of rigid contact with Coulomb friction).
+
+    Attributes:
+        contacts: the touching contacts. time: when [s].
+    """
+
+
 class ServoInfeasibleError(PinstabError):
     """A prescribed constraint (servoconstraint) that the controls cannot realize at a state.
 

@@ -78,9 +78,112 @@ def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> d
     }
 
 
-GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {"nfourbar": nfourbar}
+GRAVITY = 9.81  # [m/s^2] of the contact scenes
+BOX_SIDE = 0.1  # [m] the incline's cube
+
+
+def _rigid_body(name: str, shape: str, mass: float, inertia: tuple[float, float, float]) -> str:
+    """URDF text of one free body (the scene gives it a free flyer, joint ``root_joint``)."""
+    ixx, iyy, izz = inertia
+    return (
+        f'<?xml version="1.0"?>\n<robot name="{name}"><link name="{name}"><inertial><origin xyz="0 0 0"/>'
+        f'<mass value="{mass!r}"/><inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/>'
+        f"</inertial><visual><geometry>{shape}</geometry></visual></link></robot>\n"
+    )
+
+
+def _number(generator: str, name: str, value: Any, low: float, high: float = math.inf, unit: str = "") -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high:
+        bounds = f"in [{low:g}, {high:g}]" if math.isfinite(high) else f">= {low:g}"
+        raise SceneError(f"generator {generator}: parameter {name} must be a number {bounds}{unit}, got {value!r}")
+    return float(value)
+
+
+def _ball(radius: float) -> dict[str, Any]:
+    """A solid 1 kg ball of ``radius`` [m] on a free flyer under gravity along -z (the scene's robot and gravity)."""
+    inertia = 0.4 * radius**2
+    urdf = _rigid_body("ball", f'<sphere radius="{radius!r}"/>', 1.0, (inertia,) * 3)
+    return {"robot": {"urdf_text": urdf, "free_flyer": True}, "gravity": [0.0, 0.0, -GRAVITY]}
+
+
+def incline(theta: float = 0.5, mu: float = 0.3, v_down: float = 0.0, v_across: float = 0.0) -> dict[str, Any]:
+    """A 1 kg cube (side 0.1 m) on a plane tilted by ``theta`` [rad] with friction ``mu`` on its four bottom
+    corners, released with ``v_down``, ``v_across`` [m/s] along and across the slope. The plane is z = 0 and
+    gravity is tilted (down the slope is +x): from rest the cube sticks for mu >= tan(theta), else slides
+    with x(t) = g (sin theta - mu cos theta) t^2 / 2."""
+    theta = _number("incline", "theta", theta, 0.0, math.pi / 2, " [rad]")
+    mu = _number("incline", "mu", mu, 0.0, unit=" [-]")
+    v_down = _number("incline", "v_down", v_down, -math.inf, unit=" [m/s]")
+    v_across = _number("incline", "v_across", v_across, -math.inf, unit=" [m/s]")
+    half, inertia = BOX_SIDE / 2, BOX_SIDE**2 / 6
+    corners = [(sx * half, sy * half) for sx in (1, -1) for sy in (1, -1)]
+    return {
+        "robot": {
+            "urdf_text": _rigid_body("box", f'<box size="{BOX_SIDE} {BOX_SIDE} {BOX_SIDE}"/>', 1.0, (inertia,) * 3),
+            "free_flyer": True,
+        },
+        "gravity": [GRAVITY * math.sin(theta), 0.0, -GRAVITY * math.cos(theta)],
+        "contacts": [
+            {"name": f"corner{k}", "kind": "plane-contact", "frame_a": "box", "offset_a": [x, y, -half], "mu": mu}
+            for k, (x, y) in enumerate(corners)
+        ],
+        "initial": {
+            "q": {"root_joint": [0.0, 0.0, half, 0.0, 0.0, 0.0, 1.0]},
+            "v": {"root_joint": [v_down, v_across, 0.0, 0.0, 0.0, 0.0]},
+        },
+    }
+
+
+def sphere_spin(v0: float = 2.0, omega0: float = 5.0, mu: float = 0.3, radius: float = 0.1) -> dict[str, Any]:
+    """A solid 1 kg sphere of ``radius`` [m] thrown along +x at ``v0`` [m/s] with backspin ``omega0`` [rad/s]
+    on the plane z = 0 with friction ``mu``: it slides until t* = 2 (v0 + r omega0) / (7 mu g), then rolls at
+    v* = (5 v0 - 2 r omega0) / 7."""
+    v0 = _number("sphere-spin", "v0", v0, -math.inf, unit=" [m/s]")
+    omega0 = _number("sphere-spin", "omega0", omega0, -math.inf, unit=" [rad/s]")
+    mu = _number("sphere-spin", "mu", mu, 0.0, unit=" [-]")
+    radius = _number("sphere-spin", "radius", radius, 1e-6, unit=" [m]")
+    return {
+        **_ball(radius),
+        "contacts": [{"name": "ground", "kind": "plane-contact", "frame_a": "ball", "radius": radius, "mu": mu}],
+        "initial": {
+            "q": {"root_joint": [0.0, 0.0, radius, 0.0, 0.0, 0.0, 1.0]},
+            "v": {"root_joint": [v0, 0.0, 0.0, 0.0, -omega0, 0.0]},
+        },
+    }
+
+
+def bouncing_ball(height: float = 1.0, restitution: float = 0.5) -> dict[str, Any]:
+    """A 1 kg ball (radius 0.05 m) dropped from a gap ``height`` [m] above the plane z = 0 with Newton's
+    ``restitution`` e: apex gaps e^(2k) h, at rest at t0 (1 + e) / (1 - e), t0 = sqrt(2 h / g)."""
+    height = _number("bouncing-ball", "height", height, 0.0, unit=" [m]")
+    restitution = _number("bouncing-ball", "restitution", restitution, 0.0, 1.0, " [-]")
+    radius = 0.05
+    return {
+        **_ball(radius),
+        "contacts": [
+            {
+                "name": "ground",
+                "kind": "plane-contact",
+                "frame_a": "ball",
+                "radius": radius,
+                "restitution": restitution,
+            }
+        ],
+        "initial": {"q": {"root_joint": [0.0, 0.0, radius + height, 0.0, 0.0, 0.0, 1.0]}},
+    }
+
+
+GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {
+    "nfourbar": nfourbar,
+    "incline": incline,
+    "sphere-spin": sphere_spin,
+    "bouncing-ball": bouncing_ball,
+}
 GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "nfourbar": {"N": "n", "link_length": "link_length", "link_mass": "link_mass"},
+    "incline": {"theta": "theta", "mu": "mu", "v_down": "v_down", "v_across": "v_across"},
+    "sphere-spin": {"v0": "v0", "omega0": "omega0", "mu": "mu", "radius": "radius"},
+    "bouncing-ball": {"height": "height", "restitution": "restitution"},
 }
 
 

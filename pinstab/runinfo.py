@@ -76,6 +76,9 @@ class RunInfo:
             every step (projection, post).
         passages: the singular passages of the run, each a
             :class:`~pinstab.integration.passages.Passage` as a dict.
+        contact_events: with event-driven contacts, every switch of a contact's mode
+            (:class:`~pinstab.contact.modes.ContactEvent` as a dict: time, contact, from, to, cause, force,
+            slip velocity, impulse).
         error_control: with rtol/atol, the tolerances and the accepted and rejected steps
             (:meth:`~pinstab.integration.adaptive.ErrorControl.summary`); None for fixed steps.
     """
@@ -103,6 +106,7 @@ class RunInfo:
     controls: list[str] = field(default_factory=list)
     passages: list[dict[str, Any]] = field(default_factory=list)
     error_control: dict[str, Any] | None = None
+    contact_events: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

@@ -16,10 +16,12 @@ import numpy as np
 from .assembly import AssemblyReport, assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
+from .integration.events import EventLoop
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
+from .solvers.contact_modes import ModeDynamics, plane_geometries
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
@@ -31,6 +33,7 @@ ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
 }
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
+EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
 
 
 class Interrupted(KeyboardInterrupt):
@@ -64,6 +67,7 @@ def simulate(
     record_every: int = 1,
     rtol: float | None = None,
     atol: float | None = None,
+    contacts: str | None = None,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -97,6 +101,9 @@ def simulate(
             this relative tolerance [-] (:mod:`pinstab.integration.adaptive`); ``dt`` is then the step of
             the samples (taken from the dense output), not of the integration.
         atol: the absolute tolerance [rad, m, rad/s, m/s] of the error control (default: ``rtol``).
+        contacts: ``event``: the scene's plane contacts switch between sticking, sliding and separated at
+            located events, with impacts (:mod:`pinstab.integration.events`; error-controlled ``dop853``,
+            rtol default :data:`EVENT_RTOL`); None: they are held as constraint rows.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -115,6 +122,8 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    if contacts is not None:
+        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress)
     grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
@@ -160,6 +169,52 @@ def simulate(
             raise
         except KeyboardInterrupt:
             raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
+    return _trajectory(loop, system, info, time.perf_counter() - start)
+
+
+def _simulate_events(
+    scene: Scene,
+    contacts: str,
+    dt: float,
+    duration: float,
+    rtol: float | None,
+    atol: float | None,
+    record_every: int,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    progress: bool,
+) -> Trajectory:
+    """:func:`simulate` with event-driven contacts (``contacts="event"``)."""
+    if contacts != "event":
+        raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event")
+    geometries = plane_geometries(scene.constraints)
+    others = [c.name for c in scene.constraints if c.name not in {g.name for g in geometries}]
+    if not geometries or others:
+        raise PinstabError(
+            f"scene {scene.name}: event-driven contacts take scenes whose constraints are plane contacts"
+            + (f"; not yet {', '.join(others)}" if others else "; it has none")
+        )
+    grid = TimeGrid.of(dt, duration, record_every)
+    control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
+    free = dataclasses.replace(scene, constraints=[])
+    system = build_system(free, "none")
+    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    system.bind(grid.dt, "dop853", q)
+    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    system.acceleration = dynamics.acceleration
+    system.path, system.path_reason = "contact-events", "event-driven contacts"
+    stepper = INTEGRATORS.build("dop853", system)
+    info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
+    loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
+    loop.start(q, v)
+    bar = _progress_bar(grid.steps, scene.name, progress)
+    start = time.perf_counter()
+    try:
+        with nullcontext() if bar is None else closing(bar):
+            loop.run(q, v, bar)
+    finally:
+        info.contact_events = [event.to_dict() for event in loop.events]
     return _trajectory(loop, system, info, time.perf_counter() - start)
 
 

@@ -20,7 +20,7 @@ from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
 from .loops import FrameClosure, plane_basis
 
-CONTACT_KEYS = {"name", "kind", "frame_a", "offset_a", "normal", "point", "mu", "facets"}
+CONTACT_KEYS = {"name", "kind", "frame_a", "offset_a", "normal", "point", "mu", "facets", "restitution", "radius"}
 
 
 def contact_basis(normal: np.ndarray) -> np.ndarray:
@@ -36,12 +36,22 @@ class PointContact(FrameClosure):
         anchor: the world point [m] the contact holds (on the plane).
         normal: the plane's normal (world axes; into body a, i.e. the direction it is pushed).
         friction: the Coulomb cone, or None for a frictionless contact.
+        restitution: Newton's coefficient e [-] of its impacts (event-driven contacts).
+        radius: for event-driven contacts, a sphere of this radius [m] centred at the point touches the
+            plane (its gap is the centre's height minus the radius); 0: the point itself (a vertex).
 
     The multipliers are the contact force on body a [N] in the contact frame (normal, t1, t2).
     """
 
     def __init__(
-        self, name: str, frame_a: int, anchor: np.ndarray, normal: np.ndarray, friction: FrictionCone | None
+        self,
+        name: str,
+        frame_a: int,
+        anchor: np.ndarray,
+        normal: np.ndarray,
+        friction: FrictionCone | None,
+        restitution: float = 0.0,
+        radius: float = 0.0,
     ) -> None:
         super().__init__(name, "point", frame_a, None, pin.SE3(np.eye(3), np.asarray(anchor, dtype=float)))
         basis = contact_basis(normal)
@@ -51,6 +61,9 @@ class PointContact(FrameClosure):
         self.selection = basis[:1] if friction is None else basis
         self.rows = self.selection.shape[0]
         self.force_frame = "contact frame (normal, t1, t2), force on a"
+        self.restitution = restitution
+        self.radius = radius
+        self.plane_point = self.world_placement_b.translation.copy()
 
     def slip(self, kin: Kinematics) -> float | None:
         """A sticking contact's distance from its anchor [m]; None when frictionless (it may slide)."""
@@ -61,7 +74,8 @@ class PointContact(FrameClosure):
 
 def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str) -> PointContact:
     """Scene table: ``frame_a`` + ``offset_a`` [m], ``normal`` (default +z), ``point`` on the plane
-    [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone."""
+    [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone, ``restitution``
+    e in [0, 1] of its impacts (event-driven contacts; default 0)."""
     tables.check_keys(entry, CONTACT_KEYS, where)
     frame = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     normal = tables.vector(entry.get("normal", [0.0, 0.0, 1.0]), 3, f"{where}.normal", None)
@@ -79,7 +93,13 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
             raise SceneError(f"{where}: {exc}") from None
     elif "facets" in entry:
         raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
-    return PointContact(name, frame, anchor, normal, friction)
+    restitution = tables.number(entry, "restitution", where, 0.0)
+    if not 0.0 <= restitution <= 1.0:
+        raise SceneError(f"{where}.restitution must be in [0, 1] (0: plastic, 1: elastic), got {restitution!r}")
+    radius = tables.number(entry, "radius", where, 0.0)
+    if radius < 0.0:
+        raise SceneError(f"{where}.radius must be >= 0 [m], got {radius!r}")
+    return PointContact(name, frame, anchor, normal, friction, restitution, radius)
 
 
 CONSTRAINT_KINDS.register(

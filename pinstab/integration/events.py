@@ -1,0 +1,181 @@
+"""Event-driven contacts: the error-controlled loop (:mod:`.adaptive`) with contact modes that switch.
+
+Between events the contacts keep their modes (:class:`~pinstab.solvers.contact_modes.ModeDynamics`). After
+every accepted step each contact's event function is evaluated: a separated contact's gap, a sticking
+contact's smallest force margin (normal force; ``mu f_n - |f_t|``, the best over the forces when they are
+not unique), a sliding contact's normal force and its slip velocity along the direction it had at the
+step's start. When one turns negative, its root is located by bisection on the step's dense output to
+:data:`EVENT_TIME` [s], the step is taken again to end there, and at that instant a gap that closed with
+an approaching velocity is an impact (Newton's restitution e on the normal velocity; a frictionless
+impulse), and the touching contacts take the modes of the contact complementarity problem
+(:func:`~pinstab.solvers.mode_choice.choose_modes`). An impact that leaves a rebound too small to fly
+longer than :data:`ZENO_TIME` [s] ends in resting contact (a Zeno sequence cut where its remaining
+flights sum to less than that).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple
+from ..solvers.contact_modes import ModeDynamics
+from ..solvers.mode_choice import TOUCH_SPEED, choose_modes, sticking_margin
+from .adaptive import AdaptiveLoop
+from .dense import Segment
+from .stepping import GRID_SLACK
+
+EVENT_TIME = 1e-12  # [s] events are located to this (bisection on the dense output)
+ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
+
+
+class EventLoop(AdaptiveLoop):
+    """:class:`AdaptiveLoop` over a :class:`ModeDynamics` system whose contact modes switch at events.
+
+    Attributes:
+        events: the contact events so far (:class:`~pinstab.contact.modes.ContactEvent`).
+    """
+
+    def __init__(self, system, stepper, grid, every, drift_limit, warned, control, dynamics: ModeDynamics):
+        super().__init__(system, stepper, grid, every, drift_limit, warned, control)
+        self.dynamics = dynamics
+        self.events: list[ContactEvent] = []
+        self._reference: list[np.ndarray] = []
+
+    def start(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Choose the modes at the start and record them as events (cause ``start``)."""
+        self._switch(q, v, 0.0, "start", [Mode.SEPARATED.value] * len(self.dynamics.contacts), force_record=True)
+
+    def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
+        grid, system = self.grid, self.system
+        t, t_stop = grid.time(start), grid.time(stop)
+        a = system.acceleration(q, v, t, 0)
+        if self.step_size is None:
+            self.step_size = self.initial_step(q, v, a, t)
+        while t < t_stop - GRID_SLACK * grid.dt:
+            h = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
+            self._reference = self._slip_directions(q, v)
+            step = self.attempt(q, v, a, t, h)
+            t_new = t + step.h
+            a_new = system.acceleration(step.q, step.v, t_new, 0)
+            segment = Segment(system.model, t, q, v, a, t_new, step.q, step.v, a_new)
+            values = self.event_values(step.q, step.v, t_new)
+            if np.any(values < 0.0):
+                t_event = self._locate(segment, t, t_new)
+                q_new, v_new = self.pair.attempt(q, v, t, t_event - t, a)[:2]
+                segment = Segment(
+                    system.model, t, q, v, a, t_event, q_new, v_new, system.acceleration(q_new, v_new, t_event, 0)
+                )
+                self._sample_grid(segment, self.grid_between(t, t_event), q_new, v_new)
+                q_new, v_new = self._event(q_new, v_new, t_event)
+                if abs(t_event - grid.time(self.grid_index(t_event))) <= GRID_SLACK * grid.dt:
+                    self.keep(self.grid_index(t_event), q_new, v_new)
+                t, q, v = t_event, q_new, v_new
+                a = system.acceleration(q, v, t, 0)
+                continue
+            self.keep_step(segment, t, t_new, step.q, step.v)
+            self.step_size = self._next_step(step)
+            t, q, v, a = t_new, step.q, step.v, a_new
+        return q, v, stop
+
+    def keep_step(self, segment: Segment, t: float, t_new: float, q_new: np.ndarray, v_new: np.ndarray) -> None:
+        """Keep the grid samples of an accepted step."""
+        inside = self.grid_between(t, t_new)
+        if inside:
+            self._sample_grid(segment, inside, q_new, v_new)
+
+    def event_values(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Each contact's event function at (q, v, t) (negative: its mode no longer holds) [m, N or m/s]."""
+        dynamics = self.dynamics
+        solution = dynamics.solve(q, v, t)
+        contacts, forces = solution.contacts, solution.forces
+        values = np.zeros(len(dynamics.contacts))
+        margin = None
+        for i, mode in enumerate(dynamics.modes):
+            if mode is Mode.SEPARATED:
+                values[i] = contacts.gaps[i]
+            elif mode is Mode.SLIDING:
+                values[i] = min(forces[i, 0], float(contacts.velocities[i, 1:] @ self._reference[i]))
+            else:
+                if margin is None:
+                    margin = sticking_margin(dynamics, solution, dynamics.modes)
+                values[i] = margin
+        return values
+
+    def _slip_directions(self, q: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
+        contacts = self.dynamics.kinematics(q, v)
+        return [self.dynamics.slip_direction(i, contacts.velocities[i]) for i in range(len(self.dynamics.contacts))]
+
+    def _locate(self, segment: Segment, t0: float, t1: float) -> float:
+        """The first time in (t0, t1] [s] at which an event function turns negative (bisection)."""
+        low, high = t0, t1
+        while high - low > EVENT_TIME * max(1.0, abs(high)):
+            middle = 0.5 * (low + high)
+            if np.any(self.event_values(*segment.state(middle), middle) < 0.0):
+                high = middle
+            else:
+                low = middle
+        return high
+
+    def _event(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The switch at an event at (q, v, t): impacts of closing gaps, then the modes; returns the state after."""
+        dynamics = self.dynamics
+        before = [mode.value for mode in dynamics.modes]
+        contacts = dynamics.kinematics(q, v)
+        closing = [
+            i
+            for i, mode in enumerate(dynamics.modes)
+            if mode is Mode.SEPARATED and contacts.gaps[i] <= 0.0 and contacts.velocities[i, 0] < -TOUCH_SPEED
+        ]
+        cause = "gap closed" if closing else "mode no longer consistent"
+        for i in closing:
+            v = self._impact(q, v, t, i)
+            before[i] = CLOSING
+        self._switch(q, v, t, cause, before)
+        self.step_size = None if closing else self.step_size
+        if self.step_size is None:
+            self.step_size = self.initial_step(q, v, self.system.acceleration(q, v, t, 0), t)
+        return q, v
+
+    def _impact(self, q: np.ndarray, v: np.ndarray, t: float, i: int) -> np.ndarray:
+        """The velocity after contact i's impact at (q, v, t): a normal impulse giving the normal velocity
+        -e times the approaching one (0 when the rebound would fly shorter than :data:`ZENO_TIME`)."""
+        dynamics = self.dynamics
+        contact = dynamics.contacts[i]
+        solution = dynamics.solve(q, v, t, [Mode.SEPARATED] * len(dynamics.contacts))
+        row = 3 * i
+        approach = solution.contacts.velocities[i, 0]
+        gravity = -(solution.contacts.jacobian[row] @ solution.free + solution.contacts.drift[row])
+        rebound = -contact.restitution * approach
+        if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME:
+            rebound = 0.0
+        mobility = solution.mobility[:, row]
+        impulse = (rebound - approach) / (solution.contacts.jacobian[row] @ mobility)
+        self.events.append(
+            ContactEvent(t, contact.name, Mode.SEPARATED.value, CLOSING, "impact", impulse=(float(impulse), 0.0, 0.0))
+        )
+        return v + mobility * impulse
+
+    def _switch(
+        self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False
+    ):
+        dynamics = self.dynamics
+        choice = choose_modes(dynamics, q, v, t)
+        contacts = choice.solution.contacts
+        for i, direction in choice.directions.items():
+            dynamics.directions[i] = direction
+        for i, (old, new) in enumerate(zip(before, choice.modes, strict=True)):
+            if new is Mode.STICKING and dynamics.modes[i] is not Mode.STICKING:
+                dynamics.contacts[i].anchor = contacts.positions[i].copy()
+            if force_record or old != new.value:
+                self.events.append(
+                    ContactEvent(
+                        t,
+                        dynamics.contacts[i].name,
+                        old,
+                        new.value,
+                        cause if old != CLOSING else "impact",
+                        as_tuple(choice.solution.forces[i]),
+                        as_tuple(contacts.velocities[i, 1:]),
+                    )
+                )
+        dynamics.modes[:] = choice.modes

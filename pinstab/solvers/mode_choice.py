@@ -1,0 +1,223 @@
+"""Choosing contact modes at an event, and impacts.
+
+At an event the contacts that touch (gap and normal velocity at zero) take the modes that solve the
+contact complementarity problem on accelerations: every assignment of modes to them (sticking, sliding,
+separated; a contact that slips cannot stick) is solved (:class:`~pinstab.solvers.contact_modes.ModeDynamics`)
+and kept when consistent: a sticking contact's forces can lie inside its round cone and push, a sliding
+contact pushes and (starting from rest) slips the way its friction opposes, a separated contact's gap does
+not accelerate inwards. With few contacts the enumeration is exact and tells what a solver's iterate
+cannot: no consistent assignment, or consistent ones with different motions, is Painlevé's paradox
+(:class:`~pinstab.errors.PainleveError`). Among consistent assignments with the same motion (redundant
+contacts) the first in the order sticking, sliding, separated is taken.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..contact.modes import Mode
+from ..errors import PainleveError
+from .contact_modes import SLIP_FLOOR, ModeDynamics, ModeSolution
+
+CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
+DIRECTION_ITERATIONS = 50  # fixed-point iterations for the direction a slip starts in
+TOUCH_GAP = 1e-9  # [m] a contact this close touches
+TOUCH_SPEED = 1e-9  # [m/s] ... and moving apart or closing slower than this is at rest on the surface
+SLIP_SPEED = SLIP_FLOOR  # [m/s] a contact point slower than this along the surface does not slip
+
+
+class Choice(NamedTuple):
+    """The modes chosen, the slip directions of contacts that start sliding, and the solution in them."""
+
+    modes: list[Mode]
+    directions: dict[int, np.ndarray]
+    solution: ModeSolution
+
+
+def touching(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray) -> list[int]:
+    """The contacts that touch at (q, v): gap within :data:`TOUCH_GAP`, normal speed within :data:`TOUCH_SPEED`."""
+    kinematics = dynamics.kinematics(q, v)
+    return [
+        i
+        for i in range(len(dynamics.contacts))
+        if kinematics.gaps[i] <= TOUCH_GAP and abs(kinematics.velocities[i, 0]) <= TOUCH_SPEED
+    ]
+
+
+def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float) -> Choice:
+    """The modes of the contacts at (q, v, t): those not touching are separated, the touching ones take the
+    consistent assignment (see the module).
+
+    Raises:
+        PainleveError: no consistent assignment, or consistent ones with different accelerations.
+    """
+    kinematics = dynamics.kinematics(q, v)
+    count = len(dynamics.contacts)
+    active = touching(dynamics, q, v)
+    options = []
+    for i in active:
+        slipping = math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
+        options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
+    consistent: list[Choice] = []
+    for assignment in itertools.product(*options):
+        modes = [Mode.SEPARATED] * count
+        for i, mode in zip(active, assignment, strict=True):
+            modes[i] = mode
+        choice = _consistent(dynamics, q, v, t, modes, active, kinematics)
+        if choice is not None:
+            consistent.append(choice)
+    names = [dynamics.contacts[i].name for i in active]
+    if not consistent:
+        raise PainleveError(
+            f"at t = {t:.9g} s no contact mode of {', '.join(names)} is consistent (Painleve's paradox: the "
+            "friction would need a normal force that pulls); use the time-stepping contacts, which resolve it "
+            "by a tangential impulse",
+            names,
+            t,
+        )
+    first = consistent[0]
+    scale = 1.0 + float(np.max(np.abs(first.solution.free)))
+    for other in consistent[1:]:
+        if np.max(np.abs(other.solution.acceleration - first.solution.acceleration)) > CONSISTENCY * scale * 1e3:
+            described = ", ".join(f"{n}: {a.value} or {b.value}" for n, a, b in _differences(dynamics, first, other))
+            raise PainleveError(
+                f"at t = {t:.9g} s the contact modes are not unique ({described}): two consistent motions "
+                "(Painleve's paradox); use the time-stepping contacts, which resolve it by a tangential impulse",
+                names,
+                t,
+            )
+    return first
+
+
+def _differences(dynamics: ModeDynamics, first: Choice, other: Choice) -> list[tuple[str, Mode, Mode]]:
+    return [
+        (contact.name, a, b)
+        for contact, a, b in zip(dynamics.contacts, first.modes, other.modes, strict=True)
+        if a is not b
+    ]
+
+
+def _consistent(
+    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, modes: list[Mode], active: list[int], kinematics
+) -> Choice | None:
+    """The choice of ``modes`` when consistent at (q, v, t), else None."""
+    directions = {}
+    for i in active:
+        if modes[i] is Mode.SLIDING:
+            slip = kinematics.velocities[i, 1:]
+            speed = math.hypot(*slip)
+            directions[i] = slip / speed if speed > SLIP_SPEED else None
+    starting = [i for i, d in directions.items() if d is None]
+    solution = _solve_with_directions(dynamics, q, v, t, modes, directions, starting)
+    if solution is None:
+        return None
+    forces, contacts = solution.forces, solution.contacts
+    scale = 1.0 + float(np.max(np.abs(forces), initial=0.0))
+    accelerations = contacts.jacobian @ solution.acceleration + contacts.drift
+    acceleration_scale = 1.0 + float(np.max(np.abs(contacts.jacobian @ solution.free)))
+    for i in active:
+        mode = modes[i]
+        if mode is Mode.SEPARATED:
+            if accelerations[3 * i] < -CONSISTENCY * acceleration_scale:
+                return None
+        elif forces[i, 0] < -CONSISTENCY * scale:
+            return None
+    if (
+        any(modes[i] is Mode.STICKING for i in active)
+        and sticking_margin(dynamics, solution, modes) < -CONSISTENCY * scale
+    ):
+        return None
+    return Choice(modes, {i: d for i, d in directions.items() if d is not None}, solution)
+
+
+def _solve_with_directions(
+    dynamics: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    modes: list[Mode],
+    directions: dict[int, np.ndarray | None],
+    starting: list[int],
+) -> ModeSolution | None:
+    """Solve ``modes``; the contacts in ``starting`` slide from rest in the direction of their own tangential
+    acceleration (a fixed point, from the direction opposite the force that sticking would need). None when
+    such a contact would not slip (its tangential acceleration vanishes or turns against its friction)."""
+    saved = list(dynamics.directions)
+    try:
+        if starting:
+            stuck = dynamics.solve(q, v, t, [Mode.STICKING if i in starting else m for i, m in enumerate(modes)])
+            for i in starting:
+                force = stuck.forces[i, 1:]
+                norm = math.hypot(*force)
+                dynamics.directions[i] = -force / norm if norm > 0 else np.array([1.0, 0.0])
+        for i, d in directions.items():
+            if d is not None:
+                dynamics.directions[i] = d
+        for _ in range(DIRECTION_ITERATIONS):
+            solution = dynamics.solve(q, v, t, modes)
+            if not starting:
+                return solution
+            tangential = solution.contacts.jacobian @ solution.acceleration + solution.contacts.drift
+            changed = 0.0
+            for i in starting:
+                slip = tangential[3 * i + 1 : 3 * i + 3]
+                speed = math.hypot(*slip)
+                if speed <= CONSISTENCY * (1.0 + float(np.max(np.abs(solution.free)))):
+                    return None
+                new = slip / speed
+                changed = max(changed, float(np.max(np.abs(new - dynamics.directions[i]))))
+                dynamics.directions[i] = new
+            if changed < 1e-13:
+                for i in starting:
+                    directions[i] = dynamics.directions[i].copy()
+                return solution
+        return None
+    finally:
+        dynamics.directions[:] = saved
+
+
+def sticking_margin(dynamics: ModeDynamics, solution: ModeSolution, modes: list[Mode]) -> float:
+    """The largest, over the forces that give the same accelerations, of the smallest margin of the sticking
+    contacts: their normal force and ``mu f_n - |f_t|`` [N]. Unique forces: the margin of those; redundant
+    sticking rows (non-unique forces): a small second-order cone program (SciPy's SLSQP)."""
+    sticking = [i for i, mode in enumerate(modes) if mode is Mode.STICKING]
+    if not sticking:
+        return math.inf
+    forces = solution.forces
+
+    def margins(f: np.ndarray) -> np.ndarray:
+        f = f.reshape(-1, 3)
+        return np.array(
+            [m for i in sticking for m in (f[i, 0], dynamics.contacts[i].mu * f[i, 0] - math.hypot(f[i, 1], f[i, 2]))]
+        )
+
+    direct = float(margins(forces).min())
+    rows = [r for i in sticking for r in range(3 * i, 3 * i + 3)]
+    block = solution.contacts.jacobian[rows] @ solution.mobility[:, rows]
+    singular_values, basis = np.linalg.svd(block)[1:]
+    redundant = basis[singular_values.size - int(np.sum(singular_values <= 1e-10 * singular_values[0])) :]
+    if direct >= 0.0 or redundant.shape[0] == 0:
+        return direct
+    from scipy.optimize import minimize
+
+    null = np.zeros((forces.size, redundant.shape[0]))
+    null[rows] = redundant.T
+    start = forces.ravel()
+    scale = 1.0 + float(np.max(np.abs(start)))
+
+    def constraint(x: np.ndarray) -> np.ndarray:
+        return margins(start + null @ x[:-1]) / scale - x[-1]
+
+    result = minimize(
+        lambda x: -x[-1],
+        np.append(np.zeros(null.shape[1]), direct / scale),
+        method="SLSQP",
+        constraints=[{"type": "ineq", "fun": constraint}],
+        options={"ftol": 1e-14, "maxiter": 200},
+    )
+    best = float(margins(start + null @ result.x[:-1]).min())
+    return max(best, direct)
