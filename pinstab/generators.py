@@ -82,14 +82,27 @@ GRAVITY = 9.81  # [m/s^2] of the contact scenes
 BOX_SIDE = 0.1  # [m] the incline's cube
 
 
+def _link(
+    name: str,
+    shape: str,
+    mass: float,
+    inertia: tuple[float, float, float],
+    visual_at: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> str:
+    """URDF text of one link: ``mass`` [kg] and principal ``inertia`` [kg m^2] at its origin, ``shape`` drawn at
+    ``visual_at`` [m]."""
+    ixx, iyy, izz = inertia
+    x, y, z = visual_at
+    return (
+        f'<link name="{name}"><inertial><origin xyz="0 0 0"/><mass value="{mass!r}"/>'
+        f'<inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/></inertial>'
+        f'<visual><origin xyz="{x!r} {y!r} {z!r}"/><geometry>{shape}</geometry></visual></link>'
+    )
+
+
 def _rigid_body(name: str, shape: str, mass: float, inertia: tuple[float, float, float]) -> str:
     """URDF text of one free body (the scene gives it a free flyer, joint ``root_joint``)."""
-    ixx, iyy, izz = inertia
-    return (
-        f'<?xml version="1.0"?>\n<robot name="{name}"><link name="{name}"><inertial><origin xyz="0 0 0"/>'
-        f'<mass value="{mass!r}"/><inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/>'
-        f"</inertial><visual><geometry>{shape}</geometry></visual></link></robot>\n"
-    )
+    return f'<?xml version="1.0"?>\n<robot name="{name}">{_link(name, shape, mass, inertia)}</robot>\n'
 
 
 def _number(generator: str, name: str, value: Any, low: float, high: float = math.inf, unit: str = "") -> float:
@@ -173,17 +186,73 @@ def bouncing_ball(height: float = 1.0, restitution: float = 0.5) -> dict[str, An
     }
 
 
+PINCH_SIDE = 0.05  # [m] the pinched cube
+FINGER_MASS = 0.1  # [kg] each pinch finger
+
+
+def pinch(mu: float = 0.5, squeeze: float = 1.0, mass: float = 0.1) -> dict[str, Any]:
+    """A cube (side 0.05 m) of ``mass`` [kg] squeezed between two 0.1 kg fingers on slide joints along x,
+    each pushed against a side face with ``squeeze`` [N]; friction ``mu`` at the two contacts (the fingertip
+    point on the face's plane, carried by the cube), gravity along -z. The cube holds iff
+    2 mu F >= m g, else slides down with acceleration g - 2 mu F / m."""
+    mu = _number("pinch", "mu", mu, 0.0, unit=" [-]")
+    squeeze = _number("pinch", "squeeze", squeeze, 0.0, unit=" [N]")
+    mass = _number("pinch", "mass", mass, 1e-9, unit=" [kg]")
+    half, inertia = PINCH_SIDE / 2, mass * PINCH_SIDE**2 / 6
+    finger_inertia = FINGER_MASS * 1e-4
+    links = [_link("block", f'<box size="{PINCH_SIDE} {PINCH_SIDE} {PINCH_SIDE}"/>', mass, (inertia,) * 3)]
+    joints = ['<joint name="block" type="floating"><parent link="world"/><child link="block"/></joint>']
+    fingers = {"finger_left": -1.0, "finger_right": 1.0}
+    for name, side in fingers.items():
+        shape = f'<box size="{half} {half / 2} {half / 2}"/>'  # drawn beside its tip, the link's origin
+        links.append(_link(name, shape, FINGER_MASS, (finger_inertia,) * 3, visual_at=(side * half / 2, 0.0, 0.0)))
+        joints.append(
+            f'<joint name="{name}" type="prismatic"><parent link="world"/><child link="{name}"/>'
+            f'<origin xyz="{side * half!r} 0 0"/><axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1e3" '
+            'velocity="1e3"/></joint>'
+        )
+    urdf = '<?xml version="1.0"?>\n<robot name="pinch"><link name="world"/>' + "".join(links + joints) + "</robot>\n"
+    return {
+        "robot": {"urdf_text": urdf},
+        "gravity": [0.0, 0.0, -GRAVITY],
+        "contacts": [
+            {
+                "name": name.removeprefix("finger_"),
+                "kind": "plane-contact",
+                "frame_a": name,
+                "frame_b": "block",
+                "offset_b": [side * half, 0.0, 0.0],
+                "normal": [side, 0.0, 0.0],
+                "mu": mu,
+            }
+            for name, side in fingers.items()
+        ],
+        "forces": [
+            {
+                "name": f"squeeze_{name.removeprefix('finger_')}",
+                "kind": "joint-torque",
+                "joint": name,
+                "torque": -side * squeeze,
+            }
+            for name, side in fingers.items()
+        ],
+        "initial": {"q": {"block": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]}},
+    }
+
+
 GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {
     "nfourbar": nfourbar,
     "incline": incline,
     "sphere-spin": sphere_spin,
     "bouncing-ball": bouncing_ball,
+    "pinch": pinch,
 }
 GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "nfourbar": {"N": "n", "link_length": "link_length", "link_mass": "link_mass"},
     "incline": {"theta": "theta", "mu": "mu", "v_down": "v_down", "v_across": "v_across"},
     "sphere-spin": {"v0": "v0", "omega0": "omega0", "mu": "mu", "radius": "radius"},
     "bouncing-ball": {"height": "height", "restitution": "restitution"},
+    "pinch": {"mu": "mu", "squeeze": "squeeze", "mass": "mass"},
 }
 
 

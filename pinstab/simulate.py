@@ -124,6 +124,12 @@ def simulate(
         scene = load_scene(scene)
     if contacts is not None:
         return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress)
+    carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
+    if carried:
+        raise PinstabError(
+            f"scene {scene.name}: contact {carried[0]} touches a plane carried by a body (frame_b), which only "
+            "event-driven contacts model; run it with contacts='event'"
+        )
     grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")

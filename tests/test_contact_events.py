@@ -1,4 +1,4 @@
-"""Event-driven contacts (issue 21) against closed forms: incline, sphere-spin, bouncing-ball."""
+"""Event-driven contacts (issue 21) against closed forms: incline, sphere-spin, bouncing-ball, pinch."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pinstab.errors import SceneError
+from pinstab.errors import PinstabError, SceneError
 from pinstab.scene import load_scene
 from pinstab.simulate import simulate
 
@@ -62,8 +62,86 @@ def test_bouncing_ball_impacts_and_rest_time():
     assert abs(run.q[-1, 2] - 0.05) <= 1e-9  # at rest on the plane
 
 
-@pytest.mark.parametrize(("key", "value"), [("restitution", 1.5), ("radius", -0.1)])
-def test_bad_contact_parameters_are_named(key, value):
+def _pinch_slips(ratio: float, mu: float = 0.5, mass: float = 0.1) -> bool:
+    """Whether the pinch with 2 mu F / (m g) = ``ratio`` slips (its contacts start sliding)."""
+    squeeze = ratio * mass * G / (2 * mu)
+    run = simulate(load_scene("pinch", mu=mu, squeeze=squeeze, mass=mass), dt=0.01, duration=0.02, contacts="event")
+    return any(e["to"] == "sliding" for e in run.info.contact_events)
+
+
+def test_pinch_holds_and_slides_as_the_closed_form():
+    mu, squeeze, mass = 0.5, 1.0, 0.1  # 2 mu F / (m g) = 1.02: holds
+    run = simulate(load_scene("pinch", mu=mu, squeeze=squeeze, mass=mass), dt=0.01, duration=2.0, contacts="event")
+    assert np.max(np.abs(run.q[:, :3])) <= 1e-10
+    forces = [e["force"] for e in run.info.contact_events]
+    np.testing.assert_allclose([abs(f[0]) for f in forces], squeeze, rtol=1e-9)  # each finger presses F
+    np.testing.assert_allclose([abs(f[1]) for f in forces], mass * G / 2, rtol=1e-9)  # each carries half
+    mu = 0.3  # 2 mu F / (m g) = 0.61: slides with g - 2 mu F / m
+    run = simulate(load_scene("pinch", mu=mu, squeeze=squeeze, mass=mass), dt=0.01, duration=1.0, contacts="event")
+    exact = -(G - 2 * mu * squeeze / mass) / 2
+    assert abs(run.q[-1, 2] - exact) <= 1e-8 * abs(exact)
+    np.testing.assert_allclose(run.q[-1, 7:], 0.0, atol=1e-12)  # the fingers do not move
+
+
+def test_pinch_threshold_found_by_a_sweep():
+    low, high = 0.5, 1.5  # 2 mu F / (m g): slips at low, holds at high
+    assert _pinch_slips(low) and not _pinch_slips(high)
+    while high - low > 1e-7:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if _pinch_slips(middle) else (low, middle)
+    assert abs(0.5 * (low + high) - 1.0) <= 1e-6
+
+
+def test_carried_plane_rows_match_finite_differences():
+    """The rows of a contact on a body's plane are the derivatives of the point's position in that body's
+    frame (a tumbling cube, moving fingers)."""
+    from pinstab.model import ConstrainedModel
+    from pinstab.solvers.contact_modes import ModeDynamics, plane_geometries
+
+    scene = load_scene("pinch")
+    dynamics = ModeDynamics(ConstrainedModel(scene), plane_geometries(scene.constraints), 0.0, 0.0)
+    model = scene.model
+    rng = np.random.default_rng(3)
+    q = pin.integrate(model, scene.q0, rng.normal(size=model.nv) * 0.3)
+    v, a = rng.normal(size=model.nv), rng.normal(size=model.nv)
+    contacts = dynamics.kinematics(q, v)
+
+    def local(t: float) -> np.ndarray:
+        return dynamics.kinematics(pin.integrate(model, q, v * t + a * t**2 / 2), v).local
+
+    h = 1e-4
+    velocity = (local(h) - local(-h)) / (2 * h)
+    acceleration = (local(h) - 2 * local(0.0) + local(-h)) / h**2
+    rows = (contacts.jacobian @ a + contacts.drift).reshape(-1, 3)
+    for i, contact in enumerate(dynamics.contacts):
+        np.testing.assert_allclose(contacts.velocities[i], contact.basis @ velocity[i], atol=1e-7)
+        np.testing.assert_allclose(rows[i], contact.basis @ acceleration[i], atol=1e-5)
+        assert abs(contacts.gaps[i] - contact.basis[0] @ (contacts.local[i] - contact.origin)) <= 1e-15
+
+
+def test_carried_plane_needs_event_contacts():
+    with pytest.raises(PinstabError, match="left.*contacts='event'"):
+        simulate("pinch", dt=0.01, duration=0.1)
+
+
+def test_nan_state_names_the_contact():
+    scene = load_scene("incline")
+    q0 = scene.q0.copy()
+    q0[2] = math.nan
+    with pytest.raises(PinstabError, match="corner0"):
+        simulate(scene, dt=0.01, duration=0.1, contacts="event", q0=q0)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "match"),
+    [
+        ("restitution", 1.5, "restitution"),
+        ("radius", -0.1, "radius"),
+        ("mu", -0.2, "mu"),
+        ("frame_a", "nowhere", "nowhere"),
+    ],
+)
+def test_bad_contact_parameters_are_named(key, value, match):
     data = {
         "robot": {"urdf": "urdf/box.urdf", "free_flyer": True},
         "contacts": [{"name": "c", "kind": "plane-contact", "frame_a": "box", key: value}],
@@ -71,10 +149,27 @@ def test_bad_contact_parameters_are_named(key, value):
     from pinstab.robots import bundled_dir
     from pinstab.scene import scene_from_dict
 
-    with pytest.raises(SceneError, match=key):
+    with pytest.raises(SceneError, match=match):
         scene_from_dict(data, base_dir=bundled_dir())
 
 
 def test_bad_generator_parameters_are_named():
     with pytest.raises(SceneError, match="mu"):
         load_scene("incline", mu=-0.1)
+
+
+def test_pinch_slips_when_the_squeeze_falls_below_the_weight():
+    """The squeeze falls as F(t) = F0 - k t: the block sticks until 2 mu F = m g, at t* = (F0 - m g / (2 mu)) / k,
+    then falls with z'' = -(2 mu k / m)(t - t*), i.e. z = -(mu k / m)(t - t*)^3 / 3."""
+    mu, mass, start, rate = 0.5, 0.1, 1.5, 1.0
+    scene = load_scene("pinch", mu=mu, squeeze=start, mass=mass)
+    for force in scene.forces:
+        force.times = np.array([0.0, 10.0])
+        force.values = force.values[0] * np.array([1.0, 1.0 - 10.0 * rate / start])
+    run = simulate(scene, dt=0.01, duration=1.0, contacts="event")
+    slips = [e for e in run.info.contact_events if e["from"] == "sticking" and e["to"] == "sliding"]
+    t_slip = (start - mass * G / (2 * mu)) / rate
+    assert {e["contact"] for e in slips} == {"left", "right"}
+    assert max(abs(e["t"] - t_slip) for e in slips) <= 1e-9
+    exact = -(mu * rate / mass) * (1.0 - t_slip) ** 3 / 3
+    assert abs(run.q[-1, 2] - exact) <= 1e-8 * abs(exact)

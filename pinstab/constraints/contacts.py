@@ -20,7 +20,22 @@ from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
 from .loops import FrameClosure, plane_basis
 
-CONTACT_KEYS = {"name", "kind", "frame_a", "offset_a", "normal", "point", "mu", "facets", "restitution", "radius"}
+CONTACT_KEYS = {
+    "name",
+    "kind",
+    "frame_a",
+    "offset_a",
+    "rpy_a",
+    "frame_b",
+    "offset_b",
+    "rpy_b",
+    "normal",
+    "point",
+    "mu",
+    "facets",
+    "restitution",
+    "radius",
+}
 
 
 def contact_basis(normal: np.ndarray) -> np.ndarray:
@@ -39,6 +54,8 @@ class PointContact(FrameClosure):
         restitution: Newton's coefficient e [-] of its impacts (event-driven contacts).
         radius: for event-driven contacts, a sphere of this radius [m] centred at the point touches the
             plane (its gap is the centre's height minus the radius); 0: the point itself (a vertex).
+        plane_frame: for event-driven contacts, the operational frame of body b carrying the plane (None: the
+            plane is fixed in the world); ``anchor`` and ``normal`` are then in its axes.
 
     The multipliers are the contact force on body a [N] in the contact frame (normal, t1, t2).
     """
@@ -52,6 +69,7 @@ class PointContact(FrameClosure):
         friction: FrictionCone | None,
         restitution: float = 0.0,
         radius: float = 0.0,
+        plane_frame: int | None = None,
     ) -> None:
         super().__init__(name, "point", frame_a, None, pin.SE3(np.eye(3), np.asarray(anchor, dtype=float)))
         basis = contact_basis(normal)
@@ -63,6 +81,7 @@ class PointContact(FrameClosure):
         self.force_frame = "contact frame (normal, t1, t2), force on a"
         self.restitution = restitution
         self.radius = radius
+        self.plane_frame = plane_frame
         self.plane_point = self.world_placement_b.translation.copy()
 
     def slip(self, kin: Kinematics) -> float | None:
@@ -75,15 +94,23 @@ class PointContact(FrameClosure):
 def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str) -> PointContact:
     """Scene table: ``frame_a`` + ``offset_a`` [m], ``normal`` (default +z), ``point`` on the plane
     [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone, ``restitution``
-    e in [0, 1] of its impacts (event-driven contacts; default 0)."""
+    e in [0, 1] of its impacts (event-driven contacts; default 0), ``radius`` [m] of a sphere at the point.
+    With ``frame_b`` (+ ``offset_b``, ``rpy_b``) the plane is carried by that body: ``normal`` and ``point``
+    are in the frame's axes (event-driven contacts only)."""
     tables.check_keys(entry, CONTACT_KEYS, where)
     frame = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
+    plane_frame = None
+    if "frame_b" in entry:
+        plane_frame = tables.attached_frame(entry, "frame_b", "offset_b", "rpy_b", f"{name}/b", where)
+    elif "offset_b" in entry or "rpy_b" in entry:
+        raise SceneError(f"{where}: 'offset_b' and 'rpy_b' place the plane on body 'frame_b'; give 'frame_b' too")
     normal = tables.vector(entry.get("normal", [0.0, 0.0, 1.0]), 3, f"{where}.normal", None)
     if np.linalg.norm(normal) < 1e-12:
         raise SceneError(f"{where}.normal must be a non-zero vector")
     normal = normal / np.linalg.norm(normal)
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
-    start = tables.initial_placement(frame).translation
+    plane = pin.SE3.Identity() if plane_frame is None else tables.initial_placement(plane_frame)
+    start = plane.actInv(tables.initial_placement(frame).translation)
     anchor = start - normal * float(normal @ (start - point))
     friction = None
     if "mu" in entry:
@@ -99,7 +126,9 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     radius = tables.number(entry, "radius", where, 0.0)
     if radius < 0.0:
         raise SceneError(f"{where}.radius must be >= 0 [m], got {radius!r}")
-    return PointContact(name, frame, anchor, normal, friction, restitution, radius)
+    if radius and plane_frame is not None:
+        raise SceneError(f"{where}: 'radius' takes a plane fixed in the world; a plane on 'frame_b' touches a point")
+    return PointContact(name, frame, anchor, normal, friction, restitution, radius, plane_frame)
 
 
 CONSTRAINT_KINDS.register(

@@ -4,7 +4,9 @@ Between events the contacts keep their modes (:class:`~pinstab.solvers.contact_m
 every accepted step each contact's event function is evaluated: a separated contact's gap, a sticking
 contact's smallest force margin (normal force; ``mu f_n - |f_t|``, the best over the forces when they are
 not unique), a sliding contact's normal force and its slip velocity along the direction it had at the
-step's start. When one turns negative, its root is located by bisection on the step's dense output to
+step's start; forces count as below their bound only beyond the relative
+:data:`~pinstab.solvers.mode_choice.EVENT_SLACK` the mode choice then allows, so that a contact on its bound
+does not switch back and forth. When one turns negative, its root is located by bisection on the step's dense output to
 :data:`EVENT_TIME` [s], the step is taken again to end there, and at that instant a gap that closed with
 an approaching velocity is an impact (Newton's restitution e on the normal velocity; a frictionless
 impulse), and the touching contacts take the modes of the contact complementarity problem
@@ -19,12 +21,13 @@ import numpy as np
 
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple
 from ..solvers.contact_modes import ModeDynamics
-from ..solvers.mode_choice import TOUCH_SPEED, choose_modes, sticking_margin
+from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, TOUCH_SPEED, choose_modes, sticking_margin
 from .adaptive import AdaptiveLoop
 from .dense import Segment
 from .stepping import GRID_SLACK
 
 EVENT_TIME = 1e-12  # [s] events are located to this (bisection on the dense output)
+START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and of an impact
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -43,7 +46,7 @@ class EventLoop(AdaptiveLoop):
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
         """Choose the modes at the start and record them as events (cause ``start``)."""
-        self._switch(q, v, 0.0, "start", [Mode.SEPARATED.value] * len(self.dynamics.contacts), force_record=True)
+        self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(self.dynamics.contacts), force_record=True)
 
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
         grid, system = self.grid, self.system
@@ -89,15 +92,16 @@ class EventLoop(AdaptiveLoop):
         solution = dynamics.solve(q, v, t)
         contacts, forces = solution.contacts, solution.forces
         values = np.zeros(len(dynamics.contacts))
+        slack = EVENT_SLACK * (1.0 + float(np.max(np.abs(forces), initial=0.0)))  # as choose_modes has it
         margin = None
         for i, mode in enumerate(dynamics.modes):
             if mode is Mode.SEPARATED:
                 values[i] = contacts.gaps[i]
             elif mode is Mode.SLIDING:
-                values[i] = min(forces[i, 0], float(contacts.velocities[i, 1:] @ self._reference[i]))
+                values[i] = min(forces[i, 0] + slack, float(contacts.velocities[i, 1:] @ self._reference[i]))
             else:
                 if margin is None:
-                    margin = sticking_margin(dynamics, solution, dynamics.modes)
+                    margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
         return values
 
@@ -126,7 +130,7 @@ class EventLoop(AdaptiveLoop):
             for i, mode in enumerate(dynamics.modes)
             if mode is Mode.SEPARATED and contacts.gaps[i] <= 0.0 and contacts.velocities[i, 0] < -TOUCH_SPEED
         ]
-        cause = "gap closed" if closing else "mode no longer consistent"
+        cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
         for i in closing:
             v = self._impact(q, v, t, i)
             before[i] = CLOSING
@@ -135,6 +139,29 @@ class EventLoop(AdaptiveLoop):
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, self.system.acceleration(q, v, t, 0), t)
         return q, v
+
+    def _bound_reached(self, q: np.ndarray, v: np.ndarray, t: float) -> str:
+        """What reached its bound at an event at (q, v, t) in the modes before it, e.g. ``friction reached the
+        cone at left``: a sliding contact's normal force or slip velocity, else the sticking contact nearest
+        to (or beyond) its bounds, by its normal force or its friction."""
+        dynamics = self.dynamics
+        solution = dynamics.solve(q, v, t)
+        forces, velocities = solution.forces, solution.contacts.velocities
+        worst, cause = np.inf, "a contact force reached its bound"
+        for i, mode in enumerate(dynamics.modes):
+            name = dynamics.contacts[i].name
+            if mode is Mode.SLIDING:
+                if forces[i, 0] <= 0.0:
+                    return f"normal force reached zero at {name}"
+                if velocities[i, 1:] @ self._reference[i] <= 0.0:
+                    return f"slip velocity reached zero at {name}"
+            elif mode is Mode.STICKING:
+                friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
+                if min(forces[i, 0], friction) < worst:
+                    worst = min(forces[i, 0], friction)
+                    what = "normal force reached zero" if forces[i, 0] <= friction else "friction reached the cone"
+                    cause = f"{what} at {name}"
+        return cause
 
     def _impact(self, q: np.ndarray, v: np.ndarray, t: float, i: int) -> np.ndarray:
         """The velocity after contact i's impact at (q, v, t): a normal impulse giving the normal velocity
@@ -159,13 +186,13 @@ class EventLoop(AdaptiveLoop):
         self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False
     ):
         dynamics = self.dynamics
-        choice = choose_modes(dynamics, q, v, t)
+        choice = choose_modes(dynamics, q, v, t, CONSISTENCY if cause in (START, GAP_CLOSED) else EVENT_SLACK)
         contacts = choice.solution.contacts
         for i, direction in choice.directions.items():
             dynamics.directions[i] = direction
         for i, (old, new) in enumerate(zip(before, choice.modes, strict=True)):
             if new is Mode.STICKING and dynamics.modes[i] is not Mode.STICKING:
-                dynamics.contacts[i].anchor = contacts.positions[i].copy()
+                dynamics.contacts[i].anchor = contacts.local[i].copy()
             if force_record or old != new.value:
                 self.events.append(
                     ContactEvent(

@@ -1,20 +1,23 @@
 """The dynamics of contacts in given modes (:mod:`pinstab.contact.modes`): one linear solve per state.
 
-Contact i touches a fixed plane with normal n_i; its basis B_i has rows (n, t1, t2) (world axes), its
-point's Jacobian J_i (3 x nv, world-aligned) and drift ``c_i = dJ_i/dt v``. Unknowns: the accelerations
-a and the contact forces f_i = (f_n, f_t1, f_t2) on the body in B_i; ``M a + h = tau + sum J_i^T B_i^T f_i``
-and per contact, by mode:
+Contact i is a point p of body a (or a sphere of radius r on it) touching a plane carried by body b (or
+fixed in the world): normal n_i, basis B_i with rows (n, t1, t2), all turning with b. With w the velocity
+of p relative to b's material point at p, the contact's rows are ``B_i (a_a - a_b - 2 omega_b x w)``, the
+second derivative of p's position in b's frame (for a world plane: ``B_i (J_i a + c_i)``). Unknowns: the
+accelerations a and the contact forces f_i = (f_n, f_t1, f_t2) on body a in B_i (body b takes the
+opposite); ``M a + h = tau + sum J_i^T B_i^T f_i`` and per contact, by mode:
 
-* sticking: ``B_i (J_i a + c_i) = -Kd B_i J_i v - Kp e_i`` (3 rows; e_i: the gap, then the tangential
-  creep from the point where sticking began);
-* sliding: ``n.(J_i a + c_i) = -Kd n.J_i v - Kp gap`` and ``f_t + mu f_n d = 0`` (d: the unit slip
+* sticking: ``B_i (J_i a + c_i) = -Kd B_i w - Kp e_i`` (3 rows; e_i: the gap, then the tangential
+  creep from the point of b where sticking began);
+* sliding: ``n.(J_i a + c_i) = -Kd n.w - Kp gap`` and ``f_t + mu f_n d = 0`` (d: the unit slip
   velocity, or while it is below :data:`SLIP_FLOOR` the direction the slip started in);
 * separated: ``f_i = 0``.
 
 With ``a = M^-1 (tau - h + W^T f)`` the rows are a 3k x 3k system in f, solved in the least-squares sense
 with the smallest forces (redundant sticking contacts, e.g. a box on four corners, leave the forces
 non-unique and the accelerations unique). Whether the forces can also lie inside every cone is decided by
-:func:`cone_margin` (the best margin over the forces that give the same motion).
+:func:`~pinstab.solvers.mode_choice.sticking_margin` (the best margin over the forces that give the same
+motion).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..contact.modes import Mode
+from ..errors import ConstraintError
 from ..model import ConstrainedModel
 
 SLIP_FLOOR = 1e-9  # [m/s] below this slip speed the slip direction is the one it started in
@@ -35,13 +39,15 @@ RANK_TOLERANCE = 1e-12  # relative singular values of the force system below thi
 
 @dataclass
 class PlaneContactGeometry:
-    """A body point touching a fixed plane.
+    """A body point touching a plane fixed in the world or carried by a body.
 
     Attributes:
-        name: the contact's name. frame: the operational frame at the point. basis: rows (n, t1, t2) [-].
-        origin: a point of the plane [m]. mu: friction coefficient [-]. restitution: Newton's e [-].
-        radius: a sphere of this radius [m] centred at the frame touches the plane (0: the frame's origin).
-        anchor: where a sticking contact holds the point [m] (set when it starts sticking).
+        name: the contact's name. frame: the operational frame at the point. basis: rows (n, t1, t2) [-] in
+        the plane's axes. origin: a point of the plane [m] in the plane's axes. mu: friction coefficient [-].
+        restitution: Newton's e [-]. radius: a sphere of this radius [m] centred at the frame touches the
+        plane (0: the frame's origin). plane_frame: the operational frame carrying the plane (None: the
+        world's axes). anchor: where a sticking contact holds the point [m, plane's axes] (set when it
+        starts sticking).
     """
 
     name: str
@@ -51,15 +57,18 @@ class PlaneContactGeometry:
     mu: float
     restitution: float
     radius: float = 0.0
+    plane_frame: int | None = None
     anchor: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 class ContactKinematics(NamedTuple):
-    """The contacts at one state, in their bases: gaps (k,) [m], point positions (k, 3) [m, world],
-    velocities (k, 3) [m/s, basis], Jacobians (3k, nv) [basis] and drifts (3k,) [m/s^2, basis]."""
+    """The contacts at one state, in their bases: gaps (k,) [m], point positions (k, 3) [m, world] and in
+    their plane's axes (k, 3) [m], velocities relative to the plane (k, 3) [m/s, basis], Jacobians (3k, nv)
+    [basis] and drifts (3k,) [m/s^2, basis]."""
 
     gaps: np.ndarray
     positions: np.ndarray
+    local: np.ndarray
     velocities: np.ndarray
     jacobian: np.ndarray
     drift: np.ndarray
@@ -130,7 +139,7 @@ class ModeDynamics:
                 system[rows, rows] = np.eye(3)
                 continue
             velocity = contacts.velocities[i]
-            error = np.array([contacts.gaps[i], *(contact.basis[1:] @ (contacts.positions[i] - contact.anchor))])
+            error = np.array([contacts.gaps[i], *(contact.basis[1:] @ (contacts.local[i] - contact.anchor))])
             target = -reach[rows] - self.kd * velocity - self.kp * error
             if mode is Mode.STICKING:
                 system[rows] = delassus[rows]
@@ -149,11 +158,13 @@ class ModeDynamics:
         """:meth:`kinematics` from the pass :meth:`ConstrainedModel.dynamics_terms` just made."""
         kin = self.model.kin
         k = len(self.contacts)
-        gaps, positions, velocities = np.zeros(k), np.zeros((k, 3)), np.zeros((k, 3))
+        gaps, positions, local, velocities = np.zeros(k), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
         jacobian, drift = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k)
         for i, contact in enumerate(self.contacts):
             rows = slice(3 * i, 3 * i + 3)
-            normal, frame = contact.basis[0], contact.frame
+            plane = pin.SE3.Identity() if contact.plane_frame is None else kin.placement(contact.plane_frame)
+            basis = contact.basis @ plane.rotation.T  # rows (n, t1, t2) in world axes
+            normal, frame = basis[0], contact.frame
             frame_jacobian, frame_drift = kin.jacobian(frame), kin.drift_acceleration(frame)
             positions[i] = kin.placement(frame).translation - contact.radius * normal
             point_jacobian, point_drift = frame_jacobian[:3], frame_drift.linear
@@ -161,15 +172,41 @@ class ModeDynamics:
                 arm = contact.radius * pin.skew(normal)
                 point_jacobian = point_jacobian + arm @ frame_jacobian[3:]
                 point_drift = point_drift + arm @ frame_drift.angular
-            jacobian[rows] = contact.basis @ point_jacobian
+            if contact.plane_frame is not None:  # relative to the plane's material point at p
+                point_jacobian, point_drift = _relative(
+                    kin, contact.plane_frame, positions[i], v, point_jacobian, point_drift
+                )
+            local[i] = plane.actInv(positions[i])
+            jacobian[rows] = basis @ point_jacobian
             velocities[i] = jacobian[rows] @ v
-            drift[rows] = contact.basis @ point_drift
-            gaps[i] = normal @ (positions[i] - contact.origin)
-        return ContactKinematics(gaps, positions, velocities, jacobian, drift)
+            drift[rows] = basis @ point_drift
+            gaps[i] = contact.basis[0] @ (local[i] - contact.origin)
+            if not np.isfinite(gaps[i]):
+                raise ConstraintError(
+                    f"contact {contact.name}: its gap is {gaps[i]} (the state is not finite: q has "
+                    f"{np.count_nonzero(~np.isfinite(self.model.kin.q))} non-finite entries)"
+                )
+        return ContactKinematics(gaps, positions, local, velocities, jacobian, drift)
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         """The accelerations at (q, v, t) in the current modes [m/s^2, rad/s^2] (the integrators' call)."""
         return self.solve(q, v, t).acceleration
+
+
+def _relative(
+    kin, plane_frame: int, point: np.ndarray, v: np.ndarray, jacobian: np.ndarray, drift: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The Jacobian (3, nv) and drift [m/s^2] of a point's motion relative to the body carrying
+    ``plane_frame``, in world axes: its velocity w = v_p - v_b(p) and ``a_p - a_b(p) - 2 omega_b x w``
+    (the second derivative of its position in the body's frame, turned to world axes)."""
+    body_jacobian, body_drift = kin.jacobian(plane_frame), kin.drift_acceleration(plane_frame)
+    arm = point - kin.placement(plane_frame).translation
+    omega = body_jacobian[3:] @ v
+    carried = body_jacobian[:3] - pin.skew(arm) @ body_jacobian[3:]  # v_b(p) = v_o + omega x arm
+    relative = jacobian - carried
+    w = relative @ v
+    carried_drift = body_drift.linear + np.cross(body_drift.angular, arm) + np.cross(omega, np.cross(omega, arm))
+    return relative, drift - carried_drift - 2.0 * np.cross(omega, w)
 
 
 def _least_norm(system: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -202,6 +239,7 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     mu,
                     constraint.restitution,
                     constraint.radius,
+                    constraint.plane_frame,
                 )
             )
     return geometries

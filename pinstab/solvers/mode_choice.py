@@ -24,6 +24,7 @@ from ..errors import PainleveError
 from .contact_modes import SLIP_FLOOR, ModeDynamics, ModeSolution
 
 CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
+EVENT_SLACK = 1e-12  # relative: at an event located on a force bound, forces within this of it are on it
 DIRECTION_ITERATIONS = 50  # fixed-point iterations for the direction a slip starts in
 TOUCH_GAP = 1e-9  # [m] a contact this close touches
 TOUCH_SPEED = 1e-9  # [m/s] ... and moving apart or closing slower than this is at rest on the surface
@@ -48,9 +49,10 @@ def touching(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray) -> list[int]:
     ]
 
 
-def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float) -> Choice:
+def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, slack: float = CONSISTENCY) -> Choice:
     """The modes of the contacts at (q, v, t): those not touching are separated, the touching ones take the
-    consistent assignment (see the module).
+    consistent assignment (see the module); a force within ``slack`` (relative) of its bound is on it
+    (:data:`EVENT_SLACK` at an event located on that bound).
 
     Raises:
         PainleveError: no consistent assignment, or consistent ones with different accelerations.
@@ -67,7 +69,7 @@ def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float)
         modes = [Mode.SEPARATED] * count
         for i, mode in zip(active, assignment, strict=True):
             modes[i] = mode
-        choice = _consistent(dynamics, q, v, t, modes, active, kinematics)
+        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack)
         if choice is not None:
             consistent.append(choice)
     names = [dynamics.contacts[i].name for i in active]
@@ -102,7 +104,14 @@ def _differences(dynamics: ModeDynamics, first: Choice, other: Choice) -> list[t
 
 
 def _consistent(
-    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, modes: list[Mode], active: list[int], kinematics
+    dynamics: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    modes: list[Mode],
+    active: list[int],
+    kinematics,
+    slack: float,
 ) -> Choice | None:
     """The choice of ``modes`` when consistent at (q, v, t), else None."""
     directions = {}
@@ -124,12 +133,9 @@ def _consistent(
         if mode is Mode.SEPARATED:
             if accelerations[3 * i] < -CONSISTENCY * acceleration_scale:
                 return None
-        elif forces[i, 0] < -CONSISTENCY * scale:
+        elif forces[i, 0] < -slack * scale:
             return None
-    if (
-        any(modes[i] is Mode.STICKING for i in active)
-        and sticking_margin(dynamics, solution, modes) < -CONSISTENCY * scale
-    ):
+    if any(modes[i] is Mode.STICKING for i in active) and sticking_margin(dynamics, solution, modes) < -slack * scale:
         return None
     return Choice(modes, {i: d for i, d in directions.items() if d is not None}, solution)
 
@@ -144,8 +150,9 @@ def _solve_with_directions(
     starting: list[int],
 ) -> ModeSolution | None:
     """Solve ``modes``; the contacts in ``starting`` slide from rest in the direction of their own tangential
-    acceleration (a fixed point, from the direction opposite the force that sticking would need). None when
-    such a contact would not slip (its tangential acceleration vanishes or turns against its friction)."""
+    acceleration (a fixed point, from the direction opposite the force that sticking would need; where that
+    acceleration vanishes, at the cone's edge, the direction stays). None when the direction does not settle
+    (the tangential acceleration turns against the friction: the contact would not slip)."""
     saved = list(dynamics.directions)
     try:
         if starting:
@@ -167,7 +174,7 @@ def _solve_with_directions(
                 slip = tangential[3 * i + 1 : 3 * i + 3]
                 speed = math.hypot(*slip)
                 if speed <= CONSISTENCY * (1.0 + float(np.max(np.abs(solution.free)))):
-                    return None
+                    continue  # at the cone's edge the slip starts from zero acceleration: keep its direction
                 new = slip / speed
                 changed = max(changed, float(np.max(np.abs(new - dynamics.directions[i]))))
                 dynamics.directions[i] = new
