@@ -456,7 +456,7 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _grasp(args: argparse.Namespace) -> dict[str, Any]:
-    from .grasp_report import analyse_scene_grasps
+    from .grasp.report import analyse_scene_grasps
     from .scene import load_scene
 
     scene = load_scene(args.scene, **_parameters(args.param))

@@ -16,8 +16,8 @@ import pytest
 from conftest import ROBOTS
 from pinstab import assemble, load_scene, simulate
 from pinstab.errors import ContactInfeasibleError, GraspLostError, SceneError
-from pinstab.forces import grasp_control
-from pinstab.grasp_report import control_series
+from pinstab.grasp import control as grasp_control
+from pinstab.grasp.report import control_series
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
 

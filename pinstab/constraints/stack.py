@@ -7,9 +7,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..contact.cones import FrictionCone
 from ..errors import ConstraintError, repeated
 from ..kinematics import Kinematics
-from .base import Constraint, FrictionCone, RowKind, VelocityTerms
+from .base import Constraint, RowKind, VelocityTerms
 
 
 @dataclass

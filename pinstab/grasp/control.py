@@ -30,12 +30,12 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
+from ..contact.cones import MAX_CONE_FACETS, FrictionCone
 from ..errors import ContactInfeasibleError, SceneError
-from ..grasp import MAX_CONE_FACETS, FrictionCone
+from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
-from .grasp_hold import contact_rows, grasped_contacts, hand_columns
+from .hold import contact_rows, grasped_contacts, hand_columns
 
 CONTROL_KEYS = {
     "name",

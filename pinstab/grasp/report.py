@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import assemble
-from .errors import PinstabError, choices
-from .forces.grasp_hold import contact_rows
-from .grasp import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
-from .model import ConstrainedModel
-from .scene import Scene
+from ..assembly import assemble
+from ..errors import PinstabError, choices
+from ..model import ConstrainedModel
+from ..scene import Scene
+from .analysis import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
+from .hold import contact_rows
 
 FRAMES = {
     "grasp_map": "contact forces in C_i [N, N m] -> object wrench in O [N, N m]",
@@ -44,7 +44,7 @@ class ObjectGrasp:
 
     Attributes:
         object: its name. contacts: the grasp contact blocks on it, in scene order.
-        analysis: G, its rank, internal forces, force closure, quality (:class:`~pinstab.grasp.GraspAnalysis`).
+        analysis: G, its rank, internal forces, force closure, quality (:class:`~pinstab.grasp.analysis.GraspAnalysis`).
         contact_geometry: the contacts as the analysis sees them (position and axes in O).
         hand_jacobian: J_h (sum of rows x hand DOF). hand_columns: the hand's velocity indices.
         hand_rank: rank of J_h. manipulable: every object twist can be produced by the hand (range

@@ -23,10 +23,10 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
+from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
 
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "stiffness", "damping"}
 
