@@ -64,7 +64,7 @@ class ContactLimits(NamedTuple):
             f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
             "torsion": f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
             f"{self.torsion * wrench[2]:.4g} N m",
-        }[key]
+        }[key] + f" (margin {margins[key]:.4g} {'N m' if key == 'torsion' else 'N'})"
         raise GraspLostError(
             f"grasp lost at t = {t:.6g} s: contact {self.contact!r} ({self.finger_name} on {self.object_name}) {why}",
             self.contact,

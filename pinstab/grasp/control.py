@@ -168,7 +168,8 @@ class GraspControl(ForceElement):
 
     def _internal_force_qp(self, carrier: np.ndarray, wrench: np.ndarray, hand_rows: np.ndarray, demand: np.ndarray):
         """(contact forces lambda with ``carrier lambda = wrench`` minimizing |demand - hand_rows^T lambda|^2
-        (the joint torques), inside the cones with margin and within the effort limits; whether ProxQP solved it; its info)."""
+        (the joint torques), inside the cones with margin and within the effort limits; whether ProxQP solved it; its
+        info)."""
         count = carrier.shape[1]
         hessian = hand_rows @ hand_rows.T + 1e-9 * np.eye(count)
         gradient = -hand_rows @ demand

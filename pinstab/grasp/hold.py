@@ -9,7 +9,8 @@ fingers' forces on the object in the contact frames):
   least-squares forces when they are inside, else a ProxQP on the cones' inscribed pyramids (``facets``
   sides), else SciPy's SLSQP on the exact round cones (:mod:`pinstab.grasp.holding`). When no forces
   inside the cones carry the weight (a grasp without force closure, or the cap), the least-squares
-  forces are kept, and the run names every contact that leaves its cone;
+  forces are kept (with the cap: those closest to the squeeze within the cap), and the run names every
+  contact that leaves its cone;
 * the joint torques that make those forces an equilibrium of the hand:
   ``tau = g_hand - A_hand^T lambda* - K (theta - theta_0) - D theta_dot`` (gravity compensated, joint
   stiffness ``K`` [N m/rad] about the start and damping ``D`` [N m s/rad]).
@@ -103,7 +104,14 @@ class GraspHold(ForceElement):
         if solved and self._holds(solution):
             return solution
         exact = closest_holding(carrier, load, self.contacts, self.pressing, self.max_squeeze)
-        return exact.forces if exact.holds else free
+        if exact.holds or math.isinf(self.max_squeeze):
+            return exact.forces if exact.holds else free
+        # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
+        caps = len(self._normals)
+        capped, solved, _ = solve_qp(
+            np.eye(count), -self.pressing, carrier, load, self._cones[-caps:], self._lower[-caps:], self._upper[-caps:]
+        )
+        return capped if solved else free
 
     def _holds(self, forces: np.ndarray) -> bool:
         """Every force inside its contact's limits and every normal force within the cap."""
