@@ -5,7 +5,7 @@ and the report of a scene's grasps. They use the scene and the dynamics: they si
 from .analysis import GraspAnalysis, GraspContact, analyse_grasp, grasp_map
 from .control import GraspControl
 from .hold import GraspHold
-from .report import ControlSeries, ObjectGrasp, analyse_scene_grasps, control_series
+from .report import ControlSeries, ObjectGrasp, analyse_scene_grasps, control_series, tilt_at_first_slip
 
 __all__ = [
     "ControlSeries",
@@ -18,4 +18,5 @@ __all__ = [
     "analyse_scene_grasps",
     "control_series",
     "grasp_map",
+    "tilt_at_first_slip",
 ]
