@@ -16,7 +16,7 @@ import numpy as np
 
 import pinstab
 from pinstab.errors import GraspLostError
-from pinstab.grasp_report import ControlSeries, control_series
+from pinstab.grasp.report import ControlSeries, control_series
 from pinstab.model import ConstrainedModel
 from pinstab.viz.recording import write_recording
 

@@ -7,6 +7,7 @@ Public API::
     traj.summary()["max_position_drift"]
 """
 
+from . import grasp as grasp  # registers the force kinds grasp-hold and grasp-control (they sit above the scene)
 from .actuation import Actuation
 from .analysis import EXACT_REFERENCES, trajectory_error
 from .assembly import AssemblyReport, assemble

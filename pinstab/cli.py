@@ -172,6 +172,18 @@ def build_parser() -> argparse.ArgumentParser:
     grasp.add_argument(
         "--facets", type=int, default=8, help="sides of the pyramids that linearize the friction cones (default: 8)"
     )
+    grasp.add_argument(
+        "--squeeze",
+        type=float,
+        help="largest normal force per contact [N] for the largest load and tilt (default: the scene's grasp-hold)",
+    )
+    grasp.add_argument(
+        "--tilt-axis",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="world axis of the hand's tilt (default: the two horizontal world axes)",
+    )
 
     servo = sub.add_parser(
         "servo", help="realize a scene's prescribed constraints: controls, constraint error, reactions"
@@ -456,11 +468,11 @@ def _check(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _grasp(args: argparse.Namespace) -> dict[str, Any]:
-    from .grasp_report import analyse_scene_grasps
+    from .grasp.report import analyse_scene_grasps
     from .scene import load_scene
 
     scene = load_scene(args.scene, **_parameters(args.param))
-    grasps = analyse_scene_grasps(scene, facets=args.facets)
+    grasps = analyse_scene_grasps(scene, facets=args.facets, squeeze=args.squeeze, tilt_axis=args.tilt_axis)
     return {"scene": scene.name, "objects": {name: grasp.to_json() for name, grasp in grasps.items()}}
 
 
@@ -483,8 +495,30 @@ def _object_grasp_text(name: str, figures: dict[str, Any]) -> str:
         f"  force closure: {closure}",
         f"  internal forces: dimension {figures['internal_force_dimension']}",
         f"  quality (Ferrari-Canny, length {figures['quality_length_m']:.4g} m): {figures['quality']:.4g} N",
+        *_capacity_text(figures),
     ]
     return "\n".join(lines)
+
+
+def _capacity_text(figures: dict[str, Any]) -> list[str]:
+    """The squeeze the weight needs, the largest load and the tilts, as lines (JSON nulls: none holds)."""
+    need = figures["squeeze_needed_n"]
+    lines = [
+        f"  weight {figures['load_n']:.4g} N: "
+        + ("no contact forces inside the cones hold it" if need is None else f"squeeze needed {need:.4g} N per contact")
+    ]
+    if figures["squeeze_n"] is not None:
+        largest = figures["largest_load_n"]
+        tilts = ", ".join(
+            f"{axis} {'any' if tilt is None else f'{tilt:.4g}'}"
+            for axis, tilt in figures["first_slip_tilt_deg"].items()
+        )
+        lines.append(
+            f"  at squeeze {figures['squeeze_n']:.4g} N: largest load "
+            + ("unbounded" if largest is None else f"{largest:.4g} N")
+            + f"; first slip at tilt [deg] {tilts}"
+        )
+    return lines
 
 
 def _servo(args: argparse.Namespace) -> dict[str, Any]:

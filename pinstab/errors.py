@@ -51,12 +51,31 @@ class GraspLostError(ContactInfeasibleError):
     """A sticking fingertip contact would have to pull on the object or slide over it.
 
     Attributes:
-        contacts: the contact named (one). time: when [s]. margin: the violated margin (negative) [N or N m].
+        contacts: the contacts named, worst first. time: when [s]. margin: the worst violated margin (negative)
+            [N or N m]. margins: each contact's violated margin.
     """
 
     def __init__(self, message: str, contact: str, time: float, margin: float) -> None:
         super().__init__(message, [contact], time)
         self.margin = margin
+        self.margins = {contact: margin}
+
+    @classmethod
+    def joined(cls, errors: list[GraspLostError]) -> GraspLostError:
+        """One error naming every contact of ``errors`` (at one time), worst (most negative margin) first;
+        ``margins`` maps each contact to its violated margin [N or N m]."""
+        ordered = sorted(errors, key=lambda error: error.margin)
+        prefix = f"grasp lost at t = {ordered[0].time:.6g} s: "
+        reasons = "; ".join(str(error).removeprefix(prefix) for error in ordered)
+        joined = cls(
+            f"{prefix}{len(ordered)} contacts leave their cones: {reasons}",
+            ordered[0].contacts[0],
+            ordered[0].time,
+            ordered[0].margin,
+        )
+        joined.contacts = [error.contacts[0] for error in ordered]
+        joined.margins = {error.contacts[0]: error.margin for error in ordered}
+        return joined
 
 
 class PainleveError(ContactInfeasibleError):

@@ -18,10 +18,10 @@ import pinocchio as pin
 from . import robots
 from .actuation import Actuation, read_actuation
 from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
+from .contact.objects import SceneObject, add_objects, place_objects
 from .errors import SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
-from .objects import SceneObject, add_objects, place_objects
 from .registry import Registry
 from .robot_copies import compose_copies, parse_copies
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector

@@ -87,7 +87,7 @@ class SceneTables:
         model: the scene's Pinocchio model (frames are added to it).
         q0: the scene's declared initial configuration (a kind may move joints in it, in place: a
             fingertip contact closes its gap).
-        objects: the scene's rigid objects by name (:class:`~pinstab.objects.SceneObject`).
+        objects: the scene's rigid objects by name (:class:`~pinstab.contact.objects.SceneObject`).
 
     Attributes:
         claimed_joints: joints a kind has positioned in ``q0``, with the item that did (a later item

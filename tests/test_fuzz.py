@@ -43,10 +43,10 @@ from pinstab import AssemblyError, HolonomicConstraint, PfaffianConstraint, asse
 from pinstab.actuation import ACTUATION_KEYS
 from pinstab.cli import main
 from pinstab.constraints import CONSTRAINT_KINDS
+from pinstab.contact.objects import OBJECT_KEYS
 from pinstab.errors import ConstraintError, PinstabError, SceneError
 from pinstab.forces import FORCE_KINDS
 from pinstab.model import ConstrainedModel
-from pinstab.objects import OBJECT_KEYS
 from pinstab.scene import INITIAL_KEYS, ROBOT_KEYS, TOP_KEYS, Scene, load_scene, scene_from_dict
 from pinstab.units import UNITS
 

@@ -16,8 +16,8 @@ import pytest
 from conftest import ROBOTS
 from pinstab import assemble, load_scene, simulate
 from pinstab.errors import ContactInfeasibleError, GraspLostError, SceneError
-from pinstab.forces import grasp_control
-from pinstab.grasp_report import control_series
+from pinstab.grasp import holding
+from pinstab.grasp.report import control_series
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
 
@@ -95,7 +95,7 @@ def test_the_internal_force_qp_converges_with_headroom(lift_run, monkeypatch):
     varying with the CPU's vector instructions and from run to run, and one failed on the CI machine."""
     scene, trajectory = lift_run
     RecordingQP.solves.clear()
-    monkeypatch.setattr(grasp_control.proxsuite.proxqp, "dense", SimpleNamespace(QP=RecordingQP))
+    monkeypatch.setattr(holding.proxsuite.proxqp, "dense", SimpleNamespace(QP=RecordingQP))
     control_series(scene, trajectory, scene.forces[0])
     statuses = {status for status, _ in RecordingQP.solves}
     assert len(RecordingQP.solves) == len(trajectory.t) and statuses == {"PROXQP_SOLVED"}
@@ -116,14 +116,19 @@ def test_path_rates_are_the_derivatives_of_the_pose():
     assert path.pose(0.0).isApprox(path.start_pose) and path.pose(5.0).isApprox(path.pose(1.75))
 
 
-def test_without_internal_forces_the_first_contact_to_leave_its_cone_is_named(capsys, tmp_path):
+def test_without_internal_forces_every_contact_leaving_its_cone_is_named(capsys, tmp_path):
     """The QP switched off (smallest forces that move the ball, no squeeze): the ball's weight, carried
-    from the side, needs more friction than the contacts have: GraspLostError naming the contact and the
-    time, the CLI exits 2 with it."""
+    from the side, needs more friction than the contacts have: GraspLostError naming every contact that
+    leaves its cone (all four: three slide, the thumb pulls), worst margin first, and the time; the CLI
+    exits 2 with it."""
     scene = lift_scene(internal_forces=False)
-    with pytest.raises(GraspLostError, match=r"grasp lost at t = 0 s: contact 'index' .* would slide") as info:
+    with pytest.raises(
+        GraspLostError, match=r"grasp lost at t = 0 s: 4 contacts leave their cones: .* would slide"
+    ) as info:
         simulate(scene, duration=2.0, progress=False)
-    assert info.value.contacts == ["index"] and info.value.time == 0.0
+    assert sorted(info.value.contacts) == ["index", "middle", "ring", "thumb"] and info.value.time == 0.0
+    margins = [info.value.margins[name] for name in info.value.contacts]
+    assert margins == sorted(margins) and margins[0] == info.value.margin < 0
     from pinstab.cli import main
 
     path = tmp_path / "no-qp.toml"
@@ -134,7 +139,7 @@ def test_without_internal_forces_the_first_contact_to_leave_its_cone_is_named(ca
     )
     path.write_text(text)
     assert main(["run", str(path), "--duration", "0.1", "--quiet"]) == 2
-    assert "grasp lost at t = 0 s: contact 'index'" in capsys.readouterr().err
+    assert "grasp lost at t = 0 s: 4 contacts leave their cones: contact 'ring'" in capsys.readouterr().err
 
 
 def test_a_margin_beyond_the_torque_limits_is_refused_naming_the_contacts():

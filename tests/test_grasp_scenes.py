@@ -13,7 +13,7 @@ from conftest import ROBOTS
 from pinstab import assemble, load_scene, simulate
 from pinstab.cli import main
 from pinstab.errors import GraspLostError, SceneError
-from pinstab.grasp_report import analyse_scene_grasps
+from pinstab.grasp.report import analyse_scene_grasps
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
 

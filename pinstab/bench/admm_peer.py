@@ -39,7 +39,7 @@ from ..constraints import PointContact
 from ..constraints.grasp_contacts import FingertipContact
 from ..errors import PinstabError
 from ..forces import ExternalForce
-from ..forces.grasp_hold import GraspHold
+from ..grasp.hold import GraspHold
 from ..kinematics import symmetric_mass_matrix
 from ..scene import Scene
 

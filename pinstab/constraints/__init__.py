@@ -1,8 +1,9 @@
 """Constraint families: loop closures between frames, plane contacts, user-defined holonomic and
 Pfaffian rows. Every module here registers its scene-file kinds in :data:`CONSTRAINT_KINDS`."""
 
+from ..contact.cones import FrictionCone
 from ..registry import load_extensions
-from .base import CONSTRAINT_KINDS, Constraint, FrictionCone, RowKind, VelocityTerms
+from .base import CONSTRAINT_KINDS, Constraint, RowKind, VelocityTerms
 from .contacts import PointContact
 from .custom import HolonomicConstraint, PfaffianConstraint
 from .grasp_contacts import FingertipContact

@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..grasp import FrictionCone
+from ..contact.cones import FrictionCone
 from ..kinematics import Kinematics
 from ..registry import Registry
 

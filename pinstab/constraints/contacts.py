@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from ..contact.cones import FrictionCone
 from ..errors import ConstraintError, SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .base import CONSTRAINT_KINDS, FrictionCone, RowKind
+from .base import CONSTRAINT_KINDS, RowKind
 from .loops import FrameClosure, plane_basis
 
 CONTACT_KEYS = {

@@ -20,15 +20,14 @@ friction cone (|f_t| <= mu f_n, soft finger also |m_z| <= torsion f_n), else
 
 from __future__ import annotations
 
-import math
 from typing import Any, NamedTuple
 
 import coal
 import numpy as np
 import pinocchio as pin
 
-from ..errors import GraspLostError, SceneError, choices
-from ..grasp import WRENCH_BASES
+from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
+from ..errors import SceneError, choices
 from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
@@ -36,10 +35,8 @@ from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .loops import FrameClosure, plane_basis
 
 GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
-FRICTION_MODELS = ("point-friction", "soft-finger")
 GAP_TOLERANCE = 1e-10  # [m] a fingertip this close to the surface touches it
 GAP_ITERATIONS = 60
-MARGIN_SLACK = 1e-9  # relative: a margin above -slack (1 + |force|) holds (rounding in the solve)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -47,61 +44,11 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-class ContactLimits(NamedTuple):
-    """What a fingertip contact of a contact ``model`` can carry: a normal force that pushes, a tangential
-    force inside the friction cone (mu [-]) and, for a soft finger, a moment about the normal within
-    ``torsion`` [m] times the normal force. ``contact``, ``finger_name`` and ``object_name`` name it in
-    messages."""
-
-    contact: str
-    model: str
-    mu: float
-    torsion: float
-    finger_name: str
-    object_name: str
-
-    def margins(self, wrench: np.ndarray) -> dict[str, float]:
-        """How far ``wrench`` (fx, fy, fz, mx, my, mz of the finger on the object in C [N, N m]) is inside:
-        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` mu f_n - |f_t| [N] and, for a soft finger,
-        ``torsion`` torsion f_n - |m_z| [N m]. A rigid contact carries anything (no margins)."""
-        if self.model == "rigid":
-            return {}
-        margins = {"normal": float(wrench[2])}
-        if self.model in FRICTION_MODELS:
-            margins["friction"] = float(self.mu * wrench[2] - math.hypot(wrench[0], wrench[1]))
-        if self.model == "soft-finger":
-            margins["torsion"] = float(self.torsion * wrench[2] - abs(wrench[5]))
-        return margins
-
-    def check(self, wrench: np.ndarray, t: float) -> None:
-        """Raise :class:`GraspLostError` at time ``t`` [s] when the contact would have to pull, slide or
-        spin to carry ``wrench`` (in C)."""
-        margins = self.margins(wrench)
-        slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(wrench), initial=0.0)))
-        violated = [key for key in ("normal", "friction", "torsion") if margins.get(key, 0.0) < slack]
-        if not violated:
-            return
-        key = violated[0]
-        why = {
-            "normal": f"would have to pull: normal force {wrench[2]:.4g} N < 0",
-            "friction": f"would slide: tangential force {math.hypot(wrench[0], wrench[1]):.4g} N > mu f_n = "
-            f"{self.mu * wrench[2]:.4g} N (mu = {self.mu:g})",
-            "torsion": f"would spin: moment about the normal {abs(wrench[5]):.4g} N m > torsion f_n = "
-            f"{self.torsion * wrench[2]:.4g} N m",
-        }[key]
-        raise GraspLostError(
-            f"grasp lost at t = {t:.6g} s: contact {self.contact!r} ({self.finger_name} on {self.object_name}) {why}",
-            self.contact,
-            t,
-            margins[key],
-        )
-
-
 class FingertipContact(Constraint):
     """A sticking contact of a fingertip on an object, the rows of its contact model.
 
     Args:
-        name: unique name. model: a key of :data:`~pinstab.grasp.WRENCH_BASES`.
+        name: unique name. model: a key of :data:`~pinstab.contact.models.WRENCH_BASES`.
         object_frame: operational frame on the object at C. finger_frame: operational frame on the
             fingertip, coinciding with C at the start. object_name, finger_name: for messages.
         mu: friction coefficient [-]. torsion: the soft finger's torsional coefficient [m].
@@ -185,7 +132,7 @@ class FingertipContact(Constraint):
 
     def margins(self, force: np.ndarray) -> dict[str, float]:
         """How far the contact force (this block's multipliers) is inside what the contact can carry
-        (:meth:`ContactLimits.margins`); a rigid contact carries anything (no margins)."""
+        (:meth:`~pinstab.contact.models.ContactLimits.margins`); a rigid contact carries anything (no margins)."""
         return self.limits.margins(self.wrench(force))
 
     def check_force(self, force: np.ndarray, t: float) -> None:
@@ -207,7 +154,7 @@ class Fingertip(NamedTuple):
 
     Attributes:
         frame: the frame at the sphere's centre. name: that frame's name in the table. radius: [m].
-        item: the scene object (a :class:`~pinstab.objects.SceneObject`, with contact geometries).
+        item: the scene object (a :class:`~pinstab.contact.objects.SceneObject`, with contact geometries).
     """
 
     frame: int

@@ -38,11 +38,12 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ..contact.models import ContactLimits
 from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .grasp_contacts import ContactLimits, close_gap, cross, read_coefficients, read_fingertip
+from .grasp_contacts import close_gap, cross, read_coefficients, read_fingertip
 from .loops import plane_basis
 
 ROLLING_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}

@@ -7,9 +7,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ConstraintError, repeated
+from ..contact.cones import FrictionCone
+from ..errors import ConstraintError, GraspLostError, repeated
 from ..kinematics import Kinematics
-from .base import Constraint, FrictionCone, RowKind, VelocityTerms
+from .base import Constraint, RowKind, VelocityTerms
 
 
 @dataclass
@@ -130,10 +131,16 @@ class ConstraintSet:
         return np.concatenate([np.arange(part.start, part.stop) for part in parts])
 
     def check_forces(self, multipliers: np.ndarray, t: float) -> None:
-        """Every block with force limits checks its multipliers at time ``t`` [s] (raises when one is
-        outside)."""
+        """Every block with force limits checks its multipliers at time ``t`` [s]; raises when one is outside
+        (a :class:`GraspLostError` names every contact that is, worst first)."""
+        lost = []
         for constraint, rows in self.force_limited:
-            constraint.check_force(multipliers[rows], t)
+            try:
+                constraint.check_force(multipliers[rows], t)
+            except GraspLostError as error:
+                lost.append(error)
+        if lost:
+            raise lost[0] if len(lost) == 1 else GraspLostError.joined(lost)
 
     @property
     def holonomic(self) -> list[Constraint]:

@@ -1,4 +1,5 @@
-"""Force elements, one kind per module, each registered in :data:`FORCE_KINDS`."""
+"""Force elements, one kind per module, each registered in :data:`FORCE_KINDS` (the grasp controllers
+``grasp-hold`` and ``grasp-control`` live in :mod:`pinstab.grasp`, which registers them on import)."""
 
 from ..registry import load_extensions
 from .base import FORCE_KINDS, ForceElement

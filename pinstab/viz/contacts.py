@@ -22,7 +22,8 @@ import pinocchio as pin
 
 from ..constraints import PointContact
 from ..constraints.contacts import contact_basis
-from ..constraints.grasp_contacts import FRICTION_MODELS, FingertipContact
+from ..constraints.grasp_contacts import FingertipContact
+from ..contact.models import FRICTION_MODELS
 from ..kinematics import Kinematics
 from ..model import ConstrainedModel
 from ..trajectory import Trajectory, sample_weights

@@ -10,17 +10,19 @@ when ``J_h theta_dot = G^T x_dot`` (x_dot the object's body twist, linear first)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .assembly import assemble
-from .errors import PinstabError, choices
-from .forces.grasp_hold import contact_rows
-from .grasp import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
-from .model import ConstrainedModel
-from .scene import Scene
+from ..assembly import assemble
+from ..errors import PinstabError, choices
+from ..model import ConstrainedModel
+from ..scene import Scene
+from .analysis import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
+from .capacity import Capacity, Weight, grasp_capacity, horizontal_axes
+from .hold import contact_rows
 
 FRAMES = {
     "grasp_map": "contact forces in C_i [N, N m] -> object wrench in O [N, N m]",
@@ -28,6 +30,10 @@ FRAMES = {
     "internal_forces": "contact forces in C_i [N, N m] (unit columns) that load the object without moving it",
     "quality": "Ferrari-Canny epsilon [N]: moments divided by the length, unit total normal force",
     "object_twist_singular_values": "object twist (O, linear first) [m/s, rad/s] per unit joint rate",
+    "load_n": "the object's weight m |g| [N]",
+    "squeeze_needed_n": "the least largest contact normal force that holds the weight, exact round cones [N]",
+    "largest_load_n": "the largest weight (along the scene's gravity) the squeeze holds [N]",
+    "first_slip_tilt_deg": "per world axis and sense: the hand's tilt at which the first contact leaves its cone [deg]",
 }
 
 
@@ -44,13 +50,15 @@ class ObjectGrasp:
 
     Attributes:
         object: its name. contacts: the grasp contact blocks on it, in scene order.
-        analysis: G, its rank, internal forces, force closure, quality (:class:`~pinstab.grasp.GraspAnalysis`).
+        analysis: G, its rank, internal forces, force closure, quality (:class:`~pinstab.grasp.analysis.GraspAnalysis`).
         contact_geometry: the contacts as the analysis sees them (position and axes in O).
         hand_jacobian: J_h (sum of rows x hand DOF). hand_columns: the hand's velocity indices.
         hand_rank: rank of J_h. manipulable: every object twist can be produced by the hand (range
             G^T within range J_h). twist_singular_values: singular values of (G^T)^+ J_h.
         row_mismatch: the largest difference between G^T and the contact rows' object columns (a
             consistency check of the two constructions; round-off at the start).
+        weight: the object's weight as the grasp sees it. capacity: the squeeze it needs, the largest load
+            and tilts (:class:`~pinstab.grasp.capacity.Capacity`).
     """
 
     object: str
@@ -63,6 +71,8 @@ class ObjectGrasp:
     manipulable: bool
     twist_singular_values: np.ndarray
     row_mismatch: float
+    weight: Weight
+    capacity: Capacity
 
     def to_json(self) -> dict[str, Any]:
         """The figures ``pinstab grasp --json`` prints for this object."""
@@ -91,14 +101,43 @@ class ObjectGrasp:
             "internal_force_dimension": int(analysis.internal_forces.shape[1]),
             "quality": analysis.quality,
             "quality_length_m": analysis.length,
+            **_capacity_json(self.capacity),
             "grasp_map": analysis.grasp_map.tolist(),
             "frames": FRAMES,
         }
 
 
-def analyse_scene_grasps(scene: Scene, facets: int = 8) -> dict[str, ObjectGrasp]:
+def _capacity_json(capacity: Capacity) -> dict[str, Any]:
+    def finite(value: float | None) -> float | None:
+        return None if value is None or math.isinf(value) else value
+
+    return {
+        "load_n": capacity.load,
+        "squeeze_needed_n": finite(capacity.squeeze_needed),
+        "squeeze_n": capacity.squeeze,
+        "largest_load_n": finite(capacity.largest_load),
+        "first_slip_tilt_deg": {axis: finite(tilt) for axis, tilt in capacity.tilts.items()},
+    }
+
+
+def hold_squeeze(scene: Scene, name: str) -> float | None:
+    """The squeeze [N] of the scene's ``grasp-hold`` on object ``name`` (its cap ``max_squeeze`` when
+    finite), or None when no hold presses it."""
+    for element in scene.forces:
+        if getattr(element, "kind", None) == "grasp-hold" and element.object_name == name:
+            cap = element.max_squeeze
+            return cap if math.isfinite(cap) else (element.squeeze or None)
+    return None
+
+
+def analyse_scene_grasps(
+    scene: Scene, facets: int = 8, squeeze: float | None = None, tilt_axis: np.ndarray | None = None
+) -> dict[str, ObjectGrasp]:
     """Every grasped object's :class:`ObjectGrasp` at the scene's assembled start, cones linearized with
-    ``facets`` sides.
+    ``facets`` sides for force closure and quality; the squeeze its weight needs on the exact cones, and
+    for ``squeeze`` [N] (default: the scene's ``grasp-hold`` on the object, see :func:`hold_squeeze`) the
+    largest load and the first slipping tilt about ``tilt_axis`` (world; default: the two horizontal
+    world axes), both senses.
 
     Raises:
         PinstabError: the scene has no grasp contacts (naming its objects); AssemblyError from assembly.
@@ -112,13 +151,56 @@ def analyse_scene_grasps(scene: Scene, facets: int = 8) -> dict[str, ObjectGrasp
             f"scene {scene.name} has no grasp contacts (kind 'grasp-contact'); objects: "
             f"{choices(o.name for o in scene.objects)}"
         )
+    if squeeze is not None and not (math.isfinite(squeeze) and squeeze > 0):
+        raise PinstabError(f"squeeze must be a positive number of newtons, got {squeeze!r}")
+    gravity = np.array(scene.model.gravity.linear)
+    if tilt_axis is None:
+        axes = horizontal_axes(gravity) if np.linalg.norm(gravity) > 0 else {}
+    else:
+        axis = np.asarray(tilt_axis, float)
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+            raise PinstabError(f"the tilt axis must be three finite numbers, not all zero, got {tilt_axis!r}")
+        axes = {"axis": axis / np.linalg.norm(axis)}
     model = ConstrainedModel(scene)
     start = assemble(model, scene.q0, scene.v0)
     model.kin.update_jacobians(start.q)
-    return {name: _object_grasp(model, name, contacts, facets) for name, contacts in grasped.items()}
+    return {
+        name: _object_grasp(
+            model, name, contacts, facets, hold_squeeze(scene, name) if squeeze is None else squeeze, axes
+        )
+        for name, contacts in grasped.items()
+    }
 
 
-def _object_grasp(model: ConstrainedModel, name: str, contacts: list[Any], facets: int) -> ObjectGrasp:
+def tilt_at_first_slip(
+    scene: Scene, axis: np.ndarray, squeeze: float | None = None, object_name: str | None = None
+) -> float:
+    """The tilt [deg] of the hand about the world ``axis`` (right-handed; the hand feels gravity turned by
+    minus that angle) at which the first contact of the grasp on ``object_name`` (default: the scene's
+    only grasped object) leaves its cone, when every contact presses with at most ``squeeze`` [N] (default:
+    the scene's ``grasp-hold`` on the object, :func:`hold_squeeze`): the smallest tilt in (0, 180] deg at
+    which no contact forces inside the round cones with normal forces <= squeeze hold the object's weight,
+    computed at the scene's assembled start to 1e-6 deg. 0 when the grasp does not hold untilted, inf when
+    it holds at every tilt. A ``grasp-hold`` with ``max_squeeze`` equal to that squeeze lets go there.
+
+    Raises:
+        PinstabError: no grasp contacts, an unknown object, no squeeze given or found, a bad axis.
+    """
+    grasps = analyse_scene_grasps(scene, squeeze=squeeze, tilt_axis=axis)
+    if object_name is None and len(grasps) > 1:
+        raise PinstabError(f"scene {scene.name} grasps several objects; name one of {choices(grasps)}")
+    name = object_name if object_name is not None else next(iter(grasps))
+    if name not in grasps:
+        raise PinstabError(f"scene {scene.name} has no grasp on {name!r}; grasped objects: {choices(grasps)}")
+    capacity = grasps[name].capacity
+    if capacity.squeeze is None:
+        raise PinstabError(f"scene {scene.name} has no grasp-hold on {name!r}: give the squeeze [N]")
+    return capacity.tilts["+axis"]
+
+
+def _object_grasp(
+    model: ConstrainedModel, name: str, contacts: list[Any], facets: int, squeeze: float | None, axes: dict
+) -> ObjectGrasp:
     kin = model.kin
     item = next(o for o in model.scene.objects if o.name == name)
     joint = model.model.joints[item.joint]
@@ -139,6 +221,8 @@ def _object_grasp(model: ConstrainedModel, name: str, contacts: list[Any], facet
     transpose = analysis.grasp_map.T
     twist = np.linalg.pinv(transpose) @ hand
     hand_rank = _rank(hand)
+    inertia = model.model.inertias[item.joint]
+    weight = Weight(inertia.mass, np.array(inertia.lever), np.array(model.model.gravity.linear), body.rotation)
     return ObjectGrasp(
         object=name,
         contacts=contacts,
@@ -150,6 +234,8 @@ def _object_grasp(model: ConstrainedModel, name: str, contacts: list[Any], facet
         manipulable=_rank(np.hstack([hand, transpose])) == hand_rank,
         twist_singular_values=np.linalg.svd(twist, compute_uv=False) if twist.size else np.zeros(0),
         row_mismatch=float(np.max(np.abs(rows[:, object_columns] - transpose))),
+        weight=weight,
+        capacity=grasp_capacity(analysis.grasp_map, geometry, weight, squeeze, axes),
     )
 
 

@@ -22,20 +22,19 @@ with :class:`~pinstab.errors.GraspLostError` naming it — which is why the QP i
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
-import proxsuite
 
+from ..contact.cones import MAX_CONE_FACETS
 from ..errors import ContactInfeasibleError, SceneError
-from ..grasp import MAX_CONE_FACETS, FrictionCone
+from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
-from .grasp_hold import contact_rows, grasped_contacts, hand_columns
+from .hold import contact_rows, grasped_contacts, hand_columns
+from .holding import cone_columns, pyramid_rows, solve_qp
 
 CONTROL_KEYS = {
     "name",
@@ -55,8 +54,6 @@ CONTROL_KEYS = {
     "facets",
     "internal_forces",
 }
-_SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
-QP_ITERATIONS = 200
 
 
 @dataclass(frozen=True)
@@ -137,24 +134,9 @@ class GraspControl(ForceElement):
     def _cone_constraints(self, facets: int) -> tuple[np.ndarray, np.ndarray]:
         """(C, bounds) with C lambda >= bounds: each friction contact's force inside its inscribed pyramid
         with ``margin`` [N] to spare (distances to the facets), every pushing contact's normal force >=
-        margin; a rigid contact carries anything."""
-        total = sum(c.rows for c in self.contacts)
-        rows, offset = [], 0
-        for contact in self.contacts:
-            column = {int(component): offset + k for k, component in enumerate(contact.components)}
-            offset += contact.rows
-            if contact.model == "rigid":
-                continue
-            if 0 in column:  # tangential rows: a friction cone, each facet's row of unit length
-                cone = FrictionCone(contact.mu, facets)
-                for facet in -cone.facet_matrix / math.sqrt(1.0 + cone.inscribed_mu**2):
-                    row = np.zeros(total)
-                    row[[column[2], column[0], column[1]]] = facet
-                    rows.append(row)
-            normal = np.zeros(total)
-            normal[column[2]] = 1.0
-            rows.append(normal)
-        matrix = np.array(rows).reshape(-1, total)
+        margin (a soft finger's torsion within its bounds); a rigid contact carries anything."""
+        columns, count = cone_columns(self.contacts)
+        matrix = pyramid_rows(columns, count, facets)
         return matrix, np.full(len(matrix), self.margin)
 
     def desired_acceleration(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
@@ -186,7 +168,8 @@ class GraspControl(ForceElement):
 
     def _internal_force_qp(self, carrier: np.ndarray, wrench: np.ndarray, hand_rows: np.ndarray, demand: np.ndarray):
         """(contact forces lambda with ``carrier lambda = wrench`` minimizing |demand - hand_rows^T lambda|^2
-        (the joint torques), inside the cones with margin and within the effort limits; ProxQP's info)."""
+        (the joint torques), inside the cones with margin and within the effort limits; whether ProxQP solved it; its
+        info)."""
         count = carrier.shape[1]
         hessian = hand_rows @ hand_rows.T + 1e-9 * np.eye(count)
         gradient = -hand_rows @ demand
@@ -195,17 +178,7 @@ class GraspControl(ForceElement):
         inequality = np.vstack([self.cone_rows, torque_rows])
         lower = np.concatenate([self.cone_bounds, -self.effort_limit[finite] - demand[finite]])
         upper = np.concatenate([np.full(len(self.cone_bounds), 1e30), self.effort_limit[finite] - demand[finite]])
-        qp = proxsuite.proxqp.dense.QP(count, carrier.shape[0], inequality.shape[0])
-        qp.settings.eps_abs = 1e-10
-        qp.settings.verbose = False
-        # a small QP converges in tens of iterations; an infeasible one would otherwise run for minutes
-        qp.settings.max_iter, qp.settings.max_iter_in = QP_ITERATIONS, QP_ITERATIONS
-        # no Ruiz equilibration: the problem is already in N and m (Hessian condition ~15 on allegro-lift), and
-        # equilibrating it made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
-        # instructions and from run to run), so that a QP solved here could fail on another machine
-        qp.init(hessian, gradient, carrier, wrench, inequality, lower, upper, compute_preconditioner=False)
-        qp.solve()
-        return np.array(qp.results.x), qp.results.info
+        return solve_qp(hessian, gradient, carrier, wrench, inequality, lower, upper)
 
     # -- ForceElement ----------------------------------------------------------------------------------
     def plan(self, kin: Kinematics, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -224,8 +197,8 @@ class GraspControl(ForceElement):
         carrier, wrench = rows[:, self.object_columns].T, needed[self.object_columns]
         hand_rows, demand = rows[:, self.hand_columns], needed[self.hand_columns]
         if self.internal_forces:
-            forces, info = self._internal_force_qp(carrier, wrench, hand_rows, demand)
-            if info.status not in _SOLVED:
+            forces, solved, info = self._internal_force_qp(carrier, wrench, hand_rows, demand)
+            if not solved:
                 raise ContactInfeasibleError(
                     f"grasp control at t = {t:.6g} s: no contact forces move the object with every force inside "
                     f"its cone (margin {self.margin:g} N) and every joint torque within its limit (ProxQP: "

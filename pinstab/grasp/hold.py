@@ -3,9 +3,14 @@
 Per state, with the contact rows ``A = [A_hand, A_object]`` of the grasp's contacts (multipliers: the
 fingers' forces on the object in the contact frames):
 
-* the contact forces ``lambda*`` that carry the object's weight (``A_object^T lambda* = g_object``, the
-  least-squares answer) plus the internal force (null space of ``A_object^T``) closest to pressing every
-  contact with ``squeeze`` [N] along its normal;
+* the contact forces ``lambda*`` that carry the object's weight (``A_object^T lambda* = g_object``) closest
+  to pressing every contact with ``squeeze`` [N] along its normal, with every force inside its friction
+  cone (and torsion limit) and every normal force at most ``max_squeeze`` [N] (default: no cap): the
+  least-squares forces when they are inside, else a ProxQP on the cones' inscribed pyramids (``facets``
+  sides), else SciPy's SLSQP on the exact round cones (:mod:`pinstab.grasp.holding`). When no forces
+  inside the cones carry the weight (a grasp without force closure, or the cap), the least-squares
+  forces are kept (with the cap: those closest to the squeeze within the cap), and the run names every
+  contact that leaves its cone;
 * the joint torques that make those forces an equilibrium of the hand:
   ``tau = g_hand - A_hand^T lambda* - K (theta - theta_0) - D theta_dot`` (gravity compensated, joint
   stiffness ``K`` [N m/rad] about the start and damping ``D`` [N m s/rad]).
@@ -17,18 +22,22 @@ an object-level controller.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
+from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
+from .holding import closest_holding, cone_columns, leaving, pyramid_rows, solve_qp
 
-HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "stiffness", "damping"}
+HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
+UNBOUNDED = 1e30  # ProxQP's infinite bound
 
 
 class GraspHold(ForceElement):
@@ -39,6 +48,8 @@ class GraspHold(ForceElement):
             ``velocity_terms``, ``rows``, ``components``). object_columns: the object's velocity indices.
         squeeze: normal force per contact [N]. stiffness: [N m/rad]. damping: [N m s/rad].
         q_start: the configuration the stiffness pulls the hand joints back to.
+        max_squeeze: the largest normal force of a contact [N] (inf: none). facets: sides of the pyramids
+            of the fast QP. object_name: the held object (for reports).
     """
 
     def __init__(
@@ -51,26 +62,61 @@ class GraspHold(ForceElement):
         stiffness: float,
         damping: float,
         q_start: np.ndarray,
+        max_squeeze: float = math.inf,
+        facets: int = 16,
+        object_name: str = "",
     ) -> None:
-        self.name, self.model, self.contacts = name, model, contacts
+        self.name, self.kind, self.model, self.contacts = name, "grasp-hold", model, contacts
+        self.object_name, self.max_squeeze = object_name, max_squeeze
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
         self._data = new_data(model)
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
+        columns, count = cone_columns(contacts)
+        self._normals = [c.normal for c in columns]
+        caps = np.zeros((len(columns), count))
+        caps[np.arange(len(columns)), self._normals] = 1.0
+        self._cones = np.vstack([pyramid_rows(columns, count, facets), caps])
+        limit = UNBOUNDED if math.isinf(max_squeeze) else max_squeeze
+        self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
+        self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
-        gravity g(q) [N, N m]."""
+        gravity g(q) [N, N m] (see the module docstring)."""
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
+        load = gravity[self.object_columns]
         left, singular, right = np.linalg.svd(carrier, full_matrices=True)
         rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
         # least squares: the smallest forces that carry the object's weight, then the internal force
         # (null space of A_object^T) closest to the squeeze
-        forces = right[:rank].T @ ((left[:, :rank].T @ gravity[self.object_columns]) / singular[:rank])
+        forces = right[:rank].T @ ((left[:, :rank].T @ load) / singular[:rank])
         internal = right[rank:].T
-        return forces + internal @ (internal.T @ self.pressing)
+        free = forces + internal @ (internal.T @ self.pressing)
+        if self._holds(free):
+            return free
+        count = len(free)
+        solution, solved, _ = solve_qp(
+            np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper
+        )
+        if solved and self._holds(solution):
+            return solution
+        exact = closest_holding(carrier, load, self.contacts, self.pressing, self.max_squeeze)
+        if exact.holds or math.isinf(self.max_squeeze):
+            return exact.forces if exact.holds else free
+        # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
+        caps = len(self._normals)
+        capped, solved, _ = solve_qp(
+            np.eye(count), -self.pressing, carrier, load, self._cones[-caps:], self._lower[-caps:], self._upper[-caps:]
+        )
+        return capped if solved else free
+
+    def _holds(self, forces: np.ndarray) -> bool:
+        """Every force inside its contact's limits and every normal force within the cap."""
+        cap = self.max_squeeze * (1.0 + 1e-9)
+        return not leaving(self.contacts, forces) and float(np.max(forces[self._normals], initial=0.0)) <= cap
 
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
@@ -93,9 +139,10 @@ class GraspHold(ForceElement):
 )
 def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) -> GraspHold:
     """Scene table: ``object``, ``contacts`` (names; default: every grasp contact on the object),
-    ``squeeze`` [N] per contact, ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0)."""
+    ``squeeze`` [N] per contact, ``max_squeeze`` [N] (the largest normal force; default: no cap), ``facets``
+    (sides of the fast QP's pyramids, 16), ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0)."""
     tables.check_keys(entry, HOLD_KEYS, where)
-    _, contacts, columns = grasped_contacts(entry, tables, where)
+    item, contacts, columns = grasped_contacts(entry, tables, where)
     values = {}
     for key, dimension in (("squeeze", "force"), ("stiffness", None), ("damping", None)):
         if dimension is None:
@@ -104,7 +151,25 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
             values[key] = tables.quantity(entry.get(key, 0.0), dimension, f"{where}.{key}")
         if values[key] < 0:
             raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
-    return GraspHold(name, tables.model, contacts, columns, q_start=tables.q0, **values)
+    cap = tables.quantity(entry["max_squeeze"], "force", f"{where}.max_squeeze") if "max_squeeze" in entry else math.inf
+    if not cap >= values["squeeze"]:
+        raise SceneError(
+            f"{where}.max_squeeze must be >= squeeze ({values['squeeze']:g} N), got {entry['max_squeeze']!r}"
+        )
+    facets = entry.get("facets", 16)
+    if isinstance(facets, bool) or not isinstance(facets, int) or not 3 <= facets <= MAX_CONE_FACETS:
+        raise SceneError(f"{where}.facets must be a whole number >= 3 (at most {MAX_CONE_FACETS}), got {facets!r}")
+    return GraspHold(
+        name,
+        tables.model,
+        contacts,
+        columns,
+        q_start=tables.q0,
+        max_squeeze=cap,
+        facets=facets,
+        object_name=item.name,
+        **values,
+    )
 
 
 def hand_columns(nv: int, object_columns: np.ndarray) -> np.ndarray:

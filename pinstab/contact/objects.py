@@ -22,9 +22,9 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from .errors import SceneError, choices
-from .tables import check_keys, list_of_tables, placement, vector
-from .units import quantity
+from ..errors import SceneError, choices
+from ..tables import check_keys, list_of_tables, placement, vector
+from ..units import quantity
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}

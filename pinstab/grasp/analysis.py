@@ -1,4 +1,4 @@
-"""Grasp analysis [MLS ch. 5] (MATH.md section 4): contact models, the grasp map, internal forces,
+"""Grasp analysis [MLS ch. 5] (MATH.md section 4): the grasp map, internal forces,
 force closure and grasp quality.
 
 Frames: the object frame O (at the object's reference point); contact frame C_i at the contact point on
@@ -13,58 +13,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
 
-from .errors import ConstraintError, PinstabError, choices
+from ..contact.models import WRENCH_BASES
+from ..errors import PinstabError, choices
 
-WRENCH_BASES = {
-    "frictionless": np.array([[0, 0, 1, 0, 0, 0]], dtype=float).T,
-    "point-friction": np.eye(6)[:, :3],
-    "soft-finger": np.eye(6)[:, [0, 1, 2, 5]],
-    "rigid": np.eye(6),
-}
-"""B_c per contact model: the wrench components (fx, fy, fz, mx, my, mz in C) the contact transmits."""
-
-MAX_CONE_FACETS = 1000  # sides of a linearized friction cone in the dynamics (contacts, grasp control): more
-# only costs time
 RANK_TOLERANCE = 1e-10  # singular values below this times the largest count as zero
 MAX_FACETS = 32  # the inscribed pyramid then holds cos(pi / 32) = 99.5 % of the cone; the 6-D hull of the
 # quality grows steeply beyond (64 sides: 11 s, 128: 96 s and 1.2 GB on the Allegro sphere grasp)
-
-
-@dataclass(frozen=True)
-class FrictionCone:
-    """A Coulomb friction cone and its linearization.
-
-    Attributes:
-        mu: friction coefficient [-]. facets: sides of the inscribed pyramid a solver without conic
-        support uses (every force inside the pyramid is inside the cone).
-    """
-
-    mu: float
-    facets: int = 8
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.mu) and self.mu >= 0):
-            raise ConstraintError(f"friction coefficient mu must be a finite number >= 0, got {self.mu}")
-        if isinstance(self.facets, bool) or not isinstance(self.facets, int) or not 3 <= self.facets <= MAX_CONE_FACETS:
-            raise ConstraintError(
-                f"a linearized friction cone needs at least 3 facets (at most {MAX_CONE_FACETS}), got {self.facets!r}"
-            )
-
-    @property
-    def inscribed_mu(self) -> float:
-        """The friction coefficient of the inscribed pyramid: mu cos(pi / facets)."""
-        return self.mu * math.cos(math.pi / self.facets)
-
-    @cached_property
-    def facet_matrix(self) -> np.ndarray:
-        """``facets x 3`` rows c with ``c . (f_n, f_t1, f_t2) <= 0`` the pyramid's facets."""
-        angles = 2.0 * math.pi * np.arange(self.facets) / self.facets
-        return np.column_stack([-np.full(self.facets, self.inscribed_mu), np.cos(angles), np.sin(angles)])
 
 
 @dataclass(frozen=True)
@@ -72,7 +30,7 @@ class GraspContact:
     """One fingertip contact on the object.
 
     Attributes:
-        name: the contact's name. model: a key of :data:`WRENCH_BASES`.
+        name: the contact's name. model: a key of :data:`~pinstab.contact.models.WRENCH_BASES`.
         position: the contact point in O [m]. rotation: C_i's axes in O (3 x 3, z the inward normal).
         mu: Coulomb friction coefficient [-]. torsion: the soft finger's torsional coefficient [m]
             (|moment about the normal| <= torsion x normal force).

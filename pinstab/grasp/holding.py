@@ -1,0 +1,300 @@
+"""Contact forces that hold a load, on the exact round friction cones [MLS ch. 5]: the squeeze a grasp
+needs, the forces closest to a wished squeeze, and which contacts leave their cones.
+
+A grasp is given by its *carrier* A (k x m), which takes the contact forces (each contact's components in
+its frame C_i, z the normal into the object, stacked in contact order [N, N m]) to the generalized force
+they exert on the object, and by its contacts (objects with ``name``, ``model``, ``mu``, ``torsion``: a
+:class:`~pinstab.grasp.analysis.GraspContact` or a fingertip constraint block). Forces ``lambda`` hold
+the load ``w`` (k,) when ``A lambda = w`` and every contact carries its force: ``f_n >= 0``,
+``|f_t| <= mu f_n`` (the round cone) and, for a soft finger, ``|m_z| <= torsion f_n``; a rigid contact
+carries anything. The *squeeze* of ``lambda`` is its largest normal force [N].
+
+Method: a linear program on the inscribed pyramids (HiGHS) gives a feasible start (the circumscribed
+pyramids decide that no force holds), then SciPy's SLSQP solves the problem on the round cones
+(``mu^2 f_n^2 >= |f_t|^2`` with ``f_n >= 0``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import proxsuite
+
+from ..contact.cones import FrictionCone
+from ..contact.models import WRENCH_BASES
+from .analysis import RANK_TOLERANCE
+
+START_FACETS = 16  # sides of the pyramids whose linear program starts the exact solve
+FEASIBILITY = 1e-9  # relative to the load: residuals and cone margins above -this hold
+QP_ITERATIONS = 200  # a small QP converges in tens of iterations; an infeasible one would run for minutes
+_SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
+
+
+class ConeColumns(NamedTuple):
+    """Where one contact's force sits in the stacked forces, for the limits it must keep.
+
+    Attributes:
+        name: the contact. mu: [-]. torsion: [m]. normal: column of f_n. tangents: columns of (f_t1, f_t2),
+        or None (frictionless). spin: column of m_z (soft finger), or None.
+    """
+
+    name: str
+    mu: float
+    torsion: float
+    normal: int
+    tangents: tuple[int, int] | None
+    spin: int | None
+
+
+def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:
+    """(the limited contacts' columns (rigid contacts carry anything: none), the number of force columns)."""
+    found, offset = [], 0
+    for contact in contacts:
+        components = [int(k) for k in np.flatnonzero(WRENCH_BASES[contact.model].any(axis=1))]
+        column = {component: offset + k for k, component in enumerate(components)}
+        offset += len(components)
+        if contact.model != "rigid":
+            tangents = (column[0], column[1]) if 0 in column else None
+            found.append(ConeColumns(contact.name, contact.mu, contact.torsion, column[2], tangents, column.get(5)))
+    return found, offset
+
+
+def pyramid_rows(columns: list[ConeColumns], count: int, facets: int, widen: float = 1.0) -> np.ndarray:
+    """Rows C with ``C lambda >= 0`` inside every contact's limits with its cone linearized by the pyramid of
+    ``facets`` sides inscribed in the cone of ``widen * mu`` (``1 / cos(pi / facets)``: circumscribed),
+    rows of unit length (their values are distances [N or N m]): facets, then the normal force, then a
+    soft finger's two torsion bounds."""
+    rows = []
+    for contact in columns:
+        if contact.tangents is not None:
+            cone = FrictionCone(widen * contact.mu, facets)
+            for facet in -cone.facet_matrix / math.sqrt(1.0 + cone.inscribed_mu**2):
+                row = np.zeros(count)
+                row[[contact.normal, *contact.tangents]] = facet
+                rows.append(row)
+        row = np.zeros(count)
+        row[contact.normal] = 1.0
+        rows.append(row)
+        if contact.spin is not None:
+            for sign in (1.0, -1.0):
+                row = np.zeros(count)
+                row[[contact.normal, contact.spin]] = [contact.torsion, sign]
+                rows.append(row / math.hypot(contact.torsion, 1.0))
+    return np.array(rows).reshape(-1, count)
+
+
+def normal_columns(columns: list[ConeColumns]) -> list[int]:
+    """The columns of the normal forces."""
+    return [contact.normal for contact in columns]
+
+
+def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(values g >= 0 inside the exact limits: f_n, mu^2 f_n^2 - |f_t|^2, torsion f_n -+ m_z; their Jacobian
+    with respect to the forces): smooth, for SLSQP."""
+    values, jacobian = [], []
+    for contact in columns:
+        n = contact.normal
+        rows = [(forces[n], {n: 1.0})]
+        if contact.tangents is not None:
+            t1, t2 = contact.tangents
+            a, b = forces[t1], forces[t2]
+            rows.append(
+                (
+                    contact.mu**2 * forces[n] ** 2 - a**2 - b**2,
+                    {n: 2 * contact.mu**2 * forces[n], t1: -2 * a, t2: -2 * b},
+                )
+            )
+        if contact.spin is not None:
+            for sign in (1.0, -1.0):
+                rows.append(
+                    (
+                        contact.torsion * forces[n] - sign * forces[contact.spin],
+                        {n: contact.torsion, contact.spin: -sign},
+                    )
+                )
+        for value, gradient in rows:
+            values.append(value)
+            row = np.zeros(forces.size)
+            row[list(gradient)] = list(gradient.values())
+            jacobian.append(row)
+    return np.array(values), np.array(jacobian).reshape(-1, forces.size)
+
+
+def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
+    """Each limited contact's margins for the stacked ``forces``: ``normal`` f_n [N], ``friction``
+    mu f_n - |f_t| [N] (friction contacts), ``torsion`` torsion f_n - |m_z| [N m] (soft fingers); >= 0 inside."""
+    columns, _ = cone_columns(contacts)
+    found = {}
+    for contact in columns:
+        normal = float(forces[contact.normal])
+        margins = {"normal": normal}
+        if contact.tangents is not None:
+            margins["friction"] = contact.mu * normal - math.hypot(*forces[list(contact.tangents)])
+        if contact.spin is not None:
+            margins["torsion"] = contact.torsion * normal - abs(float(forces[contact.spin]))
+        found[contact.name] = margins
+    return found
+
+
+def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
+    """Every contact whose force (in the stacked ``forces``) is outside what it carries, with its violated
+    margins (< 0, see :func:`cone_margins`), beyond a rounding slack relative to the largest force."""
+    slack = -FEASIBILITY * (1.0 + float(np.max(np.abs(forces), initial=0.0)))
+    found = {}
+    for name, margins in cone_margins(contacts, forces).items():
+        violated = {key: value for key, value in margins.items() if value < slack}
+        if violated:
+            found[name] = violated
+    return found
+
+
+@dataclass(frozen=True)
+class Holding:
+    """Contact forces that hold a load, or the answer that none do.
+
+    Attributes:
+        forces: the stacked contact forces in their contact frames [N, N m], or None when none hold the load.
+        squeeze: their largest normal force [N] (inf when none hold the load).
+    """
+
+    forces: np.ndarray | None
+    squeeze: float
+
+    @property
+    def holds(self) -> bool:
+        """Whether some forces inside the cones hold the load."""
+        return self.forces is not None
+
+
+class _Problem:
+    """Variables x = (lambda / scale, s / scale): A lambda = w, the limits, f_n <= s <= cap [N]."""
+
+    def __init__(self, carrier: np.ndarray, load: np.ndarray, contacts: list[Any], cap: float) -> None:
+        self.carrier, self.load, self.cap = np.asarray(carrier, float), np.asarray(load, float), cap
+        self.contacts = contacts
+        self.columns, count = cone_columns(contacts)
+        if count != self.carrier.shape[1]:
+            raise ValueError(f"the contacts have {count} force components, the carrier {self.carrier.shape[1]} columns")
+        self.count = count
+        self.scale = 1.0 + float(np.max(np.abs(self.load), initial=0.0))
+        normals = [contact.normal for contact in self.columns]
+        self.caps = np.zeros((len(normals), count + 1))  # s - f_n >= 0
+        self.caps[np.arange(len(normals)), normals] = -1.0
+        self.caps[:, -1] = 1.0
+        # A lambda = w on the independent rows of A (SLSQP needs them independent); w outside A's range: nothing holds
+        left, singular, _ = np.linalg.svd(self.carrier, full_matrices=False)
+        rank = int(np.count_nonzero(singular > RANK_TOLERANCE * max(float(singular[0]), 1.0)))
+        self.reachable = bool(
+            np.linalg.norm(self.load - left[:, :rank] @ (left[:, :rank].T @ self.load)) <= FEASIBILITY * self.scale
+        )
+        self.equality = np.hstack([left[:, :rank].T @ self.carrier, np.zeros((rank, 1))])
+        self.rhs = left[:, :rank].T @ self.load / self.scale
+        self.bounds = [(None, None)] * count + [(0.0, None if math.isinf(cap) else cap / self.scale)]
+
+    def start(self) -> tuple[np.ndarray, bool] | None:
+        """(x of the linear program min s on the inscribed pyramids, True) or, when those hold nothing, on
+        the circumscribed ones (False); None when neither holds the load (then the round cones do not)."""
+        from scipy.optimize import linprog
+
+        cost = np.zeros(self.count + 1)
+        cost[-1] = 1.0
+        for widen in (1.0, 1.0 / math.cos(math.pi / START_FACETS)):
+            pyramids = pyramid_rows(self.columns, self.count, START_FACETS, widen)
+            inside = np.hstack([-pyramids, np.zeros((len(pyramids), 1))])
+            upper = np.vstack([inside, -self.caps])
+            result = linprog(
+                cost,
+                A_ub=upper,
+                b_ub=np.zeros(len(upper)),
+                A_eq=self.equality,
+                b_eq=self.rhs,
+                bounds=self.bounds,
+            )
+            if result.status == 0:
+                return result.x, widen == 1.0
+        return None
+
+    def limits(self, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([_limit_values(self.columns, x[:-1])[0], self.caps @ x])
+
+    def limits_jacobian(self, x: np.ndarray) -> np.ndarray:
+        jacobian = _limit_values(self.columns, x[:-1])[1]
+        return np.vstack([np.hstack([jacobian, np.zeros((len(jacobian), 1))]), self.caps])
+
+    def solve(self, objective) -> Holding:
+        """Minimize ``objective(x) -> (value, gradient)`` on the round cones, from the pyramids' start."""
+        from scipy.optimize import minimize
+
+        start = self.start() if self.reachable else None
+        if start is None:
+            return Holding(None, math.inf)
+        x0, inscribed = start
+        result = minimize(
+            objective,
+            x0,
+            jac=True,
+            method="SLSQP",
+            bounds=self.bounds,
+            constraints=[
+                {
+                    "type": "eq",
+                    "fun": lambda x: self.equality @ x - self.rhs,
+                    "jac": lambda x: self.equality,
+                },
+                {"type": "ineq", "fun": self.limits, "jac": self.limits_jacobian},
+            ],
+            options={"ftol": 1e-15, "maxiter": 500},
+        )
+        for x in (result.x, x0 if inscribed else None):
+            if x is None:
+                continue
+            forces = x[:-1] * self.scale
+            residual = float(np.max(np.abs(self.carrier @ forces - self.load), initial=0.0))
+            if residual <= FEASIBILITY * self.scale and not leaving(self.contacts, forces):
+                normals = [contact.normal for contact in self.columns]
+                return Holding(forces, float(np.max(forces[normals], initial=0.0)))
+        return Holding(None, math.inf)
+
+
+def least_squeeze(carrier: np.ndarray, load: np.ndarray, contacts: list[Any]) -> Holding:
+    """The contact forces that hold ``load`` (A lambda = w) with the smallest largest normal force: the
+    squeeze [N] the grasp needs; ``Holding(None, inf)`` when no forces inside the cones hold it."""
+    problem = _Problem(carrier, load, contacts, math.inf)
+    gradient = np.zeros(problem.count + 1)
+    gradient[-1] = 1.0
+    return problem.solve(lambda x: (float(x[-1]), gradient))
+
+
+def closest_holding(
+    carrier: np.ndarray, load: np.ndarray, contacts: list[Any], target: np.ndarray, cap: float = math.inf
+) -> Holding:
+    """The contact forces that hold ``load`` inside the cones with every normal force at most ``cap`` [N],
+    closest (least squares) to ``target`` (stacked forces [N, N m]); ``Holding(None, inf)`` when none do."""
+    problem = _Problem(carrier, load, contacts, cap)
+    wished = np.append(np.asarray(target, float) / problem.scale, 0.0)
+    weights = np.append(np.ones(problem.count), 0.0)
+
+    def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
+        difference = weights * (x - wished)
+        return float(difference @ difference), 2.0 * difference
+
+    return problem.solve(objective)
+
+
+def solve_qp(hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
+    """ProxQP (dense) on ``min x^T H x / 2 + g^T x``, ``E x = b``, ``l <= C x <= u``: (x, solved, ProxQP's
+    info), without Ruiz equilibration (problems here are in N and N m already) and with a capped
+    iteration count (an infeasible problem stops early)."""
+    qp = proxsuite.proxqp.dense.QP(len(gradient), equality.shape[0], inequality.shape[0])
+    qp.settings.eps_abs = 1e-10
+    qp.settings.verbose = False
+    qp.settings.max_iter, qp.settings.max_iter_in = QP_ITERATIONS, QP_ITERATIONS
+    # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
+    # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
+    # instructions and from run to run), so that a QP solved here could fail on another machine
+    qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
+    qp.solve()
+    return np.array(qp.results.x), qp.results.info.status in _SOLVED, qp.results.info
