@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-CONE_ORDER = np.eye(3)[[1, 2, 0]]  # rows (n, t1, t2) -> Pinocchio's (t1, t2, n)
+CONE_ROWS = (1, 2, 0)  # Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
+CONE_ORDER = np.eye(3)[list(CONE_ROWS)]  # (n, t1, t2) -> (t1, t2, n)
 
 
 def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettings:
