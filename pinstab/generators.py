@@ -198,7 +198,9 @@ def painleve_rod(mu: float = 2.0) -> dict[str, Any]:
     return {
         "robot": {"urdf_text": urdf, "free_flyer": True},
         "gravity": [0.0, 0.0, -GRAVITY],
-        "contacts": [{"name": "end", "kind": "plane-contact", "frame_a": "rod", "offset_a": [-half, 0.0, 0.0], "mu": mu}],
+        "contacts": [
+            {"name": "end", "kind": "plane-contact", "frame_a": "rod", "offset_a": [-half, 0.0, 0.0], "mu": mu}
+        ],
         "initial": {
             "q": {"root_joint": [half * c, 0.0, half * s, *quaternion]},
             "v": {"root_joint": [-ROD_SPEED * c, 0.0, ROD_SPEED * s, 0.0, 0.0, 0.0]},
