@@ -225,6 +225,7 @@ def _simulate_stepping(
     stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
     system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
     info = _info(scene, system, stepper.name, grid, None, "none", None, record_every)
+    info.solver = "pinocchio-admm"
     loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
     return _run_contacts(loop, stepper.events, scene, info, q, v, progress)
 

@@ -31,6 +31,10 @@ def slide_error(dt: float) -> float:
     exact = G * (math.sin(theta) - mu * math.cos(theta)) * 2.0**2 / 2
     assert {e["to"] for e in run.info.contact_events} == {"sliding"}
     assert np.abs(run.q[:, 2] - 0.05).max() <= 1e-12  # no lift-off: the exact cone (NCP), not the convex one
+    statistics = run.info.solver_statistics
+    assert run.info.solver == "pinocchio-admm" and statistics.status_counts["ADMM converged"] == run.steps
+    assert "ADMM not converged" not in statistics.status_counts
+    assert statistics.worst_primal_residual <= 1e-10
     return (run.q[-1, 0] - exact) / exact
 
 

@@ -27,8 +27,10 @@ its normal impulse changes its normal velocity by less than :data:`SPEED_FLOOR`;
 speed at the step's end exceeds :data:`SPEED_FLOOR` (its impulse then lies on the cone's boundary, against
 the slip); *sticking* otherwise (the point held, the impulse inside or on the cone). Every change is a
 :class:`~pinstab.contact.modes.ContactEvent` (cause ``impulse``) at the step's end, where its velocity holds;
-the first step records every contact's mode (cause ``start``) at the step's start. The scheme is of order
-1 (semi-implicit Euler between events; an impact or a switch is located to within a step).
+the first step records every contact's mode (cause ``start``) at the step's start. Every cone solve is
+counted in the run's solver statistics (status ``ADMM converged`` or ``ADMM not converged``, ADMM's
+iterations and its absolute primal and dual residuals [m/s]). The scheme is of order 1 (semi-implicit
+Euler between events; an impact or a switch is located to within a step).
 """
 
 from __future__ import annotations
@@ -89,6 +91,13 @@ class ContactStepper(Integrator):
                 offset[3 * j + 2] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
             delassus = contacts.jacobian[rows] @ mobility[:, rows]
             solution = self.solver.solve(delassus, offset, *self._problem(active))
+            status = self.solver.status()
+            self.system.solver.statistics.record(
+                "ADMM converged" if status.converged else "ADMM not converged",
+                status.iterations,
+                status.primal_feasibility,
+                status.dual_feasibility,
+            )
             v_new = v_free + mobility[:, rows] @ solution
             impulses[np.array(active)] = solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
         velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
