@@ -240,12 +240,48 @@ def pinch(mu: float = 0.5, squeeze: float = 1.0, mass: float = 0.1) -> dict[str,
     }
 
 
+ROD_ANGLE = math.atan(2.0)  # [rad] the painleve-rod's angle to the floor, where the Painleve bound is least: 4/3
+ROD_SPEED = 1.0  # [m/s] the painleve-rod's initial sliding speed
+
+
+def painleve_rod(mu: float = 2.0) -> dict[str, Any]:
+    """A uniform rod (1 kg, 1 m) whose lower end A slides at 1 m/s on the rough floor z = 0 (friction ``mu``)
+    away from below its centre, the rod at theta = atan 2 (63.4 deg) to the floor, at rest otherwise.
+
+    Painleve's bound. Half-length l, I = m l^2 / 3 about the centre G, A = G - l (cos theta, sin theta) in the
+    vertical (x, z) plane, floor force (F, N) at A. With theta' = 0, Newton and Euler give
+    ``z_A'' = -g + (N / m)(1 + 3 cos^2 theta) - (3 F / m) sin theta cos theta``. A slides along -x, so sliding
+    friction is ``F = +mu N`` and ``z_A'' = -g + (N / m) (1 + 3 cos theta (cos theta - mu sin theta))``. When
+    the bracket is negative, i.e. ``mu > (1 + 3 cos^2 theta) / (3 sin theta cos theta)`` (= 4/3 at tan theta = 2,
+    the least over theta), sliding contact needs N = m g / bracket < 0 (a floor that pulls) and separation
+    (N = 0) gives z_A'' = -g < 0 (the end goes through the floor): no mode is consistent. Sticking is not a
+    mode of a contact that slips. For mu < 4/3 the end slides with N > 0."""
+    mu = _number("painleve-rod", "mu", mu, 0.0, unit=" [-]")
+    half = 0.5
+    c, s = math.cos(ROD_ANGLE), math.sin(ROD_ANGLE)
+    urdf = _rigid_body("rod", '<box size="1.0 0.02 0.02"/>', 1.0, (5e-5, 1.0 / 12, 1.0 / 12))
+    # the rod's x axis along (cos theta, 0, sin theta): a turn by -theta about y; its body velocity is R^T (-v, 0, 0)
+    quaternion = [0.0, -math.sin(ROD_ANGLE / 2), 0.0, math.cos(ROD_ANGLE / 2)]
+    return {
+        "robot": {"urdf_text": urdf, "free_flyer": True},
+        "gravity": [0.0, 0.0, -GRAVITY],
+        "contacts": [
+            {"name": "end", "kind": "plane-contact", "frame_a": "rod", "offset_a": [-half, 0.0, 0.0], "mu": mu}
+        ],
+        "initial": {
+            "q": {"root_joint": [half * c, 0.0, half * s, *quaternion]},
+            "v": {"root_joint": [-ROD_SPEED * c, 0.0, ROD_SPEED * s, 0.0, 0.0, 0.0]},
+        },
+    }
+
+
 GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {
     "nfourbar": nfourbar,
     "incline": incline,
     "sphere-spin": sphere_spin,
     "bouncing-ball": bouncing_ball,
     "pinch": pinch,
+    "painleve-rod": painleve_rod,
 }
 GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "nfourbar": {"N": "n", "link_length": "link_length", "link_mass": "link_mass"},
@@ -253,6 +289,7 @@ GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "sphere-spin": {"v0": "v0", "omega0": "omega0", "mu": "mu", "radius": "radius"},
     "bouncing-ball": {"height": "height", "restitution": "restitution"},
     "pinch": {"mu": "mu", "squeeze": "squeeze", "mass": "mass"},
+    "painleve-rod": {"mu": "mu"},
 }
 
 

@@ -16,12 +16,14 @@ import numpy as np
 from .assembly import AssemblyReport, assemble
 from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
+from .integration.contact_stepping import ContactStepper
 from .integration.events import EventLoop
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
-from .solvers.contact_modes import ModeDynamics, plane_geometries
+from .solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
+from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
@@ -103,7 +105,10 @@ def simulate(
         atol: the absolute tolerance [rad, m, rad/s, m/s] of the error control (default: ``rtol``).
         contacts: ``event``: the scene's plane contacts switch between sticking, sliding and separated at
             located events, with impacts (:mod:`pinstab.integration.events`; error-controlled ``dop853``,
-            rtol default :data:`EVENT_RTOL`); None: they are held as constraint rows.
+            rtol default :data:`EVENT_RTOL`); ``stepping``: time-stepping contacts, a velocity-level Moreau-Jean
+            step of ``dt`` with impulses on the exact round cone (Pinocchio's ADMM in NCP mode;
+            :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
+            change in ``info.contact_events``; None: they are held as constraint rows.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -122,6 +127,8 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    if contacts == "stepping":
+        return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
     if contacts is not None:
         return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress)
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
@@ -192,20 +199,10 @@ def _simulate_events(
 ) -> Trajectory:
     """:func:`simulate` with event-driven contacts (``contacts="event"``)."""
     if contacts != "event":
-        raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event")
-    geometries = plane_geometries(scene.constraints)
-    others = [c.name for c in scene.constraints if c.name not in {g.name for g in geometries}]
-    if not geometries or others:
-        raise PinstabError(
-            f"scene {scene.name}: event-driven contacts take scenes whose constraints are plane contacts"
-            + (f"; not yet {', '.join(others)}" if others else "; it has none")
-        )
+        raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
+    geometries, system, q, v = _contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
-    free = dataclasses.replace(scene, constraints=[])
-    system = build_system(free, "none")
-    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
-    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
     system.bind(grid.dt, "dop853", q)
     dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
     system.acceleration = dynamics.acceleration
@@ -214,14 +211,62 @@ def _simulate_events(
     info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
     loop.start(q, v)
-    bar = _progress_bar(grid.steps, scene.name, progress)
+    return _run_contacts(loop, loop.events, scene, info, q, v, progress)
+
+
+def _simulate_stepping(
+    scene: Scene,
+    dt: float,
+    duration: float,
+    record_every: int,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    progress: bool,
+) -> Trajectory:
+    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``)."""
+    geometries, system, q, v = _contact_system(scene, q0, v0)
+    grid = TimeGrid.of(dt, duration, record_every)
+    system.bind(grid.dt, "semi-implicit-euler", q)
+    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
+    system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
+    info = _info(scene, system, stepper.name, grid, None, "none", None, record_every)
+    info.solver = "pinocchio-admm"
+    loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
+    return _run_contacts(loop, stepper.events, scene, info, q, v, progress)
+
+
+def _contact_system(
+    scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None
+) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
+    """The plane contacts of a scene whose constraints are all plane contacts, the system of its free bodies
+    and the start state."""
+    geometries = plane_geometries(scene.constraints)
+    others = [c.name for c in scene.constraints if c.name not in {g.name for g in geometries}]
+    if not geometries or others:
+        raise PinstabError(
+            f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
+            "contacts" + (f"; not yet {', '.join(others)}" if others else "; it has none")
+        )
+    free = dataclasses.replace(scene, constraints=[])
+    system = build_system(free, "none")
+    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    return geometries, system, q, v
+
+
+def _run_contacts(
+    loop: StepLoop, events: list, scene: Scene, info: RunInfo, q: np.ndarray, v: np.ndarray, progress: bool
+) -> Trajectory:
+    """Run a contact loop from (q, v) with its progress bar; the run info lists its contact ``events``."""
+    bar = _progress_bar(loop.grid.steps, scene.name, progress)
     start = time.perf_counter()
     try:
         with nullcontext() if bar is None else closing(bar):
             loop.run(q, v, bar)
     finally:
-        info.contact_events = [event.to_dict() for event in loop.events]
-    return _trajectory(loop, system, info, time.perf_counter() - start)
+        info.contact_events = [event.to_dict() for event in events]
+    return _trajectory(loop, loop.system, info, time.perf_counter() - start)
 
 
 def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:

@@ -42,9 +42,10 @@ from ..forces import ExternalForce
 from ..grasp.hold import GraspHold
 from ..kinematics import symmetric_mass_matrix
 from ..scene import Scene
+from ..solvers.ncp import CONE_ORDER, NcpSolver
 
 FLIP = np.diag([1.0, -1.0, -1.0])  # C turned by pi about x: the normal out of the object
-PLANE_ORDER = np.eye(3)[[2, 0, 1]]  # (t1, t2, n) -> pinstab's (n, t1, t2)
+PLANE_ORDER = CONE_ORDER.T  # (t1, t2, n) -> pinstab's (n, t1, t2)
 ACCELERATION_SCHEMES = ("semi-implicit-euler", "rk4")
 PEER_SCHEMES = (*ACCELERATION_SCHEMES, "velocity-level")
 
@@ -165,18 +166,6 @@ def _mass_solves(terms: ContactTerms, tau: np.ndarray) -> tuple[np.ndarray, np.n
     return solved[:, :-1], solved[:, -1]
 
 
-def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettings:
-    """ADMM's settings with every feasibility and complementarity tolerance (absolute and relative)
-    at ``tolerance`` and the spectral rho rule of Pinocchio's example."""
-    settings = pin.ADMMSolverSettings()
-    settings.max_iterations = max_iterations
-    for name in ("feasibility", "complementarity"):
-        setattr(settings, f"absolute_{name}_tol", tolerance)
-        setattr(settings, f"relative_{name}_tol", tolerance)
-    settings.admm_update_rule = pin.ADMMUpdateRule.SPECTRAL
-    return settings
-
-
 class AdmmContactPeer:
     """The contact problem of a scene's contacts, solved by Pinocchio's ADMM.
 
@@ -209,11 +198,7 @@ class AdmmContactPeer:
         for i, contact in enumerate(self.contacts):
             self.to_pinstab[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = contact.to_pinstab
         self.names = tuple(contact.name for contact in self.contacts)
-        self.settings = admm_settings(tolerance, max_iterations)
-        self.solver = pin.ADMMConstraintSolver(self.size)
-        self.result = pin.ADMMSolverResult()
-        self.compliance = compliance
-        self.warm_start = warm_start
+        self.ncp = NcpSolver(self.size, tolerance, max_iterations, compliance, warm_start)
         self._zero = np.zeros(self.model.nv)
         self._lower = np.tril_indices(self.model.nv, -1)
 
@@ -246,28 +231,11 @@ class AdmmContactPeer:
 
     def _solve(self, mass_inverse_jt: np.ndarray, jacobian: np.ndarray, g: np.ndarray) -> np.ndarray:
         """ADMM on ``D f + g``, D = J M^-1 J^T (+ compliance): the forces in Pinocchio's convention."""
-        delassus = jacobian @ mass_inverse_jt
-        operator = pin.DelassusOperatorDense(0.5 * (delassus + delassus.T))
-        if self.compliance:
-            operator.updateCompliance(self.compliance)
-        if self.warm_start and self.result.isValid():
-            self.result.setConstraintImpulseGuess(self.result.retrieveConstraintImpulses().copy())
-        self.solver.solve(operator, g, self.models, self.datas, self.settings, self.result)
-        return self.result.retrieveConstraintImpulses().copy()
+        return self.ncp.solve(jacobian @ mass_inverse_jt, g, self.models, self.datas)
 
     def _solution(self, pinocchio_forces: np.ndarray, motion: np.ndarray, scale: float) -> AdmmSolution:
         """The last solve's result; pinstab's forces are ``scale`` times the converted ones."""
-        result = self.result
-        return AdmmSolution(
-            self.to_pinstab @ pinocchio_forces * scale,
-            self.names,
-            int(result.iterations),
-            bool(result.converged),
-            float(result.primal_feasibility),
-            float(result.dual_feasibility),
-            float(result.complementarity),
-            motion,
-        )
+        return AdmmSolution(self.to_pinstab @ pinocchio_forces * scale, self.names, *self.ncp.status(), motion)
 
     def solve(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, kp: float = 0.0, kd: float = 0.0) -> AdmmSolution:
         """The contact forces at (q, v) under the applied generalized forces ``tau`` [N, N m], at the
