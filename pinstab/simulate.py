@@ -6,7 +6,7 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from contextlib import closing, nullcontext
 from pathlib import Path
 from typing import Any
@@ -14,14 +14,15 @@ from typing import Any
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
+from .contact.modes import STOP_KINDS, stop_kind
+from .errors import ContactInfeasibleError, DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
-from .integration.events import EventLoop
+from .integration.events import EventLoop, RunEnd
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
-from .solvers.contact_modes import ModeDynamics, plane_geometries
+from .solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
@@ -34,6 +35,7 @@ ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
 EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
+MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many, default to event-driven contacts
 
 
 class Interrupted(KeyboardInterrupt):
@@ -68,6 +70,7 @@ def simulate(
     rtol: float | None = None,
     atol: float | None = None,
     contacts: str | None = None,
+    stop_on: tuple[str, ...] | frozenset[str] = (),
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -103,7 +106,12 @@ def simulate(
         atol: the absolute tolerance [rad, m, rad/s, m/s] of the error control (default: ``rtol``).
         contacts: ``event``: the scene's plane contacts switch between sticking, sliding and separated at
             located events, with impacts (:mod:`pinstab.integration.events`; error-controlled ``dop853``,
-            rtol default :data:`EVENT_RTOL`); None: they are held as constraint rows.
+            rtol default :data:`EVENT_RTOL`); None: they are held as constraint rows (see
+            :func:`default_contacts`).
+        stop_on: with ``contacts="event"``, the kinds of contact event that end the run
+            (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
+            ``separation``, a touching contact opens): the trajectory ends at the first such event, with
+            ``info.stopped`` saying which.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -115,6 +123,10 @@ def simulate(
             the failed step (``diverged_at``), the partial trajectory (ending with the failed step's
             sample) and ``finite_trajectory``, which ends at the last finite state.
         Interrupted: Ctrl-C (a KeyboardInterrupt) while stepping; carries the partial trajectory.
+        ContactInfeasibleError: contacts that cannot hold (held rows), or no consistent contact modes
+            (:class:`~pinstab.errors.PainleveError`, event-driven); raised once the run started, it carries
+            the partial trajectory (``trajectory``, up to the last good state, ``info.stopped`` naming the
+            failure).
         UnstableGainsError: with ``strict``, gains predicted unstable, before any step.
 
     Warns:
@@ -122,8 +134,9 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    kinds = stop_kinds(stop_on, contacts)
     if contacts is not None:
-        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress)
+        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
     grid = TimeGrid.of(dt, duration, record_every)
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
@@ -169,7 +182,51 @@ def simulate(
             raise
         except KeyboardInterrupt:
             raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
+        except ContactInfeasibleError as exc:
+            exc.trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
+            info.stopped = failure_stop(exc, info.t_end)
+            raise
     return _trajectory(loop, system, info, time.perf_counter() - start)
+
+
+def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
+    """The kinds of event a run stops on, checked: a string or a collection of :data:`STOP_KINDS`.
+
+    Raises:
+        PinstabError: an unknown kind (naming the valid ones), or kinds without event-driven contacts.
+    """
+    if isinstance(stop_on, str):
+        stop_on = (stop_on,)
+    if not isinstance(stop_on, Collection) or not all(isinstance(kind, str) for kind in stop_on):
+        raise PinstabError(f"stop_on must name kinds of contact event ({', '.join(STOP_KINDS)}), got {stop_on!r}")
+    kinds = frozenset(stop_on)
+    unknown = sorted(kinds - set(STOP_KINDS))
+    if unknown:
+        raise PinstabError(f"stop_on: {unknown[0]!r} is not a kind of contact event; valid: {', '.join(STOP_KINDS)}")
+    if kinds and contacts != "event":
+        raise PinstabError(
+            f"stop_on ({', '.join(sorted(kinds))}) ends a run at a contact event: it takes contacts='event'"
+        )
+    return kinds
+
+
+def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
+    """(the scene's plane contacts as event-driven geometries, the names of its other constraints)."""
+    geometries = plane_geometries(scene.constraints)
+    names = {g.name for g in geometries}
+    return geometries, [c.name for c in scene.constraints if c.name not in names]
+
+
+def default_contacts(scene: Scene) -> str | None:
+    """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
+    them; None (contacts held as constraint rows) otherwise."""
+    geometries, others = event_contacts(scene)
+    return "event" if geometries and not others and len(geometries) <= MAX_EVENT_CONTACTS else None
+
+
+def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:
+    """``info.stopped`` of a run ended by ``error`` with its last state at t [s]."""
+    return {"reason": "contact failure", "t": t, "error": type(error).__name__, "message": str(error)}
 
 
 def _simulate_events(
@@ -183,12 +240,13 @@ def _simulate_events(
     q0: np.ndarray | None,
     v0: np.ndarray | None,
     progress: bool,
+    stop_on: frozenset[str] = frozenset(),
 ) -> Trajectory:
-    """:func:`simulate` with event-driven contacts (``contacts="event"``)."""
+    """:func:`simulate` with event-driven contacts (``contacts="event"``), ending at the first event of a kind in
+    ``stop_on``."""
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event")
-    geometries = plane_geometries(scene.constraints)
-    others = [c.name for c in scene.constraints if c.name not in {g.name for g in geometries}]
+    geometries, others = event_contacts(scene)
     if not geometries or others:
         raise PinstabError(
             f"scene {scene.name}: event-driven contacts take scenes whose constraints are plane contacts"
@@ -207,15 +265,29 @@ def _simulate_events(
     stepper = INTEGRATORS.build("dop853", system)
     info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
-    loop.start(q, v)
+    loop.stop_on = stop_on
     bar = _progress_bar(grid.steps, scene.name, progress)
     start = time.perf_counter()
+    end = None
     try:
         with nullcontext() if bar is None else closing(bar):
+            loop.start(q, v)
             loop.run(q, v, bar)
+    except RunEnd as exc:
+        end = exc
+        end.t = float(end.t)
+        loop.records.end_with((loop.grid_index(end.t), end.t, end.q, end.v))
     finally:
         info.contact_events = [event.to_dict() for event in loop.events]
-    return _trajectory(loop, system, info, time.perf_counter() - start)
+    trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
+    if end is None:
+        return trajectory
+    if end.error is not None:
+        info.stopped = failure_stop(end.error, end.t)
+        end.error.trajectory = trajectory
+        raise end.error
+    info.stopped = {"reason": stop_kind(end.event), "t": end.t, "contact": end.event.contact, "event": end.event.to_dict()}
+    return trajectory
 
 
 def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
@@ -272,7 +344,8 @@ def _trajectory(
     info.steps, info.t_end = last, float(records.t[n - 1])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
-    info.passages = [passage.to_dict() for passage in loop.watch.passages if passage.t <= info.t_end]
+    watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
+    info.passages = [] if watch is None else [p.to_dict() for p in watch.passages if p.t <= info.t_end]
     if isinstance(loop, AdaptiveLoop):
         info.error_control = loop.control.summary()
     return Trajectory(  # views of the samples: no second copy of a long run
