@@ -286,7 +286,8 @@ def _simulate_events(
         info.stopped = failure_stop(end.error, end.t)
         end.error.trajectory = trajectory
         raise end.error
-    info.stopped = {"reason": stop_kind(end.event), "t": end.t, "contact": end.event.contact, "event": end.event.to_dict()}
+    event = end.event
+    info.stopped = {"reason": stop_kind(event), "t": end.t, "contact": event.contact, "event": event.to_dict()}
     return trajectory
 
 
