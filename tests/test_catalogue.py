@@ -307,11 +307,12 @@ CASES = [
     # -- contacts
     Case(
         "push outside the cone",
-        "run {scene} --duration 0.01",
+        "run {scene} --duration 0.01 --contacts held",
         "ContactInfeasibleError",
         "sticking contacts cannot hold",
         base="box-push",
         changes=(('"1 N"', '"6 N"'),),
+        code=5,  # a result (contacts with no solution, the run so far kept), not bad input
     ),
     # -- numbers: gains, steps, durations, limits (run)
     Case("dt inf", "run fourbar --dt inf", "PinstabError", "dt must be a positive number, got inf"),
@@ -410,7 +411,8 @@ CASES = [
         "PinstabError",
         "max_iterations must be an integer >= 1",
     ),
-    Case("cones on dense", "run box-push --solver dense", "SolverError", "does not take cone rows"),
+    Case("cones on dense", "run box-push --contacts held --solver dense", "SolverError", "does not take cone rows"),
+    Case("held options on event contacts", "run box-push --solver dense", "PinstabError", "give --contacts held"),
     Case("relation on pinocchio", "servo two-cars --method pinocchio", "SolverError", "not a frame closure"),
     # -- sizes
     Case("generator parameter negative", "check nfourbar --param N=-1", "SceneError", "parameter N must be an integer"),
