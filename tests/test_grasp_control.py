@@ -119,7 +119,7 @@ def test_path_rates_are_the_derivatives_of_the_pose():
 def test_without_internal_forces_the_first_contact_to_leave_its_cone_is_named(capsys, tmp_path):
     """The QP switched off (smallest forces that move the ball, no squeeze): the ball's weight, carried
     from the side, needs more friction than the contacts have: GraspLostError naming the contact and the
-    time, the CLI exits 2 with it."""
+    time, the CLI exits 5 with it (contacts with no solution during the run: the start is kept)."""
     scene = lift_scene(internal_forces=False)
     with pytest.raises(GraspLostError, match=r"grasp lost at t = 0 s: contact 'index' .* would slide") as info:
         simulate(scene, duration=2.0, progress=False)
@@ -133,7 +133,7 @@ def test_without_internal_forces_the_first_contact_to_leave_its_cone_is_named(ca
         .replace('margin = "0.2 N"', 'margin = "0.2 N"\ninternal_forces = false')
     )
     path.write_text(text)
-    assert main(["run", str(path), "--duration", "0.1", "--quiet"]) == 2
+    assert main(["run", str(path), "--duration", "0.1", "--quiet"]) == 5
     assert "grasp lost at t = 0 s: contact 'index'" in capsys.readouterr().err
 
 
