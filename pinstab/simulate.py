@@ -6,8 +6,8 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Collection, Mapping
-from contextlib import closing, nullcontext
+from collections.abc import Callable, Collection, Iterator, Mapping
+from contextlib import closing, contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -169,24 +169,40 @@ def simulate(
     else:
         loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
     bar = _progress_bar(grid.steps, scene.name, progress)
-    start = time.perf_counter()
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
-    with np.errstate(over="ignore", invalid="ignore"), nullcontext() if bar is None else closing(bar):
-        try:
-            loop.run(q, v, bar)
-        except DivergenceError as exc:
-            wall_time = time.perf_counter() - start
-            exc.trajectory = _trajectory(loop, system, info, wall_time)
-            finite = loop.records.count - 1  # without the failed step's sample
-            exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
-            raise
-        except KeyboardInterrupt:
-            raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
-        except ContactInfeasibleError as exc:
-            exc.trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
-            info.stopped = failure_stop(exc, info.t_end)
-            raise
-    return _trajectory(loop, system, info, time.perf_counter() - start)
+    with (
+        np.errstate(over="ignore", invalid="ignore"),
+        _kept_when_stopped(loop, system, info) as elapsed,
+        nullcontext() if bar is None else closing(bar),
+    ):
+        loop.run(q, v, bar)
+    return _trajectory(loop, system, info, elapsed())
+
+
+@contextmanager
+def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo) -> Iterator[Callable[[], float]]:
+    """Around a run's stepping, yielding its wall time so far [s]: a run that stops early carries the samples it
+    kept: a DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
+    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure)."""
+    start = time.perf_counter()
+
+    def elapsed() -> float:
+        return time.perf_counter() - start
+
+    try:
+        yield elapsed
+    except DivergenceError as exc:
+        wall_time = elapsed()
+        exc.trajectory = _trajectory(loop, system, info, wall_time)
+        finite = loop.records.count - 1  # without the failed step's sample
+        exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
+        raise
+    except KeyboardInterrupt:
+        raise Interrupted(_trajectory(loop, system, info, elapsed())) from None
+    except ContactInfeasibleError as exc:
+        exc.trajectory = _trajectory(loop, system, info, elapsed())
+        info.stopped = failure_stop(exc, info.t_end)
+        raise
 
 
 def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
@@ -267,27 +283,20 @@ def _simulate_events(
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
     loop.stop_on = stop_on
     bar = _progress_bar(grid.steps, scene.name, progress)
-    start = time.perf_counter()
     end = None
-    try:
-        with nullcontext() if bar is None else closing(bar):
+    with _kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+        try:
             loop.start(q, v)
             loop.run(q, v, bar)
-    except RunEnd as exc:
-        end = exc
-        end.t = float(end.t)
-        loop.records.end_with((loop.grid_index(end.t), end.t, end.q, end.v))
-    finally:
-        info.contact_events = [event.to_dict() for event in loop.events]
-    trajectory = _trajectory(loop, system, info, time.perf_counter() - start)
-    if end is None:
-        return trajectory
-    if end.error is not None:
-        info.stopped = failure_stop(end.error, end.t)
-        end.error.trajectory = trajectory
-        raise end.error
-    event = end.event
-    info.stopped = {"reason": stop_kind(event), "t": end.t, "contact": event.contact, "event": event.to_dict()}
+        except RunEnd as exc:
+            end = exc
+            loop.records.end_with((loop.grid_index(end.t), float(end.t), end.q, end.v))
+            if end.error is not None:
+                raise end.error from None
+    trajectory = _trajectory(loop, system, info, elapsed())
+    if end is not None:
+        event = end.event
+        info.stopped = {"reason": stop_kind(event), "t": info.t_end, "contact": event.contact, "event": event.to_dict()}
     return trajectory
 
 
@@ -347,6 +356,8 @@ def _trajectory(
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
     watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
     info.passages = [] if watch is None else [p.to_dict() for p in watch.passages if p.t <= info.t_end]
+    if isinstance(loop, EventLoop):
+        info.contact_events = [event.to_dict() for event in loop.events if event.t <= info.t_end]
     if isinstance(loop, AdaptiveLoop):
         info.error_control = loop.control.summary()
     return Trajectory(  # views of the samples: no second copy of a long run
