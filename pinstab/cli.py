@@ -52,8 +52,9 @@ EXIT_CODES = (
     f"exit codes: {EXIT_OK} success; {EXIT_BAD_INPUT} bad input (a message, no traceback); {EXIT_DIVERGED} divergence "
     f"(--json: the figures up to the last finite state, --save: the trajectory up to there); {EXIT_STOPPED} stopped at "
     f"the contact event asked for with --stop-on; {EXIT_CONTACT_FAILED} contacts with no solution during the run "
-    "(held contacts that cannot hold, a lost grasp, Painleve's paradox); with 4 and 5 the JSON, --save, --plot and "
-    "the recording hold the run up to the stop; 130 Ctrl-C, 143 SIGTERM (--save: the trajectory so far)"
+    f"(held contacts that cannot hold, a lost grasp, Painleve's paradox); with {EXIT_STOPPED} and "
+    f"{EXIT_CONTACT_FAILED} the JSON, --save, --plot and the recording hold the run up to the stop; 130 Ctrl-C, 143 "
+    "SIGTERM (--save: the trajectory so far)"
 )
 DEFAULT_METHOD = "baumgarte"
 CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
