@@ -1,10 +1,12 @@
 """The ``pinstab`` command line: ``check`` a scene, ``run`` a simulation, analyse a ``grasp``, map
 ``stability``.
 
-Exit codes: 0 success, 2 bad input (message, no traceback), 3 divergence (any blow-up, whatever the solver;
-with ``--json`` the figures up to the last finite state; ``--save`` writes the partial trajectory),
-130 Ctrl-C and 143 SIGTERM (one line; ``--save`` writes the partial trajectory). A closed stdout (``| head``)
-ends quietly.
+Exit codes (:data:`EXIT_CODES`): 0 success, 2 bad input (message, no traceback), 3 divergence (any blow-up,
+whatever the solver; with ``--json`` the figures up to the last finite state; ``--save`` writes the partial
+trajectory), 4 stopped at a contact event asked for with ``--stop-on``, 5 contacts with no solution during the run
+(held contacts that cannot hold, a lost grasp, Painleve's paradox), 130 Ctrl-C and 143 SIGTERM (one line;
+``--save`` writes the partial trajectory). With 4 and 5 the run's JSON, ``--save`` file, ``--plot`` chart and
+recording are written up to the stop. A closed stdout (``| head``) ends quietly.
 """
 
 from __future__ import annotations
@@ -25,18 +27,49 @@ import numpy as np
 from . import __version__
 from .analysis import check_coordinates, check_reference, trajectory_error
 from .bench.workprecision import MUJOCO_DTS, PEER_DTS, RTOLS
-from .errors import DivergenceError, PinstabError, ProjectionError, SceneError, UnstableGainsWarning
+from .contact.modes import STOP_KINDS
+from .errors import (
+    ContactInfeasibleError,
+    DivergenceError,
+    PinstabError,
+    ProjectionError,
+    SceneError,
+    UnstableGainsWarning,
+)
 from .files import check_output
 from .integration import INTEGRATORS
 from .memory import memory_limit
 from .registry import Registry, option_fields
-from .simulate import MIN_RTOL
+from .simulate import EVENT_RTOL, MAX_EVENT_CONTACTS, MIN_RTOL
 from .solvers import SOLVERS
 from .stability_map import map_methods
 from .stabilizers import STABILIZERS
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_DIVERGED, EXIT_SIGNAL_BASE = 0, 2, 3, 128  # a signal: 128 + its number
+EXIT_STOPPED = 4  # the run ended at a contact event asked for with --stop-on
+EXIT_CONTACT_FAILED = 5  # contacts with no solution during the run (ContactInfeasibleError: a lost grasp, Painleve)
+EXIT_CODES = (
+    f"exit codes: {EXIT_OK} success; {EXIT_BAD_INPUT} bad input (a message, no traceback); {EXIT_DIVERGED} divergence "
+    f"(--json: the figures up to the last finite state, --save: the trajectory up to there); {EXIT_STOPPED} stopped at "
+    f"the contact event asked for with --stop-on; {EXIT_CONTACT_FAILED} contacts with no solution during the run "
+    f"(held contacts that cannot hold, a lost grasp, Painleve's paradox); with {EXIT_STOPPED} and "
+    f"{EXIT_CONTACT_FAILED} the JSON, --save, --plot and the recording hold the run up to the stop; 130 Ctrl-C, 143 "
+    "SIGTERM (--save: the trajectory so far)"
+)
+DEFAULT_METHOD = "baumgarte"
+CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
+HELD_ONLY = ("method", "integrator", "solver")  # run options that --contacts event has no use for
+SIMULATING = ("run", "record", "servo")  # the commands that run a simulation (and may stop at an event)
+EVENT_ROWS = 20  # contact events listed in text output (all of them in the JSON)
 METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
+
+
+class Kept(Exception):
+    """A run that failed once started (``error``) whose outputs up to the failure were written (``result``)."""
+
+    def __init__(self, error: PinstabError, result: dict[str, Any]) -> None:
+        super().__init__(str(error))
+        self.error, self.result = error, result
 
 
 def _parameters(pairs: list[str]) -> dict[str, Any]:
@@ -104,11 +137,27 @@ def _listed(registry: Registry) -> str:
 
 def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
+        "--contacts",
+        choices=CONTACTS,
+        help=f"how contacts are treated: event (modes sticking, sliding, separated switched at located events, "
+        f"with impacts; error-controlled dop853, --rtol default {EVENT_RTOL:g}), stepping (time-stepping with "
+        "impulses), held (constraint rows that hold, with --method, --integrator, --solver). Default: event for "
+        f"scenes whose constraints are plane contacts, at most {MAX_EVENT_CONTACTS}; held otherwise",
+    )
+    parser.add_argument(
+        "--stop-on",
+        action="append",
+        choices=STOP_KINDS,
+        help="end the run at the first such contact event (exit 4; repeat for both): slip, a contact at rest "
+        "starts sliding; separation, a touching contact opens (after an impact too). The outputs hold the run "
+        "up to it",
+    )
+    parser.add_argument(
         "--method",
-        default="baumgarte",
+        default=None,
         choices=STABILIZERS,
         metavar="METHOD",
-        help=f"stabilization method (default: baumgarte). {_listed(STABILIZERS)}",
+        help=f"stabilization method (default: {DEFAULT_METHOD}). {_listed(STABILIZERS)}",
     )
     parser.add_argument(
         "--integrator",
@@ -159,7 +208,9 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="pinstab", description="Constrained multibody simulation with measurable constraint stabilization."
+        prog="pinstab",
+        description="Constrained multibody simulation with measurable constraint stabilization.",
+        epilog=EXIT_CODES,
     )
     parser.add_argument("--version", action="version", version=f"pinstab {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -186,7 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     servo = sub.add_parser(
-        "servo", help="realize a scene's prescribed constraints: controls, constraint error, reactions"
+        "servo",
+        help="realize a scene's prescribed constraints: controls, constraint error, reactions",
+        epilog=EXIT_CODES,
     )
     _scene_arguments(servo)
     _run_options(servo)
@@ -196,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
     servo.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
     servo.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error, constraint forces and controls")
 
-    run = sub.add_parser("run", help="simulate a scene and report drift and energy")
+    run = sub.add_parser("run", help="simulate a scene and report drift and energy", epilog=EXIT_CODES)
     _scene_arguments(run)
     _run_options(run)
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
@@ -215,7 +268,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(the largest joint error); repeat for several (default: the exact reference's crank, else joints)",
     )
 
-    record = sub.add_parser("record", help="simulate and write a standalone HTML recording (or stream it live)")
+    record = sub.add_parser(
+        "record", help="simulate and write a standalone HTML recording (or stream it live)", epilog=EXIT_CODES
+    )
     _scene_arguments(record)
     _run_options(record)
     record.add_argument("-o", "--output", metavar="OUT.html", help="the recording to write")
@@ -328,6 +383,11 @@ def _dispatch(args: argparse.Namespace) -> int:
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
             result = COMMANDS[args.command](args)
+    except Kept as kept:
+        _fail(kept.error, args, kept.result.get("saved"))
+        if getattr(args, "json", False):
+            _write(json.dumps(_clean(kept.result)))
+        return EXIT_CONTACT_FAILED
     except (DivergenceError, ProjectionError) as exc:
         _fail(exc, args, _save_partial(args, getattr(exc, "finite_trajectory", None)))
         return EXIT_DIVERGED
@@ -335,7 +395,20 @@ def _dispatch(args: argparse.Namespace) -> int:
         _fail(exc, args)
         return EXIT_BAD_INPUT
     _emit(result, args)
-    return EXIT_OK
+    stopped = result.get("stopped")
+    if stopped is None or args.command not in SIMULATING:
+        return EXIT_OK
+    print(f"pinstab {args.command}: stopped (--stop-on): {stopped_text(stopped)}", file=sys.stderr)
+    return EXIT_STOPPED
+
+
+def stopped_text(stopped: dict[str, Any]) -> str:
+    """``info.stopped`` in words: what, when [s], which contact and how its mode changed."""
+    event = stopped.get("event")
+    if event is None:
+        return f"{stopped['reason']} at t = {stopped['t']:.9g} s ({stopped['error']})"
+    change = f"{event['from']} -> {event['to']} ({event['cause']})"
+    return f"{stopped['reason']} at t = {stopped['t']:.9g} s: contact {event['contact']} {change}"
 
 
 def _show_warning(command: str):
@@ -413,11 +486,32 @@ def _emit(result: dict[str, Any], args: argparse.Namespace) -> None:
     if args.command in TEXT_FORMATS:
         _write(TEXT_FORMATS[args.command](result))
         return
-    width = max(len(k) for k in result)
+    shown = {key: value for key, value in result.items() if key != "contact_events"}
+    if shown.get("stopped"):
+        shown["stopped"] = stopped_text(shown["stopped"])
+    width = max(len(k) for k in shown)
+    lines = [f"{key:<{width}}  {f'{value:.6g}' if isinstance(value, float) else value}" for key, value in shown.items()]
+    _write("\n".join(lines + events_table(result.get("contact_events") or [])))
+
+
+def events_table(events: list[dict[str, Any]], rows: int = EVENT_ROWS) -> list[str]:
+    """The first ``rows`` contact events as text lines (time [s], contact, from -> to, cause, normal force [N],
+    slip speed [m/s]), and how many more there are; no lines without events."""
+    if not events:
+        return []
     lines = [
-        f"{key:<{width}}  {f'{value:.6g}' if isinstance(value, float) else value}" for key, value in result.items()
+        f"contact events ({len(events)}):",
+        f"  {'t [s]':>14}  {'contact':<12} {'from -> to':<24} {'f_n [N]':>10}  {'slip [m/s]':>10}  cause",
     ]
-    _write("\n".join(lines))
+    for event in events[:rows]:
+        change = f"{event['from']} -> {event['to']}"
+        lines.append(
+            f"  {event['t']:>14.9g}  {event['contact']:<12} {change:<24} {event['force'][0]:>10.4g}  "
+            f"{float(np.hypot(*event['slip_velocity'])):>10.3g}  {event['cause']}"
+        )
+    if len(events) > rows:
+        lines.append(f"  ... and {len(events) - rows} more (all of them in --json)")
+    return lines
 
 
 def _clean(value: Any) -> Any:
@@ -530,7 +624,7 @@ def _servo(args: argparse.Namespace) -> dict[str, Any]:
     if not any(c.prescribed for c in scene.constraints):
         raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
     if args.check:
-        system = build_system(scene, args.method)
+        system = build_system(scene, args.method or DEFAULT_METHOD)
         start = assemble(system.model, scene.q0, scene.v0)
         evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
         decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
@@ -554,31 +648,68 @@ TEXT_FORMATS = {"grasp": _grasp_text}
 
 def _simulate(args: argparse.Namespace, before: Callable[[Any], None] | None = None):
     """Load the scene, check it with ``before(scene)`` when given, and simulate it with the run options;
-    returns (scene, trajectory)."""
+    returns (scene, trajectory, failure): a run that failed once started (ContactInfeasibleError) returns its
+    partial trajectory and the error."""
     from .scene import load_scene
     from .simulate import simulate
 
     scene = load_scene(args.scene, **_parameters(args.param))
     if before is not None:
         before(scene)
+    contacts = _contacts(args, scene)
     adaptive = args.rtol is not None or args.atol is not None
-    trajectory = simulate(
-        scene,
-        method=args.method,
-        integrator=args.integrator or ("dop853" if adaptive else "rk4"),
-        rtol=args.rtol,
-        atol=args.atol,
-        dt=args.dt,
-        duration=args.duration,
-        solver=args.solver,
-        solver_options=_given_options(args, SOLVER_OPTION),
-        strict=args.strict,
-        drift_limit=args.drift_limit,
-        progress=not args.quiet,
-        record_every=args.record_every,
-        **_given_options(args, METHOD_OPTION),
-    )
-    return scene, trajectory
+    try:
+        trajectory = simulate(
+            scene,
+            method=args.method or DEFAULT_METHOD,
+            integrator=args.integrator or ("dop853" if adaptive else "rk4"),
+            rtol=args.rtol,
+            atol=args.atol,
+            dt=args.dt,
+            duration=args.duration,
+            solver=args.solver,
+            solver_options=_given_options(args, SOLVER_OPTION),
+            strict=args.strict,
+            drift_limit=args.drift_limit,
+            progress=not args.quiet,
+            record_every=args.record_every,
+            contacts=contacts,
+            stop_on=tuple(args.stop_on or ()),
+            **_given_options(args, METHOD_OPTION),
+        )
+    except ContactInfeasibleError as exc:
+        if getattr(exc, "trajectory", None) is None:  # before the run started: the scene, not the run
+            raise
+        return scene, exc.trajectory, exc
+    return scene, trajectory, None
+
+
+def _contacts(args: argparse.Namespace, scene) -> str | None:
+    """The contact treatment of ``simulate`` (None: held rows): ``--contacts``, else the scene's default
+    (:func:`~pinstab.simulate.default_contacts`). Refuses the held contacts' options with ``event`` and
+    ``--stop-on`` without it."""
+    from .simulate import default_contacts
+
+    contacts = default_contacts(scene) if args.contacts is None else args.contacts
+    contacts = None if contacts == "held" else contacts
+    if contacts == "event":
+        given = [f"--{name}" for name in HELD_ONLY if getattr(args, name) is not None]
+        given += [f"--{name.replace('_', '-')}" for name in _given_options(args, METHOD_OPTION)]
+        given += [f"--{name.replace('_', '-')}" for name in _given_options(args, SOLVER_OPTION)]
+        if given:
+            chosen = "--contacts event" if args.contacts else f"scene {scene.name}'s default, event"
+            raise PinstabError(
+                f"{', '.join(given)}: the contacts are event-driven ({chosen}): their modes are integrated by "
+                "error-controlled dop853 (--rtol), without a stabilization method or KKT backend; give --contacts "
+                "held to hold the contacts as constraint rows with these options"
+            )
+    if args.stop_on and contacts != "event":
+        treatment = "held as constraint rows" if contacts is None else f"{contacts}"
+        raise PinstabError(
+            f"--stop-on {' '.join(args.stop_on)} ends a run at a contact event, which event-driven contacts locate "
+            f"(--contacts event); scene {scene.name}'s contacts are {treatment} here"
+        )
+    return contacts
 
 
 def _run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
@@ -611,7 +742,9 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     reference = getattr(args, "reference", None)
     if reference is None and getattr(args, "error_of", None):
         raise PinstabError("--error-of names what --reference compares: give --reference exact or RUN.npz")
-    scene, trajectory = _simulate(args, None if reference is None else lambda scene: _check_reference(args, scene))
+    scene, trajectory, failure = _simulate(
+        args, None if reference is None else lambda scene: _check_reference(args, scene)
+    )
     result = _run_summary(args, trajectory)
     if add is not None:
         add(scene, trajectory, result)
@@ -624,7 +757,15 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     if args.plot:
         plot_trajectory(trajectory, args.plot)
         result["plot"] = args.plot
-    return result
+    return _ended(result, failure)
+
+
+def _ended(result: dict[str, Any], failure: PinstabError | None) -> dict[str, Any]:
+    """``result``, or :class:`Kept` raised with it (and the error's message) when the run failed once started."""
+    if failure is None:
+        return result
+    result["error"] = str(failure)
+    raise Kept(failure, result)
 
 
 def _check_reference(args: argparse.Namespace, scene) -> None:
@@ -646,7 +787,7 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
         check_output(args.output, ".html", "recording")
     check_frames(args.duration, args.fps)
     start = time.perf_counter()
-    scene, trajectory = _simulate(args)
+    scene, trajectory, failure = _simulate(args)
     model = ConstrainedModel(scene)
     result = _run_summary(args, trajectory)
     if args.live:
@@ -661,7 +802,7 @@ def _record(args: argparse.Namespace) -> dict[str, Any]:
             force_scale=recording.force_scale,
         )
     result["record_wall_s"] = time.perf_counter() - start
-    return result
+    return _ended(result, failure)
 
 
 def _plot(args: argparse.Namespace) -> dict[str, Any]:
@@ -671,7 +812,15 @@ def _plot(args: argparse.Namespace) -> dict[str, Any]:
     check_output(args.output, ".png", "chart")
     trajectory = Trajectory.load(args.run_file)
     plot_trajectory(trajectory, args.output)
-    return {"run": args.run_file, "plot": args.output, "steps": trajectory.steps}
+    info = trajectory.info
+    return {
+        "run": args.run_file,
+        "plot": args.output,
+        "steps": trajectory.steps,
+        "t_end": float(trajectory.t[-1]),
+        "stopped": info.stopped,
+        "contact_events": info.contact_events,
+    }
 
 
 def _bench(args: argparse.Namespace) -> dict[str, Any]:

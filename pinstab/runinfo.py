@@ -81,6 +81,10 @@ class RunInfo:
             slip velocity, impulse).
         error_control: with rtol/atol, the tolerances and the accepted and rejected steps
             (:meth:`~pinstab.integration.adaptive.ErrorControl.summary`); None for fixed steps.
+        stopped: why the run ended before its duration, with the samples up to then: ``reason`` (``slip``
+            or ``separation``: an event it was asked to stop on, with ``contact`` and ``event``; ``contact
+            failure``: contacts with no solution, with ``error``, the error's class, and ``message``) and
+            ``t`` [s]; None when it ran to the end.
     """
 
     scene: str
@@ -107,6 +111,7 @@ class RunInfo:
     passages: list[dict[str, Any]] = field(default_factory=list)
     error_control: dict[str, Any] | None = None
     contact_events: list[dict[str, Any]] = field(default_factory=list)
+    stopped: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

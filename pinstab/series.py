@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import ContactInfeasibleError
 from .system import ConstrainedSystem
 
 
@@ -35,13 +36,17 @@ class StateSeries:
         return {"position_drift": position, "velocity_drift": velocity, "energy": energy}
 
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The constraint multipliers per sample [N, N m]; NaN at non-finite samples."""
+        """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the contacts cannot
+        hold (the last sample of a run that ended with ContactInfeasibleError)."""
         system = self.system
         out = np.full((len(t), system.model.constraints.rows), np.nan)
         finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)
         with np.errstate(over="ignore", invalid="ignore"):
             for k in np.flatnonzero(finite):
-                out[k] = system.multipliers(q[k], v[k], float(t[k]))
+                try:
+                    out[k] = system.multipliers(q[k], v[k], float(t[k]))
+                except ContactInfeasibleError:
+                    continue
         return out
 
     def spectral_radius(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:

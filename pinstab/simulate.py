@@ -6,18 +6,19 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Mapping
-from contextlib import closing, nullcontext
+from collections.abc import Callable, Collection, Iterator, Mapping
+from contextlib import closing, contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .errors import DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
+from .contact.modes import STOP_KINDS, stop_kind
+from .errors import ContactInfeasibleError, DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
 from .integration.contact_stepping import ContactStepper
-from .integration.events import EventLoop
+from .integration.events import EventLoop, RunEnd
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
@@ -36,6 +37,7 @@ ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
 EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
+MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many, default to event-driven contacts
 
 
 class Interrupted(KeyboardInterrupt):
@@ -70,6 +72,7 @@ def simulate(
     rtol: float | None = None,
     atol: float | None = None,
     contacts: str | None = None,
+    stop_on: tuple[str, ...] | frozenset[str] = (),
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -108,7 +111,12 @@ def simulate(
             rtol default :data:`EVENT_RTOL`); ``stepping``: time-stepping contacts, a velocity-level Moreau-Jean
             step of ``dt`` with impulses on the exact round cone (Pinocchio's ADMM in NCP mode;
             :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
-            change in ``info.contact_events``; None: they are held as constraint rows.
+            change in ``info.contact_events``; None: they are held as constraint rows (see
+            :func:`default_contacts`).
+        stop_on: with ``contacts="event"``, the kinds of contact event that end the run
+            (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
+            ``separation``, a touching contact opens): the trajectory ends at the first such event, with
+            ``info.stopped`` saying which.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -120,6 +128,10 @@ def simulate(
             the failed step (``diverged_at``), the partial trajectory (ending with the failed step's
             sample) and ``finite_trajectory``, which ends at the last finite state.
         Interrupted: Ctrl-C (a KeyboardInterrupt) while stepping; carries the partial trajectory.
+        ContactInfeasibleError: contacts that cannot hold (held rows), or no consistent contact modes
+            (:class:`~pinstab.errors.PainleveError`, event-driven); raised once the run started, it carries
+            the partial trajectory (``trajectory``, up to the last good state, ``info.stopped`` naming the
+            failure).
         UnstableGainsError: with ``strict``, gains predicted unstable, before any step.
 
     Warns:
@@ -127,10 +139,11 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    kinds = stop_kinds(stop_on, contacts)
     if contacts == "stepping":
         return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
     if contacts is not None:
-        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress)
+        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
         raise PinstabError(
@@ -169,20 +182,80 @@ def simulate(
     else:
         loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
     bar = _progress_bar(grid.steps, scene.name, progress)
-    start = time.perf_counter()
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
-    with np.errstate(over="ignore", invalid="ignore"), nullcontext() if bar is None else closing(bar):
-        try:
-            loop.run(q, v, bar)
-        except DivergenceError as exc:
-            wall_time = time.perf_counter() - start
-            exc.trajectory = _trajectory(loop, system, info, wall_time)
-            finite = loop.records.count - 1  # without the failed step's sample
-            exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
-            raise
-        except KeyboardInterrupt:
-            raise Interrupted(_trajectory(loop, system, info, time.perf_counter() - start)) from None
-    return _trajectory(loop, system, info, time.perf_counter() - start)
+    with (
+        np.errstate(over="ignore", invalid="ignore"),
+        _kept_when_stopped(loop, system, info) as elapsed,
+        nullcontext() if bar is None else closing(bar),
+    ):
+        loop.run(q, v, bar)
+    return _trajectory(loop, system, info, elapsed())
+
+
+@contextmanager
+def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo) -> Iterator[Callable[[], float]]:
+    """Around a run's stepping, yielding its wall time so far [s]: a run that stops early carries the samples it
+    kept: a DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
+    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure)."""
+    start = time.perf_counter()
+
+    def elapsed() -> float:
+        return time.perf_counter() - start
+
+    try:
+        yield elapsed
+    except DivergenceError as exc:
+        wall_time = elapsed()
+        exc.trajectory = _trajectory(loop, system, info, wall_time)
+        finite = loop.records.count - 1  # without the failed step's sample
+        exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
+        raise
+    except KeyboardInterrupt:
+        raise Interrupted(_trajectory(loop, system, info, elapsed())) from None
+    except ContactInfeasibleError as exc:
+        exc.trajectory = _trajectory(loop, system, info, elapsed())
+        info.stopped = failure_stop(exc, info.t_end)
+        raise
+
+
+def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
+    """The kinds of event a run stops on, checked: a string or a collection of :data:`STOP_KINDS`.
+
+    Raises:
+        PinstabError: an unknown kind (naming the valid ones), or kinds without event-driven contacts.
+    """
+    if isinstance(stop_on, str):
+        stop_on = (stop_on,)
+    if not isinstance(stop_on, Collection) or not all(isinstance(kind, str) for kind in stop_on):
+        raise PinstabError(f"stop_on must name kinds of contact event ({', '.join(STOP_KINDS)}), got {stop_on!r}")
+    kinds = frozenset(stop_on)
+    unknown = sorted(kinds - set(STOP_KINDS))
+    if unknown:
+        raise PinstabError(f"stop_on: {unknown[0]!r} is not a kind of contact event; valid: {', '.join(STOP_KINDS)}")
+    if kinds and contacts != "event":
+        raise PinstabError(
+            f"stop_on ({', '.join(sorted(kinds))}) ends a run at a contact event: it takes contacts='event'"
+        )
+    return kinds
+
+
+def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
+    """(the scene's plane contacts as event-driven geometries, the names of its other constraints)."""
+    geometries = plane_geometries(scene.constraints)
+    names = {g.name for g in geometries}
+    return geometries, [c.name for c in scene.constraints if c.name not in names]
+
+
+def default_contacts(scene: Scene) -> str | None:
+    """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
+    them; None (contacts held as constraint rows) otherwise."""
+    geometries, others = event_contacts(scene)
+    return "event" if geometries and not others and len(geometries) <= MAX_EVENT_CONTACTS else None
+
+
+def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:
+    """``info.stopped`` of a run ended by ``error`` with its last state at t [s]."""
+    return {"reason": "contact failure", "t": t, "error": type(error).__name__, "message": str(error)}
 
 
 def _simulate_events(
@@ -196,8 +269,10 @@ def _simulate_events(
     q0: np.ndarray | None,
     v0: np.ndarray | None,
     progress: bool,
+    stop_on: frozenset[str] = frozenset(),
 ) -> Trajectory:
-    """:func:`simulate` with event-driven contacts (``contacts="event"``)."""
+    """:func:`simulate` with event-driven contacts (``contacts="event"``), ending at the first event of a kind in
+    ``stop_on``."""
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
     geometries, system, q, v = _contact_system(scene, q0, v0)
@@ -210,8 +285,23 @@ def _simulate_events(
     stepper = INTEGRATORS.build("dop853", system)
     info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
-    loop.start(q, v)
-    return _run_contacts(loop, loop.events, scene, info, q, v, progress)
+    loop.stop_on = stop_on
+    bar = _progress_bar(grid.steps, scene.name, progress)
+    end = None
+    with _kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+        try:
+            loop.start(q, v)
+            loop.run(q, v, bar)
+        except RunEnd as exc:
+            end = exc
+            loop.records.end_with((loop.grid_index(end.t), float(end.t), end.q, end.v))
+            if end.error is not None:
+                raise end.error from None
+    trajectory = _trajectory(loop, system, info, elapsed())
+    if end is not None:
+        event = end.event
+        info.stopped = {"reason": stop_kind(event), "t": info.t_end, "contact": event.contact, "event": event.to_dict()}
+    return trajectory
 
 
 def _simulate_stepping(
@@ -233,7 +323,10 @@ def _simulate_stepping(
     info = _info(scene, system, stepper.name, grid, None, "none", None, record_every)
     info.solver = "pinocchio-admm"
     loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
-    return _run_contacts(loop, stepper.events, scene, info, q, v, progress)
+    bar = _progress_bar(grid.steps, scene.name, progress)
+    with _kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+        loop.run(q, v, bar)
+    return _trajectory(loop, system, info, elapsed())
 
 
 def _contact_system(
@@ -241,8 +334,7 @@ def _contact_system(
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
     """The plane contacts of a scene whose constraints are all plane contacts, the system of its free bodies
     and the start state."""
-    geometries = plane_geometries(scene.constraints)
-    others = [c.name for c in scene.constraints if c.name not in {g.name for g in geometries}]
+    geometries, others = event_contacts(scene)
     if not geometries or others:
         raise PinstabError(
             f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
@@ -253,20 +345,6 @@ def _contact_system(
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
     return geometries, system, q, v
-
-
-def _run_contacts(
-    loop: StepLoop, events: list, scene: Scene, info: RunInfo, q: np.ndarray, v: np.ndarray, progress: bool
-) -> Trajectory:
-    """Run a contact loop from (q, v) with its progress bar; the run info lists its contact ``events``."""
-    bar = _progress_bar(loop.grid.steps, scene.name, progress)
-    start = time.perf_counter()
-    try:
-        with nullcontext() if bar is None else closing(bar):
-            loop.run(q, v, bar)
-    finally:
-        info.contact_events = [event.to_dict() for event in events]
-    return _trajectory(loop, loop.system, info, time.perf_counter() - start)
 
 
 def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
@@ -323,7 +401,11 @@ def _trajectory(
     info.steps, info.t_end = last, float(records.t[n - 1])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
-    info.passages = [passage.to_dict() for passage in loop.watch.passages if passage.t <= info.t_end]
+    watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
+    info.passages = [] if watch is None else [p.to_dict() for p in watch.passages if p.t <= info.t_end]
+    events = loop.events if isinstance(loop, EventLoop) else getattr(loop.stepper, "events", None)
+    if events is not None:
+        info.contact_events = [event.to_dict() for event in events if event.t <= info.t_end]
     if isinstance(loop, AdaptiveLoop):
         info.error_control = loop.control.summary()
     return Trajectory(  # views of the samples: no second copy of a long run

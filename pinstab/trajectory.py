@@ -186,6 +186,8 @@ class Trajectory:
         passages = self.info.passages
         summary["singular_passages"] = passages
         summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)
+        summary["contact_events"] = self.info.contact_events
+        summary["stopped"] = self.info.stopped
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
             servo = self.servo_figures

@@ -92,7 +92,7 @@ def test_push_outside_the_cone_names_the_contacts(capsys, tmp_path):
     with pytest.raises(ContactInfeasibleError, match=r"contact 'c[23]' needs \|f_t\|/f_n = 0\.722 > mu = 0\.5") as info:
         contact_forces(box_scene(push=(6.0, 0.0, 0.0)))
     assert sorted(info.value.contacts) == ["c0", "c1", "c2", "c3"]
-    # the same through the CLI: exit 2, one-paragraph message
+    # the same through the CLI with held contacts: exit 5 (contacts with no solution), one-paragraph message
     bundled = (ROBOTS / "box-push.toml").read_text()
     path = tmp_path / "box.toml"
     path.write_text(
@@ -100,7 +100,7 @@ def test_push_outside_the_cone_names_the_contacts(capsys, tmp_path):
             'urdf = "urdf/box.urdf"', f'urdf = "{ROBOTS / "urdf" / "box.urdf"}"'
         )
     )
-    assert main(["run", str(path), "--duration", "0.01", "--quiet"]) == 2
+    assert main(["run", str(path), "--duration", "0.01", "--contacts", "held", "--quiet"]) == 5
     err = capsys.readouterr().err
     assert "sticking contacts cannot hold" in err and "front-left" in err and "Traceback" not in err
 

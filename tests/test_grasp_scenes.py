@@ -11,11 +11,12 @@ import pytest
 
 from conftest import ROBOTS
 from pinstab import assemble, load_scene, simulate
-from pinstab.cli import main
+from pinstab.cli import EXIT_CONTACT_FAILED, main
 from pinstab.errors import GraspLostError, SceneError
 from pinstab.grasp.report import analyse_scene_grasps
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
+from pinstab.trajectory import Trajectory
 
 BALL_MASS, GRAVITY = 0.1, 9.81
 
@@ -125,7 +126,8 @@ def test_allegro_box_soft_fingers_hold(capsys):
 
 def test_a_push_the_grasp_cannot_take_names_the_contact_and_time(capsys, tmp_path):
     """A 5 N push (50 times the ball's weight) makes some contact slide or pull: GraspLostError with the
-    contact's name and the time; the CLI exits 2 with the message."""
+    contact's name and the time; the CLI exits 5 with the message, the JSON and the --save file holding the run
+    up to the last step before the loss."""
     scene = scene_from_dict(allegro_sphere(push=[0.0, "5 N", 0.0]), base_dir=ROBOTS)
     with pytest.raises(
         GraspLostError, match=r"grasp lost at t = [0-9.e-]+ s: contact '(index|middle|ring|thumb)'"
@@ -136,8 +138,14 @@ def test_a_push_the_grasp_cannot_take_names_the_contact_and_time(capsys, tmp_pat
     path = tmp_path / "pushed.toml"
     text = (ROBOTS / "allegro-sphere.toml").read_text().replace('"0.2 N"', '"5 N"')
     path.write_text(text)
-    code, _, err = run_json(capsys, "run", str(path), "--duration", "0.2", "--quiet")
-    assert code == 2 and "grasp lost at t =" in err and "Traceback" not in err
+    saved = tmp_path / "pushed.npz"
+    argv = ("run", str(path), "--duration", "0.2", "--quiet", "--json", "--save", str(saved))
+    code, result, err = run_json(capsys, *argv)
+    assert code == EXIT_CONTACT_FAILED and "grasp lost at t =" in err and "Traceback" not in err
+    assert info.value.time - 1e-3 <= result["t_end"] <= info.value.time  # the last step before the loss
+    assert result["stopped"]["error"] == "GraspLostError" and "grasp lost at t =" in result["error"]
+    kept = Trajectory.load(saved)
+    assert kept.t[-1] == result["t_end"] and np.all(np.isfinite(kept.q))
 
 
 def test_grasp_of_a_scene_without_grasp_contacts_is_refused(capsys):

@@ -70,3 +70,20 @@ class ContactEvent:
 def as_tuple(values: np.ndarray) -> tuple[float, ...]:
     """Plain floats of a small array (for events and JSON)."""
     return tuple(float(x) for x in values)
+
+
+STOP_KINDS = ("slip", "separation")  # the events a run can be asked to stop at (``stop_on``)
+AT_REST = 1e-9  # [m/s] a contact point slower than this along the plane is at rest
+
+
+def stop_kind(event: ContactEvent) -> str | None:
+    """What a lost grasp looks like in an event: ``slip`` (a contact at rest starts sliding: a sticking one
+    whose friction reached the cone, or one that slides from rest at the start), ``separation`` (a touching
+    contact opens: a sticking or sliding one whose normal force reached zero, or a rebound after an impact),
+    or None."""
+    if event.after == Mode.SLIDING.value:
+        at_rest = event.cause == "start" and float(np.hypot(*event.slip_velocity)) <= AT_REST
+        return "slip" if event.before == Mode.STICKING.value or at_rest else None
+    if event.after == Mode.SEPARATED.value and event.before != Mode.SEPARATED.value:
+        return "separation"
+    return None

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple
+from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
+from ..errors import ContactInfeasibleError
 from ..solvers.contact_modes import ModeDynamics
 from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, TOUCH_SPEED, choose_modes, sticking_margin
 from .adaptive import AdaptiveLoop
@@ -31,17 +32,34 @@ START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and o
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
+class RunEnd(Exception):
+    """Ends an event-driven run at an event: one of the kinds the loop stops on (``event``), or a contact
+    problem without a solution (``error``, e.g. :class:`~pinstab.errors.PainleveError`).
+
+    Attributes:
+        t: the event's time [s]. q, v: the state there (after the switch when it stopped on an event).
+        event: the event stopped on, or None. error: the failure, or None.
+    """
+
+    def __init__(self, t: float, q: np.ndarray, v: np.ndarray, event=None, error=None) -> None:
+        super().__init__(f"the run ended at t = {t:.6g} s")
+        self.t, self.q, self.v, self.event, self.error = t, q, v, event, error
+
+
 class EventLoop(AdaptiveLoop):
     """:class:`AdaptiveLoop` over a :class:`ModeDynamics` system whose contact modes switch at events.
 
     Attributes:
         events: the contact events so far (:class:`~pinstab.contact.modes.ContactEvent`).
+        stop_on: the kinds of event (:data:`~pinstab.contact.modes.STOP_KINDS`) that end the run
+            (:class:`RunEnd`), empty by default.
     """
 
     def __init__(self, system, stepper, grid, every, drift_limit, warned, control, dynamics: ModeDynamics):
         super().__init__(system, stepper, grid, every, drift_limit, warned, control)
         self.dynamics = dynamics
         self.events: list[ContactEvent] = []
+        self.stop_on: frozenset[str] = frozenset()
         self._reference: list[np.ndarray] = []
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
@@ -186,7 +204,11 @@ class EventLoop(AdaptiveLoop):
         self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False
     ):
         dynamics = self.dynamics
-        choice = choose_modes(dynamics, q, v, t, CONSISTENCY if cause in (START, GAP_CLOSED) else EVENT_SLACK)
+        try:
+            choice = choose_modes(dynamics, q, v, t, CONSISTENCY if cause in (START, GAP_CLOSED) else EVENT_SLACK)
+        except ContactInfeasibleError as exc:  # no replay: the modes up to here are the run's
+            raise RunEnd(t, q, v, error=exc) from None
+        first = len(self.events)
         contacts = choice.solution.contacts
         for i, direction in choice.directions.items():
             dynamics.directions[i] = direction
@@ -206,3 +228,6 @@ class EventLoop(AdaptiveLoop):
                     )
                 )
         dynamics.modes[:] = choice.modes
+        stops = [event for event in self.events[first:] if stop_kind(event) in self.stop_on]
+        if stops:
+            raise RunEnd(t, q, v, event=stops[0])

@@ -96,6 +96,7 @@ class Records:
 
     Attributes:
         last: the slot of the run's last step. count: the samples kept (fewer when the run stopped early).
+        ended: whether :meth:`end_with` ended them.
     """
 
     def __init__(self, grid: TimeGrid, every: int, nq: int, nv: int) -> None:
@@ -112,6 +113,7 @@ class Records:
         self.corrections = np.zeros(size + 1, dtype=int)
         self.last = size - 1
         self.count = size
+        self.ended = False
 
     def end_with(self, *samples: tuple[int, float, np.ndarray, np.ndarray]) -> None:
         """Keep the samples before the first of ``samples`` (step, t [s], q, v) and end with these (a run
@@ -120,6 +122,7 @@ class Records:
         for slot, (step, t, q, v) in enumerate(samples, start=index):
             self.steps[slot], self.t[slot], self.q[slot], self.v[slot] = step, t, q, v
         self.count = index + len(samples)
+        self.ended = True
 
 
 class Failure(Exception):
@@ -169,16 +172,19 @@ class StepLoop:
             DivergenceError: a check failed, or a solve failed on a state reached inside a step; at the
                 step where it first fails, with the last good state, :attr:`records` ending with it.
             KeyboardInterrupt: Ctrl-C; :attr:`records` end with the last checked state.
+            ContactInfeasibleError: contacts that cannot hold; :attr:`records` end with the last state that
+                passed its checks.
         """
         self.records.q[0], self.records.v[0] = q, v
         self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt)
-        self.system.audit(q, v, 0.0)
         k = 0
         try:
+            self.system.audit(q, v, 0.0)
             while k < self.grid.steps:
                 q, v, k = self.chunk(q, v, k, progress)
-        except KeyboardInterrupt:
-            self.records.end_with((k, self.grid.time(k), q, v))
+        except (KeyboardInterrupt, ContactInfeasibleError):
+            if not self.records.ended:  # a replay that located the failure ended them at its step
+                self.records.end_with((k, self.grid.time(k), q, v))
             raise
         return q, v
 
@@ -371,6 +377,7 @@ class StepLoop:
                 reason = f"the post-step projection failed ({exc})"
             except SolverError as exc:
                 self.name_step_size(k, failed, str(exc), q, v)
+                self.records.end_with((k, self.grid.time(k), q, v))  # kept when the failure is not a blow-up
                 reason = self.solve_failure(exc, q, v, self.grid.time(k))
             else:
                 q, v, k = q_next, v_next, reached

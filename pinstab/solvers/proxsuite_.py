@@ -278,7 +278,8 @@ class ProxsuiteSolver(KKTSolver):
         described = "; ".join(_describe(cone, need) for need, cone in failing)
         raise ContactInfeasibleError(
             f"sticking contacts cannot hold at t = {problem.t:.6g} s: {described}. The applied forces are outside "
-            "the friction cone, so the contact would slide or open (contacts that switch are not modelled yet); "
+            "the friction cone, so the contact would slide or open (held contacts cannot: plane contacts switch with "
+            "--contacts event, simulate(contacts='event')); "
             "reduce the push or raise mu",
             [cone.name for _, cone in failing],
             problem.t,

@@ -163,11 +163,12 @@ class ContactForces:
 
     def __init__(self, model: ConstrainedModel, trajectory: Trajectory, times: np.ndarray, size: float) -> None:
         self.kin, self.longest = model.kin, FORCE_FRACTION * size
-        self.views = contact_views(model)
+        rows = trajectory.info.constraint_rows
+        # contacts whose forces the run has as multipliers (event-driven contacts have none: not drawn)
+        self.views = [view for view in contact_views(model) if view.name in rows]
         self.scale: float | None = None
         if not self.views:
             return
-        rows = trajectory.info.constraint_rows
         self.t, self.multipliers = trajectory.t, trajectory.multipliers
         self.rows = {view.name: slice(*rows[view.name]) for view in self.views}
         magnitudes = [np.linalg.norm(view.force(block)) for t in times for view, block in self._blocks(float(t))]

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ..plotting import pyplot, save_figure
 from ..trajectory import Trajectory
+
+LABEL_SPACING = 0.02  # contact events are labelled at times this fraction of the time axis apart (all are marked)
+LABELS_PER_TIME = 3  # ... with this many events each, then "+n"
 
 
 def plot_trajectory(trajectory: Trajectory, path: str | Path) -> Path:
@@ -23,7 +27,9 @@ def trajectory_figure(trajectory: Trajectory):
     * energy error E(t) - E(0) [J];
     * the norm of each constraint's multipliers [N];
     * with prescribed constraints, the controls u that realize them [N m or N];
-    * with a comparison (``--reference``), the trajectory error of each compared coordinate [rad or m].
+    * with a comparison (``--reference``), the trajectory error of each compared coordinate [rad or m];
+    * with contact events, a vertical marker at each event's time on every panel, labelled
+      ``contact: from -> to`` (:func:`mark_events`).
     """
     plt = pyplot()
     t = trajectory.t
@@ -65,6 +71,7 @@ def trajectory_figure(trajectory: Trajectory):
     axes[-1].set_xlabel("time t [s]")
     for axis in axes:
         axis.grid(True, alpha=0.3)
+    mark_events(axes, info.contact_events)
     method = info.method
     fig.suptitle(f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10)
     fig.tight_layout()
@@ -84,3 +91,25 @@ def _log_panel(axis, t: np.ndarray, series: dict[str, np.ndarray]) -> None:
         axis.legend(fontsize=8)
     else:
         axis.text(0.5, 0.5, "exactly 0 at every sample", transform=axis.transAxes, ha="center", va="center")
+
+
+def mark_events(axes, events: list[dict]) -> None:
+    """A dotted vertical line at the time [s] of each contact event that changes a mode on every axis, and on
+    the first axis labels ``contact: from -> to`` of the events at a time, at times at least
+    :data:`LABEL_SPACING` of the axis apart (the rest are in the events table)."""
+    by_time: dict[float, list[str]] = {}
+    for event in events:
+        if event["from"] != event["to"]:
+            by_time.setdefault(float(event["t"]), []).append(f"{event['contact']}: {event['from']} -> {event['to']}")
+    low, high = axes[0].get_xlim()
+    labelled = -math.inf
+    for time, labels in by_time.items():
+        for axis in axes:
+            axis.axvline(time, color="tab:gray", linestyle=":", linewidth=0.8)
+        if time - labelled >= LABEL_SPACING * (high - low):
+            labelled = time
+            more = len(labels) - LABELS_PER_TIME
+            text = "\n".join(labels[:LABELS_PER_TIME] + ([f"+{more}"] if more > 0 else []))
+            axes[0].text(
+                time, 1.0, text, transform=axes[0].get_xaxis_transform(), rotation=90, fontsize=6, va="top", ha="right"
+            )
