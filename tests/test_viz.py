@@ -318,3 +318,40 @@ def test_bouncing_ball_recording_turns_from_separated_to_sticking_at_rest(tmp_pa
         length = _arrow_length(tracks, "ground", frame)
         assert abs(length - (0.0 if time_s < rest else longest)) < 1e-9, (time_s, length)
     assert sum(times > rest) == 4  # 1.4, 1.6, 1.8, 2 s
+
+
+def test_plot_of_an_event_run_draws_the_mode_spans_and_the_closed_form_forces(tmp_path):
+    """sphere-spin (v0 = 2, omega0 = 5, mu = 0.3, r = 0.1): the mode bar is two spans whose ends are the
+    events' times exactly (sliding from 0 to the rolling event, sticking from it to 1 s) in the mode
+    colours; the normal force is m g (1e-12 relative) and the friction force mu m g before
+    t* = 2 (v0 + r omega0) / (7 mu g), 0 after it. Saved and plotted by ``pinstab plot`` (the bundled scene
+    reloaded by name); without a loadable scene the forces are those of the events."""
+    mu, weight = 0.3, 9.81
+    run = pinstab.simulate("sphere-spin", dt=0.01, duration=1.0, contacts="event")
+    figure = trajectory_figure(run)
+    force_axis, mode_axis = figure.axes[2], figure.axes[-1]
+    (rolling,) = [e["t"] for e in run.info.contact_events if e["to"] == "sticking"]
+    bars = [(bar.get_x(), bar.get_x() + bar.get_width(), tuple(bar.get_facecolor()[:3])) for bar in mode_axis.patches]
+    assert bars == [(0.0, rolling, contacts.MODE_COLORS["sliding"]), (rolling, 1.0, contacts.MODE_COLORS["sticking"])]
+    lines = {line.get_label(): line for line in force_axis.get_lines()}
+    np.testing.assert_allclose(lines["ground normal"].get_ydata(), weight, rtol=1e-12)
+    t_star = 2 * (2.0 + 0.1 * 5.0) / (7 * mu * weight)
+    expected = np.where(run.t < t_star, mu * weight, 0.0)
+    np.testing.assert_allclose(lines["ground friction"].get_ydata(), expected, atol=1e-12)
+    path = tmp_path / "spin.npz"
+    run.save(path)
+    assert main(["plot", str(path), "-o", str(tmp_path / "spin.png")]) == 0
+    run.info.scene = "not-bundled"
+    force_axis = trajectory_figure(run).axes[2]
+    assert force_axis.get_ylabel() == "contact force at the events [N]"
+    times = [e["t"] for e in run.info.contact_events]
+    assert list(force_axis.get_lines()[0].get_xdata()) == times
+
+
+def test_plot_marks_the_bouncing_balls_impacts_at_the_event_times():
+    run = pinstab.simulate("bouncing-ball", dt=0.01, duration=2.0, contacts="event")
+    mode_axis = trajectory_figure(run).axes[-1]
+    (marks,) = mode_axis.get_lines()
+    assert list(marks.get_xdata()) == [e["t"] for e in run.info.contact_events if e["to"] == "closing"]
+    (rest,) = [e["t"] for e in run.info.contact_events if e["to"] == "sticking"]
+    assert [(bar.get_x(), bar.get_x() + bar.get_width()) for bar in mode_axis.patches] == [(0.0, rest), (rest, 2.0)]
