@@ -755,7 +755,7 @@ def _run(args: argparse.Namespace, add=None) -> dict[str, Any]:
         trajectory.save(args.save)
         result["saved"] = args.save
     if args.plot:
-        plot_trajectory(trajectory, args.plot)
+        plot_trajectory(trajectory, args.plot, scene)
         result["plot"] = args.plot
     return _ended(result, failure)
 

@@ -246,3 +246,112 @@ def test_visual_model_adds_the_objects_and_finds_package_meshes_of_urdf_text(tmp
     scene.package_dirs = [str(tmp_path)]
     (mesh,) = visual_model(scene).geometryObjects
     assert mesh.meshPath == str(tmp_path / "tinypkg" / "tri.stl")
+
+
+# -- contact modes: event-driven runs, decoded ---------------------------------------------------------------
+def _event_recording(tmp_path, name: str, fps: float, **parameters):
+    """(scene, trajectory, recording, tracks, objects, frame times, frame states) of an event-driven run."""
+    scene = pinstab.load_scene(name, **parameters)
+    trajectory = pinstab.simulate(scene, dt=0.01, duration=2.0 if name == "bouncing-ball" else 0.5, contacts="event")
+    recording = write_recording(ConstrainedModel(scene), trajectory, tmp_path / f"{name}.html", fps=fps)
+    commands = _commands(recording.path.read_text())
+    objects = {c["path"]: c["object"]["geometries"][0] for c in commands if c["type"] == "set_object"}
+    return scene, trajectory, recording, _tracks(commands), objects, *frame_states(trajectory, scene.model, fps)
+
+
+def _arrow_length(tracks, name: str, frame: int) -> float:
+    """[m] from the tip to the shaft's tail (a shaft of TINY length, shorter arrows' head only, counts as 0)."""
+    shaft = tracks[_node(name, "arrow/shaft")]
+    scale = shaft[".scale"][frame][1]
+    return -shaft[".position"][frame][1] + (scale if scale > contacts.TINY else 0.0) / 2
+
+
+def test_incline_slide_recording_shows_sliding_points_and_arrows_at_the_weight_scale(tmp_path):
+    """Sliding incline (theta = 0.5, mu = 0.3), 6 frames: every corner's point and arrow take the sliding
+    colour; the scale is m g / (FORCE_FRACTION x extent) [N/m]; each arrow points along (-mu, 0, 1) / |.|
+    (friction against the slip down +x) with its tip at the corner (Pinocchio's frame placement), and the
+    arrows' lengths sum to m g cos theta sqrt(1 + mu^2) / scale (1e-9 m); the cones have radius / height = mu
+    and the points a sphere of POINT_RADIUS x the longest arrow."""
+    theta, mu, weight = 0.5, 0.3, 9.81
+    scene, _, recording, tracks, objects, times, states = _event_recording(
+        tmp_path, "incline", 10.0, theta=theta, mu=mu
+    )
+    longest = contacts.FORCE_FRACTION * swept_region(scene.model, states).extent
+    assert recording.frames == 6 and recording.force_scale == pytest.approx(weight / longest, rel=1e-12)
+    names = [c.name for c in scene.constraints]
+    sliding = contacts.MODE_COLORS["sliding"]
+    along = np.array([-mu, 0.0, 1.0]) / math.hypot(mu, 1.0)
+    data = scene.model.createData()
+    for name in names:
+        cone, point = objects[_node(name, "cone")], objects[_node(name, "point")]
+        assert cone["radiusBottom"] / cone["height"] == pytest.approx(mu, abs=1e-12)
+        assert point["type"] == "SphereGeometry" and point["radius"] == pytest.approx(contacts.POINT_RADIUS * longest)
+    for frame, q in enumerate(states):
+        pin.framesForwardKinematics(scene.model, data, q)
+        total = 0.0
+        for contact in scene.constraints:
+            name = contact.name
+            for part in ("point", "arrow/shaft", "arrow/head"):
+                assert tracks[f"{_node(name, part)}/<object>"][".material.color"][frame] == pytest.approx(sliding)
+            corner = data.oMf[contact.frame_a].translation
+            assert np.abs(np.array(tracks[_node(name, "point")][".position"][frame]) - corner).max() < 1e-9
+            assert np.abs(np.array(tracks[_node(name, "arrow")][".position"][frame]) - corner).max() < 1e-9
+            x, y, z, w = tracks[_node(name, "arrow")][".quaternion"][frame]
+            assert np.abs(pin.Quaternion(w, x, y, z).toRotationMatrix()[:, 1] - along).max() < 1e-9
+            total += _arrow_length(tracks, name, frame)
+        expected = weight * math.cos(theta) * math.hypot(1.0, mu) / recording.force_scale
+        assert abs(total - expected) < 1e-9
+
+
+def test_bouncing_ball_recording_turns_from_separated_to_sticking_at_rest(tmp_path):
+    """Bouncing ball (h = 1 m, e = 0.5), 11 frames over 2 s: grey (separated) with a zero-length arrow before
+    the rest time t0 (1 + e) / (1 - e) = 1.355 s, blue (sticking) with an arrow of m g (FORCE_FRACTION x the
+    extent, 1e-9 m) after it; the point at the ball's lowest point, z = centre - 0.05 m."""
+    scene, trajectory, recording, tracks, _, times, states = _event_recording(tmp_path, "bouncing-ball", 5.0)
+    rest = math.sqrt(2 / 9.81) * 3
+    longest = contacts.FORCE_FRACTION * swept_region(scene.model, states).extent
+    node = _node("ground", "point")
+    for frame, (time_s, q) in enumerate(zip(times, states, strict=True)):
+        mode = "separated" if time_s < rest else "sticking"
+        assert tracks[f"{node}/<object>"][".material.color"][frame] == pytest.approx(contacts.MODE_COLORS[mode])
+        assert tracks[node][".position"][frame] == pytest.approx([*q[:2], q[2] - 0.05], abs=1e-12)
+        length = _arrow_length(tracks, "ground", frame)
+        assert abs(length - (0.0 if time_s < rest else longest)) < 1e-9, (time_s, length)
+    assert sum(times > rest) == 4  # 1.4, 1.6, 1.8, 2 s
+
+
+def test_plot_of_an_event_run_draws_the_mode_spans_and_the_closed_form_forces(tmp_path):
+    """sphere-spin (v0 = 2, omega0 = 5, mu = 0.3, r = 0.1): the mode bar is two spans whose ends are the
+    events' times exactly (sliding from 0 to the rolling event, sticking from it to 1 s) in the mode
+    colours; the normal force is m g (1e-12 relative) and the friction force mu m g before
+    t* = 2 (v0 + r omega0) / (7 mu g), 0 after it. Saved and plotted by ``pinstab plot`` (the bundled scene
+    reloaded by name); without a loadable scene the forces are those of the events."""
+    mu, weight = 0.3, 9.81
+    run = pinstab.simulate("sphere-spin", dt=0.01, duration=1.0, contacts="event")
+    figure = trajectory_figure(run)
+    force_axis, mode_axis = figure.axes[2], figure.axes[-1]
+    (rolling,) = [e["t"] for e in run.info.contact_events if e["to"] == "sticking"]
+    bars = [(bar.get_x(), bar.get_x() + bar.get_width(), tuple(bar.get_facecolor()[:3])) for bar in mode_axis.patches]
+    assert bars == [(0.0, rolling, contacts.MODE_COLORS["sliding"]), (rolling, 1.0, contacts.MODE_COLORS["sticking"])]
+    lines = {line.get_label(): line for line in force_axis.get_lines()}
+    np.testing.assert_allclose(lines["ground normal"].get_ydata(), weight, rtol=1e-12)
+    t_star = 2 * (2.0 + 0.1 * 5.0) / (7 * mu * weight)
+    expected = np.where(run.t < t_star, mu * weight, 0.0)
+    np.testing.assert_allclose(lines["ground friction"].get_ydata(), expected, atol=1e-12)
+    path = tmp_path / "spin.npz"
+    run.save(path)
+    assert main(["plot", str(path), "-o", str(tmp_path / "spin.png")]) == 0
+    run.info.scene = "not-bundled"
+    force_axis = trajectory_figure(run).axes[2]
+    assert force_axis.get_ylabel() == "contact force at the events [N]"
+    times = [e["t"] for e in run.info.contact_events]
+    assert list(force_axis.get_lines()[0].get_xdata()) == times
+
+
+def test_plot_marks_the_bouncing_balls_impacts_at_the_event_times():
+    run = pinstab.simulate("bouncing-ball", dt=0.01, duration=2.0, contacts="event")
+    mode_axis = trajectory_figure(run).axes[-1]
+    (marks,) = [line for line in mode_axis.get_lines() if line.get_marker() == "v"]  # the rest: event markers
+    assert list(marks.get_xdata()) == [e["t"] for e in run.info.contact_events if e["to"] == "closing"]
+    (rest,) = [e["t"] for e in run.info.contact_events if e["to"] == "sticking"]
+    assert [(bar.get_x(), bar.get_x() + bar.get_width()) for bar in mode_axis.patches] == [(0.0, rest), (rest, 2.0)]

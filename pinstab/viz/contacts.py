@@ -9,6 +9,12 @@ from green (along the normal) to amber (on the cone's surface), red outside the 
 arrows are drawn over everything, so that they show through the fingertip and the object.
 The forces at a frame's time are the trajectory's multipliers interpolated with the weights that
 :func:`~pinstab.trajectory.configurations_at` gives the configurations.
+
+A run with event-driven contacts (``simulate(scene, contacts="event")``) has no multipliers: its forces are
+the contact states of :func:`~pinstab.solvers.contact_states.contact_states` (interpolated the same way),
+and its contacts show their modes: a sphere at each contact point and the arrow take the mode's colour
+(:data:`MODE_COLORS`: sticking blue, sliding orange, separated grey; the mode at the frame's exact time,
+from the events). Its scale is the scene's weight: an arrow of m |g| is FORCE_FRACTION of the scene's size.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from ..constraints.grasp_contacts import FingertipContact
 from ..contact.models import FRICTION_MODELS
 from ..kinematics import Kinematics
 from ..model import ConstrainedModel
+from ..solvers.contact_states import ModeSpan, contact_states, span_at
 from ..trajectory import Trajectory, sample_weights
 from .nodes import ROOT, Y_AXIS, rotation_onto, set_color, set_pose
 
@@ -35,6 +42,9 @@ SHAFT_RADIUS, HEAD_RADIUS, HEAD_LENGTH, CONE_SLANT = 0.03, 0.075, 0.2, 0.5
 CONE_OPACITY = 0.3
 USAGE_SLACK = 1e-9  # a force this little past the cone's surface (relative) still counts as on it
 GREEN, AMBER, RED = np.array([0.1, 0.8, 0.25]), np.array([1.0, 0.7, 0.0]), (0.9, 0.1, 0.1)
+# the colours of the contact modes (event-driven runs): points and arrows
+MODE_COLORS = {"sticking": (0.1, 0.35, 0.95), "sliding": (1.0, 0.5, 0.0), "separated": (0.55, 0.55, 0.55)}
+POINT_RADIUS = 0.06  # a contact point's sphere, as a fraction of the longest arrow
 TINY = 1e-9  # scale of a zero-length arrow part (three.js needs an invertible matrix)
 # turns a cone built along y (apex at +y) so that y is the contact's z axis (the normal into the object)
 Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -105,7 +115,9 @@ class PlaneView:
         self.rotation = np.column_stack([tangent_1, tangent_2, normal])
 
     def frame(self, kin: Kinematics) -> pin.SE3:
-        return pin.SE3(self.rotation, kin.placement(self.contact.frame_a).translation)
+        """At the contact point: the frame's origin, or a sphere's lowest point along the normal."""
+        centre = kin.placement(self.contact.frame_a).translation
+        return pin.SE3(self.rotation, centre - self.contact.radius * self.rotation[:, 2])
 
     def force(self, block: np.ndarray) -> np.ndarray:
         return np.array([block[1], block[2], block[0]]) if len(block) == 3 else np.array([0.0, 0.0, block[0]])
@@ -159,21 +171,33 @@ class ContactForces:
 
     Attributes:
         scale: newtons per metre of arrow [N/m] (an arrow is ``|f| / scale`` long); None without contacts.
+        spans: with event-driven contacts, each contact's mode spans (else empty).
     """
 
     def __init__(self, model: ConstrainedModel, trajectory: Trajectory, times: np.ndarray, size: float) -> None:
         self.kin, self.longest = model.kin, FORCE_FRACTION * size
         rows = trajectory.info.constraint_rows
-        # contacts whose forces the run has as multipliers (event-driven contacts have none: not drawn)
-        self.views = [view for view in contact_views(model) if view.name in rows]
+        self.views = contact_views(model)
         self.scale: float | None = None
+        self.spans: dict[str, list[ModeSpan]] = {}
         if not self.views:
             return
-        self.t, self.multipliers = trajectory.t, trajectory.multipliers
-        self.rows = {view.name: slice(*rows[view.name]) for view in self.views}
-        magnitudes = [np.linalg.norm(view.force(block)) for t in times for view, block in self._blocks(float(t))]
-        largest = float(np.nanmax(magnitudes, initial=0.0))
-        self.scale = (largest if math.isfinite(largest) and largest > 0 else 1.0) / self.longest
+        self.t = trajectory.t
+        reference = math.nan  # [N] the force drawn FORCE_FRACTION x size long
+        if trajectory.info.contact_events:
+            states = contact_states(model.scene, trajectory)
+            self.multipliers = states.local.reshape(len(states.t), -1)
+            self.rows = {name: slice(3 * i, 3 * i + 3) for i, name in enumerate(states.names)}
+            self.spans = {name: [span for span in states.spans if span.contact == name] for name in states.names}
+            reference = pin.computeTotalMass(model.model) * float(np.linalg.norm(model.model.gravity.linear))
+        else:
+            self.views = [view for view in self.views if view.name in rows]  # those the run has multipliers of
+            self.multipliers = trajectory.multipliers
+            self.rows = {view.name: slice(*rows[view.name]) for view in self.views}
+        if not reference > 0:  # the largest force of the frames
+            magnitudes = [np.linalg.norm(view.force(block)) for t in times for view, block in self._blocks(float(t))]
+            reference = float(np.nanmax(magnitudes, initial=0.0))
+        self.scale = (reference if math.isfinite(reference) and reference > 0 else 1.0) / self.longest
 
     def _blocks(self, time_s: float) -> list[tuple[ContactView, np.ndarray]]:
         """Every contact with its multipliers at ``time_s`` [s]."""
@@ -186,7 +210,7 @@ class ContactForces:
 
     @staticmethod
     def path(name: str, part: str) -> str:
-        """Viewer path of a contact's ``arrow``, ``arrow/shaft``, ``arrow/head`` or ``cone``."""
+        """Viewer path of a contact's ``arrow``, ``arrow/shaft``, ``arrow/head``, ``cone`` or ``point``."""
         return f"{ROOT}/contacts/{name}/{part}"
 
     def load(self, viewer) -> None:
@@ -197,6 +221,8 @@ class ContactForces:
                 ("arrow/head", mg.Cylinder(HEAD_LENGTH * longest, radiusTop=0.0, radiusBottom=HEAD_RADIUS * longest)),
             ):
                 viewer[self.path(view.name, part)].set_object(shape, _arrow_material())
+            if self.spans:
+                viewer[self.path(view.name, "point")].set_object(mg.Sphere(POINT_RADIUS * longest), _arrow_material())
             if view.mu is not None:
                 height = self._cone_height(view)
                 material = mg.MeshLambertMaterial(color=0xF2F2FF, opacity=CONE_OPACITY, transparent=True)
@@ -210,7 +236,13 @@ class ContactForces:
         self.kin.update_positions(q)
         for view, block in self._blocks(t):
             contact = view.frame(self.kin)
-            self._arrow(frame, view.name, contact, view.force(block), usage_color(view.usage(block)))
+            if self.spans:
+                color = MODE_COLORS[span_at(self.spans[view.name], t).mode]
+                set_pose(frame[self.path(view.name, "point")], pin.SE3(np.eye(3), contact.translation))
+                set_color(frame[self.path(view.name, "point")], color, 1.0)
+            else:
+                color = usage_color(view.usage(block))
+            self._arrow(frame, view.name, contact, view.force(block), color)
             if view.mu is not None:
                 apex_at_origin = pin.SE3(Y_TO_Z, Y_TO_Z @ np.array([0.0, -self._cone_height(view) / 2, 0.0]))
                 set_pose(frame[self.path(view.name, "cone")], contact * apex_at_origin)

@@ -1,4 +1,5 @@
-"""Charts of a trajectory: drift, energy error and constraint forces against time."""
+"""Charts of a trajectory: drift, energy error and constraint forces against time; for event-driven
+contacts, each contact's mode over time and its normal and friction forces."""
 
 from __future__ import annotations
 
@@ -7,36 +8,48 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import PinstabError
 from ..plotting import pyplot, save_figure
+from ..scene import Scene, load_scene
+from ..solvers.contact_states import contact_states, mode_spans
 from ..trajectory import Trajectory
+from .contacts import MODE_COLORS
 
 LABEL_SPACING = 0.02  # contact events are labelled at times this fraction of the time axis apart (all are marked)
 LABELS_PER_TIME = 3  # ... with this many events each, then "+n"
 
 
-def plot_trajectory(trajectory: Trajectory, path: str | Path) -> Path:
+def plot_trajectory(trajectory: Trajectory, path: str | Path, scene: Scene | None = None) -> Path:
     """Write :func:`trajectory_figure` as a PNG."""
-    return save_figure(trajectory_figure(trajectory), path)
+    return save_figure(trajectory_figure(trajectory, scene), path)
 
 
-def trajectory_figure(trajectory: Trajectory):
+def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
     """Panels sharing the time axis [s]:
 
     * position drift max|phi| [m] and velocity drift max|g| [m/s], log scale over the positive samples
       (a drift of exactly 0, at the start of most runs, is left out rather than drawn at 1e-300);
     * energy error E(t) - E(0) [J];
-    * the norm of each constraint's multipliers [N];
+    * the norm of each constraint's multipliers [N]; with event-driven contacts instead each contact's
+      normal force (solid) and friction force magnitude (dashed) [N] at the samples (:func:`contact_panels`);
     * with prescribed constraints, the controls u that realize them [N m or N];
     * with a comparison (``--reference``), the trajectory error of each compared coordinate [rad or m];
     * with contact events, a vertical marker at each event's time on every panel, labelled
       ``contact: from -> to`` (:func:`mark_events`).
+    * with event-driven contacts, each contact's mode over time: a bar per contact coloured by mode
+      (:data:`~pinstab.viz.contacts.MODE_COLORS`) from event to event, impacts marked by triangles.
+
+    ``scene``: the run's scene, for the contact forces; None reloads it by name and parameters (bundled
+    scenes), or draws the forces at the events only when that fails.
     """
     plt = pyplot()
     t = trajectory.t
     info = trajectory.info
     servo = trajectory.servo_figures
     comparison = trajectory.comparison
-    extra = [panel for panel, present in (("servo", servo), ("error", comparison is not None)) if present]
+    events = info.contact_events
+    panels = (("servo", servo), ("error", comparison is not None), ("modes", bool(events)))
+    extra = [panel for panel, present in panels if present]
     fig, axes = plt.subplots(3 + len(extra), 1, figsize=(7.5, 8.0 + 2.5 * len(extra)), dpi=110, sharex=True)
     drift_axis, energy_axis, force_axis = axes[:3]
     _log_panel(
@@ -50,12 +63,15 @@ def trajectory_figure(trajectory: Trajectory):
     drift_axis.set_ylabel("constraint drift [m], [m/s]")
     energy_axis.plot(t, trajectory.energy - trajectory.energy[0], color="tab:green")
     energy_axis.set_ylabel("energy error E(t) - E(0) [J]")
-    for name, (start, stop) in info.constraint_rows.items():
-        norms = np.linalg.norm(trajectory.multipliers[:, start:stop], axis=1)
-        force_axis.plot(t, norms, label=name)
-    force_axis.set_ylabel("constraint force |lambda| [N]")
-    if info.constraint_rows:
-        force_axis.legend(fontsize=8)
+    if events:
+        contact_panels(axes[3 + extra.index("modes")], force_axis, trajectory, scene)
+    else:
+        for name, (start, stop) in info.constraint_rows.items():
+            norms = np.linalg.norm(trajectory.multipliers[:, start:stop], axis=1)
+            force_axis.plot(t, norms, label=name)
+        force_axis.set_ylabel("constraint force |lambda| [N]")
+        if info.constraint_rows:
+            force_axis.legend(fontsize=8)
     if servo:
         servo_axis = axes[3 + extra.index("servo")]
         for name, column in zip(info.controls, servo["controls"].T, strict=True):
@@ -113,3 +129,57 @@ def mark_events(axes, events: list[dict]) -> None:
             axes[0].text(
                 time, 1.0, text, transform=axes[0].get_xaxis_transform(), rotation=90, fontsize=6, va="top", ha="right"
             )
+
+
+def contact_panels(mode_axis, force_axis, trajectory: Trajectory, scene: Scene | None) -> None:
+    """The modes of an event-driven run's contacts (a bar per contact, one coloured span per mode from the
+    event that began it to the one that ended it [s], impacts as triangles) and their forces [N]."""
+    info = trajectory.info
+    events = info.contact_events
+    names = list(dict.fromkeys(event["contact"] for event in events))
+    states = _states(trajectory, scene)
+    spans = mode_spans(events, names, float(trajectory.t[-1])) if states is None else states.spans
+    for row, name in enumerate(names):
+        mine = [span for span in spans if span.contact == name]
+        mode_axis.barh(
+            [row] * len(mine),
+            [span.end - span.start for span in mine],
+            left=[span.start for span in mine],
+            height=0.6,
+            color=[MODE_COLORS[span.mode] for span in mine],
+        )
+        impacts = [event["t"] for event in events if event["contact"] == name and event["to"] == "closing"]
+        mode_axis.plot(impacts, [row] * len(impacts), "kv", markersize=4)
+    mode_axis.set_yticks(range(len(names)), names, fontsize=8)
+    mode_axis.set_ylim(len(names) - 0.5, -1.3)  # room above the bars for the legend
+    mode_axis.set_ylabel("contact mode")
+    plt = pyplot()
+    handles = [plt.Rectangle((0, 0), 1, 1, color=color) for color in MODE_COLORS.values()]
+    handles.append(plt.Line2D([], [], color="k", marker="v", linestyle="none", markersize=4))
+    mode_axis.legend(handles, [*MODE_COLORS, "impact"], fontsize=8, loc="upper right", ncol=4)
+    for row, name in enumerate(names):
+        color = f"C{row}"
+        if states is None:  # the forces at the events only
+            at = [event for event in events if event["contact"] == name]
+            times = [event["t"] for event in at]
+            force_axis.plot(times, [event["force"][0] for event in at], "o", color=color, label=f"{name} normal")
+            friction = [float(np.hypot(*event["force"][1:3])) for event in at]
+            force_axis.plot(times, friction, "x", color=color, label=f"{name} friction")
+            continue
+        column = states.names.index(name)
+        force_axis.plot(states.t, states.normal_force[:, column], "-", color=color, label=f"{name} normal")
+        force_axis.plot(states.t, states.tangential_force[:, column], "--", color=color, label=f"{name} friction")
+    force_axis.set_ylabel("contact force [N]" if states is not None else "contact force at the events [N]")
+    force_axis.legend(fontsize=7, ncol=2)
+
+
+def _states(trajectory: Trajectory, scene: Scene | None):
+    """The run's contact states, with ``scene`` or the bundled scene of the run's name and parameters;
+    None when there is no such bundled scene or it does not match the run."""
+    if scene is not None:
+        return contact_states(scene, trajectory)
+    info = trajectory.info
+    try:
+        return contact_states(load_scene(info.scene, **info.scene_parameters), trajectory)
+    except PinstabError:  # not a bundled scene, or not this run's
+        return None
