@@ -247,9 +247,15 @@ class AdmmContactPeer:
         for contact in self.contacts:
             self.models.append(contact.model)
             self.datas.append(self.models[len(self.models) - 1].createData())
-        # balls: (index, c2's placement at the centre) -- c2 is moved to the lowest point at every pass
+        # balls: (index, joint 2, c2's placement at the centre, -r n in world axes): c2 is moved to the
+        # lowest point at every pass
         self._balls = [
-            (i, contact.model.joint2_placement.translation.copy())
+            (
+                i,
+                contact.model.joint2_id,
+                contact.model.joint2_placement.translation.copy(),
+                -contact.radius * contact.model.joint1_placement.rotation[:, 2],
+            )
             for i, contact in enumerate(contacts)
             if contact.radius > 0.0
         ]
@@ -274,10 +280,8 @@ class AdmmContactPeer:
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, self._zero)
         pin.computeJointJacobians(model, data)  # from the placements just computed
-        for i, centre in self._balls:
-            ball = self.models[i]
-            lowest = -self.contacts[i].radius * ball.joint1_placement.rotation[:, 2]  # -r n, world axes
-            ball.joint2_placement = pin.SE3(np.eye(3), centre + data.oMi[ball.joint2_id].rotation.T @ lowest)
+        for i, joint, centre, lowest in self._balls:
+            self.models[i].extract().joint2_placement = pin.SE3(np.eye(3), centre + data.oMi[joint].rotation.T @ lowest)
         for contact_model, contact_data in zip(self.models, self.datas, strict=True):
             contact_model.calc(model, data, contact_data)
         extracted = [contact_data.extract() for contact_data in self.datas]
