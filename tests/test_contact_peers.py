@@ -44,7 +44,7 @@ def test_restitution_damping_bounces_a_spring_damper_by_e():
     for e in (0.2, 0.5, 0.9):
         zeta = mj.restitution_damping(e)
         leave = solve_ivp(
-            lambda t, y: [y[1], -2 * zeta * y[1] - y[0]],
+            lambda t, y, zeta=zeta: [y[1], -2 * zeta * y[1] - y[0]],
             (0, 10),
             [0.0, -1.0],
             events=lambda t, y: y[0] if t > 1e-6 else -1.0,

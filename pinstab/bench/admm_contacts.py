@@ -25,7 +25,16 @@ from ..constraints import PointContact
 from ..constraints.contacts import contact_basis
 from ..errors import PinstabError
 from ..scene import Scene
-from .admm_peer import PLANE_ORDER, AdmmContactPeer, PeerContact, PeerRun, SolveStatistics, mass_solves, plane_contact, run_loop
+from .admm_peer import (
+    PLANE_ORDER,
+    AdmmContactPeer,
+    PeerContact,
+    PeerRun,
+    SolveStatistics,
+    mass_solves,
+    plane_contact,
+    run_loop,
+)
 from .contact_scenes import PINCH_BLOCK, PINCH_FINGER_MASS
 
 
@@ -74,7 +83,9 @@ def scene_problem(scene: Scene) -> ContactProblem:
     others = [c.name for c in scene.constraints if not isinstance(c, PointContact)]
     if others or scene.forces:
         names = others + [element.name for element in scene.forces]
-        raise PinstabError(f"ADMM contact loop: scene {scene.name} has {', '.join(names)}; it takes plane contacts only")
+        raise PinstabError(
+            f"ADMM contact loop: scene {scene.name} has {', '.join(names)}; it takes plane contacts only"
+        )
     contacts = [plane_contact(scene.model, c, frictionless=True) for c in scene.constraints]
     restitution = np.array([c.restitution for c in scene.constraints])
     return ContactProblem(scene.model, contacts, restitution, np.zeros(scene.model.nv), scene.q0, scene.v0)
@@ -125,7 +136,9 @@ class FreeBodies:
         for joint in self.joints:
             inertia = model.inertias[joint.id]
             if np.linalg.norm(inertia.lever) > 1e-12:
-                raise PinstabError(f"ADMM contact loop: free flyer {model.names[joint.id]!r} has its centre of mass off its origin")
+                raise PinstabError(
+                    f"ADMM contact loop: free flyer {model.names[joint.id]!r} has its centre of mass off its origin"
+                )
             self.masses.append(inertia.mass)
 
     def turning(self, v: np.ndarray) -> np.ndarray:
@@ -149,7 +162,9 @@ class FreeBodies:
         return q_next, v_next
 
 
-def contact_step(peer: AdmmContactPeer, problem: ContactProblem, settings: SteppingSettings, statistics: SolveStatistics):
+def contact_step(
+    peer: AdmmContactPeer, problem: ContactProblem, settings: SteppingSettings, statistics: SolveStatistics
+):
     """``step(q, v) -> (q, v, impulses / dt)`` of the loop (module docstring); forces [N] in pinstab's
     convention, 0 for the contacts not in the step."""
     dt = settings.dt
@@ -178,7 +193,9 @@ def contact_step(peer: AdmmContactPeer, problem: ContactProblem, settings: Stepp
     return step
 
 
-def run_contacts(problem: ContactProblem, settings: SteppingSettings, duration: float, record_every: int = 1) -> PeerRun:
+def run_contacts(
+    problem: ContactProblem, settings: SteppingSettings, duration: float, record_every: int = 1
+) -> PeerRun:
     """Step ``problem`` for ``duration`` [s] (the last ``record_every``-th states kept, with the forces [N]
     of their steps); CPU seconds of the loop alone."""
     peer = AdmmContactPeer.from_contacts(problem.model, problem.contacts, settings.tolerance, warm_start=True)

@@ -159,7 +159,9 @@ def mjcf(scene: MujocoScene, settings: MujocoSettings) -> str:
     )
 
 
-def run_mujoco(scene: MujocoScene, settings: MujocoSettings, duration: float, every: int) -> tuple[ObjectSamples, float]:
+def run_mujoco(
+    scene: MujocoScene, settings: MujocoSettings, duration: float, every: int
+) -> tuple[ObjectSamples, float]:
     """Step ``scene`` for ``duration`` [s], a sample of the free body every ``every`` steps (the steps
     between inside MuJoCo); returns the samples (world axes) and the CPU seconds of the loop.
 
@@ -182,6 +184,8 @@ def run_mujoco(scene: MujocoScene, settings: MujocoSettings, duration: float, ev
         mujoco.mj_step(model, data, every)
         qpos[k], qvel[k] = data.qpos, data.qvel
     cpu = time.process_time() - began
-    angular = np.array([pin.Quaternion(*q[3:7]).toRotationMatrix() @ w for q, w in zip(qpos, qvel[:, 3:6], strict=True)])
+    angular = np.array(
+        [pin.Quaternion(*q[3:7]).toRotationMatrix() @ w for q, w in zip(qpos, qvel[:, 3:6], strict=True)]
+    )
     t = np.arange(samples) * every * settings.dt
     return ObjectSamples(t, qpos[:, :3].copy(), qvel[:, :3].copy(), angular), cpu
