@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -67,7 +66,7 @@ class PeerContact:
     model: pin.PointContactConstraintModel
     to_pinstab: np.ndarray
     axes: np.ndarray
-    radius: float = 0.0  # [m] a plane contact of a ball: c2 follows the ball's lowest point (see ``terms``)
+    radius: float = 0.0
 
 
 def _grasp_contact(model: pin.Model, contact: FingertipContact) -> PeerContact:
@@ -217,18 +216,17 @@ class AdmmContactPeer:
 
     @classmethod
     def from_contacts(
-        cls, model: pin.Model, contacts: list[PeerContact], tolerance: float = 1e-12, **options: Any
+        cls,
+        model: pin.Model,
+        contacts: list[PeerContact],
+        tolerance: float = 1e-12,
+        max_iterations: int = 10_000,
+        compliance: float = 0.0,
+        warm_start: bool = False,
     ) -> AdmmContactPeer:
-        """The peer of a Pinocchio ``model`` with the given contacts (``options``: the constructor's)."""
+        """The peer of a Pinocchio ``model`` with the given contacts (the other arguments: the constructor's)."""
         peer = cls.__new__(cls)
-        peer._build(
-            model,
-            contacts,
-            tolerance,
-            options.get("max_iterations", 10_000),
-            options.get("compliance", 0.0),
-            options.get("warm_start", False),
-        )
+        peer._build(model, contacts, tolerance, max_iterations, compliance, warm_start)
         return peer
 
     def _build(
