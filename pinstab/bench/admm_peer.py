@@ -36,6 +36,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..constraints import PointContact
+from ..constraints.contacts import contact_basis
 from ..constraints.grasp_contacts import FingertipContact
 from ..errors import PinstabError
 from ..forces import ExternalForce
@@ -58,12 +59,15 @@ class PeerContact:
         name: the scene's contact name. model: Pinocchio's constraint model.
         to_pinstab: 3 x 3: pinstab's multipliers = ``to_pinstab @`` Pinocchio's.
         axes: 3 x 3: the world axes of pinstab's multipliers are ``oMc1.rotation @ axes``.
+        radius: for a plane contact (joint 1 the world), the radius [m] of a ball centred at c2's
+            placement on its body, whose lowest point touches the plane; 0: c2 itself (a vertex).
     """
 
     name: str
     model: pin.PointContactConstraintModel
     to_pinstab: np.ndarray
     axes: np.ndarray
+    radius: float = 0.0
 
 
 def _grasp_contact(model: pin.Model, contact: FingertipContact) -> PeerContact:
@@ -84,15 +88,24 @@ def _grasp_contact(model: pin.Model, contact: FingertipContact) -> PeerContact:
     return PeerContact(contact.name, link, -FLIP, FLIP)
 
 
-def _plane_contact(model: pin.Model, contact: PointContact) -> PeerContact:
-    if contact.friction is None:
+def plane_contact(model: pin.Model, contact: PointContact, frictionless: bool = False) -> PeerContact:
+    """A plane contact as a Pinocchio point contact with the world (c1 at the anchor, axes (t1, t2, n)),
+    with the contact's radius.
+
+    Args:
+        frictionless: take a contact without mu as the cone mu = 0 (its normal ray); otherwise refuse it.
+
+    Raises:
+        PinstabError: a frictionless contact, unless ``frictionless``.
+    """
+    if contact.friction is None and not frictionless:
         raise PinstabError(f"ADMM peer: plane contact {contact.name!r} is frictionless; give it a mu (a cone)")
-    normal, first, second = contact.selection
+    normal, first, second = contact_basis(contact.selection[0])
     anchor = pin.SE3(np.column_stack([first, second, normal]), contact.world_placement_b.translation)
     frame = model.frames[contact.frame_a]
     link = pin.PointContactConstraintModel(model, 0, anchor, frame.parentJoint, frame.placement)
-    link.setFriction(contact.friction.mu)
-    return PeerContact(contact.name, link, PLANE_ORDER, PLANE_ORDER.T)
+    link.setFriction(0.0 if contact.friction is None else contact.friction.mu)
+    return PeerContact(contact.name, link, PLANE_ORDER, PLANE_ORDER.T, contact.radius)
 
 
 def peer_contacts(scene: Scene) -> list[PeerContact]:
@@ -106,7 +119,7 @@ def peer_contacts(scene: Scene) -> list[PeerContact]:
         if isinstance(constraint, FingertipContact):
             contacts.append(_grasp_contact(scene.model, constraint))
         elif isinstance(constraint, PointContact):
-            contacts.append(_plane_contact(scene.model, constraint))
+            contacts.append(plane_contact(scene.model, constraint))
         else:
             raise PinstabError(
                 f"ADMM peer: constraint {constraint.name!r} ({constraint.kind}) is not a contact; the peer takes "
@@ -160,17 +173,18 @@ class ContactTerms:
     drift: np.ndarray
 
 
-def _mass_solves(terms: ContactTerms, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def mass_solves(terms: ContactTerms, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(M^-1 J^T, the free acceleration M^-1 (tau - h) [m/s^2, rad/s^2]) in one solve."""
     solved = np.linalg.solve(terms.mass, np.column_stack([terms.jacobian.T, tau - terms.bias]))
     return solved[:, :-1], solved[:, -1]
 
 
 class AdmmContactPeer:
-    """The contact problem of a scene's contacts, solved by Pinocchio's ADMM.
+    """The contact problem of a scene's contacts, solved by Pinocchio's ADMM (in NCP mode).
 
     Args:
-        scene: a scene whose constraints are point-friction grasp contacts and plane contacts with mu.
+        scene: a scene whose constraints are point-friction grasp contacts and plane contacts with mu
+            (:meth:`from_contacts`: a Pinocchio model and its contacts instead).
         tolerance: ADMM's absolute and relative feasibility and complementarity tolerances.
         max_iterations: ADMM's iteration limit.
         compliance: the compliance R added to the Delassus matrix's diagonal [(m/s)/(N s) at the velocity
@@ -186,27 +200,71 @@ class AdmmContactPeer:
         compliance: float = 0.0,
         warm_start: bool = False,
     ) -> None:
-        self.model = scene.model
+        self._build(scene.model, peer_contacts(scene), tolerance, max_iterations, compliance, warm_start)
+
+    @classmethod
+    def from_contacts(
+        cls,
+        model: pin.Model,
+        contacts: list[PeerContact],
+        tolerance: float = 1e-12,
+        max_iterations: int = 10_000,
+        compliance: float = 0.0,
+        warm_start: bool = False,
+    ) -> AdmmContactPeer:
+        """The peer of a Pinocchio ``model`` with the given contacts (the other arguments: the constructor's)."""
+        peer = cls.__new__(cls)
+        peer._build(model, contacts, tolerance, max_iterations, compliance, warm_start)
+        return peer
+
+    def _build(
+        self,
+        model: pin.Model,
+        contacts: list[PeerContact],
+        tolerance: float,
+        max_iterations: int,
+        compliance: float,
+        warm_start: bool,
+    ) -> None:
+        self.model = model
         self.data = self.model.createData()
-        self.contacts = peer_contacts(scene)
+        self.contacts = contacts
         self.models, self.datas = pin.StdVec_ConstraintModel(), pin.StdVec_ConstraintData()
         for contact in self.contacts:
             self.models.append(contact.model)
             self.datas.append(self.models[len(self.models) - 1].createData())
+        # balls: (index, joint 2, c2's placement at the centre, -r n in world axes): c2 is moved to the
+        # lowest point at every pass
+        self._balls = [
+            (
+                i,
+                contact.model.joint2_id,
+                contact.model.joint2_placement.translation.copy(),
+                -contact.radius * contact.model.joint1_placement.rotation[:, 2],
+            )
+            for i, contact in enumerate(contacts)
+            if contact.radius > 0.0
+        ]
         self.size = 3 * len(self.contacts)
         self.to_pinstab = np.zeros((self.size, self.size))
         for i, contact in enumerate(self.contacts):
             self.to_pinstab[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = contact.to_pinstab
         self.names = tuple(contact.name for contact in self.contacts)
         self.ncp = NcpSolver(self.size, tolerance, max_iterations, compliance, warm_start)
+        self._options = (tolerance, max_iterations, compliance, warm_start)
+        self._subsets: dict[tuple[int, ...], NcpSolver] = {}
+        self._last = self.ncp
         self._zero = np.zeros(self.model.nv)
         self._lower = np.tril_indices(self.model.nv, -1)
 
     def terms(self, q: np.ndarray, v: np.ndarray) -> ContactTerms:
-        """One Pinocchio pass at (q, v): M, h, the contacts' Jacobian, errors and drift."""
+        """One Pinocchio pass at (q, v): M, h, the contacts' Jacobian, errors and drift (a ball's contact
+        point c2 placed at its lowest point first, so that its normal error is the ball's gap)."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, q, v, self._zero)
         pin.computeJointJacobians(model, data)  # from the placements just computed
+        for i, joint, centre, lowest in self._balls:
+            self.models[i].extract().joint2_placement = pin.SE3(np.eye(3), centre + data.oMi[joint].rotation.T @ lowest)
         for contact_model, contact_data in zip(self.models, self.datas, strict=True):
             contact_model.calc(model, data, contact_data)
         extracted = [contact_data.extract() for contact_data in self.datas]
@@ -229,13 +287,43 @@ class AdmmContactPeer:
             rows.append(rotation @ contact.axes @ solution.forces[3 * i : 3 * i + 3])
         return np.array(rows)
 
-    def _solve(self, mass_inverse_jt: np.ndarray, jacobian: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """ADMM on ``D f + g``, D = J M^-1 J^T (+ compliance): the forces in Pinocchio's convention."""
-        return self.ncp.solve(jacobian @ mass_inverse_jt, g, self.models, self.datas)
+    def _problem(self, active: tuple[int, ...] | None):
+        """(models, datas, solver) of the contacts ``active`` (None: all); a subset's solver is kept for its
+        next solve (warm start)."""
+        if active is None:
+            return self.models, self.datas, self.ncp
+        models, datas = pin.StdVec_ConstraintModel(), pin.StdVec_ConstraintData()
+        for i in active:
+            models.append(self.models[i])
+            datas.append(self.datas[i])
+        if active not in self._subsets:
+            self._subsets[active] = NcpSolver(3 * len(active), *self._options)
+        return models, datas, self._subsets[active]
+
+    def _solve(
+        self, mass_inverse_jt: np.ndarray, jacobian: np.ndarray, g: np.ndarray, active: tuple[int, ...] | None = None
+    ) -> np.ndarray:
+        """ADMM on ``D f + g``, D = J M^-1 J^T (+ compliance), over the contacts ``active`` (None: all;
+        ``jacobian``, ``g`` their rows): the forces in Pinocchio's convention."""
+        models, datas, ncp = self._problem(active)
+        self._last = ncp
+        return ncp.solve(jacobian @ mass_inverse_jt, g, models, datas)
 
     def _solution(self, pinocchio_forces: np.ndarray, motion: np.ndarray, scale: float) -> AdmmSolution:
         """The last solve's result; pinstab's forces are ``scale`` times the converted ones."""
-        return AdmmSolution(self.to_pinstab @ pinocchio_forces * scale, self.names, *self.ncp.status(), motion)
+        return AdmmSolution(self.to_pinstab @ pinocchio_forces * scale, self.names, *self._last.status(), motion)
+
+    def active_impulses(
+        self, active: tuple[int, ...], mass_inverse_jt: np.ndarray, jacobian: np.ndarray, g: np.ndarray
+    ) -> AdmmSolution:
+        """The impulses [N s] of the contacts ``active`` alone on ``D p + g`` (``mass_inverse_jt``,
+        ``jacobian`` and ``g`` [m/s]: their rows), pinstab's convention, 0 for the other contacts; its
+        ``motion`` is the velocity change M^-1 J^T p [m/s, rad/s]."""
+        impulses = self._solve(mass_inverse_jt, jacobian, g, active)
+        every = np.zeros(self.size)
+        for k, i in enumerate(active):
+            every[3 * i : 3 * i + 3] = impulses[3 * k : 3 * k + 3]
+        return self._solution(every, mass_inverse_jt @ impulses, 1.0)
 
     def solve(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, kp: float = 0.0, kd: float = 0.0) -> AdmmSolution:
         """The contact forces at (q, v) under the applied generalized forces ``tau`` [N, N m], at the
@@ -248,7 +336,7 @@ class AdmmContactPeer:
 
     def acceleration_solve(self, terms: ContactTerms, tau: np.ndarray, kp: float, kd: float) -> AdmmSolution:
         """:meth:`solve` on the terms of a pass at the state (:meth:`terms`)."""
-        mass_inverse_jt, free = _mass_solves(terms, tau)
+        mass_inverse_jt, free = mass_solves(terms, tau)
         g = terms.jacobian @ free + terms.drift + kd * terms.velocity + kp * terms.position
         forces = self._solve(mass_inverse_jt, terms.jacobian, g)
         return self._solution(forces, free + mass_inverse_jt @ forces, 1.0)
@@ -261,7 +349,7 @@ class AdmmContactPeer:
         Returns:
             the solution; its ``motion`` is the velocity at the step's end [m/s, rad/s].
         """
-        mass_inverse_jt, acceleration = _mass_solves(terms, tau)
+        mass_inverse_jt, acceleration = mass_solves(terms, tau)
         free = v + dt * acceleration
         g = terms.jacobian @ free + (erp / dt) * terms.position
         impulses = self._solve(mass_inverse_jt, terms.jacobian, g)
@@ -345,7 +433,9 @@ class PeerRun:
 
 
 @dataclass
-class _Statistics:
+class SolveStatistics:
+    """ADMM's iterations per solve, its largest residuals and the solves that did not converge."""
+
     iterations: list[int] = field(default_factory=list)
     primal: float = 0.0
     dual: float = 0.0
@@ -353,6 +443,7 @@ class _Statistics:
     failed: int = 0
 
     def add(self, solution: AdmmSolution) -> AdmmSolution:
+        """Count one solve; returns it."""
         self.iterations.append(solution.iterations)
         self.primal = max(self.primal, solution.primal_feasibility)
         self.dual = max(self.dual, solution.dual_feasibility)
@@ -383,7 +474,7 @@ class PeerSettings:
     warm_start: bool = True
 
 
-def _acceleration_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: _Statistics):
+def _acceleration_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: SolveStatistics):
     """``step(q, v) -> (q, v, forces at q)`` of semi-implicit Euler or RK4 on ADMM's accelerations (RK4 on
     the configuration group: stage velocities carried back to q's tangent space with ``pin.dDifference``,
     as pinstab's RK4 does)."""
@@ -423,7 +514,7 @@ def _acceleration_step(peer: AdmmContactPeer, forces: PeerForces, settings: Peer
     return euler if settings.scheme == "semi-implicit-euler" else rk4
 
 
-def _velocity_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: _Statistics):
+def _velocity_step(peer: AdmmContactPeer, forces: PeerForces, settings: PeerSettings, statistics: SolveStatistics):
     """``step(q, v) -> (q, v, forces)`` of the velocity-level scheme (impulses, then q with v_next)."""
     model, dt, erp = peer.model, settings.dt, settings.erp
 
@@ -449,12 +540,28 @@ def run_peer(
         raise PinstabError(f"unknown ADMM peer scheme {settings.scheme!r}; schemes: {', '.join(PEER_SCHEMES)}")
     peer = AdmmContactPeer(scene, settings.tolerance, compliance=settings.compliance, warm_start=settings.warm_start)
     forces = PeerForces(scene, peer)
-    statistics = _Statistics()
+    statistics = SolveStatistics()
     build = _velocity_step if settings.scheme == "velocity-level" else _acceleration_step
     step = build(peer, forces, settings, statistics)
-    steps = round(duration / settings.dt)
+    return run_loop(step, q0, v0, settings.dt, duration, record_every, peer.size, statistics)
+
+
+def run_loop(
+    step,
+    q0: np.ndarray,
+    v0: np.ndarray,
+    dt: float,
+    duration: float,
+    record_every: int,
+    size: int,
+    statistics: SolveStatistics,
+) -> PeerRun:
+    """Apply ``step(q, v) -> (q, v, forces)`` (steps of ``dt`` [s], ``size`` forces) for ``duration`` [s]
+    from (q0, v0), keeping every ``record_every``-th state and its step's forces; the last state's forces
+    come from one more step after the loop (not timed). ``statistics`` collects the step's ADMM solves."""
+    steps = round(duration / dt)
     kept = steps // record_every + 1
-    qs, vs, fs = np.empty((kept, len(q0))), np.empty((kept, len(v0))), np.empty((kept, peer.size))
+    qs, vs, fs = np.empty((kept, len(q0))), np.empty((kept, len(v0))), np.empty((kept, size))
     q, v = q0.copy(), v0.copy()
     qs[0], vs[0] = q, v
     began = time.process_time()
@@ -466,13 +573,14 @@ def run_peer(
             qs[k // record_every], vs[k // record_every] = q, v
     cpu = time.process_time() - began
     fs[-1] = step(q, v)[2]
+    iterations = statistics.iterations or [0]
     return PeerRun(
-        np.arange(kept) * record_every * settings.dt,
+        np.arange(kept) * record_every * dt,
         qs,
         vs,
         fs,
         cpu,
-        (float(np.mean(statistics.iterations)), int(np.max(statistics.iterations))),
+        (float(np.mean(iterations)), int(np.max(iterations))),
         statistics.primal,
         statistics.dual,
         statistics.complementarity,
