@@ -22,7 +22,7 @@ import numpy as np
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..solvers.contact_modes import ModeDynamics
-from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, TOUCH_SPEED, choose_modes, sticking_margin
+from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, SLIP_SPEED, TOUCH_SPEED, choose_modes, sticking_margin
 from .adaptive import AdaptiveLoop
 from .dense import Segment
 from .stepping import GRID_SLACK
@@ -169,9 +169,9 @@ class EventLoop(AdaptiveLoop):
         for i, mode in enumerate(dynamics.modes):
             name = dynamics.contacts[i].name
             if mode is Mode.SLIDING:
-                if forces[i, 0] <= 0.0:
+                if forces[i, 0] <= EVENT_SLACK * (1.0 + float(np.max(np.abs(forces)))):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= 0.0:
+                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED:
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))

@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..contact.modes import Mode
-from ..errors import ConstraintError
+from ..errors import ConstraintError, ContactInfeasibleError
 from ..model import ConstrainedModel
 
 SLIP_FLOOR = 1e-9  # [m/s] below this slip speed the slip direction is the one it started in
@@ -105,6 +105,7 @@ class ModeDynamics:
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
         self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
         self.evaluations = 0
+        self._redundant: dict[tuple[Mode, ...], bool] = {}
 
     def kinematics(self, q: np.ndarray, v: np.ndarray) -> ContactKinematics:
         """The contacts' gaps, velocities, Jacobians and drifts at (q, v) (a full kinematics pass)."""
@@ -150,7 +151,18 @@ class ModeDynamics:
             direction = self.slip_direction(i, velocity)
             system[n + 1 : n + 3, n + 1 : n + 3] = np.eye(2)
             system[n + 1 : n + 3, n] = contact.mu * direction
-        forces = _least_norm(system, rhs)
+        key = tuple(modes)
+        if key not in self._redundant:  # the rank of the rows: fixed by the modes and the contacts' layout
+            self._redundant[key] = not np.linalg.cond(system) < 1.0 / RANK_TOLERANCE
+        forces = _forces(system, rhs, self._redundant[key])
+        if not np.isfinite(forces).all():
+            names = ", ".join(c.name for c, m in zip(self.contacts, modes, strict=True) if m is not Mode.SEPARATED)
+            raise ContactInfeasibleError(
+                f"at t = {t:.9g} s the forces of contacts {names} in modes "
+                f"{', '.join(m.value for m in modes)} are not finite (a force system at a Painleve bound)",
+                [c.name for c in self.contacts],
+                t,
+            )
         acceleration = free + mobility @ forces
         return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts)
 
@@ -209,15 +221,18 @@ def _relative(
     return relative, drift - carried_drift - 2.0 * np.cross(omega, w)
 
 
-def _least_norm(system: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """The smallest x minimizing |system x - rhs| (redundant rows give a singular system)."""
+def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
+    """The smallest x minimizing |system x - rhs| (redundant rows give a singular system: least squares);
+    NaN where no finite solution is found."""
     try:
-        solution = np.linalg.solve(system, rhs)
-        if np.isfinite(solution).all() and np.linalg.cond(system) < 1.0 / RANK_TOLERANCE:
-            return solution
+        if not redundant:
+            return np.linalg.solve(system, rhs)
     except np.linalg.LinAlgError:
         pass
-    return np.linalg.lstsq(system, rhs, rcond=RANK_TOLERANCE)[0]
+    try:
+        return np.linalg.lstsq(system, rhs, rcond=RANK_TOLERANCE)[0]
+    except np.linalg.LinAlgError:  # SVD did not converge: non-finite entries
+        return np.full(rhs.shape, np.nan)
 
 
 def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
