@@ -93,9 +93,17 @@ class ConstrainedModel:
         return tau
 
     def dynamics_terms(self, q: np.ndarray, v: np.ndarray, t: float) -> DynamicsTerms:
-        """One full kinematics pass at (q, v): M, h, applied forces and constraint values with drift."""
-        self.kin.update(q, v)
-        tau = self.applied_force(v, t)
+        """One full kinematics pass at (q, v): M, h, applied forces and constraint values with drift (under the
+        scene's gravity at t when it tilts)."""
+        tilt = self.scene.tilt
+        if tilt is not None:
+            self.model.gravity = pin.Motion(tilt.gravity(t), np.zeros(3))
+        try:
+            self.kin.update(q, v)
+            tau = self.applied_force(v, t)
+        finally:
+            if tilt is not None:
+                self.model.gravity = pin.Motion(tilt.gravity0, np.zeros(3))
         values = self.constraints.values(self.kin, q, v, t, with_drift=True)
         return DynamicsTerms(self.kin.mass_matrix, self.kin.bias, tau, values)
 

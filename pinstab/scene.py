@@ -43,6 +43,7 @@ TOP_KEYS = {
     "robot",
     "generator",
     "gravity",
+    "tilt",
     "objects",
     "closures",
     "contacts",
@@ -96,6 +97,7 @@ class Scene:
     generator: str | None = None
     objects: list[SceneObject] = field(default_factory=list)
     actuation: Actuation | None = None
+    tilt: GravityTilt | None = None
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -257,7 +259,36 @@ def scene_from_dict(
         generator=gen_name,
         objects=objects,
         actuation=actuation,
+        tilt=None if "tilt" not in data else _tilt(data["tilt"], model.gravity.linear),
     )
+
+
+@dataclass(frozen=True)
+class GravityTilt:
+    """The robot's base turning at ``rate`` [rad/s] about the world ``axis`` (unit), modelled by gravity turning
+    the other way: ``g(t) = R(axis, -rate t) g0`` [m/s^2] (the slow turn's own accelerations, omega^2 r and
+    2 omega x v, are left out). Scene table ``[tilt]``: ``axis``, ``rate`` (e.g. ``"2 deg/s"``)."""
+
+    axis: np.ndarray
+    rate: float
+    gravity0: np.ndarray
+
+    def gravity(self, t: float) -> np.ndarray:
+        """Gravity at time t [s], in world axes [m/s^2]."""
+        return pin.AngleAxis(-self.rate * t, self.axis).matrix() @ self.gravity0
+
+    def angle(self, t: float) -> float:
+        """The tilt at time t [deg]."""
+        return float(np.degrees(self.rate * t))
+
+
+def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
+    if not isinstance(value, dict) or set(value) != {"axis", "rate"}:
+        raise SceneError(f"tilt must be a table with 'axis' (a world direction) and 'rate' (e.g. '2 deg/s'), got {value!r}")
+    axis = vector(value["axis"], 3, "tilt.axis", None)
+    if not np.linalg.norm(axis) > 1e-12:
+        raise SceneError(f"tilt.axis must be a non-zero vector, got {value['axis']!r}")
+    return GravityTilt(axis / np.linalg.norm(axis), quantity(value["rate"], "angular-velocity", "tilt.rate"), gravity.copy())
 
 
 # -- robot --------------------------------------------------------------------------------------

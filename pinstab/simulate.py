@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
+from .constraints import PointContact
 from .contact.modes import STOP_KINDS, stop_kind
 from .errors import ContactInfeasibleError, DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
@@ -248,9 +249,10 @@ def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]
 
 def default_contacts(scene: Scene) -> str | None:
     """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
-    them; None (contacts held as constraint rows) otherwise."""
-    geometries, others = event_contacts(scene)
-    return "event" if geometries and not others and len(geometries) <= MAX_EVENT_CONTACTS else None
+    them; None (contacts held as constraint rows) otherwise (grasps are held unless asked)."""
+    plane = [c for c in scene.constraints if isinstance(c, PointContact)]
+    many = len(plane) > MAX_EVENT_CONTACTS
+    return "event" if plane and len(plane) == len(scene.constraints) and not many else None
 
 
 def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:

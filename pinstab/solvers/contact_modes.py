@@ -217,8 +217,9 @@ def _relative(
     carried = body_jacobian[:3] - pin.skew(arm) @ body_jacobian[3:]  # v_b(p) = v_o + omega x arm
     relative = jacobian - carried
     w = relative @ v
-    carried_drift = body_drift.linear + np.cross(body_drift.angular, arm) + np.cross(omega, np.cross(omega, arm))
-    return relative, drift - carried_drift - 2.0 * np.cross(omega, w)
+    spin = pin.skew(omega)
+    carried_drift = body_drift.linear + pin.skew(body_drift.angular) @ arm + spin @ (spin @ arm)
+    return relative, drift - carried_drift - 2.0 * spin @ w
 
 
 def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
@@ -235,9 +236,19 @@ def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
         return np.full(rhs.shape, np.nan)
 
 
+EVENT_GRASP_MODELS = ("point-friction", "frictionless")  # grasp contact models with event-driven modes
+
+
 def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
-    """The plane contacts among a scene's constraints, as geometries for the event-driven dynamics."""
-    from ..constraints import PointContact
+    """The unilateral contacts among a scene's constraints as geometries for the event-driven dynamics: plane
+    contacts, and grasp contacts (the fingertip's point at C on the object's tangent plane at C, carried by the
+    object: exact for the motion while the contact sticks and its first slip; a sliding fingertip is followed
+    on that plane, not on the curved surface).
+
+    Raises:
+        ConstraintError: a grasp contact whose model has no event-driven modes (naming the valid ones).
+    """
+    from ..constraints import FingertipContact, PointContact
     from ..constraints.contacts import contact_basis
 
     geometries = []
@@ -255,6 +266,26 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     constraint.restitution,
                     constraint.radius,
                     constraint.plane_frame,
+                )
+            )
+        elif isinstance(constraint, FingertipContact):
+            if constraint.model not in EVENT_GRASP_MODELS:
+                raise ConstraintError(
+                    f"grasp contact {constraint.name} is {constraint.model}: event-driven contacts take the models "
+                    f"{', '.join(EVENT_GRASP_MODELS)}; hold it as constraint rows (contacts None / --contacts held)"
+                )
+            outward = contact_basis(np.array([0.0, 0.0, -1.0]))  # C's z points into the object
+            mu = constraint.mu if constraint.model == "point-friction" else 0.0
+            geometries.append(
+                PlaneContactGeometry(
+                    constraint.name,
+                    constraint.finger_frame,
+                    outward,
+                    np.zeros(3),
+                    mu,
+                    0.0,
+                    0.0,
+                    constraint.object_frame,
                 )
             )
     return geometries

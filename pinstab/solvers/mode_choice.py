@@ -176,6 +176,8 @@ def _solve_with_directions(
                 if speed <= CONSISTENCY * (1.0 + float(np.max(np.abs(solution.free)))):
                     continue  # at the cone's edge the slip starts from zero acceleration: keep its direction
                 new = slip / speed
+                if new @ dynamics.directions[i] < 0.0:  # the slip turns against its friction: it would not slip
+                    return None
                 changed = max(changed, float(np.max(np.abs(new - dynamics.directions[i]))))
                 dynamics.directions[i] = new
             if changed < 1e-13:
