@@ -133,4 +133,3 @@ class ContactStepper(Integrator):
                     )
                 )
         self.modes = modes
-

@@ -21,14 +21,26 @@ import numpy as np
 
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
-from ..solvers.contact_modes import ModeDynamics
-from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, SLIP_SPEED, TOUCH_SPEED, choose_modes, sticking_margin
+from ..solvers.contact_modes import ModeDynamics, ModeSolution
+from ..solvers.impacts import impact
+from ..solvers.mode_choice import (
+    CONSISTENCY,
+    EVENT_SLACK,
+    SLIP_SPEED,
+    TOUCH_GAP,
+    TOUCH_SPEED,
+    choose_modes,
+    sticking_margin,
+)
+from ..solvers.ncp import NcpSolver
 from .adaptive import AdaptiveLoop
 from .dense import Segment
 from .stepping import GRID_SLACK
 
 EVENT_TIME = 1e-12  # [s] events are located to this (bisection on the dense output)
 START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and of an impact
+IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
+IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -60,6 +72,7 @@ class EventLoop(AdaptiveLoop):
         self.dynamics = dynamics
         self.events: list[ContactEvent] = []
         self.stop_on: frozenset[str] = frozenset()
+        self.impacts = NcpSolver(3 * len(dynamics.contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
         self._reference: list[np.ndarray] = []
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
@@ -146,12 +159,11 @@ class EventLoop(AdaptiveLoop):
         closing = [
             i
             for i, mode in enumerate(dynamics.modes)
-            if mode is Mode.SEPARATED and contacts.gaps[i] <= 0.0 and contacts.velocities[i, 0] < -TOUCH_SPEED
+            if mode is Mode.SEPARATED and contacts.gaps[i] <= TOUCH_GAP and contacts.velocities[i, 0] < -TOUCH_SPEED
         ]
         cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
-        for i in closing:
-            v = self._impact(q, v, t, i)
-            before[i] = CLOSING
+        if closing:
+            v = self._impact(q, v, t, closing, before)
         self._switch(q, v, t, cause, before)
         self.step_size = None if closing else self.step_size
         if self.step_size is None:
@@ -181,24 +193,41 @@ class EventLoop(AdaptiveLoop):
                     cause = f"{what} at {name}"
         return cause
 
-    def _impact(self, q: np.ndarray, v: np.ndarray, t: float, i: int) -> np.ndarray:
-        """The velocity after contact i's impact at (q, v, t): a normal impulse giving the normal velocity
-        -e times the approaching one (0 when the rebound would fly shorter than :data:`ZENO_TIME`)."""
+    def _impact(self, q: np.ndarray, v: np.ndarray, t: float, closing: list[int], before: list[str]) -> np.ndarray:
+        """The velocity after the impact at (q, v, t) of the ``closing`` contacts, each with its restitution (0
+        when its rebound would fly shorter than :data:`ZENO_TIME`), together with every contact that touches
+        (e = 0); each contact the impulse reaches is recorded (``before`` turns ``closing``)."""
         dynamics = self.dynamics
-        contact = dynamics.contacts[i]
         solution = dynamics.solve(q, v, t, [Mode.SEPARATED] * len(dynamics.contacts))
-        row = 3 * i
-        approach = solution.contacts.velocities[i, 0]
-        gravity = -(solution.contacts.jacobian[row] @ solution.free + solution.contacts.drift[row])
-        rebound = -contact.restitution * approach
-        if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME:
-            rebound = 0.0
-        mobility = solution.mobility[:, row]
-        impulse = (rebound - approach) / (solution.contacts.jacobian[row] @ mobility)
-        self.events.append(
-            ContactEvent(t, contact.name, Mode.SEPARATED.value, CLOSING, "impact", impulse=(float(impulse), 0.0, 0.0))
-        )
-        return v + mobility * impulse
+        contacts = solution.contacts
+        restitutions = {
+            i: 0.0
+            for i, mode in enumerate(dynamics.modes)
+            if mode is not Mode.SEPARATED or contacts.gaps[i] <= TOUCH_GAP
+        }
+        for i in closing:
+            restitutions[i] = self._restitution(solution, i)
+        result = impact(dynamics, self.impacts, v, solution, restitutions)
+        self.impacts.record(self.system.solver.statistics)
+        reach = np.einsum("ij,ji->i", contacts.jacobian[0::3], solution.mobility[:, 0::3])  # [m/s per N s]
+        for i in sorted(restitutions):
+            if i in closing or result.impulses[i, 0] * reach[i] > TOUCH_SPEED:
+                self.events.append(
+                    ContactEvent(
+                        t, dynamics.contacts[i].name, before[i], CLOSING, "impact", impulse=as_tuple(result.impulses[i])
+                    )
+                )
+                before[i] = CLOSING
+        return result.velocity
+
+    def _restitution(self, solution: ModeSolution, i: int) -> float:
+        """Contact i's Newton's e [-] at its impact, 0 when the rebound would fly shorter than :data:`ZENO_TIME`
+        under the normal acceleration without contact forces (``solution``: every contact separated)."""
+        contacts, row = solution.contacts, 3 * i
+        restitution = self.dynamics.contacts[i].restitution
+        gravity = -(contacts.jacobian[row] @ solution.free + contacts.drift[row])
+        rebound = -restitution * contacts.velocities[i, 0]
+        return 0.0 if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME else restitution
 
     def _switch(
         self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False

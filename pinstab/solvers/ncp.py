@@ -94,7 +94,12 @@ class NcpSolver:
         return result.retrieveConstraintImpulses().copy()
 
     def solve_contacts(
-        self, jacobian: np.ndarray, mobility: np.ndarray, offset: np.ndarray, active: Sequence[int], mus: Sequence[float]
+        self,
+        jacobian: np.ndarray,
+        mobility: np.ndarray,
+        offset: np.ndarray,
+        active: Sequence[int],
+        mus: Sequence[float],
     ) -> np.ndarray:
         """The impulses (or forces) (len(active), 3) in the contact bases (n, t1, t2) of the contacts
         ``active`` with friction coefficients ``mus`` [-]: ``jacobian`` (3k, nv) and ``offset`` (3k,) [units of
