@@ -8,11 +8,14 @@ step's start; forces count as below their bound only beyond the relative
 :data:`~pinstab.solvers.mode_choice.EVENT_SLACK` the mode choice then allows, so that a contact on its bound
 does not switch back and forth. When one turns negative, its root is located by bisection on the step's dense output to
 :data:`EVENT_TIME` [s], the step is taken again to end there, and at that instant a gap that closed with
-an approaching velocity is an impact (Newton's restitution e on the normal velocity; a frictionless
-impulse), and the touching contacts take the modes of the contact complementarity problem
-(:func:`~pinstab.solvers.mode_choice.choose_modes`). An impact that leaves a rebound too small to fly
-longer than :data:`ZENO_TIME` [s] ends in resting contact (a Zeno sequence cut where its remaining
-flights sum to less than that).
+an approaching velocity (within :data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every
+contact that touches there (:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing
+contacts' normal velocities, e = 0 on those already touching, Coulomb's law on the round cone for the
+tangential impulses; Pinocchio's ADMM in NCP mode to :data:`IMPACT_TOLERANCE`), and the touching contacts
+then take the modes of the contact complementarity problem
+(:func:`~pinstab.solvers.mode_choice.choose_modes`). A closing contact whose rebound would fly shorter than
+:data:`ZENO_TIME` [s] takes e = 0: resting contact (a Zeno sequence cut where its remaining flights sum to
+less than that).
 """
 
 from __future__ import annotations
@@ -209,6 +212,17 @@ class EventLoop(AdaptiveLoop):
             restitutions[i] = self._restitution(solution, i)
         result = impact(dynamics, self.impacts, v, solution, restitutions)
         self.impacts.record(self.system.solver.statistics)
+        status = self.impacts.status()
+        if not status.converged:
+            names = [dynamics.contacts[i].name for i in sorted(restitutions)]
+            error = ContactInfeasibleError(
+                f"at t = {t:.9g} s the impact of contacts {', '.join(names)} was not solved: ADMM did not "
+                f"converge in {status.iterations} iterations (primal residual {status.primal_feasibility:.3g} "
+                f"m/s, dual {status.dual_feasibility:.3g} m/s, tolerance {IMPACT_TOLERANCE:g})",
+                names,
+                t,
+            )
+            raise RunEnd(t, q, v, error=error)
         reach = np.einsum("ij,ji->i", contacts.jacobian[0::3], solution.mobility[:, 0::3])  # [m/s per N s]
         for i in sorted(restitutions):
             if i in closing or result.impulses[i, 0] * reach[i] > TOUCH_SPEED:
