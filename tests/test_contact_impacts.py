@@ -128,3 +128,24 @@ def test_impact_not_solved_is_named(monkeypatch):
     monkeypatch.setattr(events, "IMPACT_ITERATIONS", 1)
     with pytest.raises(ContactInfeasibleError, match="impact of contacts corner0, corner1, corner2, corner3"):
         simulate(box(0.0, 0.5, 0.2), dt=0.01, duration=0.25, contacts="event")
+
+
+def test_box_tipping_onto_its_face_rocks_as_housner():
+    """The cube at rest on its edge x = +h, turned by phi about y, tips over it (sticking, mu = 2) onto its
+    face: at the landing, energy gives its spin w^2 = 2 m g h (sin phi + cos phi - 1) / J_edge (J_edge =
+    J + 2 m h^2 = (2/3) m s^2) and its centre's velocity |w| (-h, 0, -h). The landing corners (e = 0) and the
+    touching pivot corners solve one impact: Housner's rocking block, the spin about the new edge is
+    1 - (3/2) sin^2(45 deg) = 1/4 of it (angular momentum about that edge), the centre's velocity
+    |w| / 4 (-h, 0, h), the pivot lifts off without impulse: the impulses sum to m |w| h (3/4, 0, 5/4)."""
+    tilt = 0.1
+    scene = box(0.0, 2.0, 0.0, tilt)
+    run = simulate(scene, dt=0.05, duration=0.06, contacts="event")
+    assert not [e for e in run.info.contact_events if e["to"] == "sliding"]
+    first = impacts(run)
+    assert sorted(e["contact"] for e in first) == ["corner2", "corner3"]  # the pivot corner0, corner1: none
+    spin = math.sqrt(2 * G * HALF * (math.sin(tilt) + math.cos(tilt) - 1) / (INERTIA + 2 * HALF**2))
+    world = contact_basis(np.array([0.0, 0.0, 1.0]))
+    total = np.sum([np.asarray(e["impulse"]) @ world for e in first], axis=0)
+    np.testing.assert_allclose(total, spin * HALF * np.array([0.75, 0.0, 1.25]), rtol=0, atol=1e-8 * spin * HALF)
+    lifted = {e["contact"] for e in run.info.contact_events if e["t"] == first[0]["t"] and e["to"] == "separated"}
+    assert lifted == {"corner0", "corner1"}
