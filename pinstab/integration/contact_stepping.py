@@ -41,7 +41,7 @@ import numpy as np
 
 from ..contact.modes import ContactEvent, Mode, as_tuple
 from ..solvers.contact_modes import ModeDynamics
-from ..solvers.ncp import CONE_ROWS, NcpSolver, friction_cones
+from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
 from .schemes import Integrator
 
@@ -71,7 +71,6 @@ class ContactStepper(Integrator):
         self.events: list[ContactEvent] = []
         self.modes: list[Mode] | None = None
         self.impulses = np.zeros((count, 3))
-        self._problems: dict[tuple[int, ...], tuple] = {}
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
@@ -85,21 +84,13 @@ class ContactStepper(Integrator):
         impulses = np.zeros_like(self.impulses)
         v_new = v_free
         if active:
-            rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
-            offset = reach[rows]
-            for j, i in enumerate(active):
-                offset[3 * j + 2] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
-            delassus = contacts.jacobian[rows] @ mobility[:, rows]
-            solution = self.solver.solve(delassus, offset, *self._problem(active))
-            status = self.solver.status()
-            self.system.solver.statistics.record(
-                "ADMM converged" if status.converged else "ADMM not converged",
-                status.iterations,
-                status.primal_feasibility,
-                status.dual_feasibility,
-            )
-            v_new = v_free + mobility[:, rows] @ solution
-            impulses[np.array(active)] = solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
+            offset = reach.copy()
+            for i in active:
+                offset[3 * i] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
+            mus = [self.dynamics.contacts[i].mu for i in active]
+            impulses[np.array(active)] = self.solver.solve_contacts(contacts.jacobian, mobility, offset, active, mus)
+            self.solver.record(self.system.solver.statistics)
+            v_new = v_free + mobility @ impulses.ravel()
         velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
         normal = contacts.jacobian[0::3]
         self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
@@ -113,12 +104,6 @@ class ContactStepper(Integrator):
         if restitution > 0.0 and normal_velocity < 0.0:
             bias = min(bias, restitution * normal_velocity)
         return bias
-
-    def _problem(self, active: tuple[int, ...]) -> tuple:
-        """The cones (models, datas) of the ``active`` contacts (cached per set)."""
-        if active not in self._problems:
-            self._problems[active] = friction_cones([self.dynamics.contacts[i].mu for i in active])
-        return self._problems[active]
 
     def _track(self, t: float, dt: float, impulses: np.ndarray, velocities: np.ndarray, reach: np.ndarray) -> None:
         """Read each contact's mode over the step (``reach``: the normal velocity a unit normal impulse gives

@@ -8,11 +8,14 @@ step's start; forces count as below their bound only beyond the relative
 :data:`~pinstab.solvers.mode_choice.EVENT_SLACK` the mode choice then allows, so that a contact on its bound
 does not switch back and forth. When one turns negative, its root is located by bisection on the step's dense output to
 :data:`EVENT_TIME` [s], the step is taken again to end there, and at that instant a gap that closed with
-an approaching velocity is an impact (Newton's restitution e on the normal velocity; a frictionless
-impulse), and the touching contacts take the modes of the contact complementarity problem
-(:func:`~pinstab.solvers.mode_choice.choose_modes`). An impact that leaves a rebound too small to fly
-longer than :data:`ZENO_TIME` [s] ends in resting contact (a Zeno sequence cut where its remaining
-flights sum to less than that).
+an approaching velocity (within :data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every
+contact that touches there (:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing
+contacts' normal velocities, e = 0 on those already touching, Coulomb's law on the round cone for the
+tangential impulses; Pinocchio's ADMM in NCP mode to :data:`IMPACT_TOLERANCE`), and the touching contacts
+then take the modes of the contact complementarity problem
+(:func:`~pinstab.solvers.mode_choice.choose_modes`). A closing contact whose rebound would fly shorter than
+:data:`ZENO_TIME` [s] takes e = 0: resting contact (a Zeno sequence cut where its remaining flights sum to
+less than that).
 """
 
 from __future__ import annotations
@@ -21,14 +24,26 @@ import numpy as np
 
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
-from ..solvers.contact_modes import ModeDynamics
-from ..solvers.mode_choice import CONSISTENCY, EVENT_SLACK, SLIP_SPEED, TOUCH_SPEED, choose_modes, sticking_margin
+from ..solvers.contact_modes import ModeDynamics, ModeSolution
+from ..solvers.impacts import impact
+from ..solvers.mode_choice import (
+    CONSISTENCY,
+    EVENT_SLACK,
+    SLIP_SPEED,
+    TOUCH_GAP,
+    TOUCH_SPEED,
+    choose_modes,
+    sticking_margin,
+)
+from ..solvers.ncp import NcpSolver
 from .adaptive import AdaptiveLoop
 from .dense import Segment
 from .stepping import GRID_SLACK
 
 EVENT_TIME = 1e-12  # [s] events are located to this (bisection on the dense output)
 START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and of an impact
+IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
+IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -60,6 +75,7 @@ class EventLoop(AdaptiveLoop):
         self.dynamics = dynamics
         self.events: list[ContactEvent] = []
         self.stop_on: frozenset[str] = frozenset()
+        self.impacts = NcpSolver(3 * len(dynamics.contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
         self._reference: list[np.ndarray] = []
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
@@ -146,12 +162,11 @@ class EventLoop(AdaptiveLoop):
         closing = [
             i
             for i, mode in enumerate(dynamics.modes)
-            if mode is Mode.SEPARATED and contacts.gaps[i] <= 0.0 and contacts.velocities[i, 0] < -TOUCH_SPEED
+            if mode is Mode.SEPARATED and contacts.gaps[i] <= TOUCH_GAP and contacts.velocities[i, 0] < -TOUCH_SPEED
         ]
         cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
-        for i in closing:
-            v = self._impact(q, v, t, i)
-            before[i] = CLOSING
+        if closing:
+            v = self._impact(q, v, t, closing, before)
         self._switch(q, v, t, cause, before)
         self.step_size = None if closing else self.step_size
         if self.step_size is None:
@@ -181,24 +196,52 @@ class EventLoop(AdaptiveLoop):
                     cause = f"{what} at {name}"
         return cause
 
-    def _impact(self, q: np.ndarray, v: np.ndarray, t: float, i: int) -> np.ndarray:
-        """The velocity after contact i's impact at (q, v, t): a normal impulse giving the normal velocity
-        -e times the approaching one (0 when the rebound would fly shorter than :data:`ZENO_TIME`)."""
+    def _impact(self, q: np.ndarray, v: np.ndarray, t: float, closing: list[int], before: list[str]) -> np.ndarray:
+        """The velocity after the impact at (q, v, t) of the ``closing`` contacts, each with its restitution (0
+        when its rebound would fly shorter than :data:`ZENO_TIME`), together with every contact that touches
+        (e = 0); each contact the impulse reaches is recorded (``before`` turns ``closing``)."""
         dynamics = self.dynamics
-        contact = dynamics.contacts[i]
         solution = dynamics.solve(q, v, t, [Mode.SEPARATED] * len(dynamics.contacts))
-        row = 3 * i
-        approach = solution.contacts.velocities[i, 0]
-        gravity = -(solution.contacts.jacobian[row] @ solution.free + solution.contacts.drift[row])
-        rebound = -contact.restitution * approach
-        if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME:
-            rebound = 0.0
-        mobility = solution.mobility[:, row]
-        impulse = (rebound - approach) / (solution.contacts.jacobian[row] @ mobility)
-        self.events.append(
-            ContactEvent(t, contact.name, Mode.SEPARATED.value, CLOSING, "impact", impulse=(float(impulse), 0.0, 0.0))
-        )
-        return v + mobility * impulse
+        contacts = solution.contacts
+        restitutions = {
+            i: 0.0
+            for i, mode in enumerate(dynamics.modes)
+            if mode is not Mode.SEPARATED or contacts.gaps[i] <= TOUCH_GAP
+        }
+        for i in closing:
+            restitutions[i] = self._restitution(solution, i)
+        result = impact(dynamics, self.impacts, v, solution, restitutions)
+        self.impacts.record(self.system.solver.statistics)
+        status = self.impacts.status()
+        if not status.converged:
+            names = [dynamics.contacts[i].name for i in sorted(restitutions)]
+            error = ContactInfeasibleError(
+                f"at t = {t:.9g} s the impact of contacts {', '.join(names)} was not solved: ADMM did not "
+                f"converge in {status.iterations} iterations (primal residual {status.primal_feasibility:.3g} "
+                f"m/s, dual {status.dual_feasibility:.3g} m/s, tolerance {IMPACT_TOLERANCE:g})",
+                names,
+                t,
+            )
+            raise RunEnd(t, q, v, error=error)
+        reach = np.einsum("ij,ji->i", contacts.jacobian[0::3], solution.mobility[:, 0::3])  # [m/s per N s]
+        for i in sorted(restitutions):
+            if i in closing or result.impulses[i, 0] * reach[i] > TOUCH_SPEED:
+                self.events.append(
+                    ContactEvent(
+                        t, dynamics.contacts[i].name, before[i], CLOSING, "impact", impulse=as_tuple(result.impulses[i])
+                    )
+                )
+                before[i] = CLOSING
+        return result.velocity
+
+    def _restitution(self, solution: ModeSolution, i: int) -> float:
+        """Contact i's Newton's e [-] at its impact, 0 when the rebound would fly shorter than :data:`ZENO_TIME`
+        under the normal acceleration without contact forces (``solution``: every contact separated)."""
+        contacts, row = solution.contacts, 3 * i
+        restitution = self.dynamics.contacts[i].restitution
+        gravity = -(contacts.jacobian[row] @ solution.free + contacts.drift[row])
+        rebound = -restitution * contacts.velocities[i, 0]
+        return 0.0 if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME else restitution
 
     def _switch(
         self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False

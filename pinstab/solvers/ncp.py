@@ -19,6 +19,8 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from ..runinfo import SolverStatistics
+
 CONE_ROWS = (1, 2, 0)  # Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
 CONE_ORDER = np.eye(3)[list(CONE_ROWS)]  # (n, t1, t2) -> (t1, t2, n)
 
@@ -76,6 +78,7 @@ class NcpSolver:
         self.compliance = compliance
         self.warm_start = warm_start
         self._last_size = -1
+        self._cones: dict[tuple[float, ...], tuple] = {}
 
     def solve(self, delassus: np.ndarray, g: np.ndarray, models, datas) -> np.ndarray:
         """lambda of the problem ``(D, g)`` on the cones of the constraint ``models`` (their friction
@@ -89,6 +92,36 @@ class NcpSolver:
         self.solver.solve(operator, g, models, datas, self.settings, result)
         self._last_size = g.size
         return result.retrieveConstraintImpulses().copy()
+
+    def solve_contacts(
+        self,
+        jacobian: np.ndarray,
+        mobility: np.ndarray,
+        offset: np.ndarray,
+        active: Sequence[int],
+        mus: Sequence[float],
+    ) -> np.ndarray:
+        """The impulses (or forces) (len(active), 3) in the contact bases (n, t1, t2) of the contacts
+        ``active`` with friction coefficients ``mus`` [-]: ``jacobian`` (3k, nv) and ``offset`` (3k,) [units of
+        g] have each contact's rows (n, t1, t2), ``mobility`` (nv, 3k) is M^-1 J^T; D = J M^-1 J^T of the
+        active rows (converted to Pinocchio's order for the solve)."""
+        rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
+        key = tuple(float(mu) for mu in mus)
+        if key not in self._cones:
+            self._cones[key] = friction_cones(key)
+        solution = self.solve(jacobian[rows] @ mobility[:, rows], offset[rows], *self._cones[key])
+        return solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
+
+    def record(self, statistics: SolverStatistics) -> None:
+        """Count the last solve in ``statistics`` (status ``ADMM converged`` or ``ADMM not converged``, its
+        iterations and absolute primal and dual residuals)."""
+        status = self.status()
+        statistics.record(
+            "ADMM converged" if status.converged else "ADMM not converged",
+            status.iterations,
+            status.primal_feasibility,
+            status.dual_feasibility,
+        )
 
     def status(self) -> NcpStatus:
         """How the last solve ended."""
