@@ -265,30 +265,38 @@ def scene_from_dict(
 
 @dataclass(frozen=True)
 class GravityTilt:
-    """The robot's base turning at ``rate`` [rad/s] about the world ``axis`` (unit), modelled by gravity turning
-    the other way: ``g(t) = R(axis, -rate t) g0`` [m/s^2] (the slow turn's own accelerations, omega^2 r and
-    2 omega x v, are left out). Scene table ``[tilt]``: ``axis``, ``rate`` (e.g. ``"2 deg/s"``)."""
+    """The robot's base turned by ``start`` [rad] and turning at ``rate`` [rad/s] about the world ``axis``
+    (unit), modelled by gravity turning the other way: ``g(t) = R(axis, -(start + rate t)) g0`` [m/s^2] (the
+    slow turn's own accelerations, omega^2 r and 2 omega x v, are left out). Scene table ``[tilt]``: ``axis``,
+    ``rate`` (e.g. ``"2 deg/s"``), optional ``start`` (e.g. ``"1.5 deg"``)."""
 
     axis: np.ndarray
     rate: float
     gravity0: np.ndarray
+    start: float = 0.0
 
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time t [s], in world axes [m/s^2]."""
-        return pin.AngleAxis(-self.rate * t, self.axis).matrix() @ self.gravity0
+        return pin.AngleAxis(-self.start - self.rate * t, self.axis).matrix() @ self.gravity0
 
     def angle(self, t: float) -> float:
         """The tilt at time t [deg]."""
-        return float(np.degrees(self.rate * t))
+        return float(np.degrees(self.start + self.rate * t))
 
 
 def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
-    if not isinstance(value, dict) or set(value) != {"axis", "rate"}:
-        raise SceneError(f"tilt must be a table with 'axis' (a world direction) and 'rate' (e.g. '2 deg/s'), got {value!r}")
+    keys = {"axis", "rate", "start"}
+    if not isinstance(value, dict) or not {"axis", "rate"} <= set(value) <= keys:
+        raise SceneError(
+            "tilt must be a table with 'axis' (a world direction), 'rate' (e.g. '2 deg/s') and optionally 'start' "
+            f"(e.g. '1.5 deg'), got {value!r}"
+        )
     axis = vector(value["axis"], 3, "tilt.axis", None)
     if not np.linalg.norm(axis) > 1e-12:
         raise SceneError(f"tilt.axis must be a non-zero vector, got {value['axis']!r}")
-    return GravityTilt(axis / np.linalg.norm(axis), quantity(value["rate"], "angular-velocity", "tilt.rate"), gravity.copy())
+    rate = quantity(value["rate"], "angular-velocity", "tilt.rate")
+    start = quantity(value.get("start", 0.0), "angle", "tilt.start")
+    return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start)
 
 
 # -- robot --------------------------------------------------------------------------------------

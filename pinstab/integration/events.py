@@ -44,6 +44,7 @@ EVENT_TIME = 1e-12  # [s] events are located to this (bisection on the dense out
 START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and of an impact
 IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
 IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
+ARMING_SPEED = 10 * SLIP_SPEED  # [m/s] see EventLoop._slip_directions
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -77,6 +78,7 @@ class EventLoop(AdaptiveLoop):
         self.stop_on: frozenset[str] = frozenset()
         self.impacts = NcpSolver(3 * len(dynamics.contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
         self._reference: list[np.ndarray] = []
+        self._armed = [True] * len(dynamics.contacts)  # a slip from rest is watched for its end once it is faster
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
         """Choose the modes at the start and record them as events (cause ``start``)."""
@@ -132,7 +134,8 @@ class EventLoop(AdaptiveLoop):
             if mode is Mode.SEPARATED:
                 values[i] = contacts.gaps[i]
             elif mode is Mode.SLIDING:
-                values[i] = min(forces[i, 0] + slack, float(contacts.velocities[i, 1:] @ self._reference[i]))
+                slip = float(contacts.velocities[i, 1:] @ self._reference[i]) if self._armed[i] else np.inf
+                values[i] = min(forces[i, 0] + slack, slip + SLIP_SPEED / 2)  # reversed: slower than SLIP_SPEED
             else:
                 if margin is None:
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
@@ -140,7 +143,12 @@ class EventLoop(AdaptiveLoop):
         return values
 
     def _slip_directions(self, q: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
+        """Each contact's slip direction at (q, v); a slip that started from rest is armed (its slip velocity
+        reaching zero becomes an event) once faster than :data:`ARMING_SPEED`: at a cone's edge the slip starts
+        at zero acceleration, and rounding would otherwise end it at once, over and over."""
         contacts = self.dynamics.kinematics(q, v)
+        for i, velocity in enumerate(contacts.velocities):
+            self._armed[i] = self._armed[i] or float(np.hypot(*velocity[1:])) > ARMING_SPEED
         return [self.dynamics.slip_direction(i, contacts.velocities[i]) for i in range(len(self.dynamics.contacts))]
 
     def _locate(self, segment: Segment, t0: float, t1: float) -> float:
@@ -186,7 +194,7 @@ class EventLoop(AdaptiveLoop):
             if mode is Mode.SLIDING:
                 if forces[i, 0] <= EVENT_SLACK * (1.0 + float(np.max(np.abs(forces)))):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED:
+                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED / 2:
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
@@ -256,6 +264,7 @@ class EventLoop(AdaptiveLoop):
         for i, direction in choice.directions.items():
             dynamics.directions[i] = direction
         for i, (old, new) in enumerate(zip(before, choice.modes, strict=True)):
+            self._armed[i] = new is not Mode.SLIDING or float(np.hypot(*contacts.velocities[i, 1:])) > SLIP_SPEED
             if new is Mode.STICKING and dynamics.modes[i] is not Mode.STICKING:
                 dynamics.contacts[i].anchor = contacts.local[i].copy()
             if force_record or old != new.value:

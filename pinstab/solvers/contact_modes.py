@@ -95,7 +95,7 @@ class ModeDynamics:
 
     Attributes:
         modes: each contact's mode. directions: the slip direction (t1, t2) each sliding contact started
-            in. evaluations: solves so far.
+            in. evaluations: dynamics evaluations so far (states; a state solved in several modes counts once).
     """
 
     def __init__(self, model: ConstrainedModel, contacts: list[PlaneContactGeometry], kp: float, kd: float) -> None:
@@ -106,6 +106,8 @@ class ModeDynamics:
         self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
         self.evaluations = 0
         self._redundant: dict[tuple[Mode, ...], bool] = {}
+        self._state: tuple | None = None
+        self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics] | None = None
 
     def kinematics(self, q: np.ndarray, v: np.ndarray) -> ContactKinematics:
         """The contacts' gaps, velocities, Jacobians and drifts at (q, v) (a full kinematics pass)."""
@@ -121,12 +123,7 @@ class ModeDynamics:
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, modes: list[Mode] | None = None) -> ModeSolution:
         """The accelerations and contact forces at (q, v, t) with the contacts in ``modes`` (default: theirs)."""
         modes = self.modes if modes is None else modes
-        self.evaluations += 1
-        model = self.model
-        terms = model.dynamics_terms(q, v, t)
-        contacts = self.kinematics_from_kin(v)
-        solved = np.linalg.solve(terms.mass_matrix, np.column_stack([terms.tau - terms.bias, contacts.jacobian.T]))
-        free, mobility = solved[:, 0], solved[:, 1:]
+        free, mobility, contacts = self._unforced(q, v, t)
         size = 3 * len(self.contacts)
         if size == 0:
             return ModeSolution(free, np.zeros((0, 3)), free, mobility, contacts)
@@ -165,6 +162,18 @@ class ModeDynamics:
             )
         acceleration = free + mobility @ forces
         return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts)
+
+    def _unforced(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, ContactKinematics]:
+        """The accelerations without contact forces, M^-1 W^T and the contacts at (q, v, t); the last state's are
+        kept, as choosing modes solves one state in many of them (applied forces may cost a QP each)."""
+        key = (t, q.tobytes(), v.tobytes())
+        if key != self._state:
+            self.evaluations += 1
+            terms = self.model.dynamics_terms(q, v, t)
+            contacts = self.kinematics_from_kin(v)
+            solved = np.linalg.solve(terms.mass_matrix, np.column_stack([terms.tau - terms.bias, contacts.jacobian.T]))
+            self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts)
+        return self._unforced_terms
 
     def kinematics_from_kin(self, v: np.ndarray) -> ContactKinematics:
         """:meth:`kinematics` from the pass :meth:`ConstrainedModel.dynamics_terms` just made."""

@@ -22,6 +22,7 @@ import numpy as np
 from ..contact.modes import Mode
 from ..errors import PainleveError
 from .contact_modes import SLIP_FLOOR, ModeDynamics, ModeSolution
+from .ncp import NcpSolver
 
 CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
 EVENT_SLACK = 1e-12  # relative: at an event located on a force bound, forces within this of it are on it
@@ -29,6 +30,7 @@ DIRECTION_ITERATIONS = 50  # fixed-point iterations for the direction a slip sta
 TOUCH_GAP = 1e-9  # [m] a contact this close touches
 TOUCH_SPEED = 1e-9  # [m/s] ... and moving apart or closing slower than this is at rest on the surface
 SLIP_SPEED = SLIP_FLOOR  # [m/s] a contact point slower than this along the surface does not slip
+NCP_EDGE = 1e-7  # relative: ADMM's forces within this of a cone's edge (or of zero) are on it
 
 
 class Choice(NamedTuple):
@@ -73,6 +75,9 @@ def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
         if choice is not None:
             consistent.append(choice)
     names = [dynamics.contacts[i].name for i in active]
+    if not consistent:  # e.g. several contacts starting to slide at once: their directions are coupled
+        choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack)
+        consistent += [] if choice is None else [choice]
     if not consistent:
         raise PainleveError(
             f"at t = {t:.9g} s no contact mode of {', '.join(names)} is consistent (Painleve's paradox: the "
@@ -124,6 +129,22 @@ def _consistent(
     solution = _solve_with_directions(dynamics, q, v, t, modes, directions, starting)
     if solution is None:
         return None
+    found = {i: d for i, d in directions.items() if d is not None}
+    return _checked(dynamics, solution, modes, active, slack, found, [])
+
+
+def _checked(
+    dynamics: ModeDynamics,
+    solution: ModeSolution,
+    modes: list[Mode],
+    active: list[int],
+    slack: float,
+    directions: dict[int, np.ndarray],
+    starting: list[int],
+) -> Choice | None:
+    """The choice of ``modes`` if ``solution`` is consistent: touching contacts push, separated ones do not
+    approach, sticking forces can lie in their cones and the contacts in ``starting`` (sliding from rest)
+    slip along their ``directions``; else None."""
     forces, contacts = solution.forces, solution.contacts
     scale = 1.0 + float(np.max(np.abs(forces), initial=0.0))
     accelerations = contacts.jacobian @ solution.acceleration + contacts.drift
@@ -135,9 +156,52 @@ def _consistent(
                 return None
         elif forces[i, 0] < -slack * scale:
             return None
+    for i in starting:
+        if accelerations[3 * i + 1 : 3 * i + 3] @ directions[i] < -CONSISTENCY * acceleration_scale:
+            return None
     if any(modes[i] is Mode.STICKING for i in active) and sticking_margin(dynamics, solution, modes) < -slack * scale:
         return None
-    return Choice(modes, {i: d for i, d in directions.items() if d is not None}, solution)
+    return Choice(modes, directions, solution)
+
+
+def _ncp_choice(
+    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, active: list[int], kinematics, slack: float
+) -> Choice | None:
+    """The modes of the touching contacts, all at rest along the surface, read from the contact problem on
+    accelerations solved by Pinocchio's ADMM in NCP mode (exact round cones, friction opposing the slip
+    acceleration), then checked as an enumerated assignment is; None when some contact already slips or the
+    modes read are not consistent."""
+    if not active or any(math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED for i in active):
+        return None
+    count = len(dynamics.contacts)
+    free = dynamics.solve(q, v, t, [Mode.SEPARATED] * count)
+    contacts = free.contacts
+    offset = contacts.jacobian @ free.free + contacts.drift  # the contact accelerations without forces
+    mus = [dynamics.contacts[i].mu for i in active]
+    forces = np.zeros((count, 3))
+    forces[active] = NcpSolver(3 * len(active)).solve_contacts(contacts.jacobian, free.mobility, offset, active, mus)
+    accelerations = (offset + contacts.jacobian @ (free.mobility @ forces.ravel())).reshape(-1, 3)
+    scale = 1.0 + float(np.max(np.abs(forces)))
+    modes, directions = [Mode.SEPARATED] * count, {}
+    for i in active:
+        normal, tangential = forces[i, 0], forces[i, 1:]
+        if normal <= NCP_EDGE * scale:
+            continue
+        if math.hypot(*tangential) < dynamics.contacts[i].mu * normal - NCP_EDGE * scale:
+            modes[i] = Mode.STICKING
+            continue
+        modes[i] = Mode.SLIDING
+        slip = accelerations[i, 1:]
+        along = slip if math.hypot(*slip) > CONSISTENCY * scale else -tangential
+        directions[i] = along / math.hypot(*along)
+    saved = list(dynamics.directions)
+    try:
+        for i, direction in directions.items():
+            dynamics.directions[i] = direction
+        solution = dynamics.solve(q, v, t, modes)
+    finally:
+        dynamics.directions[:] = saved
+    return _checked(dynamics, solution, modes, active, slack, directions, list(directions))
 
 
 def _solve_with_directions(
