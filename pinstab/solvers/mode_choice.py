@@ -1,4 +1,4 @@
-"""Choosing contact modes at an event, and impacts.
+"""Choosing contact modes at an event.
 
 At an event the contacts that touch (gap and normal velocity at zero) take the modes that solve the
 contact complementarity problem on accelerations: every assignment of modes to them (sticking, sliding,
@@ -8,7 +8,10 @@ contact pushes and (starting from rest) slips the way its friction opposes, a se
 not accelerate inwards. With few contacts the enumeration is exact and tells what a solver's iterate
 cannot: no consistent assignment, or consistent ones with different motions, is Painlevé's paradox
 (:class:`~pinstab.errors.PainleveError`). Among consistent assignments with the same motion (redundant
-contacts) the first in the order sticking, sliding, separated is taken.
+contacts) the first in the order sticking, sliding, separated is taken. When no assignment is consistent
+while every touching contact is at rest along its surface (several contacts starting to slide together,
+their slip directions coupled), the modes are read from the same problem solved by Pinocchio's ADMM in NCP
+mode (exact round cones, friction opposing the slip acceleration) and checked the same way.
 """
 
 from __future__ import annotations
