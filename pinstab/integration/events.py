@@ -87,33 +87,36 @@ class EventLoop(AdaptiveLoop):
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
         grid, system = self.grid, self.system
         t, t_stop = grid.time(start), grid.time(stop)
-        a = system.acceleration(q, v, t, 0)
-        if self.step_size is None:
-            self.step_size = self.initial_step(q, v, a, t)
-        while t < t_stop - GRID_SLACK * grid.dt:
-            h = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
-            self._reference = self._slip_directions(q, v)
-            step = self.attempt(q, v, a, t, h)
-            t_new = t + step.h
-            a_new = system.acceleration(step.q, step.v, t_new, 0)
-            segment = Segment(system.model, t, q, v, a, t_new, step.q, step.v, a_new)
-            values = self.event_values(step.q, step.v, t_new)
-            if np.any(values < 0.0):
-                t_event = self._locate(segment, t, t_new)
-                q_new, v_new = self.pair.attempt(q, v, t, t_event - t, a)[:2]
-                segment = Segment(
-                    system.model, t, q, v, a, t_event, q_new, v_new, system.acceleration(q_new, v_new, t_event, 0)
-                )
-                self._sample_grid(segment, self.grid_between(t, t_event), q_new, v_new)
-                q_new, v_new = self._event(q_new, v_new, t_event)
-                if abs(t_event - grid.time(self.grid_index(t_event))) <= GRID_SLACK * grid.dt:
-                    self.keep(self.grid_index(t_event), q_new, v_new)
-                t, q, v = t_event, q_new, v_new
-                a = system.acceleration(q, v, t, 0)
-                continue
-            self.keep_step(segment, t, t_new, step.q, step.v)
-            self.step_size = self._next_step(step)
-            t, q, v, a = t_new, step.q, step.v, a_new
+        try:
+            a = system.acceleration(q, v, t, 0)
+            if self.step_size is None:
+                self.step_size = self.initial_step(q, v, a, t)
+            while t < t_stop - GRID_SLACK * grid.dt:
+                h = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
+                self._reference = self._slip_directions(q, v)
+                step = self.attempt(q, v, a, t, h)
+                t_new = t + step.h
+                a_new = system.acceleration(step.q, step.v, t_new, 0)
+                segment = Segment(system.model, t, q, v, a, t_new, step.q, step.v, a_new)
+                values = self.event_values(step.q, step.v, t_new)
+                if np.any(values < 0.0):
+                    t_event = self._locate(segment, t, t_new)
+                    q_new, v_new = self.pair.attempt(q, v, t, t_event - t, a)[:2]
+                    segment = Segment(
+                        system.model, t, q, v, a, t_event, q_new, v_new, system.acceleration(q_new, v_new, t_event, 0)
+                    )
+                    self._sample_grid(segment, self.grid_between(t, t_event), q_new, v_new)
+                    q_new, v_new = self._event(q_new, v_new, t_event)
+                    if abs(t_event - grid.time(self.grid_index(t_event))) <= GRID_SLACK * grid.dt:
+                        self.keep(self.grid_index(t_event), q_new, v_new)
+                    t, q, v = t_event, q_new, v_new
+                    a = system.acceleration(q, v, t, 0)
+                    continue
+                self.keep_step(segment, t, t_new, step.q, step.v)
+                self.step_size = self._next_step(step)
+                t, q, v, a = t_new, step.q, step.v, a_new
+        except ContactInfeasibleError as exc:  # the modes have switched: a replay of the chunk would not be this run
+            raise RunEnd(t, q, v, error=exc) from None
         return q, v, stop
 
     def keep_step(self, segment: Segment, t: float, t_new: float, q_new: np.ndarray, v_new: np.ndarray) -> None:
