@@ -133,12 +133,13 @@ class ConstraintSet:
     def check_forces(self, multipliers: np.ndarray, t: float) -> None:
         """Every block with force limits checks its multipliers at time ``t`` [s]; raises when one is outside
         (a :class:`GraspLostError` names every contact that is, worst first)."""
-        lost = []
+        found: dict[tuple[str, ...], GraspLostError] = {}  # one per contact (a rolling contact has two blocks)
         for constraint, rows in self.force_limited:
             try:
                 constraint.check_force(multipliers[rows], t)
             except GraspLostError as error:
-                lost.append(error)
+                found.setdefault(tuple(error.contacts), error)
+        lost = list(found.values())
         if lost:
             raise lost[0] if len(lost) == 1 else GraspLostError.joined(lost)
 
