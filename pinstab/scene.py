@@ -279,10 +279,6 @@ class GravityTilt:
         """Gravity at time t [s], in world axes [m/s^2]."""
         return pin.AngleAxis(-self.start - self.rate * t, self.axis).matrix() @ self.gravity0
 
-    def angle(self, t: float) -> float:
-        """The tilt at time t [deg]."""
-        return float(np.degrees(self.start + self.rate * t))
-
 
 def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
     keys = {"axis", "rate", "start"}

@@ -241,7 +241,8 @@ def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
 
 
 def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
-    """(the scene's plane contacts as event-driven geometries, the names of its other constraints)."""
+    """(the scene's unilateral contacts as event-driven geometries: plane contacts and point-friction or
+    frictionless grasp contacts, the names of its other constraints)."""
     geometries = plane_geometries(scene.constraints)
     names = {g.name for g in geometries}
     return geometries, [c.name for c in scene.constraints if c.name not in names]
@@ -334,13 +335,14 @@ def _simulate_stepping(
 def _contact_system(
     scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
-    """The plane contacts of a scene whose constraints are all plane contacts, the system of its free bodies
-    and the start state."""
+    """The contacts of a scene whose constraints are all unilateral contacts (:func:`event_contacts`), the system
+    of its bodies without them and the start state."""
     geometries, others = event_contacts(scene)
     if not geometries or others:
         raise PinstabError(
             f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
-            "contacts" + (f"; not yet {', '.join(others)}" if others else "; it has none")
+            "contacts or point-friction / frictionless grasp contacts"
+            + (f"; not yet {', '.join(others)}" if others else "; it has none")
         )
     free = dataclasses.replace(scene, constraints=[])
     system = build_system(free, "none")

@@ -45,6 +45,7 @@ START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and o
 IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
 IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
 ARMING_SPEED = 10 * SLIP_SPEED  # [m/s] see EventLoop._slip_directions
+REVERSED_SLIP = SLIP_SPEED / 2  # [m/s] a slip velocity below this along its direction has reached zero
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -131,14 +132,14 @@ class EventLoop(AdaptiveLoop):
         solution = dynamics.solve(q, v, t)
         contacts, forces = solution.contacts, solution.forces
         values = np.zeros(len(dynamics.contacts))
-        slack = EVENT_SLACK * (1.0 + float(np.max(np.abs(forces), initial=0.0)))  # as choose_modes has it
+        slack = _force_slack(forces)
         margin = None
         for i, mode in enumerate(dynamics.modes):
             if mode is Mode.SEPARATED:
                 values[i] = contacts.gaps[i]
             elif mode is Mode.SLIDING:
                 slip = float(contacts.velocities[i, 1:] @ self._reference[i]) if self._armed[i] else np.inf
-                values[i] = min(forces[i, 0] + slack, slip + SLIP_SPEED / 2)  # reversed: slower than SLIP_SPEED
+                values[i] = min(forces[i, 0] + slack, slip + REVERSED_SLIP)
             else:
                 if margin is None:
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
@@ -195,9 +196,9 @@ class EventLoop(AdaptiveLoop):
         for i, mode in enumerate(dynamics.modes):
             name = dynamics.contacts[i].name
             if mode is Mode.SLIDING:
-                if forces[i, 0] <= EVENT_SLACK * (1.0 + float(np.max(np.abs(forces)))):
+                if forces[i, 0] <= _force_slack(forces):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED / 2:
+                if velocities[i, 1:] @ self._reference[i] <= REVERSED_SLIP:
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
@@ -286,3 +287,9 @@ class EventLoop(AdaptiveLoop):
         stops = [event for event in self.events[first:] if stop_kind(event) in self.stop_on]
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
+
+
+def _force_slack(forces: np.ndarray) -> float:
+    """How far [N] beyond a bound a force of ``forces`` (k, 3) must be for an event: :data:`EVENT_SLACK` relative,
+    as :func:`~pinstab.solvers.mode_choice.choose_modes` then allows."""
+    return EVENT_SLACK * (1.0 + float(np.max(np.abs(forces), initial=0.0)))

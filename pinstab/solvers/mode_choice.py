@@ -24,7 +24,7 @@ import numpy as np
 
 from ..contact.modes import Mode
 from ..errors import PainleveError
-from .contact_modes import SLIP_FLOOR, ModeDynamics, ModeSolution
+from .contact_modes import SLIP_FLOOR, ContactKinematics, ModeDynamics, ModeSolution
 from .ncp import NcpSolver
 
 CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
@@ -44,13 +44,13 @@ class Choice(NamedTuple):
     solution: ModeSolution
 
 
-def touching(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray) -> list[int]:
-    """The contacts that touch at (q, v): gap within :data:`TOUCH_GAP`, normal speed within :data:`TOUCH_SPEED`."""
-    kinematics = dynamics.kinematics(q, v)
+def touching(kinematics: ContactKinematics) -> list[int]:
+    """The contacts that touch in ``kinematics``: gap within :data:`TOUCH_GAP`, normal speed within
+    :data:`TOUCH_SPEED`."""
     return [
         i
-        for i in range(len(dynamics.contacts))
-        if kinematics.gaps[i] <= TOUCH_GAP and abs(kinematics.velocities[i, 0]) <= TOUCH_SPEED
+        for i, (gap, velocity) in enumerate(zip(kinematics.gaps, kinematics.velocities, strict=True))
+        if gap <= TOUCH_GAP and abs(velocity[0]) <= TOUCH_SPEED
     ]
 
 
@@ -64,7 +64,7 @@ def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     """
     kinematics = dynamics.kinematics(q, v)
     count = len(dynamics.contacts)
-    active = touching(dynamics, q, v)
+    active = touching(kinematics)
     options = []
     for i in active:
         slipping = math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
