@@ -45,7 +45,6 @@ START, GAP_CLOSED = "start", "gap closed"  # the causes of the first modes and o
 IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
 IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
 ARMING_SPEED = 10 * SLIP_SPEED  # [m/s] see EventLoop._slip_directions
-REVERSED_SLIP = SLIP_SPEED / 2  # [m/s] a slip velocity below this along its direction has reached zero
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
 
 
@@ -139,7 +138,7 @@ class EventLoop(AdaptiveLoop):
                 values[i] = contacts.gaps[i]
             elif mode is Mode.SLIDING:
                 slip = float(contacts.velocities[i, 1:] @ self._reference[i]) if self._armed[i] else np.inf
-                values[i] = min(forces[i, 0] + slack, slip + REVERSED_SLIP)
+                values[i] = min(forces[i, 0] + slack, slip)
             else:
                 if margin is None:
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
@@ -198,7 +197,7 @@ class EventLoop(AdaptiveLoop):
             if mode is Mode.SLIDING:
                 if forces[i, 0] <= _force_slack(forces):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= REVERSED_SLIP:
+                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED:  # at rest for the mode choice
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
