@@ -15,22 +15,20 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from . import robots
 from .actuation import Actuation, read_actuation
 from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
 from .contact.objects import SceneObject, add_objects, place_objects
 from .errors import SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
+from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
 from .registry import Registry
-from .robot_copies import compose_copies, parse_copies
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
 from .validation import (
     check_closures,
     check_configuration,
     check_depth,
-    check_links,
     check_locked_joints,
     check_model,
     read_scene_file,
@@ -52,7 +50,6 @@ TOP_KEYS = {
     "actuation",
     "initial",
 }
-ROBOT_KEYS = {"urdf", "name", "urdf_text", "free_flyer", "locked_joints", "copies"}
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
 KIND_TABLES = {  # scene array: (what an entry is called, whether its blocks are prescribed)
@@ -78,6 +75,7 @@ class Scene:
         parameters: generator parameters the scene was built with. generator: the generator's name, or None.
         objects: rigid objects added to the robot (free-flyer bodies after its joints).
         actuation: the controls' matrix B, names and limits (``[actuation]``), or None.
+        tilt: gravity turning in time (``[tilt]``), or None. robot: the robot as its reader built it.
     """
 
     name: str
@@ -98,6 +96,7 @@ class Scene:
     objects: list[SceneObject] = field(default_factory=list)
     actuation: Actuation | None = None
     tilt: GravityTilt | None = None
+    robot: RobotSource | None = None
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -152,7 +151,7 @@ def _locate(path_or_name: str | Path) -> Path:
         if not candidate.is_file():
             raise SceneError(f"scene file {candidate} does not exist")
         return candidate
-    bundled = robots.bundled_scenes()
+    bundled = bundled_scenes()
     if str(path_or_name) in bundled:
         return bundled[str(path_or_name)]
     raise SceneError(
@@ -192,8 +191,11 @@ def scene_from_dict(
     description = str(data.get("description", ""))
 
     robot = table(data.get("robot"), "robot")
-    check_keys(robot, ROBOT_KEYS, "robot")
-    full_model, urdf_path, urdf_text, package_dirs = _build_model(robot, base_dir)
+    check_keys(robot, ROBOT_KEYS | set(READERS), "robot")
+    source_robot = read_robot(robot, base_dir)
+    full_model = source_robot.model
+    for key, entries in source_robot.tables.items():  # the file's closures, relations, springs before the scene's
+        data[key] = entries + list_of_tables(data.get(key, []), key)
 
     initial = table(data.get("initial", {}), "initial")
     check_keys(initial, INITIAL_KEYS, "initial")
@@ -249,9 +251,10 @@ def scene_from_dict(
         forces=forces,
         q0=q0,
         v0=v0,
-        urdf_path=urdf_path,
-        urdf_text=urdf_text,
-        package_dirs=package_dirs,
+        urdf_path=source_robot.urdf_path,
+        urdf_text=source_robot.urdf_text,
+        package_dirs=source_robot.package_dirs,
+        robot=source_robot,
         locked_joints=locked_positions,
         full_model=full_model,
         source=source,
@@ -304,47 +307,6 @@ def _gravity(value: Any) -> np.ndarray:
             f"gravity {gravity.tolist()} m/s^2 is longer than {MAX_GRAVITY:g} m/s^2 (1e5 g); give it in m/s^2"
         )
     return gravity
-
-
-def _build_model(robot: dict[str, Any], base_dir: Path) -> tuple[pin.Model, Path | None, str | None, list[str]]:
-    sources = [k for k in ("urdf", "name", "urdf_text") if k in robot]
-    if len(sources) != 1:
-        raise SceneError("robot: give exactly one of 'urdf' (a URDF path) or 'name' (an example-robot-data robot)")
-    free_flyer = robot.get("free_flyer", False)
-    if not isinstance(free_flyer, bool):
-        raise SceneError(f"robot.free_flyer must be true or false, got {free_flyer!r}")
-    root = [pin.JointModelFreeFlyer()] if free_flyer else []
-    urdf_path: Path | None = None
-    urdf_text: str | None = None
-    package_dirs: list[str] = []
-    if "urdf_text" in robot:
-        urdf_text = str(robot["urdf_text"])
-    elif "name" in robot:
-        if not isinstance(robot["name"], str):
-            raise SceneError("robot.name must be a string")
-        urdf_path, package_dir = robots.example_robot_urdf(robot["name"])
-        # meshes are named package://example-robot-data/robots/...: the share/ folder resolves them
-        package_dirs = [str(package_dir), str(package_dir.parent), str(package_dir.parent.parent)]
-    else:
-        if not isinstance(robot["urdf"], str):
-            raise SceneError("robot.urdf must be a path string")
-        urdf_path = (base_dir / robot["urdf"]).resolve()
-        if not urdf_path.is_file():
-            raise SceneError(f"robot.urdf: file {urdf_path} does not exist")
-        package_dirs = [str(urdf_path.parent)]
-    if "copies" in robot:  # one document of prefixed copies; package_dirs still resolve the meshes
-        copies = parse_copies(robot["copies"])
-        urdf_text = compose_copies(urdf_path.read_text() if urdf_text is None else urdf_text, copies)
-        urdf_path = None
-    check_links(urdf_text, urdf_path, triangle="name" not in robot)  # names what urdfdom would only refuse
-    try:
-        if urdf_text is not None:
-            model = pin.buildModelFromXML(urdf_text, *root)
-        else:
-            model = pin.buildModelFromUrdf(str(urdf_path), *root)
-    except (ValueError, RuntimeError) as exc:
-        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
-    return model, urdf_path, urdf_text, package_dirs
 
 
 def _joint_kind(model: pin.Model, joint_id: int) -> str:

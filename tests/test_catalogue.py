@@ -912,19 +912,19 @@ def run_case(case: Case, tmp_path, capsys) -> tuple[int, str, str]:
         scene.write_text(text)
     argv = case.argv.format(scene=scene, tmp=tmp_path).split()
     seen: list[str] = []
-    original = cli._fail
+    original = cli.dispatch._fail
 
     def record(exc: PinstabError, args, *rest) -> None:
         seen.append(type(exc).__name__)
         original(exc, args, *rest)
 
-    cli._fail = record
+    cli.dispatch._fail = record
     try:
         code = cli.main([*argv, *(["--quiet"] if argv[0] in ("run", "record", "servo") else [])])
     except SystemExit as exit_:
         code, seen = int(exit_.code), ["usage"]
     finally:
-        cli._fail = original
+        cli.dispatch._fail = original
     return code, (seen[0] if seen else ""), capsys.readouterr().err
 
 

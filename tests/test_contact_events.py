@@ -146,7 +146,7 @@ def test_bad_contact_parameters_are_named(key, value, match):
         "robot": {"urdf": "urdf/box.urdf", "free_flyer": True},
         "contacts": [{"name": "c", "kind": "plane-contact", "frame_a": "box", key: value}],
     }
-    from pinstab.robots import bundled_dir
+    from pinstab.readers import bundled_dir
     from pinstab.scene import scene_from_dict
 
     with pytest.raises(SceneError, match=match):

@@ -14,7 +14,7 @@ import pytest
 from pinstab import SceneError
 from pinstab.cli import main
 from pinstab.kinematics import Kinematics
-from pinstab.robots import example_robot_urdf
+from pinstab.readers import example_robot_urdf
 from pinstab.scene import Scene, scene_from_dict
 
 FINGER_Q = {

@@ -1,4 +1,4 @@
-"""The visual geometry of a scene's (reduced) model, from its URDF, and of its objects."""
+"""The visual geometry of a scene's (reduced) model, from its robot's file, and of its objects."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from ..scene import Scene
 def visual_model(scene: Scene) -> pin.GeometryModel:
     """Visual geometry objects (meshes and primitives) attached to ``scene.model``'s frames.
 
-    Built from the scene's URDF (file or text; ``package://`` meshes found in ``scene.package_dirs``) for
+    Built by the scene's robot reader (a URDF: ``package://`` meshes found in ``scene.package_dirs``) for
     the full model and reduced with the same locked joints, so its frame indices are those of
     ``scene.model`` (the closure frames the scene adds come after them); then the visuals of the scene's
     objects, already attached to their joints in ``scene.model``.
@@ -26,17 +26,14 @@ def visual_model(scene: Scene) -> pin.GeometryModel:
 def _robot_geometry(scene: Scene) -> pin.GeometryModel:
     """The robot's visuals, reduced like ``scene.model``."""
     full = scene.full_model if scene.full_model is not None else scene.model
+    if scene.robot is None or scene.robot.geometry is None:
+        return pin.GeometryModel()
     try:
-        if scene.urdf_text is not None:
-            geometry = pin.buildGeomFromUrdfString(
-                full, scene.urdf_text, pin.GeometryType.VISUAL, package_dirs=scene.package_dirs
-            )
-        else:
-            geometry = pin.buildGeomFromUrdf(
-                full, str(scene.urdf_path), pin.GeometryType.VISUAL, package_dirs=scene.package_dirs
-            )
+        geometry = scene.robot.geometry(full, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as exc:
-        raise SceneError(f"scene {scene.name}: the URDF's visual geometry cannot be loaded: {exc}") from None
+        raise SceneError(
+            f"scene {scene.name}: the {scene.robot.format.upper()}'s visual geometry cannot be loaded: {exc}"
+        ) from None
     if not scene.locked_joints:
         return geometry
     reference = pin.neutral(full)

@@ -1,4 +1,4 @@
-"""Where robot descriptions come from: bundled scenes, example-robot-data, generated URDFs."""
+"""Where robot descriptions come from: the bundled scenes and the robots of example-robot-data."""
 
 from __future__ import annotations
 
@@ -6,13 +6,13 @@ import sysconfig
 from functools import lru_cache
 from pathlib import Path
 
-from .errors import SceneError, choices
+from ..errors import SceneError, choices
 
 
 def bundled_dir() -> Path:
     """The folder holding the bundled scenes (``robots/`` of the source tree or the wheel)."""
-    here = Path(__file__).resolve().parent
-    for candidate in (here / "robots", here.parent / "robots"):
+    package = Path(__file__).resolve().parents[1]
+    for candidate in (package / "robots", package.parent / "robots"):  # the wheel's copy, the source tree's
         if candidate.is_dir():
             return candidate
     raise SceneError("the bundled robots/ folder is missing from this installation of pinstab")

@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError, repeated
-from .tables import check_keys, vector
+from ..errors import SceneError, repeated
+from ..tables import check_keys, vector
 
 COPY_KEYS = {"prefix", "xyz", "rpy"}
 ROOT_LINK = "copies_root"

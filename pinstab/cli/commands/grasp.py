@@ -1,0 +1,97 @@
+"""``pinstab grasp``: grasp map, hand Jacobian, force closure, quality, the load a grasp holds."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from ..options import parameters, scene_arguments
+from .base import Command, register
+
+
+def arguments(grasp: argparse.ArgumentParser) -> None:
+    """The scene, ``--facets``, ``--squeeze``, ``--tilt-axis``."""
+    scene_arguments(grasp)
+    grasp.add_argument(
+        "--facets", type=int, default=8, help="sides of the pyramids that linearize the friction cones (default: 8)"
+    )
+    grasp.add_argument(
+        "--squeeze",
+        type=float,
+        help="largest normal force per contact [N] for the largest load and tilt (default: the scene's grasp-hold)",
+    )
+    grasp.add_argument(
+        "--tilt-axis",
+        type=float,
+        nargs=3,
+        metavar=("X", "Y", "Z"),
+        help="world axis of the hand's tilt (default: the two horizontal world axes)",
+    )
+
+
+def grasp(args: argparse.Namespace) -> dict[str, Any]:
+    from ...grasp.report import analyse_scene_grasps
+    from ...scene import load_scene
+
+    scene = load_scene(args.scene, **parameters(args.param))
+    grasps = analyse_scene_grasps(scene, facets=args.facets, squeeze=args.squeeze, tilt_axis=args.tilt_axis)
+    return {"scene": scene.name, "objects": {name: grasp.to_json() for name, grasp in grasps.items()}}
+
+
+def grasp_text(result: dict[str, Any]) -> str:
+    """``pinstab grasp`` without ``--json``: each object's figures as lines a person reads."""
+    return "\n".join(_object_grasp_text(name, figures) for name, figures in result["objects"].items())
+
+
+def _object_grasp_text(name: str, figures: dict[str, Any]) -> str:
+    rows, columns = figures["grasp_map_shape"]
+    unresisted = figures["unresisted_wrench"]
+    closure = "yes" if figures["force_closure"] else f"no (unresisted wrench {np.round(unresisted, 3).tolist()})"
+    lines = [
+        f"object {name}: {len(figures['contacts'])} contacts "
+        + ", ".join(f"{c} ({v['model']})" for c, v in figures["contacts"].items()),
+        f"  grasp map G: {rows} x {columns}, rank {figures['grasp_map_rank']}, "
+        f"smallest singular value {figures['smallest_singular_value']:.4g}",
+        f"  hand Jacobian J_h: {' x '.join(map(str, figures['hand_jacobian_shape']))}, rank "
+        f"{figures['hand_jacobian_rank']}, manipulable: {'yes' if figures['manipulable'] else 'no'}",
+        f"  force closure: {closure}",
+        f"  internal forces: dimension {figures['internal_force_dimension']}",
+        f"  quality (Ferrari-Canny, length {figures['quality_length_m']:.4g} m): {figures['quality']:.4g} N",
+        *_capacity_text(figures),
+    ]
+    return "\n".join(lines)
+
+
+def _capacity_text(figures: dict[str, Any]) -> list[str]:
+    """The squeeze the weight needs, the largest load and the tilts, as lines (JSON nulls: none holds)."""
+    need = figures["squeeze_needed_n"]
+    lines = [
+        f"  weight {figures['load_n']:.4g} N: "
+        + ("no contact forces inside the cones hold it" if need is None else f"squeeze needed {need:.4g} N per contact")
+    ]
+    if figures["squeeze_n"] is not None:
+        largest = figures["largest_load_n"]
+        tilts = ", ".join(
+            f"{axis} {'any' if tilt is None else f'{tilt:.4g}'}"
+            for axis, tilt in figures["first_slip_tilt_deg"].items()
+        )
+        lines.append(
+            f"  at squeeze {figures['squeeze_n']:.4g} N: largest load "
+            + ("unbounded" if largest is None else f"{largest:.4g} N")
+            + f"; first slip at tilt [deg] {tilts}"
+        )
+    return lines
+
+
+register(
+    Command(
+        "grasp",
+        "analyse a scene's grasps: grasp map, hand Jacobian, force closure, quality",
+        arguments,
+        grasp,
+        text=grasp_text,
+        order=1,
+    )
+)

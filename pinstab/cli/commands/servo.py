@@ -1,0 +1,66 @@
+"""``pinstab servo``: realize a scene's prescribed constraints (controls, constraint error, reactions)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from ...errors import SceneError
+from ..exits import EXIT_CODES
+from ..options import DEFAULT_METHOD, parameters, run_options, scene_arguments
+from .base import Command, register
+from .run import run
+
+
+def arguments(servo: argparse.ArgumentParser) -> None:
+    """The scene, the run options, ``--check``, ``--save``, ``--plot``."""
+    servo.epilog = EXIT_CODES
+    scene_arguments(servo)
+    run_options(servo)
+    servo.add_argument(
+        "--check", action="store_true", help="only check at the start that the controls can realize them"
+    )
+    servo.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
+    servo.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error, constraint forces and controls")
+
+
+def servo(args: argparse.Namespace) -> dict[str, Any]:
+    from ...assembly import assemble
+    from ...scene import load_scene
+    from ...system import build_system
+
+    scene = load_scene(args.scene, **parameters(args.param))
+    if not any(c.prescribed for c in scene.constraints):
+        raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
+    if args.check:
+        system = build_system(scene, args.method or DEFAULT_METHOD)
+        start = assemble(system.model, scene.q0, scene.v0)
+        evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
+        decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
+        return {
+            "scene": scene.name,
+            "realizable": True,
+            "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
+            "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
+        }
+    return run(args, _add_reactions)
+
+
+def _add_reactions(scene, trajectory, result: dict[str, Any]) -> None:
+    """The largest reaction of the real constraints over the run [N, N m] (prescribed rows have none)."""
+    reactions = trajectory.multipliers[:, ~scene.constraint_set.prescribed_mask]
+    result["max_reaction"] = float(np.nanmax(np.abs(reactions))) if reactions.size else 0.0
+
+
+register(
+    Command(
+        "servo",
+        "realize a scene's prescribed constraints: controls, constraint error, reactions",
+        arguments,
+        servo,
+        simulates=True,
+        order=2,
+    )
+)

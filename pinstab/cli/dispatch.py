@@ -1,0 +1,160 @@
+"""Parse the command line, run the command, print its result or its error, and return the exit code."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import threading
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning
+from ..memory import memory_limit
+from .commands import COMMANDS, SIMULATING
+from .exits import (
+    EXIT_BAD_INPUT,
+    EXIT_CODES,
+    EXIT_CONTACT_FAILED,
+    EXIT_DIVERGED,
+    EXIT_OK,
+    EXIT_SIGNAL_BASE,
+    EXIT_STOPPED,
+    Kept,
+)
+from .output import clean, emit, stopped_text, write
+from .running import run_summary
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``pinstab`` with a sub-parser per registered command."""
+    parser = argparse.ArgumentParser(
+        prog="pinstab",
+        description="Constrained multibody simulation with measurable constraint stabilization.",
+        epilog=EXIT_CODES,
+    )
+    parser.add_argument("--version", action="version", version=f"pinstab {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for command in sorted(COMMANDS.values(), key=lambda c: c.order):
+        command.arguments(sub.add_parser(command.name, help=command.help))
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    received: list[int] = []
+    with _terminate_as_interrupt(received):
+        try:
+            return _dispatch(args)
+        except KeyboardInterrupt as exc:
+            return _interrupted(exc, args, received[0] if received else signal.SIGINT)
+
+
+@contextmanager
+def _terminate_as_interrupt(received: list[int]) -> Iterator[None]:
+    """SIGTERM (``kill``, a batch system's time limit) ends a command the way Ctrl-C does: temporary files
+    removed, the partial trajectory saved; the signal's number is appended to ``received``."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame) -> None:
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    """Run the command and print its result or its error; returns the exit code."""
+    try:
+        limit = getattr(args, "memory_limit", None)
+        with warnings.catch_warnings(), nullcontext() if limit is None else memory_limit(limit):
+            warnings.simplefilter("always", UnstableGainsWarning)
+            warnings.showwarning = _show_warning(args.command)
+            result = COMMANDS[args.command].execute(args)
+    except Kept as kept:
+        _fail(kept.error, args, kept.result.get("saved"))
+        if getattr(args, "json", False):
+            write(json.dumps(clean(kept.result)))
+        return EXIT_CONTACT_FAILED
+    except (DivergenceError, ProjectionError) as exc:
+        _fail(exc, args, _save_partial(args, getattr(exc, "finite_trajectory", None)))
+        return EXIT_DIVERGED
+    except PinstabError as exc:
+        _fail(exc, args)
+        return EXIT_BAD_INPUT
+    emit(result, args.json, COMMANDS[args.command].text)
+    stopped = result.get("stopped")
+    if stopped is None or args.command not in SIMULATING:
+        return EXIT_OK
+    print(f"pinstab {args.command}: stopped (--stop-on): {stopped_text(stopped)}", file=sys.stderr)
+    return EXIT_STOPPED
+
+
+def _show_warning(command: str):
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"pinstab {command}: warning: {message}", file=sys.stderr, flush=True)
+
+    return show
+
+
+def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace, signum: int) -> int:
+    """Ctrl-C (SIGINT) or SIGTERM: one line on stderr, the partial trajectory saved when ``--save`` was given;
+    exit 128 + the signal's number (130, 143)."""
+    trajectory = getattr(exc, "trajectory", None)
+    where = "" if trajectory is None else f" at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})"
+    saved = _save_partial(args, trajectory)
+    kept = f"; the partial trajectory is saved to {saved}" if saved else ""
+    cause = "interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
+    print(f"pinstab {args.command}: {cause}{where}{kept}", file=sys.stderr)
+    return EXIT_SIGNAL_BASE + signum
+
+
+def _save_partial(args: argparse.Namespace, trajectory) -> str | None:
+    """Save a stopped run's partial trajectory to ``--save``, if given; returns the path written or None."""
+    path = getattr(args, "save", None)
+    if path is None or trajectory is None:
+        return None
+    try:
+        trajectory.save(path)
+    except (PinstabError, OSError) as exc:
+        print(f"pinstab {args.command}: error: the partial trajectory was not saved: {exc}", file=sys.stderr)
+        return None
+    return path
+
+
+def _fail(exc: PinstabError, args: argparse.Namespace, saved: str | None = None) -> None:
+    """The error on stderr; with ``--json``, a divergence's figures on stdout (:func:`_divergence_payload`)."""
+    print(f"pinstab {args.command}: error: {exc}", file=sys.stderr)
+    if saved is not None:
+        print(f"pinstab {args.command}: the partial trajectory is saved to {saved}", file=sys.stderr)
+    if getattr(args, "json", False) and isinstance(exc, (DivergenceError, ProjectionError)):
+        write(json.dumps(clean(_divergence_payload(exc, args, saved))))
+
+
+def _divergence_payload(
+    exc: DivergenceError | ProjectionError, args: argparse.Namespace, saved: str | None
+) -> dict[str, Any]:
+    """A stopped run's JSON: the run's figures up to the last finite state, ``diverged_at`` [s] (the failed
+    step's time) and ``last_finite_state`` (t [s], q, v)."""
+    trajectory = getattr(exc, "finite_trajectory", None)
+    payload = {"scene": args.scene} if trajectory is None else run_summary(args, trajectory)
+    payload.update(diverged=True, error=str(exc))
+    if isinstance(exc, DivergenceError):
+        payload["diverged_at"] = exc.diverged_at
+        payload["last_finite_state"] = {"t": exc.time, "q": np.asarray(exc.q).tolist(), "v": np.asarray(exc.v).tolist()}
+    if saved is not None:
+        payload["saved"] = saved
+    return payload

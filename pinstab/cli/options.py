@@ -1,0 +1,154 @@
+"""Arguments that several commands share: the scene and its parameters, the run options, registry flags."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..contact.modes import STOP_KINDS
+from ..errors import SceneError
+from ..integration import INTEGRATORS
+from ..registry import Registry, option_fields
+from ..simulate import EVENT_RTOL, MAX_EVENT_CONTACTS
+from ..solvers import SOLVERS
+from ..stabilizers import STABILIZERS
+
+DEFAULT_METHOD = "baumgarte"
+CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
+METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
+
+
+def parameters(pairs: list[str]) -> dict[str, Any]:
+    """``--param N=20`` -> {"N": 20} (values read as TOML scalars: ints, floats, strings)."""
+    import tomllib
+
+    parsed: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise SceneError(f"--param expects NAME=VALUE, got {pair!r}")
+        if key in parsed:
+            raise SceneError(f"--param {key} given twice ({key}={parsed[key]!r} and {pair!r}); give it once")
+        try:
+            parsed[key] = tomllib.loads(f"x = {value}")["x"]
+        except tomllib.TOMLDecodeError:
+            parsed[key] = value
+    return parsed
+
+
+def scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """The scene (bundled name or file), ``--param``, ``--json`` and ``--memory-limit``."""
+    parser.add_argument(
+        "scene", help="bundled scene name (fourbar, nfourbar, allegro-sphere, ...: see README) or a .toml file"
+    )
+    parser.add_argument(
+        "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument(
+        "--memory-limit",
+        metavar="SIZE",
+        help="refuse work whose estimated memory exceeds SIZE, e.g. 4GB, 512MiB (default: 80%% of the memory "
+        "available at the start)",
+    )
+
+
+def add_registry_options(parser: argparse.ArgumentParser, registry: Registry, prefix: str) -> None:
+    """One flag per option of the registry's entries (shared by entries with the same option), its
+    help naming the entries that take it; only flags given on the command line reach the namespace."""
+    flags: dict[str, list] = {}
+    for entry in registry.entries():
+        for option in option_fields(entry.options):
+            flags.setdefault(option.flag, []).append((entry.name, option))
+    group = parser.add_argument_group(f"{registry.kind} options")
+    for flag, users in flags.items():
+        option = users[0][1]
+        described = "; ".join(f"{name}: {item.help}" for name, item in users)
+        common = dict(dest=prefix + option.name, default=argparse.SUPPRESS, help=described)
+        if option.kind is bool:
+            group.add_argument(flag, action="store_false" if option.default else "store_true", **common)
+        else:
+            metavar = None if option.choices else option.name.upper()
+            group.add_argument(flag, type=option.kind, choices=option.choices, metavar=metavar, **common)
+
+
+def given_options(args: argparse.Namespace, prefix: str) -> dict[str, Any]:
+    """The registry options given on the command line (their flags' dests carry ``prefix``)."""
+    return {key[len(prefix) :]: value for key, value in vars(args).items() if key.startswith(prefix)}
+
+
+def _listed(registry: Registry) -> str:
+    """Each registered entry with its one-line summary, for a flag's help."""
+    return "; ".join(f"{entry.name}: {entry.summary}" if entry.summary else entry.name for entry in registry.entries())
+
+
+def run_options(parser: argparse.ArgumentParser) -> None:
+    """The options of the commands that simulate: contacts, method, integrator, solver, steps, tolerances."""
+    parser.add_argument(
+        "--contacts",
+        choices=CONTACTS,
+        help=f"how contacts are treated: event (modes sticking, sliding, separated switched at located events, "
+        f"with impacts; error-controlled dop853, --rtol default {EVENT_RTOL:g}), stepping (time-stepping with "
+        "impulses), held (constraint rows that hold, with --method, --integrator, --solver). Default: event for "
+        f"scenes whose constraints are plane contacts, at most {MAX_EVENT_CONTACTS}; held otherwise",
+    )
+    parser.add_argument(
+        "--stop-on",
+        action="append",
+        choices=STOP_KINDS,
+        help="end the run at the first such contact event (exit 4; repeat for both): slip, a contact at rest "
+        "starts sliding; separation, a touching contact opens (after an impact too). The outputs hold the run "
+        "up to it",
+    )
+    parser.add_argument(
+        "--method",
+        default=None,
+        choices=STABILIZERS,
+        metavar="METHOD",
+        help=f"stabilization method (default: {DEFAULT_METHOD}). {_listed(STABILIZERS)}",
+    )
+    parser.add_argument(
+        "--integrator",
+        default=None,
+        choices=INTEGRATORS,
+        metavar="INTEGRATOR",
+        help=f"integrator (default: rk4; dop853 with --rtol). {_listed(INTEGRATORS)}",
+    )
+    parser.add_argument(
+        "--solver",
+        default=None,
+        choices=SOLVERS,
+        metavar="SOLVER",
+        help=(
+            "KKT backend (default: Pinocchio's own algorithm where the scene and method allow it, else "
+            f"proxsuite; naming one keeps every evaluation on it). {_listed(SOLVERS)}"
+        ),
+    )
+    parser.add_argument(
+        "--dt", type=float, default=1e-3, help="time step [s]; with --rtol the step of the samples (default: 1e-3)"
+    )
+    parser.add_argument(
+        "--rtol",
+        type=float,
+        help="error control: steps chosen by the embedded pair's error estimate (dopri5, dop853) to this "
+        "relative tolerance, samples every --dt from its dense output",
+    )
+    parser.add_argument("--atol", type=float, help="absolute tolerance of the error control (default: --rtol)")
+    parser.add_argument("--duration", type=float, default=1.0, help="simulated time [s] (default: 1)")
+    add_registry_options(parser, STABILIZERS, METHOD_OPTION)
+    add_registry_options(parser, SOLVERS, SOLVER_OPTION)
+    parser.add_argument("--strict", action="store_true", help="refuse gains predicted unstable instead of warning")
+    parser.add_argument(
+        "--drift-limit",
+        type=float,
+        default=1.0,
+        help="position drift [m or rad] that counts as divergence (default: 1)",
+    )
+    parser.add_argument(
+        "--record-every",
+        type=int,
+        default=1,
+        metavar="K",
+        help="keep a sample every K steps and the last (default: 1, every step)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")

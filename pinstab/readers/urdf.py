@@ -1,0 +1,69 @@
+"""URDF robots: a file, a document given as text (``urdf_text``), several prefixed copies."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pinocchio as pin
+
+from ..errors import SceneError
+from .base import READERS, ReaderOptions, RobotSource
+from .copies import compose_copies, parse_copies
+from .urdf_checks import check_links
+
+
+def read_urdf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
+    """The robot of ``robot.urdf`` (a path relative to the scene) or ``robot.urdf_text``, with ``robot.copies``.
+
+    Raises:
+        SceneError: a missing file, a document urdfdom cannot read, a link with a non-physical inertia.
+    """
+    urdf_text = robot.get("urdf_text")
+    urdf_path = None
+    package_dirs: list[str] = []
+    if urdf_text is None:
+        urdf_path = resolve_file(robot, "urdf", options)
+        package_dirs = [str(urdf_path.parent)]
+    return _build(robot, options, urdf_path, None if urdf_text is None else str(urdf_text), package_dirs)
+
+
+def read_named(robot: dict[str, Any], options: ReaderOptions, path, package_dirs: list[str]) -> RobotSource:
+    """An example-robot-data URDF robot (its inertias taken as published: no triangle inequality)."""
+    return _build(robot, options, path, None, package_dirs, triangle=False)
+
+
+def resolve_file(robot: dict[str, Any], key: str, options: ReaderOptions):
+    """The path ``robot[key]``, relative to the scene's folder; SceneError when it is not a file."""
+    if not isinstance(robot[key], str):
+        raise SceneError(f"robot.{key} must be a path string, got {robot[key]!r}")
+    path = (options.base_dir / robot[key]).resolve()
+    if not path.is_file():
+        raise SceneError(f"robot.{key}: file {path} does not exist")
+    return path
+
+
+def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, triangle: bool = True) -> RobotSource:
+    if "copies" in robot:  # one document of prefixed copies; package_dirs still resolve the meshes
+        copies = parse_copies(robot["copies"])
+        urdf_text = compose_copies(urdf_path.read_text() if urdf_text is None else urdf_text, copies)
+        urdf_path = None
+    check_links(urdf_text, urdf_path, triangle=triangle)  # names what urdfdom would only refuse
+    root = [pin.JointModelFreeFlyer()] if options.free_flyer else []
+    try:
+        if urdf_text is not None:
+            model = pin.buildModelFromXML(urdf_text, *root)
+        else:
+            model = pin.buildModelFromUrdf(str(urdf_path), *root)
+    except (ValueError, RuntimeError) as exc:
+        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+
+    def geometry(full: pin.Model, kind: pin.GeometryType) -> pin.GeometryModel:
+        if urdf_text is not None:
+            return pin.buildGeomFromUrdfString(full, urdf_text, kind, package_dirs=package_dirs)
+        return pin.buildGeomFromUrdf(full, str(urdf_path), kind, package_dirs=package_dirs)
+
+    return RobotSource(model, "urdf", urdf_path, urdf_path, urdf_text, package_dirs, geometry=geometry)
+
+
+READERS.register("urdf", read_urdf, summary="a URDF file (robot.urdf) or document (robot.urdf_text)")
+READERS.register("urdf_text", read_urdf, summary="a URDF document given in the scene")

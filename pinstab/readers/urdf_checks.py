@@ -1,0 +1,101 @@
+"""Checks of a URDF document that urdfdom would only refuse, or not see: names, joints between links that
+exist, moving joints with an axis, finite masses and physical inertias.
+
+The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
+inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
+impossible but positive definite inertia, harmless to the numerics); a URDF of the scene (``robot.urdf``,
+``robot.urdf_text``) is held to it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from xml.etree import ElementTree
+
+import numpy as np
+
+from ..errors import SceneError, repeated
+
+INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+MOVING_JOINTS = ("revolute", "continuous", "prismatic")
+AXIS_MIN = 1e-9  # a shorter joint axis is no direction
+
+
+def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -> None:
+    """Every link's mass [kg] finite and >= 0, its inertia [kg m^2] positive semidefinite and, when
+    ``triangle``, with each principal moment at most the sum of the other two."""
+    text = urdf_text if urdf_text is not None else urdf_path.read_text(encoding="utf-8")
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+    _check_tree(root)
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is not None:
+            _check_inertial(inertial, f"robot link {link.get('name')!r}", triangle)
+
+
+def _check_tree(root: ElementTree.Element) -> None:
+    """Names defined once, joints between links that exist, moving joints with a non-zero axis (urdfdom
+    would refuse the first two without naming them)."""
+    links = [link.get("name") for link in root.findall("link")]
+    known = set(links)
+    joints = root.findall("joint")
+    for kind, names in (("link", links), ("joint", [joint.get("name") for joint in joints])):
+        twice = repeated(names)
+        if twice:
+            raise SceneError(f"robot: {kind} {twice[0]!r} is defined twice")
+    for joint in joints:
+        where = f"robot joint {joint.get('name')!r}"
+        for end in ("parent", "child"):
+            element = joint.find(end)
+            link = None if element is None else element.get("link")
+            if link not in known:
+                raise SceneError(f"{where}: {end} link {link!r} does not exist; links: {', '.join(map(str, links))}")
+        axis = joint.find("axis")
+        if joint.get("type") in MOVING_JOINTS and axis is not None:
+            text = axis.get("xyz", "")
+            try:
+                direction = np.array([float(x) for x in text.split()])
+            except ValueError:
+                direction = np.zeros(0)
+            if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < AXIS_MIN:
+                raise SceneError(f"{where}: axis xyz={text!r} is not a non-zero direction of 3 numbers")
+
+
+def _number(element: ElementTree.Element | None, key: str, what: str, where: str) -> float:
+    text = None if element is None else element.get(key)
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise SceneError(f"{where}: {what} {text!r} is not a finite number")
+    return value
+
+
+def _check_inertial(inertial: ElementTree.Element, where: str, triangle: bool) -> None:
+    mass = _number(inertial.find("mass"), "value", "mass", where)
+    if mass < 0:
+        raise SceneError(f"{where}: mass {mass} kg is negative")
+    element = inertial.find("inertia")
+    ixx, ixy, ixz, iyy, iyz, izz = (_number(element, key, f"inertia {key}", where) for key in INERTIA_KEYS)
+    moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
+    tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
+    if moments[0] < -tolerance:
+        raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
+    if triangle and moments[2] > moments[0] + moments[1] + tolerance:
+        raise SceneError(
+            f"{where}: inertia violates the triangle inequality: {_moments(moments)} "
+            "(each must be at most the sum of the other two)"
+        )
+
+
+def _moments(moments: np.ndarray) -> str:
+    return f"principal moments {np.round(moments, 12).tolist()} kg m^2"
+
+
+# -- the model -----------------------------------------------------------------------------------
