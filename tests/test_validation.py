@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import ROBOTS, fourbar_dict
-from pinstab import SceneError, load_scene, robots
+from pinstab import SceneError, load_scene, readers
 from pinstab.scene import scene_from_dict
 from pinstab.validation import MAX_DEPTH, MAX_SCENE_BYTES
 
@@ -133,7 +133,7 @@ def test_example_robot_data_inertias_are_taken_as_published() -> None:
     """The Allegro hand's fingertips violate the triangle inequality: accepted by name, refused as URDF text."""
     scene = load_scene(ROBOTS / "allegro-box.toml")
     assert scene.model.nv > 0
-    path, _ = robots.example_robot_urdf("allegro_right_hand")
+    path, _ = readers.example_robot_urdf("allegro_right_hand")
     with pytest.raises(SceneError, match=r"robot link 'link_3.0': inertia violates the triangle inequality"):
         scene_from_dict({"robot": {"urdf_text": path.read_text()}})
 
