@@ -26,7 +26,8 @@ class RobotSource:
         tables: scene tables the file declares, by scene array (``closures``, ``forces``): read like the scene's
             own entries, before them, so that every name of the file is kept.
         notes: what the reader left out or changed, in words (reported by ``pinstab check``).
-        geometry: builds the geometry of ``model`` of a kind (visual, collision), or None (no geometry).
+        geometry: ``geometry(model, kind, package_dirs)`` builds the geometry of ``model`` of a kind (visual,
+            collision), meshes found in ``package_dirs``; None: the file has no geometry.
     """
 
     model: pin.Model
@@ -37,7 +38,7 @@ class RobotSource:
     package_dirs: list[str] = field(default_factory=list)
     tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    geometry: Callable[[pin.Model, pin.GeometryType], pin.GeometryModel] | None = None
+    geometry: Callable[[pin.Model, pin.GeometryType, list[str]], pin.GeometryModel] | None = None
 
 
 @dataclass(frozen=True)

@@ -57,10 +57,10 @@ def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, tr
     except (ValueError, RuntimeError) as exc:
         raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
 
-    def geometry(full: pin.Model, kind: pin.GeometryType) -> pin.GeometryModel:
+    def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         if urdf_text is not None:
-            return pin.buildGeomFromUrdfString(full, urdf_text, kind, package_dirs=package_dirs)
-        return pin.buildGeomFromUrdf(full, str(urdf_path), kind, package_dirs=package_dirs)
+            return pin.buildGeomFromUrdfString(full, urdf_text, kind, package_dirs=search)
+        return pin.buildGeomFromUrdf(full, str(urdf_path), kind, package_dirs=search)
 
     return RobotSource(model, "urdf", urdf_path, urdf_path, urdf_text, package_dirs, geometry=geometry)
 

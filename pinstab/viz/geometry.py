@@ -29,7 +29,7 @@ def _robot_geometry(scene: Scene) -> pin.GeometryModel:
     if scene.robot is None or scene.robot.geometry is None:
         return pin.GeometryModel()
     try:
-        geometry = scene.robot.geometry(full, pin.GeometryType.VISUAL)
+        geometry = scene.robot.geometry(full, pin.GeometryType.VISUAL, scene.package_dirs)
     except (ValueError, RuntimeError) as exc:
         raise SceneError(
             f"scene {scene.name}: the {scene.robot.format.upper()}'s visual geometry cannot be loaded: {exc}"

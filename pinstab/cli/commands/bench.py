@@ -81,7 +81,7 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         rtols=tuple(sorted(args.rtols)),
     )
     reference, results = sweep(
-        str(scene.source or args.scene), parameters, configs, args.duration, args.scheduler, args.serial, not args.quiet
+        str(scene.source or args.scene), given, configs, args.duration, args.scheduler, args.serial, not args.quiet
     )
     extra: dict[str, Any] = {"duration": args.duration, "tolerance": args.tolerance}
     extra["cheapest"] = cheapest_table(results, args.tolerance)
