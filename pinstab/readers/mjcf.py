@@ -30,6 +30,7 @@ from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
 NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out
+UNIT_AXIS_TOLERANCE = 1e-9
 SCALAR_JOINTS = {"hinge": 1, "slide": 1, "ball": 4, "free": 7}  # MJCF joint type -> configuration size
 
 
@@ -40,6 +41,8 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
         SceneError: a missing file, malformed XML, a file Pinocchio cannot read, a body it dropped, an equality
             naming a missing body, site or joint, or one pinstab cannot hold (named).
     """
+    if "copies" in robot:
+        raise SceneError("robot.copies: copies of a robot are made from a URDF (robot.urdf or robot.name), not MJCF")
     path = resolve_file(robot, "mjcf", options)
     document = read_document(path)
     try:
@@ -50,6 +53,8 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     except (ValueError, RuntimeError) as exc:
         raise SceneError(f"robot.mjcf: Pinocchio cannot read {path}: {exc}") from None
     _check_bodies(document, model)
+    _check_axis_angles(document)
+    _place_root(document, model)
     notes = _joint_limits(document, model)
     equalities = EqualityReader(document, model)
     equalities.read()
@@ -76,6 +81,37 @@ def _check_bodies(document: MjcfDocument, model: pin.Model) -> None:
             f"{document.path} (it reads only the first body of <worldbody> and its subtree): put every body of "
             "<worldbody> under one body"
         )
+
+
+def _check_axis_angles(document: MjcfDocument) -> None:
+    """Refuse an ``axisangle`` whose axis is not a unit vector: Pinocchio's parser does not normalize it (a body's
+    frame turned by another angle about another axis)."""
+    for element in document.root.iter():
+        if element.tag in ("body", "site", "geom", "frame") and element.get("axisangle") is not None:
+            where = f"robot.mjcf {element.tag} {element.get('name')!r}"
+            axis = document.numbers(element, "axisangle", 4, where)[:3]
+            if abs(np.linalg.norm(axis) - 1.0) > UNIT_AXIS_TOLERANCE:
+                raise SceneError(
+                    f"{where}: the axis of axisangle={element.get('axisangle')!r} is not of unit length, which "
+                    "Pinocchio's MJCF parser reads wrong: give a unit axis"
+                )
+
+
+def _place_root(document: MjcfDocument, model: pin.Model) -> None:
+    """Put a static first body of ``<worldbody>`` at its pose: Pinocchio's parser leaves it at the origin (a first
+    body with joints it places right)."""
+    root = document.root.find("worldbody/body")
+    if root is None or root.find("joint") is not None or root.find("freejoint") is not None:
+        return
+    pose = document.pose(root, f"robot.mjcf body {root.get('name')!r}")
+    for joint in range(1, model.njoints):
+        if model.parents[joint] == 0:
+            model.jointPlacements[joint] = pose * model.jointPlacements[joint]
+    for index in range(1, len(model.frames)):
+        frame = model.frames[index]
+        if frame.parentJoint == 0:
+            frame.placement = pose * frame.placement
+            model.frames[index] = frame
 
 
 def _joint_limits(document: MjcfDocument, model: pin.Model) -> list[str]:

@@ -112,10 +112,11 @@ class EqualityReader:
         body1, body2 = self._body(element, "body1", where), self._body(element, "body2", where)
         relpose = self.document.numbers(element, "relpose", 7, where, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
         if np.linalg.norm(relpose[3:]) == 0.0:  # MuJoCo's default: the pose at the reference configuration
-            return _closure(name, "weld", Anchor(body1, pin.SE3.Identity()), self._at_reference_of(body1, body2), where)
-        w, x, y, z = relpose[3:] / np.linalg.norm(relpose[3:])
-        pose = pin.SE3(pin.Quaternion(w, x, y, z).matrix(), relpose[:3])  # body2 in body1
-        return _closure(name, "weld", Anchor(body1, pose), Anchor(body2, pin.SE3.Identity()), where)
+            pose = self._world_placement(body1).actInv(self._world_placement(body2))
+        else:
+            w, x, y, z = relpose[3:]
+            pose = pin.SE3(pin.Quaternion(w, x, y, z).normalized().matrix(), relpose[:3])
+        return _closure(name, "weld", Anchor(body1, pose), Anchor(body2, pin.SE3.Identity()), where)  # body2 in body1
 
     def _joint(self, element: ET.Element, name: str, where: str) -> dict[str, Any]:
         coefficients = self.document.numbers(element, "polycoef", 5, where, [0.0, 1.0, 0.0, 0.0, 0.0])
@@ -160,7 +161,7 @@ class EqualityReader:
         if site not in self.sites:
             raise SceneError(f"{where}: {key} {site!r} is not a site of the file; sites: {choices(self.sites)}")
         if self.sites[site] in self.world_elements:  # Pinocchio's parser drops the sites of <worldbody>
-            return Anchor(WORLD, self.document.world_pose(self.sites[site], f"{where}: site {site!r}"))
+            return Anchor(WORLD, self.document.pose(self.sites[site], f"{where}: site {site!r}"))
         if not self.model.existFrame(site, pin.FrameType.OP_FRAME):
             raise SceneError(f"{where}: {key} {site!r} is not in the model Pinocchio's MJCF parser built from the file")
         frame = self.model.frames[self.model.getFrameId(site, pin.FrameType.OP_FRAME)]
@@ -186,9 +187,6 @@ class EqualityReader:
     def _at_reference(self, a: Anchor, body: str) -> Anchor:
         """The pose in ``body`` that coincides with ``a`` at the reference configuration."""
         return Anchor(body, self._world_placement(body).actInv(self._world_placement(a.frame) * a.pose))
-
-    def _at_reference_of(self, body1: str, body2: str) -> Anchor:
-        return self._at_reference(Anchor(body1, pin.SE3.Identity()), body2)
 
     def _reference_position(self, joint: str) -> float:
         index = self.model.joints[self.model.getJointId(joint)].idx_q

@@ -25,12 +25,14 @@ class MjcfDocument:
         path: the file read.
         degrees: angles in the file are in degrees (``<compiler angle>``, MuJoCo's default).
         autolimits: a joint with a ``range`` and no ``limited`` is limited (``<compiler autolimits>``).
+        eulerseq: the axes of ``euler`` angles (``<compiler eulerseq>``).
     """
 
     root: ET.Element
     path: Path
     degrees: bool = True
     autolimits: bool = True
+    eulerseq: str = "xyz"
 
     def __post_init__(self) -> None:
         self.parents = {child: parent for parent in self.root.iter() for child in parent}
@@ -42,6 +44,9 @@ class MjcfDocument:
         if compiler is not None:
             self.degrees = compiler.get("angle", "degree") != "radian"
             self.autolimits = compiler.get("autolimits", "true") == "true"
+            self.eulerseq = compiler.get("eulerseq", "xyz")
+        if len(self.eulerseq) != 3 or any(axis not in "xyzXYZ" for axis in self.eulerseq):
+            raise SceneError(f"robot.mjcf: <compiler eulerseq={self.eulerseq!r}> is not 3 of x, y, z, X, Y, Z")
 
     def _collect(self, default: ET.Element, name: str) -> None:
         self.classes[name] = default
@@ -90,21 +95,35 @@ class MjcfDocument:
             raise SceneError(f"{where}: {key}={text!r} is not {size} finite numbers")
         return values
 
-    def world_pose(self, element: ET.Element, where: str) -> pin.SE3:
-        """The pose of an element of ``<worldbody>`` (a site): ``pos`` and ``quat`` (w x y z).
+    def pose(self, element: ET.Element, where: str) -> pin.SE3:
+        """The pose of a body or site in its parent's frame: ``pos`` [m] and ``quat`` (w x y z), ``euler`` (the
+        compiler's ``eulerseq``: lower case rotating axes, upper case fixed ones) or ``axisangle``.
 
         Raises:
-            SceneError: its orientation is given another way (euler, axisangle, xyaxes, zaxis).
+            SceneError: an orientation given by ``xyaxes`` or ``zaxis``, or not a rotation.
         """
-        for other in ("euler", "axisangle", "xyaxes", "zaxis"):
+        for other in ("xyaxes", "zaxis"):
             if self.attribute(element, other) is not None:
-                raise SceneError(f"{where}: give the orientation of a site of <worldbody> as quat, not {other}")
+                raise SceneError(f"{where}: an orientation given by {other} is not read; give it as quat or euler")
+        position = self.numbers(element, "pos", 3, where, [0.0, 0.0, 0.0])
+        if self.attribute(element, "euler") is not None:
+            rotation = np.eye(3)
+            angles = self.numbers(element, "euler", 3, where) * self.angle_factor()
+            for axis, angle in zip(self.eulerseq, angles, strict=True):
+                turn = pin.exp3(angle * np.eye(3)["xyz".index(axis.lower())])
+                rotation = rotation @ turn if axis.islower() else turn @ rotation
+            return pin.SE3(rotation, position)
+        if self.attribute(element, "axisangle") is not None:
+            axis_angle = self.numbers(element, "axisangle", 4, where)
+            norm = np.linalg.norm(axis_angle[:3])
+            if norm == 0.0:
+                raise SceneError(f"{where}: the axis of axisangle is zero")
+            return pin.SE3(pin.exp3(axis_angle[:3] / norm * axis_angle[3] * self.angle_factor()), position)
         w, x, y, z = self.numbers(element, "quat", 4, where, [1.0, 0.0, 0.0, 0.0])
         quaternion = pin.Quaternion(w, x, y, z)
-        if quaternion.norm() < 1e-12:
+        if quaternion.norm() == 0.0:
             raise SceneError(f"{where}: quat is zero")
-        quaternion.normalize()
-        return pin.SE3(quaternion.matrix(), self.numbers(element, "pos", 3, where, [0.0, 0.0, 0.0]))
+        return pin.SE3(quaternion.normalized().matrix(), position)
 
     def angle_factor(self) -> float:
         """Radians per angle unit of the file."""
