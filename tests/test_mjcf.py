@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ROBOTS
 
+from conftest import ROBOTS
 from pinstab import simulate
 from pinstab.cli import main
 from pinstab.errors import SceneError
@@ -260,7 +260,17 @@ def _replaced(old: str, new: str) -> str:
         (GAPS[:200], "not valid XML"),
         ("<robot/>", "<robot>"),
     ],
-    ids=["missing-site", "missing-body", "missing-joint", "quadratic", "dropped-body", "tendon", "axis-not-unit", "malformed", "root"],
+    ids=[
+        "missing-site",
+        "missing-body",
+        "missing-joint",
+        "quadratic",
+        "dropped-body",
+        "tendon",
+        "axis-not-unit",
+        "malformed",
+        "root",
+    ],
 )
 def test_bad_mjcf_is_a_named_scene_error(tmp_path, text, named):
     with pytest.raises(SceneError, match=named):

@@ -14,8 +14,8 @@ MuJoCo's definitions, kept here (pinstab's own reading, not Pinocchio 4.1's pars
   without ``joint2``), y0, x0 their reference positions, a = ``polycoef``: read when linear (a2 = a3 = a4 = 0).
 
 An equality without a name is named by its tag and its index among the equalities of that tag (``connect0``:
-the first ``connect``). ``solref``/``solimp``/``torquescale`` (MuJoCo's soft constraints) are not used: the rows hold exactly,
-their drift corrected by the run's ``--method``; a note says so.
+the first ``connect``). ``solref``/``solimp``/``torquescale`` (MuJoCo's soft constraints) are not used: the rows
+hold exactly, their drift corrected by the run's ``--method``; a note says so.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ class EqualityReader:
                 if not element.get("name"):
                     self.notes.append(f"equality <{element.tag}> number {index} has no name: named {name!r}")
                 if self.document.attribute(element, "active") == "false":
-                    self.notes.append(f"equality {name!r} is inactive (active=\"false\"): not read")
+                    self.notes.append(f'equality {name!r} is inactive (active="false"): not read')
                     continue
                 if any(self.document.attribute(element, key) is not None for key in SOFT_KEYS):
                     soft.append(name)
@@ -108,7 +108,8 @@ class EqualityReader:
 
     def _weld(self, element: ET.Element, name: str, where: str) -> dict[str, Any]:
         if element.get("site1") or element.get("site2"):
-            return _closure(name, "weld", self._site(element, "site1", where), self._site(element, "site2", where), where)
+            a, b = self._site(element, "site1", where), self._site(element, "site2", where)
+            return _closure(name, "weld", a, b, where)
         body1, body2 = self._body(element, "body1", where), self._body(element, "body2", where)
         relpose = self.document.numbers(element, "relpose", 7, where, [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
         if np.linalg.norm(relpose[3:]) == 0.0:  # MuJoCo's default: the pose at the reference configuration
