@@ -285,3 +285,17 @@ def test_missing_mjcf_file_is_a_scene_error(tmp_path):
 def test_copies_are_refused_for_mjcf(tmp_path):
     with pytest.raises(SceneError, match="copies"):
         read_robot({"mjcf": str(ROBOTS / "mjcf" / "fourbar.xml"), "copies": [{"prefix": "x_"}]}, tmp_path)
+
+
+def test_static_root_body_and_its_geometry_sit_at_its_pose(tmp_path):
+    """Pinocchio's parser leaves a static first body of <worldbody> at the origin ('base' is at 0.1 m, turned 30
+    deg): its geom must sit where MuJoCo puts it."""
+    plate = '<geom name="plate" type="box" size="0.1 0.2 0.3" pos="0.4 0 0"/>\n      <body name="a"'
+    robot = _read(tmp_path, _replaced('<body name="a"', plate))
+    geometry = robot.geometry(robot.model, pin.GeometryType.VISUAL)
+    placed = next(g for g in geometry.geometryObjects if g.parentJoint == 0)
+    reference = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
+    state = _mujoco_state(reference, reference.qpos0)
+    geom = mujoco.mj_name2id(reference, mujoco.mjtObj.mjOBJ_GEOM, "plate")
+    np.testing.assert_allclose(placed.placement.translation, state.geom_xpos[geom], rtol=0, atol=TOL)
+    np.testing.assert_allclose(placed.placement.rotation.ravel(), state.geom_xmat[geom], rtol=0, atol=TOL)

@@ -61,7 +61,7 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     notes += equalities.notes + _not_read(document)
 
     def geometry(full: pin.Model, kind: pin.GeometryType) -> pin.GeometryModel:
-        return pin.buildGeomFromMJCF(full, str(path), kind)
+        return pin.buildGeomFromMJCF(full, str(path), kind)  # placed by the model's body frames
 
     return RobotSource(
         model, "mjcf", path, package_dirs=[str(path.parent)], tables=equalities.tables, notes=notes, geometry=geometry
