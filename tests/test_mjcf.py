@@ -148,11 +148,11 @@ def test_fourbar_mjcf_is_the_urdf_fourbar():
     assert len(mjcf.robot.geometry(mjcf.model, pin.GeometryType.VISUAL).geometryObjects) == 3
 
 
-@pytest.mark.parametrize("method", ["baumgarte", "projection"])
+@pytest.mark.parametrize("method", ["baumgarte", "projection", "pinocchio"])
 def test_fourbar_mjcf_trajectory_equals_the_urdf_fourbar(method):
     # fourbar-mjcf's connect is a 3-row point closure where fourbar has a 2-row planar one: the third (z) row is
-    # identically zero in the plane, so the two runs differ only by rounding (measured: 2.8e-13 rad in q,
-    # 2.5e-12 rad/s in v of at most 21.5 rad/s with baumgarte)
+    # identically zero in the plane, so the two runs differ only by rounding (with baumgarte, measured by this
+    # comparison: 2.8e-13 rad in q, 2.5e-12 rad/s in v of at most 21.5 rad/s; with pinocchio: equal)
     urdf = simulate("fourbar", method=method, duration=2.0)
     mjcf = simulate("fourbar-mjcf", method=method, duration=2.0)
     np.testing.assert_array_equal(mjcf.t, urdf.t)
@@ -234,6 +234,18 @@ def test_joint_limits_match_mujoco(gaps):
         else:
             assert bounds == (-np.inf, np.inf)
     assert model.jnt_limited.tolist() == [1, 0, 1, 0]  # ja by the default class, jb by class "free", jc, jd
+
+
+def test_limits_of_a_composite_joint_match_mujoco(tmp_path):
+    """A body with several joints is one composite joint in Pinocchio: each joint's range at its coordinate."""
+    joints = '<joint name="ja" type="hinge" axis="0 1 0" ref="17"/><joint name="jy" type="slide" range="-0.3 0.4"/>'
+    robot = _read(tmp_path, _replaced('<joint name="ja" type="hinge" axis="0 1 0" ref="17"/>', joints))
+    reference = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
+    assert any("ja, jy are one composite joint" in note for note in robot.notes)
+    limited = reference.jnt_limited.astype(bool)
+    np.testing.assert_allclose(robot.model.lowerPositionLimit[limited], reference.jnt_range[limited, 0], atol=TOL)
+    np.testing.assert_allclose(robot.model.upperPositionLimit[limited], reference.jnt_range[limited, 1], atol=TOL)
+    assert np.isinf(robot.model.upperPositionLimit[~limited]).all()
 
 
 # -- bad input --------------------------------------------------------------------------------------------------
