@@ -6,6 +6,8 @@ that parser is wrong or silent:
 
 - every named ``<body>`` of the file must be in the model (the parser keeps only the first body of
   ``<worldbody>`` and its subtree): a SceneError names the ones it dropped;
+- a static first body of ``<worldbody>`` is put at its pose (the parser leaves it at the origin); an
+  ``axisangle`` with an axis not of unit length is refused (the parser does not normalize it);
 - joint limits: ``range`` and ``limited`` (``<compiler autolimits>``, ``<default>`` classes), a hinge's range in
   the file's angle unit, a slide's in metres (the parser also converts a slide's range as an angle and limits a
   joint with ``limited="false"``); an unlimited joint has infinite limits;
