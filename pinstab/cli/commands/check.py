@@ -42,6 +42,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
             for c in scene.constraints
         },
         "locked_joints": scene.locked_joints,
+        "robot_format": scene.robot.format if scene.robot is not None else None,
+        "robot_notes": scene.robot.notes if scene.robot is not None else [],
     }
 
 
