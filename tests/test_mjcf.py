@@ -145,7 +145,7 @@ def test_fourbar_mjcf_is_the_urdf_fourbar():
     np.testing.assert_array_equal(mjcf.v0, urdf.v0)
     np.testing.assert_array_equal(mjcf.model.lowerPositionLimit, urdf.model.lowerPositionLimit)
     assert [c.name for c in mjcf.constraints] == ["coupler-rocker"]
-    assert len(mjcf.robot.geometry(mjcf.model, pin.GeometryType.VISUAL).geometryObjects) == 3
+    assert len(mjcf.robot.geometry(mjcf.model, pin.GeometryType.VISUAL, []).geometryObjects) == 3
 
 
 @pytest.mark.parametrize("method", ["baumgarte", "projection", "pinocchio"])
