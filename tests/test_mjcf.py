@@ -304,7 +304,7 @@ def test_static_root_body_and_its_geometry_sit_at_its_pose(tmp_path):
     deg): its geom must sit where MuJoCo puts it."""
     plate = '<geom name="plate" type="box" size="0.1 0.2 0.3" pos="0.4 0 0"/>\n      <body name="a"'
     robot = _read(tmp_path, _replaced('<body name="a"', plate))
-    geometry = robot.geometry(robot.model, pin.GeometryType.VISUAL)
+    geometry = robot.geometry(robot.model, pin.GeometryType.VISUAL, [])
     placed = next(g for g in geometry.geometryObjects if g.parentJoint == 0)
     reference = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
     state = _mujoco_state(reference, reference.qpos0)
