@@ -75,7 +75,9 @@ def test_polynomial_and_sinusoid_closed_forms():
     assert (x[0], v[0], a[0]) == pytest.approx(((10 + 90 * t) * math.pi / 180, math.pi / 2, 0.0), abs=1e-15)
     x, v, a = evaluate(TABLES["sinusoid"][0], SCALAR, t)
     angle = 2 * t + 0.4
-    assert (x[0], v[0], a[0]) == pytest.approx((0.25 + 0.3 * math.sin(angle), 0.6 * math.cos(angle), -1.2 * math.sin(angle)))
+    assert (x[0], v[0], a[0]) == pytest.approx(
+        (0.25 + 0.3 * math.sin(angle), 0.6 * math.cos(angle), -1.2 * math.sin(angle))
+    )
 
 
 def test_minimum_jerk_closed_form():
@@ -151,7 +153,12 @@ def relation_scene(target: dict, elbow: dict | None = None) -> dict:
         "robot": {"name": "double_pendulum"},
         "servos": [
             {"name": "arm", "kind": "joint-relation", "joints": {"joint1": 1.0}, "target": target},
-            {"name": "elbow", "kind": "joint-relation", "joints": {"joint2": 1.0}, "target": elbow or {"kind": "sinusoid"}},
+            {
+                "name": "elbow",
+                "kind": "joint-relation",
+                "joints": {"joint2": 1.0},
+                "target": elbow or {"kind": "sinusoid"},
+            },
         ],
         "actuation": {"joints": ["joint1", "joint2"]},
         "initial": {"q": {"joint1": 0.2, "joint2": -0.3}},
@@ -231,7 +238,9 @@ def panda_pose() -> dict:
             },
         ],
         "actuation": {"joints": joints},
-        "initial": {"q": {**dict(zip(joints, start, strict=True)), "panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}},
+        "initial": {
+            "q": {**dict(zip(joints, start, strict=True)), "panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}
+        },
     }
 
 
