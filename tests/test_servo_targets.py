@@ -15,7 +15,7 @@ import pytest
 from pinstab import ConstrainedModel, simulate
 from pinstab.cli import main
 from pinstab.constraints.targets import TRAJECTORY_KINDS, TargetContext, read_trajectory
-from pinstab.errors import SceneError, WaypointError
+from pinstab.errors import SceneError, WaypointError, ZeroDynamicsWarning
 from pinstab.scene import scene_from_dict
 
 SCALAR = TargetContext(1, "coordinate", np.array([0.25]))
@@ -293,3 +293,83 @@ def test_frame_pose_servo_follows_the_turn():
     assert np.linalg.norm(pin.log3(turned.T @ end.rotation)) <= 1e-8
     ellipse = start.translation + np.array([0.0, 0.04, 0.02]) * math.sin(3.0)
     assert np.linalg.norm(end.translation - ellipse) <= 1e-8
+
+
+def test_two_cars_zero_dynamics_is_the_spring_oscillator(recwarn):
+    """two-cars: car 1 is prescribed, car 2 is free on the spring, m2 x2'' = -k (x2 - x1): the zero dynamics'
+    eigenvalues are +-i sqrt(k/m2) = +-i sqrt(5) 1/s (to 1e-6), undamped, and car 2 (speed <= 1 m/s) does not
+    run away: no warning."""
+    trajectory = simulate("two-cars", dt=1e-3, duration=2.0, progress=False)
+    report = trajectory.zero_dynamics
+    assert report["free_coordinates"] == ["x2"]
+    eigenvalues = sorted(complex(*pair).imag for pair in report["eigenvalues_at_start"])
+    assert [complex(*pair).real for pair in report["eigenvalues_at_start"]] == pytest.approx([0, 0], abs=1e-6)
+    assert eigenvalues == pytest.approx([-math.sqrt(5.0), math.sqrt(5.0)], abs=1e-6)
+    assert report["character"] == "undamped" and report["runaway"] == []
+    assert not [w for w in recwarn if issubclass(w.category, ZeroDynamicsWarning)]
+
+
+def pendulum_relation(shoulder: float) -> dict:
+    """double-pendulum-servo's relation joint2 + 0.5 joint1 = c held constant, c = 0.5 shoulder, from rest at
+    joint1 = shoulder."""
+    return {
+        "robot": {"name": "double_pendulum"},
+        "servos": [{"name": "shape", "kind": "joint-relation", "joints": {"joint2": 1.0, "joint1": 0.5}, "value": 0.0}],
+        "actuation": {"joints": ["joint2"]},
+        "initial": {"q": {"joint1": shoulder, "joint2": -0.5 * shoulder}},
+    }
+
+
+def reduced_pendulum(scene, shoulder: float) -> tuple[float, float, float]:
+    """The passive shoulder's equation on joint2 = -joint1/2, alpha(x) x'' + beta(x) x'^2 + gamma(x) = 0, from
+    Pinocchio's M and gravity g(q): (alpha = M11 - M12/2 [kg m^2], gamma [N m], dgamma/dx by central
+    differences [N m/rad]) at joint1 = shoulder."""
+    model, data = scene.model, scene.model.createData()
+
+    def gamma(x: float) -> float:
+        return float(pin.computeGeneralizedGravity(model, data, np.array([x, -0.5 * x]))[0])
+
+    mass = pin.crba(model, data, np.array([shoulder, -0.5 * shoulder]))
+    return mass[0, 0] - 0.5 * mass[0, 1], gamma(shoulder), (gamma(shoulder + 1e-6) - gamma(shoulder - 1e-6)) / 2e-6
+
+
+@pytest.mark.parametrize("where", ["top", "bottom"])
+def test_pendulum_zero_dynamics_against_the_reduced_equation(where):
+    """At the equilibria of the shoulder's reduced equation (gamma = 0: upright, joint1 = 0; hanging, found by
+    bisection) the zero dynamics' eigenvalues are +-sqrt(-gamma'/alpha): real (a saddle, unstable) at the top,
+    imaginary (undamped) at the bottom; to 1e-5 relative."""
+    scene = scene_from_dict(pendulum_relation(0.0))
+    shoulder = 0.0
+    if where == "bottom":
+        low, high = 2.5, 4.5  # gamma changes sign once between (the hanging configuration, joint1 ~ 3.6 rad)
+        for _ in range(100):
+            middle = 0.5 * (low + high)
+            low, high = (
+                (middle, high)
+                if reduced_pendulum(scene, low)[1] * reduced_pendulum(scene, middle)[1] > 0
+                else (low, middle)
+            )
+        shoulder = 0.5 * (low + high)
+    alpha, _, slope = reduced_pendulum(scene, shoulder)
+    rate = complex(-slope / alpha) ** 0.5
+    trajectory = simulate(scene_from_dict(pendulum_relation(shoulder)), dt=1e-3, duration=0.002, progress=False)
+    report = trajectory.zero_dynamics
+    assert report["free_coordinates"] == ["joint1"]
+    found = sorted((complex(*pair) for pair in report["eigenvalues_at_start"]), key=lambda e: (e.real, e.imag))
+    expected = sorted([rate, -rate], key=lambda e: (e.real, e.imag))
+    np.testing.assert_allclose(np.array(found), np.array(expected), rtol=1e-5, atol=1e-6 * abs(rate))
+    assert report["character"] == ("unstable" if where == "top" else "undamped")
+
+
+def test_double_pendulum_servo_runaway_is_warned(capsys):
+    """`pinstab servo double-pendulum-servo --duration 2`: the free shoulder (joint1) whirls from 0.39 to over
+    160 rad/s (167.0 at t = 1.458 s); the JSON reports it, its zero dynamics at the start is a saddle (+-7
+    1/s), and the CLI prints the ZeroDynamicsWarning naming joint1."""
+    assert main(["servo", "double-pendulum-servo", "--duration", "2", "--json", "--quiet"]) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)["zero_dynamics"]
+    assert report["runaway"] == ["joint1"] and report["character"] == "unstable"
+    assert report["coordinates"]["joint1"]["max_speed"] > 160.0
+    assert [pair[0] for pair in report["eigenvalues_at_start"]] == pytest.approx([7.0, -7.07], abs=0.01)
+    assert "pinstab servo: warning: scene double-pendulum-servo: free coordinates ran away" in captured.err
+    assert "joint1 reached 167" in captured.err
