@@ -378,12 +378,14 @@ def test_double_pendulum_servo_runaway_is_warned(capsys):
 def test_the_fall_not_the_sine_runs_the_shoulder_away():
     """With double-pendulum-servo's relation held constant (no sine), from rest 0.4 rad off the top, the
     shoulder still runs away (ZeroDynamicsWarning naming joint1): past 100 rad/s within 0.5 s (123.7 at
-    0.438 s), from a saddle of eigenvalues +-7.03 1/s."""
+    0.438 s), from a saddle of eigenvalues +-7.03 1/s; the elbow torque works on the links (gravity alone
+    would keep the energy at its 0.92 J start: it rises past 10 J, 14.6 J)."""
     scene = scene_from_dict(pendulum_relation(0.4))
     with pytest.warns(ZeroDynamicsWarning, match=r"joint1 reached 12\d\.\d at t = 0\.4"):
         trajectory = simulate(scene, dt=1e-3, duration=0.5, progress=False)
     entry = trajectory.zero_dynamics["coordinates"]["joint1"]
     assert entry["start_speed"] == 0.0 and entry["max_speed"] > 100.0
+    assert trajectory.energy[0] == pytest.approx(0.915, abs=1e-3) and trajectory.energy.max() > 10.0
     assert [pair[0] for pair in trajectory.zero_dynamics["eigenvalues_at_start"]] == pytest.approx(
         [7.03, -7.03], abs=0.01
     )
