@@ -30,6 +30,7 @@ from .errors import (
     GraspLostError,
     MemoryBudgetError,
     PinstabError,
+    PinstabWarning,
     ProjectionError,
     SceneError,
     ServoInfeasibleError,
@@ -37,6 +38,8 @@ from .errors import (
     StepTooLargeError,
     UnstableGainsError,
     UnstableGainsWarning,
+    WaypointError,
+    ZeroDynamicsWarning,
 )
 from .forces import FORCE_KINDS, ForceElement
 from .integration import INTEGRATORS
@@ -82,6 +85,7 @@ __all__ = [
     "NoOptions",
     "PfaffianConstraint",
     "PinstabError",
+    "PinstabWarning",
     "PointContact",
     "ProjectionError",
     "Registry",
@@ -97,6 +101,8 @@ __all__ = [
     "Trajectory",
     "UnstableGainsError",
     "UnstableGainsWarning",
+    "WaypointError",
+    "ZeroDynamicsWarning",
     "__version__",
     "assemble",
     "build_system",

@@ -18,6 +18,11 @@ class SceneError(PinstabError):
     """A scene file or scene argument is invalid (unknown key, frame, joint, type or unit)."""
 
 
+class WaypointError(SceneError):
+    """A target trajectory's waypoints are unusable: times not strictly increasing, or as many values as times
+    missing."""
+
+
 class AssemblyError(PinstabError):
     """The loop closures cannot be satisfied from the given initial configuration.
 
@@ -170,10 +175,18 @@ class UnstableGainsError(PinstabError):
     """Stabilization gains whose discrete deviation dynamics are unstable at the chosen step (strict mode)."""
 
 
-class UnstableGainsWarning(UserWarning):
+class PinstabWarning(UserWarning):
+    """Base class of the warnings pinstab gives about a scene or a run."""
+
+
+class ZeroDynamicsWarning(PinstabWarning):
+    """The coordinates a servo leaves free (its internal or zero dynamics) ran away during a run."""
+
+
+class UnstableGainsWarning(PinstabWarning):
     """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""
 
 
-class BranchChangeWarning(UserWarning):
+class BranchChangeWarning(PinstabWarning):
     """The motion left its branch of the constraint manifold at a singular configuration (its tangent space
     turned by a finite angle at once)."""

@@ -11,6 +11,7 @@ import numpy as np
 
 from .errors import ContactInfeasibleError
 from .system import ConstrainedSystem
+from .zero_dynamics import zero_dynamics_report
 
 
 class StateSeries:
@@ -116,3 +117,11 @@ class StateSeries:
             residual = np.concatenate([values.phi[holonomic], values.velocity_residual[pfaffian]])
             error[k] = float(np.max(np.abs(residual), initial=0.0))
         return {"controls": controls, "servo_error": error}
+
+    def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
+        """For a scene with prescribed constraints: the free coordinates, the eigenvalues of the zero dynamics
+        at the start and the free coordinates' speeds (:func:`~pinstab.zero_dynamics.zero_dynamics_report`);
+        empty otherwise."""
+        if self.system.servo is None:
+            return {}
+        return zero_dynamics_report(self.system, t, q, v)

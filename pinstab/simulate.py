@@ -29,6 +29,7 @@ from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
+from .zero_dynamics import warn_runaway
 
 ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
     "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
@@ -137,6 +138,8 @@ def simulate(
 
     Warns:
         UnstableGainsWarning: gains predicted unstable, before any step (without ``strict``).
+        ZeroDynamicsWarning: with servos, a coordinate they leave free ran away (its speed grew more than
+            tenfold: :mod:`pinstab.zero_dynamics`); ``trajectory.zero_dynamics`` has the figures.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -190,7 +193,10 @@ def simulate(
         nullcontext() if bar is None else closing(bar),
     ):
         loop.run(q, v, bar)
-    return _trajectory(loop, system, info, elapsed())
+    trajectory = _trajectory(loop, system, info, elapsed())
+    if system.servo is not None:
+        warn_runaway(trajectory.zero_dynamics, scene.name)
+    return trajectory
 
 
 @contextmanager

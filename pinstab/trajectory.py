@@ -32,6 +32,8 @@ class SeriesSource(Protocol):
 
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
+    def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
+
 
 @dataclass
 class Comparison:
@@ -198,6 +200,7 @@ class Trajectory:
                     name: {"max_abs": float(np.nanmax(np.abs(column))), "final": float(column[-1])}
                     for name, column in zip(names, servo["controls"].T, strict=True)
                 }
+                summary["zero_dynamics"] = self.zero_dynamics
         return summary
 
     @property
@@ -207,6 +210,16 @@ class Trajectory:
         if "servo" not in self._derived:
             self._derived["servo"] = {} if self._series is None else self._series.servo_figures(self.t, self.q, self.v)
         return self._derived["servo"]
+
+    @property
+    def zero_dynamics(self) -> dict[str, Any]:
+        """With prescribed constraints: the coordinates they leave free, the eigenvalues [1/s] of the zero
+        dynamics linearized at the start and each free coordinate's speeds [rad/s or m/s] (whether it ran away:
+        :func:`pinstab.zero_dynamics.zero_dynamics_report`); empty otherwise or for a loaded run."""
+        if "zero_dynamics" not in self._derived:
+            series = self._series
+            self._derived["zero_dynamics"] = {} if series is None else series.zero_dynamics(self.t, self.q, self.v)
+        return self._derived["zero_dynamics"]
 
     def drift_growth_exponent(self) -> float | None:
         """p in position drift ~ t^p, fitted (log-log) over the second half of the run; None when the

@@ -872,6 +872,27 @@ CASES = [
         changes=(('omega = "1 rad/s"', 'omega = "1 m"'),),
     ),
     Case(
+        "unknown trajectory kind",
+        "servo {scene} --duration 0.05",
+        "SceneError",
+        "unknown trajectory kind 'bezier'; valid kinds: cubic-spline, minimum-jerk, polynomial, sinusoid",
+        base="two-cars",
+        changes=(('sine = { amplitude = 0.8, omega = "1 rad/s" }', 'target = { kind = "bezier" }'),),
+    ),
+    Case(
+        "spline times unsorted",
+        "servo {scene} --duration 0.05",
+        "WaypointError",
+        "times must increase strictly: times[2] = 0.5 s after times[1] = 1 s",
+        base="two-cars",
+        changes=(
+            (
+                'sine = { amplitude = 0.8, omega = "1 rad/s" }',
+                'target = { kind = "cubic-spline", times = [0, 1, 0.5], values = [0, 1, 2] }',
+            ),
+        ),
+    ),
+    Case(
         "actuated twice",
         "servo {scene} --duration 0.05",
         "SceneError",

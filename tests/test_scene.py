@@ -35,7 +35,8 @@ from pinstab.scene import scene_from_dict
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
             r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, frame-orientation, frame-path, "
-            r"grasp-contact, joint-relation, planar-point, plane-contact, point, rolling-contact, rolling-disk, weld",
+            r"frame-pose, grasp-contact, joint-relation, planar-point, plane-contact, point, rolling-contact, "
+            r"rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},

@@ -15,7 +15,7 @@ import pytest
 from conftest import ROBOTS
 from pinstab import Actuation, ConstrainedModel, HolonomicConstraint, assemble, load_scene, simulate
 from pinstab.cli import main
-from pinstab.errors import SceneError, ServoInfeasibleError
+from pinstab.errors import SceneError, ServoInfeasibleError, ZeroDynamicsWarning
 from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
 
@@ -60,9 +60,11 @@ def singular_elbow_angle() -> float:
 def test_virtual_constraint_is_held_by_the_pfl_torque():
     """Acceptance: joint2 + 0.5 joint1 = 0.3 sin 2t held within 1e-9 rad over 5 s; u equals the partial
     feedback linearization u = (c'' + S M^-1 h) / (S M^-1 B) from Pinocchio's M and h at every sample
-    (1e-6 relative: the run's Baumgarte term acts on a 1e-12 rad residual)."""
+    (1e-6 relative: the run's Baumgarte term acts on a 1e-12 rad residual), while the free shoulder whirls
+    (ZeroDynamicsWarning: tests/test_servo_targets.py)."""
     scene = load_scene("double-pendulum-servo")
-    trajectory = simulate(scene, integrator="rk4", dt=1e-3, duration=5.0, progress=False)
+    with pytest.warns(ZeroDynamicsWarning, match="joint1 reached"):
+        trajectory = simulate(scene, integrator="rk4", dt=1e-3, duration=5.0, progress=False)
     figures = trajectory.servo_figures
     assert np.nanmax(figures["servo_error"]) <= 1e-9
     model, data = scene.model, scene.model.createData()

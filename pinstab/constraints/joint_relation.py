@@ -1,14 +1,14 @@
 """A linear relation between joint coordinates, prescribed in time: ``sum_i c_i q_i = c(t)``.
 
-Kind ``joint-relation``: ``joints = { name = coefficient, ... }`` (1-DOF joints), ``value`` [m or rad] and
-optionally ``sine = { amplitude, omega, phase }`` so that c(t) = value + amplitude sin(omega t + phase)
-(omega [rad/s], phase [rad]). As a closure it couples joints (a gear); as a servo (``[[servos]]``) it
-is a virtual constraint the controls realize (e.g. alpha - beta = c(t)).
+Kind ``joint-relation``: ``joints = { name = coefficient, ... }`` (1-DOF joints) and c(t) either as
+``target = { kind = ..., ... }``, a named trajectory (:mod:`pinstab.constraints.targets`: polynomial,
+sinusoid, minimum-jerk, cubic-spline; its start value is the relation's value at the initial
+configuration), or as ``value`` [m or rad] and optionally ``sine = { amplitude, omega, phase }``:
+c(t) = value + amplitude sin(omega t + phase) (omega [rad/s], phase [rad]). As a closure it couples joints
+(a gear); as a servo (``[[servos]]``) it is a virtual constraint the controls realize (e.g. alpha - beta = c(t)).
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -16,8 +16,9 @@ from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid
 
-RELATION_KEYS = {"name", "kind", "joints", "value", "sine"}
+RELATION_KEYS = {"name", "kind", "joints", "value", "sine", "target"}
 SINE_KEYS = {"amplitude", "omega", "phase"}
 
 
@@ -27,7 +28,7 @@ class JointRelation(Constraint):
     Args:
         name: unique name. coefficients: (nv,) row over the velocity coordinates (1-DOF joints only, so
             q's and v's indices agree through ``indices``). indices: configuration index per coefficient.
-        value, amplitude [m or rad], omega [rad/s], phase [rad]: c(t).
+        trajectory: c(t) [m or rad] (size 1).
     """
 
     holonomic = True
@@ -39,19 +40,17 @@ class JointRelation(Constraint):
         row: np.ndarray,
         q_indices: np.ndarray,
         v_indices: np.ndarray,
-        value: float,
-        sine: tuple[float, float, float],
+        trajectory: TargetTrajectory,
     ) -> None:
         self.name, self.kind = name, "joint-relation"
         self.row, self.q_indices, self.v_indices = row, q_indices, v_indices
-        self.value, (self.amplitude, self.omega, self.phase) = value, sine
+        self.trajectory = trajectory
         self.force_frame = "generalized force along the relation's row [N m or N]"
 
     def target(self, t: float) -> tuple[float, float, float]:
         """(c, dc/dt, d2c/dt2) at time t [s]."""
-        angle = self.omega * t + self.phase
-        a, w = self.amplitude, self.omega
-        return self.value + a * math.sin(angle), a * w * math.cos(angle), -a * w * w * math.sin(angle)
+        value, rate, curvature = self.trajectory.evaluate(t)
+        return float(value[0]), float(rate[0]), float(curvature[0])
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         return np.array([float(self.row @ q[self.q_indices]) - self.target(t)[0]])
@@ -66,7 +65,8 @@ class JointRelation(Constraint):
 
 
 def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str) -> JointRelation:
-    """Scene table: ``joints`` {name: coefficient}, ``value``, ``sine`` {amplitude, omega, phase}."""
+    """Scene table: ``joints`` {name: coefficient}; ``target`` (a trajectory table), or ``value`` and ``sine``
+    {amplitude, omega, phase}."""
     tables.check_keys(entry, RELATION_KEYS, where)
     joints = entry.get("joints")
     if not isinstance(joints, dict) or not joints:
@@ -81,21 +81,29 @@ def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str
         v_indices.append(joint.idx_v)
     if not any(row):
         raise SceneError(f"{where}.joints: every coefficient is zero")
-    value = tables.quantity(entry.get("value", 0.0), "coordinate", f"{where}.value")
+    q_indices, v_indices = np.array(q_indices), np.array(v_indices)
+    start = np.array([float(np.array(row) @ tables.q0[q_indices])])
+    trajectory = _relation_target(entry, tables, TargetContext(1, "coordinate", start), where)
+    return JointRelation(name, np.array(row), q_indices, v_indices, trajectory)
+
+
+def _relation_target(entry: dict, tables: SceneTables, context: TargetContext, where: str) -> TargetTrajectory:
+    """c(t): the ``target`` trajectory, or ``value`` + the ``sine`` table (a sinusoid about value, default 0)."""
+    if "target" in entry:
+        given = [key for key in ("value", "sine") if key in entry]
+        if given:
+            raise SceneError(f"{where}: give either 'target' or {' and '.join(repr(k) for k in given)}, not both")
+        return read_trajectory(entry["target"], context, f"{where}.target")
     sine = entry.get("sine", {})
     if not isinstance(sine, dict):
         raise SceneError(f"{where}.sine must be a table {{ amplitude, omega, phase }}")
     tables.check_keys(sine, SINE_KEYS, f"{where}.sine")
-    wave = (
-        tables.quantity(sine.get("amplitude", 0.0), "coordinate", f"{where}.sine.amplitude"),
-        tables.quantity(sine.get("omega", 0.0), "angular-velocity", f"{where}.sine.omega"),
-        tables.quantity(sine.get("phase", 0.0), "angle", f"{where}.sine.phase"),
-    )
-    return JointRelation(name, np.array(row), np.array(q_indices), np.array(v_indices), value, wave)
+    value = tables.quantity(entry.get("value", 0.0), "coordinate", f"{where}.value")
+    return sinusoid({**sine, "offset": value}, context, f"{where}.sine")
 
 
 CONSTRAINT_KINDS.register(
     "joint-relation",
     parse_joint_relation,
-    summary="1 row: sum of coefficient x joint coordinate = value + amplitude sin(omega t + phase)",
+    summary="1 row: sum of coefficient x joint coordinate = c(t) (value + sine, or a target trajectory)",
 )

@@ -113,22 +113,37 @@ class FrameClosure(Constraint):
         return np.concatenate([linear, self._rotation_drift(kin, ang)])
 
     def _rotation_drift(self, kin: Kinematics, relative_angular_drift: np.ndarray) -> np.ndarray:
-        """d/dt [Jlog3(R) R_a^T] (w_a - w_b) + Jlog3(R) R_a^T (alpha_a - alpha_b) at zero accel."""
-        oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
-        rel = omb.rotation.T @ oma.rotation
-        omega_a = kin.velocity(self.frame_a).angular
+        """The rotation rows' drift (:func:`rotation_drift`) at the current kinematics."""
         omega_b = kin.velocity(self.frame_b).angular if self.frame_b is not None else np.zeros(3)
-        relative_omega = omega_a - omega_b
-        body_rate = oma.rotation.T @ relative_omega  # R = R_b^T R_a moves as dR/dt = R [body_rate]
-        jlog = pin.Jlog3(rel)
-        theta = pin.log3(rel)
-        theta_rate = jlog @ body_rate
-        rotating_frame = -oma.rotation.T @ np.cross(omega_a, relative_omega)
-        return (
-            jlog_rate(theta, theta_rate) @ body_rate
-            + jlog @ rotating_frame
-            + jlog @ oma.rotation.T @ relative_angular_drift
+        return rotation_drift(
+            kin.placement(self.frame_a).rotation,
+            self._placement_b(kin).rotation,
+            kin.velocity(self.frame_a).angular,
+            omega_b,
+            relative_angular_drift,
         )
+
+
+def rotation_drift(
+    rotation_a: np.ndarray,
+    rotation_b: np.ndarray,
+    omega_a: np.ndarray,
+    omega_b: np.ndarray,
+    relative_angular_drift: np.ndarray,
+) -> np.ndarray:
+    """gamma0 of the rows ``log3(R_b^T R_a)`` [rad/s^2]: d/dt [Jlog3(R) R_a^T] (w_a - w_b) + Jlog3(R) R_a^T
+    (alpha_a - alpha_b) at zero joint acceleration; omegas [rad/s] and ``relative_angular_drift`` (alpha_a -
+    alpha_b) [rad/s^2] in world axes."""
+    rel = rotation_b.T @ rotation_a
+    relative_omega = omega_a - omega_b
+    body_rate = rotation_a.T @ relative_omega  # R = R_b^T R_a moves as dR/dt = R [body_rate]
+    jlog = pin.Jlog3(rel)
+    theta = pin.log3(rel)
+    theta_rate = jlog @ body_rate
+    rotating_frame = -rotation_a.T @ np.cross(omega_a, relative_omega)
+    return (
+        jlog_rate(theta, theta_rate) @ body_rate + jlog @ rotating_frame + jlog @ rotation_a.T @ relative_angular_drift
+    )
 
 
 def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:

@@ -1,0 +1,235 @@
+"""Targets that vary in time: named trajectories that scene files give to servo (or closure) targets,
+read as data (nothing is evaluated).
+
+A trajectory is a table with a ``kind`` among :data:`TRAJECTORY_KINDS`; its values have the target's size
+(1 for a joint relation or a turn angle, 3 for a point) and dimension (length, angle or coordinate):
+
+* ``polynomial``: ``coefficients = [c0, c1, ...]``, x(t) = sum_k c_k t^k; c_k in [X/s^k] (SI), or in
+  [unit/s^k] with ``unit`` (e.g. ``"deg"``, ``"mm"``).
+* ``sinusoid``: ``offset + amplitude sin(omega t + phase)``; ``omega`` [rad/s] (one rate, or one per axis),
+  ``phase`` [rad]; ``offset`` defaults to the target's start value.
+* ``minimum-jerk``: from ``from`` (default: the start value) to ``to`` over ``duration`` [s] beginning at
+  ``start`` [s] (default 0): ``from + (to - from)(10 s^3 - 15 s^4 + 6 s^5)``, s = (t - start)/duration,
+  held before and after.
+* ``cubic-spline``: through ``times`` [s] (strictly increasing, at least 2) and ``values``; ``ends =
+  "clamped"`` (zero end slopes, the default) or ``"natural"`` (zero end curvature); held outside the times.
+
+Each gives the value and its first and second time derivatives, exactly.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ..errors import SceneError, WaypointError, choices
+from ..registry import Registry
+from ..tables import check_keys, vector
+from ..units import quantity
+
+
+class TargetTrajectory(ABC):
+    """A target x(t) of ``size`` components [m or rad], with exact time derivatives."""
+
+    size: int
+
+    @abstractmethod
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, dx/dt, d2x/dt2) at time t [s]: arrays of ``size`` [X, X/s, X/s^2]."""
+
+
+@dataclass(frozen=True)
+class TargetContext:
+    """What a trajectory reads its table against.
+
+    Attributes:
+        size: 1 (a scalar target) or 3 (a point). dimension: the values' quantity (``length``, ``angle`` or
+            ``coordinate``). start: the target's value at the scene's initial configuration (size,).
+    """
+
+    size: int
+    dimension: str
+    start: np.ndarray
+
+    def value(self, raw: Any, where: str) -> np.ndarray:
+        """One value of the target: a number (size 1) or a list of 3 (size 3), with units of the dimension."""
+        if self.size == 1:
+            return np.array([quantity(raw, self.dimension, where)])
+        return vector(raw, self.size, where, self.dimension)
+
+    def rate(self, raw: Any, dimension: str, where: str) -> np.ndarray:
+        """A number for every component, or (size 3) one per component, in ``dimension``."""
+        if self.size > 1 and isinstance(raw, list):
+            return vector(raw, self.size, where, dimension)
+        return np.full(self.size, quantity(raw, dimension, where))
+
+
+TRAJECTORY_KINDS: Registry[TargetTrajectory] = Registry("trajectory kind")
+"""Scene-file trajectory kinds: ``kind = NAME`` in a target table. A factory is ``parse(table, context,
+where) -> TargetTrajectory``; it names ``where`` in its errors."""
+
+
+def read_trajectory(entry: Any, context: TargetContext, where: str) -> TargetTrajectory:
+    """The trajectory of a scene table ``{ kind = ..., ... }``.
+
+    Raises:
+        SceneError: not a table, an unknown kind (the valid kinds listed), or bad keys or values.
+        WaypointError: spline waypoints unsorted or of mismatched lengths.
+    """
+    if not isinstance(entry, dict):
+        raise SceneError(f"{where} must be a table {{ kind = ..., ... }}; kinds: {choices(TRAJECTORY_KINDS)}")
+    kind = entry.get("kind")
+    if kind not in TRAJECTORY_KINDS:
+        raise SceneError(f"{where}: unknown trajectory kind {kind!r}; valid kinds: {choices(TRAJECTORY_KINDS)}")
+    return TRAJECTORY_KINDS.entry(kind).factory(entry, context, f"{where} ({kind})")
+
+
+class Polynomial(TargetTrajectory):
+    """x(t) = sum_k c_k t^k; ``coefficients`` (degree + 1, size) in [X/s^k]."""
+
+    def __init__(self, coefficients: np.ndarray) -> None:
+        self.coefficients = coefficients
+        self.size = coefficients.shape[1]
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        c = self.coefficients
+        powers = np.arange(len(c))
+        value = np.power(t, powers) @ c
+        first = (powers[1:] * np.power(t, powers[1:] - 1)) @ c[1:]
+        second = (powers[2:] * (powers[2:] - 1) * np.power(t, powers[2:] - 2)) @ c[2:]
+        return value, first, second
+
+
+@TRAJECTORY_KINDS.register("polynomial", summary="sum of c_k t^k (coefficients, optional unit)")
+def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynomial:
+    """``coefficients`` (numbers, or lists of 3 for a point), ``unit`` (of the target's dimension)."""
+    check_keys(entry, {"kind", "coefficients", "unit"}, where)
+    raw = entry.get("coefficients")
+    if not isinstance(raw, list) or not raw:
+        raise SceneError(f"{where}: 'coefficients' must be a non-empty list [c0, c1, ...] (c_k in unit/s^k)")
+    unit = entry.get("unit")
+    scale = 1.0 if unit is None else quantity(f"1 {unit}", context.dimension, f"{where}.unit")
+    if context.size == 1:
+        rows = [[_number(c, f"{where}.coefficients[{k}]")] for k, c in enumerate(raw)]
+    else:
+        rows = [vector(c, context.size, f"{where}.coefficients[{k}]", None) for k, c in enumerate(raw)]
+    return Polynomial(scale * np.array(rows, dtype=float))
+
+
+def _number(value: Any, where: str) -> float:
+    """A plain finite number (SI)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+        raise SceneError(f"{where} must be a finite number, got {value!r}")
+    return float(value)
+
+
+class Sinusoid(TargetTrajectory):
+    """x(t) = offset + amplitude sin(omega t + phase), per component."""
+
+    def __init__(self, offset: np.ndarray, amplitude: np.ndarray, omega: np.ndarray, phase: np.ndarray) -> None:
+        self.offset, self.amplitude, self.omega, self.phase = offset, amplitude, omega, phase
+        self.size = len(offset)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        angle = self.omega * t + self.phase
+        wave = self.amplitude * np.sin(angle)
+        return self.offset + wave, self.amplitude * self.omega * np.cos(angle), -(self.omega**2) * wave
+
+
+SINUSOID_KEYS = {"amplitude", "omega", "phase", "offset"}
+
+
+@TRAJECTORY_KINDS.register("sinusoid", summary="offset + amplitude sin(omega t + phase)")
+def parse_sinusoid(entry: dict, context: TargetContext, where: str) -> Sinusoid:
+    """``amplitude``, ``omega`` [rad/s], ``phase`` [rad], ``offset`` (default: the start value)."""
+    check_keys(entry, SINUSOID_KEYS | {"kind"}, where)
+    return sinusoid(entry, context, where)
+
+
+def sinusoid(entry: dict, context: TargetContext, where: str) -> Sinusoid:
+    """The sinusoid of a table of :data:`SINUSOID_KEYS` (also the older ``sine = {...}`` forms)."""
+    zero = [0.0] * context.size if context.size > 1 else 0.0
+    offset = context.value(entry["offset"], f"{where}.offset") if "offset" in entry else context.start
+    return Sinusoid(
+        offset,
+        context.value(entry.get("amplitude", zero), f"{where}.amplitude"),
+        context.rate(entry.get("omega", 0.0), "angular-velocity", f"{where}.omega"),
+        context.rate(entry.get("phase", 0.0), "angle", f"{where}.phase"),
+    )
+
+
+class MinimumJerk(TargetTrajectory):
+    """The quintic of least integrated squared jerk from rest at ``start`` to rest at ``start + duration``."""
+
+    def __init__(self, origin: np.ndarray, goal: np.ndarray, start: float, duration: float) -> None:
+        self.origin, self.change, self.start, self.duration = origin, goal - origin, start, duration
+        self.size = len(origin)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        s = min(max((t - self.start) / self.duration, 0.0), 1.0)
+        shape = s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
+        slope = 30.0 * s * s * (1.0 - s) ** 2 / self.duration
+        curvature = 60.0 * s * (1.0 - s) * (1.0 - 2.0 * s) / self.duration**2
+        return self.origin + shape * self.change, slope * self.change, curvature * self.change
+
+
+@TRAJECTORY_KINDS.register("minimum-jerk", summary="rest to rest from 'from' to 'to' (start, duration)")
+def parse_minimum_jerk(entry: dict, context: TargetContext, where: str) -> MinimumJerk:
+    """``to``, ``from`` (default: the start value), ``start`` [s] (default 0), ``duration`` [s] (> 0)."""
+    check_keys(entry, {"kind", "from", "to", "start", "duration"}, where)
+    if "to" not in entry or "duration" not in entry:
+        raise SceneError(f"{where}: 'to' and 'duration' are required ('from' and 'start' are optional)")
+    origin = context.value(entry["from"], f"{where}.from") if "from" in entry else context.start
+    duration = quantity(entry["duration"], "time", f"{where}.duration")
+    if not duration > 0:
+        raise SceneError(f"{where}.duration must be positive, got {entry['duration']!r}")
+    start = quantity(entry.get("start", 0.0), "time", f"{where}.start")
+    return MinimumJerk(origin, context.value(entry["to"], f"{where}.to"), start, duration)
+
+
+class Spline(TargetTrajectory):
+    """A cubic spline through waypoints (scipy's CubicSpline), held at the end values outside them."""
+
+    def __init__(self, times: np.ndarray, values: np.ndarray, ends: str) -> None:
+        self.spline = CubicSpline(times, values, axis=0, bc_type=ends)
+        self.first, self.last = float(times[0]), float(times[-1])
+        self.size = values.shape[1]
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if t < self.first or t > self.last:
+            end = self.first if t < self.first else self.last
+            return self.spline(end), np.zeros(self.size), np.zeros(self.size)
+        return self.spline(t), self.spline(t, 1), self.spline(t, 2)
+
+
+SPLINE_ENDS = ("clamped", "natural")
+
+
+@TRAJECTORY_KINDS.register("cubic-spline", summary="cubic spline through waypoints (times, values, ends)")
+def parse_spline(entry: dict, context: TargetContext, where: str) -> Spline:
+    """``times`` [s] (strictly increasing), ``values`` (one per time), ``ends`` (clamped | natural)."""
+    check_keys(entry, {"kind", "times", "values", "ends"}, where)
+    times, values = entry.get("times"), entry.get("values")
+    if not isinstance(times, list) or not isinstance(values, list):
+        raise WaypointError(f"{where}: 'times' and 'values' must be lists (one value per time)")
+    if len(times) != len(values) or len(times) < 2:
+        raise WaypointError(
+            f"{where}: {len(times)} times and {len(values)} values; give as many values as times, at least 2"
+        )
+    seconds = np.array([quantity(x, "time", f"{where}.times[{k}]") for k, x in enumerate(times)])
+    backwards = np.flatnonzero(np.diff(seconds) <= 0)
+    if backwards.size:
+        k = int(backwards[0])
+        raise WaypointError(
+            f"{where}: times must increase strictly: times[{k + 1}] = {seconds[k + 1]:g} s after "
+            f"times[{k}] = {seconds[k]:g} s"
+        )
+    ends = entry.get("ends", "clamped")
+    if ends not in SPLINE_ENDS:
+        raise SceneError(f"{where}.ends: unknown ends {ends!r}; valid: {choices(SPLINE_ENDS)}")
+    points = np.array([context.value(x, f"{where}.values[{k}]") for k, x in enumerate(values)])
+    return Spline(seconds, points, ends)
