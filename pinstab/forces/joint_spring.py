@@ -45,8 +45,7 @@ class JointSpring(ForceElement):
         frames: tuple | None = None,
     ) -> None:
         self.name, self.stiffness, self.reference, self.damping = name, stiffness, reference, damping
-        self.dofs, self.q_index, self.frames = dofs, q_index, frames
-        self.needs_kinematics = frames is not None
+        self.dofs, self.q_index, self.frames = dofs, q_index, frames  # reads kin.q: needs the kinematics pass
 
     def coordinate(self, kin: Kinematics) -> tuple[float, np.ndarray]:
         """The 1-DOF coordinate s [rad or m] and its gradient ds/dq (nv,)."""
@@ -66,6 +65,12 @@ class JointSpring(ForceElement):
             return tau
         value, gradient = self.coordinate(kin)
         return -(self.stiffness * (value - self.reference) + self.damping * float(gradient @ v)) * gradient
+
+    def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
+        if self.q_index is None and self.frames is None:
+            return -self.damping * float(v[self.dofs] @ v[self.dofs])
+        _, gradient = self.coordinate(kin)
+        return -self.damping * float(gradient @ v) ** 2
 
     def potential_energy(self, kin: Kinematics) -> float:
         if not self.stiffness:
