@@ -75,6 +75,7 @@ class JointClosure(FrameClosure):
         second += np.cross(omega_b, np.cross(omega_b, gap))
         return np.concatenate([self.across @ rotation_b.T @ second, weld[3:]])
 
+
 def parse_joint_closure(kind: str):
     """The scene-table reader of ``revolute``/``prismatic``: frames a and b (``world`` by default) with
     offsets [m] and rpy angles [rad], and ``axis`` (required, in the frames' axes)."""

@@ -63,7 +63,7 @@ def _geometry(item: SdfVisual, sdf_path: Path, where: str) -> ET.Element | None:
 
 
 def geometry_urdf(sdf: SdfModel, tree: SdfTree, sdf_path: Path) -> str:
-    """A URDF document of the links' visuals and collisions, each placed in its link's frame; the joints are
+    """A URDF document of the links' visuals and collisions, each placed in its link's (BODY) frame; the joints are
     fixed (only the links matter to Pinocchio's geometry reader, which attaches by link name)."""
     robot = ET.Element("robot", {"name": sdf.name})
     for name, link in sdf.links.items():
@@ -74,7 +74,7 @@ def geometry_urdf(sdf: SdfModel, tree: SdfTree, sdf_path: Path) -> str:
                 geometry = _geometry(item, sdf_path, where)
                 if geometry is None:
                     continue
-                placement = tree.frames[name].actInv(link.pose * item.pose)
+                placement = item.pose  # in the link's frame, where its BODY frame is
                 out = ET.SubElement(element, tag, {"name": item.name})
                 xyz = " ".join(f"{x:.17g}" for x in placement.translation)
                 ET.SubElement(out, "origin", {"xyz": xyz, "rpy": " ".join(f"{x:.17g}" for x in rpy_of(placement))})
@@ -116,4 +116,6 @@ def read_sdf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     return read_sdf_file(resolve_file(robot, "sdf", options), robot.get("free_flyer"))
 
 
-READERS.register("sdf", read_sdf, summary="an SDF file (robot.sdf): loops, gearboxes and springs", capabilities={".sdf"})
+READERS.register(
+    "sdf", read_sdf, summary="an SDF file (robot.sdf): loops, gearboxes and springs", capabilities={".sdf"}
+)

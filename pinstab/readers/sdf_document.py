@@ -253,4 +253,3 @@ def read_document(path: Path) -> SdfModel:
 def rpy_of(placement: pin.SE3) -> list[float]:
     """Roll-pitch-yaw [rad] of a placement's rotation."""
     return [float(x) for x in pin.rpy.matrixToRpy(placement.rotation)]
-

@@ -16,11 +16,19 @@ from __future__ import annotations
 
 from typing import Any
 
+import pinocchio as pin
+
 from ..errors import SceneError
 from .sdf_document import SdfJoint, SdfModel, rpy_of
 from .sdf_tree import SdfTree, axis_sign
 
-CLOSURE_OF = {"ball": "point", "revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "weld"}
+CLOSURE_OF = {
+    "ball": "point",
+    "revolute": "revolute",
+    "continuous": "revolute",
+    "prismatic": "prismatic",
+    "fixed": "weld",
+}
 ONE_DOF = ("revolute", "continuous", "prismatic")
 
 
@@ -28,11 +36,12 @@ def _vector(values) -> list[float]:
     return [float(x) for x in values]
 
 
-def _ends(joint: SdfJoint, tree: SdfTree) -> dict[str, Any]:
-    """``frame_a`` on the child, ``frame_b`` on the parent, both at the joint frame."""
+def _ends(joint: SdfJoint, sdf: SdfModel) -> dict[str, Any]:
+    """``frame_a`` on the child, ``frame_b`` on the parent (or the world), both at the joint frame."""
     entry: dict[str, Any] = {}
     for suffix, link in (("a", joint.child), ("b", joint.parent)):
-        offset = tree.frames[link].actInv(joint.placement)
+        origin = sdf.links[link].pose if link in sdf.links else pin.SE3.Identity()
+        offset = origin.actInv(joint.placement)
         entry[f"frame_{suffix}"] = link
         entry[f"offset_{suffix}"] = _vector(offset.translation)
         entry[f"rpy_{suffix}"] = rpy_of(offset)
@@ -43,9 +52,9 @@ def _axis_in_joint(joint: SdfJoint) -> list[float]:
     return _vector(joint.placement.rotation.T @ joint.axis)
 
 
-def closure_entry(joint: SdfJoint, tree: SdfTree) -> dict[str, Any]:
+def closure_entry(joint: SdfJoint, sdf: SdfModel) -> dict[str, Any]:
     """The ``closures`` entry of a loop joint (not a gearbox)."""
-    entry = {"name": joint.name, "kind": CLOSURE_OF[joint.type], **_ends(joint, tree)}
+    entry = {"name": joint.name, "kind": CLOSURE_OF[joint.type], **_ends(joint, sdf)}
     if joint.type in ONE_DOF:
         entry["axis"] = _axis_in_joint(joint)
     return entry
@@ -71,11 +80,11 @@ def gearbox_entry(joint: SdfJoint, tree: SdfTree) -> dict[str, Any]:
     return {"name": joint.name, "kind": "joint-relation", "joints": coefficients, "value": 0.0}
 
 
-def spring_entry(joint: SdfJoint, tree: SdfTree, loop: bool) -> dict[str, Any]:
+def spring_entry(joint: SdfJoint, sdf: SdfModel, loop: bool) -> dict[str, Any]:
     """The ``joint-spring`` force of a joint's ``<dynamics>``: on the joint, or between a closure's frames."""
     entry: dict[str, Any] = {"name": f"{joint.name}/dynamics", "kind": "joint-spring"}
     if loop:
-        entry.update(_ends(joint, tree), axis=_axis_in_joint(joint), motion=joint.type)
+        entry.update(_ends(joint, sdf), axis=_axis_in_joint(joint), motion=joint.type)
     else:
         entry["joint"] = joint.name
     if joint.stiffness:
@@ -95,7 +104,7 @@ def scene_tables(sdf: SdfModel, tree: SdfTree, notes: list[str]) -> dict[str, li
             closures.append(gearbox_entry(joint, tree))
             continue
         if loop:
-            closures.append(closure_entry(joint, tree))
+            closures.append(closure_entry(joint, sdf))
         if joint.friction:
             notes.append(f"joint {joint.name!r}: friction {joint.friction} left out (pinstab has no joint friction)")
         if not (joint.stiffness or joint.damping):
@@ -103,6 +112,5 @@ def scene_tables(sdf: SdfModel, tree: SdfTree, notes: list[str]) -> dict[str, li
         if joint.type == "fixed" or (joint.type == "ball" and (loop or joint.stiffness)):
             notes.append(f"joint {joint.name!r}: the <dynamics> of a {joint.type} joint are left out")
             continue
-        forces.append(spring_entry(joint, tree, loop))
+        forces.append(spring_entry(joint, sdf, loop))
     return {key: value for key, value in (("closures", closures), ("forces", forces)) if value}
-

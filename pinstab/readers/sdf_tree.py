@@ -2,8 +2,9 @@
 
 Joints are taken in document order: a joint whose child has no parent yet (and is not the root, and closes
 no cycle) is a tree joint; every other joint, and every ``gearbox``, closes a loop. The model's joints come
-depth-first from the root, children in document order. A link's frame is its tree joint's frame (the
-root's: its SDF pose), so a configuration of zeros places every link as the SDF does; ``revolute`` and
+depth-first from the root, children in document order. Each Pinocchio joint sits at its SDF joint's frame; a
+link's BODY frame (named after it) is at the link's SDF pose, so a configuration of zeros places every link
+as the SDF does; ``revolute`` and
 ``prismatic`` joints become Pinocchio revolute/prismatic joints about their axis, ``ball`` a spherical
 joint, ``continuous`` a revolute joint without limits, ``fixed`` merges the child into its parent body.
 """
@@ -24,7 +25,8 @@ AXIS_ALIGNED = 1e-12
 
 @dataclass
 class SdfTree:
-    """The spanning tree: the root link, tree joints by child link, loop joints, link frames (model frame)."""
+    """The spanning tree: the root link, tree joints by child link, loop joints, and each link's joint frame
+    (its tree joint's frame; the root's: its SDF pose), in the model frame."""
 
     root: str
     parent_joint: dict[str, SdfJoint] = field(default_factory=dict)
@@ -95,11 +97,12 @@ class _Builder:
     joint_of: dict[str, tuple[int, pin.SE3, int]] = field(default_factory=dict)  # link -> joint, frame, frame id
 
     def add_body(self, name: str, joint_id: int, joint_frame: pin.SE3, parent_frame: int) -> None:
-        link, frame = self.sdf.links[name], self.tree.frames[name]
-        in_joint = joint_frame.actInv(frame)
-        com = frame.actInv(link.pose * link.inertial_pose)
+        """The link's inertia on ``joint_id`` and its BODY frame at the link's SDF pose."""
+        link = self.sdf.links[name]
+        com = joint_frame.actInv(link.pose * link.inertial_pose)
         inertia = pin.Inertia(link.mass, com.translation, com.rotation @ link.inertia @ com.rotation.T)
-        self.model.appendBodyToJoint(joint_id, in_joint.act(inertia), pin.SE3.Identity())
+        self.model.appendBodyToJoint(joint_id, inertia, pin.SE3.Identity())
+        in_joint = joint_frame.actInv(link.pose)
         body = self.model.addFrame(pin.Frame(name, joint_id, parent_frame, in_joint, pin.FrameType.BODY))
         self.joint_of[name] = (joint_id, joint_frame, body)
 
@@ -110,7 +113,11 @@ class _Builder:
             if joint.type == "fixed":
                 frame = self.model.addFrame(
                     pin.Frame(
-                        joint.name, parent_joint, parent_body, parent_frame.actInv(child_frame), pin.FrameType.FIXED_JOINT
+                        joint.name,
+                        parent_joint,
+                        parent_body,
+                        parent_frame.actInv(child_frame),
+                        pin.FrameType.FIXED_JOINT,
                     )
                 )
                 self.add_body(joint.child, parent_joint, parent_frame, frame)
