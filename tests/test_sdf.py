@@ -301,3 +301,39 @@ def test_a_missing_mesh_is_named(tmp_path):
     )
     with pytest.raises(SceneError, match="sdf link 'a' visual 'v': mesh 'model://nowhere/x.stl' is not found"):
         read_sdf_file(path)
+
+
+FOURBAR_LINKS = {"crank": "0 0 0 0 0 0", "coupler": "0 0.2 0 0 0 0", "rocker": "0.6 0 0 0 0 0"}
+ROD = "<inertial><pose>0 0.1 0 0 0 0</pose><mass>0.5</mass><inertia><ixx>0.002</ixx><iyy>0.0001</iyy>"
+ROD += "<izz>0.002</izz></inertia></inertial>"
+
+
+def test_a_spring_on_a_loop_joint_acts_along_the_closures_free_turn(tmp_path):
+    """A four-bar SDF whose coupler-rocker pin is a loop joint with a spring: a revolute closure and a
+    joint-spring between its frames; at the SDF pose (a parallelogram) the pin's angle is zero, so the spring
+    stores k ref^2 / 2, and turning the crank by d turns the pin by -d (the parallelogram keeps its angles)."""
+    links = "".join(f"<link name='{n}'><pose>{p}</pose>{ROD}</link>" for n, p in FOURBAR_LINKS.items())
+    pins = [("crank-pin", "world", "crank", ""), ("coupler-pin", "crank", "coupler", "")]
+    pins += [("rocker-pin", "world", "rocker", ""), ("loop-pin", "rocker", "coupler", "<pose>0.6 0 0 0 0 0</pose>")]
+    joints = "".join(
+        f"<joint name='{n}' type='revolute'><parent>{p}</parent><child>{c}</child>{pose}<axis><xyz>0 0 1</xyz>"
+        + (
+            "<dynamics><spring_stiffness>3</spring_stiffness><spring_reference>0.1</spring_reference></dynamics>"
+            if n == "loop-pin"
+            else ""
+        )
+        + "</axis></joint>"
+        for n, p, c, pose in pins
+    )
+    path = tmp_path / "fourbar.sdf"
+    path.write_text(f"<sdf version='1.6'><model name='fourbar'>{links}{joints}</model></sdf>")
+    scene = scene_from_dict({"robot": {"sdf": str(path)}, "gravity": [0.0, 0.0, 0.0]}, name="sdf-fourbar")
+    assert [(c.name, c.kind) for c in scene.constraints] == [("loop-pin", "revolute")]
+    (spring,) = scene.forces
+    assert spring.name == "loop-pin/dynamics" and scene.model.nq == 3
+    kin = Kinematics(scene.model)
+    q = np.array([0.2, -0.2, 0.2])  # crank and rocker turned alike, coupler back: still a parallelogram
+    kin.update(q, np.zeros(3))
+    assert np.abs(scene.constraint_set.residual(kin, q, 0.0)).max() < 1e-15
+    assert spring.coordinate(kin)[0] == pytest.approx(-0.2, abs=1e-15)
+    assert spring.potential_energy(kin) == pytest.approx(0.5 * 3.0 * 0.3**2, rel=1e-13)

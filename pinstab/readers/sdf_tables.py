@@ -84,7 +84,8 @@ def spring_entry(joint: SdfJoint, sdf: SdfModel, loop: bool) -> dict[str, Any]:
     """The ``joint-spring`` force of a joint's ``<dynamics>``: on the joint, or between a closure's frames."""
     entry: dict[str, Any] = {"name": f"{joint.name}/dynamics", "kind": "joint-spring"}
     if loop:
-        entry.update(_ends(joint, sdf), axis=_axis_in_joint(joint), motion=joint.type)
+        motion = "prismatic" if joint.type == "prismatic" else "revolute"
+        entry.update(_ends(joint, sdf), axis=_axis_in_joint(joint), motion=motion)
     else:
         entry["joint"] = joint.name
     if joint.stiffness:

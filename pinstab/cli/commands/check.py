@@ -48,6 +48,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
             for c in scene.constraints
         },
         "locked_joints": scene.locked_joints,
+        "robot_notes": [] if scene.robot is None else scene.robot.notes,  # what the robot's reader left out
     }
 
 
