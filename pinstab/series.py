@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from scipy.integrate import cumulative_simpson
 
 from .errors import ContactInfeasibleError
 from .system import ConstrainedSystem
@@ -35,6 +36,28 @@ class StateSeries:
             position[k], velocity[k] = model.violation(q[k], v[k], float(t[k]))  # leaves placements current
             energy[k] = model.energy(q[k], v[k])
         return {"position_drift": position, "velocity_drift": velocity, "energy": energy}
+
+    def energy_balance(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray) -> dict[str, float]:
+        """For a scene with force elements: the work W [J] of their non-conservative parts (dampers, motors,
+        applied loads; Simpson's rule over the samples) and how far ``E(t) - E(0) - W(t)`` strays from zero:
+        ``max_energy_balance_error`` [J], and relative to max(|E(0)|, max |W|); empty without force elements
+        or finite samples, or under a tilting gravity (its work is not counted)."""
+        model = self.system.model
+        finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1) & np.isfinite(energy)
+        if not model.forces or model.scene.tilt is not None or not finite.all():
+            return {}
+        power = np.zeros(len(t))
+        for k in range(len(t)):
+            model.kin.update_jacobians(q[k])
+            power[k] = sum(element.power(model.kin, v[k], float(t[k])) for element in model.forces)
+        work = cumulative_simpson(power, x=t, initial=0.0) if len(t) > 2 else np.zeros(len(t))
+        error = float(np.max(np.abs(energy - energy[0] - work)))
+        scale = max(abs(float(energy[0])), float(np.max(np.abs(work))))
+        return {
+            "force_work": float(work[-1]),
+            "max_energy_balance_error": error,
+            "energy_balance_relative": error / scale if scale > 0 else 0.0,
+        }
 
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the contacts cannot

@@ -33,6 +33,7 @@ class SeriesSource(Protocol):
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
     def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
+    def energy_balance(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray) -> dict[str, float]: ...
 
 
 @dataclass
@@ -192,6 +193,7 @@ class Trajectory:
         summary["stopped"] = self.info.stopped
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
+            summary.update(self._series.energy_balance(self.t, self.q, self.v, self.energy))
             servo = self.servo_figures
             if servo:
                 names = self.info.controls

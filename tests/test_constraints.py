@@ -58,6 +58,34 @@ CLOSURES = [
         "rpy_b": [0.3, 0.2, 0.1],
         "offset_b": [0.0, 0.0, -0.4],
     },
+    {
+        "name": "hinge",
+        "kind": "revolute",
+        "axis": [0.3, -0.2, 0.9],
+        "frame_a": "forearm0",
+        "offset_a": [0.05, 0.01, 0.0],
+        "rpy_a": [0.2, 0.1, -0.4],
+        "frame_b": "platform2",
+        "offset_b": [0.1, 0.0, 0.02],
+    },
+    {"name": "hinge-world", "kind": "revolute", "axis": [1.0, 0.0, 0.0], "frame_a": "arm2", "rpy_b": [0.1, 0.0, 0.2]},
+    {
+        "name": "slide",
+        "kind": "prismatic",
+        "axis": [0.0, 0.6, 0.8],
+        "frame_a": "arm0",
+        "offset_a": [0.2, 0.0, 0.01],
+        "frame_b": "forearm1",
+        "offset_b": [0.3, 0.02, 0.0],
+        "rpy_b": [-0.3, 0.2, 0.5],
+    },
+    {
+        "name": "slide-world",
+        "kind": "prismatic",
+        "axis": [0.0, 0.0, 1.0],
+        "frame_a": "platform0",
+        "offset_b": [0.1, 0, 0],
+    },
 ]
 
 

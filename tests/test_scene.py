@@ -35,8 +35,8 @@ from pinstab.scene import scene_from_dict
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
             r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, frame-orientation, frame-path, "
-            r"frame-pose, grasp-contact, joint-relation, planar-point, plane-contact, point, rolling-contact, "
-            r"rolling-disk, weld",
+            r"frame-pose, grasp-contact, joint-relation, planar-point, plane-contact, point, prismatic, revolute, "
+            r"rolling-contact, rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
@@ -52,8 +52,8 @@ from pinstab.scene import scene_from_dict
         ),
         (
             {"forces": [{"kind": "motor"}]},
-            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, joint-torque, "
-            r"spring-damper",
+            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, joint-spring, "
+            r"joint-torque, spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},

@@ -65,6 +65,7 @@ class FrameClosure(Constraint):
         self.frame_b = frame_b
         self.world_placement_b = world_placement_b if world_placement_b is not None else pin.SE3.Identity()
         self.selection = plane_basis(plane) if kind == "planar-point" else np.eye(3)
+        self.locks_rotation = kind == "weld"  # rotation rows after the point rows
         self.rows = 6 if kind == "weld" else self.selection.shape[0]
         self.force_frame = (
             "world axes (force on a) + log3(R_b^T R_a) axes (moment on a)"
@@ -86,14 +87,14 @@ class FrameClosure(Constraint):
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
         linear = self.selection @ (oma.translation - omb.translation)
-        if self.kind != "weld":
+        if not self.locks_rotation:
             return linear
         return np.concatenate([linear, pin.log3(omb.rotation.T @ oma.rotation)])
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         jac = self._relative_jacobian(kin)
         linear = self.selection @ jac[:3]
-        if self.kind != "weld":
+        if not self.locks_rotation:
             return VelocityTerms(linear, np.zeros(self.rows))
         oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
         rel = omb.rotation.T @ oma.rotation
@@ -108,7 +109,7 @@ class FrameClosure(Constraint):
             lin -= acc_b.linear
             ang -= acc_b.angular
         linear = self.selection @ lin
-        if self.kind != "weld":
+        if not self.locks_rotation:
             return linear
         return np.concatenate([linear, self._rotation_drift(kin, ang)])
 

@@ -30,6 +30,11 @@ class ForceElement(ABC):
         """Stored energy [J]; zero for non-conservative elements."""
         return 0.0
 
+    def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
+        """Power [W] of the element's non-conservative part, ``tau . v + dV/dt`` (V: :meth:`potential_energy`);
+        all of ``tau . v`` for an element that stores none. Needs placements and Jacobians current."""
+        return float(self.generalized_force(kin, v, t) @ v)
+
 
 FORCE_KINDS: Registry[ForceElement] = Registry("force kind")
 """Scene-file force kinds: ``kind = NAME`` in ``[[forces]]``. A factory is

@@ -54,6 +54,12 @@ class SpringDamper(ForceElement):
         magnitude = -(self.stiffness * (length - self.rest_length) + self.damping * length_rate)
         return jac.T @ (magnitude * direction)
 
+    def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
+        diff, length, jac = self._geometry(kin)
+        if length < 1e-12:
+            return 0.0
+        return -self.damping * float(diff / length @ (jac @ v)) ** 2
+
     def potential_energy(self, kin: Kinematics) -> float:
         _, length, _ = self._geometry(kin)
         return 0.5 * self.stiffness * (length - self.rest_length) ** 2

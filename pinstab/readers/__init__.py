@@ -39,6 +39,9 @@ def read_robot(robot: dict[str, Any], base_dir: Path) -> RobotSource:
     if not isinstance(robot["name"], str):
         raise SceneError(f"robot.name must be a string, got {robot['name']!r}")
     path, package_dir = example_robot_urdf(robot["name"])
+    if path.suffix != ".urdf":  # another format: the reader registered for its suffix
+        reader = next(entry for entry in READERS.entries() if path.suffix in entry.capabilities)
+        return reader.factory({**robot, reader.name: str(path)}, options)
     # meshes are named package://example-robot-data/robots/...: the share/ folder resolves them
     package_dirs = [str(package_dir), str(package_dir.parent), str(package_dir.parent.parent)]
     return read_named(robot, options, path, package_dirs)

@@ -35,16 +35,17 @@ def example_robot_data_dir() -> Path | None:
 
 
 def example_robot_names() -> dict[str, Path]:
-    """example-robot-data robot names mapped to their URDF files: every ``<name>.urdf`` in a
-    description's ``urdf/`` or ``robots/`` folder (``panda``, ``ur5``, ``allegro_right_hand``,
-    ``finger_edu``, ...)."""
+    """example-robot-data robot names mapped to their files: every ``<name>.urdf`` in a description's
+    ``urdf/`` or ``robots/`` folder (``panda``, ``ur5``, ``allegro_right_hand``, ``finger_edu``, ...), then
+    every ``<name>.sdf`` there whose name no URDF has (``cassie``, ``cassie_v2``, ...)."""
     base = example_robot_data_dir()
     if base is None:
         return {}
     names: dict[str, Path] = {}
     for description in sorted(base.glob("*_description")):
-        for urdf in sorted([*description.glob("urdf/*.urdf"), *description.glob("robots/*.urdf")]):
-            names.setdefault(urdf.stem, urdf)
+        for suffix in ("urdf", "sdf"):
+            for path in sorted([*description.glob(f"urdf/*.{suffix}"), *description.glob(f"robots/*.{suffix}")]):
+                names.setdefault(path.stem, path)
     return names
 
 
@@ -52,7 +53,7 @@ def example_robot_urdf(name: str) -> tuple[Path, Path]:
     """Resolve an example-robot-data robot by name.
 
     Returns:
-        (URDF file, package directory to search for ``package://`` meshes).
+        (URDF or SDF file, package directory to search for ``package://`` meshes).
     """
     names = example_robot_names()
     if name not in names:

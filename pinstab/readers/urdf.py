@@ -65,5 +65,7 @@ def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, tr
     return RobotSource(model, "urdf", urdf_path, urdf_path, urdf_text, package_dirs, geometry=geometry)
 
 
-READERS.register("urdf", read_urdf, summary="a URDF file (robot.urdf) or document (robot.urdf_text)")
+READERS.register(
+    "urdf", read_urdf, summary="a URDF file (robot.urdf) or document (robot.urdf_text)", capabilities={".urdf"}
+)
 READERS.register("urdf_text", read_urdf, summary="a URDF document given in the scene")

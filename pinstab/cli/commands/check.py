@@ -38,7 +38,13 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         "assembly_iterations": report.iterations,
         "assembly_velocity_residual": report.velocity_residual,
         "constraints": {
-            c.name: {"rows": c.rows, "holonomic": c.holonomic, "kind": c.row_kind.value, "frame": c.force_frame}
+            c.name: {
+                "rows": c.rows,
+                "holonomic": c.holonomic,
+                "kind": c.row_kind.value,
+                "scene_kind": getattr(c, "kind", None),  # the kind the scene (or robot file) names: point, weld, ...
+                "frame": c.force_frame,
+            }
             for c in scene.constraints
         },
         "locked_joints": scene.locked_joints,

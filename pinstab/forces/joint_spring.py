@@ -1,0 +1,117 @@
+"""``joint-spring``: a spring-damper on a joint coordinate, or on the free axis of a loop closure.
+
+On a 1-DOF joint (``joint``): torque [N m] or force [N] ``-k (q - q_ref) - c qdot``; on a multi-DOF joint
+(a ball) only damping, ``-c v`` on each of its velocity coordinates. Between two frames (``frame_a``,
+``frame_b`` with offsets and rpy, as a closure's, ``axis`` in their axes and ``motion`` ``revolute`` or
+``prismatic``): the same law on the free coordinate s, the turn ``axis . log3(R_b^T R_a)`` [rad] or the
+slide ``axis . R_b^T (p_a - p_b)`` [m], applied as ``-(k (s - s_ref) + c sdot) ds/dq``.
+Stored energy ``k (s - s_ref)^2 / 2`` [J].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import SceneError, choices
+from ..kinematics import Kinematics, relative_offset, relative_rotation
+from ..tables import WORLD, SceneTables
+from .base import FORCE_KINDS, ForceElement
+
+SPRING_KEYS = {"name", "kind", "stiffness", "reference", "damping"}
+JOINT_KEYS = SPRING_KEYS | {"joint"}
+FRAME_KEYS = SPRING_KEYS | {"frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b", "axis", "motion"}
+MOTIONS = ("revolute", "prismatic")
+
+
+class JointSpring(ForceElement):
+    """``-k (s - s_ref) - c sdot`` along a joint coordinate or a closure's free axis.
+
+    Args:
+        name: element name. stiffness: k [N m/rad or N/m]. reference: s_ref [rad or m]. damping: c [N m s/rad
+            or N s/m]. dofs: the joint's velocity indices (joint form), or None (frame form).
+        q_index: the 1-DOF joint's configuration index. frames: (frame a, frame b or None, world placement of
+            b, axis, motion) of the frame form.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        stiffness: float,
+        reference: float,
+        damping: float,
+        dofs: np.ndarray | None = None,
+        q_index: int | None = None,
+        frames: tuple | None = None,
+    ) -> None:
+        self.name, self.stiffness, self.reference, self.damping = name, stiffness, reference, damping
+        self.dofs, self.q_index, self.frames = dofs, q_index, frames  # reads kin.q: needs the kinematics pass
+
+    def coordinate(self, kin: Kinematics) -> tuple[float, np.ndarray]:
+        """The 1-DOF coordinate s [rad or m] and its gradient ds/dq (nv,)."""
+        if self.frames is None:
+            gradient = np.zeros(kin.model.nv)
+            gradient[self.dofs] = 1.0
+            return float(kin.q[self.q_index]), gradient
+        frame_a, frame_b, placement_b, axis, motion = self.frames
+        relative = relative_offset if motion == "prismatic" else relative_rotation
+        value, jacobian = relative(kin, frame_a, frame_b, placement_b)
+        return float(axis @ value), axis @ jacobian
+
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        if self.q_index is None and self.frames is None:  # a multi-DOF joint: damping only
+            tau = np.zeros(v.shape[0])
+            tau[self.dofs] = -self.damping * v[self.dofs]
+            return tau
+        value, gradient = self.coordinate(kin)
+        return -(self.stiffness * (value - self.reference) + self.damping * float(gradient @ v)) * gradient
+
+    def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
+        if self.q_index is None and self.frames is None:
+            return -self.damping * float(v[self.dofs] @ v[self.dofs])
+        _, gradient = self.coordinate(kin)
+        return -self.damping * float(gradient @ v) ** 2
+
+    def potential_energy(self, kin: Kinematics) -> float:
+        if not self.stiffness:
+            return 0.0
+        value, _ = self.coordinate(kin)
+        return 0.5 * self.stiffness * (value - self.reference) ** 2
+
+
+def _frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple:
+    motion = entry.get("motion")
+    if motion not in MOTIONS:
+        raise SceneError(f"{where}.motion must be one of {choices(MOTIONS)}, got {motion!r}")
+    axis = tables.vector(entry.get("axis"), 3, f"{where}.axis", None)
+    if np.linalg.norm(axis) < 1e-9:
+        raise SceneError(f"{where}.axis must be a non-zero direction, got {axis.tolist()}")
+    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
+    offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
+    if entry.get("frame_b", WORLD) == WORLD:
+        return frame_a, None, offset_b, axis / np.linalg.norm(axis), motion
+    frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")
+    return frame_a, frame_b, pin.SE3.Identity(), axis / np.linalg.norm(axis), motion
+
+
+@FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate or a closure's free axis")
+def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) -> JointSpring:
+    """Scene table: ``joint`` or the frame form (see the module), ``stiffness`` [N m/rad or N/m],
+    ``reference`` [rad or m], ``damping`` [N m s/rad or N s/m]."""
+    frame_form = "joint" not in entry
+    tables.check_keys(entry, FRAME_KEYS if frame_form else JOINT_KEYS, where)
+    stiffness = tables.number(entry, "stiffness", where, 0.0)
+    damping = tables.number(entry, "damping", where, 0.0)
+    reference = tables.quantity(entry.get("reference", 0.0), "coordinate", f"{where}.reference")
+    for label, value in (("stiffness", stiffness), ("damping", damping)):
+        if value < 0:
+            raise SceneError(f"{where}.{label} must be >= 0, got {value}")
+    if frame_form:
+        return JointSpring(name, stiffness, reference, damping, frames=_frames(entry, tables, name, where))
+    joint = tables.model.joints[tables.joint_id(entry["joint"], f"{where}.joint")]
+    dofs = np.arange(joint.idx_v, joint.idx_v + joint.nv)
+    if joint.nv == 1 and joint.nq == 1:
+        return JointSpring(name, stiffness, reference, damping, dofs, q_index=joint.idx_q)
+    if stiffness:
+        raise SceneError(f"{where}: joint {entry['joint']!r} has {joint.nv} DOF; a stiffness needs a 1-DOF joint")
+    return JointSpring(name, 0.0, 0.0, damping, dofs)
