@@ -32,6 +32,7 @@ from .validation import (
     check_locked_joints,
     check_model,
     read_scene_file,
+    relative_tolerance,
 )
 
 MAX_GRAVITY = 1e6  # [m/s^2]
@@ -49,6 +50,7 @@ TOP_KEYS = {
     "servos",
     "actuation",
     "initial",
+    "assembly",
 }
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
@@ -76,6 +78,8 @@ class Scene:
         objects: rigid objects added to the robot (free-flyer bodies after its joints).
         actuation: the controls' matrix B, names and limits (``[actuation]``), or None.
         tilt: gravity turning in time (``[tilt]``), or None. robot: the robot as its reader built it.
+        assembly_tolerance: ``[assembly] tolerance``, the residual assembly accepts relative to the mechanism's
+            size [-] (:func:`~pinstab.assembly.assemble`), or None (the default).
     """
 
     name: str
@@ -97,6 +101,7 @@ class Scene:
     actuation: Actuation | None = None
     tilt: GravityTilt | None = None
     robot: RobotSource | None = None
+    assembly_tolerance: float | None = None
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -263,6 +268,7 @@ def scene_from_dict(
         objects=objects,
         actuation=actuation,
         tilt=None if "tilt" not in data else _tilt(data["tilt"], model.gravity.linear),
+        assembly_tolerance=_assembly_tolerance(data.get("assembly")),
     )
 
 
@@ -296,6 +302,14 @@ def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
     rate = quantity(value["rate"], "angular-velocity", "tilt.rate")
     start = quantity(value.get("start", 0.0), "angle", "tilt.start")
     return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start)
+
+
+def _assembly_tolerance(value: Any) -> float | None:
+    """``[assembly] tolerance`` (relative, in (0, 1)), or None when the table is absent."""
+    if value is None:
+        return None
+    check_keys(table(value, "assembly"), {"tolerance"}, "assembly")
+    return None if "tolerance" not in value else relative_tolerance(value["tolerance"], "assembly.tolerance")
 
 
 # -- robot --------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
+from .validation import relative_tolerance
 
 ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
     "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
@@ -74,6 +75,7 @@ def simulate(
     atol: float | None = None,
     contacts: str | None = None,
     stop_on: tuple[str, ...] | frozenset[str] = (),
+    assembly_tol: float | None = None,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -118,6 +120,8 @@ def simulate(
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
             ``separation``, a touching contact opens): the trajectory ends at the first such event, with
             ``info.stopped`` saying which.
+        assembly_tol: the closure residual the assembly accepts, relative to the mechanism's size [-] (in (0, 1);
+            default: the scene's ``[assembly] tolerance``, else 1e-10; :func:`~pinstab.assembly.assemble`).
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -141,6 +145,8 @@ def simulate(
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     kinds = stop_kinds(stop_on, contacts)
+    if assembly_tol is not None:
+        relative_tolerance(assembly_tol, "assembly_tol")
     if contacts == "stepping":
         return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
     if contacts is not None:
@@ -170,7 +176,7 @@ def simulate(
         raise PinstabError(f"q0 must have {model.nq} entries and v0 {model.nv}")
     report: AssemblyReport | None = None
     if assemble_initial:
-        report = assemble(model, q, v)
+        report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
     system.bind(grid.dt, integrator, q)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
