@@ -16,8 +16,8 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import AssemblyError, PinstabError, ProjectionError
-from .projection import project_velocities
 from .memory import new_data
+from .projection import project_velocities
 from .runinfo import AssemblySummary
 from .validation import relative_tolerance, singular_mass_error
 
