@@ -170,6 +170,18 @@ class UnstableGainsError(PinstabError):
     """Stabilization gains whose discrete deviation dynamics are unstable at the chosen step (strict mode)."""
 
 
+class PinstabWarning(UserWarning):
+    """Base class of the warnings pinstab gives on purpose (the command line prints them)."""
+
+
+class PenetrationWarning(PinstabWarning):
+    """A link of the robot and a scene object interpenetrate beyond the tolerance (at the start or during a run)."""
+
+
+class EdgeContactWarning(PinstabWarning):
+    """A fingertip contact sits on an edge or a vertex of its object's geometry, where the normal is not unique."""
+
+
 class UnstableGainsWarning(UserWarning):
     """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""
 

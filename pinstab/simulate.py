@@ -141,6 +141,8 @@ def simulate(
 
     Warns:
         UnstableGainsWarning: gains predicted unstable, before any step (without ``strict``).
+        PenetrationWarning: a link of the robot and an object overlap deeper than at the start, beyond the
+            tolerance, at the kept samples (:mod:`pinstab.contact.collisions`).
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -148,9 +150,10 @@ def simulate(
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
     if contacts == "stepping":
-        return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
+        return _checked(scene, _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress))
     if contacts is not None:
-        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
+        events = _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
+        return _checked(scene, events)
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
         raise PinstabError(
@@ -196,7 +199,15 @@ def simulate(
         nullcontext() if bar is None else closing(bar),
     ):
         loop.run(q, v, bar)
-    return _trajectory(loop, system, info, elapsed())
+    return _checked(scene, _trajectory(loop, system, info, elapsed()))
+
+
+def _checked(scene: Scene, trajectory: Trajectory) -> Trajectory:
+    """``trajectory``, after warning of the robot-object overlaps at its kept samples
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`)."""
+    if scene.collisions is not None:
+        scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
+    return trajectory
 
 
 @contextmanager
