@@ -12,7 +12,6 @@ from .base import READERS, ReaderOptions, RobotSource
 from .copies import compose_copies, parse_copies
 from .urdf_checks import check_links
 
-
 # meshes read once per process and file (copies of a robot share them; the collision checks and the viewer reuse
 # them), keyed by file and scale, with the modification time it was read at
 MESHES = coal.CachedMeshLoader()
