@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from conftest import ROBOTS
 from pinstab import AssemblyError, ConstrainedModel, SceneError, assemble, load_scene, simulate
 from pinstab.assembly import DEFAULT_TOLERANCE, mechanism_size
+from pinstab.cli import main
 from pinstab.scene import scene_from_dict
 
 
@@ -154,3 +157,20 @@ def test_the_assembly_table_takes_only_a_tolerance():
     data["assembly"] = {"tolerence": 1e-9}
     with pytest.raises(SceneError, match="unknown key 'tolerence'; valid keys: tolerance"):
         scene_from_dict(data)
+
+
+def test_check_takes_the_tolerance_and_reports_it(tmp_path, capsys):
+    urdf = ROBOTS / "urdf" / "fourbar.urdf"
+    (tmp_path / "gap.toml").write_text(
+        f'[robot]\nurdf = "{urdf}"\n[[closures]]\nname = "coupler-rocker"\nkind = "point"\nframe_a = "coupler"\n'
+        'offset_a = [0.6, 0.0, 0.0]\nframe_b = "rocker"\noffset_b = [0.5, 0.0, 2e-11]\n'
+        "[initial]\nq = { crank = 1.0, coupler = -0.9, rocker = 1.6 }\n"
+    )
+    assert main(["check", str(tmp_path / "gap.toml"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["assembly_residual"] == pytest.approx(2e-11, rel=1e-4)
+    assert result["assembly_tolerance"] == pytest.approx(DEFAULT_TOLERANCE * result["mechanism_size"], rel=1e-12)
+    assert main(["check", str(tmp_path / "gap.toml"), "--assembly-tol", "1e-12"]) == 2
+    assert "largest on closure 'coupler-rocker'" in capsys.readouterr().err
+    assert main(["check", str(tmp_path / "gap.toml"), "--assembly-tol", "-1"]) == 2
+    assert "--assembly-tol must be a relative tolerance" in capsys.readouterr().err

@@ -3,6 +3,7 @@ of a sphere fingertip over a box."""
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from pinstab import simulate
+from pinstab.cli import main
 from pinstab.contact.collisions import EDGE_ANGLE, EDGE_TOLERANCE, PENETRATION_TOLERANCE, normal_turn
 from pinstab.errors import EdgeContactWarning, PenetrationWarning
 from pinstab.scene import scene_from_dict
@@ -138,3 +140,18 @@ def test_a_contact_on_a_sphere_is_on_no_edge():
     turn = normal_turn(item, item.placement, np.array([0.0, 0.0, 0.03]), np.array([0.0, 0.0, -1.0]))
     assert turn == pytest.approx(math.atan(EDGE_TOLERANCE / (0.03 + EDGE_TOLERANCE)), rel=1e-6)
     assert turn < EDGE_ANGLE
+
+
+def test_check_prints_the_warning_and_lists_the_overlap(tmp_path, capsys):
+    (tmp_path / "gantry.urdf").write_text(GANTRY)
+    (tmp_path / "inside.toml").write_text(
+        'gravity = [0.0, 0.0, 0.0]\n[robot]\nurdf = "gantry.urdf"\n'
+        '[[objects]]\nname = "box"\nshape = "box"\nsize = [0.04, 0.04, 0.04]\nmass = 0.1\n'
+        f"[initial]\nq = {{ x = 0.0, z = {HALF + RADIUS - 1e-3} }}\n"
+    )
+    assert main(["check", str(tmp_path / "inside.toml"), "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert "pinstab check: warning: scene inside: link 'tip'" in err and "by 1.000 mm at the start" in err
+    (overlap,) = json.loads(out)["overlaps"]
+    assert overlap["link"] == "tip" and overlap["object"] == "box"
+    assert overlap["depth_mm"] == pytest.approx(1.0, abs=1e-6)

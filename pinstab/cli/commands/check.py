@@ -44,6 +44,10 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
             for c in scene.constraints
         },
         "locked_joints": scene.locked_joints,
+        "overlaps": [  # robot links inside objects beyond the tolerance, at the assembled start
+            {"link": o.link, "shape": o.shape, "object": o.item, "depth_mm": o.depth * 1e3}
+            for o in ([] if scene.collisions is None else scene.collisions.overlaps(report.q))
+        ],
     }
 
 
