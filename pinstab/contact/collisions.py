@@ -1,8 +1,8 @@
 """Hand-object collision checks with coal (Pinocchio's collision library), each a warning, never an error.
 
 * Interpenetration: every shape of the robot's collision geometry (its reader's, reduced like the scene's
-  model) against every collision shape of the scene's objects, through ``pin.computeDistances`` (coal's signed
-  distance: < 0 is the depth of an overlap of convex shapes). A pair deeper than :data:`PENETRATION_TOLERANCE`
+  model) against every collision shape of the scene's objects: ``pin.computeCollisions`` finds the pairs that
+  touch, coal's signed distance gives their depth (exact for convex shapes; a mesh's per triangle). A pair deeper than :data:`PENETRATION_TOLERANCE`
   is a :class:`~pinstab.errors.PenetrationWarning` naming the link, the object and the depth [mm]: at the start
   (when the scene loads) and, at the kept samples of a run (at most :data:`MAX_RUN_SAMPLES` of them, evenly
   spaced), when a pair goes deeper than the tolerance and deeper than it started. Robot links are not checked
@@ -107,11 +107,18 @@ class CollisionCheck:
         self._geometry_data = self.geometry.createData()
 
     def depths(self, q: np.ndarray) -> np.ndarray:
-        """The overlap depth [m] of every pair at configuration q (> 0: overlapping; <= 0: minus the gap)."""
+        """The overlap depth [m] of every pair at configuration q: minus the signed distance of the pairs that touch
+        or overlap (coal's collision test, then its distance for those only: a mesh's distance costs milliseconds),
+        0 for the others."""
+        depths = np.zeros(len(self.names))
         if not self.names:
-            return np.zeros(0)
-        pin.computeDistances(self.model, self._data, self.geometry, self._geometry_data, q)
-        return -np.array([result.min_distance for result in self._geometry_data.distanceResults])
+            return depths
+        geometry, data = self.geometry, self._geometry_data
+        pin.computeCollisions(self.model, self._data, geometry, data, q, False)
+        for pair, result in enumerate(data.collisionResults):
+            if result.isCollision():
+                depths[pair] = -pin.computeDistance(geometry, data, pair).min_distance
+        return depths
 
     def overlaps(self, q: np.ndarray) -> list[Overlap]:
         """The pairs overlapping deeper than the tolerance at q, deepest first."""
