@@ -2,8 +2,9 @@
 
 * Interpenetration: every shape of the robot's collision geometry (its reader's, reduced like the scene's
   model) against every collision shape of the scene's objects: ``pin.computeCollisions`` finds the pairs that
-  touch, coal's signed distance gives their depth (exact for convex shapes; a mesh's per triangle). A pair deeper than :data:`PENETRATION_TOLERANCE`
-  is a :class:`~pinstab.errors.PenetrationWarning` naming the link, the object and the depth [mm]: at the start
+  touch, coal's signed distance gives their depth (exact for convex shapes; a mesh's per triangle). A pair
+  deeper than :data:`PENETRATION_TOLERANCE` is a :class:`~pinstab.errors.PenetrationWarning` naming the link,
+  the object and the depth [mm]: at the start
   (when the scene loads) and, at the kept samples of a run (at most :data:`MAX_RUN_SAMPLES` of them, evenly
   spaced), when a pair goes deeper than the tolerance and deeper than it started. Robot links are not checked
   against each other, and a body carrying a fingertip contact on an object is not checked against that object:
