@@ -1,5 +1,11 @@
 """Assembly: the configuration nearest the given one that satisfies the closures, then the
-consistent velocity (MATH.md section 1, eq. 1)."""
+consistent velocity (MATH.md section 1, eq. 1).
+
+The residual accepted is relative to the mechanism's size L (:func:`mechanism_size`): a closure residual up
+to ``tolerance * L`` [m or rad] is accepted, :data:`DEFAULT_TOLERANCE` unless ``assemble(tolerance=...)``,
+``simulate(assembly_tol=...)``, ``--assembly-tol`` or the scene's ``[assembly] tolerance`` say otherwise; a
+loop closed to 1e-10 of its length (at most L) is accepted by default.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +13,20 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import AssemblyError, PinstabError, ProjectionError
+from .memory import new_data
 from .projection import project_velocities
 from .runinfo import AssemblySummary
-from .validation import singular_mass_error
+from .validation import relative_tolerance, singular_mass_error
 
 if TYPE_CHECKING:
     from .model import ConstrainedModel
+
+DEFAULT_TOLERANCE = 1e-10  # [-] the residual assembly accepts, relative to the mechanism's size
+TARGET = 1e-12  # [-] the residual the iteration aims at, relative to max(1 m, the largest offset): rounding
+MIN_SIZE = 1e-3  # [m] the size of a mechanism whose joints and frames all sit at one point
 
 
 @dataclass
@@ -27,6 +39,8 @@ class AssemblyReport:
         residual: final max |phi| [m or rad].
         velocity_residual: final max |G v + g_t| [m/s or rad/s].
         displacement: norm of the configuration change from the given q (tangent space).
+        tolerance: the largest residual accepted [m or rad] (the relative tolerance times the size).
+        size: the mechanism's size L [m] (:func:`mechanism_size`).
     """
 
     q: np.ndarray
@@ -35,10 +49,40 @@ class AssemblyReport:
     residual: float
     velocity_residual: float
     displacement: float
+    tolerance: float
+    size: float
 
     def summary(self) -> AssemblySummary:
         """The figures a run reports (without the state)."""
-        return AssemblySummary(self.iterations, self.residual, self.velocity_residual, self.displacement)
+        return AssemblySummary(
+            self.iterations, self.residual, self.velocity_residual, self.displacement, self.tolerance, self.size
+        )
+
+
+def mechanism_size(model: ConstrainedModel, q: np.ndarray) -> float:
+    """The mechanism's size L [m]: the diagonal of the axis-aligned box holding the world origins of every joint
+    and frame (closure and contact frames included) at configuration q, at least :data:`MIN_SIZE` (a
+    mechanism whose joints all sit at one point). It bounds the length of every loop of the model."""
+    data = new_data(model.model)
+    pin.framesForwardKinematics(model.model, data, q)
+    points = np.array([m.translation for m in (*data.oMi, *data.oMf)])
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflowing offset: refused by the residual check
+        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    return max(diagonal, MIN_SIZE) if np.isfinite(diagonal) else np.inf
+
+
+def accepted_residual(model: ConstrainedModel, q: np.ndarray, tolerance: float | None) -> tuple[float, float, float]:
+    """(relative tolerance [-], size L [m], the residual accepted [m or rad]) of an assembly from q:
+    ``tolerance``, else the scene's ``[assembly] tolerance``, else :data:`DEFAULT_TOLERANCE`.
+
+    Raises:
+        SceneError: a tolerance that is not a number in (0, 1) (negative, zero, NaN, ...).
+    """
+    if tolerance is None:
+        tolerance = model.scene.assembly_tolerance
+    relative = relative_tolerance(DEFAULT_TOLERANCE if tolerance is None else tolerance, "the assembly tolerance")
+    size = mechanism_size(model, q)
+    return relative, size, relative * size
 
 
 @np.errstate(over="ignore", invalid="ignore")  # overflowing rows end in an AssemblyError naming them
@@ -47,18 +91,29 @@ def assemble(
     q: np.ndarray,
     v: np.ndarray,
     t: float = 0.0,
-    tolerance: float = 1e-12,
+    tolerance: float | None = None,
     max_iterations: int = 200,
 ) -> AssemblyReport:
     """Levenberg-Marquardt on phi(q) = 0 with minimum-norm steps (redundancy-safe), then the
     kinetic-metric projection of v onto ``G v + g_t = 0``.
 
+    The iteration aims at rounding (:data:`TARGET`), or stops when it no longer progresses (a loop that cannot
+    close exactly, e.g. offsets off by 2e-11 m out of the plane of a planar loop); the configuration is accepted
+    when its largest residual is at most ``tolerance`` times the mechanism's size L (:func:`mechanism_size` at
+    the given q).
+
+    Args:
+        tolerance: the accepted residual relative to L [-], in (0, 1); None: the scene's
+            ``[assembly] tolerance``, else :data:`DEFAULT_TOLERANCE` (1e-10).
+
     Raises:
-        AssemblyError: the closures cannot be met (the message names the worst closure and its
-            residual), e.g. link lengths that cannot close.
+        AssemblyError: the closures cannot be met (the message names the worst closure, its residual and the
+            tolerance), e.g. link lengths that cannot close.
+        SceneError: a tolerance that is not a number in (0, 1).
     """
     q_start = q.copy()
-    threshold = model.position_tolerance(tolerance)
+    relative, size, accepted = accepted_residual(model, q, tolerance)
+    threshold = min(model.position_tolerance(TARGET), accepted)
     mask = model.constraints.holonomic_mask
     phi, jac = _residual(model, q, t, mask)
     # Levenberg-Marquardt damping relative to J J^T, so the path (and the point of the manifold it
@@ -84,12 +139,14 @@ def assemble(
             if damping > 1e8:
                 break
     residual = float(np.max(np.abs(phi), initial=0.0))
-    if not residual <= threshold:  # NaN too
+    if not residual <= accepted:  # NaN too
         worst = _worst_constraint(model, phi, mask)
         raise AssemblyError(
             f"assembly failed: the closures cannot be met from the given configuration; residual "
-            f"{residual:.3g} (largest on closure {worst!r}) after {iterations} iterations. Check the link "
-            "lengths and closure offsets, or start from a configuration nearer a closed one.",
+            f"{residual:.3g} m or rad (largest on closure {worst!r}) after {iterations} iterations, above the "
+            f"tolerance {accepted:.3g} (relative tolerance {relative:g} times the mechanism's size {size:.3g} m). "
+            "Check the link lengths and closure offsets, start from a configuration nearer a closed one, or accept "
+            "a larger residual (--assembly-tol, [assembly] tolerance, assembly_tol).",
             residual,
         )
     inverse_mass = _inverse_mass(model, q)
@@ -108,7 +165,7 @@ def assemble(
             residual,
         )
     displacement = float(np.linalg.norm(model.difference(q_start, q)))
-    return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement)
+    return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement, accepted, size)
 
 
 def _inverse_mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:

@@ -183,6 +183,14 @@ class ZeroDynamicsWarning(PinstabWarning):
     """The coordinates a servo leaves free (its internal or zero dynamics) ran away during a run."""
 
 
+class PenetrationWarning(PinstabWarning):
+    """A link of the robot and a scene object interpenetrate beyond the tolerance (at the start or during a run)."""
+
+
+class EdgeContactWarning(PinstabWarning):
+    """A fingertip contact sits on an edge or a vertex of its object's geometry, where the normal is not unique."""
+
+
 class UnstableGainsWarning(PinstabWarning):
     """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""
 

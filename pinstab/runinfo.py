@@ -47,12 +47,15 @@ class SolverStatistics:
 @dataclass(frozen=True)
 class AssemblySummary:
     """The assembly of the initial state: LM iterations, residual [m or rad], velocity residual
-    [m/s or rad/s], displacement from the declared configuration (tangent norm)."""
+    [m/s or rad/s], displacement from the declared configuration (tangent norm), the residual accepted
+    (tolerance) [m or rad] and the mechanism's size [m] it is relative to (None in older saved runs)."""
 
     iterations: int
     residual: float
     velocity_residual: float
     displacement: float
+    tolerance: float | None = None
+    size: float | None = None
 
 
 @dataclass

@@ -8,6 +8,7 @@ schema.
 from __future__ import annotations
 
 import copy
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,11 +18,13 @@ import pinocchio as pin
 
 from .actuation import Actuation, read_actuation
 from .constraints import CONSTRAINT_KINDS, Constraint, ConstraintSet
+from .contact.collisions import CollisionCheck, edge_contacts
 from .contact.objects import SceneObject, add_objects, place_objects
-from .errors import SceneError, choices, repeated
+from .errors import PinstabWarning, SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
 from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
+from .readers.base import robot_geometry
 from .registry import Registry
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
@@ -32,6 +35,7 @@ from .validation import (
     check_locked_joints,
     check_model,
     read_scene_file,
+    relative_tolerance,
 )
 
 MAX_GRAVITY = 1e6  # [m/s^2]
@@ -49,6 +53,7 @@ TOP_KEYS = {
     "servos",
     "actuation",
     "initial",
+    "assembly",
 }
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
@@ -76,6 +81,10 @@ class Scene:
         objects: rigid objects added to the robot (free-flyer bodies after its joints).
         actuation: the controls' matrix B, names and limits (``[actuation]``), or None.
         tilt: gravity turning in time (``[tilt]``), or None. robot: the robot as its reader built it.
+        assembly_tolerance: ``[assembly] tolerance``, the residual assembly accepts relative to the mechanism's
+            size [-] (:func:`~pinstab.assembly.assemble`), or None (the default).
+        collisions: the robot-object collision checks of a scene with objects
+            (:mod:`pinstab.contact.collisions`: warned at load, run at a run's samples), or None.
     """
 
     name: str
@@ -97,6 +106,8 @@ class Scene:
     actuation: Actuation | None = None
     tilt: GravityTilt | None = None
     robot: RobotSource | None = None
+    assembly_tolerance: float | None = None
+    collisions: CollisionCheck | None = None
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -243,6 +254,7 @@ def scene_from_dict(
     tables.constraints = {c.name: c for c in constraints}
     forces: list[ForceElement] = _read_kinds(data, "forces", "force", FORCE_KINDS, tables)
     _check_unique([c.name for c in constraints] + [f.name for f in forces])
+    collisions = _collisions(name, model, q0, source_robot, locked_positions, objects, constraints)
     return Scene(
         name=name,
         description=description,
@@ -263,6 +275,8 @@ def scene_from_dict(
         objects=objects,
         actuation=actuation,
         tilt=None if "tilt" not in data else _tilt(data["tilt"], model.gravity.linear),
+        assembly_tolerance=_assembly_tolerance(data.get("assembly")),
+        collisions=collisions,
     )
 
 
@@ -296,6 +310,42 @@ def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
     rate = quantity(value["rate"], "angular-velocity", "tilt.rate")
     start = quantity(value.get("start", 0.0), "angle", "tilt.start")
     return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start)
+
+
+def _collisions(
+    name: str,
+    model: pin.Model,
+    q0: np.ndarray,
+    robot: RobotSource,
+    locked: dict[str, float],
+    objects: list[SceneObject],
+    constraints: list[Constraint],
+) -> CollisionCheck | None:
+    """The robot-object collision checks of a scene with objects, after warning of overlaps and of contacts on
+    edges at the start (:mod:`pinstab.contact.collisions`); None without objects."""
+    if not objects:
+        return None
+    touches = [c.touch for c in constraints if c.touch is not None]
+    try:
+        geometry = robot_geometry(robot, robot.model, locked, pin.GeometryType.COLLISION)
+    except (ValueError, RuntimeError) as exc:
+        warnings.warn(
+            PinstabWarning(f"scene {name}: the robot's collision geometry cannot be loaded ({exc}); not checked"),
+            stacklevel=3,
+        )
+        geometry = pin.GeometryModel()
+    check = CollisionCheck(model, geometry, objects, touches)
+    check.warn_at_start(q0, name)
+    edge_contacts(model, q0, objects, touches, name)
+    return check
+
+
+def _assembly_tolerance(value: Any) -> float | None:
+    """``[assembly] tolerance`` (relative, in (0, 1)), or None when the table is absent."""
+    if value is None:
+        return None
+    check_keys(table(value, "assembly"), {"tolerance"}, "assembly")
+    return None if "tolerance" not in value else relative_tolerance(value["tolerance"], "assembly.tolerance")
 
 
 # -- robot --------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
 from .system import ConstrainedSystem, build_system
 from .trajectory import Trajectory
+from .validation import relative_tolerance
 from .zero_dynamics import warn_runaway
 
 ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
@@ -75,6 +76,7 @@ def simulate(
     atol: float | None = None,
     contacts: str | None = None,
     stop_on: tuple[str, ...] | frozenset[str] = (),
+    assembly_tol: float | None = None,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -119,6 +121,8 @@ def simulate(
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
             ``separation``, a touching contact opens): the trajectory ends at the first such event, with
             ``info.stopped`` saying which.
+        assembly_tol: the closure residual the assembly accepts, relative to the mechanism's size [-] (in (0, 1);
+            default: the scene's ``[assembly] tolerance``, else 1e-10; :func:`~pinstab.assembly.assemble`).
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -140,14 +144,19 @@ def simulate(
         UnstableGainsWarning: gains predicted unstable, before any step (without ``strict``).
         ZeroDynamicsWarning: with servos, a coordinate they leave free ran away (its speed grew more than
             tenfold: :mod:`pinstab.zero_dynamics`); ``trajectory.zero_dynamics`` has the figures.
+        PenetrationWarning: a link of the robot and an object overlap deeper than at the start, beyond the
+            tolerance, at the kept samples (:mod:`pinstab.contact.collisions`).
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     kinds = stop_kinds(stop_on, contacts)
+    if assembly_tol is not None:
+        relative_tolerance(assembly_tol, "assembly_tol")
     if contacts == "stepping":
-        return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
+        return _checked(scene, _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress))
     if contacts is not None:
-        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
+        events = _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
+        return _checked(scene, events)
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
         raise PinstabError(
@@ -173,7 +182,7 @@ def simulate(
         raise PinstabError(f"q0 must have {model.nq} entries and v0 {model.nv}")
     report: AssemblyReport | None = None
     if assemble_initial:
-        report = assemble(model, q, v)
+        report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
     system.bind(grid.dt, integrator, q)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
@@ -196,6 +205,14 @@ def simulate(
     trajectory = _trajectory(loop, system, info, elapsed())
     if system.servo is not None:
         warn_runaway(trajectory.zero_dynamics, scene.name)
+    return _checked(scene, trajectory)
+
+
+def _checked(scene: Scene, trajectory: Trajectory) -> Trajectory:
+    """``trajectory``, after warning of the robot-object overlaps at its kept samples
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`)."""
+    if scene.collisions is not None:
+        scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
     return trajectory
 
 

@@ -174,6 +174,7 @@ class Trajectory:
             "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
             "assembly_iterations": None if assembly is None else assembly.iterations,
             "assembly_residual": None if assembly is None else assembly.residual,
+            "assembly_tolerance": None if assembly is None else assembly.tolerance,
             "correction_iterations_total": self.info.correction_iterations_total,
             "correction_iterations_max": self.info.correction_iterations_max,
             "solver_fallbacks": statistics.fallbacks,

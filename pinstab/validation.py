@@ -163,3 +163,15 @@ def check_configuration(model: pin.Model, q: np.ndarray, where: str) -> None:
                 f"(norm {norm:.6g}; only a norm within {UNIT_TOLERANCE} of 1 is normalized)"
             )
         unit /= norm
+
+
+# -- tolerances ----------------------------------------------------------------------------------
+def relative_tolerance(value: Any, where: str) -> float:
+    """A relative tolerance [-]: a number in (0, 1); SceneError naming ``where`` otherwise (negative, zero, NaN,
+    infinite, at least 1, not a number)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value < 1.0:
+        raise SceneError(
+            f"{where} must be a relative tolerance, a number in (0, 1) such as 1e-10 (a fraction of the mechanism's "
+            f"size), got {value!r}"
+        )
+    return float(value)

@@ -17,8 +17,8 @@ from pinstab.scene import scene_from_dict
     [
         (
             {"robto": {}},
-            r"unknown key 'robto'; valid keys: actuation, closures, contacts, description, forces, generator, "
-            r"gravity, initial, name, objects, robot, servos",
+            r"unknown key 'robto'; valid keys: actuation, assembly, closures, contacts, description, forces, "
+            r"generator, gravity, initial, name, objects, robot, servos",
         ),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (

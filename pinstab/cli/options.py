@@ -53,6 +53,24 @@ def scene_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def assembly_argument(parser: argparse.ArgumentParser) -> None:
+    """``--assembly-tol``: the closure residual the assembly accepts, relative to the mechanism's size."""
+    parser.add_argument(
+        "--assembly-tol",
+        type=float,
+        metavar="TOL",
+        help="closure residual the assembly accepts, relative to the mechanism's size (the diagonal of the box "
+        "holding its joints and frames), in (0, 1) (default: the scene's [assembly] tolerance, else 1e-10)",
+    )
+
+
+def assembly_tolerance(args: argparse.Namespace) -> float | None:
+    """``--assembly-tol`` checked (a SceneError naming the flag when it is not in (0, 1)), or None."""
+    from ..validation import relative_tolerance
+
+    return None if args.assembly_tol is None else relative_tolerance(args.assembly_tol, "--assembly-tol")
+
+
 def add_registry_options(parser: argparse.ArgumentParser, registry: Registry, prefix: str) -> None:
     """One flag per option of the registry's entries (shared by entries with the same option), its
     help naming the entries that take it; only flags given on the command line reach the namespace."""
@@ -152,3 +170,4 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         help="keep a sample every K steps and the last (default: 1, every step)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    assembly_argument(parser)

@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import ContactInfeasibleError, PinstabError
 from .exits import Kept
-from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, given_options, parameters
+from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, parameters
 
 HELD_ONLY = ("method", "integrator", "solver")  # run options that --contacts event has no use for
 
@@ -43,6 +43,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
             record_every=args.record_every,
             contacts=contacts,
             stop_on=tuple(args.stop_on or ()),
+            assembly_tol=assembly_tolerance(args),
             **given_options(args, METHOD_OPTION),
         )
     except ContactInfeasibleError as exc:

@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..contact.collisions import Touch
 from ..contact.cones import FrictionCone
 from ..kinematics import Kinematics
 from ..registry import Registry
@@ -58,6 +59,8 @@ class Constraint(ABC):
         prescribed: a servoconstraint (MATH.md section 5): the controls realize it, its reaction is zero
             (a scene's ``[[servos]]``).
         nv: the velocity dimension the block was written for (a user block declares it), or None: the model's.
+        touch: a fingertip contact's finger and object frames, for the collision checks
+            (:mod:`pinstab.contact.collisions`), or None.
     """
 
     name: str
@@ -70,6 +73,7 @@ class Constraint(ABC):
     force_partners: tuple[str, ...] = ()
     prescribed: bool = False
     nv: int | None = None
+    touch: Touch | None = None
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""

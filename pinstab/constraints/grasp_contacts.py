@@ -26,7 +26,9 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
+from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
 from ..kinematics import Kinematics
 from ..memory import new_data
@@ -74,6 +76,7 @@ class FingertipContact(Constraint):
         self.object_name, self.finger_name = object_name, finger_name
         self.mu, self.torsion, self.radius = mu, torsion, radius
         self.limits = ContactLimits(name, model, mu, torsion, finger_name, object_name)
+        self.touch = Touch(name, finger_frame, object_frame, at_point=True)
         self.components = np.flatnonzero(WRENCH_BASES[model].any(axis=1))  # of (fx, fy, fz, mx, my, mz) in C
         self.rows = len(self.components)
         self.limits_force = model != "rigid"
@@ -161,41 +164,6 @@ class Fingertip(NamedTuple):
     name: str
     radius: float
     item: Any
-
-
-class Nearest(NamedTuple):
-    """The object's shape nearest to a fingertip sphere.
-
-    Attributes:
-        distance: the gap [m] (< 0: overlap). point: the nearest point on the shape (world) [m].
-        normal: unit normal from the fingertip into the object (world). shape: the coal shape.
-        local: its placement in the object frame.
-    """
-
-    distance: float
-    point: np.ndarray
-    normal: np.ndarray
-    shape: coal.CollisionGeometry
-    local: pin.SE3
-
-
-def nearest_shape(sphere: coal.Sphere, centre: np.ndarray, item: Any, object_placement: pin.SE3) -> Nearest:
-    """The nearest of the object's shapes to ``sphere`` centred at ``centre`` (world) [m]."""
-    best = None
-    for shape, local in item.geometries:
-        placed = object_placement * local
-        result = coal.DistanceResult()
-        distance = coal.distance(
-            sphere,
-            coal.Transform3s(np.eye(3), centre),
-            shape,
-            coal.Transform3s(placed.rotation, placed.translation),
-            coal.DistanceRequest(),
-            result,
-        )
-        if best is None or distance < best.distance:
-            best = Nearest(float(distance), np.array(result.getNearestPoint2()), np.array(result.normal), shape, local)
-    return best
 
 
 def close_gap(tables: SceneTables, fingertip: Fingertip, where: str) -> Nearest:

@@ -38,6 +38,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ..contact.collisions import Touch
 from ..contact.models import ContactLimits
 from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
@@ -294,6 +295,7 @@ class RollingTouch(Constraint):
     def __init__(self, name: str, geometry: RollingGeometry, limits: ContactLimits) -> None:
         self.name, self.kind, self.geometry, self.limits = name, "rolling-contact", geometry, limits
         self.force_frame = "contact frame C's z (the inward normal): normal force of finger on object"
+        self.touch = Touch(name, geometry.finger_frame, geometry.object_frame, at_point=False)
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         return np.array([self.geometry.state(kin).gap])

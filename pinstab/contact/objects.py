@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import coal
 import numpy as np
@@ -210,3 +210,38 @@ def place_objects(objects: list[SceneObject], q: np.ndarray, declared: set[str])
     for item in objects:
         if item.name not in declared:
             q[item.idx_q : item.idx_q + 7] = pin.SE3ToXYZQUAT(item.placement)
+
+
+class Nearest(NamedTuple):
+    """The object's shape nearest to a fingertip sphere.
+
+    Attributes:
+        distance: the gap [m] (< 0: overlap). point: the nearest point on the shape (world) [m].
+        normal: unit normal from the fingertip into the object (world). shape: the coal shape.
+        local: its placement in the object frame.
+    """
+
+    distance: float
+    point: np.ndarray
+    normal: np.ndarray
+    shape: coal.CollisionGeometry
+    local: pin.SE3
+
+
+def nearest_shape(sphere: coal.Sphere, centre: np.ndarray, item: Any, object_placement: pin.SE3) -> Nearest:
+    """The nearest of the object's shapes to ``sphere`` centred at ``centre`` (world) [m]."""
+    best = None
+    for shape, local in item.geometries:
+        placed = object_placement * local
+        result = coal.DistanceResult()
+        distance = coal.distance(
+            sphere,
+            coal.Transform3s(np.eye(3), centre),
+            shape,
+            coal.Transform3s(placed.rotation, placed.translation),
+            coal.DistanceRequest(),
+            result,
+        )
+        if best is None or distance < best.distance:
+            best = Nearest(float(distance), np.array(result.getNearestPoint2()), np.array(result.normal), shape, local)
+    return best

@@ -54,6 +54,32 @@ class ReaderOptions:
     free_flyer: bool = False
 
 
+def robot_geometry(
+    robot: RobotSource | None,
+    full: pin.Model,
+    locked: dict[str, float],
+    kind: pin.GeometryType,
+    package_dirs: list[str] | None = None,
+) -> pin.GeometryModel:
+    """The robot's geometry of ``kind`` (visual or collision), built by its reader for the full model (meshes found
+    in ``package_dirs``, default the reader's) and reduced with the joints ``locked`` at their positions [rad or m],
+    so that its joint and frame indices are those of the scene's model; empty when the reader builds none.
+
+    Raises:
+        ValueError, RuntimeError: the reader cannot build it (a mesh missing, ...).
+    """
+    if robot is None or robot.geometry is None:
+        return pin.GeometryModel()
+    geometry = robot.geometry(full, kind, robot.package_dirs if package_dirs is None else package_dirs)
+    if not locked:
+        return geometry
+    reference = pin.neutral(full)
+    for joint, position in locked.items():
+        reference[full.joints[full.getJointId(joint)].idx_q] = position
+    _, reduced = pin.buildReducedModel(full, geometry, [full.getJointId(joint) for joint in locked], reference)
+    return reduced
+
+
 # key of the [robot] table naming the file (``urdf = "arm.urdf"``) -> reader(robot table, options) -> RobotSource;
 # a reader's capabilities are the file suffixes it reads (for ``name`` = an example-robot-data robot)
 READERS: Registry[RobotSource] = Registry("robot format")

@@ -4,12 +4,17 @@ from __future__ import annotations
 
 from typing import Any
 
+import coal
 import pinocchio as pin
 
 from ..errors import SceneError
 from .base import READERS, ReaderOptions, RobotSource
 from .copies import compose_copies, parse_copies
 from .urdf_checks import check_links
+
+# meshes read once per process and file (copies of a robot share them; the collision checks and the viewer reuse
+# them), keyed by file and scale, with the modification time it was read at
+MESHES = coal.CachedMeshLoader()
 
 
 def read_urdf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
@@ -59,8 +64,8 @@ def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, tr
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         if urdf_text is not None:
-            return pin.buildGeomFromUrdfString(full, urdf_text, kind, package_dirs=search)
-        return pin.buildGeomFromUrdf(full, str(urdf_path), kind, package_dirs=search)
+            return pin.buildGeomFromUrdfString(full, urdf_text, kind, package_dirs=search, mesh_loader=MESHES)
+        return pin.buildGeomFromUrdf(full, str(urdf_path), kind, package_dirs=search, mesh_loader=MESHES)
 
     return RobotSource(model, "urdf", urdf_path, urdf_path, urdf_text, package_dirs, geometry=geometry)
 

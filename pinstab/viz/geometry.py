@@ -5,6 +5,7 @@ from __future__ import annotations
 import pinocchio as pin
 
 from ..errors import SceneError
+from ..readers.base import robot_geometry
 from ..scene import Scene
 
 
@@ -26,19 +27,9 @@ def visual_model(scene: Scene) -> pin.GeometryModel:
 def _robot_geometry(scene: Scene) -> pin.GeometryModel:
     """The robot's visuals, reduced like ``scene.model``."""
     full = scene.full_model if scene.full_model is not None else scene.model
-    if scene.robot is None or scene.robot.geometry is None:
-        return pin.GeometryModel()
     try:
-        geometry = scene.robot.geometry(full, pin.GeometryType.VISUAL, scene.package_dirs)
+        return robot_geometry(scene.robot, full, scene.locked_joints, pin.GeometryType.VISUAL, scene.package_dirs)
     except (ValueError, RuntimeError) as exc:
         raise SceneError(
             f"scene {scene.name}: the {scene.robot.format.upper()}'s visual geometry cannot be loaded: {exc}"
         ) from None
-    if not scene.locked_joints:
-        return geometry
-    reference = pin.neutral(full)
-    for joint, position in scene.locked_joints.items():
-        reference[full.joints[full.getJointId(joint)].idx_q] = position
-    locked = [full.getJointId(joint) for joint in scene.locked_joints]
-    _, reduced = pin.buildReducedModel(full, geometry, locked, reference)
-    return reduced

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..options import parameters, scene_arguments
+from ..options import assembly_argument, assembly_tolerance, parameters, scene_arguments
 from .base import Command, register
 
 
@@ -18,7 +18,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
 
     scene = load_scene(args.scene, **parameters(args.param))
     model = ConstrainedModel(scene)
-    report = assemble(model, scene.q0, scene.v0)
+    report = assemble(model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     values = model.constraint_values(report.q, report.v, 0.0)
     rows = model.constraints.rows
     if rows:
@@ -35,6 +35,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         "redundant": rows - rank,
         "mobility": scene.model.nv - rank,
         "assembly_residual": report.residual,
+        "assembly_tolerance": report.tolerance,
+        "mechanism_size": report.size,
         "assembly_iterations": report.iterations,
         "assembly_velocity_residual": report.velocity_residual,
         "constraints": {
@@ -50,7 +52,17 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         "locked_joints": scene.locked_joints,
         "robot_format": scene.robot.format if scene.robot is not None else None,
         "robot_notes": scene.robot.notes if scene.robot is not None else [],
+        "overlaps": [  # robot links inside objects beyond the tolerance, at the assembled start
+            {"link": o.link, "shape": o.shape, "object": o.item, "depth_mm": o.depth * 1e3}
+            for o in ([] if scene.collisions is None else scene.collisions.overlaps(report.q))
+        ],
     }
 
 
-register(Command("check", "assemble a scene and report its constraint structure", scene_arguments, check, order=0))
+def arguments(parser: argparse.ArgumentParser) -> None:
+    """The scene and ``--assembly-tol``."""
+    scene_arguments(parser)
+    assembly_argument(parser)
+
+
+register(Command("check", "assemble a scene and report its constraint structure", arguments, check, order=0))

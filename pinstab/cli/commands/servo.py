@@ -9,7 +9,7 @@ import numpy as np
 
 from ...errors import SceneError
 from ..exits import EXIT_CODES
-from ..options import DEFAULT_METHOD, parameters, run_options, scene_arguments
+from ..options import DEFAULT_METHOD, assembly_tolerance, parameters, run_options, scene_arguments
 from .base import Command, register
 from .run import run
 
@@ -36,7 +36,7 @@ def servo(args: argparse.Namespace) -> dict[str, Any]:
         raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
     if args.check:
         system = build_system(scene, args.method or DEFAULT_METHOD)
-        start = assemble(system.model, scene.q0, scene.v0)
+        start = assemble(system.model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
         evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
         decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
         return {
