@@ -8,6 +8,7 @@ schema.
 from __future__ import annotations
 
 import copy
+import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +55,7 @@ TOP_KEYS = {
     "actuation",
     "initial",
     "assembly",
+    "run",
 }
 INITIAL_KEYS = {"q", "v"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
@@ -83,6 +85,7 @@ class Scene:
         tilt: gravity turning in time (``[tilt]``), or None. robot: the robot as its reader built it.
         assembly_tolerance: ``[assembly] tolerance``, the residual assembly accepts relative to the mechanism's
             size [-] (:func:`~pinstab.assembly.assemble`), or None (the default).
+        step: ``[run] dt``, the scene's time step [s] (what ``simulate`` and ``--dt`` default to), or None (1e-3).
         collisions: the robot-object collision checks of a scene with objects
             (:mod:`pinstab.contact.collisions`: warned at load, run at a run's samples), or None.
     """
@@ -107,6 +110,7 @@ class Scene:
     tilt: GravityTilt | None = None
     robot: RobotSource | None = None
     assembly_tolerance: float | None = None
+    step: float | None = None
     collisions: CollisionCheck | None = None
 
     @property
@@ -276,6 +280,7 @@ def scene_from_dict(
         actuation=actuation,
         tilt=None if "tilt" not in data else _tilt(data["tilt"], model.gravity.linear),
         assembly_tolerance=_assembly_tolerance(data.get("assembly")),
+        step=_run_step(data.get("run")),
         collisions=collisions,
     )
 
@@ -338,6 +343,19 @@ def _collisions(
     check.warn_at_start(q0, name)
     edge_contacts(model, q0, objects, touches, name)
     return check
+
+
+def _run_step(value: Any) -> float | None:
+    """``[run] dt``, the scene's time step [s] (positive, finite; units allowed), or None when not given."""
+    if value is None:
+        return None
+    check_keys(table(value, "run"), {"dt"}, "run")
+    if "dt" not in value:
+        return None
+    step = quantity(value["dt"], "time", "run.dt")
+    if not 0.0 < step < math.inf:
+        raise SceneError(f"run.dt must be a positive time step, e.g. 5e-4 or '0.5 ms', got {value['dt']!r}")
+    return step
 
 
 def _assembly_tolerance(value: Any) -> float | None:

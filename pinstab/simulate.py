@@ -32,6 +32,7 @@ from .trajectory import Trajectory
 from .validation import relative_tolerance
 from .zero_dynamics import warn_runaway
 
+DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
 ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
     "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
     "lower --decay",
@@ -60,7 +61,7 @@ def simulate(
     scene: Scene | str | Path,
     method: str = "baumgarte",
     integrator: str = "rk4",
-    dt: float = 1e-3,
+    dt: float | None = None,
     duration: float = 1.0,
     solver: str | None = None,
     *,
@@ -86,7 +87,8 @@ def simulate(
         method: a registered stabilization method (``none``, ``baumgarte``, ``mukharlyamov``,
             ``projection``, ``post``, ``pinocchio``, or one registered by the user).
         integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``).
-        dt: time step [s]; the last step is shortened so that the run ends at ``duration`` exactly.
+        dt: time step [s] (default: the scene's ``[run] dt``, else :data:`DEFAULT_DT`); the last step is shortened
+            so that the run ends at ``duration`` exactly.
         duration: simulated time [s].
         solver: a registered KKT backend (``proxsuite``, ``pinocchio``, ``dense``); None (default):
             Pinocchio's own algorithm where the scene and the method allow it (the native path,
@@ -149,6 +151,8 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
+    if dt is None:
+        dt = DEFAULT_DT if scene.step is None else scene.step
     kinds = stop_kinds(stop_on, contacts)
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")

@@ -18,8 +18,11 @@ from pinstab.scene import scene_from_dict
         (
             {"robto": {}},
             r"unknown key 'robto'; valid keys: actuation, assembly, closures, contacts, description, forces, "
-            r"generator, gravity, initial, name, objects, robot, servos",
+            r"generator, gravity, initial, name, objects, robot, run, servos",
         ),
+        ({"run": {"dt": "0 ms"}}, r"run.dt must be a positive time step"),
+        ({"run": {"dt": "1 m"}}, r"run.dt: unit 'm' is not a unit of time"),
+        ({"run": {"step": 1e-3}}, r"unknown key 'step'; valid keys: dt"),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (
             {"robot": {"name": "no-such-robot"}},
@@ -120,3 +123,20 @@ def test_repeated_names_are_refused():
     loop = fourbar_dict()["closures"][0]
     with pytest.raises(SceneError, match="repeated: loop"):
         scene_from_dict(fourbar_dict(closures=[loop, dict(loop)]))
+
+
+def test_the_scene_time_step_is_the_default_of_simulate_and_the_cli(capsys):
+    """``[run] dt`` sets the step of simulate() and of ``pinstab run`` when none is given; a given one wins."""
+    import json
+
+    from pinstab import simulate
+    from pinstab.cli import main
+
+    data = fourbar_dict()
+    data["run"] = {"dt": "2 ms"}
+    scene = scene_from_dict(data, base_dir=ROBOTS)
+    assert scene.step == pytest.approx(2e-3, rel=1e-15)
+    assert simulate(scene, duration=0.01).info.dt == pytest.approx(2e-3, rel=1e-15)
+    assert simulate(scene, dt=1e-3, duration=0.01).info.dt == pytest.approx(1e-3, rel=1e-15)
+    assert main(["run", "cassie-legs", "--duration", "0.002", "--json", "--quiet"]) == 0
+    assert json.loads(capsys.readouterr().out)["dt"] == pytest.approx(5e-4, rel=1e-15)

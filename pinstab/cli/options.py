@@ -143,7 +143,9 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         ),
     )
     parser.add_argument(
-        "--dt", type=float, default=1e-3, help="time step [s]; with --rtol the step of the samples (default: 1e-3)"
+        "--dt",
+        type=float,
+        help="time step [s]; with --rtol the step of the samples (default: the scene's [run] dt, else 1e-3)",
     )
     parser.add_argument(
         "--rtol",
