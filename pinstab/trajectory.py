@@ -30,6 +30,10 @@ class SeriesSource(Protocol):
         self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
     ) -> dict[str, Any]: ...
 
+    def force_figures(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> dict[str, Any]: ...
+
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
 
@@ -190,6 +194,7 @@ class Trajectory:
         summary["stopped"] = self.info.stopped
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
+            summary.update(self._series.force_figures(self.t, self.q, self.v, lambda: self.multipliers))
             servo = self.servo_figures
             if servo:
                 names = self.info.controls
