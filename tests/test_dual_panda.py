@@ -56,6 +56,20 @@ def test_the_run_reports_tracking_and_squeeze_within_the_acceptance(carry_run):
     assert summary["max_position_drift"] <= 1e-8
 
 
+def test_the_arms_stay_inside_their_limits(carry_run):
+    """Every arm joint at least 0.5 rad inside its URDF limits (measured: 0.57 rad, joint 6 of both arms, at the
+    start) and every controller torque within its effort limit (largest 24 N m of 87 N m, joint 4)."""
+    scene, trajectory = carry_run
+    model = ConstrainedModel(scene)
+    lower, upper = scene.model.lowerPositionLimit[:14], scene.model.upperPositionLimit[:14]
+    assert np.all(trajectory.q[:, :14] >= lower + 0.5) and np.all(trajectory.q[:, :14] <= upper - 0.5)
+    controller = scene.forces[0]
+    for t, q, v in zip(trajectory.t, trajectory.q, trajectory.v, strict=True):
+        model.kin.update(q, v)
+        torques = controller.generalized_force(model.kin, v, float(t))[controller.hand_columns]
+        assert np.all(np.abs(torques) <= controller.effort_limit)
+
+
 def test_the_box_follows_the_closed_form_path(carry_run):
     """The box's pose from the states against p0 + s(t) move and Rz(s(t) turn) R0 with the quintic s written
     here: 1e-9 m and 1e-9 rad at every sample."""
