@@ -25,6 +25,7 @@ DURATION = 1.0  # of the 5 s path
 SQUEEZE, MASS = 20.0, 2.0  # [N], [kg]
 MOVE, TURN, PATH_TIME = np.array([0.0, 0.05, 0.04]), math.radians(10.0), 5.0
 GRIPS = ("left-grip", "right-grip")
+ARMS = (slice(0, 7), slice(7, 14))  # the arms' velocity indices
 
 
 def carry_scene(**changes):
@@ -41,6 +42,22 @@ def quintic(t: float) -> tuple[float, float]:
     """(s, d2s/dt2 [1/s^2]) of the scene's time law over 5 s from 0."""
     u = t / PATH_TIME
     return 10 * u**3 - 15 * u**4 + 6 * u**5, (60 * u - 180 * u**2 + 120 * u**3) / PATH_TIME**2
+
+
+def test_the_start_posture_puts_the_hands_on_the_box_faces():
+    """At the scene's initial.q (before assembly) each TCP is at the centre of a side face of the box, 0.5 m in
+    front of its arm's base and 0.8 m up, its approach axis horizontal into the box (1e-9 m, 1e-9); the welds'
+    residual is below 1e-9 (measured 1.6e-11: initial.q is rounded to 1e-10 rad); each arm has one joint rate of
+    self-motion (the box's 6 and these 2: mobility 8 = 20 - 12)."""
+    scene = load_scene("dual-panda-box")
+    model = ConstrainedModel(scene)
+    model.kin.update(scene.q0, scene.v0)
+    for side, sign in (("left", -1.0), ("right", 1.0)):
+        tcp = model.kin.placement(scene.model.getFrameId(f"{side}_panda_hand_tcp"))
+        np.testing.assert_allclose(tcp.translation, [0.1 * sign, 0.0, 0.8], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(tcp.rotation[:, 2], [-sign, 0.0, 0.0], rtol=0, atol=1e-9)
+    assert np.abs(model.constraints.residual(model.kin, scene.q0, 0.0)).max() < 1e-9
+    assert [basis.shape[1] for basis in self_motions(scene, scene.q0, scene.v0)] == [1, 1]
 
 
 def test_the_run_reports_tracking_and_squeeze_within_the_acceptance(carry_run):
@@ -119,13 +136,19 @@ def test_the_plan_is_what_the_simulator_solves(carry_run):
     assert_plan_solves_dynamics(scene, trajectory, len(trajectory.t) // 2)
 
 
-def self_motion_speed(scene, trajectory, k: int, arm: slice) -> float:
-    """The speed [rad/s] of one arm's self-motion (its joint rates in the null space of its weld's rows)."""
+def self_motions(scene, q: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
+    """Per arm, an orthonormal basis of its self-motion at (q, v): its joint rates in the null space of its
+    weld's rows."""
     model = ConstrainedModel(scene)
-    model.kin.update(trajectory.q[k], trajectory.v[k])
-    rows = model.constraints.velocity_terms(model.kin, trajectory.q[k], 0.0).jacobian
-    null = null_space(rows[:, arm][np.any(rows[:, arm] != 0.0, axis=1)])
-    return float(np.linalg.norm(null.T @ trajectory.v[k, arm]))
+    model.kin.update(q, v)
+    rows = model.constraints.velocity_terms(model.kin, q, 0.0).jacobian
+    return [null_space(rows[:, arm][np.any(rows[:, arm] != 0.0, axis=1)]) for arm in ARMS]
+
+
+def self_motion_speeds(scene, trajectory, k: int) -> list[float]:
+    """Per arm, the speed [rad/s] of its self-motion at sample k."""
+    bases = self_motions(scene, trajectory.q[k], trajectory.v[k])
+    return [float(np.linalg.norm(basis.T @ trajectory.v[k, arm])) for basis, arm in zip(bases, ARMS, strict=True)]
 
 
 @pytest.mark.parametrize(("gains", "kept"), [({}, (0.0, 1e-3)), ({"posture_kp": 0.0, "posture_kd": 0.0}, (0.99, 1.01))])
@@ -135,19 +158,15 @@ def test_the_posture_pd_stops_the_elbows_self_motion(gains, kept):
     damping: 11 e^-10 = 5e-4; measured 4.1e-4); without it the arms keep swinging at their speed (measured:
     1 - 7e-12 of it), the elbows drifting 0.2 rad in the second."""
     scene = carry_scene(start=10.0, **gains)  # the path starts after the run: the box is held still
-    model = ConstrainedModel(scene)
-    model.kin.update(scene.q0, scene.v0)
-    rows = model.constraints.velocity_terms(model.kin, scene.q0, 0.0).jacobian
     v0 = np.zeros(scene.model.nv)
-    for arm in (slice(0, 7), slice(7, 14)):
-        null = null_space(rows[:, arm][np.any(rows[:, arm] != 0.0, axis=1)])
-        v0[arm] = 0.2 * null[:, 0]
+    for basis, arm in zip(self_motions(scene, scene.q0, scene.v0), ARMS, strict=True):
+        v0[arm] = 0.2 * basis[:, 0]
     trajectory = simulate(scene, duration=1.0, progress=False, v0=v0, record_every=100)
-    for arm in (slice(0, 7), slice(7, 14)):
-        start = self_motion_speed(scene, trajectory, 0, arm)
+    low, high = kept
+    starts, ends = self_motion_speeds(scene, trajectory, 0), self_motion_speeds(scene, trajectory, -1)
+    for start, end in zip(starts, ends, strict=True):
         assert start == pytest.approx(0.2, rel=1e-6)
-        low, high = kept
-        assert low * start <= self_motion_speed(scene, trajectory, -1, arm) <= high * start
+        assert low * start <= end <= high * start
 
 
 @pytest.mark.parametrize(
@@ -156,7 +175,7 @@ def test_the_posture_pd_stops_the_elbows_self_motion(gains, kept):
         ({"closures": ["left-grip"]}, r"force 'carry'.closures must name two weld closures.*left-grip, right-grip"),
         ({"closures": ["left-grip", "elbow"]}, r"closures: 'elbow' is not a weld closure between the object and a"),
         ({"closures": ["left-grip", "left-grip"]}, r"closures must name two weld closures"),
-        ({"margin": "1 N"}, r"force 'carry'.margin does not apply to a grasp welded: it goes with 'contacts'"),
+        ({"margin": "1 N"}, r"'carry'.margin does not apply to a welded grasp \('closures'\): it goes with 'contacts'"),
         ({"contacts": ["tip"]}, r"give 'contacts' \(a grasp on contacts\) or 'closures' \(a welded grasp\), not both"),
         ({"squeeze": "twenty"}, r"force 'carry'.squeeze"),
     ],

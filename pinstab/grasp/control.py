@@ -295,8 +295,8 @@ def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str)
         raise SceneError(f"{where}: give 'contacts' (a grasp on contacts) or 'closures' (a welded grasp), not both")
     for key in WELD_ONLY if not welded else CONTACT_ONLY:
         if key in entry:
-            grasp, other = ("welded", "contacts") if welded else ("on contacts", "closures")
-            raise SceneError(f"{where}.{key} does not apply to a grasp {grasp}: it goes with '{other}'")
+            grasp, other = ("welded grasp ('closures')", "contacts") if welded else ("grasp on contacts", "closures")
+            raise SceneError(f"{where}.{key} does not apply to a {grasp}: it goes with '{other}'")
     if welded:
         item, columns = grasped_object(entry, tables, where)
         welds = welded_grasp(entry, tables, item.joint, where)

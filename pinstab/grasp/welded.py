@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from ..constraints.loops import FrameClosure
 from ..errors import SceneError, choices
@@ -107,7 +108,7 @@ def welded_grasp(entry: dict, tables: SceneTables, object_joint: int, where: str
     return WeldedGrasp(closures, frames, tuple(sides), squeeze)
 
 
-def _object_side(model, closure: FrameClosure, object_joint: int) -> float | None:
+def _object_side(model: pin.Model, closure: FrameClosure, object_joint: int) -> float | None:
     """+1 when the closure's frame a is on the object and frame b on another body (a hand), -1 the other
     way round, None otherwise (the world, both frames on the object, neither)."""
     if closure.frame_b is None:
