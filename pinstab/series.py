@@ -114,7 +114,7 @@ class StateSeries:
         largest: dict[str, float] = {}
         for figures in per_element.values():
             for key, value in figures.items():
-                if key.startswith("max_"):
+                if key.startswith("max_") and isinstance(value, int | float):
                     largest[key] = max(largest.get(key, -math.inf), value)
         return {**largest, "controllers": per_element}
 

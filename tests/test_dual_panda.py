@@ -197,6 +197,15 @@ def test_a_squeeze_on_contacts_and_a_weld_to_the_world_are_refused():
         scene_from_dict(data, base_dir=ROBOTS)
 
 
+def test_a_zero_squeeze_is_held_and_has_no_relative_deviation():
+    """squeeze = 0: the internal force stays zero (1e-9 N, the other components too) and the run reports no
+    relative deviation (there is no set value to divide by)."""
+    summary = simulate(carry_scene(squeeze=0.0), duration=0.02, progress=False).summary()
+    figures = summary["controllers"]["carry"]
+    assert figures["internal_force_set"] == 0.0 and "max_internal_force_deviation_relative" not in figures
+    assert figures["max_internal_force_deviation"] <= 1e-9 and figures["max_other_internal_force"] <= 1e-9
+
+
 def test_the_cli_prints_the_figures(capsys):
     """``pinstab run dual-panda-box`` (text): the tracking and internal-force figures, with the set value."""
     from pinstab.cli import main

@@ -51,6 +51,8 @@ def test_the_ball_follows_the_path_inside_the_cones(lift_run):
     summary = trajectory.summary()
     assert summary["max_position_drift"] <= 1e-8 and summary["max_contact_slip"] <= 1e-8
     assert summary["min_cone_margin"] > 0
+    assert summary["max_object_position_error"] == series.position_error.max()  # the run's own report
+    assert summary["controllers"]["lift"]["max_object_orientation_error"] == series.orientation_error.max()
 
 
 def test_the_plan_is_what_the_simulator_solves(lift_run):

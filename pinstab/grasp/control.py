@@ -111,7 +111,8 @@ class PosePath:
 
 
 class GraspControl(ForceElement):
-    """Object-level computed torque with a cone-keeping internal-force QP (see the module docstring).
+    """Object-level computed torque with a cone-keeping internal-force QP, or for a welded grasp a set squeeze
+    (see the module docstring).
 
     Args:
         name: element name. model: the scene model. contacts: the grasp contact blocks on the object (the
@@ -271,18 +272,21 @@ class GraspControl(ForceElement):
             return figures
         target = self.welds.squeeze
         deviation = max(abs(value - target) for value in squeezes)
-        return {
-            **figures,
-            "internal_force_set": target,
-            "internal_force_range": [min(squeezes), max(squeezes)],
-            "max_internal_force_deviation": deviation,
-            "max_internal_force_deviation_relative": deviation / abs(target) if target else None,
-            "max_other_internal_force": max(others),
-        }
+        figures.update(
+            internal_force_set=target,
+            internal_force_range=[min(squeezes), max(squeezes)],
+            max_internal_force_deviation=deviation,
+            max_other_internal_force=max(others),
+        )
+        if target:  # relative to a set value of zero: none
+            figures["max_internal_force_deviation_relative"] = deviation / abs(target)
+        return figures
 
 
 @FORCE_KINDS.register(
-    "grasp-control", summary="object-level computed torque along a pose path, internal forces kept in the cones"
+    "grasp-control",
+    summary="object-level computed torque along a pose path, internal forces kept in the cones (contacts) or set "
+    "to a squeeze (two welds)",
 )
 def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str) -> GraspControl:
     """Scene table: ``object``, ``contacts``, ``move`` [m], ``turn`` [rad], ``axis``, ``start`` and
