@@ -1,8 +1,8 @@
 """dual-panda-box: two Pandas welded to a box carry it along a path (grasp-control on a welded grasp) with the
-squeeze between the hands set to 20 N. The runs here last 1 s of the scene's 5 s path (a 5 s run takes 17 to
-42 s of wall time on a shared machine, its figures as long again; they are in the README, from ``pinstab run dual-panda-box --duration 5
---json``). Checked against what the controller does not compute: the path's closed form, the box's
-Newton-Euler equation and the null space of the grasp map built from the simulator's constraint rows."""
+squeeze between the hands set to 20 N. The runs here last 1 s of the scene's 5 s path: a 5 s run takes 17 to
+42 s of wall time on a shared machine, its figures as long again; they are in the README, from ``pinstab run
+dual-panda-box --duration 5 --json``. Checked against what the controller does not compute: the path's closed
+form, the box's Newton-Euler equation and the null space of the grasp map built from the simulator's rows."""
 
 from __future__ import annotations
 
