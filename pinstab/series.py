@@ -4,13 +4,14 @@ drift, energy, multipliers and the spectral radius of the deviation dynamics."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
 from .errors import ContactInfeasibleError
+from .forces.base import Sample
 from .system import ConstrainedSystem
 from .zero_dynamics import zero_dynamics_report
 
@@ -120,6 +121,37 @@ class StateSeries:
             figures["max_contact_slip"] = max(slips)
         figures["contacts"] = per_contact
         return figures
+
+    def force_figures(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> dict[str, Any]:
+        """The figures the scene's force elements report on the run (a controller's tracking error and
+        internal force: :meth:`~pinstab.forces.base.ForceElement.run_figures`), per element under
+        ``controllers``, and each ``max_`` figure's largest value over the elements; empty when none reports."""
+        per_element = {}
+        for element in self.system.model.forces:
+            figures = element.run_figures(self._samples(t, q, v, multipliers))
+            if figures:
+                per_element[element.name] = figures
+        if not per_element:
+            return {}
+        largest: dict[str, float] = {}
+        for figures in per_element.values():
+            for key, value in figures.items():
+                if key.startswith("max_") and isinstance(value, int | float):
+                    largest[key] = max(largest.get(key, -math.inf), value)
+        return {**largest, "controllers": per_element}
+
+    def _samples(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> Iterator[Sample]:
+        """The finite samples, the kinematics updated at each; the multipliers computed when first asked for."""
+        model = self.system.model
+        forces = multipliers()
+        slices = model.constraints.slices
+        for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
+            model.kin.update(q[k], v[k])
+            yield Sample(model.kin, v[k], float(t[k]), {name: forces[k, rows] for name, rows in slices.items()})
 
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
         """For a scene with prescribed constraints: per sample the controls u [N m or N] and the largest

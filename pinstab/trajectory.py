@@ -30,6 +30,10 @@ class SeriesSource(Protocol):
         self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
     ) -> dict[str, Any]: ...
 
+    def force_figures(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, multipliers: Callable[[], np.ndarray]
+    ) -> dict[str, Any]: ...
+
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
     def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
@@ -195,6 +199,7 @@ class Trajectory:
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
             summary.update(self._series.energy_balance(self.t, self.q, self.v, self.energy))
+            summary.update(self._series.force_figures(self.t, self.q, self.v, lambda: self.multipliers))
             servo = self.servo_figures
             if servo:
                 names = self.info.controls

@@ -96,3 +96,30 @@ def _register_hypothesis_profiles() -> None:
 
 
 _register_hypothesis_profiles()
+
+
+def bundled_with_force(scene: str, **changes):
+    """The bundled scene ``robots/<scene>.toml`` with keys of its first ``[[forces]]`` table replaced."""
+    import tomllib
+
+    from pinstab.scene import scene_from_dict
+
+    data = tomllib.loads((ROBOTS / f"{scene}.toml").read_text())
+    data["forces"][0].update(changes)
+    return scene_from_dict(data, base_dir=ROBOTS)
+
+
+def assert_plan_solves_dynamics(scene, trajectory, k: int) -> None:
+    """At sample k, the scene's controller (its first force element) plans the accelerations and constraint
+    forces that pinstab's KKT system gives under its torques (dense solver, method none): 1e-8 [m/s^2,
+    rad/s^2, N, N m]."""
+    from pinstab.system import build_system
+
+    q, v, t = trajectory.q[k], trajectory.v[k], float(trajectory.t[k])
+    system = build_system(scene, "none", "dense")
+    evaluation = system.dynamics(q, v, t)
+    kin = system.model.kin
+    kin.update(q, v)
+    _, forces, acceleration = scene.forces[0].plan(kin, v, t)
+    np.testing.assert_allclose(evaluation.acceleration, acceleration, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(evaluation.multipliers, forces, rtol=0, atol=1e-8)

@@ -5,7 +5,6 @@ differences, and why the internal-force QP is there."""
 from __future__ import annotations
 
 import math
-import tomllib
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,21 +12,18 @@ import pinocchio as pin
 import proxsuite
 import pytest
 
-from conftest import ROBOTS
+from conftest import ROBOTS, assert_plan_solves_dynamics, bundled_with_force
 from pinstab import assemble, load_scene, simulate
 from pinstab.errors import ContactInfeasibleError, GraspLostError, SceneError
 from pinstab.grasp import holding
 from pinstab.grasp.report import control_series
-from pinstab.scene import scene_from_dict
 from pinstab.system import build_system
 
 LIFT, TURN = 0.03, math.radians(20.0)
 
 
 def lift_scene(**changes):
-    data = tomllib.loads((ROBOTS / "allegro-lift.toml").read_text())
-    data["forces"][0].update(changes)
-    return scene_from_dict(data, base_dir=ROBOTS)
+    return bundled_with_force("allegro-lift", **changes)
 
 
 @pytest.fixture(scope="module")
@@ -55,21 +51,15 @@ def test_the_ball_follows_the_path_inside_the_cones(lift_run):
     summary = trajectory.summary()
     assert summary["max_position_drift"] <= 1e-8 and summary["max_contact_slip"] <= 1e-8
     assert summary["min_cone_margin"] > 0
+    assert summary["max_object_position_error"] == series.position_error.max()  # the run's own report
+    assert summary["controllers"]["lift"]["max_object_orientation_error"] == series.orientation_error.max()
 
 
 def test_the_plan_is_what_the_simulator_solves(lift_run):
     """Mid-motion, the controller's planned accelerations and contact forces equal the solution of
     pinstab's KKT system under its torques (dense solver, method none): 1e-8 [m/s^2, rad/s^2, N]."""
     scene, trajectory = lift_run
-    k = int(np.searchsorted(trajectory.t, 1.0))
-    q, v, t = trajectory.q[k], trajectory.v[k], float(trajectory.t[k])
-    system = build_system(scene, "none", "dense")
-    evaluation = system.dynamics(q, v, t)
-    kin = system.model.kin
-    kin.update(q, v)
-    _, forces, acceleration = scene.forces[0].plan(kin, v, t)
-    np.testing.assert_allclose(evaluation.acceleration, acceleration, rtol=0, atol=1e-8)
-    np.testing.assert_allclose(evaluation.multipliers, forces, rtol=0, atol=1e-8)
+    assert_plan_solves_dynamics(scene, trajectory, int(np.searchsorted(trajectory.t, 1.0)))
 
 
 class RecordingQP:

@@ -3,11 +3,28 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..kinematics import Kinematics
 from ..registry import Registry
+
+
+class Sample(NamedTuple):
+    """One recorded sample of a run, as :meth:`ForceElement.run_figures` reads it.
+
+    Attributes:
+        kin: kinematics updated (placements, Jacobians, velocities) at the sample's state. v: its velocity.
+        t: its time [s]. multipliers: the constraint multipliers by block name [N, N m] (NaN where the
+            run's dynamics had no solution).
+    """
+
+    kin: Kinematics
+    v: np.ndarray
+    t: float
+    multipliers: dict[str, np.ndarray]
 
 
 class ForceElement(ABC):
@@ -34,6 +51,11 @@ class ForceElement(ABC):
         """Power [W] of the element's non-conservative part, ``tau . v + dV/dt`` (V: :meth:`potential_energy`);
         all of ``tau . v`` for an element that stores none. Needs placements and Jacobians current."""
         return float(self.generalized_force(kin, v, t) @ v)
+
+    def run_figures(self, samples: Iterator[Sample]) -> dict[str, Any]:
+        """The figures this element reports on a run (``pinstab run``), read from the run's samples (a
+        controller's tracking error, say); none by default, without reading the samples."""
+        return {}
 
 
 FORCE_KINDS: Registry[ForceElement] = Registry("force kind")

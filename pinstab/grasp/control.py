@@ -18,10 +18,20 @@ from ``start`` [s]. Per state:
 With ``internal_forces = false`` step 3 takes the smallest forces that move the object (no internal
 force, no cone): under gravity a side grasp then needs a contact to pull or slide, and the run stops
 with :class:`~pinstab.errors.GraspLostError` naming it — which is why the QP is there.
+
+A welded grasp (``closures``: two ``weld`` closures between the object and two hands, in place of
+``contacts``) has no cones: step 3 takes the smallest forces that move the object plus the internal force
+``squeeze`` [N] between the two hands, set exactly (:mod:`pinstab.grasp.welded`); the posture PD of step 2
+then steers the arms' self-motion (the joint rates the welds leave free) back to the start posture.
+
+A run reports the object's largest position and orientation errors against the path, and for a welded
+grasp the internal force measured from the closures' multipliers against its set value
+(:meth:`GraspControl.run_figures`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,11 +40,12 @@ import pinocchio as pin
 
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import ContactInfeasibleError, SceneError
-from ..forces.base import FORCE_KINDS, ForceElement
+from ..forces.base import FORCE_KINDS, ForceElement, Sample
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .hold import contact_rows, grasped_contacts, hand_columns
+from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
 from .holding import cone_columns, pyramid_rows, solve_qp
+from .welded import WeldedGrasp, welded_grasp
 
 CONTROL_KEYS = {
     "name",
@@ -53,7 +64,11 @@ CONTROL_KEYS = {
     "margin",
     "facets",
     "internal_forces",
+    "closures",
+    "squeeze",
 }
+CONTACT_ONLY = ("margin", "facets", "internal_forces")  # the cones of a grasp on contacts
+WELD_ONLY = ("squeeze",)  # the internal force of a welded grasp
 
 
 @dataclass(frozen=True)
@@ -96,14 +111,17 @@ class PosePath:
 
 
 class GraspControl(ForceElement):
-    """Object-level computed torque with a cone-keeping internal-force QP (see the module docstring).
+    """Object-level computed torque with a cone-keeping internal-force QP, or for a welded grasp a set squeeze
+    (see the module docstring).
 
     Args:
-        name: element name. model: the scene model. contacts: the grasp contact blocks on the object.
+        name: element name. model: the scene model. contacts: the grasp contact blocks on the object (the
+            two weld closures of a welded grasp).
         object_frame: the object's body frame. object_columns: its velocity indices. path: the pose path.
         gains: (kp [1/s^2], kd [1/s], posture_kp [1/s^2], posture_kd [1/s]).
         margin: cone margin [N]. facets: sides of the linearized cones. internal_forces: run the QP.
         q_start: the posture the hand's null space is pulled back to.
+        welds: the welded grasp (``contacts`` its closures; no cones), or None for a grasp on contacts.
     """
 
     def __init__(
@@ -119,6 +137,7 @@ class GraspControl(ForceElement):
         facets: int,
         internal_forces: bool,
         q_start: np.ndarray,
+        welds: WeldedGrasp | None = None,
     ) -> None:
         self.name, self.model, self.contacts = name, model, contacts
         self.object_frame, self.object_columns, self.path = object_frame, object_columns, path
@@ -128,7 +147,8 @@ class GraspControl(ForceElement):
         self.q_start = q_start.copy()
         limits = np.asarray(model.effortLimit, dtype=float)[self.hand_columns]
         self.effort_limit = np.where((limits > 0) & (limits < 1e30), limits, np.inf)
-        self.cone_rows, self.cone_bounds = self._cone_constraints(facets)
+        self.welds = welds
+        self.cone_rows, self.cone_bounds = self._cone_constraints(facets) if welds is None else (None, None)
 
     # -- pieces ----------------------------------------------------------------------------------------
     def _cone_constraints(self, facets: int) -> tuple[np.ndarray, np.ndarray]:
@@ -196,7 +216,9 @@ class GraspControl(ForceElement):
         needed = kin.mass_matrix @ acceleration + kin.bias  # M a + h
         carrier, wrench = rows[:, self.object_columns].T, needed[self.object_columns]
         hand_rows, demand = rows[:, self.hand_columns], needed[self.hand_columns]
-        if self.internal_forces:
+        if self.welds is not None:
+            forces = self.welds.forces(kin, carrier, wrench)
+        elif self.internal_forces:
             forces, solved, info = self._internal_force_qp(carrier, wrench, hand_rows, demand)
             if not solved:
                 raise ContactInfeasibleError(
@@ -223,16 +245,69 @@ class GraspControl(ForceElement):
             float(np.linalg.norm(pin.log3(pose.rotation.T @ placement.rotation))),
         )
 
+    def run_figures(self, samples: Iterator[Sample]) -> dict[str, Any]:
+        """Over a run's samples: the object's largest position error [m] and orientation error [rad] against
+        the path; for a welded grasp the squeeze's set value, range and largest deviation [N] (and relative
+        to the set value) and the largest other internal force [N, N m], measured from the closures'
+        multipliers (:meth:`~pinstab.grasp.welded.WeldedGrasp.internal_force`)."""
+        position, orientation, squeezes, others = [], [], [], []
+        for sample in samples:
+            errors = self.tracking_error(sample.kin.placement(self.object_frame), sample.t)
+            position.append(errors[0])
+            orientation.append(errors[1])
+            if self.welds is not None:
+                forces = np.concatenate([sample.multipliers[c.name] for c in self.contacts])
+                if np.all(np.isfinite(forces)):
+                    carrier = contact_rows(self.contacts, sample.kin, sample.t)[:, self.object_columns].T
+                    squeeze, other = self.welds.internal_force(sample.kin, carrier, forces)
+                    squeezes.append(squeeze)
+                    others.append(other)
+        if not position:
+            return {}
+        figures: dict[str, Any] = {
+            "max_object_position_error": max(position),
+            "max_object_orientation_error": max(orientation),
+        }
+        if self.welds is None or not squeezes:
+            return figures
+        target = self.welds.squeeze
+        deviation = max(abs(value - target) for value in squeezes)
+        figures.update(
+            internal_force_set=target,
+            internal_force_range=[min(squeezes), max(squeezes)],
+            max_internal_force_deviation=deviation,
+            max_other_internal_force=max(others),
+        )
+        if target:  # relative to a set value of zero: none
+            figures["max_internal_force_deviation_relative"] = deviation / abs(target)
+        return figures
+
 
 @FORCE_KINDS.register(
-    "grasp-control", summary="object-level computed torque along a pose path, internal forces kept in the cones"
+    "grasp-control",
+    summary="object-level computed torque along a pose path, internal forces kept in the cones (contacts) or set "
+    "to a squeeze (two welds)",
 )
 def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str) -> GraspControl:
     """Scene table: ``object``, ``contacts``, ``move`` [m], ``turn`` [rad], ``axis``, ``start`` and
     ``duration`` [s], ``kp`` [1/s^2], ``kd`` [1/s], ``posture_kp``, ``posture_kd``, ``margin`` [N],
-    ``facets``, ``internal_forces`` (true)."""
+    ``facets``, ``internal_forces`` (true); for a welded grasp ``closures`` (two welds) and ``squeeze`` [N]
+    in place of ``contacts``, ``margin``, ``facets`` and ``internal_forces``."""
     tables.check_keys(entry, CONTROL_KEYS, where)
-    item, contacts, columns = grasped_contacts(entry, tables, where)
+    welded = "closures" in entry
+    if welded and "contacts" in entry:
+        raise SceneError(f"{where}: give 'contacts' (a grasp on contacts) or 'closures' (a welded grasp), not both")
+    for key in WELD_ONLY if not welded else CONTACT_ONLY:
+        if key in entry:
+            grasp, other = ("welded grasp ('closures')", "contacts") if welded else ("grasp on contacts", "closures")
+            raise SceneError(f"{where}.{key} does not apply to a {grasp}: it goes with '{other}'")
+    if welded:
+        item, columns = grasped_object(entry, tables, where)
+        welds = welded_grasp(entry, tables, item.joint, where)
+        contacts = list(welds.closures)
+    else:
+        item, contacts, columns = grasped_contacts(entry, tables, where)
+        welds = None
     move = tables.vector(entry.get("move", [0.0, 0.0, 0.0]), 3, f"{where}.move", "length")
     turn = tables.quantity(entry.get("turn", 0.0), "angle", f"{where}.turn")
     axis = tables.vector(entry.get("axis", [0.0, 0.0, 1.0]), 3, f"{where}.axis", None)
@@ -255,7 +330,7 @@ def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str)
         raise SceneError(f"{where}.internal_forces must be true or false, got {internal!r}")
     path = PosePath(tables.initial_placement(item.frame), move, turn, axis / np.linalg.norm(axis), start, duration)
     return GraspControl(
-        name, tables.model, contacts, item.frame, columns, path, gains, margin, facets, internal, tables.q0
+        name, tables.model, contacts, item.frame, columns, path, gains, margin, facets, internal, tables.q0, welds
     )
 
 

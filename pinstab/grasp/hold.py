@@ -184,14 +184,21 @@ def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:
     return np.vstack([c.velocity_terms(kin, kin.q, t).jacobian for c in contacts])
 
 
-def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any, list[Any], np.ndarray]:
-    """(the object ``entry['object']``, the grasp contacts ``entry['contacts']`` on it (default: all of
-    them), the object's velocity indices), each checked and named in errors."""
+def grasped_object(entry: dict, tables: SceneTables, where: str) -> tuple[Any, np.ndarray]:
+    """(the object ``entry['object']``, its velocity indices), checked and named in errors."""
     if not isinstance(entry.get("object"), str) or entry["object"] not in tables.objects:
         raise SceneError(
             f"{where}.object: {entry.get('object')!r} is not an object; objects: {choices(tables.objects)}"
         )
     item = tables.objects[entry["object"]]
+    joint = tables.model.joints[item.joint]
+    return item, np.arange(joint.idx_v, joint.idx_v + joint.nv)
+
+
+def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any, list[Any], np.ndarray]:
+    """(the object ``entry['object']``, the grasp contacts ``entry['contacts']`` on it (default: all of
+    them), the object's velocity indices), each checked and named in errors."""
+    item, columns = grasped_object(entry, tables, where)
     grasp = {c.name: c for c in tables.constraints.values() if getattr(c, "object_name", None) == item.name}
     names = entry.get("contacts", list(grasp))
     if not isinstance(names, list) or not names:
@@ -201,5 +208,4 @@ def grasped_contacts(entry: dict, tables: SceneTables, where: str) -> tuple[Any,
             raise SceneError(
                 f"{where}.contacts: {contact!r} is not a grasp contact on {item.name!r}; contacts: {choices(grasp)}"
             )
-    joint = tables.model.joints[item.joint]
-    return item, [grasp[c] for c in names], np.arange(joint.idx_v, joint.idx_v + joint.nv)
+    return item, [grasp[c] for c in names], columns
