@@ -17,9 +17,9 @@ import pinocchio as pin
 
 from ..errors import SceneError
 from ..kinematics import Kinematics, relative_offset
-from ..tables import WORLD, SceneTables
+from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, VelocityTerms
-from .loops import CLOSURE_KEYS, FrameClosure, plane_basis
+from .loops import CLOSURE_KEYS, FrameClosure, closure_frames, plane_basis
 
 JOINT_CLOSURE_KEYS = CLOSURE_KEYS | {"axis"}
 
@@ -87,12 +87,7 @@ def parse_joint_closure(kind: str):
         axis = tables.vector(entry["axis"], 3, f"{where}.axis", None)
         if np.linalg.norm(axis) < 1e-9:
             raise SceneError(f"{where}.axis must be a non-zero direction, got {axis.tolist()}")
-        frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
-        offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-        if entry.get("frame_b", WORLD) == WORLD:
-            return JointClosure(name, kind, frame_a, None, offset_b, axis)
-        frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")
-        return JointClosure(name, kind, frame_a, frame_b, None, axis)
+        return JointClosure(name, kind, *closure_frames(entry, tables, name, where), axis)
 
     return parse
 

@@ -178,19 +178,24 @@ def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, floa
     raise SceneError(f"{where}: 'plane' must be one of {choices(PLANES)} or a normal vector, got {raw!r}")
 
 
+def closure_frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple[int, int | None, pin.SE3 | None]:
+    """A closure entry's two sides: the operational frame of side a (``frame_a`` at ``offset_a``/``rpy_a``), and
+    side b's frame (None for the world) or, on the world, its placement (``offset_b`` [m], ``rpy_b`` [rad])."""
+    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
+    offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
+    if entry.get("frame_b", WORLD) == WORLD:
+        return frame_a, None, offset_b
+    return frame_a, tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b"), None
+
+
 def parse_closure(kind: str):
     """The scene-table reader of closure kind ``kind``: frames a and b (``world`` by default) with
     offsets [m] and rpy angles [rad]; ``plane`` for ``planar-point``."""
 
     def parse(entry: dict, tables: SceneTables, name: str, where: str) -> FrameClosure:
         tables.check_keys(entry, CLOSURE_KEYS | ({"plane"} if kind == "planar-point" else set()), where)
-        frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
         plane = _plane(entry, kind, where)
-        offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-        if entry.get("frame_b", WORLD) == WORLD:
-            return FrameClosure(name, kind, frame_a, None, offset_b, plane)
-        frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")
-        return FrameClosure(name, kind, frame_a, frame_b, None, plane)
+        return FrameClosure(name, kind, *closure_frames(entry, tables, name, where), plane)
 
     return parse
 
