@@ -162,14 +162,12 @@ def simulate(
         return _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress)
     table = joint_limits(scene.model).limits if limits else []
     if contacts is not None:
-        return _simulate_events(
-            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table
-        )
+        return _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table)
     trajectory = _simulate_held(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
         assemble_initial, record_every, rtol, atol, method_options,
     )  # fmt: skip
-    if not table:
+    if not limits:
         return trajectory
     left = limit_left(trajectory, table)
     if left is None:
@@ -443,7 +441,9 @@ def _contact_system(
             "contacts or point-friction / frictionless grasp contacts (with joint limits, closures too)"
             + (f"; not yet {', '.join(refused)}" if refused else "; it has none")
         )
-    system = build_system(dataclasses.replace(scene, constraints=kept if closures else []), "none")
+    # the modes' dynamics replace the system's accelerations: with closures, off Pinocchio's native path
+    system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense") if closures else None
+    system = system or build_system(dataclasses.replace(scene, constraints=[]), "none")
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
     if closures and kept:

@@ -43,6 +43,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
             record_every=args.record_every,
             contacts=contacts,
             stop_on=tuple(args.stop_on or ()),
+            limits=not args.ignore_limits,
             **given_options(args, METHOD_OPTION),
         )
     except ContactInfeasibleError as exc:

@@ -271,12 +271,18 @@ class EventLoop(AdaptiveLoop):
         i = min(held, key=lambda j: reactions[j])
         return f"{REACTION_ZERO} at {dynamics.limits[i].name}" if reactions[i] <= _force_slack(reactions) else None
 
-    def _limit_impact(self, q: np.ndarray, v: np.ndarray, t: float, reached: list[int], before: list[str]) -> np.ndarray:
+    def _limit_impact(
+        self, q: np.ndarray, v: np.ndarray, t: float, reached: list[int], before: list[str]
+    ) -> np.ndarray:
         """The velocity after the impact of the joint limits ``reached`` (each with its restitution) together with
-        the active ones (e = 0), closures kept; each limit the impulse reaches is recorded (``before`` turns
+        the held and touching ones (e = 0), closures kept; each limit the impulse reaches is recorded (``before`` turns
         ``closing``)."""
         dynamics = self.dynamics
-        restitutions = {i: 0.0 for i, held in enumerate(dynamics.active) if held}
+        restitutions = {
+            i: 0.0
+            for i, limit in enumerate(dynamics.limits)
+            if dynamics.active[i] or limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP
+        }
         restitutions.update({i: dynamics.limits[i].restitution for i in reached})
         result = limit_impact(dynamics, q, v, t, restitutions)
         for i in reached:
@@ -383,11 +389,10 @@ class EventLoop(AdaptiveLoop):
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
 
-
     def _choose(self, q: np.ndarray, v: np.ndarray, t: float, slack: float):
         """The contact modes (:func:`~pinstab.solvers.mode_choice.choose_modes`) with the joint limits that touch
-        (gap within TOUCH_GAP beyond where they count as reached, rate within TOUCH_SPEED) or are held set to the
-        first consistent assignment, held ones first (``dynamics.active`` is left at it).
+        (gap within TOUCH_GAP beyond where they count as reached, rate within TOUCH_SPEED) set to the first
+        consistent assignment, held ones first, the others released (``dynamics.active`` is left at it).
 
         Raises:
             ContactInfeasibleError: no assignment is consistent (naming the limits).
@@ -396,9 +401,9 @@ class EventLoop(AdaptiveLoop):
         candidates = [
             i
             for i, limit in enumerate(dynamics.limits)
-            if dynamics.active[i]
-            or (limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP and abs(limit.speed(v)) <= TOUCH_SPEED)
+            if limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP and abs(limit.speed(v)) <= TOUCH_SPEED
         ]
+        dynamics.active[:] = [False] * len(dynamics.limits)  # a held limit an impact set moving is released
         error: ContactInfeasibleError | None = None
         for assignment in itertools.product((True, False), repeat=len(candidates)):
             for i, held in zip(candidates, assignment, strict=True):

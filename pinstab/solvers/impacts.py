@@ -17,6 +17,7 @@ A joint limit's impact is frictionless and one row: :func:`limit_impact` (equali
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple
 
 import numpy as np
@@ -26,6 +27,8 @@ from .ncp import NcpSolver
 
 
 IMPULSE_SLACK = 1e-12  # relative: a joint limit's impulse below -this (of the largest) would pull
+IMPACT_SPEED = 1e-9  # [rad/s, m/s] a joint limit left approaching slower than this after an impact is at rest
+REST_SPEED = 1e-6  # [rad/s, m/s] a touching joint limit an impact leaves slower than this is held (Zeno cut)
 
 
 class Impact(NamedTuple):
@@ -53,31 +56,56 @@ def impact(
     return Impact(v + solution.mobility @ impulses.ravel(), impulses)
 
 
-def limit_impact(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, restitutions: dict[int, float]) -> Impact:
-    """The impact at (q, v, t) of the joint limits ``restitutions`` names, each with its Newton's e [-] (0 for an
-    active one), the model's bilateral rows kept (their velocity unchanged): ``B dv = d``, ``M dv = B^T P`` with
-    ``d = -(1 + e) u`` on the limits' gap rates u and 0 on the closure rows. A limit whose impulse would pull
-    (below ``-IMPULSE_SLACK``, relative) is left out and the impact solved again. Returns the velocities after it
-    and each limit's impulse (L,) [N m s or N s], zero for the limits left out."""
+def limit_impact(
+    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, restitutions: dict[int, float]
+) -> Impact:
+    """The impact at (q, v, t) of the joint limits ``restitutions`` names (those reached, held or touching), each
+        with its Newton's e [-], the model's bilateral rows kept (their velocity unchanged). The limits S that take an
+        impulse solve ``B dv = d``, ``M dv = B^T P`` with ``d = -(1 + e) u`` on their gap rates u and 0 on the closure
+        rows; S is the largest set (the first in order, from all of them down) whose impulses push (above
+        ``-IMPULSE_SLACK``, relative) and after which the others do not approach their bound (rate above
+        ``-IMPACT_SPEED``): the impact's complementarity problem, solved by enumeration. A limit that S leaves
+    separating slower than ``REST_SPEED`` would be brought back at once, over and over (a Zeno sequence): it is held
+    too, its impulse however small. Returns the velocities after
+        it and each limit's impulse (L,) [N m s or N s], zero for those outside S."""
     terms = dynamics.model.dynamics_terms(q, v, t)
     saved = list(dynamics.active)
-    involved = sorted(restitutions)
+    named = sorted(restitutions)
     try:
-        while True:
-            dynamics.active[:] = [i in involved for i in range(len(dynamics.limits))]
-            jacobian, velocity, _ = dynamics.bilateral_rows(terms, q, v)
-            closures = jacobian.shape[0] - len(involved)
-            change = np.zeros(jacobian.shape[0])
-            change[closures:] = [-(1.0 + restitutions[i]) * velocity[closures + r] for r, i in enumerate(involved)]
-            mobility = np.linalg.solve(terms.mass_matrix, jacobian.T)
-            impulses = np.linalg.lstsq(jacobian @ mobility, change, rcond=1e-12)[0]
-            own = impulses[closures:]
-            worst = int(np.argmin(own)) if own.size else 0
-            if not own.size or own[worst] >= -IMPULSE_SLACK * (1.0 + float(np.max(np.abs(own)))):
-                break
-            involved.pop(worst)
+        for size in range(len(named), 0, -1):
+            for chosen in itertools.combinations(named, size):
+                result = _limit_impulses(dynamics, terms, q, v, chosen, restitutions)
+                if result is None:
+                    continue
+                resting = [
+                    i for i in named if i not in chosen and dynamics.limits[i].speed(result.velocity) < REST_SPEED
+                ]
+                if not resting:
+                    return result
+                forced = tuple(sorted((*chosen, *resting)))  # a Zeno sequence of impacts cut: held
+                return _limit_impulses(dynamics, terms, q, v, forced, restitutions, signed=False)
     finally:
         dynamics.active[:] = saved
+    return Impact(v, np.zeros(len(dynamics.limits)))
+
+
+def _limit_impulses(dynamics: ModeDynamics, terms, q, v, chosen, restitutions, signed: bool = True) -> Impact | None:
+    """The impact of the limits ``chosen`` (see :func:`limit_impact`), or None when it is not consistent (with
+    ``signed``: an impulse that pulls too)."""
+    dynamics.active[:] = [i in chosen for i in range(len(dynamics.limits))]
+    jacobian, velocity, _ = dynamics.bilateral_rows(terms, q, v)
+    closures = jacobian.shape[0] - len(chosen)
+    change = np.zeros(jacobian.shape[0])
+    change[closures:] = [-(1.0 + restitutions[i]) * velocity[closures + r] for r, i in enumerate(chosen)]
+    mobility = np.linalg.solve(terms.mass_matrix, jacobian.T)
+    impulses = np.linalg.lstsq(jacobian @ mobility, change, rcond=1e-12)[0]
+    own = impulses[closures:]
+    if signed and np.min(own) < -IMPULSE_SLACK * (1.0 + float(np.max(np.abs(own)))):
+        return None
+    after = v + mobility @ impulses
+    others = [i for i in restitutions if i not in chosen]
+    if any(dynamics.limits[i].speed(after) < -IMPACT_SPEED for i in others):
+        return None
     limits = np.zeros(len(dynamics.limits))
-    limits[involved] = own
-    return Impact(v + mobility @ impulses, limits)
+    limits[list(chosen)] = own
+    return Impact(after, limits)
