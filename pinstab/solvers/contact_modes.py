@@ -205,9 +205,9 @@ class ModeDynamics:
         return reactions
 
     def bilateral_rows(self, terms, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The bilateral rows at (q, v) (``terms``: :meth:`ConstrainedModel.dynamics_terms` there): their Jacobian B (b, nv),
-        velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2] with Baumgarte's
-        gains (closure rows, then the active limits)."""
+        """The bilateral rows at (q, v) (``terms``: :meth:`ConstrainedModel.dynamics_terms` there): their Jacobian
+        B (b, nv), velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2] with
+        Baumgarte's gains (closure rows, then the active limits)."""
         values = terms.values
         limits = [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
         rows = np.zeros((len(limits), self.model.nv))

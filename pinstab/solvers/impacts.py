@@ -25,7 +25,6 @@ import numpy as np
 from .contact_modes import ModeDynamics, ModeSolution
 from .ncp import NcpSolver
 
-
 IMPULSE_SLACK = 1e-12  # relative: a joint limit's impulse below -this (of the largest) would pull
 IMPACT_SPEED = 1e-9  # [rad/s, m/s] a joint limit left approaching slower than this after an impact is at rest
 REST_SPEED = 1e-6  # [rad/s, m/s] a touching joint limit an impact leaves slower than this is held (Zeno cut)
