@@ -86,7 +86,7 @@ class RunInfo:
             failure``: contacts with no solution, with ``error``, the error's class, and ``message``) and
             ``t`` [s]; None when it ran to the end.
         limits_active_s: with joint limits on, how long each limit was held [s] by name (``panda_joint4
-            upper``), empty when none was reached; None with limits off.
+            upper``), empty when none was reached; None with limits off or a model without limits.
     """
 
     scene: str

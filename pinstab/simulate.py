@@ -134,7 +134,7 @@ def simulate(
             ``integrator`` and ``solver`` unused; ``info.path_reason`` names the first limit left), each limit's
             time held in ``info.limits_active_s`` and its switches in ``info.contact_events``. Event-driven
             contacts take the limits from the start; time-stepping contacts do not handle them. False: limits
-            ignored (``info.limits_active_s`` None).
+            ignored. ``info.limits_active_s`` is None when they are ignored or the model has none.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -167,7 +167,7 @@ def simulate(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
         assemble_initial, record_every, rtol, atol, method_options,
     )  # fmt: skip
-    if not limits:
+    if not table:
         return trajectory
     left = limit_left(trajectory, table)
     if left is None:
