@@ -195,6 +195,11 @@ class UnstableGainsWarning(PinstabWarning):
     """Stabilization gains predicted unstable (rho(R(tau W)) >= 1) at the chosen step and integrator."""
 
 
+class JointLimitsWarning(PinstabWarning):
+    """A run left a joint limit that it could not hold (its scene's constraints are not all closures and
+    event-driven contacts): the run ignores the limits."""
+
+
 class BranchChangeWarning(PinstabWarning):
     """The motion left its branch of the constraint manifold at a singular configuration (its tangent space
     turned by a finite angle at once)."""

@@ -88,6 +88,8 @@ class RunInfo:
             or ``separation``: an event it was asked to stop on, with ``contact`` and ``event``; ``contact
             failure``: contacts with no solution, with ``error``, the error's class, and ``message``) and
             ``t`` [s]; None when it ran to the end.
+        limits_active_s: with joint limits on, how long each limit was held [s] by name (``panda_joint4
+            upper``), empty when none was reached; None with limits off or a model without limits.
     """
 
     scene: str
@@ -115,6 +117,7 @@ class RunInfo:
     error_control: dict[str, Any] | None = None
     contact_events: list[dict[str, Any]] = field(default_factory=list)
     stopped: dict[str, Any] | None = None
+    limits_active_s: dict[str, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

@@ -209,6 +209,7 @@ def scene_from_dict(
     check_keys(robot, ROBOT_KEYS | set(READERS), "robot")
     source_robot = read_robot(robot, base_dir)
     full_model = source_robot.model
+    _ignore_limits(full_model, robot.get("ignore_limits", []))
     for key, entries in source_robot.tables.items():  # the file's closures, relations, springs before the scene's
         data[key] = entries + list_of_tables(data.get(key, []), key)
 
@@ -343,6 +344,22 @@ def _collisions(
     check.warn_at_start(q0, name)
     edge_contacts(model, q0, objects, touches, name)
     return check
+
+
+def _ignore_limits(model: pin.Model, joints: Any) -> None:
+    """``robot.ignore_limits``: the joints whose limits the scene sets aside (their bounds made infinite), or
+    ``true`` for every joint (as ``--ignore-limits`` does for one run)."""
+    where = "robot.ignore_limits"
+    if joints is True:
+        joints = list(model.names[1:])
+    if not isinstance(joints, list):
+        raise SceneError(f"{where} must be a list of joint names or true (every joint), got {joints!r}")
+    lower, upper = model.lowerPositionLimit.copy(), model.upperPositionLimit.copy()
+    for name in joints:
+        joint = model.joints[joint_id(model, name, where)]
+        lower[joint.idx_q : joint.idx_q + joint.nq] = -np.inf
+        upper[joint.idx_q : joint.idx_q + joint.nq] = np.inf
+    model.lowerPositionLimit, model.upperPositionLimit = lower, upper
 
 
 def _run_step(value: Any) -> float | None:

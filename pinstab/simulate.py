@@ -14,12 +14,20 @@ from typing import Any
 import numpy as np
 
 from .assembly import AssemblyReport, assemble
-from .constraints import PointContact
+from .constraints import PointContact, RowKind
+from .constraints.joint_limits import JointLimit, check_start_inside, joint_limits
 from .contact.modes import STOP_KINDS, stop_kind
-from .errors import ContactInfeasibleError, DivergenceError, PinstabError, UnstableGainsError, UnstableGainsWarning
+from .errors import (
+    ContactInfeasibleError,
+    DivergenceError,
+    JointLimitsWarning,
+    PinstabError,
+    UnstableGainsError,
+    UnstableGainsWarning,
+)
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
 from .integration.contact_stepping import ContactStepper
-from .integration.events import EventLoop, RunEnd
+from .integration.events import LIMIT_SLACK, EventLoop, RunEnd
 from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
@@ -78,6 +86,7 @@ def simulate(
     contacts: str | None = None,
     stop_on: tuple[str, ...] | frozenset[str] = (),
     assembly_tol: float | None = None,
+    limits: bool = True,
     **method_options: Any,
 ) -> Trajectory:
     """Simulate a scene.
@@ -125,6 +134,14 @@ def simulate(
             ``info.stopped`` saying which.
         assembly_tol: the closure residual the assembly accepts, relative to the mechanism's size [-] (in (0, 1);
             default: the scene's ``[assembly] tolerance``, else 1e-10; :func:`~pinstab.assembly.assemble`).
+        limits: hold the robot's joint limits (:mod:`pinstab.constraints.joint_limits`) as unilateral rows with
+            impacts. A run whose samples stay inside them is the run without them (the held path; its
+            ``info.limits_active_s`` empty); a run that leaves them is run again from the start by the event path
+            (:mod:`pinstab.integration.events`: error-controlled dop853, the scene's closures held, ``method``,
+            ``integrator`` and ``solver`` unused; ``info.path_reason`` names the first limit left), each limit's
+            time held in ``info.limits_active_s`` and its switches in ``info.contact_events``. Event-driven
+            contacts take the limits from the start; time-stepping contacts do not handle them. False: limits
+            ignored. ``info.limits_active_s`` is None when they are ignored or the model has none.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
@@ -158,9 +175,84 @@ def simulate(
         relative_tolerance(assembly_tol, "assembly_tol")
     if contacts == "stepping":
         return _checked(scene, _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress))
+    table = joint_limits(scene.model).limits if limits else []
+    start = scene.q0 if q0 is None else np.asarray(q0, dtype=float)
+    if table and start.shape == scene.q0.shape:
+        check_start_inside(table, start, scene.name)
     if contacts is not None:
-        events = _simulate_events(scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds)
+        events = _simulate_events(
+            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table
+        )
         return _checked(scene, events)
+    trajectory = _simulate_held(
+        scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
+        assemble_initial, assembly_tol, record_every, rtol, atol, method_options,
+    )  # fmt: skip
+    if not table:
+        return _checked(scene, trajectory)
+    left = limit_left(trajectory, table)
+    if left is None:
+        trajectory.info.limits_active_s = {}
+        return _checked(scene, trajectory)
+    reason = f"joint limits: {left[0].name} left at t = {left[1]:.6g} s on the held path"
+    refused = _not_event_driven(scene)
+    if refused:
+        warnings.warn(
+            JointLimitsWarning(
+                f"scene {scene.name}: {reason}, but its constraints {', '.join(refused)} are not closures or "
+                "event-driven contacts, which the joint limits' event path needs: the run ignores the limits"
+            ),
+            stacklevel=2,
+        )
+        return _checked(scene, trajectory)
+    events = _simulate_events(
+        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason
+    )
+    return _checked(scene, events)
+
+
+def _not_event_driven(scene: Scene) -> list[str]:
+    """The constraints of a scene that the event path cannot take with joint limits (neither event-driven
+    contacts nor equality rows; servo rows)."""
+    names = {g.name for g in plane_geometries(scene.constraints)}
+    return [
+        c.name
+        for c in scene.constraints
+        if c.name not in names and (c.row_kind is not RowKind.EQUALITY or c.prescribed)
+    ]
+
+
+def limit_left(trajectory: Trajectory, limits: list[JointLimit]) -> tuple[JointLimit, float] | None:
+    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None."""
+    first = None
+    for limit in limits:
+        outside = np.flatnonzero(limit.sign * (trajectory.q[:, limit.index_q] - limit.bound) < -LIMIT_SLACK)
+        if outside.size and (first is None or trajectory.t[outside[0]] < first[1]):
+            first = (limit, float(trajectory.t[outside[0]]))
+    return first
+
+
+def _simulate_held(
+    scene: Scene,
+    method: str,
+    integrator: str,
+    dt: float,
+    duration: float,
+    solver: str | None,
+    solver_options: Mapping[str, Any] | None,
+    strict: bool,
+    drift_limit: float,
+    progress: bool,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    assemble_initial: bool,
+    assembly_tol: float | None,
+    record_every: int,
+    rtol: float | None,
+    atol: float | None,
+    method_options: Mapping[str, Any],
+) -> Trajectory:
+    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored."""
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
         raise PinstabError(
@@ -209,7 +301,7 @@ def simulate(
     trajectory = _trajectory(loop, system, info, elapsed())
     if system.servo is not None:
         warn_runaway(trajectory.zero_dynamics, scene.name)
-    return _checked(scene, trajectory)
+    return trajectory
 
 
 def _checked(scene: Scene, trajectory: Trajectory) -> Trajectory:
@@ -300,18 +392,21 @@ def _simulate_events(
     v0: np.ndarray | None,
     progress: bool,
     stop_on: frozenset[str] = frozenset(),
+    limits: list[JointLimit] | None = None,
+    reason: str = "event-driven contacts",
 ) -> Trajectory:
-    """:func:`simulate` with event-driven contacts (``contacts="event"``), ending at the first event of a kind in
-    ``stop_on``."""
+    """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
+    event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``."""
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
-    geometries, system, q, v = _contact_system(scene, q0, v0)
+    limits = limits or []
+    geometries, system, q, v = _contact_system(scene, q0, v0, closures=bool(limits))
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
-    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0, limits)
     system.acceleration = dynamics.acceleration
-    system.path, system.path_reason = "contact-events", "event-driven contacts"
+    system.path, system.path_reason = "contact-events", reason
     stepper = INTEGRATORS.build("dop853", system)
     info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
@@ -328,6 +423,8 @@ def _simulate_events(
             if end.error is not None:
                 raise end.error from None
     trajectory = _trajectory(loop, system, info, elapsed())
+    if limits:
+        info.limits_active_s = loop.limit_times(info.t_end)
     if end is not None:
         event = end.event
         info.stopped = {"reason": stop_kind(event), "t": info.t_end, "contact": event.contact, "event": event.to_dict()}
@@ -360,21 +457,32 @@ def _simulate_stepping(
 
 
 def _contact_system(
-    scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None
+    scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None, closures: bool = False
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
-    """The contacts of a scene whose constraints are all unilateral contacts (:func:`event_contacts`), the system
-    of its bodies without them and the start state."""
+    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them and the
+    start state. Its other constraints must be equality rows kept in the system (assembled at the start) with
+    ``closures`` (joint limits), else there must be none and some contact.
+
+    Raises:
+        PinstabError: a scene whose constraints do not fit (naming them).
+    """
     geometries, others = event_contacts(scene)
-    if not geometries or others:
+    kept = [c for c in scene.constraints if c.name in others]
+    refused = _not_event_driven(scene) if closures else others
+    if (not geometries and not closures) or refused:
         raise PinstabError(
             f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
-            "contacts or point-friction / frictionless grasp contacts"
-            + (f"; not yet {', '.join(others)}" if others else "; it has none")
+            "contacts or point-friction / frictionless grasp contacts (with joint limits, closures too)"
+            + (f"; not yet {', '.join(refused)}" if refused else "; it has none")
         )
-    free = dataclasses.replace(scene, constraints=[])
-    system = build_system(free, "none")
+    # the modes' dynamics replace the system's accelerations: with closures, off Pinocchio's native path
+    system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense") if closures else None
+    system = system or build_system(dataclasses.replace(scene, constraints=[]), "none")
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    if closures and kept:
+        report = assemble(system.model, q, v)
+        q, v = report.q, report.v
     return geometries, system, q, v
 
 

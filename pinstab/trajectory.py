@@ -196,6 +196,8 @@ class Trajectory:
         summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)
         summary["contact_events"] = self.info.contact_events
         summary["stopped"] = self.info.stopped
+        if self.info.limits_active_s is not None:
+            summary["limits_active_s"] = self.info.limits_active_s
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
             summary.update(self._series.energy_balance(self.t, self.q, self.v, self.energy))

@@ -171,5 +171,11 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help="keep a sample every K steps and the last (default: 1, every step)",
     )
+    parser.add_argument(
+        "--ignore-limits",
+        action="store_true",
+        help="ignore the robot's joint limits (default: held as one-sided constraints with impacts; a run that "
+        "reaches one is run by the event path, reported in limits_active_s and the events)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     assembly_argument(parser)

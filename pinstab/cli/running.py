@@ -44,6 +44,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
             contacts=contacts,
             stop_on=tuple(args.stop_on or ()),
             assembly_tol=assembly_tolerance(args),
+            limits=not args.ignore_limits,
             **given_options(args, METHOD_OPTION),
         )
     except ContactInfeasibleError as exc:

@@ -16,16 +16,26 @@ then take the modes of the contact complementarity problem
 (:func:`~pinstab.solvers.mode_choice.choose_modes`). A closing contact whose rebound would fly shorter than
 :data:`ZENO_TIME` [s] takes e = 0: resting contact (a Zeno sequence cut where its remaining flights sum to
 less than that).
+
+Joint limits (:mod:`pinstab.constraints.joint_limits`) are frictionless one-row contacts handled the same
+way: an inactive limit's event function is its gap, an active one's its reaction; a limit reached with an
+approaching joint is an impact (:func:`~pinstab.solvers.impacts.limit_impact`, restitution 0 by default, the
+closures kept), after which every limit that touches (gap and rate at zero) is held or released as the
+assignment allows whose held limits push and whose released ones do not accelerate into their bound (held
+ones first), the contacts' modes chosen for it. A released limit's gap counts from where it was released
+(:data:`LIMIT_SLACK` below it), so that a joint held a rounding beyond its bound does not reach it at once.
 """
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..solvers.contact_modes import ModeDynamics, ModeSolution
-from ..solvers.impacts import impact
+from ..solvers.impacts import impact, limit_impact
 from ..solvers.mode_choice import (
     CONSISTENCY,
     EVENT_SLACK,
@@ -46,6 +56,9 @@ IMPACT_TOLERANCE = 1e-12  # [m/s] ADMM's tolerances on the impact's velocities
 IMPACT_ITERATIONS = 10_000  # ADMM's iteration limit for an impact
 ARMING_SPEED = 10 * SLIP_SPEED  # [m/s] see EventLoop._slip_directions
 ZENO_TIME = 1e-8  # [s] a rebound that would fly shorter than this ends the bouncing: resting contact
+LIMIT_SLACK = 1e-12  # [rad or m] a joint limit is reached this far beyond its bound (or where it was released)
+ACTIVE = "active"  # the mode of a held joint limit (the other: separated)
+LIMIT_REACHED, REACTION_ZERO = "limit reached", "reaction reached zero"
 
 
 class RunEnd(Exception):
@@ -66,9 +79,12 @@ class EventLoop(AdaptiveLoop):
     """:class:`AdaptiveLoop` over a :class:`ModeDynamics` system whose contact modes switch at events.
 
     Attributes:
-        events: the contact events so far (:class:`~pinstab.contact.modes.ContactEvent`).
-        stop_on: the kinds of event (:data:`~pinstab.contact.modes.STOP_KINDS`) that end the run
+        events: the contact and joint-limit events so far (:class:`~pinstab.contact.modes.ContactEvent`; a
+            limit's ``contact`` is its name, ``panda_joint4 upper``, its force (reaction, 0, 0)).
+        stop_on: the kinds of contact event (:data:`~pinstab.contact.modes.STOP_KINDS`) that end the run
             (:class:`RunEnd`), empty by default.
+        active_time: each joint limit's time held so far [s], by name (to the last switch; see
+            :meth:`limit_times`).
     """
 
     def __init__(self, system, stepper, grid, every, drift_limit, warned, control, dynamics: ModeDynamics):
@@ -79,10 +95,16 @@ class EventLoop(AdaptiveLoop):
         self.impacts = NcpSolver(3 * len(dynamics.contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
         self._reference: list[np.ndarray] = []
         self._armed = [True] * len(dynamics.contacts)  # a slip from rest is watched for its end once it is faster
+        self._floors = [-LIMIT_SLACK] * len(dynamics.limits)  # where each released limit counts as reached [rad, m]
+        self._since: dict[int, float] = {}  # the active limits: since when [s]
+        self.active_time = {limit.name: 0.0 for limit in dynamics.limits}
 
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Choose the modes at the start and record them as events (cause ``start``)."""
-        self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(self.dynamics.contacts), force_record=True)
+        """Choose the modes at the start and record them as events (cause ``start``; limits only when held)."""
+        dynamics = self.dynamics
+        self._floors = [min(0.0, limit.gap(q)) - LIMIT_SLACK for limit in dynamics.limits]
+        separated = [Mode.SEPARATED.value] * len(dynamics.limits)
+        self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(dynamics.contacts), True, separated)
 
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
         grid, system = self.grid, self.system
@@ -132,6 +154,7 @@ class EventLoop(AdaptiveLoop):
         contacts, forces = solution.contacts, solution.forces
         values = np.zeros(len(dynamics.contacts))
         slack = _force_slack(forces)
+        limits = self._limit_values(q, solution)
         margin = None
         for i, mode in enumerate(dynamics.modes):
             if mode is Mode.SEPARATED:
@@ -143,7 +166,27 @@ class EventLoop(AdaptiveLoop):
                 if margin is None:
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
-        return values
+        return np.concatenate([values, limits])
+
+    def _limit_values(self, q: np.ndarray, solution: ModeSolution) -> np.ndarray:
+        """Each joint limit's event function: an active one's reaction (beyond the event slack) [N m or N], an
+        inactive one's gap from where it counts as reached [rad or m]."""
+        dynamics = self.dynamics
+        reactions = dynamics.limit_reactions(solution)
+        slack = _force_slack(reactions)
+        return np.array(
+            [
+                reactions[i] + slack if held else limit.gap(q) - self._floors[i]
+                for i, (limit, held) in enumerate(zip(dynamics.limits, dynamics.active, strict=True))
+            ]
+        )
+
+    def limit_times(self, t_end: float) -> dict[str, float]:
+        """How long each joint limit held so far was held up to ``t_end`` [s], by name."""
+        times = dict(self.active_time)
+        for i, since in self._since.items():
+            times[self.dynamics.limits[i].name] += max(0.0, t_end - since)
+        return {name: float(time) for name, time in times.items() if time > 0.0}
 
     def _slip_directions(self, q: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
         """Each contact's slip direction at (q, v); a slip that started from rest is armed (its slip velocity
@@ -169,17 +212,27 @@ class EventLoop(AdaptiveLoop):
         """The switch at an event at (q, v, t): impacts of closing gaps, then the modes; returns the state after."""
         dynamics = self.dynamics
         before = [mode.value for mode in dynamics.modes]
+        limits_before = [ACTIVE if held else Mode.SEPARATED.value for held in dynamics.active]
+        reached = [
+            i
+            for i, limit in enumerate(dynamics.limits)
+            if not dynamics.active[i] and limit.gap(q) <= TOUCH_GAP and limit.speed(v) < -TOUCH_SPEED
+        ]
+        cause = LIMIT_REACHED if reached else self._reaction_zero(q, v, t)
+        if reached:
+            v = self._limit_impact(q, v, t, reached, limits_before)
         contacts = dynamics.kinematics(q, v)
         closing = [
             i
             for i, mode in enumerate(dynamics.modes)
             if mode is Mode.SEPARATED and contacts.gaps[i] <= TOUCH_GAP and contacts.velocities[i, 0] < -TOUCH_SPEED
         ]
-        cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
+        if cause is None:
+            cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
         if closing:
             v = self._impact(q, v, t, closing, before)
-        self._switch(q, v, t, cause, before)
-        self.step_size = None if closing else self.step_size
+        self._switch(q, v, t, cause, before, limits_before=limits_before)
+        self.step_size = None if closing or reached else self.step_size
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, self.system.acceleration(q, v, t, 0), t)
         return q, v
@@ -206,6 +259,45 @@ class EventLoop(AdaptiveLoop):
                     what = "normal force reached zero" if forces[i, 0] <= friction else "friction reached the cone"
                     cause = f"{what} at {name}"
         return cause
+
+    def _reaction_zero(self, q: np.ndarray, v: np.ndarray, t: float) -> str | None:
+        """``reaction reached zero at <limit>`` for the active joint limit whose reaction is smallest when it is
+        on its bound at (q, v, t), else None (the event is a contact's)."""
+        dynamics = self.dynamics
+        reactions = dynamics.limit_reactions(dynamics.solve(q, v, t))
+        held = [i for i, active in enumerate(dynamics.active) if active]
+        if not held:
+            return None
+        i = min(held, key=lambda j: reactions[j])
+        return f"{REACTION_ZERO} at {dynamics.limits[i].name}" if reactions[i] <= _force_slack(reactions) else None
+
+    def _limit_impact(
+        self, q: np.ndarray, v: np.ndarray, t: float, reached: list[int], before: list[str]
+    ) -> np.ndarray:
+        """The velocity after the impact of the joint limits ``reached`` (each with its restitution) together with
+        the held and touching ones (e = 0), closures kept; each limit the impulse reaches is recorded (``before`` turns
+        ``closing``)."""
+        dynamics = self.dynamics
+        restitutions = {
+            i: 0.0
+            for i, limit in enumerate(dynamics.limits)
+            if dynamics.active[i] or limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP
+        }
+        restitutions.update({i: dynamics.limits[i].restitution for i in reached})
+        result = limit_impact(dynamics, q, v, t, restitutions)
+        for i in reached:
+            self.events.append(
+                ContactEvent(
+                    t,
+                    dynamics.limits[i].name,
+                    before[i],
+                    CLOSING,
+                    "impact",
+                    impulse=(float(result.impulses[i]), 0.0, 0.0),
+                )
+            )
+            before[i] = CLOSING
+        return result.velocity
 
     def _impact(self, q: np.ndarray, v: np.ndarray, t: float, closing: list[int], before: list[str]) -> np.ndarray:
         """The velocity after the impact at (q, v, t) of the ``closing`` contacts, each with its restitution (0
@@ -255,13 +347,22 @@ class EventLoop(AdaptiveLoop):
         return 0.0 if gravity > 0.0 and 2.0 * rebound / gravity < ZENO_TIME else restitution
 
     def _switch(
-        self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], force_record: bool = False
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        cause: str,
+        before: list[str],
+        force_record: bool = False,
+        limits_before: list[str] | None = None,
     ):
         dynamics = self.dynamics
+        slack = CONSISTENCY if cause in (START, GAP_CLOSED, LIMIT_REACHED) else EVENT_SLACK
         try:
-            choice = choose_modes(dynamics, q, v, t, CONSISTENCY if cause in (START, GAP_CLOSED) else EVENT_SLACK)
+            choice = self._choose(q, v, t, slack)
         except ContactInfeasibleError as exc:  # no replay: the modes up to here are the run's
             raise RunEnd(t, q, v, error=exc) from None
+        self._limit_events(q, t, cause, limits_before or [], choice.solution)
         first = len(self.events)
         contacts = choice.solution.contacts
         for i, direction in choice.directions.items():
@@ -283,9 +384,77 @@ class EventLoop(AdaptiveLoop):
                     )
                 )
         dynamics.modes[:] = choice.modes
-        stops = [event for event in self.events[first:] if stop_kind(event) in self.stop_on]
+        names = {contact.name for contact in dynamics.contacts}
+        stops = [e for e in self.events[first:] if e.contact in names and stop_kind(e) in self.stop_on]
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
+
+    def _choose(self, q: np.ndarray, v: np.ndarray, t: float, slack: float):
+        """The contact modes (:func:`~pinstab.solvers.mode_choice.choose_modes`) with the joint limits that touch
+        (gap within TOUCH_GAP beyond where they count as reached, rate within TOUCH_SPEED) set to the first
+        consistent assignment, held ones first, the others released (``dynamics.active`` is left at it).
+
+        Raises:
+            ContactInfeasibleError: no assignment is consistent (naming the limits).
+        """
+        dynamics = self.dynamics
+        candidates = [
+            i
+            for i, limit in enumerate(dynamics.limits)
+            if limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP and abs(limit.speed(v)) <= TOUCH_SPEED
+        ]
+        dynamics.active[:] = [False] * len(dynamics.limits)  # a held limit an impact set moving is released
+        error: ContactInfeasibleError | None = None
+        for assignment in itertools.product((True, False), repeat=len(candidates)):
+            for i, held in zip(candidates, assignment, strict=True):
+                dynamics.active[i] = held
+            try:
+                choice = choose_modes(dynamics, q, v, t, slack)
+            except ContactInfeasibleError as exc:
+                error = exc
+                continue
+            if self._limits_consistent(choice.solution, candidates, slack):
+                return choice
+        if error is not None:
+            raise error
+        names = [dynamics.limits[i].name for i in candidates]
+        raise ContactInfeasibleError(
+            f"at t = {t:.9g} s no assignment of the joint limits {', '.join(names)} (held or released) is consistent",
+            names,
+            t,
+        )
+
+    def _limits_consistent(self, solution: ModeSolution, candidates: list[int], slack: float) -> bool:
+        """Whether the held limits among ``candidates`` push and the released ones do not accelerate into their
+        bound in ``solution``."""
+        dynamics = self.dynamics
+        reactions = dynamics.limit_reactions(solution)
+        scale = 1.0 + float(np.max(np.abs(reactions), initial=0.0))
+        reach = CONSISTENCY * (1.0 + float(np.max(np.abs(solution.free))))
+        for i in candidates:
+            limit = dynamics.limits[i]
+            if dynamics.active[i] and reactions[i] < -slack * scale:
+                return False
+            if not dynamics.active[i] and limit.sign * solution.acceleration[limit.index_v] < -reach:
+                return False
+        return True
+
+    def _limit_events(self, q: np.ndarray, t: float, cause: str, before: list[str], solution: ModeSolution) -> None:
+        """Record the joint limits whose mode changed (from ``before``) in ``solution``'s, keep their times held
+        and where a released one counts as reached again."""
+        dynamics = self.dynamics
+        reactions = dynamics.limit_reactions(solution)
+        for i, (old, held) in enumerate(zip(before, dynamics.active, strict=True)):
+            new = ACTIVE if held else Mode.SEPARATED.value
+            limit = dynamics.limits[i]
+            if held and i not in self._since:
+                self._since[i] = t
+            elif not held and i in self._since:
+                self.active_time[limit.name] += t - self._since.pop(i)
+                self._floors[i] = min(0.0, limit.gap(q)) - LIMIT_SLACK
+            if old != new and not (cause == START and not held):
+                event_cause = "impact" if old == CLOSING else cause
+                self.events.append(ContactEvent(t, limit.name, old, new, event_cause, (float(reactions[i]), 0.0, 0.0)))
 
 
 def _force_slack(forces: np.ndarray) -> float:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ..constraints.joint_limits import check_limit_bounds
 from ..errors import SceneError, choices
 from ..registry import load_extensions
 from .base import READERS, ReaderOptions, RobotSource
@@ -15,15 +16,22 @@ from .urdf import read_named
 
 load_extensions(__name__, __path__)
 
-ROBOT_KEYS = {"name", "free_flyer", "locked_joints", "copies"}  # with one key per reader (READERS)
+ROBOT_KEYS = {"name", "free_flyer", "locked_joints", "copies", "ignore_limits"}  # with one key per reader (READERS)
 
 
 def read_robot(robot: dict[str, Any], base_dir: Path) -> RobotSource:
     """The robot of a scene's ``[robot]`` table (exactly one source key), its relative paths read from ``base_dir``.
 
     Raises:
-        SceneError: no source or several, an unknown robot name, a file that cannot be read (named).
+        SceneError: no source or several, an unknown robot name, a file that cannot be read (named), a joint
+            whose lower limit is above its upper one (named).
     """
+    source = _read(robot, base_dir)
+    check_limit_bounds(source.model)
+    return source
+
+
+def _read(robot: dict[str, Any], base_dir: Path) -> RobotSource:
     sources = [key for key in robot if key in READERS or key == "name"]
     if len(sources) != 1:
         given = f"; given: {', '.join(sources)}" if sources else ""

@@ -18,6 +18,13 @@ with the smallest forces (redundant sticking contacts, e.g. a box on four corner
 non-unique and the accelerations unique). Whether the forces can also lie inside every cone is decided by
 :func:`~pinstab.solvers.mode_choice.sticking_margin` (the best margin over the forces that give the same
 motion).
+
+Bilateral rows B, always held, come first: the model's own equality constraints (loop closures: ``G a + gamma
+= -Kd g - Kp phi``) and the joint limits that are active (``sign a_i = -Kd sign v_i - Kp gap``,
+:mod:`pinstab.constraints.joint_limits`). They are eliminated before the contacts: ``free`` and ``mobility``
+are the accelerations without contact forces and their response to them *with* B held (``a = a0 + M^-1 B^T
+lambda``, ``B a = beta``), so that contact modes, forces and impacts see a system whose closures and active
+limits hold; the reactions ``lambda`` (closure rows, then active limits) are affine in the contact forces.
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
 from ..errors import ConstraintError, ContactInfeasibleError
 from ..model import ConstrainedModel
@@ -76,38 +84,60 @@ class ContactKinematics(NamedTuple):
 
 class ModeSolution(NamedTuple):
     """Accelerations [m/s^2, rad/s^2], the contact forces (k, 3) [N, basis], the free accelerations
-    (without contact forces), M^-1 W^T (nv, 3k), and the kinematics they were computed at."""
+    (without contact forces, the bilateral rows held), their response to the contact forces (nv, 3k; M^-1 W^T
+    without bilateral rows), the kinematics they were computed at, and the bilateral rows' reactions (closure
+    rows, then active limits) [N, N m] (empty without bilateral rows)."""
 
     acceleration: np.ndarray
     forces: np.ndarray
     free: np.ndarray
     mobility: np.ndarray
     contacts: ContactKinematics
+    reactions: np.ndarray = np.zeros(0)
+
+
+class Bilateral(NamedTuple):
+    """The bilateral rows' reactions at one state: without contact forces (b,) and per unit contact force
+    (b, 3k) [N, N m per N]."""
+
+    reactions: np.ndarray
+    response: np.ndarray
 
 
 class ModeDynamics:
     """Accelerations of a model whose plane contacts are in given modes.
 
     Args:
-        model: the constrained model (its own constraints are equality rows solved the same way: not
-            supported here yet, the scene's contacts only). contacts: the plane contacts.
-        kp, kd: Baumgarte's gains on the contact rows [1/s^2], [1/s].
+        model: the constrained model; its own constraints (equality rows: loop closures, joint relations) are
+            held as bilateral rows. contacts: the plane contacts.
+        kp, kd: Baumgarte's gains on the contact, closure and limit rows [1/s^2], [1/s].
+        limits: the joint limits (:mod:`pinstab.constraints.joint_limits`), each active (a bilateral row) or not.
 
     Attributes:
         modes: each contact's mode. directions: the slip direction (t1, t2) each sliding contact started
-            in. evaluations: dynamics evaluations so far (states; a state solved in several modes counts once).
+            in. active: whether each limit is held. evaluations: dynamics evaluations so far (states; a state
+            solved in several modes counts once).
     """
 
-    def __init__(self, model: ConstrainedModel, contacts: list[PlaneContactGeometry], kp: float, kd: float) -> None:
+    def __init__(
+        self,
+        model: ConstrainedModel,
+        contacts: list[PlaneContactGeometry],
+        kp: float,
+        kd: float,
+        limits: list[JointLimit] | None = None,
+    ) -> None:
         self.model = model
         self.contacts = contacts
         self.kp, self.kd = kp, kd
+        self.limits = list(limits or [])
+        self.active = [False] * len(self.limits)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
         self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
         self.evaluations = 0
         self._redundant: dict[tuple[Mode, ...], bool] = {}
         self._state: tuple | None = None
-        self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics] | None = None
+        self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None] | None = None
 
     def kinematics(self, q: np.ndarray, v: np.ndarray) -> ContactKinematics:
         """The contacts' gaps, velocities, Jacobians and drifts at (q, v) (a full kinematics pass)."""
@@ -123,10 +153,11 @@ class ModeDynamics:
     def solve(self, q: np.ndarray, v: np.ndarray, t: float, modes: list[Mode] | None = None) -> ModeSolution:
         """The accelerations and contact forces at (q, v, t) with the contacts in ``modes`` (default: theirs)."""
         modes = self.modes if modes is None else modes
-        free, mobility, contacts = self._unforced(q, v, t)
+        free, mobility, contacts, bilateral = self._unforced(q, v, t)
         size = 3 * len(self.contacts)
         if size == 0:
-            return ModeSolution(free, np.zeros((0, 3)), free, mobility, contacts)
+            reactions = np.zeros(0) if bilateral is None else bilateral.reactions
+            return ModeSolution(free, np.zeros((0, 3)), free, mobility, contacts, reactions)
         system, rhs = np.zeros((size, size)), np.zeros(size)
         delassus = contacts.jacobian @ mobility
         reach = contacts.jacobian @ free + contacts.drift  # the contact accelerations without forces
@@ -161,18 +192,60 @@ class ModeDynamics:
                 t,
             )
         acceleration = free + mobility @ forces
-        return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts)
+        reactions = np.zeros(0) if bilateral is None else bilateral.reactions + bilateral.response @ forces
+        return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions)
 
-    def _unforced(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, ContactKinematics]:
-        """The accelerations without contact forces, M^-1 W^T and the contacts at (q, v, t); the last state's are
-        kept, as choosing modes solves one state in many of them (applied forces may cost a QP each)."""
-        key = (t, q.tobytes(), v.tobytes())
+    def limit_reactions(self, solution: ModeSolution) -> np.ndarray:
+        """Each limit's reaction in ``solution`` [N m or N], positive when it pushes away from its bound (zero for
+        the limits not active)."""
+        reactions = np.zeros(len(self.limits))
+        active = [i for i, held in enumerate(self.active) if held]
+        if active:
+            reactions[active] = solution.reactions[solution.reactions.size - len(active) :]
+        return reactions
+
+    def bilateral_rows(self, terms, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The bilateral rows at (q, v) (``terms``: :meth:`ConstrainedModel.dynamics_terms` there): their Jacobian
+        B (b, nv), velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2] with
+        Baumgarte's gains (closure rows, then the active limits)."""
+        values = terms.values
+        limits = [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
+        rows = np.zeros((len(limits), self.model.nv))
+        for r, limit in enumerate(limits):
+            rows[r, limit.index_v] = limit.sign
+        gaps = np.array([limit.gap(q) for limit in limits])
+        jacobian = np.vstack([values.jacobian, rows])
+        velocity = np.concatenate([values.velocity_residual, rows @ v])
+        target = np.concatenate([-values.drift, np.zeros(len(limits))]) - self.kd * velocity
+        target -= self.kp * np.concatenate([values.phi, gaps])
+        return jacobian, velocity, target
+
+    def _unforced(
+        self, q: np.ndarray, v: np.ndarray, t: float
+    ) -> tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None]:
+        """The accelerations without contact forces, their response to them (M^-1 W^T without bilateral rows),
+        the contacts and the bilateral rows' reactions at (q, v, t); the last state's are kept, as choosing modes
+        solves one state in many of them (applied forces may cost a QP each)."""
+        key = (t, q.tobytes(), v.tobytes(), tuple(self.active))
         if key != self._state:
             self.evaluations += 1
             terms = self.model.dynamics_terms(q, v, t)
             contacts = self.kinematics_from_kin(v)
-            solved = np.linalg.solve(terms.mass_matrix, np.column_stack([terms.tau - terms.bias, contacts.jacobian.T]))
-            self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts)
+            columns = [terms.tau - terms.bias, contacts.jacobian.T]
+            if not self.model.constraints.rows and not any(self.active):
+                solved = np.linalg.solve(terms.mass_matrix, np.column_stack(columns))
+                self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts, None)
+                return self._unforced_terms
+            jacobian, _, target = self.bilateral_rows(terms, q, v)
+            solved = np.linalg.solve(terms.mass_matrix, np.column_stack([*columns, jacobian.T]))
+            size = 1 + contacts.jacobian.shape[0]
+            unheld, held = solved[:, :size], solved[:, size:]
+            # B (unheld + held lambda) = (beta, 0): the reactions without contact forces and per unit force
+            rhs = np.column_stack([target, np.zeros((jacobian.shape[0], size - 1))]) - jacobian @ unheld
+            reactions = np.linalg.lstsq(jacobian @ held, rhs, rcond=RANK_TOLERANCE)[0]
+            response = unheld + held @ reactions
+            bilateral = Bilateral(reactions[:, 0], reactions[:, 1:])
+            self._state, self._unforced_terms = key, (response[:, 0], response[:, 1:], contacts, bilateral)
         return self._unforced_terms
 
     def kinematics_from_kin(self, v: np.ndarray) -> ContactKinematics:

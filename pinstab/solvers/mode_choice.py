@@ -151,7 +151,7 @@ def _checked(
     forces, contacts = solution.forces, solution.contacts
     scale = 1.0 + float(np.max(np.abs(forces), initial=0.0))
     accelerations = contacts.jacobian @ solution.acceleration + contacts.drift
-    acceleration_scale = 1.0 + float(np.max(np.abs(contacts.jacobian @ solution.free)))
+    acceleration_scale = 1.0 + float(np.max(np.abs(contacts.jacobian @ solution.free), initial=0.0))
     for i in active:
         mode = modes[i]
         if mode is Mode.SEPARATED:

@@ -1,4 +1,5 @@
-"""``pinstab check``: assemble a scene and report its constraint structure."""
+"""``pinstab check``: assemble a scene and report its constraint structure and its joint limits (each limited
+joint's [lower, upper], and why the others are unlimited)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from .base import Command, register
 
 def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...assembly import assemble
+    from ...constraints.joint_limits import joint_limits
     from ...model import ConstrainedModel
     from ...scene import load_scene
 
@@ -20,6 +22,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     model = ConstrainedModel(scene)
     report = assemble(model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     values = model.constraint_values(report.q, report.v, 0.0)
+    limits = joint_limits(scene.model)
     rows = model.constraints.rows
     if rows:
         singular_values = np.linalg.svd(values.jacobian, compute_uv=False)
@@ -56,6 +59,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
             {"link": o.link, "shape": o.shape, "object": o.item, "depth_mm": o.depth * 1e3}
             for o in ([] if scene.collisions is None else scene.collisions.overlaps(report.q))
         ],
+        "joint_limits": limits.ranges(),
+        "unlimited_joints": limits.unlimited,
     }
 
 
