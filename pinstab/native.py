@@ -144,6 +144,8 @@ class NativeDynamics:
         """How far the last :meth:`acceleration` misses ``G a + gamma0 = -Kp phi - Kd G v``, relative to
         the size of its terms (Euclidean norms): ``|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2)`` [-],
         from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts."""
+        if not self._data_list:  # no closures: nothing to miss
+            return 0.0
         model, data = self.model, self.data
         jac = pin.getConstraintsJacobian(model, data, self.models, self.datas)
         target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes

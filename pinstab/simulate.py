@@ -212,13 +212,14 @@ def simulate(
 
 
 def _not_event_driven(scene: Scene) -> list[str]:
-    """The constraints of a scene that the event path cannot take with joint limits (neither event-driven
-    contacts nor equality rows; servo rows)."""
+    """The constraints of a scene that the event path cannot take with joint limits: those neither event-driven
+    contacts nor holonomic equality rows (servo rows, held contacts, rolling and other Pfaffian rows, which it
+    would hold without their drift correction)."""
     names = {g.name for g in plane_geometries(scene.constraints)}
     return [
         c.name
         for c in scene.constraints
-        if c.name not in names and (c.row_kind is not RowKind.EQUALITY or c.prescribed)
+        if c.name not in names and (c.row_kind is not RowKind.EQUALITY or c.prescribed or not c.holonomic)
     ]
 
 

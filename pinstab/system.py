@@ -129,8 +129,6 @@ class ConstrainedSystem:
         if self._named_solver is not None:
             return self._named_solver
         constraints = self.model.constraints.constraints
-        if not constraints:
-            return "no constraints: nothing for Pinocchio's constrained algorithm to hold"
         reason = unsupported_constraint(constraints, NATIVE_KINDS)
         if reason is not None:
             return reason

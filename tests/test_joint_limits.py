@@ -13,7 +13,7 @@ from scipy.special import ellipk, ellipkinc
 import pinstab
 from pinstab.cli import main
 from pinstab.constraints.joint_limits import joint_limits
-from pinstab.errors import SceneError
+from pinstab.errors import JointLimitsWarning, SceneError
 from pinstab.model import ConstrainedModel
 from pinstab.scene import scene_from_dict
 from pinstab.solvers.contact_modes import ModeDynamics
@@ -192,3 +192,15 @@ def test_a_start_outside_the_limits_is_refused_and_a_scene_may_set_limits_aside(
     for bad, message in (("hinge", "must be a list of joint names or true"), (["elbow"], "unknown joint 'elbow'")):
         with pytest.raises(SceneError, match=message):
             scene_from_dict({**data, "robot": {**data["robot"], "ignore_limits": bad}})
+
+
+def test_a_limit_left_beside_rolling_rows_keeps_the_held_run_with_a_warning():
+    """The event path holds holonomic closures only: a rolling fingertip's Pfaffian rows would lose their drift
+    correction there, so a run leaving a limit beside them keeps its held run (the run without limits), warned."""
+    from test_rolling_contacts import fixed_ball
+
+    scene = scene_from_dict(fixed_ball("point-friction"))
+    with pytest.warns(JointLimitsWarning, match=r"wrist_x lower left at t = 0.78 s.*tip/rolling"):
+        held = pinstab.simulate(scene, "mukharlyamov", "rk4", dt=1e-3, duration=1.0, solver="dense")
+    free = pinstab.simulate(scene, "mukharlyamov", "rk4", dt=1e-3, duration=1.0, solver="dense", limits=False)
+    np.testing.assert_array_equal(held.q, free.q)
