@@ -14,7 +14,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -31,6 +30,7 @@ from ..model import ConstrainedModel
 from ..scene import load_scene
 from ..simulate import MIN_RTOL, simulate
 from ..trajectory import configurations_at
+from .cluster import dask_client, progress
 from .mujoco_peer import run_mujoco
 from .peers import PEER_SCHEMES, native_pinocchio
 from .scipy_peer import SCIPY_PEER, run_scipy
@@ -270,7 +270,7 @@ def sweep(
     duration: float,
     scheduler: str | None = None,
     serial: bool = False,
-    progress: bool = False,
+    show_progress: bool = False,
 ) -> tuple[Reference, list[Result]]:
     """Run every configuration (on Dask unless ``serial``) and return the reference and results.
 
@@ -282,39 +282,20 @@ def sweep(
     reference = reference_motion(scene_name, parameters, duration)
     if serial:
         results = []
-        for config in _bar(configs, progress):
+        for config in progress(configs, show_progress, "bench"):
             results.append(run_config(scene_name, parameters, config, duration, reference))
         return reference, results
-    try:
-        from distributed import Client, LocalCluster, as_completed
-    except ImportError:
-        raise PinstabError("bench sweeps run on Dask: pip install 'pinstab[bench]' (or use --serial)") from None
-    cluster = None
-    try:
-        if scheduler is None:
-            cluster = LocalCluster(
-                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
-            )
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout=30)
-    except (OSError, ValueError) as exc:  # ValueError: an address Dask cannot parse
-        raise PinstabError(
-            f"bench: cannot reach the Dask scheduler {scheduler!r}: {exc} (give tcp://host:port, or --serial)"
-        ) from None
-    try:
+    with dask_client(scheduler, "bench", "pip install 'pinstab[bench]' (or use --serial)") as client:
+        from distributed import as_completed
+
         shared = client.scatter(reference, broadcast=True)
         futures = {
             client.submit(run_config, scene_name, parameters, c, duration, shared, pure=False): i
             for i, c in enumerate(configs)
         }
         results: list[Result | None] = [None] * len(configs)
-        for future in _bar(as_completed(futures), progress, total=len(configs)):
+        for future in progress(as_completed(futures), show_progress, "bench", total=len(configs)):
             results[futures[future]] = future.result()
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
     return reference, results  # type: ignore[return-value]
 
 
@@ -341,14 +322,6 @@ def check_sweep(configs: list[Config], duration: float) -> None:
             f"{duration / finest:.3g} steps, more than the {MAX_RUN_STEPS:.0e} a run takes; use larger steps or a "
             "shorter duration"
         )
-
-
-def _bar(iterable, enabled: bool, total: int | None = None):
-    if not enabled:
-        return iterable
-    from tqdm import tqdm
-
-    return tqdm(iterable, total=total, desc="bench", unit="run", file=sys.stderr, mininterval=0.5)
 
 
 def check_tolerance(tolerance: float) -> None:
