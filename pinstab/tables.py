@@ -17,6 +17,17 @@ WORLD = "world"
 FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
 
 
+def toml_scalar(text: str) -> Any:
+    """``text`` read as a TOML value (``20`` an int, ``0.5`` a float, ``true`` a bool, ``"a"`` a string), else
+    the text itself (``baumgarte``)."""
+    import tomllib
+
+    try:
+        return tomllib.loads(f"x = {text}")["x"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
 def check_keys(table: dict[str, Any], allowed: set[str], where: str) -> None:
     """Refuse a key outside ``allowed``."""
     unknown = sorted(set(table) - allowed)

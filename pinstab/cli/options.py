@@ -12,6 +12,7 @@ from ..registry import Registry, option_fields
 from ..simulate import EVENT_RTOL, MAX_EVENT_CONTACTS
 from ..solvers import SOLVERS
 from ..stabilizers import STABILIZERS
+from ..tables import toml_scalar
 
 DEFAULT_METHOD = "baumgarte"
 CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
@@ -20,8 +21,6 @@ METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse de
 
 def parameters(pairs: list[str]) -> dict[str, Any]:
     """``--param N=20`` -> {"N": 20} (values read as TOML scalars: ints, floats, strings)."""
-    import tomllib
-
     parsed: dict[str, Any] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
@@ -29,10 +28,7 @@ def parameters(pairs: list[str]) -> dict[str, Any]:
             raise SceneError(f"--param expects NAME=VALUE, got {pair!r}")
         if key in parsed:
             raise SceneError(f"--param {key} given twice ({key}={parsed[key]!r} and {pair!r}); give it once")
-        try:
-            parsed[key] = tomllib.loads(f"x = {value}")["x"]
-        except tomllib.TOMLDecodeError:
-            parsed[key] = value
+        parsed[key] = toml_scalar(value)
     return parsed
 
 
