@@ -1,7 +1,7 @@
 """Parameter sweeps: a scene run over the product of grids of its generator parameters and run options, on
 Dask, each finished point appended to a table (:mod:`.sweep_table`) that a re-run resumes.
 
-A point's row holds its grid values, the run's scalar figures (:data:`FIGURES`, :data:`CONTACT_FIGURES`) and
+A point's row holds its grid values, the run's scalar figures (:data:`FIGURES`, :data:`RUN_FIGURES`) and
 ``error``: the message of a point whose run failed (its figures empty), so that one failure does not end the
 sweep.
 """
@@ -11,6 +11,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterator
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +42,7 @@ SIMULATE_OPTIONS: dict[str, type] = {
     "drift_limit": float,
     "record_every": int,
 }  # the keywords of simulate() a sweep sets
-METHOD_OPTIONS = {option.name: option.kind for entry in STABILIZERS.entries() for option in option_fields(entry.options)}
+METHOD_OPTIONS = {field.name: field.kind for entry in STABILIZERS.entries() for field in option_fields(entry.options)}
 RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...: the methods' options
 HELD_ONLY = ("method", "integrator", "solver")  # options that event-driven contacts have no use for
 FIGURES = (
@@ -61,9 +62,8 @@ FIGURES = (
     "min_cone_margin",
     "max_contact_slip",
     "max_servo_error",
-    "path",
 )  # the scalar figures of Trajectory.summary() a row keeps (empty where a run has none)
-CONTACT_FIGURES = ("contact_events", "sliding_s", "held", "stopped")  # from the run's contact events
+RUN_FIGURES = ("path", "contact_events", "sliding_s", "held", "stopped")  # from the run's info and contact events
 
 
 def parse_grid(text: str) -> tuple[str, list[Any]]:
@@ -145,7 +145,7 @@ def _check_option(name: str, value: Any) -> None:
     kind = RUN_OPTIONS[name]
     if name in NAMED_CHOICES:
         if value not in NAMED_CHOICES[name]:
-            raise PinstabError(f"sweep: {name} {value!r} is not one; valid: {choices(NAMED_CHOICES[name])}")
+            raise PinstabError(f"sweep: {name} {value!r} unknown; valid: {choices(NAMED_CHOICES[name])}")
         return
     if kind is float:
         good = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
@@ -177,17 +177,17 @@ def run_point(
         scene = load_scene(scene_name, **{name: value for name, value in values.items() if name in parameters})
         contacts = options.pop("contacts", None) or default_contacts(scene) or "held"
         trajectory = simulate(scene, contacts=None if contacts == "held" else contacts, **options)
-        row.update(run_figures(trajectory.summary()))
+        row.update(run_figures(trajectory.summary()), path=trajectory.info.path)
         row["error"] = ""
     except Exception as exc:  # noqa: BLE001 - a failed point is a row (see the docstring)
-        row.update(dict.fromkeys((*FIGURES, *CONTACT_FIGURES)))
+        row.update(dict.fromkeys((*FIGURES, *RUN_FIGURES)))
         row["error"] = f"{type(exc).__name__}: {exc}"
     return row
 
 
 def run_figures(summary: dict[str, Any]) -> dict[str, Any]:
     """A run's row figures from its summary (:meth:`~pinstab.trajectory.Trajectory.summary`): :data:`FIGURES`
-    (None where the run has none) and :data:`CONTACT_FIGURES`: the number of contact events, ``sliding_s``,
+    (None where the run has none) and :data:`RUN_FIGURES` but ``path``: the number of contact events, ``sliding_s``,
     the time [s] during which some contact slides, ``held``: every contact sticking from the start to the end
     (None without event-driven contacts), ``stopped``: the event a ``stop_on`` run ended at, or ''."""
     figures = {name: summary.get(name) for name in FIGURES}
@@ -217,8 +217,8 @@ def _sliding_time(events: list[dict[str, Any]], t_end: float) -> float:
 
 
 def columns(grids: dict[str, list[Any]]) -> list[str]:
-    """A sweep table's columns: the grid names, :data:`FIGURES`, :data:`CONTACT_FIGURES`, ``error``."""
-    return [*grids, *FIGURES, *CONTACT_FIGURES, "error"]
+    """A sweep table's columns: the grid names, :data:`FIGURES`, :data:`RUN_FIGURES`, ``error``."""
+    return [*grids, *FIGURES, *RUN_FIGURES, "error"]
 
 
 def run_sweep(
@@ -251,19 +251,16 @@ def run_sweep(
     source, names = str(scene.source or scene_name), tuple(scene_parameters(scene))
     points = sweep_points(grids)
     failed = 0
-    with SweepTable(out, columns(grids), len(grids)) as table:
-        pending = [point for point in points if point_key(point.values()) not in table.done]
-        if pending:
-            with dask_client(scheduler, "sweep", "pip install 'pinstab[sweep]'") as client:
-                from distributed import as_completed
-
-                futures = [client.submit(run_point, source, point, fixed, names, pure=False) for point in pending]
-                finished: Iterator = as_completed(futures)
-                skipped = len(points) - len(pending)
-                for future in progress(finished, show_progress, "sweep", total=len(points), initial=skipped):
-                    row = future.result()
-                    failed += bool(row["error"])
-                    table.append(row)
+    table = SweepTable(out, columns(grids), len(grids))
+    pending = [point for point in points if point_key(point.values()) not in table.done]
+    running = dask_client(scheduler, "sweep", "pip install 'pinstab[sweep]'") if pending else nullcontext()
+    with running as client, table:  # the client first: no table is started for a scheduler out of reach
+        futures = [client.submit(run_point, source, point, fixed, names, pure=False) for point in pending]
+        skipped = len(points) - len(pending)
+        for future in progress(_finished(futures), show_progress, "sweep", total=len(points), initial=skipped):
+            row = future.result()
+            failed += bool(row["error"])
+            table.append(row)
     return {
         "scene": scene.name,
         "points": len(points),
@@ -272,3 +269,12 @@ def run_sweep(
         "failed": failed,
         "out": str(out),
     }
+
+
+def _finished(futures: list[Any]) -> Iterator[Any]:
+    """The futures as they finish (none: nothing)."""
+    if not futures:
+        return iter(())
+    from distributed import as_completed
+
+    return as_completed(futures)

@@ -23,8 +23,10 @@ JOURNAL = ".partial.csv"  # appended to a Parquet target's name
 
 
 def point_key(values: Iterable[Any]) -> tuple[str, ...]:
-    """A point's grid values as the text a CSV cell holds (``0.5`` and the cell ``"0.5"`` give one key)."""
-    return tuple("" if value is None else str(value) for value in values)
+    """A point's grid values as text, numbers as floats: ``2``, ``2.0``, the CSV cell ``"2"`` and a Parquet
+    double 2.0 give one key."""
+    cells = (_cell(value) if isinstance(value, str) else value for value in values)
+    return tuple(repr(float(v)) if isinstance(v, int | float) and not isinstance(v, bool) else str(v) for v in cells)
 
 
 def check_table(path: str | Path) -> Path:
