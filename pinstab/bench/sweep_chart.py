@@ -42,7 +42,7 @@ def draw_chart(table: str | Path, x: str, y: str, png: str | Path, color: str | 
             label = None if color is None else f"{color} = {value}"
             ax.scatter([r[x] for r in members], [r[y] for r in members], s=40, label=label)
         if color is not None:
-            ax.legend(fontsize=8)
+            ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     failed = len(rows) - len(ran)
     ax.set_xlabel(x)
     ax.set_ylabel(y)
