@@ -3,6 +3,7 @@ progress bar over finished work."""
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -16,8 +17,8 @@ LOCAL_WORKERS = 2  # processes of the embedded LocalCluster, one thread each
 @contextmanager
 def dask_client(scheduler: str | None, command: str, install: str) -> Iterator[Any]:
     """A ``distributed.Client`` on an embedded LocalCluster (:data:`LOCAL_WORKERS` processes on 127.0.0.1, no
-    dashboard) or on the scheduler at ``scheduler`` (``tcp://host:port``); closed (the cluster too) on every
-    exit path, Ctrl-C included.
+    dashboard, its workers' logs silenced) or on the scheduler at ``scheduler`` (``tcp://host:port``); closed
+    (the cluster too) on every exit path, Ctrl-C included.
 
     Args:
         scheduler: the scheduler's address, or None for the embedded cluster.
@@ -35,7 +36,12 @@ def dask_client(scheduler: str | None, command: str, install: str) -> Iterator[A
     try:
         if scheduler is None:
             cluster = LocalCluster(
-                n_workers=LOCAL_WORKERS, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
+                n_workers=LOCAL_WORKERS,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                host="127.0.0.1",
+                silence_logs=logging.CRITICAL,  # a Ctrl-C or SIGTERM: no worker tracebacks on stderr
             )
             client = Client(cluster)
         else:
