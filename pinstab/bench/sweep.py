@@ -189,7 +189,7 @@ def run_figures(summary: dict[str, Any]) -> dict[str, Any]:
     """A run's row figures from its summary (:meth:`~pinstab.trajectory.Trajectory.summary`): :data:`FIGURES`
     (None where the run has none) and :data:`RUN_FIGURES` but ``path``: the number of contact events, ``sliding_s``,
     the time [s] during which some contact slides, ``held``: every contact sticking from the start to the end
-    (None without event-driven contacts), ``stopped``: the event a ``stop_on`` run ended at, or ''."""
+    (None without event-driven contacts), ``stopped``: why the run ended early (``info.stopped``'s reason), or ''."""
     figures = {name: summary.get(name) for name in FIGURES}
     events = summary.get("contact_events") or []
     stopped = summary.get("stopped") or {}
