@@ -17,8 +17,8 @@ import pytest
 import pinstab.memory
 from pinstab import MemoryBudgetError, SceneError, Trajectory, load_scene, simulate
 from pinstab.cli import main
-from pinstab.memory.limits import memory_sources, tightest
 from pinstab.integration.stepping import CHECK_STEPS, StepLoop
+from pinstab.memory.limits import memory_sources, tightest
 
 ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 GB = 10**9
