@@ -48,7 +48,7 @@ def budget() -> tuple[int, str]:
     """(the budget in force [bytes], where it comes from, for messages)."""
     limit = _limit.get()
     if limit is not None:
-        return limit, "set with --memory-limit (pinstab.memory_limit)"
+        return limit, "set with --memory-limit or pinstab.memory_limit"
     source = tightest()
     return int(DEFAULT_FRACTION * max(source.free, 0)), f"{DEFAULT_FRACTION:.0%} of the {source.describe()}"
 
