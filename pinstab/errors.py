@@ -111,16 +111,31 @@ class ServoInfeasibleError(PinstabError):
 
 
 class MemoryBudgetError(PinstabError):
-    """What a command would allocate exceeds the memory budget (see :mod:`pinstab.memory`).
+    """What a command would allocate exceeds the memory budget, or it ran out of memory (a ``MemoryError``)
+    (see :mod:`pinstab.memory`).
 
     Attributes:
-        estimate: the estimated need [bytes]. limit: the budget [bytes].
+        estimate: the estimated need [bytes] (None after a MemoryError). limit: the budget, or the memory the
+            tightest limit left [bytes]. source: that limit (``MemAvailable``, a cgroup's, ``RLIMIT_AS``, or
+            ``--memory-limit``). needed_by: what needed the memory. trajectory: a run's samples up to the
+            failure (None when no run had started).
     """
 
-    def __init__(self, message: str, estimate: int, limit: int) -> None:
+    def __init__(
+        self,
+        message: str,
+        estimate: int | None,
+        limit: int,
+        source: str = "",
+        needed_by: str = "",
+        trajectory=None,
+    ) -> None:
         super().__init__(message)
         self.estimate = estimate
         self.limit = limit
+        self.source = source
+        self.needed_by = needed_by
+        self.trajectory = trajectory
 
 
 class ProjectionError(PinstabError):

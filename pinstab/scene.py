@@ -24,6 +24,7 @@ from .contact.objects import SceneObject, add_objects, place_objects
 from .errors import PinstabWarning, SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
+from .memory import named_when_exhausted
 from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
 from .readers.base import robot_geometry
 from .registry import Registry
@@ -143,6 +144,7 @@ class Scene:
         return self.model.joints[joint_id(self.model, joint, "joint")].idx_v
 
 
+@named_when_exhausted("loading a scene (load_scene)")
 def load_scene(path_or_name: str | Path, **parameters: Any) -> Scene:
     """Read a scene from a TOML file or a bundled scene name.
 

@@ -28,7 +28,7 @@ from .errors import (
 from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
 from .integration.contact_stepping import ContactStepper
 from .integration.events import LIMIT_SLACK, EventLoop, RunEnd
-from .memory import RUN_DATA_COPIES, data_bytes, require, samples_bytes
+from .memory import RUN_DATA_COPIES, data_bytes, exhausted, named_when_exhausted, require, samples_bytes
 from .runinfo import RunInfo
 from .scene import Scene, load_scene
 from .series import StateSeries
@@ -65,6 +65,7 @@ class Interrupted(KeyboardInterrupt):
         self.trajectory = trajectory
 
 
+@named_when_exhausted("a run (simulate)")
 def simulate(
     scene: Scene | str | Path,
     method: str = "baumgarte",
@@ -317,7 +318,8 @@ def _checked(scene: Scene, trajectory: Trajectory) -> Trajectory:
 def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo) -> Iterator[Callable[[], float]]:
     """Around a run's stepping, yielding its wall time so far [s]: a run that stops early carries the samples it
     kept: a DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
-    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure)."""
+    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a
+    MemoryBudgetError with its ``trajectory``."""
     start = time.perf_counter()
 
     def elapsed() -> float:
@@ -337,6 +339,8 @@ def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo)
         exc.trajectory = _trajectory(loop, system, info, elapsed())
         info.stopped = failure_stop(exc, info.t_end)
         raise
+    except MemoryError as error:
+        raise exhausted(f"the run of scene {info.scene}", error, _trajectory(loop, system, info, elapsed())) from None
 
 
 def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:

@@ -26,6 +26,14 @@ UNITS: dict[str, dict[str, float]] = {
     "angular-velocity": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
 }
 
+# [SI]: the largest stiffness, damping, mass, density, size, inertia or gain a scene may give
+MAX_MAGNITUDE = 1e12
+MAGNITUDE_REASON = (
+    "beyond 1e12 in SI units (a stiffness of 1e12 N/m, a mass of 1e12 kg) a value is past any mechanism's and, "
+    "next to values of order 1, leaves float64 fewer than 4 of its 16 digits; from about 1e154 the dynamics' "
+    "products overflow"
+)
+
 # joint-coordinate dimensions: a revolute coordinate is an angle, a prismatic one a length
 COORDINATE_DIMENSIONS = {"angle", "length"}
 RATE_DIMENSIONS = {"angular-velocity", "velocity"}
@@ -67,6 +75,21 @@ def quantity(value: object, dimension: str, where: str) -> float:
     if not math.isfinite(result):
         raise SceneError(f"{where}: value {value!r} is not finite")
     return result
+
+
+def within_ceiling(value: float, where: str, unit: str, lower: str = "[0") -> float:
+    """``value`` [SI] when at most :data:`MAX_MAGNITUDE`; ``lower`` opens the allowed range in the message
+    (``"[0"``, ``"(0"``: the caller checks the lower end).
+
+    Raises:
+        SceneError: naming ``where``, the value and the allowed range.
+    """
+    if not value <= MAX_MAGNITUDE:
+        raise SceneError(
+            f"{where} = {value:.3g} {unit} is outside the allowed range {lower}, {MAX_MAGNITUDE:.0e}] {unit}: "
+            f"{MAGNITUDE_REASON}"
+        )
+    return value
 
 
 def _allowed_units(dimension: str) -> dict[str, float]:

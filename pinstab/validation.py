@@ -24,6 +24,7 @@ import pinocchio as pin
 from .constraints import Constraint, FrameClosure
 from .errors import SceneError, repeated
 from .tables import WORLD
+from .units import within_ceiling
 
 MAX_SCENE_BYTES = 1_000_000
 MAX_DEPTH = 20
@@ -82,6 +83,7 @@ def check_model(model: pin.Model) -> None:
             "leave a joint out of robot.locked_joints"
         )
     _check_world_frames(model)
+    _check_magnitudes(model)
     _check_moving_mass(model)
 
 
@@ -92,6 +94,15 @@ def _check_world_frames(model: pin.Model) -> None:
                 f"robot: frame {WORLD!r} (on joint {model.names[frame.parentJoint]!r}) shadows pinstab's world "
                 "frame; rename the link"
             )
+
+
+def _check_magnitudes(model: pin.Model) -> None:
+    """Every body's mass [kg] and principal moments of inertia [kg m^2] at most
+    :data:`~pinstab.units.MAX_MAGNITUDE` (whichever reader built the model)."""
+    for joint_id, inertia in enumerate(model.inertias):
+        where = f"robot: the body of joint {model.names[joint_id]!r}"
+        within_ceiling(inertia.mass, f"{where}: mass", "kg")
+        within_ceiling(float(np.abs(inertia.inertia).max()), f"{where}: inertia", "kg m^2")
 
 
 def _check_moving_mass(model: pin.Model) -> None:

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning
-from ..memory import memory_limit
+from ..errors import DivergenceError, MemoryBudgetError, PinstabError, ProjectionError, UnstableGainsWarning
+from ..memory import exhausted, memory_limit
 from .commands import COMMANDS, SIMULATING
 from .exits import (
     EXIT_BAD_INPUT,
@@ -83,7 +83,10 @@ def _dispatch(args: argparse.Namespace) -> int:
         with warnings.catch_warnings(), nullcontext() if limit is None else memory_limit(limit):
             warnings.simplefilter("always", UnstableGainsWarning)
             warnings.showwarning = _show_warning(args.command)
-            result = COMMANDS[args.command].execute(args)
+            try:
+                result = COMMANDS[args.command].execute(args)
+            except MemoryError as error:
+                raise exhausted(f"pinstab {args.command} {getattr(args, 'scene', '')}".rstrip(), error) from None
     except Kept as kept:
         _fail(kept.error, args, kept.result.get("saved"))
         if getattr(args, "json", False):
@@ -92,6 +95,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     except (DivergenceError, ProjectionError) as exc:
         _fail(exc, args, _save_partial(args, getattr(exc, "finite_trajectory", None)))
         return EXIT_DIVERGED
+    except MemoryBudgetError as exc:  # a run that ran out of memory keeps its samples up to then
+        _fail(exc, args, _save_partial(args, exc.trajectory))
+        return EXIT_BAD_INPUT
     except PinstabError as exc:
         _fail(exc, args)
         return EXIT_BAD_INPUT

@@ -24,12 +24,13 @@ import pinocchio as pin
 
 from ..errors import SceneError, choices
 from ..tables import check_keys, list_of_tables, placement, vector
-from ..units import quantity
+from ..units import MAX_MAGNITUDE, quantity, within_ceiling
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}
 URDF_OBJECT_KEYS = {"name", "shape", "urdf", "position", "rpy", "color"}
 DEFAULT_COLOR = (0.85, 0.55, 0.15, 1.0)
+SI_UNITS = {"length": "m", "mass": "kg", "density": "kg/m^3"}
 
 
 @dataclass
@@ -62,7 +63,7 @@ def _positive(entry: dict[str, Any], key: str, dimension: str, where: str) -> fl
     value = quantity(entry[key], dimension, f"{where}.{key}")
     if not value > 0:
         raise SceneError(f"{where}.{key} must be > 0, got {entry[key]!r}")
-    return value
+    return within_ceiling(value, f"{where}.{key}", SI_UNITS[dimension], "(0")
 
 
 @np.errstate(over="ignore")  # sizes too large give an infinite inertia, refused by the caller
@@ -80,6 +81,7 @@ def _shape(entry: dict[str, Any], where: str) -> tuple[coal.CollisionGeometry, f
         size = vector(entry["size"], 3, f"{where}.size", "length")
         if not np.all(size > 0):
             raise SceneError(f"{where}.size must be three lengths > 0, got {entry['size']!r}")
+        within_ceiling(float(size.max()), f"{where}.size", "m", "(0")
         x, y, z = size**2
         return coal.Box(*size), float(np.prod(size)), np.array([y + z, x + z, x + y]) / 12.0
     radius = _positive(entry, "radius", "length", where)
@@ -117,11 +119,12 @@ def _shape_inertia(entry: dict[str, Any], volume: float, unit_inertia: np.ndarra
 
 
 def _inertia(mass: float, matrix: np.ndarray, where: str) -> pin.Inertia:
-    """The body inertia about the object's centre; refused when the mass [kg] or the inertia [kg m^2]
-    overflowed (a size, mass or density too large for floating point)."""
-    if not (math.isfinite(mass) and np.all(np.isfinite(matrix))):
+    """The body inertia about the object's centre; refused when the mass [kg] or the inertia [kg m^2] is
+    beyond :data:`~pinstab.units.MAX_MAGNITUDE` (a size, mass or density too large)."""
+    if not (mass <= MAX_MAGNITUDE and np.all(np.abs(matrix) <= MAX_MAGNITUDE)):
         raise SceneError(
-            f"{where}: its mass ({mass:.3g} kg) or inertia is not finite: the size, mass or density is too large"
+            f"{where}: its mass ({mass:.3g} kg) or inertia (largest moment {np.abs(matrix).max():.3g} kg m^2) is "
+            f"beyond {MAX_MAGNITUDE:.0e}: the size, mass or density is too large"
         )
     return pin.Inertia(mass, np.zeros(3), matrix)
 

@@ -16,6 +16,7 @@ import pinocchio as pin
 from ..errors import SceneError, choices
 from ..kinematics import Kinematics, relative_offset, relative_rotation
 from ..tables import WORLD, SceneTables
+from ..units import within_ceiling
 from .base import FORCE_KINDS, ForceElement
 
 SPRING_KEYS = {"name", "kind", "stiffness", "reference", "damping"}
@@ -106,6 +107,8 @@ def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) 
     for label, value in (("stiffness", stiffness), ("damping", damping)):
         if value < 0:
             raise SceneError(f"{where}.{label} must be >= 0, got {value}")
+    within_ceiling(stiffness, f"{where}.stiffness", "N m/rad or N/m")
+    within_ceiling(damping, f"{where}.damping", "N m s/rad or N s/m")
     if frame_form:
         return JointSpring(name, stiffness, reference, damping, frames=_frames(entry, tables, name, where))
     joint = tables.model.joints[tables.joint_id(entry["joint"], f"{where}.joint")]

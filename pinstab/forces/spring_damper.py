@@ -8,6 +8,7 @@ import pinocchio as pin
 from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..tables import WORLD, SceneTables
+from ..units import within_ceiling
 from .base import FORCE_KINDS, ForceElement
 
 SPRING_KEYS = {"name", "kind", "frame_a", "offset_a", "frame_b", "offset_b", "stiffness", "damping", "rest_length"}
@@ -81,4 +82,6 @@ def parse_spring_damper(entry: dict, tables: SceneTables, name: str, where: str)
     for label, value in (("stiffness", stiffness), ("damping", damping), ("rest_length", rest)):
         if value < 0:
             raise SceneError(f"{where}.{label} must be >= 0, got {value}")
+    within_ceiling(stiffness, f"{where}.stiffness", "N/m")
+    within_ceiling(damping, f"{where}.damping", "N s/m")
     return SpringDamper(name, frame_a, frame_b, offset_b, stiffness, damping, rest)

@@ -43,6 +43,7 @@ from ..errors import ContactInfeasibleError, SceneError
 from ..forces.base import FORCE_KINDS, ForceElement, Sample
 from ..kinematics import Kinematics
 from ..tables import SceneTables
+from ..units import within_ceiling
 from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
 from .holding import cone_columns, pyramid_rows, solve_qp
 from .welded import WeldedGrasp, welded_grasp
@@ -338,4 +339,4 @@ def _non_negative(tables: SceneTables, entry: dict, key: str, default: float, wh
     value = tables.number(entry, key, where, default=default)
     if value < 0:
         raise SceneError(f"{where}.{key} must be >= 0, got {value!r}")
-    return value
+    return within_ceiling(value, f"{where}.{key}", "1/s^2" if key.endswith("kp") else "1/s")

@@ -34,8 +34,10 @@ from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
+from ..units import within_ceiling
 from .holding import closest_holding, cone_columns, leaving, pyramid_rows, solve_qp
 
+HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
 
@@ -144,13 +146,14 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
     tables.check_keys(entry, HOLD_KEYS, where)
     item, contacts, columns = grasped_contacts(entry, tables, where)
     values = {}
-    for key, dimension in (("squeeze", "force"), ("stiffness", None), ("damping", None)):
+    for key, dimension, unit in HOLD_VALUES:
         if dimension is None:
             values[key] = tables.number(entry, key, where, default=0.0)
         else:
             values[key] = tables.quantity(entry.get(key, 0.0), dimension, f"{where}.{key}")
         if values[key] < 0:
             raise SceneError(f"{where}.{key} must be >= 0, got {entry[key]!r}")
+        within_ceiling(values[key], f"{where}.{key}", unit)
     cap = tables.quantity(entry["max_squeeze"], "force", f"{where}.max_squeeze") if "max_squeeze" in entry else math.inf
     if not cap >= values["squeeze"]:
         raise SceneError(

@@ -174,6 +174,7 @@ class StepLoop:
             KeyboardInterrupt: Ctrl-C; :attr:`records` end with the last checked state.
             ContactInfeasibleError: contacts that cannot hold; :attr:`records` end with the last state that
                 passed its checks.
+            MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.q[0], self.records.v[0] = q, v
         self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt)
@@ -182,7 +183,7 @@ class StepLoop:
             self.system.audit(q, v, 0.0)
             while k < self.grid.steps:
                 q, v, k = self.chunk(q, v, k, progress)
-        except (KeyboardInterrupt, ContactInfeasibleError):
+        except (KeyboardInterrupt, ContactInfeasibleError, MemoryError):
             if not self.records.ended:  # a replay that located the failure ended them at its step
                 self.records.end_with((k, self.grid.time(k), q, v))
             raise

@@ -16,6 +16,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import SceneError, repeated
+from ..units import within_ceiling
 
 INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
@@ -24,7 +25,8 @@ AXIS_MIN = 1e-9  # a shorter joint axis is no direction
 
 
 def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -> None:
-    """Every link's mass [kg] finite and >= 0, its inertia [kg m^2] positive semidefinite and, when
+    """Every link's mass [kg] in [0, 1e12], its inertia [kg m^2] positive semidefinite, its principal moments
+    at most 1e12 (:data:`~pinstab.units.MAX_MAGNITUDE`) and, when
     ``triangle``, with each principal moment at most the sum of the other two."""
     text = urdf_text if urdf_text is not None else urdf_path.read_text(encoding="utf-8")
     try:
@@ -81,12 +83,14 @@ def _check_inertial(inertial: ElementTree.Element, where: str, triangle: bool) -
     mass = _number(inertial.find("mass"), "value", "mass", where)
     if mass < 0:
         raise SceneError(f"{where}: mass {mass} kg is negative")
+    within_ceiling(mass, f"{where}: mass", "kg")
     element = inertial.find("inertia")
     ixx, ixy, ixz, iyy, iyz, izz = (_number(element, key, f"inertia {key}", where) for key in INERTIA_KEYS)
     moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
     tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
     if moments[0] < -tolerance:
         raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
+    within_ceiling(float(moments[2]), f"{where}: inertia's largest principal moment", "kg m^2")
     if triangle and moments[2] > moments[0] + moments[1] + tolerance:
         raise SceneError(
             f"{where}: inertia violates the triangle inequality: {_moments(moments)} "

@@ -1,15 +1,17 @@
 """The memory budget: what a command will allocate, estimated before it allocates, and refused when the
 estimate exceeds the limit.
 
-The limit is :data:`DEFAULT_FRACTION` of the memory available at each check (``MemAvailable`` of
-``/proc/meminfo``), or the one set with :func:`memory_limit` (the command line's ``--memory-limit``).
-The big items are Pinocchio's ``Data`` (its derivative tensors grow with nv^3: about 52 nv^3 bytes, 1.4 GB
-for nv = 301) and the samples a run keeps.
+The limit is :data:`DEFAULT_FRACTION` of the memory the tightest of the process's limits leaves at each
+check (:mod:`pinstab.memory.limits`: ``MemAvailable``, the memory cgroup v1/v2, ``RLIMIT_AS``), or the one
+set with :func:`memory_limit` (the command line's ``--memory-limit``). The big items are Pinocchio's
+``Data`` (its derivative tensors grow with nv^3: about 52 nv^3 bytes, 1.4 GB for nv = 301) and the samples a
+run keeps. A ``MemoryError`` that happens anyway (an estimate exceeded, another process taking the memory)
+becomes a :class:`~pinstab.errors.MemoryBudgetError` naming what needed the memory and the tightest limit
+(:func:`named_when_exhausted`).
 """
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -17,7 +19,8 @@ from contextvars import ContextVar
 
 import pinocchio as pin
 
-from .errors import MemoryBudgetError, PinstabError
+from ..errors import MemoryBudgetError, PinstabError
+from .limits import MemorySource, format_size, tightest
 
 DEFAULT_FRACTION = 0.8  # of the memory available when checked (before the allocations, at the start)
 DATA_CUBIC, DATA_SQUARE, DATA_FIXED = 6.5, 100, 3000  # doubles per nv^3, nv^2 and joint of a Pinocchio Data
@@ -30,22 +33,24 @@ _limit: ContextVar[int | None] = ContextVar("pinstab_memory_limit", default=None
 
 
 def available_bytes() -> int:
-    """The memory the system can give without swapping [bytes]: ``MemAvailable``, else the physical memory."""
-    try:
-        with open("/proc/meminfo") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    """The memory this process may still take [bytes]: the least that its limits leave (``MemAvailable``, its
+    memory cgroup, ``RLIMIT_AS``; :func:`~pinstab.memory.limits.tightest`)."""
+    return tightest().free
 
 
 def limit_bytes() -> int:
     """The budget in force [bytes]: the one set by :func:`memory_limit`, else :data:`DEFAULT_FRACTION` of
     :func:`available_bytes`."""
+    return budget()[0]
+
+
+def budget() -> tuple[int, str]:
+    """(the budget in force [bytes], where it comes from, for messages)."""
     limit = _limit.get()
-    return int(DEFAULT_FRACTION * available_bytes()) if limit is None else limit
+    if limit is not None:
+        return limit, "set with --memory-limit or pinstab.memory_limit"
+    source = tightest()
+    return int(DEFAULT_FRACTION * max(source.free, 0)), f"{DEFAULT_FRACTION:.0%} of the {source.describe()}"
 
 
 @contextmanager
@@ -78,14 +83,6 @@ def _positive(value: float, text: str) -> int:
     return int(value)
 
 
-def format_size(size: float) -> str:
-    """A size in bytes for people: ``2.7 GB``, ``350 MB``, ``12 kB``."""
-    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if size >= scale:
-            return f"{size / scale:.3g} {unit}"
-    return f"{int(size)} B"
-
-
 def data_bytes(nv: int, njoints: int) -> int:
     """An upper estimate of one Pinocchio ``Data`` [bytes] for a model of ``nv`` velocities and ``njoints``
     joints (calibrated on Pinocchio 4.1: within a factor 2 above the measured resident size from nv = 10 to
@@ -107,17 +104,45 @@ def require(items: dict[str, int], what: str, remedy: str = "make the scene smal
         MemoryBudgetError: naming the estimate, its largest items and the limit, and how to change it.
     """
     total = sum(items.values())
-    limit = limit_bytes()
+    limit, source = budget()
     if total <= limit:
         return
     parts = ", ".join(f"{name} {format_size(size)}" for name, size in sorted(items.items(), key=lambda i: -i[1]))
     raise MemoryBudgetError(
         f"{what} needs about {format_size(total)} of memory ({parts}), more than the limit of "
-        f"{format_size(limit)}; {remedy}, or raise the limit if the machine has the memory (--memory-limit "
-        f"{format_size(2 * total).replace(' ', '')}; pinstab.memory_limit in Python)",
+        f"{format_size(limit)} ({source}); {remedy}, or raise the limit if the machine has the memory "
+        f"(--memory-limit {format_size(2 * total).replace(' ', '')}; pinstab.memory_limit in Python)",
         estimate=total,
         limit=limit,
+        source=source,
+        needed_by=what,
     )
+
+
+def exhausted(what: str, error: MemoryError, trajectory=None) -> MemoryBudgetError:
+    """The MemoryBudgetError for a ``MemoryError`` raised while doing ``what``: it names the tightest limit
+    of the process and keeps ``trajectory`` (the samples of a run up to then, or None)."""
+    source: MemorySource = tightest()
+    detail = f" ({error})" if str(error) else ""
+    kept = "" if trajectory is None else f"; the run's samples up to t = {trajectory.t[-1]:.6g} s are kept"
+    return MemoryBudgetError(
+        f"{what} ran out of memory{detail}: the tightest limit on this process: {source.describe()}{kept}; "
+        "make the scene smaller, keep fewer samples (--record-every), or run where the limit is higher",
+        estimate=None,
+        limit=max(source.free, 0),
+        source=source.name,
+        needed_by=what,
+        trajectory=trajectory,
+    )
+
+
+@contextmanager
+def named_when_exhausted(what: str) -> Iterator[None]:
+    """Turn a ``MemoryError`` inside the ``with`` block into :func:`exhausted`'s MemoryBudgetError about ``what``."""
+    try:
+        yield
+    except MemoryError as error:
+        raise exhausted(what, error) from None
 
 
 def new_data(model: pin.Model) -> pin.Data:
@@ -126,8 +151,10 @@ def new_data(model: pin.Model) -> pin.Data:
     Raises:
         MemoryBudgetError: naming the model's size, the estimate and the limit.
     """
-    require({"one Pinocchio Data": data_bytes(model.nv, model.njoints)}, model_size(model))
-    return model.createData()
+    what = model_size(model)
+    require({"one Pinocchio Data": data_bytes(model.nv, model.njoints)}, what)
+    with named_when_exhausted(f"the Pinocchio Data of {what}"):
+        return model.createData()
 
 
 def model_size(model: pin.Model) -> str:
