@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
+from .constraints import RowKind
 from .errors import ContactInfeasibleError
 from .forces.base import Sample
 from .system import ConstrainedSystem
@@ -38,14 +39,19 @@ class StateSeries:
             energy[k] = model.energy(q[k], v[k])
         return {"position_drift": position, "velocity_drift": velocity, "energy": energy}
 
-    def energy_balance(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray) -> dict[str, float]:
+    def energy_balance(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray, events: bool = False
+    ) -> dict[str, float]:
         """For a scene with force elements: the work W [J] of their non-conservative parts (dampers, motors,
         applied loads; Simpson's rule over the samples) and how far ``E(t) - E(0) - W(t)`` strays from zero:
         ``max_energy_balance_error`` [J], and relative to max(|E(0)|, max |W|); empty without force elements
-        or finite samples, or under a tilting gravity (its work is not counted)."""
+        or finite samples, under a tilting gravity (its work is not counted), and where constraint forces do
+        work that W leaves out: contacts (friction, impacts) and runs with ``events`` (contact or joint-limit
+        switches and impacts)."""
         model = self.system.model
         finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1) & np.isfinite(energy)
-        if not model.forces or model.scene.tilt is not None or not finite.all():
+        contacts = any(c.row_kind is not RowKind.EQUALITY for c in model.constraints.constraints)
+        if not model.forces or model.scene.tilt is not None or not finite.all() or contacts or events:
             return {}
         power = np.zeros(len(t))
         for k in range(len(t)):

@@ -37,7 +37,9 @@ class SeriesSource(Protocol):
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
 
     def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]: ...
-    def energy_balance(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray) -> dict[str, float]: ...
+    def energy_balance(
+        self, t: np.ndarray, q: np.ndarray, v: np.ndarray, energy: np.ndarray, events: bool = False
+    ) -> dict[str, float]: ...
 
 
 @dataclass
@@ -200,7 +202,8 @@ class Trajectory:
             summary["limits_active_s"] = self.info.limits_active_s
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
-            summary.update(self._series.energy_balance(self.t, self.q, self.v, self.energy))
+            events = bool(self.info.contact_events)
+            summary.update(self._series.energy_balance(self.t, self.q, self.v, self.energy, events))
             summary.update(self._series.force_figures(self.t, self.q, self.v, lambda: self.multipliers))
             servo = self.servo_figures
             if servo:

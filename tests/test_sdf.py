@@ -337,3 +337,13 @@ def test_a_spring_on_a_loop_joint_acts_along_the_closures_free_turn(tmp_path):
     assert np.abs(scene.constraint_set.residual(kin, q, 0.0)).max() < 1e-15
     assert spring.coordinate(kin)[0] == pytest.approx(-0.2, abs=1e-15)
     assert spring.potential_energy(kin) == pytest.approx(0.5 * 3.0 * 0.3**2, rel=1e-13)
+
+
+def test_no_energy_balance_where_contacts_do_work():
+    """The balance counts the force elements' work only: a block sliding between two squeezing fingers (friction
+    work) and a scene with held contact rows report none, rather than a balance off by the friction's work."""
+    sliding = pinstab.simulate("pinch", contacts="event", duration=0.3, mu=0.1)
+    assert sliding.info.contact_events and sliding.summary()["energy_start"] is not None
+    assert "energy_balance_relative" not in sliding.summary()
+    held = pinstab.simulate("allegro-sphere", duration=0.02)  # grasp contacts held as rows, grasp-hold torques
+    assert not held.info.contact_events and "energy_balance_relative" not in held.summary()
