@@ -46,8 +46,9 @@ class StateSeries:
         applied loads; Simpson's rule over the samples) and how far ``E(t) - E(0) - W(t)`` strays from zero:
         ``max_energy_balance_error`` [J], and relative to max(|E(0)|, max |W|); empty without force elements
         or finite samples, under a tilting gravity (its work is not counted), and where constraint forces do
-        work that W leaves out: contacts (friction, impacts) and runs with ``events`` (contact or joint-limit
-        switches and impacts)."""
+        work that W leaves out: unilateral or cone rows (plane contacts: friction, impacts) and runs with
+        ``events`` (contact or joint-limit switches and impacts). Equality rows held (closures, grasps held
+        sticking) do no work."""
         model = self.system.model
         finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1) & np.isfinite(energy)
         contacts = any(c.row_kind is not RowKind.EQUALITY for c in model.constraints.constraints)
