@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
@@ -23,10 +26,11 @@ def symmetric_mass_matrix(
 class Kinematics:
     """Owns a Pinocchio ``Data`` and updates everything the constraint layer reads, once per state.
 
-    ``q`` is the configuration of the last update. After :meth:`update`, ``mass_matrix`` [kg, kg m^2]
+    ``q`` is the configuration of the last update (``v`` the velocity of the last full one). After :meth:`update`, ``mass_matrix`` [kg, kg m^2]
     and ``bias`` (h = C v + g) [N, N m] hold the joint-space dynamics, and the frame accessors return
     world-aligned quantities at (q, v) with zero joint acceleration (so accelerations are the drift
-    terms).
+    terms). ``stamp`` counts the updates: what is computed from one update (:class:`PerUpdate`) is
+    reused until the next.
     """
 
     def __init__(self, model: pin.Model) -> None:
@@ -37,11 +41,14 @@ class Kinematics:
         self._zero_acceleration = np.zeros(model.nv)
         self.lower = np.tril_indices(model.nv, -1)
         self.q = pin.neutral(model)
+        self.v = np.zeros(model.nv)
+        self.stamp = 0
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
         model, data = self.model, self.data
-        self.q = q
+        self.q, self.v = q, v
+        self.stamp += 1
         symmetric_mass_matrix(model, data, q, self.mass_matrix, self.lower)
         self.bias[:] = pin.nonLinearEffects(model, data, q, v)
         pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
@@ -51,12 +58,14 @@ class Kinematics:
     def update_positions(self, q: np.ndarray) -> None:
         """Placements only (enough for residuals)."""
         self.q = q
+        self.stamp += 1
         pin.forwardKinematics(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
 
     def update_jacobians(self, q: np.ndarray) -> None:
         """Placements and Jacobians (enough for residuals and constraint Jacobians)."""
         self.q = q
+        self.stamp += 1
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
 
@@ -75,6 +84,24 @@ class Kinematics:
     def velocity(self, frame_id: int) -> pin.Motion:
         """Frame velocity, LOCAL_WORLD_ALIGNED [m/s, rad/s]."""
         return pin.getFrameVelocity(self.model, self.data, frame_id, LWA)
+
+
+class PerUpdate:
+    """``compute(kin)`` evaluated once per update of a :class:`Kinematics` (its ``stamp``): a constraint
+    block's rows read by the constraint stack, a force element and a controller at the same state are
+    computed once. The value is shared: callers must not modify it."""
+
+    def __init__(self, compute: Callable[[Kinematics], Any]) -> None:
+        self._compute = compute
+        self._kin: Kinematics | None = None
+        self._stamp = -1
+        self._value: Any = None
+
+    def __call__(self, kin: Kinematics) -> Any:
+        if self._kin is not kin or self._stamp != kin.stamp:
+            self._value = self._compute(kin)
+            self._kin, self._stamp = kin, kin.stamp
+        return self._value
 
 
 def relative_offset(

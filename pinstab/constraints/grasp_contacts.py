@@ -30,7 +30,7 @@ from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, PerUpdate
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
@@ -84,6 +84,9 @@ class FingertipContact(Constraint):
         # the rotation rows are a weld's between the object's and the finger's copy of C
         self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
+        # the constraint stack, a grasp force element and a grasp controller read them at the same state
+        self._velocity_terms = PerUpdate(self._compute_velocity_terms)
+        self._drift = PerUpdate(self._compute_drift)
 
     # -- rows ----------------------------------------------------------------------------------------
     def _point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
@@ -101,29 +104,32 @@ class FingertipContact(Constraint):
         return self._select(rotation.T @ difference, angular)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        return self._velocity_terms(kin)
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """gamma0 at ``kin``'s state (``v`` is the velocity of its last full update)."""
+        return self._drift(kin)
+
+    def _compute_velocity_terms(self, kin: Kinematics) -> VelocityTerms:
         rotation, difference = self._point_difference(kin)
         jac_o = kin.jacobian(self.object_frame)
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
         linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
-        jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, q, t)[0][3:]])
+        jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:]])
         return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
 
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+    def _compute_drift(self, kin: Kinematics) -> np.ndarray:
         rotation, difference = self._point_difference(kin)
         velocity_o, velocity_f = kin.velocity(self.object_frame), kin.velocity(self.finger_frame)
         omega = velocity_o.angular
         rate = velocity_o.linear - velocity_f.linear
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
-        # d2/dt2 R^T d at zero joint acceleration
+        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f - 2 w x d' + w x (w x d) - alpha x d)
         linear = rotation.T @ (
-            acc_o.linear
-            - acc_f.linear
-            - 2.0 * cross(omega, rate)
-            + cross(omega, cross(omega, difference))
-            - cross(acc_o.angular, difference)
+            acc_o.linear - acc_f.linear + cross(omega, cross(omega, difference) - 2.0 * rate) - cross(acc_o.angular, difference)
         )
-        angular = self._weld.drift(kin, q, v, t)[3:] if self._weld else None
+        angular = self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None
         return self._select(linear, angular)
 
     # -- forces --------------------------------------------------------------------------------------

@@ -44,7 +44,7 @@ from ..forces.base import FORCE_KINDS, ForceElement, Sample
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
-from .holding import cone_columns, pyramid_rows, solve_qp
+from .holding import WarmQP, cone_columns, pyramid_rows
 from .welded import WeldedGrasp, welded_grasp
 
 CONTROL_KEYS = {
@@ -149,6 +149,7 @@ class GraspControl(ForceElement):
         self.effort_limit = np.where((limits > 0) & (limits < 1e30), limits, np.inf)
         self.welds = welds
         self.cone_rows, self.cone_bounds = self._cone_constraints(facets) if welds is None else (None, None)
+        self._qp = WarmQP()  # the internal-force QP, warm-started from the previous evaluation's
 
     # -- pieces ----------------------------------------------------------------------------------------
     def _cone_constraints(self, facets: int) -> tuple[np.ndarray, np.ndarray]:
@@ -198,7 +199,7 @@ class GraspControl(ForceElement):
         inequality = np.vstack([self.cone_rows, torque_rows])
         lower = np.concatenate([self.cone_bounds, -self.effort_limit[finite] - demand[finite]])
         upper = np.concatenate([np.full(len(self.cone_bounds), 1e30), self.effort_limit[finite] - demand[finite]])
-        return solve_qp(hessian, gradient, carrier, wrench, inequality, lower, upper)
+        return self._qp.solve(hessian, gradient, carrier, wrench, inequality, lower, upper)
 
     # -- ForceElement ----------------------------------------------------------------------------------
     def plan(self, kin: Kinematics, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

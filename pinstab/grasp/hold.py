@@ -34,7 +34,7 @@ from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
-from .holding import closest_holding, cone_columns, leaving, pyramid_rows, solve_qp
+from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
 
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
@@ -82,6 +82,8 @@ class GraspHold(ForceElement):
         limit = UNBOUNDED if math.isinf(max_squeeze) else max_squeeze
         self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
+        self._cone_test = ConeTest(contacts)
+        self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
@@ -98,7 +100,7 @@ class GraspHold(ForceElement):
         if self._holds(free):
             return free
         count = len(free)
-        solution, solved, _ = solve_qp(
+        solution, solved, _ = self._pyramid_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper
         )
         if solved and self._holds(solution):
@@ -108,7 +110,7 @@ class GraspHold(ForceElement):
             return exact.forces if exact.holds else free
         # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
         caps = len(self._normals)
-        capped, solved, _ = solve_qp(
+        capped, solved, _ = self._capped_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones[-caps:], self._lower[-caps:], self._upper[-caps:]
         )
         return capped if solved else free
@@ -116,7 +118,7 @@ class GraspHold(ForceElement):
     def _holds(self, forces: np.ndarray) -> bool:
         """Every force inside its contact's limits and every normal force within the cap."""
         cap = self.max_squeeze * (1.0 + 1e-9)
-        return not leaving(self.contacts, forces) and float(np.max(forces[self._normals], initial=0.0)) <= cap
+        return self._cone_test.holds(forces) and float(np.max(forces[self._normals], initial=0.0)) <= cap
 
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the

@@ -139,6 +139,38 @@ def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str,
     return found
 
 
+class ConeTest:
+    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, vectorized over the
+    contacts (for a test at every evaluation)."""
+
+    def __init__(self, contacts: list[Any]) -> None:
+        columns, _ = cone_columns(contacts)
+        self._normals = np.array([c.normal for c in columns], dtype=int)
+        rubbing = [c for c in columns if c.tangents is not None]
+        spinning = [c for c in columns if c.spin is not None]
+        self._friction = (
+            np.array([c.normal for c in rubbing], dtype=int),
+            np.array([c.tangents for c in rubbing], dtype=int).reshape(-1, 2),
+            np.array([c.mu for c in rubbing]),
+        )
+        self._torsion = (
+            np.array([c.normal for c in spinning], dtype=int),
+            np.array([c.spin for c in spinning], dtype=int),
+            np.array([c.torsion for c in spinning]),
+        )
+
+    def holds(self, forces: np.ndarray) -> bool:
+        """No contact leaves its limits (``not leaving(contacts, forces)``)."""
+        slack = -FEASIBILITY * (1.0 + float(np.max(np.abs(forces), initial=0.0)))
+        normal, tangents, mu = self._friction
+        friction = mu * forces[normal] - np.hypot(forces[tangents[:, 0]], forces[tangents[:, 1]])
+        normal_t, spin, torsion = self._torsion
+        spinning = torsion * forces[normal_t] - np.abs(forces[spin])
+        return not (
+            (forces[self._normals] < slack).any() or (friction < slack).any() or (spinning < slack).any()
+        )
+
+
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
     """Every contact whose force (in the stacked ``forces``) is outside what it carries, with its violated
     margins (< 0, see :func:`cone_margins`), beyond a rounding slack relative to the largest force."""
@@ -284,17 +316,42 @@ def closest_holding(
     return problem.solve(objective)
 
 
-def solve_qp(hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
-    """ProxQP (dense) on ``min x^T H x / 2 + g^T x``, ``E x = b``, ``l <= C x <= u``: (x, solved, ProxQP's
-    info), without Ruiz equilibration (problems here are in N and N m already) and with a capped
-    iteration count (an infeasible problem stops early)."""
-    qp = proxsuite.proxqp.dense.QP(len(gradient), equality.shape[0], inequality.shape[0])
+def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:
+    """A dense ProxQP of that shape with this module's settings (see :class:`WarmQP`)."""
+    qp = proxsuite.proxqp.dense.QP(variables, equalities, inequalities)
     qp.settings.eps_abs = 1e-10
     qp.settings.verbose = False
     qp.settings.max_iter, qp.settings.max_iter_in = QP_ITERATIONS, QP_ITERATIONS
-    # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
-    # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
-    # instructions and from run to run), so that a QP solved here could fail on another machine
-    qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
-    qp.solve()
-    return np.array(qp.results.x), qp.results.info.status in _SOLVED, qp.results.info
+    return qp
+
+
+class WarmQP:
+    """ProxQP (dense) on ``min x^T H x / 2 + g^T x``, ``E x = b``, ``l <= C x <= u`` for a caller that solves a
+    QP of one shape at successive states (a force element at every evaluation), without Ruiz equilibration
+    (problems here are in N and N m already) and with a capped iteration count (an infeasible problem stops
+    early). Each solve starts from the previous solution and multipliers (ProxQP's warm start; a cold
+    start converges to the same ``eps_abs`` 1e-10); the QP is built afresh, cold, when the shape changes
+    or a warm solve does not converge."""
+
+    def __init__(self) -> None:
+        self._qp: proxsuite.proxqp.dense.QP | None = None
+        self._shape: tuple[int, int, int] = (0, 0, 0)
+
+    def solve(self, hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
+        """(x, solved, ProxQP's info)."""
+        shape = (len(gradient), equality.shape[0], inequality.shape[0])
+        qp = self._qp
+        if qp is not None and shape == self._shape:
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            qp.update(hessian, gradient, equality, rhs, inequality, lower, upper, update_preconditioner=False)
+            qp.solve()
+            if qp.results.info.status in _SOLVED:
+                return np.array(qp.results.x), True, qp.results.info
+        qp = self._qp = _fresh_qp(*shape)
+        self._shape = shape
+        # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
+        # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
+        # instructions and from run to run), so that a QP solved here could fail on another machine
+        qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
+        qp.solve()
+        return np.array(qp.results.x), qp.results.info.status in _SOLVED, qp.results.info
