@@ -116,7 +116,9 @@ class FingertipContact(Constraint):
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
         linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
-        jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:]])
+        if self._weld is None:
+            return VelocityTerms(linear[self.components], np.zeros(self.rows))
+        jacobian = np.vstack([linear, self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:]])
         return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
 
     def _compute_drift(self, kin: Kinematics) -> np.ndarray:
@@ -126,9 +128,8 @@ class FingertipContact(Constraint):
         rate = velocity_o.linear - velocity_f.linear
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
         # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f - 2 w x d' + w x (w x d) - alpha x d)
-        linear = rotation.T @ (
-            acc_o.linear - acc_f.linear + cross(omega, cross(omega, difference) - 2.0 * rate) - cross(acc_o.angular, difference)
-        )
+        turning = cross(omega, cross(omega, difference) - 2.0 * rate) - cross(acc_o.angular, difference)
+        linear = rotation.T @ (acc_o.linear - acc_f.linear + turning)
         angular = self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None
         return self._select(linear, angular)
 
