@@ -29,8 +29,8 @@ class Kinematics:
     ``q`` is the configuration of the last update (``v`` the velocity of the last full one). After
     :meth:`update`, ``mass_matrix`` [kg, kg m^2] and ``bias`` (h = C v + g) [N, N m] hold the joint-space
     dynamics, and the frame accessors return world-aligned quantities at (q, v) with zero joint
-    acceleration (so accelerations are the drift terms). ``stamp`` counts the updates: what is computed from one update (:class:`PerUpdate`) is
-    reused until the next.
+    acceleration (so accelerations are the drift terms). ``stamp`` counts the updates: what is computed
+    from one update (:class:`PerUpdate`) is reused until the next.
     """
 
     def __init__(self, model: pin.Model) -> None:

@@ -166,9 +166,7 @@ class ConeTest:
         friction = mu * forces[normal] - np.hypot(forces[tangents[:, 0]], forces[tangents[:, 1]])
         normal_t, spin, torsion = self._torsion
         spinning = torsion * forces[normal_t] - np.abs(forces[spin])
-        return not (
-            (forces[self._normals] < slack).any() or (friction < slack).any() or (spinning < slack).any()
-        )
+        return not ((forces[self._normals] < slack).any() or (friction < slack).any() or (spinning < slack).any())
 
 
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
