@@ -42,8 +42,9 @@ GAP_ITERATIONS = 60
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift; so does indexing the arrays)."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 class FingertipContact(Constraint):
@@ -117,21 +118,31 @@ class FingertipContact(Constraint):
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
         linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
         if self._weld is None:
-            return VelocityTerms(linear[self.components], np.zeros(self.rows))
+            return VelocityTerms(linear if self.rows == 3 else linear[self.components], np.zeros(self.rows))
         jacobian = np.vstack([linear, self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:]])
         return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
 
     def _compute_drift(self, kin: Kinematics) -> np.ndarray:
-        rotation, difference = self._point_difference(kin)
-        velocity_o, velocity_f = kin.velocity(self.object_frame), kin.velocity(self.finger_frame)
-        omega = velocity_o.angular
-        rate = velocity_o.linear - velocity_f.linear
+        on_object = kin.placement(self.object_frame)
+        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d), on floats
+        d0, d1, d2 = (on_object.translation - kin.placement(self.finger_frame).translation).tolist()
+        velocity_o, velocity_f = kin.velocity(self.object_frame).vector, kin.velocity(self.finger_frame).vector
+        r0, r1, r2, w0, w1, w2 = velocity_o.tolist()
+        f0, f1, f2 = velocity_f[:3].tolist()
+        r0, r1, r2 = 2.0 * (r0 - f0), 2.0 * (r1 - f1), 2.0 * (r2 - f2)
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
-        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f - 2 w x d' + w x (w x d) - alpha x d)
-        turning = cross(omega, cross(omega, difference) - 2.0 * rate) - cross(acc_o.angular, difference)
-        linear = rotation.T @ (acc_o.linear - acc_f.linear + turning)
-        angular = self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None
-        return self._select(linear, angular)
+        s0, s1, s2 = (acc_o.linear - acc_f.linear).tolist()
+        k0, k1, k2 = acc_o.angular.tolist()
+        x0, x1, x2 = w1 * d2 - w2 * d1 - r0, w2 * d0 - w0 * d2 - r1, w0 * d1 - w1 * d0 - r2  # w x d - 2 d'
+        turning = [
+            s0 + w1 * x2 - w2 * x1 - (k1 * d2 - k2 * d1),
+            s1 + w2 * x0 - w0 * x2 - (k2 * d0 - k0 * d2),
+            s2 + w0 * x1 - w1 * x0 - (k0 * d1 - k1 * d0),
+        ]
+        linear = on_object.rotation.T @ np.array(turning)
+        if self._weld is None:
+            return linear if self.rows == 3 else linear[self.components]
+        return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:])
 
     # -- forces --------------------------------------------------------------------------------------
     def wrench(self, force: np.ndarray) -> np.ndarray:

@@ -140,33 +140,27 @@ def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str,
 
 
 class ConeTest:
-    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, vectorized over the
-    contacts (for a test at every evaluation)."""
+    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, on plain floats
+    (a test at every evaluation)."""
 
     def __init__(self, contacts: list[Any]) -> None:
-        columns, _ = cone_columns(contacts)
-        self._normals = np.array([c.normal for c in columns], dtype=int)
-        rubbing = [c for c in columns if c.tangents is not None]
-        spinning = [c for c in columns if c.spin is not None]
-        self._friction = (
-            np.array([c.normal for c in rubbing], dtype=int),
-            np.array([c.tangents for c in rubbing], dtype=int).reshape(-1, 2),
-            np.array([c.mu for c in rubbing]),
-        )
-        self._torsion = (
-            np.array([c.normal for c in spinning], dtype=int),
-            np.array([c.spin for c in spinning], dtype=int),
-            np.array([c.torsion for c in spinning]),
-        )
+        self._columns, _ = cone_columns(contacts)
 
     def holds(self, forces: np.ndarray) -> bool:
         """No contact leaves its limits (``not leaving(contacts, forces)``)."""
-        slack = -FEASIBILITY * (1.0 + float(np.max(np.abs(forces), initial=0.0)))
-        normal, tangents, mu = self._friction
-        friction = mu * forces[normal] - np.hypot(forces[tangents[:, 0]], forces[tangents[:, 1]])
-        normal_t, spin, torsion = self._torsion
-        spinning = torsion * forces[normal_t] - np.abs(forces[spin])
-        return not ((forces[self._normals] < slack).any() or (friction < slack).any() or (spinning < slack).any())
+        values = forces.tolist()
+        slack = -FEASIBILITY * (1.0 + max(map(abs, values), default=0.0))
+        for contact in self._columns:
+            normal = values[contact.normal]
+            if normal < slack:
+                return False
+            if contact.tangents is not None:
+                t1, t2 = contact.tangents
+                if contact.mu * normal - math.hypot(values[t1], values[t2]) < slack:
+                    return False
+            if contact.spin is not None and contact.torsion * normal - abs(values[contact.spin]) < slack:
+                return False
+        return True
 
 
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
