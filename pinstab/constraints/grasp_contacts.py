@@ -86,16 +86,22 @@ class FingertipContact(Constraint):
         self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
         # the constraint stack, a grasp force element and a grasp controller read them at the same state
+        self._points = PerUpdate(self._compute_point_difference)
         self._velocity_terms = PerUpdate(self._compute_velocity_terms)
         self._drift = PerUpdate(self._compute_drift)
 
     # -- rows ----------------------------------------------------------------------------------------
     def _point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        """(R_C, d = p_o - p_f) in world axes."""
+        """(R_C, d = p_o - p_f) in world axes (shared: not to be modified)."""
+        return self._points(kin)
+
+    def _compute_point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         on_object = kin.placement(self.object_frame)
         return on_object.rotation, on_object.translation - kin.placement(self.finger_frame).translation
 
     def _select(self, linear: np.ndarray, angular) -> np.ndarray:
+        if angular is None and self.rows == 3:  # point-friction: the point rows as they are
+            return linear
         full = linear if angular is None else np.concatenate([linear, angular])
         return full[self.components]
 
@@ -117,15 +123,13 @@ class FingertipContact(Constraint):
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
         linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
-        if self._weld is None:
-            return VelocityTerms(linear if self.rows == 3 else linear[self.components], np.zeros(self.rows))
-        jacobian = np.vstack([linear, self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:]])
-        return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
+        angular = self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:] if self._weld else None
+        return VelocityTerms(self._select(linear, angular), np.zeros(self.rows))
 
     def _compute_drift(self, kin: Kinematics) -> np.ndarray:
-        on_object = kin.placement(self.object_frame)
+        rotation, difference = self._point_difference(kin)
         # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d), on floats
-        d0, d1, d2 = (on_object.translation - kin.placement(self.finger_frame).translation).tolist()
+        d0, d1, d2 = difference.tolist()
         velocity_o, velocity_f = kin.velocity(self.object_frame).vector, kin.velocity(self.finger_frame).vector
         r0, r1, r2, w0, w1, w2 = velocity_o.tolist()
         f0, f1, f2 = velocity_f[:3].tolist()
@@ -139,10 +143,8 @@ class FingertipContact(Constraint):
             s1 + w2 * x0 - w0 * x2 - (k2 * d0 - k0 * d2),
             s2 + w0 * x1 - w1 * x0 - (k0 * d1 - k1 * d0),
         ]
-        linear = on_object.rotation.T @ np.array(turning)
-        if self._weld is None:
-            return linear if self.rows == 3 else linear[self.components]
-        return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:])
+        linear = rotation.T @ np.array(turning)
+        return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None)
 
     # -- forces --------------------------------------------------------------------------------------
     def wrench(self, force: np.ndarray) -> np.ndarray:
