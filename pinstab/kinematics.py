@@ -18,7 +18,12 @@ def symmetric_mass_matrix(
 ) -> np.ndarray:
     """M(q) [kg, kg m^2] into ``out``, lower triangle filled from the upper (crba may fill only the
     upper one); ``lower`` is ``np.tril_indices(nv, -1)``."""
-    out[:] = pin.crba(model, data, q)
+    return symmetric_copy(pin.crba(model, data, q), out, lower)
+
+
+def symmetric_copy(upper: np.ndarray, out: np.ndarray, lower: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """``upper`` into ``out`` with its lower triangle (indices ``lower``) filled from the upper one."""
+    out[:] = upper
     out[lower] = out.T[lower]
     return out
 
@@ -38,7 +43,6 @@ class Kinematics:
         self.data = new_data(model)
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
-        self._zero_acceleration = np.zeros(model.nv)
         self.lower = np.tril_indices(model.nv, -1)
         self.q = pin.neutral(model)
         self.v = np.zeros(model.nv)
@@ -49,10 +53,10 @@ class Kinematics:
         model, data = self.model, self.data
         self.q, self.v = q, v
         self.stamp += 1
-        symmetric_mass_matrix(model, data, q, self.mass_matrix, self.lower)
-        self.bias[:] = pin.nonLinearEffects(model, data, q, v)
-        pin.forwardKinematics(model, data, q, v, self._zero_acceleration)
-        pin.computeJointJacobians(model, data)
+        # one pass: placements, velocities and accelerations at zero joint acceleration, Jacobians, M, h
+        pin.computeAllTerms(model, data, q, v)
+        symmetric_copy(data.M, self.mass_matrix, self.lower)
+        self.bias[:] = data.nle
         pin.updateFramePlacements(model, data)
 
     def update_positions(self, q: np.ndarray) -> None:

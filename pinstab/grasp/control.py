@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..constraints.grasp_contacts import cross
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import ContactInfeasibleError, SceneError
 from ..forces.base import FORCE_KINDS, ForceElement, Sample
@@ -45,6 +46,7 @@ from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
 from .holding import WarmQP, cone_columns, pyramid_rows
+from .linalg import pinv
 from .welded import WeldedGrasp, welded_grasp
 
 CONTROL_KEYS = {
@@ -174,14 +176,14 @@ class GraspControl(ForceElement):
         angular = angular_dd - self.kd * (angular_world - angular_d) - self.kp * rotation_error
         # d/dt (R^T p_dot) = R^T p_ddot - omega_b x (R^T p_dot); d/dt (R^T omega) = R^T omega_dot
         omega_body = velocity[3:]
-        return np.concatenate([rotation.T @ linear - np.cross(omega_body, velocity[:3]), rotation.T @ angular])
+        return np.concatenate([rotation.T @ linear - cross(omega_body, velocity[:3]), rotation.T @ angular])
 
     def _hand_acceleration(self, kin: Kinematics, v: np.ndarray, t: float, rows: np.ndarray, object_acc: np.ndarray):
         """Joint accelerations consistent with the contacts for the object's acceleration, the posture PD in
         the rows' null space [rad/s^2]."""
         drift = np.concatenate([c.drift(kin, kin.q, v, t) for c in self.contacts])
         hand_rows = rows[:, self.hand_columns]
-        pseudo = np.linalg.pinv(hand_rows)
+        pseudo = pinv(hand_rows)
         particular = pseudo @ (-drift - rows[:, self.object_columns] @ object_acc)
         deviation = pin.difference(self.model, self.q_start, kin.q)[self.hand_columns]
         posture = -self.posture_kp * deviation - self.posture_kd * v[self.hand_columns]

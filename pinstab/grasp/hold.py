@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg.lapack import dgesdd as gesdd
 
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
@@ -36,6 +35,7 @@ from ..kinematics import Kinematics
 from ..memory import new_data
 from ..tables import SceneTables
 from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
+from .linalg import svd
 
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
@@ -91,9 +91,7 @@ class GraspHold(ForceElement):
         gravity g(q) [N, N m] (see the module docstring)."""
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self.object_columns]
-        left, singular, right, failed = gesdd(carrier)  # LAPACK's SVD without numpy's wrapper (half its cost)
-        if failed:
-            left, singular, right = np.linalg.svd(carrier, full_matrices=True)
+        left, singular, right = svd(carrier)
         rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
         # least squares: the smallest forces that carry the object's weight, then the internal force
         # (null space of A_object^T) closest to the squeeze
