@@ -91,13 +91,12 @@ class GraspHold(ForceElement):
         gravity g(q) [N, N m] (see the module docstring)."""
         carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self.object_columns]
-        left, singular, right = svd(carrier)
-        rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
-        # least squares: the smallest forces that carry the object's weight, then the internal force
-        # (null space of A_object^T) closest to the squeeze
-        forces = right[:rank].T @ ((left[:, :rank].T @ load) / singular[:rank])
-        internal = right[rank:].T
-        free = forces + internal @ (internal.T @ self.pressing)
+        left, singular, right = svd(carrier, full=False)
+        rank = int(np.count_nonzero(singular > 1e-10 * max(singular[0], 1.0)))
+        # least squares: the smallest forces that carry the object's weight V S^-1 U^T w, then the internal
+        # force (null space of A_object^T, projector I - V V^T) closest to the squeeze
+        right = right[:rank]
+        free = self.pressing + right.T @ ((left[:, :rank].T @ load) / singular[:rank] - right @ self.pressing)
         if self._holds(free):
             return free
         count = len(free)
