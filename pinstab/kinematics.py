@@ -47,6 +47,8 @@ class Kinematics:
         self.q = pin.neutral(model)
         self.v = np.zeros(model.nv)
         self.stamp = 0
+        self._full_stamp = -1  # the stamp of the last full update
+        self._gravity_data: pin.Data | None = None  # for g(q) after a partial update
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""
@@ -58,6 +60,16 @@ class Kinematics:
         symmetric_copy(data.M, self.mass_matrix, self.lower)
         self.bias[:] = data.nle
         pin.updateFramePlacements(model, data)
+        self._full_stamp = self.stamp
+
+    def gravity(self) -> np.ndarray:
+        """The generalized gravity g(q) [N, N m] at the last update's q: the full pass's (no pass of its own)
+        after :meth:`update`, else one RNEA pass on a second ``Data``. Shared: not to be modified."""
+        if self._full_stamp == self.stamp:
+            return self.data.g
+        if self._gravity_data is None:
+            self._gravity_data = new_data(self.model)
+        return pin.computeGeneralizedGravity(self.model, self._gravity_data, self.q)
 
     def update_positions(self, q: np.ndarray) -> None:
         """Placements only (enough for residuals)."""

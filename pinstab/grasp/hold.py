@@ -32,7 +32,6 @@ from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
 from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
-from ..memory import new_data
 from ..tables import SceneTables
 from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
 from .linalg import svd
@@ -71,9 +70,9 @@ class GraspHold(ForceElement):
         self.object_name, self.max_squeeze = object_name, max_squeeze
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
+        self._object, self._hand = as_slice(object_columns), as_slice(self.hand_columns)  # views where contiguous
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
-        self._data = new_data(model)
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
         columns, count = cone_columns(contacts)
         self._normals = [c.normal for c in columns]
@@ -89,8 +88,8 @@ class GraspHold(ForceElement):
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
         gravity g(q) [N, N m] (see the module docstring)."""
-        carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
-        load = gravity[self.object_columns]
+        carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
+        load = gravity[self._object]
         left, singular, right = svd(carrier, full=False)
         rank = int(np.count_nonzero(singular > 1e-10 * max(singular[0], 1.0)))
         # least squares: the smallest forces that carry the object's weight V S^-1 U^T w, then the internal
@@ -117,23 +116,25 @@ class GraspHold(ForceElement):
 
     def _holds(self, forces: np.ndarray) -> bool:
         """Every force inside its contact's limits and every normal force within the cap."""
-        cap = self.max_squeeze * (1.0 + 1e-9)
-        return self._cone_test.holds(forces) and float(np.max(forces[self._normals], initial=0.0)) <= cap
+        if not self._cone_test.holds(forces):
+            return False
+        return math.isinf(self.max_squeeze) or float(np.max(forces[self._normals], initial=0.0)) <= self.max_squeeze * (
+            1.0 + 1e-9
+        )
 
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
         generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping."""
         forces = self.held_forces(rows, gravity)
         tau = np.zeros(self.model.nv)
-        hand = self.hand_columns
+        hand = self._hand
         deviation = pin.difference(self.model, self.q_start, q)[hand]
         tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
         return tau
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
-        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
-        return self.torques(rows, gravity, kin.q, v)
+        return self.torques(rows, kin.gravity(), kin.q, v)
 
 
 @FORCE_KINDS.register(
@@ -179,6 +180,13 @@ def hand_columns(nv: int, object_columns: np.ndarray) -> np.ndarray:
     hand = np.ones(nv, dtype=bool)
     hand[object_columns] = False
     return np.flatnonzero(hand)
+
+
+def as_slice(indices: np.ndarray) -> slice | np.ndarray:
+    """Consecutive indices as the slice that selects them (a view, cheaper than fancy indexing), else as they are."""
+    if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
+        return slice(int(indices[0]), int(indices[0]) + len(indices))
+    return indices
 
 
 def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:

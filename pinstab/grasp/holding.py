@@ -149,6 +149,8 @@ class ConeTest:
     def holds(self, forces: np.ndarray) -> bool:
         """No contact leaves its limits (``not leaving(contacts, forces)``)."""
         values = forces.tolist()
+        if not math.isfinite(sum(values)):  # a force that is not a number holds nothing
+            return False
         slack = -FEASIBILITY * (1.0 + max(map(abs, values), default=0.0))
         for contact in self._columns:
             normal = values[contact.normal]
