@@ -12,7 +12,7 @@ import pytest
 from pinstab import load_scene
 from pinstab.actuation import Actuation
 from pinstab.grasp.holding import ConeTest, WarmQP, leaving
-from pinstab.grasp.linalg import pinv, svd
+from pinstab.grasp.linalg import closest_solution, pinv, svd
 from pinstab.kinematics import Kinematics
 from pinstab.model import ConstrainedModel
 from pinstab.servo import ServoSolver, singular_values
@@ -131,3 +131,20 @@ def test_one_row_servo_solve_is_the_pseudo_inverses():
     controls = solver._controls(decoupling, demand, (0.0, np.zeros(nv), np.zeros(nv)))
     expected = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
     assert np.abs(controls - expected).max() < 1e-14 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("condition", [1.0, 50.0, 1e5, "deficient", "tall"])
+def test_closest_solution_is_the_pseudo_inverses(condition):
+    """closest_solution(A, b, x0) = x0 + pinv(A) (b - A x0) (numpy, rcond 1e-10) to 1e-12 relative: through
+    Cholesky (well conditioned) or the SVD (ill conditioned, rank-deficient, more rows than columns)."""
+    left, _ = np.linalg.qr(RNG.normal(size=(6, 6)))
+    right, _ = np.linalg.qr(RNG.normal(size=(12, 12)))
+    singular = np.geomspace(1.0, 1.0 / condition, 6) if isinstance(condition, float) else np.geomspace(1.0, 0.1, 6)
+    matrix = left @ np.diag(singular) @ right[:6]
+    if condition == "deficient":
+        matrix[-1] = matrix[0] + matrix[1]
+    if condition == "tall":
+        matrix = matrix[:, :4]
+    rhs, target = RNG.normal(size=6), RNG.normal(size=matrix.shape[1])
+    expected = target + np.linalg.pinv(matrix, rcond=1e-10) @ (rhs - matrix @ target)
+    assert np.abs(closest_solution(matrix, rhs, target) - expected).max() < 1e-12 * np.abs(expected).max()

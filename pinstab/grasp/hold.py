@@ -34,7 +34,7 @@ from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
-from .linalg import svd
+from .linalg import closest_solution
 
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
@@ -90,12 +90,8 @@ class GraspHold(ForceElement):
         gravity g(q) [N, N m] (see the module docstring)."""
         carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self._object]
-        left, singular, right = svd(carrier, full=False)
-        rank = int(np.count_nonzero(singular > 1e-10 * max(singular[0], 1.0)))
-        # least squares: the smallest forces that carry the object's weight V S^-1 U^T w, then the internal
-        # force (null space of A_object^T, projector I - V V^T) closest to the squeeze
-        right = right[:rank]
-        free = self.pressing + right.T @ ((left[:, :rank].T @ load) / singular[:rank] - right @ self.pressing)
+        # least squares: the forces closest to the squeeze among those that best carry the object's weight
+        free = closest_solution(carrier, load, self.pressing)
         if self._holds(free):
             return free
         count = len(free)
