@@ -133,7 +133,7 @@ def test_one_row_servo_solve_is_the_pseudo_inverses():
     assert np.abs(controls - expected).max() < 1e-14 * np.abs(expected).max()
 
 
-@pytest.mark.parametrize("condition", [1.0, 50.0, 1e5, "deficient", "tall"])
+@pytest.mark.parametrize("condition", [1.0, 50.0, 1e3, 1e5, "deficient", "tall"])
 def test_closest_solution_is_the_pseudo_inverses(condition):
     """closest_solution(A, b, x0) = x0 + pinv(A) (b - A x0) (numpy, rcond 1e-10) to 1e-12 relative: through
     Cholesky (well conditioned) or the SVD (ill conditioned, rank-deficient, more rows than columns)."""
