@@ -9,6 +9,7 @@ velocity order) with ``names``; optional ``lower`` / ``upper`` (k numbers, [N m 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -34,9 +35,9 @@ class Actuation:
         """k, the number of controls."""
         return self.matrix.shape[1]
 
-    @property
+    @cached_property
     def limited(self) -> bool:
-        """Some control has a finite bound."""
+        """Some control has a finite bound (asked at every servo solve)."""
         return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
 
 

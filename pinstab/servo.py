@@ -15,6 +15,7 @@ controls have limits by a ProxSuite QP that respects them (infeasible: the error
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,16 @@ class ServoSolution:
     acceleration: np.ndarray
     multipliers: np.ndarray
     controls: np.ndarray
+
+
+def singular_values(matrix: np.ndarray) -> np.ndarray:
+    """The singular values of ``matrix``, largest first: of one row its norm (what the SVD gives, at a
+    fraction of its cost in a solve at every evaluation)."""
+    if not matrix.size:
+        return np.zeros(0)
+    if matrix.shape[0] == 1:
+        return np.array([math.sqrt(float(matrix[0] @ matrix[0]))])
+    return np.linalg.svd(matrix, compute_uv=False)
 
 
 class ServoSolver:
@@ -86,7 +97,7 @@ class ServoSolver:
         base_multipliers = delassus @ (rhs[self.real] - real @ inverse_mass_force)
         base = inverse_mass_force + spread @ base_multipliers
         demand = rhs[self.prescribed] - jacobian[self.prescribed] @ base
-        singular = np.linalg.svd(decoupling, compute_uv=False) if decoupling.size else np.zeros(0)
+        singular = singular_values(decoupling)
         self._check_rank(decoupling, singular, state)
         controls = self._controls(decoupling, demand, state)
         acceleration = base + moved @ controls
@@ -103,7 +114,7 @@ class ServoSolver:
         rank = int(np.count_nonzero(singular > RANK_TOLERANCE * largest))
         crossed = ""
         if rank == rows and decoupling.shape[1] == rows:
-            sign = float(np.sign(np.linalg.det(decoupling)))
+            sign = float(np.sign(decoupling[0, 0] if rows == 1 else np.linalg.det(decoupling)))
             last, self._last_sign = self._last_sign, (state[0], sign)
             if last is not None and last[1] != sign:
                 crossed = f"; its determinant changed sign since t = {last[0]:.6g} s: it was singular in between"
@@ -129,8 +140,12 @@ class ServoSolver:
         )
 
     def _controls(self, decoupling: np.ndarray, demand: np.ndarray, state: tuple) -> np.ndarray:
-        """The least-effort controls with D u = demand, within the limits."""
-        least = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
+        """The least-effort controls with D u = demand, within the limits (D of full row rank here)."""
+        if decoupling.shape[0] == 1:  # one prescribed row: u = D^T demand / |D|^2, the pseudo-inverse's answer
+            row = decoupling[0]
+            least = row * (float(demand[0]) / float(row @ row))
+        else:
+            least = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
         actuation = self.actuation
         if not actuation.limited or np.all((least >= actuation.lower) & (least <= actuation.upper)):
             return least

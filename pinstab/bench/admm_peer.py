@@ -41,7 +41,7 @@ from ..constraints.grasp_contacts import FingertipContact
 from ..errors import PinstabError
 from ..forces import ExternalForce
 from ..grasp.hold import GraspHold
-from ..kinematics import symmetric_mass_matrix
+from ..kinematics import mirror_indices, symmetric_mass_matrix
 from ..scene import Scene
 from ..solvers.ncp import CONE_ORDER, NcpSolver
 
@@ -255,7 +255,7 @@ class AdmmContactPeer:
         self._subsets: dict[tuple[int, ...], NcpSolver] = {}
         self._last = self.ncp
         self._zero = np.zeros(self.model.nv)
-        self._lower = np.tril_indices(self.model.nv, -1)
+        self._lower = mirror_indices(self.model.nv)
 
     def terms(self, q: np.ndarray, v: np.ndarray) -> ContactTerms:
         """One Pinocchio pass at (q, v): M, h, the contacts' Jacobian, errors and drift (a ball's contact

@@ -30,7 +30,7 @@ from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, PerUpdate
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
@@ -42,8 +42,9 @@ GAP_ITERATIONS = 60
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    """a x b of 3-vectors (np.cross costs more than the rest of a contact's drift; so does indexing the arrays)."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 class FingertipContact(Constraint):
@@ -84,14 +85,23 @@ class FingertipContact(Constraint):
         # the rotation rows are a weld's between the object's and the finger's copy of C
         self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
+        # the constraint stack, a grasp force element and a grasp controller read them at the same state
+        self._points = PerUpdate(self._compute_point_difference)
+        self._velocity_terms = PerUpdate(self._compute_velocity_terms)
+        self._drift = PerUpdate(self._compute_drift)
 
     # -- rows ----------------------------------------------------------------------------------------
     def _point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        """(R_C, d = p_o - p_f) in world axes."""
+        """(R_C, d = p_o - p_f) in world axes (shared: not to be modified)."""
+        return self._points(kin)
+
+    def _compute_point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         on_object = kin.placement(self.object_frame)
         return on_object.rotation, on_object.translation - kin.placement(self.finger_frame).translation
 
     def _select(self, linear: np.ndarray, angular) -> np.ndarray:
+        if angular is None and self.rows == 3:  # point-friction: the point rows as they are
+            return linear
         full = linear if angular is None else np.concatenate([linear, angular])
         return full[self.components]
 
@@ -101,30 +111,40 @@ class FingertipContact(Constraint):
         return self._select(rotation.T @ difference, angular)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        return self._velocity_terms(kin)
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """gamma0 at ``kin``'s state (``v`` is the velocity of its last full update)."""
+        return self._drift(kin)
+
+    def _compute_velocity_terms(self, kin: Kinematics) -> VelocityTerms:
         rotation, difference = self._point_difference(kin)
         jac_o = kin.jacobian(self.object_frame)
         jac_f = kin.jacobian(self.finger_frame)
         # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
         linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
-        jacobian = linear if self._weld is None else np.vstack([linear, self._weld.velocity_terms(kin, q, t)[0][3:]])
-        return VelocityTerms(jacobian[self.components], np.zeros(self.rows))
+        angular = self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:] if self._weld else None
+        return VelocityTerms(self._select(linear, angular), np.zeros(self.rows))
 
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+    def _compute_drift(self, kin: Kinematics) -> np.ndarray:
         rotation, difference = self._point_difference(kin)
-        velocity_o, velocity_f = kin.velocity(self.object_frame), kin.velocity(self.finger_frame)
-        omega = velocity_o.angular
-        rate = velocity_o.linear - velocity_f.linear
+        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d), on floats
+        d0, d1, d2 = difference.tolist()
+        velocity_o, velocity_f = kin.velocity(self.object_frame).vector, kin.velocity(self.finger_frame).vector
+        r0, r1, r2, w0, w1, w2 = velocity_o.tolist()
+        f0, f1, f2 = velocity_f[:3].tolist()
+        r0, r1, r2 = 2.0 * (r0 - f0), 2.0 * (r1 - f1), 2.0 * (r2 - f2)
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
-        # d2/dt2 R^T d at zero joint acceleration
-        linear = rotation.T @ (
-            acc_o.linear
-            - acc_f.linear
-            - 2.0 * cross(omega, rate)
-            + cross(omega, cross(omega, difference))
-            - cross(acc_o.angular, difference)
-        )
-        angular = self._weld.drift(kin, q, v, t)[3:] if self._weld else None
-        return self._select(linear, angular)
+        s0, s1, s2 = (acc_o.linear - acc_f.linear).tolist()
+        k0, k1, k2 = acc_o.angular.tolist()
+        x0, x1, x2 = w1 * d2 - w2 * d1 - r0, w2 * d0 - w0 * d2 - r1, w0 * d1 - w1 * d0 - r2  # w x d - 2 d'
+        turning = [
+            s0 + w1 * x2 - w2 * x1 - (k1 * d2 - k2 * d1),
+            s1 + w2 * x0 - w0 * x2 - (k2 * d0 - k0 * d2),
+            s2 + w0 * x1 - w1 * x0 - (k0 * d1 - k1 * d0),
+        ]
+        linear = rotation.T @ np.array(turning)
+        return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None)
 
     # -- forces --------------------------------------------------------------------------------------
     def wrench(self, force: np.ndarray) -> np.ndarray:

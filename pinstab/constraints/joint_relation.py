@@ -46,11 +46,14 @@ class JointRelation(Constraint):
         self.row, self.q_indices, self.v_indices = row, q_indices, v_indices
         self.trajectory = trajectory
         self.force_frame = "generalized force along the relation's row [N m or N]"
+        self._target: tuple[float, tuple[float, float, float]] | None = None  # (t, target(t)) of the last call
 
     def target(self, t: float) -> tuple[float, float, float]:
-        """(c, dc/dt, d2c/dt2) at time t [s]."""
-        value, rate, curvature = self.trajectory.evaluate(t)
-        return float(value[0]), float(rate[0]), float(curvature[0])
+        """(c, dc/dt, d2c/dt2) at time t [s] (the residual, the row and the drift read it at the same t)."""
+        if self._target is None or self._target[0] != t:
+            value, rate, curvature = self.trajectory.evaluate(t)
+            self._target = (t, (float(value[0]), float(rate[0]), float(curvature[0])))
+        return self._target[1]
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         return np.array([float(self.row @ q[self.q_indices]) - self.target(t)[0]])

@@ -41,7 +41,7 @@ import pinocchio as pin
 from ..contact.collisions import Touch
 from ..contact.models import ContactLimits
 from ..errors import ConstraintError, SceneError, choices
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, PerUpdate
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .grasp_contacts import close_gap, cross, read_coefficients, read_fingertip
@@ -216,16 +216,18 @@ class RollingGeometry:
     ) -> None:
         self.surface, self.object_frame, self.finger_frame = surface, object_frame, finger_frame
         self.radius, self.start, self.name = radius, start, name
-        self._last: tuple[np.ndarray, ContactState] | None = None  # (placements, state) of the last call
+        # the two blocks ask for the state five times an evaluation, for the Jacobians and the rates twice
+        self._state = PerUpdate(self._compute_state)
+        self._jacobians = PerUpdate(lambda kin: self._compute_jacobians(kin, self.state(kin)))
+        self._rates = PerUpdate(lambda kin: self._compute_rates(kin, self.state(kin)))
 
     def state(self, kin: Kinematics) -> ContactState:
-        """The contact at the current placements (the blocks ask for it five times an evaluation: it is
-        computed once for each pair of placements)."""
+        """The contact at the current placements (computed once per kinematics update)."""
+        return self._state(kin)
+
+    def _compute_state(self, kin: Kinematics) -> ContactState:
         placement = kin.placement(self.object_frame)
         centre = kin.placement(self.finger_frame).translation
-        key = np.concatenate([placement.homogeneous.ravel(), centre])
-        if self._last is not None and np.array_equal(self._last[0], key):
-            return self._last[1]
         rotation = placement.rotation
         offset = centre - placement.translation
         local = rotation.T @ offset
@@ -233,9 +235,7 @@ class RollingGeometry:
         turn, _ = self._transport(inward, np.zeros(3))
         axes = rotation @ turn @ self.start
         hessian = rotation @ self.surface.hessian(local) @ rotation.T
-        state = ContactState(axes, offset, self.surface.distance(local) - self.radius, hessian)
-        self._last = (key, state)
-        return state
+        return ContactState(axes, offset, self.surface.distance(local) - self.radius, hessian)
 
     def _transport(self, inward: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if 1.0 + float(self.start[:, 2] @ inward) < ANTIPODE_MARGIN:
@@ -262,12 +262,22 @@ class RollingGeometry:
 
     def jacobians(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray]:
         """(J_w, J_Omega): w = J_w v, the fingertip centre's velocity relative to the object's motion there,
-        and Omega = J_Omega v = omega_o - omega_f (3 x nv each, world axes)."""
+        and Omega = J_Omega v = omega_o - omega_f (3 x nv each, world axes); ``state`` is :meth:`state`'s
+        (once per kinematics update, shared: not to be modified)."""
+        return self._jacobians(kin)
+
+    def _compute_jacobians(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray]:
         jac_o, jac_f = kin.jacobian(self.object_frame), kin.jacobian(self.finger_frame)
         return jac_f[:3] - jac_o[:3] + pin.skew(state.offset) @ jac_o[3:], jac_o[3:] - jac_f[3:]
 
     def rates(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(w, dw/dt, Omega, dOmega/dt) at zero joint acceleration (world axes) [m/s, m/s^2, rad/s, rad/s^2]."""
+        """(w, dw/dt, Omega, dOmega/dt) at zero joint acceleration (world axes) [m/s, m/s^2, rad/s, rad/s^2];
+        ``state`` is :meth:`state`'s (once per kinematics update, shared: not to be modified)."""
+        return self._rates(kin)
+
+    def _compute_rates(
+        self, kin: Kinematics, state: ContactState
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         velocity_o, velocity_f = kin.velocity(self.object_frame), kin.velocity(self.finger_frame)
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
         omega_o = velocity_o.angular

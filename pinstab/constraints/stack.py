@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -75,9 +76,9 @@ class RowLayout:
             kinds.add(RowKind.EQUALITY)
         return frozenset(kinds)
 
-    @property
+    @cached_property
     def equality_only(self) -> bool:
-        """No unilateral and no cone rows."""
+        """No unilateral and no cone rows (asked at every solve)."""
         return not self.cones and not self.unilateral.any()
 
 

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..constraints.grasp_contacts import cross
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import ContactInfeasibleError, SceneError
 from ..forces.base import FORCE_KINDS, ForceElement, Sample
@@ -45,7 +46,8 @@ from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
 from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
-from .holding import cone_columns, pyramid_rows, solve_qp
+from .holding import WarmQP, cone_columns, pyramid_rows
+from .linalg import pinv
 from .welded import WeldedGrasp, welded_grasp
 
 CONTROL_KEYS = {
@@ -150,6 +152,7 @@ class GraspControl(ForceElement):
         self.effort_limit = np.where((limits > 0) & (limits < 1e30), limits, np.inf)
         self.welds = welds
         self.cone_rows, self.cone_bounds = self._cone_constraints(facets) if welds is None else (None, None)
+        self._qp = WarmQP()  # the internal-force QP, warm-started from the previous evaluation's
 
     # -- pieces ----------------------------------------------------------------------------------------
     def _cone_constraints(self, facets: int) -> tuple[np.ndarray, np.ndarray]:
@@ -174,14 +177,14 @@ class GraspControl(ForceElement):
         angular = angular_dd - self.kd * (angular_world - angular_d) - self.kp * rotation_error
         # d/dt (R^T p_dot) = R^T p_ddot - omega_b x (R^T p_dot); d/dt (R^T omega) = R^T omega_dot
         omega_body = velocity[3:]
-        return np.concatenate([rotation.T @ linear - np.cross(omega_body, velocity[:3]), rotation.T @ angular])
+        return np.concatenate([rotation.T @ linear - cross(omega_body, velocity[:3]), rotation.T @ angular])
 
     def _hand_acceleration(self, kin: Kinematics, v: np.ndarray, t: float, rows: np.ndarray, object_acc: np.ndarray):
         """Joint accelerations consistent with the contacts for the object's acceleration, the posture PD in
         the rows' null space [rad/s^2]."""
         drift = np.concatenate([c.drift(kin, kin.q, v, t) for c in self.contacts])
         hand_rows = rows[:, self.hand_columns]
-        pseudo = np.linalg.pinv(hand_rows)
+        pseudo = pinv(hand_rows)
         particular = pseudo @ (-drift - rows[:, self.object_columns] @ object_acc)
         deviation = pin.difference(self.model, self.q_start, kin.q)[self.hand_columns]
         posture = -self.posture_kp * deviation - self.posture_kd * v[self.hand_columns]
@@ -199,7 +202,7 @@ class GraspControl(ForceElement):
         inequality = np.vstack([self.cone_rows, torque_rows])
         lower = np.concatenate([self.cone_bounds, -self.effort_limit[finite] - demand[finite]])
         upper = np.concatenate([np.full(len(self.cone_bounds), 1e30), self.effort_limit[finite] - demand[finite]])
-        return solve_qp(hessian, gradient, carrier, wrench, inequality, lower, upper)
+        return self._qp.solve(hessian, gradient, carrier, wrench, inequality, lower, upper)
 
     # -- ForceElement ----------------------------------------------------------------------------------
     def plan(self, kin: Kinematics, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

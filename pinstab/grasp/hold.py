@@ -32,10 +32,10 @@ from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
 from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
-from ..memory import new_data
 from ..tables import SceneTables
 from ..units import within_ceiling
-from .holding import closest_holding, cone_columns, leaving, pyramid_rows, solve_qp
+from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
+from .linalg import closest_solution
 
 HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
@@ -72,9 +72,9 @@ class GraspHold(ForceElement):
         self.object_name, self.max_squeeze = object_name, max_squeeze
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
+        self._object, self._hand = as_slice(object_columns), as_slice(self.hand_columns)  # views where contiguous
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
-        self._data = new_data(model)
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
         columns, count = cone_columns(contacts)
         self._normals = [c.normal for c in columns]
@@ -84,23 +84,20 @@ class GraspHold(ForceElement):
         limit = UNBOUNDED if math.isinf(max_squeeze) else max_squeeze
         self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
+        self._cone_test = ConeTest(contacts)
+        self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
         gravity g(q) [N, N m] (see the module docstring)."""
-        carrier = rows[:, self.object_columns].T  # A_object^T: contact forces -> object generalized force
-        load = gravity[self.object_columns]
-        left, singular, right = np.linalg.svd(carrier, full_matrices=True)
-        rank = int(np.sum(singular > 1e-10 * max(singular[0], 1.0)))
-        # least squares: the smallest forces that carry the object's weight, then the internal force
-        # (null space of A_object^T) closest to the squeeze
-        forces = right[:rank].T @ ((left[:, :rank].T @ load) / singular[:rank])
-        internal = right[rank:].T
-        free = forces + internal @ (internal.T @ self.pressing)
+        carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
+        load = gravity[self._object]
+        # least squares: the forces closest to the squeeze among those that best carry the object's weight
+        free = closest_solution(carrier, load, self.pressing)
         if self._holds(free):
             return free
         count = len(free)
-        solution, solved, _ = solve_qp(
+        solution, solved, _ = self._pyramid_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper
         )
         if solved and self._holds(solution):
@@ -110,30 +107,32 @@ class GraspHold(ForceElement):
             return exact.forces if exact.holds else free
         # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
         caps = len(self._normals)
-        capped, solved, _ = solve_qp(
+        capped, solved, _ = self._capped_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones[-caps:], self._lower[-caps:], self._upper[-caps:]
         )
         return capped if solved else free
 
     def _holds(self, forces: np.ndarray) -> bool:
         """Every force inside its contact's limits and every normal force within the cap."""
-        cap = self.max_squeeze * (1.0 + 1e-9)
-        return not leaving(self.contacts, forces) and float(np.max(forces[self._normals], initial=0.0)) <= cap
+        if not self._cone_test.holds(forces):
+            return False
+        return math.isinf(self.max_squeeze) or float(np.max(forces[self._normals], initial=0.0)) <= self.max_squeeze * (
+            1.0 + 1e-9
+        )
 
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
         generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping."""
         forces = self.held_forces(rows, gravity)
         tau = np.zeros(self.model.nv)
-        hand = self.hand_columns
+        hand = self._hand
         deviation = pin.difference(self.model, self.q_start, q)[hand]
         tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
         return tau
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
-        gravity = pin.computeGeneralizedGravity(self.model, self._data, kin.q)
-        return self.torques(rows, gravity, kin.q, v)
+        return self.torques(rows, kin.gravity(), kin.q, v)
 
 
 @FORCE_KINDS.register(
@@ -180,6 +179,13 @@ def hand_columns(nv: int, object_columns: np.ndarray) -> np.ndarray:
     hand = np.ones(nv, dtype=bool)
     hand[object_columns] = False
     return np.flatnonzero(hand)
+
+
+def as_slice(indices: np.ndarray) -> slice | np.ndarray:
+    """Consecutive indices as the slice that selects them (a view, cheaper than fancy indexing), else as they are."""
+    if len(indices) and np.array_equal(indices, np.arange(indices[0], indices[0] + len(indices))):
+        return slice(int(indices[0]), int(indices[0]) + len(indices))
+    return indices
 
 
 def contact_rows(contacts: list[Any], kin: Kinematics, t: float) -> np.ndarray:

@@ -139,6 +139,32 @@ def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str,
     return found
 
 
+class ConeTest:
+    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, on plain floats
+    (a test at every evaluation)."""
+
+    def __init__(self, contacts: list[Any]) -> None:
+        self._columns, _ = cone_columns(contacts)
+
+    def holds(self, forces: np.ndarray) -> bool:
+        """No contact leaves its limits (``not leaving(contacts, forces)``)."""
+        values = forces.tolist()
+        if not math.isfinite(sum(values)):  # a force that is not a number holds nothing
+            return False
+        slack = -FEASIBILITY * (1.0 + max(map(abs, values), default=0.0))
+        for contact in self._columns:
+            normal = values[contact.normal]
+            if normal < slack:
+                return False
+            if contact.tangents is not None:
+                t1, t2 = contact.tangents
+                if contact.mu * normal - math.hypot(values[t1], values[t2]) < slack:
+                    return False
+            if contact.spin is not None and contact.torsion * normal - abs(values[contact.spin]) < slack:
+                return False
+        return True
+
+
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
     """Every contact whose force (in the stacked ``forces``) is outside what it carries, with its violated
     margins (< 0, see :func:`cone_margins`), beyond a rounding slack relative to the largest force."""
@@ -284,17 +310,42 @@ def closest_holding(
     return problem.solve(objective)
 
 
-def solve_qp(hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
-    """ProxQP (dense) on ``min x^T H x / 2 + g^T x``, ``E x = b``, ``l <= C x <= u``: (x, solved, ProxQP's
-    info), without Ruiz equilibration (problems here are in N and N m already) and with a capped
-    iteration count (an infeasible problem stops early)."""
-    qp = proxsuite.proxqp.dense.QP(len(gradient), equality.shape[0], inequality.shape[0])
+def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:
+    """A dense ProxQP of that shape with this module's settings (see :class:`WarmQP`)."""
+    qp = proxsuite.proxqp.dense.QP(variables, equalities, inequalities)
     qp.settings.eps_abs = 1e-10
     qp.settings.verbose = False
     qp.settings.max_iter, qp.settings.max_iter_in = QP_ITERATIONS, QP_ITERATIONS
-    # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
-    # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
-    # instructions and from run to run), so that a QP solved here could fail on another machine
-    qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
-    qp.solve()
-    return np.array(qp.results.x), qp.results.info.status in _SOLVED, qp.results.info
+    return qp
+
+
+class WarmQP:
+    """ProxQP (dense) on ``min x^T H x / 2 + g^T x``, ``E x = b``, ``l <= C x <= u`` for a caller that solves a
+    QP of one shape at successive states (a force element at every evaluation), without Ruiz equilibration
+    (problems here are in N and N m already) and with a capped iteration count (an infeasible problem stops
+    early). Each solve starts from the previous solution and multipliers (ProxQP's warm start; a cold
+    start converges to the same ``eps_abs`` 1e-10); the QP is built afresh, cold, when the shape changes
+    or a warm solve does not converge."""
+
+    def __init__(self) -> None:
+        self._qp: proxsuite.proxqp.dense.QP | None = None
+        self._shape: tuple[int, int, int] = (0, 0, 0)
+
+    def solve(self, hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
+        """(x, solved, ProxQP's info)."""
+        shape = (len(gradient), equality.shape[0], inequality.shape[0])
+        qp = self._qp
+        if qp is not None and shape == self._shape:
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            qp.update(hessian, gradient, equality, rhs, inequality, lower, upper, update_preconditioner=False)
+            qp.solve()
+            if qp.results.info.status in _SOLVED:
+                return np.array(qp.results.x), True, qp.results.info
+        qp = self._qp = _fresh_qp(*shape)
+        self._shape = shape
+        # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
+        # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
+        # instructions and from run to run), so that a QP solved here could fail on another machine
+        qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
+        qp.solve()
+        return np.array(qp.results.x), qp.results.info.status in _SOLVED, qp.results.info

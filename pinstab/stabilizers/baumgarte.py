@@ -41,6 +41,7 @@ class BaumgarteStabilizer(Stabilizer):
     def __init__(self, options: BaumgarteOptions | None = None) -> None:
         options = options or BaumgarteOptions()
         self.kp, self.kd = float(options.kp), float(options.kd)
+        self._velocity_gain: tuple[np.ndarray, np.ndarray] | None = None  # (holonomic mask, Kd per row)
 
     def deviation_gains(self, model, q, v) -> DeviationGains:
         mask = model.constraints.holonomic_mask
@@ -49,8 +50,10 @@ class BaumgarteStabilizer(Stabilizer):
         )
 
     def stabilization_term(self, model, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
-        velocity_gain = np.where(model.constraints.holonomic_mask, self.kd, 0.5 * self.kd)
-        return -velocity_gain * values.velocity_residual - self.kp * values.phi
+        mask = model.constraints.holonomic_mask
+        if self._velocity_gain is None or self._velocity_gain[0] is not mask:  # once per constraint set
+            self._velocity_gain = (mask, np.where(mask, self.kd, 0.5 * self.kd))
+        return -self._velocity_gain[1] * values.velocity_residual - self.kp * values.phi
 
     def baumgarte_gains(self) -> tuple[float, float]:
         return (self.kp, self.kd)

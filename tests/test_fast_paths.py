@@ -1,0 +1,163 @@
+"""The shortcuts of the grasp, rolling and servo runs (issue 23) against the computations they replace:
+values computed once per kinematics update against a fresh pass at the new state, LAPACK's SVD and
+pseudo-inverse against numpy's, the float cone test against ``leaving``, warm-started QPs against cold ones,
+g(q) from the full pass against Pinocchio's RNEA, the one-row servo solve against the pseudo-inverse."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pinstab import load_scene
+from pinstab.actuation import Actuation
+from pinstab.grasp.holding import ConeTest, WarmQP, leaving
+from pinstab.grasp.linalg import closest_solution, pinv, svd
+from pinstab.kinematics import Kinematics
+from pinstab.model import ConstrainedModel
+from pinstab.servo import ServoSolver, singular_values
+
+RNG = np.random.default_rng(23)
+
+
+@pytest.fixture(scope="module")
+def sphere() -> ConstrainedModel:
+    return ConstrainedModel(load_scene("allegro-sphere"))
+
+
+def moved(model: ConstrainedModel, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """A state near the scene's start: (q, v)."""
+    q = pin.integrate(model.model, model.scene.q0, scale * RNG.normal(size=model.nv))
+    return q, scale * RNG.normal(size=model.nv)
+
+
+def fresh_values(model: ConstrainedModel, q: np.ndarray, v: np.ndarray):
+    """The constraint values at (q, v) from a Kinematics of its own (nothing cached from another state)."""
+    kin = Kinematics(model.model)
+    kin.update(q, v)
+    return model.constraints.values(kin, q, v, 0.0, with_drift=True)
+
+
+@pytest.mark.parametrize("scene", ["allegro-sphere", "finger-rolling"])
+def test_rows_cached_per_update_follow_the_state(scene):
+    """Rows, residuals and drifts read twice at one state, then at a second state, equal a fresh pass at
+    each state (1e-13): what is kept for an update is not served after the next."""
+    model = ConstrainedModel(load_scene(scene))
+    for scale in (1e-3, 2e-3):
+        q, v = moved(model, scale)
+        model.kin.update(q, v)
+        first = model.constraints.values(model.kin, q, v, 0.0, with_drift=True)
+        again = model.constraints.values(model.kin, q, v, 0.0, with_drift=True)
+        fresh = fresh_values(model, q, v)
+        for name in ("phi", "jacobian", "drift"):
+            expected = getattr(fresh, name)
+            assert np.abs(getattr(first, name) - expected).max() <= 1e-13 * max(1.0, np.abs(expected).max())
+            assert np.array_equal(getattr(again, name), getattr(first, name))
+
+
+def test_gravity_from_the_full_pass_is_pinocchios(sphere):
+    """Kinematics.gravity() after a full update and after a positions-only one equals
+    ``computeGeneralizedGravity`` at that q (1e-12 N m)."""
+    kin = Kinematics(sphere.model)
+    for update in (lambda q, v: kin.update(q, v), lambda q, v: kin.update_positions(q)):
+        q, v = moved(sphere, 0.05)
+        update(q, v)
+        expected = pin.computeGeneralizedGravity(sphere.model, sphere.model.createData(), q)
+        assert np.abs(kin.gravity() - expected).max() < 1e-12
+
+
+@pytest.mark.parametrize("shape", [(6, 12), (12, 16), (4, 4), (3, 7)])
+def test_lapack_svd_and_pseudo_inverse_are_numpys(shape):
+    """svd and pinv through LAPACK equal numpy's (1e-13), on full-rank and rank-deficient matrices."""
+    full = RNG.normal(size=shape)
+    deficient = full.copy()
+    deficient[-1] = deficient[0] - 2.0 * deficient[1]
+    for matrix in (full, deficient, np.zeros(shape)):
+        for ours, theirs in zip(svd(matrix, full=False), np.linalg.svd(matrix, full_matrices=False), strict=True):
+            assert np.abs(np.abs(ours) - np.abs(theirs)).max() < 1e-13
+        assert np.abs(pinv(matrix) - np.linalg.pinv(matrix)).max() < 1e-13 * max(1.0, np.abs(pinv(matrix)).max())
+
+
+def test_float_cone_test_is_leaving(sphere):
+    """ConeTest.holds agrees with ``not leaving(...)`` on forces inside, on and outside the cones, and refuses NaN."""
+    contacts = sphere.constraints.constraints
+    test = ConeTest(contacts)
+    inside = np.tile([0.1, -0.2, 1.0], len(contacts))
+    samples = [inside, np.zeros_like(inside)]
+    for _ in range(300):
+        forces = inside + RNG.normal(scale=0.6, size=inside.size)
+        samples.append(forces)
+    edge = inside.copy()
+    edge[:2] = [0.8, 0.0]  # |f_t| = mu f_n on the first contact
+    samples += [edge, edge * np.array([1.0 + 1e-6] + [1.0] * (edge.size - 1))]
+    verdicts = [test.holds(forces) for forces in samples]
+    assert verdicts == [not leaving(contacts, forces) for forces in samples]
+    assert any(verdicts) and not all(verdicts)
+    nan = inside.copy()
+    nan[0] = np.nan
+    assert not test.holds(nan)
+
+
+def test_warm_started_qp_is_the_cold_one():
+    """A sequence of drifting QPs with active inequalities: each warm-started solve equals a cold solve to
+    1e-8, and takes no more iterations in all."""
+    size, equalities, inequalities = 8, 2, 6
+    hessian_root = RNG.normal(size=(size, size))
+    base = (hessian_root @ hessian_root.T + size * np.eye(size), RNG.normal(size=size))
+    equality, rhs = RNG.normal(size=(equalities, size)), RNG.normal(size=equalities)
+    inequality = RNG.normal(size=(inequalities, size))
+    lower, upper = np.full(inequalities, -0.2), np.full(inequalities, 0.2)
+    warm, warm_iterations, cold_iterations = WarmQP(), 0, 0
+    for k in range(20):
+        hessian, gradient = base[0], base[1] + 0.01 * k
+        ours, solved, info = warm.solve(hessian, gradient, equality, rhs, inequality, lower, upper)
+        cold, cold_solved, cold_info = WarmQP().solve(hessian, gradient, equality, rhs, inequality, lower, upper)
+        assert solved and cold_solved
+        assert np.abs(ours - cold).max() < 1e-8
+        assert np.any(np.isclose(np.abs(inequality @ cold), 0.2, atol=1e-8))  # some bound is active
+        warm_iterations += info.iter if k else 0
+        cold_iterations += cold_info.iter if k else 0
+    assert warm_iterations <= cold_iterations
+
+
+def test_one_row_servo_solve_is_the_pseudo_inverses():
+    """One prescribed row, three controls: the singular values and the least-effort controls equal numpy's
+    SVD and pseudo-inverse (1e-14 relative)."""
+    nv = 3
+    actuation = Actuation(np.eye(nv), ("a", "b", "c"), np.full(nv, -np.inf), np.full(nv, np.inf))
+    solver = ServoSolver(np.array([True]), ("servo",), actuation)
+    decoupling, demand = RNG.normal(size=(1, nv)), RNG.normal(size=1)
+    assert np.abs(singular_values(decoupling) - np.linalg.svd(decoupling, compute_uv=False)).max() < 1e-14
+    controls = solver._controls(decoupling, demand, (0.0, np.zeros(nv), np.zeros(nv)))
+    expected = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
+    assert np.abs(controls - expected).max() < 1e-14 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("condition", [1.0, 50.0, 1e3, 1e5, "deficient", "tall"])
+def test_closest_solution_is_the_pseudo_inverses(condition):
+    """closest_solution(A, b, x0) = x0 + pinv(A) (b - A x0) (numpy, rcond 1e-10) to 1e-12 relative: through
+    Cholesky (well conditioned) or the SVD (ill conditioned, rank-deficient, more rows than columns)."""
+    left, _ = np.linalg.qr(RNG.normal(size=(6, 6)))
+    right, _ = np.linalg.qr(RNG.normal(size=(12, 12)))
+    singular = np.geomspace(1.0, 1.0 / condition, 6) if isinstance(condition, float) else np.geomspace(1.0, 0.1, 6)
+    matrix = left @ np.diag(singular) @ right[:6]
+    if condition == "deficient":
+        matrix[-1] = matrix[0] + matrix[1]
+    if condition == "tall":
+        matrix = matrix[:, :4]
+    rhs, target = RNG.normal(size=6), RNG.normal(size=matrix.shape[1])
+    expected = target + np.linalg.pinv(matrix, rcond=1e-10) @ (rhs - matrix @ target)
+    assert np.abs(closest_solution(matrix, rhs, target) - expected).max() < 1e-12 * np.abs(expected).max()
+
+
+def test_mass_matrix_is_crbas_mirrored(sphere):
+    """Kinematics' M (one pass, mirrored through flat indices) equals Pinocchio's crba with its upper triangle
+    mirrored (1e-14 relative) and is symmetric to the bit."""
+    q, v = moved(sphere, 0.1)
+    kin = Kinematics(sphere.model)
+    kin.update(q, v)
+    upper = np.triu(pin.crba(sphere.model, sphere.model.createData(), q))
+    expected = upper + np.triu(upper, 1).T
+    assert np.abs(kin.mass_matrix - expected).max() < 1e-14 * np.abs(expected).max()
+    assert np.array_equal(kin.mass_matrix, kin.mass_matrix.T)
+    assert np.array_equal(sphere.mass_matrix(q), expected)
