@@ -6,7 +6,8 @@ configurations (:mod:`.passages`)."""
 from .adaptive import AdaptiveLoop, ErrorControl
 from .passages import Passage
 from .schemes import INTEGRATORS, ExplicitRungeKutta, Integrator, embedded_pairs
-from .stepping import CHECK_STEPS, Records, StepLoop, TimeGrid
+from .records import Records, StreamedRecords
+from .stepping import CHECK_STEPS, StepLoop, TimeGrid
 
 __all__ = [
     "CHECK_STEPS",
@@ -17,6 +18,7 @@ __all__ = [
     "Integrator",
     "Passage",
     "Records",
+    "StreamedRecords",
     "StepLoop",
     "TimeGrid",
     "embedded_pairs",
