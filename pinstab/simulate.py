@@ -45,8 +45,8 @@ from .series import StateSeries
 from .solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
 from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
-from .system import ConstrainedSystem, build_system
 from .stream import BLOCK, StreamWriter, h5py_module
+from .system import ConstrainedSystem, build_system
 from .trajectory import StreamedTrajectory, Trajectory
 from .validation import relative_tolerance
 from .zero_dynamics import warn_runaway
@@ -360,8 +360,8 @@ def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo)
         finite = loop.records.count - 1  # without the failed step's sample
         finite_info = dataclasses.replace(info)
         exc.trajectory = _trajectory(loop, system, info, wall_time)
-        exc.finite_trajectory = exc.trajectory if _streamed(loop) else _trajectory(
-            loop, system, finite_info, wall_time, finite
+        exc.finite_trajectory = (
+            exc.trajectory if _streamed(loop) else _trajectory(loop, system, finite_info, wall_time, finite)
         )
         raise
     except KeyboardInterrupt:

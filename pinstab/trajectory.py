@@ -259,7 +259,6 @@ class Trajectory:
         trajectory.comparison = comparison
         return trajectory
 
-
     @classmethod
     def _load_stream(cls, path: str | Path) -> Trajectory:
         """The trajectory of a streamed run file, read whole."""

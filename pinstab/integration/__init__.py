@@ -5,8 +5,8 @@ configurations (:mod:`.passages`)."""
 
 from .adaptive import AdaptiveLoop, ErrorControl
 from .passages import Passage
-from .schemes import INTEGRATORS, ExplicitRungeKutta, Integrator, embedded_pairs
 from .records import Records, StreamedRecords
+from .schemes import INTEGRATORS, ExplicitRungeKutta, Integrator, embedded_pairs
 from .stepping import CHECK_STEPS, StepLoop, TimeGrid
 
 __all__ = [
