@@ -73,7 +73,7 @@ class Interrupted(KeyboardInterrupt):
     """
 
     def __init__(self, trajectory: Trajectory) -> None:
-        super().__init__(f"interrupted at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})")
+        super().__init__(f"interrupted at t = {trajectory.info.t_end:.6g} s (step {trajectory.steps})")
         self.trajectory = trajectory
 
 
