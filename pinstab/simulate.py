@@ -337,8 +337,10 @@ def _simulate_held(
 
 def _checked(scene: Scene, trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
     """``trajectory``, after warning of the robot-object overlaps at its kept samples
-    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`; not for a streamed run)."""
-    if scene.collisions is not None and isinstance(trajectory, Trajectory):
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`; a streamed run instead gets its completed info written to its file)."""
+    if isinstance(trajectory, StreamedTrajectory):
+        trajectory.write_info()  # as completed after the file was finished
+    elif scene.collisions is not None:
         scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
     return trajectory
 
@@ -369,6 +371,8 @@ def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo)
     except ContactInfeasibleError as exc:
         exc.trajectory = _trajectory(loop, system, info, elapsed())
         info.stopped = failure_stop(exc, info.t_end)
+        if _streamed(loop):
+            exc.trajectory.write_info()
         raise
 
 

@@ -155,6 +155,12 @@ def write_info(file, info: RunInfo) -> None:
     file.attrs["scene_parameters"] = json.dumps(info.scene_parameters)
 
 
+def rewrite_info(path: str | Path, info: RunInfo) -> None:
+    """Replace the run info of a finished run file (:func:`write_info`)."""
+    with h5py_module().File(path, "r+") as file:
+        write_info(file, info)
+
+
 def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """(t [s], q) of a run file's samples, :data:`BLOCK` at a time."""
     with h5py_module().File(path, "r", swmr=True, locking=False) as file:

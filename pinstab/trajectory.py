@@ -15,7 +15,7 @@ import pinocchio as pin
 from .errors import PinstabError
 from .files import atomic_output
 from .runinfo import RunInfo
-from .stream import StreamFile, is_stream_file, read_stream, sample_blocks
+from .stream import StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
 
 
 class SeriesSource(Protocol):
@@ -428,6 +428,10 @@ class StreamedTrajectory:
         scene's contacts, force elements and servos add to a run kept in memory are left to :meth:`load`."""
         figures = dict(self.figures) if self.figures is not None else dict.fromkeys(SeriesFigures(0).result())
         return {**run_figures(self.info, self.wall_time, self.info.t_end, figures), "stream": str(self.path)}
+
+    def write_info(self) -> None:
+        """Write :attr:`info` to the file again (after the run's end completed it: limits, stop)."""
+        rewrite_info(self.path, self.info)
 
     def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """(t [s], q) of the file's samples, a block at a time."""
