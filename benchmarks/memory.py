@@ -103,7 +103,8 @@ def stream() -> None:
                 "h5_mib": size,
             }
             print(
-                f"{duration:6g} s streamed ({round(duration * 1000):,} steps): peak {peak:6.1f} MiB, file {size:6.1f} MiB, {wall:5.1f} s"
+                f"{duration:6g} s streamed ({round(duration * 1000):,} steps): peak {peak:6.1f} MiB, "
+                f"file {size:6.1f} MiB, {wall:5.1f} s"
             )
     save_results(STREAM_OUT, results)
 

@@ -337,7 +337,8 @@ def _simulate_held(
 
 def _checked(scene: Scene, trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
     """``trajectory``, after warning of the robot-object overlaps at its kept samples
-    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`; a streamed run instead gets its completed info written to its file)."""
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`); a streamed run instead gets its completed
+    info written to its file."""
     if isinstance(trajectory, StreamedTrajectory):
         trajectory.write_info()  # as completed after the file was finished
     elif scene.collisions is not None:
