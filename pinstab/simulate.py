@@ -569,7 +569,8 @@ def _require_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str
             f"{samples:,} kept samples": size,
         },
         f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
-        "keep fewer samples (--record-every, record_every), use a larger step or a shorter duration",
+        "keep fewer samples (--record-every, record_every), stream them to disk (--stream FILE.h5, stream), use a "
+        "larger step or a shorter duration",
     )
 
 
