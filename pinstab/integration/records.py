@@ -113,8 +113,8 @@ class StreamedRecords(Records):
 
     def put(self, index: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
         slot = index - self.offset
-        self.steps[slot] = self.step_of(np.asarray(index))
-        self.t[slot] = self.grid.time(int(self.steps[slot]))
+        step = self.grid.steps if index == self.last else index * self.every
+        self.steps[slot], self.t[slot] = step, self.grid.time(step)
         super().put(slot, q, v, iterations)
 
     def checked(self, k: int) -> None:
