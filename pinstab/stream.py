@@ -40,6 +40,8 @@ DERIVED = {  # written when the run has ended: name -> units
     "energy": "J",
     "spectral_radius": "-",
 }
+CHUNK_CACHE = 0  # bytes of HDF5's chunk cache: off, writes are whole blocks (with h5py's default the resident
+# memory grew by about a chunk per chunk written: 47 MiB over 10^6 rows of 9 columns, measured)
 INFO_ATTRIBUTES = ("scene", "method", "integrator", "solver", "dt", "record_every", "path")
 
 
@@ -74,7 +76,7 @@ class StreamWriter:
         h5py = h5py_module()
         self.path = Path(path)
         try:
-            self.file = h5py.File(self.path, "w", libver="latest")
+            self.file = h5py.File(self.path, "w", libver="latest", rdcc_nbytes=CHUNK_CACHE)
         except OSError as exc:
             raise PinstabError(f"cannot write {path}: {exc}") from None
         widths = {"q": nq, "v": nv, "multipliers": rows}
@@ -120,7 +122,7 @@ class StreamFile:
     """
 
     def __init__(self, path: str | Path) -> None:
-        self.file = h5py_module().File(path, "r+")
+        self.file = h5py_module().File(path, "r+", rdcc_nbytes=CHUNK_CACHE)
         self.size = len(self.file["t"])
 
     def blocks(self) -> Iterator[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
@@ -163,7 +165,7 @@ def rewrite_info(path: str | Path, info: RunInfo) -> None:
 
 def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """(t [s], q) of a run file's samples, :data:`BLOCK` at a time."""
-    with h5py_module().File(path, "r", swmr=True, locking=False) as file:
+    with h5py_module().File(path, "r", swmr=True, locking=False, rdcc_nbytes=CHUNK_CACHE) as file:
         times, configurations = file["t"], file["q"]
         for start in range(0, min(len(times), len(configurations)), BLOCK):
             yield times[start : start + BLOCK], configurations[start : start + BLOCK]

@@ -42,17 +42,15 @@ class Records:
             early). ended: whether :meth:`end_with` ended them.
     """
 
+    offset = 0  # the sample index of the arrays' first slot
+
     def __init__(self, grid: Grid, every: int, nq: int, nv: int) -> None:
         self.every = every
         self.grid = grid
         self.last = grid.steps // every + (1 if grid.steps % every else 0)
         self.count = self.last + 1
         self.ended = False
-        self.allocate(self.count + 1, nq, nv)
-        self.steps[: self.count] = self.step_of(np.arange(self.count))
-        self.steps[self.count] = grid.steps
-        self.t[:] = self.steps * grid.dt
-        self.t[self.last :] = grid.time(grid.steps)
+        self.allocate(self.count + 1, nq, nv)  # zeros: no memory taken before a sample is put
 
     def allocate(self, slots: int, nq: int, nv: int) -> None:
         """The arrays of ``slots`` samples."""
@@ -62,17 +60,16 @@ class Records:
         self.v = np.zeros((slots, nv))
         self.corrections = np.zeros(slots, dtype=int)
 
-    def step_of(self, index: np.ndarray) -> np.ndarray:
-        """The grid steps of the samples ``index``."""
-        return np.where(index == self.last, self.grid.steps, index * self.every)
-
     def index(self, k: int) -> int:
         """The sample index of recorded grid step k."""
         return self.last if k == self.grid.steps else k // self.every
 
     def put(self, index: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
-        """Keep the state of sample ``index``."""
-        self.q[index], self.v[index], self.corrections[index] = q, v, iterations
+        """Keep the state of sample ``index`` (with its grid step and time)."""
+        slot = index - self.offset
+        step = self.grid.steps if index == self.last else index * self.every
+        self.steps[slot], self.t[slot] = step, self.grid.time(step)
+        self.q[slot], self.v[slot], self.corrections[slot] = q, v, iterations
 
     def checked(self, k: int) -> None:
         """The samples up to grid step k passed the loop's check (they will not be replayed)."""
@@ -108,20 +105,13 @@ class StreamedRecords(Records):
         self.ended = False
         self.sink, self.block = sink, block
         self.offset = 0  # the sample index of slot 0
-        self.written = 0  # samples written to the sink
         self.allocate(block + spare, nq, nv)
 
-    def put(self, index: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
-        slot = index - self.offset
-        step = self.grid.steps if index == self.last else index * self.every
-        self.steps[slot], self.t[slot] = step, self.grid.time(step)
-        super().put(slot, q, v, iterations)
-
     def checked(self, k: int) -> None:
-        """Write the checked samples when they fill a block."""
+        """Write a block of checked samples when there is one."""
         final = self.count if k == self.grid.steps else k // self.every + 1
         if final - self.offset >= self.block:
-            self.write(final)
+            self.write(self.offset + self.block)
 
     def write(self, stop: int) -> None:
         """Write samples offset .. stop - 1 and make room for those after."""
@@ -129,7 +119,7 @@ class StreamedRecords(Records):
         self.sink.write(self.offset, self.t[:n], self.steps[:n], self.q[:n], self.v[:n], self.corrections[:n])
         for array in (self.t, self.steps, self.q, self.v, self.corrections):
             array[: len(array) - n] = array[n:].copy()
-        self.offset = self.written = stop
+        self.offset = stop
 
     def slot(self, index: int) -> int:
         """A sample before the window (already written) moves the window back to it: its rows are rewritten."""
