@@ -1,7 +1,7 @@
 """Time integration: explicit schemes on the configuration group (:mod:`.schemes`, their tableaus in
-:mod:`.tableaus`), the stepping loop that runs them over a time grid (:mod:`.stepping`), error control with
-embedded pairs (:mod:`.adaptive`), dense output (:mod:`.dense`) and the planning of steps around singular
-configurations (:mod:`.passages`)."""
+:mod:`.tableaus`), the stepping loop that runs them over a time grid (:mod:`.stepping`), the samples it keeps
+(:mod:`.records`: in memory, or streamed to a file), error control with embedded pairs (:mod:`.adaptive`),
+dense output (:mod:`.dense`) and the planning of steps around singular configurations (:mod:`.passages`)."""
 
 from .adaptive import AdaptiveLoop, ErrorControl
 from .passages import Passage

@@ -12,7 +12,6 @@ import numpy as np
 class Grid(Protocol):
     """The time grid of a run (:class:`~pinstab.integration.stepping.TimeGrid`)."""
 
-    dt: float
     steps: int
 
     def time(self, k: int) -> float: ...
