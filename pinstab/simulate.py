@@ -6,7 +6,7 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from contextlib import closing, contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
@@ -248,8 +248,18 @@ def _not_event_driven(scene: Scene) -> list[str]:
 def limit_left(
     trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit]
 ) -> tuple[JointLimit, float] | None:
-    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None."""
-    blocks = trajectory.blocks() if isinstance(trajectory, StreamedTrajectory) else [(trajectory.t, trajectory.q)]
+    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None (a
+    streamed run's file read a block at a time)."""
+    if isinstance(trajectory, StreamedTrajectory):
+        with closing(trajectory.blocks()) as blocks:  # the file closed before the event path writes it again
+            return _first_left(blocks, limits)
+    return _first_left([(trajectory.t, trajectory.q)], limits)
+
+
+def _first_left(
+    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit]
+) -> tuple[JointLimit, float] | None:
+    """:func:`limit_left` over consecutive blocks of samples (t [s], q)."""
     for t, q in blocks:
         first = None
         for limit in limits:
