@@ -57,6 +57,20 @@ def test_streamed_run_is_the_run_kept_in_memory(tmp_path, every):
     assert figures["drift_growth_exponent"] == pytest.approx(reference["drift_growth_exponent"], rel=1e-9)
 
 
+def test_a_run_the_joint_limits_send_to_the_event_path(tmp_path):
+    """The crank started two turns short of its +1000 rad limit: the held run leaves it, the run is made again by the
+    event path (dop853, dense output), streamed to the same file: the samples and info of the run kept in memory."""
+    q0 = np.array([1.0 + 2 * np.pi * 158, -0.9, 1.6])
+    kept = simulate("fourbar", duration=2.0, q0=q0)
+    simulate("fourbar", duration=2.0, q0=q0, stream=tmp_path / "run.h5")
+    loaded = Trajectory.load(tmp_path / "run.h5")
+    assert kept.info.path == loaded.info.path == "contact-events"
+    assert loaded.info.path_reason == kept.info.path_reason
+    assert loaded.info.limits_active_s == kept.info.limits_active_s
+    for name in SERIES:
+        assert np.array_equal(getattr(kept, name), getattr(loaded, name), equal_nan=True), name
+
+
 def test_file_layout_is_plain_and_documented(tmp_path):
     """Plain datasets with units, the run info as attributes, readable by h5py alone."""
     simulate("fourbar", duration=0.2, stream=tmp_path / "run.h5")
