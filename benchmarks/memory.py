@@ -1,8 +1,10 @@
-"""Peak memory of a long run (issues 9, 13): 1e6 steps of the four-bar (dt = 1 ms, 1000 s) saved to NPZ,
+"""Peak memory of a long run (issues 9, 13, 23): 1e6 steps of the four-bar (dt = 1 ms, 1000 s) saved to NPZ,
 against the same command for 10 steps, each in a fresh process (peak resident set size); and the same run
-kept whole under a 100 MB budget, refused before it starts (exit 2).
+kept whole under a 100 MB budget, refused before it starts (exit 2). ``stream``: the run streamed to HDF5
+(``--stream``, every step kept) for 10, 100 and 1000 s, each in a fresh process.
 
 python benchmarks/memory.py            # prints the table, writes benchmarks/results/memory.json
+python benchmarks/memory.py stream     # writes benchmarks/results/stream_memory.json
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from pinstab.bench import save_results
 from pinstab.simulate import kept_samples
 
 OUT = Path(__file__).parent / "results" / "memory.json"
+STREAM_OUT = OUT.with_name("stream_memory.json")
+STREAM_DURATIONS = (10.0, 100.0, 1000.0)  # [s]
 CHILD = (
     "import resource, sys\n"
     "from pinstab.cli import main\n"
@@ -28,8 +32,21 @@ CHILD = (
 
 def peak_mib(duration: float, every: int, folder: Path) -> tuple[float, float]:
     """(peak RSS [MiB], wall seconds) of ``pinstab run fourbar --duration D --record-every K --save``."""
-    argv = ["run", "fourbar", "--duration", str(duration), "--record-every", str(every), "--quiet", "--json"]
-    argv += ["--save", str(folder / f"run-{duration:g}-{every}.npz")]
+    return run_peak(
+        [
+            "--duration",
+            str(duration),
+            "--record-every",
+            str(every),
+            "--save",
+            str(folder / f"run-{duration:g}-{every}.npz"),
+        ]
+    )
+
+
+def run_peak(options: list[str]) -> tuple[float, float]:
+    """(peak RSS [MiB], wall seconds) of ``pinstab run fourbar --quiet --json`` with ``options``, in a fresh process."""
+    argv = ["run", "fourbar", "--quiet", "--json", *options]
     began = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", CHILD, *argv], capture_output=True, text=True, check=True)
     wall = time.perf_counter() - began
@@ -71,5 +88,26 @@ def main() -> None:
     save_results(OUT, results)
 
 
+def stream() -> None:
+    """Peak RSS of the four-bar streamed to HDF5 over :data:`STREAM_DURATIONS`."""
+    results = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for duration in STREAM_DURATIONS:
+            path = Path(folder) / f"run-{duration:g}.h5"
+            peak, wall = run_peak(["--duration", str(duration), "--stream", str(path)])
+            size = path.stat().st_size / 2**20
+            results[f"stream_{duration:g}s"] = {
+                "steps": round(duration * 1000),
+                "peak_mib": peak,
+                "wall_s": wall,
+                "h5_mib": size,
+            }
+            print(
+                f"{duration:6g} s streamed ({round(duration * 1000):,} steps): peak {peak:6.1f} MiB, "
+                f"file {size:6.1f} MiB, {wall:5.1f} s"
+            )
+    save_results(STREAM_OUT, results)
+
+
 if __name__ == "__main__":
-    main()
+    stream() if sys.argv[1:] == ["stream"] else main()

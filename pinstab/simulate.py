@@ -6,7 +6,7 @@ import dataclasses
 import sys
 import time
 import warnings
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from contextlib import closing, contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,17 @@ from .errors import (
     UnstableGainsError,
     UnstableGainsWarning,
 )
-from .integration import INTEGRATORS, AdaptiveLoop, ErrorControl, StepLoop, TimeGrid, embedded_pairs
+from .files import check_output
+from .integration import (
+    CHECK_STEPS,
+    INTEGRATORS,
+    AdaptiveLoop,
+    ErrorControl,
+    StepLoop,
+    StreamedRecords,
+    TimeGrid,
+    embedded_pairs,
+)
 from .integration.contact_stepping import ContactStepper
 from .integration.events import LIMIT_SLACK, EventLoop, RunEnd
 from .memory import RUN_DATA_COPIES, data_bytes, exhausted, named_when_exhausted, require, samples_bytes
@@ -35,8 +45,9 @@ from .series import StateSeries
 from .solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
 from .solvers.ncp import NcpSolver
 from .stability import largest_stable_step
+from .stream import BLOCK, StreamWriter, h5py_module
 from .system import ConstrainedSystem, build_system
-from .trajectory import Trajectory
+from .trajectory import StreamedTrajectory, Trajectory
 from .validation import relative_tolerance
 from .zero_dynamics import warn_runaway
 
@@ -50,6 +61,7 @@ DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverge
 MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
 EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
 MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many, default to event-driven contacts
+STREAM_WINDOW = BLOCK + CHECK_STEPS + 16  # samples a streamed run holds: a block and a chunk of steps (a passage's)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -61,7 +73,7 @@ class Interrupted(KeyboardInterrupt):
     """
 
     def __init__(self, trajectory: Trajectory) -> None:
-        super().__init__(f"interrupted at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})")
+        super().__init__(f"interrupted at t = {trajectory.info.t_end:.6g} s (step {trajectory.steps})")
         self.trajectory = trajectory
 
 
@@ -88,8 +100,9 @@ def simulate(
     stop_on: tuple[str, ...] | frozenset[str] = (),
     assembly_tol: float | None = None,
     limits: bool = True,
+    stream: str | Path | None = None,
     **method_options: Any,
-) -> Trajectory:
+) -> Trajectory | StreamedTrajectory:
     """Simulate a scene.
 
     Args:
@@ -143,10 +156,16 @@ def simulate(
             time held in ``info.limits_active_s`` and its switches in ``info.contact_events``. Event-driven
             contacts take the limits from the start; time-stepping contacts do not handle them. False: limits
             ignored. ``info.limits_active_s`` is None when they are ignored or the model has none.
+        stream: an HDF5 file (``.h5``; needs ``h5py``, the ``stream`` extra) the samples are written to as the run
+            proceeds, a block at a time (:mod:`pinstab.stream`), instead of being kept in memory: memory stays
+            bounded whatever the duration. The derived series are computed into it block by block once the run
+            ends; the overlap check of scenes with collision geometry and the servo's zero-dynamics check are
+            not made.
 
     Returns:
         The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
-        samples when first read.
+        samples when first read. With ``stream``: a :class:`~pinstab.trajectory.StreamedTrajectory` (info and
+        summary; ``load()`` reads the file whole).
 
     Raises:
         DivergenceError: non-finite state, drift above ``drift_limit``, or a solve or projection that
@@ -172,22 +191,25 @@ def simulate(
     if dt is None:
         dt = DEFAULT_DT if scene.step is None else scene.step
     kinds = stop_kinds(stop_on, contacts)
+    if stream is not None:
+        h5py_module()
+        check_output(stream, ".h5", "streamed run")
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
     if contacts == "stepping":
-        return _checked(scene, _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress))
+        return _checked(scene, _simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream))
     table = joint_limits(scene.model).limits if limits else []
     start = scene.q0 if q0 is None else np.asarray(q0, dtype=float)
     if table and start.shape == scene.q0.shape:
         check_start_inside(table, start, scene.name)
     if contacts is not None:
         events = _simulate_events(
-            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table
+            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream
         )
         return _checked(scene, events)
     trajectory = _simulate_held(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
-        assemble_initial, assembly_tol, record_every, rtol, atol, method_options,
+        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream,
     )  # fmt: skip
     if not table:
         return _checked(scene, trajectory)
@@ -207,7 +229,7 @@ def simulate(
         )
         return _checked(scene, trajectory)
     events = _simulate_events(
-        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason
+        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream
     )
     return _checked(scene, events)
 
@@ -224,14 +246,30 @@ def _not_event_driven(scene: Scene) -> list[str]:
     ]
 
 
-def limit_left(trajectory: Trajectory, limits: list[JointLimit]) -> tuple[JointLimit, float] | None:
-    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None."""
-    first = None
-    for limit in limits:
-        outside = np.flatnonzero(limit.sign * (trajectory.q[:, limit.index_q] - limit.bound) < -LIMIT_SLACK)
-        if outside.size and (first is None or trajectory.t[outside[0]] < first[1]):
-            first = (limit, float(trajectory.t[outside[0]]))
-    return first
+def limit_left(
+    trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit]
+) -> tuple[JointLimit, float] | None:
+    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None (a
+    streamed run's file read a block at a time)."""
+    if isinstance(trajectory, StreamedTrajectory):
+        with closing(trajectory.blocks()) as blocks:  # the file closed before the event path writes it again
+            return _first_left(blocks, limits)
+    return _first_left([(trajectory.t, trajectory.q)], limits)
+
+
+def _first_left(
+    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit]
+) -> tuple[JointLimit, float] | None:
+    """:func:`limit_left` over consecutive blocks of samples (t [s], q)."""
+    for t, q in blocks:
+        first = None
+        for limit in limits:
+            outside = np.flatnonzero(limit.sign * (q[:, limit.index_q] - limit.bound) < -LIMIT_SLACK)
+            if outside.size and (first is None or t[outside[0]] < first[1]):
+                first = (limit, float(t[outside[0]]))
+        if first is not None:
+            return first
+    return None
 
 
 def _simulate_held(
@@ -253,7 +291,8 @@ def _simulate_held(
     rtol: float | None,
     atol: float | None,
     method_options: Mapping[str, Any],
-) -> Trajectory:
+    stream: str | Path | None,
+) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored."""
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
@@ -265,7 +304,7 @@ def _simulate_held(
     if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
         raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
     control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
-    _require_memory(scene, grid, record_every)
+    _require_memory(scene, grid, record_every, stream)
     system = build_system(scene, method, solver, solver_options, **method_options)
     stepper = INTEGRATORS.build(integrator, system)
     if control is not None and system.stabilizer.step_dependent:
@@ -292,6 +331,7 @@ def _simulate_held(
         loop = StepLoop(system, stepper, grid, record_every, drift_limit, warned)
     else:
         loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
+    _stream_records(loop, stream, info)
     bar = _progress_bar(grid.steps, scene.name, progress)
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
     with (
@@ -301,15 +341,18 @@ def _simulate_held(
     ):
         loop.run(q, v, bar)
     trajectory = _trajectory(loop, system, info, elapsed())
-    if system.servo is not None:
+    if system.servo is not None and stream is None:
         warn_runaway(trajectory.zero_dynamics, scene.name)
     return trajectory
 
 
-def _checked(scene: Scene, trajectory: Trajectory) -> Trajectory:
+def _checked(scene: Scene, trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
     """``trajectory``, after warning of the robot-object overlaps at its kept samples
-    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`)."""
-    if scene.collisions is not None:
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`); a streamed run instead gets its completed
+    info written to its file."""
+    if isinstance(trajectory, StreamedTrajectory):
+        trajectory.write_info()  # as completed after the file was finished
+    elif scene.collisions is not None:
         scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
     return trajectory
 
@@ -329,15 +372,20 @@ def _kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo)
         yield elapsed
     except DivergenceError as exc:
         wall_time = elapsed()
-        exc.trajectory = _trajectory(loop, system, info, wall_time)
         finite = loop.records.count - 1  # without the failed step's sample
-        exc.finite_trajectory = _trajectory(loop, system, dataclasses.replace(info), wall_time, finite)
+        finite_info = dataclasses.replace(info)
+        exc.trajectory = _trajectory(loop, system, info, wall_time)
+        exc.finite_trajectory = (
+            exc.trajectory if _streamed(loop) else _trajectory(loop, system, finite_info, wall_time, finite)
+        )
         raise
     except KeyboardInterrupt:
-        raise Interrupted(_trajectory(loop, system, info, elapsed())) from None
+        raise Interrupted(_trajectory(loop, system, info, elapsed(), cut_off=True)) from None
     except ContactInfeasibleError as exc:
         exc.trajectory = _trajectory(loop, system, info, elapsed())
         info.stopped = failure_stop(exc, info.t_end)
+        if _streamed(loop):
+            exc.trajectory.write_info()
         raise
     except MemoryError as error:
         raise exhausted(f"the run of scene {info.scene}", error, _trajectory(loop, system, info, elapsed())) from None
@@ -399,7 +447,8 @@ def _simulate_events(
     stop_on: frozenset[str] = frozenset(),
     limits: list[JointLimit] | None = None,
     reason: str = "event-driven contacts",
-) -> Trajectory:
+    stream: str | Path | None = None,
+) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
     event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``."""
     if contacts != "event":
@@ -416,6 +465,7 @@ def _simulate_events(
     info = _info(scene, system, "dop853", grid, None, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
     loop.stop_on = stop_on
+    _stream_records(loop, stream, info)
     bar = _progress_bar(grid.steps, scene.name, progress)
     end = None
     with _kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
@@ -444,7 +494,8 @@ def _simulate_stepping(
     q0: np.ndarray | None,
     v0: np.ndarray | None,
     progress: bool,
-) -> Trajectory:
+    stream: str | Path | None,
+) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``)."""
     geometries, system, q, v = _contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
@@ -455,6 +506,7 @@ def _simulate_stepping(
     info = _info(scene, system, stepper.name, grid, None, "none", None, record_every)
     info.solver = "pinocchio-admm"
     loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
+    _stream_records(loop, stream, info)
     bar = _progress_bar(grid.steps, scene.name, progress)
     with _kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
         loop.run(q, v, bar)
@@ -519,10 +571,11 @@ def kept_samples(scene: Scene, steps: int, record_every: int) -> tuple[int, int]
     return samples, samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows)
 
 
-def _require_memory(scene: Scene, grid: TimeGrid, record_every: int) -> None:
-    """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples would exceed the budget."""
+def _require_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str | Path | None) -> None:
+    """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples (a window of them when streamed)
+    would exceed the budget."""
     model = scene.model
-    samples, size = kept_samples(scene, grid.steps, record_every)
+    samples, size = kept_samples(scene, grid.steps if stream is None else STREAM_WINDOW * record_every, record_every)
     require(
         {
             f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
@@ -530,19 +583,40 @@ def _require_memory(scene: Scene, grid: TimeGrid, record_every: int) -> None:
             f"{samples:,} kept samples": size,
         },
         f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
-        "keep fewer samples (--record-every, record_every), use a larger step or a shorter duration",
+        "keep fewer samples (--record-every, record_every), stream them to disk (--stream FILE.h5, stream), use a "
+        "larger step or a shorter duration",
     )
 
 
+def _stream_records(loop: StepLoop, stream: str | Path | None, info: RunInfo) -> None:
+    """With ``stream``, the loop keeps its samples in :class:`StreamedRecords` writing to that file."""
+    if stream is None:
+        return
+    model, rows = loop.system.model, loop.system.model.constraints.rows
+    writer = StreamWriter(stream, info, model.nq, model.nv, rows)
+    loop.records = StreamedRecords(loop.grid, loop.every, model.nq, model.nv, writer, BLOCK, STREAM_WINDOW - BLOCK)
+
+
+def _streamed(loop: StepLoop) -> bool:
+    """Whether the loop streams its samples to a file."""
+    return isinstance(loop.records, StreamedRecords)
+
+
 def _trajectory(
-    loop: StepLoop, system: ConstrainedSystem, info: RunInfo, wall_time: float, samples: int | None = None
-) -> Trajectory:
+    loop: StepLoop,
+    system: ConstrainedSystem,
+    info: RunInfo,
+    wall_time: float,
+    samples: int | None = None,
+    cut_off: bool = False,
+) -> Trajectory | StreamedTrajectory:
     """The trajectory of the first ``samples`` samples kept (default: all kept so far), with the run info
-    completed; wall_time [s]."""
+    completed; wall_time [s]. A streamed run's file is finished: its last samples written and, unless the run
+    was ``cut_off`` (interrupted), its derived series."""
     records = loop.records
     n = records.count if samples is None else samples
-    last = int(records.steps[n - 1])
-    info.steps, info.t_end = last, float(records.t[n - 1])
+    slot = records.slot(n - 1)
+    info.steps, info.t_end = int(records.steps[slot]), float(records.t[slot])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
     watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
@@ -552,6 +626,10 @@ def _trajectory(
         info.contact_events = [event.to_dict() for event in events if event.t <= info.t_end]
     if isinstance(loop, AdaptiveLoop):
         info.error_control = loop.control.summary()
+    if _streamed(loop):
+        records.finish()
+        records.sink.close()
+        return StreamedTrajectory.complete(records.sink.path, info, wall_time, None if cut_off else StateSeries(system))
     return Trajectory(  # views of the samples: no second copy of a long run
         records.t[:n],
         records.q[:n],

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -15,6 +15,7 @@ import pinocchio as pin
 from .errors import PinstabError
 from .files import atomic_output
 from .runinfo import RunInfo
+from .stream import StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
 
 
 class SeriesSource(Protocol):
@@ -164,42 +165,9 @@ class Trajectory:
 
     def summary(self) -> dict[str, Any]:
         """The figures ``pinstab run --json`` prints; maxima over the finite samples (None when none is)."""
-        finite_energy = self.energy[np.isfinite(self.energy)]
-        assembly = self.info.assembly
-        statistics = self.info.solver_statistics
-        radii = self.spectral_radius
-        summary = {
-            "steps": self.steps,
-            "t_end": float(self.t[-1]),
-            "wall_s": self.wall_time,
-            "max_position_drift": _finite_max(self.position_drift),
-            "max_velocity_drift": _finite_max(self.velocity_drift),
-            "final_position_drift": float(self.position_drift[-1]),
-            "final_velocity_drift": float(self.velocity_drift[-1]),
-            "energy_start": float(finite_energy[0]) if finite_energy.size else None,
-            "energy_end": float(finite_energy[-1]) if finite_energy.size else None,
-            "assembly_iterations": None if assembly is None else assembly.iterations,
-            "assembly_residual": None if assembly is None else assembly.residual,
-            "assembly_tolerance": None if assembly is None else assembly.tolerance,
-            "correction_iterations_total": self.info.correction_iterations_total,
-            "correction_iterations_max": self.info.correction_iterations_max,
-            "solver_fallbacks": statistics.fallbacks,
-            "solver_status": statistics.status_counts,
-            "solver_worst_residual": max(statistics.worst_primal_residual, statistics.worst_dual_residual),
-        }
-        if np.any(np.isfinite(radii)):
-            summary["max_spectral_radius"] = float(np.nanmax(radii))
-        summary["drift_growth_exponent"] = self.drift_growth_exponent()
-        summary["dynamics_evaluations"] = statistics.solves
-        if self.info.error_control is not None:
-            summary["error_control"] = self.info.error_control
-        passages = self.info.passages
-        summary["singular_passages"] = passages
-        summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)
-        summary["contact_events"] = self.info.contact_events
-        summary["stopped"] = self.info.stopped
-        if self.info.limits_active_s is not None:
-            summary["limits_active_s"] = self.info.limits_active_s
+        figures = SeriesFigures(len(self.t))
+        figures.add(self.t, self.position_drift, self.velocity_drift, self.energy, self.spectral_radius)
+        summary = run_figures(self.info, self.wall_time, float(self.t[-1]), figures.result())
         if self._series is not None:
             summary.update(self._series.contact_figures(self.t, self.q, self.v, lambda: self.multipliers))
             events = bool(self.info.contact_events)
@@ -237,12 +205,9 @@ class Trajectory:
     def drift_growth_exponent(self) -> float | None:
         """p in position drift ~ t^p, fitted (log-log) over the second half of the run; None when the
         drift there is zero or the run is too short. About 2 for an unstabilized run (MATH.md 3)."""
-        half = len(self.t) // 2
-        t, drift = self.t[half:], self.position_drift[half:]
-        keep = (t > 0) & (drift > 0) & np.isfinite(drift)
-        if np.count_nonzero(keep) < 10 or np.ptp(np.log(t[keep])) == 0:
-            return None
-        return float(np.polyfit(np.log(t[keep]), np.log(drift[keep]), 1)[0])
+        figures = SeriesFigures(len(self.t))
+        figures.add(self.t, self.position_drift, self.velocity_drift, self.energy, self.spectral_radius)
+        return figures.growth_exponent()
 
     def save(self, path: str | Path) -> Path:
         """Write an ``.npz`` file atomically (temp file + rename)."""
@@ -255,16 +220,19 @@ class Trajectory:
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
-        """Read a trajectory written by :meth:`save`.
+        """Read a trajectory written by :meth:`save` (``.npz``) or streamed (``.h5``, :mod:`pinstab.stream`: a run
+        cut off holds its samples so far, its derived series NaN, ``info.stopped`` saying so).
 
         Raises:
             PinstabError: the file is missing, truncated, not an NPZ, or an NPZ of something else (named:
                 the missing array or the one whose shape does not fit).
         """
         if Path(path).is_dir():
-            raise PinstabError(f"{path} is a folder, not a pinstab trajectory file (.npz)")
+            raise PinstabError(f"{path} is a folder, not a pinstab trajectory file (.npz, .h5)")
         if not Path(path).exists():
             raise PinstabError(f"{path}: the trajectory file does not exist")
+        if is_stream_file(path):
+            return cls._load_stream(path)
         if not zipfile.is_zipfile(path):
             raise PinstabError(f"{path}: not a pinstab trajectory file (not an NPZ archive, or a truncated one)")
         try:
@@ -293,6 +261,188 @@ class Trajectory:
         trajectory = cls(info=info, wall_time=wall_time, **arrays)
         trajectory.comparison = comparison
         return trajectory
+
+    @classmethod
+    def _load_stream(cls, path: str | Path) -> Trajectory:
+        """The trajectory of a streamed run file, read whole."""
+        arrays, info, wall_time, complete = read_stream(path)
+        arrays.pop("step")
+        if not len(arrays["t"]):
+            raise PinstabError(f"{path}: the streamed run holds no sample yet")
+        if not complete and info.stopped is None:
+            info.stopped = {"reason": "stream cut off", "t": float(arrays["t"][-1])}
+            info.t_end = float(arrays["t"][-1])
+        _check_shapes(path, {"wall_time": np.asarray(wall_time), **arrays})
+        return cls(info=info, wall_time=wall_time, **arrays)
+
+
+class SeriesFigures:
+    """The summary figures of a run's series, accumulated block by block over its n samples (a run streamed to
+    disk is never read whole).
+
+    Args:
+        n: the run's samples (the drift growth is fitted over the second half).
+    """
+
+    def __init__(self, n: int) -> None:
+        self.half, self.seen = n // 2, 0
+        self.position, self.velocity = _Extreme(), _Extreme()
+        self.energy_start = self.energy_end = self.radius = None
+        self.final = (float("nan"), float("nan"))
+        self.fit = np.zeros(5)  # over the second half, x = log t, y = log drift: count, sum x, sum y, xx, xy
+        self.span = (np.inf, -np.inf)  # the smallest and largest x
+
+    def add(
+        self, t: np.ndarray, position: np.ndarray, velocity: np.ndarray, energy: np.ndarray, radius: np.ndarray
+    ) -> None:
+        """The next block: times [s], position drift [m or rad], velocity drift [m/s or rad/s], energy [J],
+        spectral radius [-]."""
+        self.position.add(position)
+        self.velocity.add(velocity)
+        finite = energy[np.isfinite(energy)]
+        if finite.size:
+            self.energy_start = float(finite[0]) if self.energy_start is None else self.energy_start
+            self.energy_end = float(finite[-1])
+        if np.any(np.isfinite(radius)):
+            self.radius = max(float(np.nanmax(radius)), -np.inf if self.radius is None else self.radius)
+        if len(t):
+            self.final = (float(position[-1]), float(velocity[-1]))
+        late = slice(max(self.half - self.seen, 0), None)
+        t_late, drift = t[late], position[late]
+        keep = (t_late > 0) & (drift > 0) & np.isfinite(drift)
+        x, y = np.log(t_late[keep]), np.log(drift[keep])
+        self.fit += (x.size, x.sum(), y.sum(), x @ x, x @ y)
+        if x.size:
+            self.span = (min(self.span[0], x.min()), max(self.span[1], x.max()))
+        self.seen += len(t)
+
+    def growth_exponent(self) -> float | None:
+        """p in position drift ~ t^p, the least-squares slope of log drift on log t over the second half; None
+        with fewer than 10 positive drifts there or a single time."""
+        count, sx, sy, sxx, sxy = self.fit
+        if count < 10 or self.span[1] - self.span[0] == 0:
+            return None
+        return float((count * sxy - sx * sy) / (count * sxx - sx * sx))
+
+    def result(self) -> dict[str, Any]:
+        """The figures of :func:`run_figures`."""
+        figures = {
+            "max_position_drift": self.position.largest,
+            "max_velocity_drift": self.velocity.largest,
+            "final_position_drift": self.final[0],
+            "final_velocity_drift": self.final[1],
+            "energy_start": self.energy_start,
+            "energy_end": self.energy_end,
+        }
+        if self.radius is not None:
+            figures["max_spectral_radius"] = self.radius
+        figures["drift_growth_exponent"] = self.growth_exponent()
+        return figures
+
+
+class _Extreme:
+    """The largest finite value seen (None when none was)."""
+
+    def __init__(self) -> None:
+        self.largest: float | None = None
+
+    def add(self, values: np.ndarray) -> None:
+        block = _finite_max(values)
+        if block is not None:
+            self.largest = block if self.largest is None else max(self.largest, block)
+
+
+def run_figures(info: RunInfo, wall_time: float, t_end: float, figures: dict[str, Any]) -> dict[str, Any]:
+    """The summary of a run (:meth:`Trajectory.summary` without the scene's own figures): its info, wall time
+    [s], end time [s] and series ``figures`` (:meth:`SeriesFigures.result`)."""
+    assembly = info.assembly
+    statistics = info.solver_statistics
+    radius = figures.pop("max_spectral_radius", None)
+    growth = figures.pop("drift_growth_exponent")
+    summary = {
+        "steps": info.steps,
+        "t_end": t_end,
+        "wall_s": wall_time,
+        **figures,
+        "assembly_iterations": None if assembly is None else assembly.iterations,
+        "assembly_residual": None if assembly is None else assembly.residual,
+        "assembly_tolerance": None if assembly is None else assembly.tolerance,
+        "correction_iterations_total": info.correction_iterations_total,
+        "correction_iterations_max": info.correction_iterations_max,
+        "solver_fallbacks": statistics.fallbacks,
+        "solver_status": statistics.status_counts,
+        "solver_worst_residual": max(statistics.worst_primal_residual, statistics.worst_dual_residual),
+    }
+    if radius is not None:
+        summary["max_spectral_radius"] = radius
+    summary["drift_growth_exponent"] = growth
+    summary["dynamics_evaluations"] = statistics.solves
+    if info.error_control is not None:
+        summary["error_control"] = info.error_control
+    passages = info.passages
+    summary["singular_passages"] = passages
+    summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)
+    summary["contact_events"] = info.contact_events
+    summary["stopped"] = info.stopped
+    if info.limits_active_s is not None:
+        summary["limits_active_s"] = info.limits_active_s
+    return summary
+
+
+class StreamedTrajectory:
+    """A run streamed to an HDF5 file (:mod:`pinstab.stream`): its info and summary, its samples on disk.
+
+    Attributes:
+        path: the file. info: the run info. wall_time: the stepping loop's wall time [s].
+        figures: the summary's figures (:meth:`summary`); None for a run cut off (interrupted).
+    """
+
+    def __init__(self, path: Path, info: RunInfo, wall_time: float, figures: dict[str, Any] | None) -> None:
+        self.path, self.info, self.wall_time, self.figures = path, info, wall_time, figures
+
+    @classmethod
+    def complete(
+        cls, path: str | Path, info: RunInfo, wall_time: float, series: SeriesSource | None
+    ) -> StreamedTrajectory:
+        """Finish a streamed file: its derived series computed block by block from its samples with ``series``
+        (None: a run cut off, left without them), the final info and summary written."""
+        file = StreamFile(path)
+        figures = None
+        if series is not None:
+            accumulated = SeriesFigures(file.size)
+            for start, t, q, v in file.blocks():
+                derived = series.drift_and_energy(t, q, v)
+                derived["spectral_radius"] = series.spectral_radius(t, q, v)
+                derived["multipliers"] = series.multipliers(t, q, v)
+                file.write_series(start, derived)
+                accumulated.add(t, derived["position_drift"], derived["velocity_drift"], derived["energy"],
+                                derived["spectral_radius"])  # fmt: skip
+            figures = accumulated.result()
+        file.finish(info, wall_time, figures)
+        return cls(Path(path), info, wall_time, figures)
+
+    @property
+    def steps(self) -> int:
+        """Steps taken."""
+        return self.info.steps
+
+    def summary(self) -> dict[str, Any]:
+        """The figures ``pinstab run --json`` prints (:func:`run_figures`, with ``stream``: the file); those a
+        scene's contacts, force elements and servos add to a run kept in memory are left to :meth:`load`."""
+        figures = dict(self.figures) if self.figures is not None else dict.fromkeys(SeriesFigures(0).result())
+        return {**run_figures(self.info, self.wall_time, self.info.t_end, figures), "stream": str(self.path)}
+
+    def write_info(self) -> None:
+        """Write :attr:`info` to the file again (after the run's end completed it: limits, stop)."""
+        rewrite_info(self.path, self.info)
+
+    def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """(t [s], q) of the file's samples, a block at a time."""
+        return sample_blocks(self.path)
+
+    def load(self) -> Trajectory:
+        """The run read whole from its file (:meth:`Trajectory.load`)."""
+        return Trajectory.load(self.path)
 
 
 SAVED_ARRAYS = (  # what save() writes and load() requires: the attributes of these names, ``info`` as JSON

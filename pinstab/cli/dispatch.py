@@ -120,9 +120,11 @@ def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace, signum: int) 
     """Ctrl-C (SIGINT) or SIGTERM: one line on stderr, the partial trajectory saved when ``--save`` was given;
     exit 128 + the signal's number (130, 143)."""
     trajectory = getattr(exc, "trajectory", None)
-    where = "" if trajectory is None else f" at t = {trajectory.t[-1]:.6g} s (step {trajectory.steps})"
+    where = "" if trajectory is None else f" at t = {trajectory.info.t_end:.6g} s (step {trajectory.steps})"
     saved = _save_partial(args, trajectory)
     kept = f"; the partial trajectory is saved to {saved}" if saved else ""
+    streamed = getattr(trajectory, "path", None)
+    kept += f"; the samples so far are in {streamed}" if streamed else ""
     cause = "interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
     print(f"pinstab {args.command}: {cause}{where}{kept}", file=sys.stderr)
     return EXIT_SIGNAL_BASE + signum

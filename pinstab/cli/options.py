@@ -96,6 +96,17 @@ def _listed(registry: Registry) -> str:
     return "; ".join(f"{entry.name}: {entry.summary}" if entry.summary else entry.name for entry in registry.entries())
 
 
+def stream_argument(parser: argparse.ArgumentParser) -> None:
+    """``--stream FILE.h5``: the samples written to an HDF5 file as the run proceeds, not kept in memory."""
+    parser.add_argument(
+        "--stream",
+        metavar="FILE.h5",
+        help="write the samples to this HDF5 file as the run proceeds (memory bounded whatever the duration; "
+        "readable while it runs and after a kill; needs h5py: pip install 'pinstab[stream]'); read it with "
+        "pinstab plot, pinstab record --from or Trajectory.load",
+    )
+
+
 def run_options(parser: argparse.ArgumentParser) -> None:
     """The options of the commands that simulate: contacts, method, integrator, solver, steps, tolerances."""
     parser.add_argument(

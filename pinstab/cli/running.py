@@ -45,6 +45,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
             stop_on=tuple(args.stop_on or ()),
             assembly_tol=assembly_tolerance(args),
             limits=not args.ignore_limits,
+            stream=getattr(args, "stream", None),
             **given_options(args, METHOD_OPTION),
         )
     except ContactInfeasibleError as exc:

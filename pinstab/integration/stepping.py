@@ -31,6 +31,7 @@ from ..stabilizers import ProjectionOptions
 from ..system import ConstrainedSystem
 from .dense import Segment
 from .passages import PassageWatch, Plan
+from .records import Records
 from .schemes import Integrator
 
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
@@ -87,44 +88,6 @@ class TimeGrid(NamedTuple):
         return self.duration if k == self.steps else k * self.dt
 
 
-class Records:
-    """The samples a run keeps: steps 0, K, 2K, ... and the last, each with t [s], q, v and the
-    correction iterations of that step; one spare slot for a stopped run (see :meth:`end_with`).
-
-    Args:
-        grid: the run's time grid. every: K. nq, nv: state dimensions.
-
-    Attributes:
-        last: the slot of the run's last step. count: the samples kept (fewer when the run stopped early).
-        ended: whether :meth:`end_with` ended them.
-    """
-
-    def __init__(self, grid: TimeGrid, every: int, nq: int, nv: int) -> None:
-        self.every = every
-        steps = np.arange(0, grid.steps + 1, every, dtype=np.int64)
-        if steps[-1] != grid.steps:
-            steps = np.append(steps, grid.steps)
-        size = len(steps)
-        self.steps = np.append(steps, grid.steps)  # the spare slot
-        self.t = self.steps * grid.dt
-        self.t[size - 1 :] = grid.time(grid.steps)
-        self.q = np.zeros((size + 1, nq))
-        self.v = np.zeros((size + 1, nv))
-        self.corrections = np.zeros(size + 1, dtype=int)
-        self.last = size - 1
-        self.count = size
-        self.ended = False
-
-    def end_with(self, *samples: tuple[int, float, np.ndarray, np.ndarray]) -> None:
-        """Keep the samples before the first of ``samples`` (step, t [s], q, v) and end with these (a run
-        stopped there: its last good state, then at most one more, the failed step's)."""
-        index = min(int(np.searchsorted(self.steps[: self.last + 1], samples[0][0])), self.last)
-        for slot, (step, t, q, v) in enumerate(samples, start=index):
-            self.steps[slot], self.t[slot], self.q[slot], self.v[slot] = step, t, q, v
-        self.count = index + len(samples)
-        self.ended = True
-
-
 class Failure(Exception):
     """A check found the state diverged (internal: turned into a DivergenceError at its step)."""
 
@@ -176,7 +139,7 @@ class StepLoop:
                 passed its checks.
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
-        self.records.q[0], self.records.v[0] = q, v
+        self.records.put(0, q, v)
         self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt)
         k = 0
         try:
@@ -208,6 +171,7 @@ class StepLoop:
             raise self.diverged(k, replayed, reason, q, v) from None
         if progress is not None:
             progress.update(reached - k)
+        self.records.checked(reached)
         return q_end, v_end, reached
 
     def snapshot(self) -> tuple:
@@ -256,11 +220,9 @@ class StepLoop:
 
     def keep(self, k: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
         """Store the sample of grid step k when it is a recorded one."""
-        last = self.grid.steps
-        if k % self.every == 0 or k == last:
+        if k % self.every == 0 or k == self.grid.steps:
             records = self.records
-            index = records.last if k == last else k // self.every
-            records.q[index], records.v[index], records.corrections[index] = q, v, iterations
+            records.put(records.index(k), q, v, iterations)
 
     @property
     def guarded(self) -> bool:

@@ -9,7 +9,7 @@ from ...analysis import check_coordinates, check_reference, trajectory_error
 from ...errors import PinstabError
 from ...files import check_output
 from ..exits import EXIT_CODES
-from ..options import run_options, scene_arguments
+from ..options import run_options, scene_arguments, stream_argument
 from ..running import ended, run_summary, simulate_scene
 from .base import Command, register
 
@@ -19,6 +19,7 @@ def arguments(run: argparse.ArgumentParser) -> None:
     run.epilog = EXIT_CODES
     scene_arguments(run)
     run_options(run)
+    stream_argument(run)
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
     run.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error and constraint forces")
     run.add_argument(
@@ -40,6 +41,8 @@ def run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     """Simulate, summarize (``add(scene, trajectory, result)`` adds figures), save and chart when asked."""
     from ...viz.plots import plot_trajectory
 
+    if args.stream:
+        _check_stream(args)
     if args.save:
         check_output(args.save, ".npz", "trajectory")
     if args.plot:
@@ -63,6 +66,17 @@ def run(args: argparse.Namespace, add=None) -> dict[str, Any]:
         plot_trajectory(trajectory, args.plot, scene)
         result["plot"] = args.plot
     return ended(result, failure)
+
+
+def _check_stream(args: argparse.Namespace) -> None:
+    """Refuse with --stream the options that need the whole run in memory (naming what reads the file)."""
+    options = (("--save", args.save), ("--plot", args.plot), ("--reference", args.reference))
+    given = [flag for flag, value in options if value]
+    if given:
+        raise PinstabError(
+            f"{', '.join(given)}: --stream keeps the run on disk, not in memory; the file {args.stream} is the saved "
+            f"run: chart it with pinstab plot {args.stream} -o OUT.png, read it with Trajectory.load"
+        )
 
 
 def _check_reference(args: argparse.Namespace, scene) -> None:

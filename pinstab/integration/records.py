@@ -1,0 +1,130 @@
+"""The samples a run keeps: all of them in memory (:class:`Records`), or a window of them written to a sink as
+the run proceeds (:class:`StreamedRecords`: memory bounded whatever the run's length)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+
+class Grid(Protocol):
+    """The time grid of a run (:class:`~pinstab.integration.stepping.TimeGrid`)."""
+
+    steps: int
+
+    def time(self, k: int) -> float: ...
+
+
+class SampleSink(Protocol):
+    """Where streamed samples go (:class:`~pinstab.stream.StreamWriter`): a file at ``path``."""
+
+    path: Path
+
+    def close(self) -> None: ...
+
+    def write(
+        self, start: int, t: np.ndarray, steps: np.ndarray, q: np.ndarray, v: np.ndarray, corrections: np.ndarray
+    ) -> None: ...
+
+
+class Records:
+    """The samples a run keeps: steps 0, K, 2K, ... and the last, each with t [s], q, v and the
+    correction iterations of that step; one spare slot for a stopped run (see :meth:`end_with`).
+
+    Args:
+        grid: the run's time grid. every: K. nq, nv: state dimensions.
+
+    Attributes:
+        last: the index of the run's last step's sample. count: the samples kept (fewer when the run stopped
+            early). ended: whether :meth:`end_with` ended them.
+    """
+
+    offset = 0  # the sample index of the arrays' first slot
+
+    def __init__(self, grid: Grid, every: int, nq: int, nv: int) -> None:
+        self.every = every
+        self.grid = grid
+        self.last = grid.steps // every + (1 if grid.steps % every else 0)
+        self.count = self.last + 1
+        self.ended = False
+        self.allocate(self.count + 1, nq, nv)  # zeros: no memory taken before a sample is put
+
+    def allocate(self, slots: int, nq: int, nv: int) -> None:
+        """The arrays of ``slots`` samples."""
+        self.steps = np.zeros(slots, dtype=np.int64)
+        self.t = np.zeros(slots)
+        self.q = np.zeros((slots, nq))
+        self.v = np.zeros((slots, nv))
+        self.corrections = np.zeros(slots, dtype=int)
+
+    def index(self, k: int) -> int:
+        """The sample index of recorded grid step k."""
+        return self.last if k == self.grid.steps else k // self.every
+
+    def put(self, index: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
+        """Keep the state of sample ``index`` (with its grid step and time)."""
+        slot = index - self.offset
+        step = self.grid.steps if index == self.last else index * self.every
+        self.steps[slot], self.t[slot] = step, self.grid.time(step)
+        self.q[slot], self.v[slot], self.corrections[slot] = q, v, iterations
+
+    def checked(self, k: int) -> None:
+        """The samples up to grid step k passed the loop's check (they will not be replayed)."""
+
+    def end_with(self, *samples: tuple[int, float, np.ndarray, np.ndarray]) -> None:
+        """Keep the samples before the first of ``samples`` (step, t [s], q, v) and end with these (a run
+        stopped there: its last good state, then at most one more, the failed step's)."""
+        first = samples[0][0]
+        index = min(-(-first // self.every), self.last)  # the first sample at or after that step
+        for slot, (step, t, q, v) in enumerate(samples, start=self.slot(index)):
+            self.steps[slot], self.t[slot], self.q[slot], self.v[slot] = step, t, q, v
+        self.count = index + len(samples)
+        self.ended = True
+
+    def slot(self, index: int) -> int:
+        """The array slot of sample ``index`` (for :meth:`end_with`)."""
+        return index
+
+
+class StreamedRecords(Records):
+    """Records that hold a window of samples and write them to ``sink`` once checked, ``block`` at a time.
+
+    Args:
+        grid, every, nq, nv: as :class:`Records`. sink: where the samples go. block: samples per write.
+        spare: samples a chunk of the loop keeps at most beyond a block.
+    """
+
+    def __init__(self, grid: Grid, every: int, nq: int, nv: int, sink: SampleSink, block: int, spare: int) -> None:
+        self.every = every
+        self.grid = grid
+        self.last = grid.steps // every + (1 if grid.steps % every else 0)
+        self.count = self.last + 1
+        self.ended = False
+        self.sink, self.block = sink, block
+        self.offset = 0  # the sample index of slot 0
+        self.allocate(block + spare, nq, nv)
+
+    def checked(self, k: int) -> None:
+        """Write a block of checked samples when there is one."""
+        final = self.count if k == self.grid.steps else k // self.every + 1
+        if final - self.offset >= self.block:
+            self.write(self.offset + self.block)
+
+    def write(self, stop: int) -> None:
+        """Write samples offset .. stop - 1 and make room for those after."""
+        n = stop - self.offset
+        self.sink.write(self.offset, self.t[:n], self.steps[:n], self.q[:n], self.v[:n], self.corrections[:n])
+        for array in (self.t, self.steps, self.q, self.v, self.corrections):
+            array[: len(array) - n] = array[n:].copy()
+        self.offset = stop
+
+    def slot(self, index: int) -> int:
+        """A sample before the window (already written) moves the window back to it: its rows are rewritten."""
+        self.offset = min(self.offset, index)
+        return index - self.offset
+
+    def finish(self) -> None:
+        """Write the samples kept and not yet written (up to :attr:`count`)."""
+        self.write(self.count)
