@@ -75,7 +75,7 @@ class Joint:
     <child link="{self.child}"/>
     <origin xyz="{_vec(self.xyz)}" rpy="{_vec(self.rpy)}"/>
     <axis xyz="{_vec(self.axis)}"/>
-    <limit lower="{-bound}" upper="{bound}" effort="{bound}" velocity="{bound}"/>
+    <limit effort="{bound}" velocity="{bound}"/>
   </joint>
 """
 

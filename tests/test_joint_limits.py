@@ -75,7 +75,8 @@ def test_ignore_limits_is_the_run_of_a_model_without_limits(capsys):
     """limits=False (and --ignore-limits) is today's held run: the same as the run of the model whose limits are
     removed (lower = upper: no limit given), to 1e-12, and the CLI prints the same figures."""
     ignored = pinstab.simulate("panda-anchor", duration=1.0, limits=False)
-    assert pinstab.simulate("fourbar", duration=0.1).info.limits_active_s == {}  # limits (+/-1000), none reached
+    assert pinstab.simulate(_pendulum(-3.0, 3.0), duration=0.1).info.limits_active_s == {}  # limits, none reached
+    assert pinstab.simulate("fourbar", duration=0.1).info.limits_active_s is None  # pin joints: no limits
     scene = pinstab.load_scene("panda-anchor")
     scene.model.lowerPositionLimit[:] = 0.0
     scene.model.upperPositionLimit[:] = 0.0
