@@ -30,9 +30,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .constraints import FrameClosure
 from .memory import new_data
 
-PIVOT_TOLERANCE = (
-    1e-2  # smallest |pivot| of the banded LU relative to the largest: below, near a singular configuration
-)
+PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
 MIN_CLOSURES = 4  # fewer closures: Pinocchio's own solve costs less than this path's fixed Python work
 MAX_BAND_FRACTION = 0.25  # a band wider than this fraction of the unknowns gains nothing over a dense solve
 
@@ -178,7 +176,7 @@ class BandedDynamics:
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m];
         check :attr:`singular` before using them."""
-        model, data, nv = self.model, self.data, self.model.nv
+        model, data = self.model, self.data
         placements = pin.computeStaticRegressor(model, data, q).reshape(3, -1, 4)  # [t, R] / total mass
         points = self._points  # (3, points) [m]
         points[:, self._carried] = self._total_mass * np.einsum("kbc,bc->kb", placements[:, self._bodies], self._local)
