@@ -76,15 +76,24 @@ class BandedDynamics:
     Args:
         model: the Pinocchio model. closures: point and planar-point closures.
         kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
+        data: a ``Data`` of the model to compute in (shared with another solve: each call recomputes all it
+            reads), or None for its own.
 
     Attributes:
         size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
         singular: the last solve met a pivot below :data:`PIVOT_TOLERANCE` (its result is not to be used).
     """
 
-    def __init__(self, model: pin.Model, closures: list[FrameClosure], kp: float = 0.0, kd: float = 0.0) -> None:
+    def __init__(
+        self,
+        model: pin.Model,
+        closures: list[FrameClosure],
+        kp: float = 0.0,
+        kd: float = 0.0,
+        data: pin.Data | None = None,
+    ) -> None:
         self.model = model
-        self.data = new_data(model)
+        self.data = new_data(model) if data is None else data
         self.kp, self.kd = float(kp), float(kd)
         count = len(closures)
         # the points: side a of every closure, then side b; (joint, local point), joint 0: a fixed world point

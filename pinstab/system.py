@@ -133,7 +133,7 @@ class ConstrainedSystem:
         allowed, and a method without post-step corrections (those run on Pinocchio's factorization)."""
         if not self._banded_allowed or self.stabilizer.corrects or banded_obstacle(native.closures, 0) is not None:
             return None
-        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd)
+        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd, native.data)
         return banded if banded_obstacle(native.closures, banded.size, banded.band) is None else None
 
     def native_mu(self, q: np.ndarray) -> float:
@@ -163,7 +163,7 @@ class ConstrainedSystem:
         if self.stabilizer.baumgarte_gains() is None:
             return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
         closures = [c for c in constraints if isinstance(c, FrameClosure)]
-        name = non_planar_closure(self.model.model, closures, q)
+        name = non_planar_closure(self.model.model, self.model.scratch, closures, q)
         if name is not None:
             return f"planar-point closure {name!r} is not on a planar mechanism"
         return None
