@@ -21,8 +21,11 @@ solve for that evaluation.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
+from scipy.linalg import eig_banded
 from scipy.linalg.lapack import dgbsv
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
@@ -181,15 +184,18 @@ class BandedDynamics:
         self.size, self.band = size, band
         self._acceleration_slots, self._row_slots = position[:nv], position[nv:]
         self._ab = np.zeros((3 * band + 1, size), order="F")  # LAPACK's layout: factored in place
+        # [[0, G], [G^T, 0]] (eigenvalues +-sigma(G) and zeros) in the same order, upper band storage
+        g_count = len(self._g_row)
+        upper, lower = np.maximum(prow, pcol)[-g_count:], np.minimum(prow, pcol)[-g_count:]
+        self._gram = np.zeros((band + 1, size))
+        self._gram_scatter = (band + lower - upper) * size + upper
         self._scatter = pcol * (3 * band + 1) + 2 * band + prow - pcol  # A[i, j] at ab[2 kl + i - j, j], kl = ku
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m];
         check :attr:`singular` before using them."""
         model, data = self.model, self.data
-        placements = pin.computeStaticRegressor(model, data, q).reshape(3, -1, 4)  # [t, R] / total mass
-        points = self._points  # (3, points) [m]
-        points[:, self._carried] = self._total_mass * np.einsum("kbc,bc->kb", placements[:, self._bodies], self._local)
+        points = self._placements(q)
         pin.computeJointJacobiansTimeVariation(model, data, q, v)
         jacobian, rate = data.J, data.dJ
         # per point: spatial velocity and bias acceleration of its body at the world origin, world axes
@@ -200,9 +206,7 @@ class BandedDynamics:
         terms += self.kp * points + self.kd * velocity  # point acceleration at a = 0 + Kp p + Kd p'
         rhs = self._rhs
         rhs[self._row_slots] = self._row_map @ terms.ravel()  # -gamma0 - Kp phi - Kd G v
-        coefficients = self._g_coefficients
-        coefficients[3:] = (self._g_map @ points.ravel()).reshape(3, -1)
-        g_values = np.einsum("ke,ke->e", jacobian[:, self._g_col], coefficients)
+        g_values = self._jacobian_values(jacobian, points)
         mass = pin.crba(model, data, q)[self._m_index]
         rhs[self._acceleration_slots] = tau - pin.nonLinearEffects(model, data, q, v)
         ab = self._ab
@@ -214,6 +218,36 @@ class BandedDynamics:
         self.singular = info != 0 or not pivots.min() > PIVOT_TOLERANCE * pivots.max()
         self._solution = solution
         return solution[self._acceleration_slots]
+
+    def _placements(self, q: np.ndarray) -> np.ndarray:
+        """The closure points at q (3, points) [m]."""
+        placements = pin.computeStaticRegressor(self.model, self.data, q).reshape(3, -1, 4)  # [t, R] / total mass
+        points = self._points
+        points[:, self._carried] = self._total_mass * np.einsum("kbc,bc->kb", placements[:, self._bodies], self._local)
+        return points
+
+    def _jacobian_values(self, jacobian: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """G's entries (at the pattern's (row, column) pairs) from the joint Jacobians and the points."""
+        coefficients = self._g_coefficients
+        coefficients[3:] = (self._g_map @ points.ravel()).reshape(3, -1)
+        return np.einsum("ke,ke->e", jacobian[:, self._g_col], coefficients)
+
+    def relative_singular_value(self, q: np.ndarray, rank: int) -> float:
+        """sigma_rank / sigma_1 of the closures' Jacobian G at q [-] (NaN when not finite): the eigenvalues of
+        ``[[0, G], [G^T, 0]]`` are +-sigma(G) and zeros, found in its band by LAPACK's banded symmetric
+        eigensolver (O(n b^2); no dense SVD: on a loaded 2-core machine a threaded SVD of the N = 80
+        chain's G took 96 ms against 1.3 ms on one thread). Accurate to rounding of sigma_1, as an SVD."""
+        model, data = self.model, self.data
+        points = self._placements(q)
+        values = self._jacobian_values(pin.computeJointJacobians(model, data, q), points)
+        if not np.isfinite(values).all():
+            return math.nan
+        gram = self._gram
+        gram.ravel()[self._gram_scatter] = values
+        size = self.size
+        low = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - rank, size - rank))[0]
+        high = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - 1, size - 1))[0]
+        return float(low / high) if high > 0 else math.nan
 
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""

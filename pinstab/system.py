@@ -168,6 +168,12 @@ class ConstrainedSystem:
             return f"planar-point closure {name!r} is not on a planar mechanism"
         return None
 
+    @property
+    def conditioning(self) -> Callable[[np.ndarray, int], float] | None:
+        """``(q, r) -> sigma_r / sigma_1`` of the constraint Jacobian without a dense SVD (the banded path's),
+        or None."""
+        return None if self.banded is None else self.banded.relative_singular_value
+
     # -- evaluations ---------------------------------------------------------------------------------
     def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Pinocchio's accelerations at (q, v, t) under the scene's forces, unchecked."""

@@ -10,6 +10,7 @@ import pytest
 from pinstab import banded, build_system, load_scene, simulate
 from pinstab.banded import BandedDynamics
 from pinstab.constraints import FrameClosure
+from pinstab.integration.passages import Conditioning
 from pinstab.native import NativeDynamics
 
 KP, KD = 100.0, 20.0  # [1/s^2], [1/s]
@@ -126,3 +127,18 @@ def test_a_singular_stage_is_solved_by_pinocchio(monkeypatch):
     assert np.isfinite(expected).all()
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     assert system.statistics.fallbacks == 1 and system.statistics.status_counts["banded"] == 0
+
+
+def test_the_banded_conditioning_equals_the_svds():
+    """sigma_r / sigma_1 of G from the banded eigensolver equals the dense SVD's (the passage watch's
+    sample) to 1e-14, far from and near the singular configuration."""
+    scene = load_scene("nfourbar", N=6)
+    system = build_system(scene)
+    ours = BandedDynamics(scene.model, _closures(scene), KP, KD)
+    reference = Conditioning(system.model, scene.q0)
+    aligned = _aligned(scene.model)
+    for share in (0.0, 0.5, 0.9, 0.999, 0.9999):
+        q = (1 - share) * scene.q0 + share * aligned
+        expected = reference.relative(q, 0.0)
+        assert ours.relative_singular_value(q, reference.rank) == pytest.approx(expected, rel=0, abs=1e-14)
+    assert reference.relative(q, 0.0) < 1e-3

@@ -176,7 +176,7 @@ class StepLoop:
                 passed its checks.
         """
         self.records.q[0], self.records.v[0] = q, v
-        self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt)
+        self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt, self.system.conditioning)
         k = 0
         try:
             self.system.audit(q, v, 0.0)
