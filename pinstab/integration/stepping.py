@@ -143,6 +143,7 @@ class StepLoop:
 
     Attributes:
         records: the kept samples. correction_total, correction_max: post-step correction iterations.
+        corrects: the method corrects the state after each step.
     """
 
     def __init__(
@@ -164,6 +165,7 @@ class StepLoop:
         self.records = Records(grid, every, model.nq, model.nv)
         self.correction_total = 0
         self.correction_max = 0
+        self.corrects = system.stabilizer.corrects
 
     def run(self, q: np.ndarray, v: np.ndarray, progress=None) -> tuple[np.ndarray, np.ndarray]:
         """Step from (q, v) at t = 0 to the end of the grid; returns the end state.
@@ -223,6 +225,7 @@ class StepLoop:
         step = self.stepper.step
         grid, watch = self.grid, self.watch
         dt, last = grid.dt, grid.steps
+        corrects, keep = self.corrects, self.keep
         k = start
         while k < stop:
             t = k * dt
@@ -234,7 +237,10 @@ class StepLoop:
                     continue
             k += 1
             q, v = step(q, v, t, dt if k != last else grid.duration - t)
-            q, v = self.store(q, v, k)
+            if corrects:
+                q, v = self.store(q, v, k)
+            else:  # what store() does without a correction, a call less per step
+                keep(k, q, v)
         return q, v, k
 
     def store(self, q: np.ndarray, v: np.ndarray, k: int, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -259,7 +265,9 @@ class StepLoop:
         if k % self.every == 0 or k == last:
             records = self.records
             index = records.last if k == last else k // self.every
-            records.q[index], records.v[index], records.corrections[index] = q, v, iterations
+            records.q[index], records.v[index] = q, v
+            if self.corrects:  # (zero without corrections, as the records start)
+                records.corrections[index] = iterations
 
     @property
     def guarded(self) -> bool:
