@@ -1,7 +1,7 @@
 """The banded path: a long chain of point closures solved at a cost linear in its size.
 
 Pinocchio's ``constraintDynamics`` factors the closures' rows densely: on the N-four-bar its cost per
-call grows as N^2.3 (408 us at N = 40, 2270 us at N = 80; ``benchmarks/chains.py``). A chain of loops
+call grows as N^2.4 (319 us at N = 40, 2067 us at N = 80; ``benchmarks/chains.py``). A chain of loops
 couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3),
 
     [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
@@ -34,7 +34,7 @@ from .constraints import FrameClosure
 from .memory import new_data
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
-MIN_CLOSURES = 24  # fewer: Pinocchio's solve is cheaper (nfourbar: 103 vs 100 us an evaluation at N = 24)
+MIN_CLOSURES = 24  # fewer: Pinocchio's solve is cheaper (N-four-bar: it is at N = 20, not at N = 40, chains.py)
 MAX_BAND_FRACTION = 0.25  # a band wider than this fraction of the unknowns gains nothing over a dense solve
 
 
@@ -235,8 +235,8 @@ class BandedDynamics:
     def relative_singular_value(self, q: np.ndarray, rank: int) -> float:
         """sigma_rank / sigma_1 of the closures' Jacobian G at q [-] (NaN when not finite): the eigenvalues of
         ``[[0, G], [G^T, 0]]`` are +-sigma(G) and zeros, found in its band by LAPACK's banded symmetric
-        eigensolver (O(n b^2); no dense SVD: on a loaded 2-core machine a threaded SVD of the N = 80
-        chain's G took 96 ms against 1.3 ms on one thread). Accurate to rounding of sigma_1, as an SVD."""
+        eigensolver (no dense SVD, which runs on OpenBLAS threads that a loaded machine slows badly).
+        Accurate to rounding of sigma_1, as an SVD."""
         model, data = self.model, self.data
         points = self._placements(q)
         values = self._jacobian_values(pin.computeJointJacobians(model, data, q), points)

@@ -70,7 +70,7 @@ class ConstrainedModel:
     @property
     def scratch(self) -> pin.Data:
         """A Pinocchio ``Data`` for one-off passes (mass matrix, energy, sizes, checks); each overwrites it.
-        (One ``Data`` of a long chain costs ~0.1 s to build at nv = 161: the passes share this one.)"""
+        (A ``Data`` grows as nv^3 and is slow to build for a long chain: the passes share this one.)"""
         return self._data
 
     def position_tolerance(self, tolerance: float) -> float:

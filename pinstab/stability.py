@@ -118,7 +118,7 @@ def deviation_radius(
     When S (on the holonomic rows) and K are diagonal the rows do not couple: R(tau W) is block-diagonal
     (a 2 x 2 block per holonomic row, 1 x 1 per other row), and its radius is the largest of the distinct
     rows' :func:`scalar_radius` (Baumgarte's gains: one or two values, instead of an O(s^3) eigenvalue
-    solve of a 2s x 2s matrix, 0.75 s on the N-four-bar N = 40).
+    solve of a 2s x 2s matrix).
     """
     square = stiffness[holonomic_mask]
     diagonal = np.diag(damping)
