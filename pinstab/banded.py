@@ -1,7 +1,7 @@
 """The banded path: a long chain of point closures solved at a cost linear in its size.
 
 Pinocchio's ``constraintDynamics`` factors the closures' rows densely: on the N-four-bar its cost per
-call grows as N^2.4 (319 us at N = 40, 2067 us at N = 80; ``benchmarks/chains.py``). A chain of loops
+call grows as N^2.3 (314 us at N = 40, 2025 us at N = 80; ``benchmarks/chains.py``). A chain of loops
 couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3),
 
     [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
