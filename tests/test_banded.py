@@ -3,12 +3,15 @@ multipliers, whole trajectories, the choice of path and the fallback at a singul
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from pinstab import banded, build_system, load_scene, simulate
 from pinstab.banded import BandedDynamics
+from pinstab.cli import main
 from pinstab.constraints import FrameClosure
 from pinstab.integration.passages import Conditioning
 from pinstab.native import NativeDynamics
@@ -142,3 +145,11 @@ def test_the_banded_conditioning_equals_the_svds():
         expected = reference.relative(q, 0.0)
         assert ours.relative_singular_value(q, reference.rank) == pytest.approx(expected, rel=0, abs=1e-14)
     assert reference.relative(q, 0.0) < 1e-3
+
+
+def test_run_json_names_the_banded_path(capsys):
+    """``pinstab run --json`` says which path ran and why."""
+    assert main(["run", "nfourbar", "--param", f"N={banded.MIN_CLOSURES}", "--duration", "0.005", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["path"] == "banded"
+    assert f"{banded.MIN_CLOSURES} point closures" in result["path_reason"]
