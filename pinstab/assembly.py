@@ -16,7 +16,6 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import AssemblyError, PinstabError, ProjectionError
-from .memory import new_data
 from .projection import project_velocities
 from .runinfo import AssemblySummary
 from .validation import relative_tolerance, singular_mass_error
@@ -63,7 +62,7 @@ def mechanism_size(model: ConstrainedModel, q: np.ndarray) -> float:
     """The mechanism's size L [m]: the diagonal of the axis-aligned box holding the world origins of every joint
     and frame (closure and contact frames included) at configuration q, at least :data:`MIN_SIZE` (a
     mechanism whose joints all sit at one point). It bounds the length of every loop of the model."""
-    data = new_data(model.model)
+    data = model.scratch
     pin.framesForwardKinematics(model.model, data, q)
     points = np.array([m.translation for m in (*data.oMi, *data.oMf)])
     with np.errstate(over="ignore", invalid="ignore"):  # an overflowing offset: refused by the residual check

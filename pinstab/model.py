@@ -67,6 +67,12 @@ class ConstrainedModel:
         with np.errstate(over="ignore"):  # an offset too large for floating point is refused at assembly
             self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
 
+    @property
+    def scratch(self) -> pin.Data:
+        """A Pinocchio ``Data`` for one-off passes (mass matrix, energy, sizes, checks); each overwrites it.
+        (A ``Data`` grows as nv^3 and is slow to build for a long chain: the passes share this one.)"""
+        return self._data
+
     def position_tolerance(self, tolerance: float) -> float:
         """An absolute position tolerance [m or rad] for a relative one: ``tolerance`` times the
         mechanism's size in metres, at least 1 (rounding in the coordinates grows with their size;

@@ -69,10 +69,9 @@ def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...]
     return None
 
 
-def non_planar_closure(model: pin.Model, closures: list[FrameClosure], q: np.ndarray) -> str | None:
+def non_planar_closure(model: pin.Model, data: pin.Data, closures: list[FrameClosure], q: np.ndarray) -> str | None:
     """The first ``planar-point`` closure whose out-of-plane motion the joints do not block at q (so
-    it has no 3-D contact equivalent), or None."""
-    data = new_data(model)
+    it has no 3-D contact equivalent), or None; ``data``: a ``Data`` of the model to compute in."""
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
     for closure in closures:

@@ -71,8 +71,9 @@ class RunInfo:
         force_frames: constraint name -> the frame its multipliers are expressed in.
         assembly: the assembly of the initial state, or None when it was skipped.
         solver_statistics: the KKT solves of the run.
-        path: ``native`` (Pinocchio's own algorithm evaluated the dynamics) or ``general`` (pinstab's
-            kinematics and KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``.
+        path: ``native`` (Pinocchio's own algorithm evaluated the dynamics), ``banded`` (a chain of point
+            closures solved by a banded LU, :mod:`pinstab.banded`) or ``general`` (pinstab's kinematics and
+            KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded``.
         record_every: a sample was kept every this many steps (and at the last).
         controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over

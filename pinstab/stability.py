@@ -110,6 +110,31 @@ def spectral_radius(matrix: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(matrix))))
 
 
+def deviation_radius(
+    stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
+) -> float:
+    """rho(R(tau W)) of the deviation dynamics (S, K, mask; see :func:`amplification`) [dimensionless].
+
+    When S (on the holonomic rows) and K are diagonal the rows do not couple: R(tau W) is block-diagonal
+    (a 2 x 2 block per holonomic row, 1 x 1 per other row), and its radius is the largest of the distinct
+    rows' :func:`scalar_radius` (Baumgarte's gains: one or two values, instead of an O(s^3) eigenvalue
+    solve of a 2s x 2s matrix).
+    """
+    square = stiffness[holonomic_mask]
+    diagonal = np.diag(damping)
+    if (
+        np.array_equal(damping, np.diag(diagonal))
+        and np.array_equal(square, np.diag(np.diag(square)))
+        and not stiffness[~holonomic_mask].any()
+    ):
+        holonomic = set(zip(np.diag(square).tolist(), diagonal[holonomic_mask].tolist(), strict=True))
+        first_order = set(diagonal[~holonomic_mask].tolist())
+        radii = [scalar_radius(kp, kd, step, scheme) for kp, kd in holonomic]
+        radii += [scalar_radius(0.0, kd, step, scheme, holonomic=False) for kd in first_order]
+        return max(radii, default=0.0)
+    return spectral_radius(amplification(stiffness, damping, holonomic_mask, step, scheme))
+
+
 def scalar_radius(kp: float, kd: float, step: float, scheme: str, holonomic: bool = True) -> float:
     """rho(R) for scalar gains: S = Kp, K = Kd on a holonomic row (2 x 2), or K = Kd alone."""
     mask = np.array([holonomic])

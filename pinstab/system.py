@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from .banded import BandedDynamics, banded_obstacle
 from .constraints import ConstraintValues, FrameClosure
 from .errors import DivergenceError, PinstabError
 from .model import ConstrainedModel
@@ -51,24 +52,36 @@ class ConstrainedSystem:
         solver: the KKT backend of the general path.
         native_obstacle: why the native path may not be taken whatever the scene (a solver was named
             that is not Pinocchio's), or None.
+        banded: take the banded path where it pays (False: Pinocchio's solve on the native path, the
+            ``pinocchio`` solver named).
 
     Attributes:
         path: ``native`` (Pinocchio's ``constraintDynamics`` with the stabilizer's Baumgarte gains in
-            its corrector, :mod:`pinstab.native`) or ``general`` (pinstab's kinematics, the
-            stabilizer's term and the KKT backend); chosen by :meth:`bind`.
-        path_reason: why the general path was taken ("" on the native path).
+            its corrector, :mod:`pinstab.native`), ``banded`` (the same equations solved by a banded LU
+            at a cost linear in the chain's length, :mod:`pinstab.banded`; Pinocchio's solve at a
+            near-singular configuration) or ``general`` (pinstab's kinematics, the stabilizer's term
+            and the KKT backend); chosen by :meth:`bind`.
+        path_reason: why the general path was taken, or why the banded one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
         projector: the projections of post-step corrections on the chosen path.
     """
 
     def __init__(
-        self, model: ConstrainedModel, stabilizer: Stabilizer, solver: KKTSolver, native_obstacle: str | None = None
+        self,
+        model: ConstrainedModel,
+        stabilizer: Stabilizer,
+        solver: KKTSolver,
+        native_obstacle: str | None = None,
+        banded: bool = True,
     ) -> None:
         self.model = model
         self.stabilizer = stabilizer
         self.solver = solver
         self.native: NativeDynamics | None = None
+        self.banded: BandedDynamics | None = None
+        self._banded_allowed = banded
+        self._banded_solves = 0
         self.projector: Projector = GeneralProjector(model)
         self.path = "general"
         self.path_reason = "not bound to a step yet"
@@ -107,6 +120,21 @@ class ConstrainedSystem:
         self.path, self.path_reason = "native", ""
         self.acceleration = self._native_acceleration
         self._checking = True
+        self.banded = self._banded(native)
+        if self.banded is not None:
+            self.path, self.acceleration = "banded", self._banded_acceleration
+            self.path_reason = (
+                f"{len(native.closures)} point closures: KKT system of {self.banded.size} unknowns with a band of "
+                f"{self.banded.band}, solved at linear cost (Pinocchio's solve near a singular configuration)"
+            )
+
+    def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
+        """The banded solve of the native path's closures when it pays (see :func:`banded_obstacle`):
+        allowed, and a method without post-step corrections (those run on Pinocchio's factorization)."""
+        if not self._banded_allowed or self.stabilizer.corrects or banded_obstacle(native.closures, 0) is not None:
+            return None
+        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd, native.data)
+        return banded if banded_obstacle(native.closures, banded.size, banded.band) is None else None
 
     def native_mu(self, q: np.ndarray) -> float:
         """The proximal regularization of the native solve from configuration q: :data:`NATIVE_MU`, or
@@ -135,10 +163,16 @@ class ConstrainedSystem:
         if self.stabilizer.baumgarte_gains() is None:
             return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
         closures = [c for c in constraints if isinstance(c, FrameClosure)]
-        name = non_planar_closure(self.model.model, closures, q)
+        name = non_planar_closure(self.model.model, self.model.scratch, closures, q)
         if name is not None:
             return f"planar-point closure {name!r} is not on a planar mechanism"
         return None
+
+    @property
+    def conditioning(self) -> Callable[[np.ndarray, int], float] | None:
+        """``(q, r) -> sigma_r / sigma_1`` of the constraint Jacobian without a dense SVD (the banded path's),
+        or None."""
+        return None if self.banded is None else self.banded.relative_singular_value
 
     # -- evaluations ---------------------------------------------------------------------------------
     def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
@@ -148,8 +182,23 @@ class ConstrainedSystem:
             model.kin.update_jacobians(q)
         return self.native.acceleration(q, v, model.applied_force(v, t))
 
+    def _banded_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        model = self.model
+        if model.forces_need_kinematics:
+            model.kin.update_jacobians(q)
+        acceleration = self.banded.acceleration(q, v, model.applied_force(v, t))
+        if self.banded.singular:
+            self._audit.fallbacks += 1
+            return self._native_acceleration(q, v, t, stage)
+        self._banded_solves += 1
+        return acceleration
+
     def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
-        acceleration = self._native_solve(q, v, t)
+        model = self.model
+        if model.forces:
+            acceleration = self._native_solve(q, v, t)
+        else:  # _native_solve without its calls: the four-bar's step costs ~5 us, a call ~0.1 us
+            acceleration = self.native.acceleration(q, v, model.no_force)
         self._native_solves += 1
         if self._checking:
             return self._checked(q, v, t, stage, acceleration)
@@ -169,7 +218,7 @@ class ConstrainedSystem:
         """On the native path, check a solve at (q, v, t) from scratch; when it fails (near a singular
         configuration) every native solve is checked, a failed one solved the general way, until one
         passes. The stepping loop calls this periodically."""
-        if self.native is None:
+        if self.native is None or self.banded is not None:  # the banded LU checks every solve (its pivots)
             return
         residual = self.native.residual(v, self._native_solve(q, v, t))
         self._checking = not residual <= ACCEPTED_RESIDUAL
@@ -181,7 +230,11 @@ class ConstrainedSystem:
 
     def multipliers(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The constraint multipliers at (q, v, t) [N, N m]: Pinocchio's on the native path when its solve
-        passes the check, else the general path's."""
+        passes the check (the banded solve's on the banded path), else the general path's."""
+        if self.banded is not None:
+            self._banded_acceleration(q, v, t)
+            if not self.banded.singular:
+                return self.banded.multipliers()
         if self.native is not None and self.native.residual(v, self._native_solve(q, v, t)) <= ACCEPTED_RESIDUAL:
             return self.native.multipliers()
         return self.dynamics(q, v, t).multipliers
@@ -189,7 +242,8 @@ class ConstrainedSystem:
     @property
     def statistics(self) -> SolverStatistics:
         """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
-        ``native``), the checked ones and the fallbacks."""
+        ``native``), the checked ones and the fallbacks; on the banded path its solves (status ``banded``),
+        a near-singular one solved by Pinocchio counted as a fallback."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
         if self.native is None:
             return merged
@@ -197,6 +251,9 @@ class ConstrainedSystem:
         merged.solves += self._native_solves
         merged.status_counts["native"] = self._native_solves
         merged.status_counts["native checked"] = audit.status_counts.get("native checked", 0)
+        if self.banded is not None:
+            merged.solves += self._banded_solves
+            merged.status_counts["banded"] = self._banded_solves
         merged.worst_primal_residual = max(merged.worst_primal_residual, audit.worst_primal_residual)
         merged.fallbacks += audit.fallbacks
         return merged
@@ -261,8 +318,10 @@ def build_system(
         scene: a scene, or its constrained model.
         method: a registered stabilization method.
         solver: a registered KKT backend; None: the native path where the scene allows it (see
-            :meth:`ConstrainedSystem.bind`), the method's own backend or ``proxsuite`` elsewhere.
-            Naming ``proxsuite`` or ``dense`` keeps every evaluation on the general path.
+            :meth:`ConstrainedSystem.bind`; the banded path for a chain of point closures, where it
+            pays), the method's own backend or ``proxsuite`` elsewhere. Naming ``pinocchio`` keeps
+            Pinocchio's solve (the native path, the reference of the banded one); naming ``proxsuite``
+            or ``dense`` keeps every evaluation on the general path.
         solver_options: the backend's options.
         method_options: the method's options (e.g. ``kp``, ``kd``).
 
@@ -276,4 +335,4 @@ def build_system(
         raise PinstabError(f"method {method!r} runs on solver {stabilizer.required_solver!r}, not {name!r}")
     backend = SOLVERS.build(name, model, stabilizer.baumgarte_gains(), options=solver_options)
     obstacle = None if solver in (None, NATIVE_SOLVER) else f"solver {solver!r} was named"
-    return ConstrainedSystem(model, stabilizer, backend, obstacle)
+    return ConstrainedSystem(model, stabilizer, backend, obstacle, banded=solver is None)

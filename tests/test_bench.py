@@ -10,6 +10,10 @@ import math
 import numpy as np
 import pytest
 
+from pinstab import load_scene, simulate
+from pinstab.assembly import assemble
+from pinstab.bench.overhead import KD, KP
+from pinstab.bench.peers import STEP_SCHEMES, native_pinocchio
 from pinstab.bench.workprecision import (
     Config,
     cheapest_within,
@@ -21,6 +25,7 @@ from pinstab.bench.workprecision import (
 )
 from pinstab.cli import main
 from pinstab.errors import PinstabError
+from pinstab.model import ConstrainedModel
 
 CONFIGS = [
     Config("baumgarte", "semi-implicit-euler", 2e-3),
@@ -230,3 +235,16 @@ def test_bad_rtols_are_refused(capsys):
     assert "--rtols: tolerances must be in" in capsys.readouterr().err
     with pytest.raises(PinstabError, match=r"rtol 2.0 of baumgarte \+ dop853 \(rtol\) must be a number in"):
         check_sweep([Config("baumgarte", "dop853", 1e-2, rtol=2.0)], 1.0)
+
+
+@pytest.mark.parametrize("scheme", STEP_SCHEMES)
+def test_hand_written_loops_are_the_schemes_simulate_runs(scheme):
+    """The overhead benchmark's hand-written Pinocchio loops step as ``simulate()`` does with the same
+    scheme, step and gains (four-bar, native path, 0.2 s: to 1e-12 rad), so its ratios compare like with
+    like."""
+    scene = load_scene("fourbar")
+    start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
+    ours = simulate(scene, "baumgarte", scheme, 1e-3, 0.2, kp=KP, kd=KD)
+    q, _, _ = native_pinocchio(scene, start.q, start.v, 1e-3, 200, KP, KD, scheme)
+    assert ours.info.path == "native"
+    np.testing.assert_allclose(ours.q, q, rtol=0, atol=1e-12)

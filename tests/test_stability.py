@@ -6,7 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinstab.stability import SCHEMES, amplification, largest_stable_step, place_gains, scalar_radius, spectral_radius
+from pinstab.stability import (
+    SCHEMES,
+    amplification,
+    deviation_radius,
+    largest_stable_step,
+    place_gains,
+    scalar_radius,
+    spectral_radius,
+)
 
 
 def one_step(scheme, stiffness, damping, step, y):
@@ -183,3 +191,17 @@ def test_stability_map_raises_what_is_not_a_divergence():
         stability_map(pinstab.load_scene("ring-on-rod"), grid=2, steps=2)
     with pytest.raises(pinstab.PinstabError, match="violates no position constraint"):
         stability_map(pinstab.load_scene("rolling-disk"), grid=2, steps=2)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_decoupled_rows_give_the_eigenvalue_solves_radius(scheme):
+    """With diagonal S and K the radius taken row by row equals the eigenvalue solve of the whole
+    R(tau W) (holonomic and first-order rows mixed, two gain pairs); a coupled K goes to that solve."""
+    mask = np.array([True, True, False, True, False])
+    stiffness = np.eye(5)[:, mask] * np.array([100.0, 100.0, 400.0])
+    damping = np.diag([20.0, 20.0, 10.0, 40.0, 10.0])
+    expected = spectral_radius(amplification(stiffness, damping, mask, 1e-2, scheme))
+    assert deviation_radius(stiffness, damping, mask, 1e-2, scheme) == pytest.approx(expected, rel=1e-12)
+    coupled = damping + 5.0 * np.eye(5, k=1)
+    expected = spectral_radius(amplification(stiffness, coupled, mask, 1e-2, scheme))
+    assert deviation_radius(stiffness, coupled, mask, 1e-2, scheme) == expected

@@ -12,7 +12,7 @@ from ..assembly import assemble
 from ..model import ConstrainedModel
 from ..scene import Scene
 from ..simulate import simulate
-from .peers import PEER_SCHEMES, native_pinocchio
+from .peers import STEP_SCHEMES, native_pinocchio
 
 KP, KD = 100.0, 20.0  # [1/s^2], [1/s]: pinstab's default Baumgarte gains, given to both
 
@@ -20,7 +20,8 @@ KP, KD = 100.0, 20.0  # [1/s^2], [1/s]: pinstab's default Baumgarte gains, given
 def measure_overhead(scene: Scene, dt: float = 1e-3, duration: float = 2.0, rounds: int = 5) -> dict[str, Any]:
     """CPU seconds of ``simulate(scene, "baumgarte", scheme, dt, duration)`` (default recording, the
     whole call: set-up, assembly and stepping) and of the hand-written loop from the assembled start,
-    for semi-implicit Euler and RK4, median of ``rounds`` interleaved rounds.
+    for every fixed-step scheme (explicit and semi-implicit Euler, Heun, RK4), median of ``rounds``
+    interleaved rounds.
 
     Returns:
         per scheme the microseconds per step of each and their ratio; ``overhead_ratio``: the larger
@@ -29,7 +30,7 @@ def measure_overhead(scene: Scene, dt: float = 1e-3, duration: float = 2.0, roun
     start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
     steps = round(duration / dt)
     result: dict[str, Any] = {"dt": dt, "duration": duration, "steps": steps, "kp": KP, "kd": KD, "schemes": {}}
-    for scheme in PEER_SCHEMES:
+    for scheme in STEP_SCHEMES:
         hand, ours = [], []
         path = ""
         for _ in range(rounds):

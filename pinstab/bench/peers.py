@@ -17,7 +17,8 @@ from ..scene import Scene
 NativeStep = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
 
 
-PEER_SCHEMES = ("semi-implicit-euler", "rk4")
+PEER_SCHEMES = ("semi-implicit-euler", "rk4")  # the work-precision sweeps' hand-written loops
+STEP_SCHEMES = ("euler", "semi-implicit-euler", "heun", "rk4")  # every fixed-step scheme a loop is written for
 
 
 def native_acceleration(scene: Scene, kp: float, kd: float) -> Callable[[np.ndarray, np.ndarray, float], np.ndarray]:
@@ -46,7 +47,7 @@ def native_acceleration(scene: Scene, kp: float, kd: float) -> Callable[[np.ndar
 
 def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "semi-implicit-euler") -> NativeStep:
     """One step of a hand-written loop over Pinocchio: ``a =`` :func:`native_acceleration` (Kp [1/s^2],
-    Kd [1/s]), then semi-implicit Euler or classical RK4 with ``pin.integrate``.
+    Kd [1/s]), then explicit or semi-implicit Euler, Heun or classical RK4 with ``pin.integrate``.
 
     Returns:
         ``step(q, v, t) -> (q, v)`` for a step of ``dt`` [s] from time t [s].
@@ -54,17 +55,26 @@ def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "se
     Raises:
         PinstabError: an unknown scheme.
     """
-    if scheme not in PEER_SCHEMES:
-        raise PinstabError(f"unknown peer scheme {scheme!r}; schemes: {', '.join(PEER_SCHEMES)}")
+    if scheme not in STEP_SCHEMES:
+        raise PinstabError(f"unknown peer scheme {scheme!r}; schemes: {', '.join(STEP_SCHEMES)}")
     model = scene.model
     acceleration = native_acceleration(scene, kp, kd)
     integrate = pin.integrate
 
-    def euler_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def semi_implicit_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         v = v + dt * acceleration(q, v, t)
         return integrate(model, q, dt * v), v
 
+    def euler_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return integrate(model, q, dt * v), v + dt * acceleration(q, v, t)
+
     half, sixth = 0.5 * dt, dt / 6.0
+
+    def heun_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        a1 = acceleration(q, v, t)
+        v2 = v + dt * a1
+        a2 = acceleration(integrate(model, q, dt * v), v2, t + dt)
+        return integrate(model, q, half * (v + v2)), v + half * (a1 + a2)
 
     def rk4_step(q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         a1 = acceleration(q, v, t)
@@ -76,7 +86,8 @@ def native_step(scene: Scene, dt: float, kp: float, kd: float, scheme: str = "se
         a4 = acceleration(integrate(model, q, dt * v3), v4, t + dt)
         return integrate(model, q, sixth * (v + 2.0 * (v2 + v3) + v4)), v + sixth * (a1 + 2.0 * (a2 + a3) + a4)
 
-    return euler_step if scheme == "semi-implicit-euler" else rk4_step
+    steps = {"euler": euler_step, "semi-implicit-euler": semi_implicit_step, "heun": heun_step, "rk4": rk4_step}
+    return steps[scheme]
 
 
 def native_pinocchio(

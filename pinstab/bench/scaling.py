@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import math
+import time
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
-from ..scene import load_scene
+from ..banded import BandedDynamics
+from ..constraints import FrameClosure
+from ..native import NativeDynamics
+from ..scene import Scene, load_scene
 from ..simulate import simulate
+from .mujoco_peer import DEFAULT_SOLREF, run_mujoco
+from .overhead import KD, KP
 
 SIZES = (1, 2, 5, 10, 20, 40)
 PATHS = {
@@ -40,3 +48,71 @@ def scaling(sizes: tuple[int, ...] = SIZES) -> dict[str, Any]:
     result["fastest"] = fastest
     result["scaling_exponent"] = result["exponent"][fastest]
     return result
+
+
+CHAIN_SIZES = (10, 20, 40, 80)
+
+
+def _evaluation_us(call, repeats: int = 100) -> float:
+    """CPU microseconds of one ``call()``, mean of ``repeats``."""
+    began = time.process_time()
+    for _ in range(repeats):
+        call()
+    return (time.process_time() - began) / repeats * 1e6
+
+
+def chain_costs(
+    sizes: tuple[int, ...] = CHAIN_SIZES, dt: float = 1e-3, duration: float = 1.0, rounds: int = 3
+) -> dict[str, Any]:
+    """CPU microseconds per RK4 step of dt [s] on nfourbar N, best of ``rounds`` interleaved rounds: pinstab's
+    default run (the whole ``simulate()`` call over ``duration`` [s]), the same run on Pinocchio's solve
+    (``solver="pinocchio"``: the native path) and MuJoCo's RK4 ``mj_step`` (loops as ``connect``
+    equalities); per evaluation, the banded solve, ``pin.constraintDynamics`` and the three Pinocchio
+    passes the banded solve starts from (``crba``, ``nonLinearEffects``, joint Jacobians and their time
+    variation). Exponents p of cost ~ N^p fitted over ``sizes``."""
+    steps = round(duration / dt)
+    runs = ("default", "native", "mujoco")
+    passes = ("banded", "constraintDynamics", "pinocchio_passes")
+    best: dict[str, dict[int, float]] = {name: {n: math.inf for n in sizes} for name in runs + passes}
+    paths: dict[int, str] = {}
+    for _ in range(rounds):
+        for n in sizes:
+            scene = load_scene("nfourbar", N=n)
+            for name, solver in (("default", None), ("native", "pinocchio")):
+                began = time.process_time()
+                trajectory = simulate(scene, "baumgarte", "rk4", dt, duration, solver)
+                best[name][n] = min(best[name][n], (time.process_time() - began) / steps * 1e6)
+                paths[n] = trajectory.info.path if name == "default" else paths.get(n, "")
+            _, _, seconds = run_mujoco(scene, trajectory.q[0], trajectory.v[0], dt, steps, "rk4", DEFAULT_SOLREF, steps)
+            best["mujoco"][n] = min(best["mujoco"][n], seconds / steps * 1e6)
+            for name, cost in _evaluations(scene, trajectory.q[-1], trajectory.v[-1]).items():
+                best[name][n] = min(best[name][n], cost)
+    result: dict[str, Any] = {"N": list(sizes), "dt": dt, "duration": duration, "rounds": rounds, "default_path": paths}
+    for name in runs + passes:
+        costs = [best[name][n] for n in sizes]
+        result[name + "_us"] = costs
+        result[name + "_exponent"] = float(np.polyfit(np.log(sizes), np.log(costs), 1)[0])
+    result["default_over_mujoco"] = [d / m for d, m in zip(result["default_us"], result["mujoco_us"], strict=True)]
+    result["native_over_default"] = [n / d for n, d in zip(result["native_us"], result["default_us"], strict=True)]
+    return result
+
+
+def _evaluations(scene: Scene, q: np.ndarray, v: np.ndarray) -> dict[str, float]:
+    """CPU microseconds of one dynamics evaluation at (q, v): the banded solve, Pinocchio's
+    ``constraintDynamics`` (same closures and gains) and the Pinocchio passes the banded solve reads."""
+    closures = [c for c in scene.constraints if isinstance(c, FrameClosure)]
+    model, tau = scene.model, np.zeros(scene.model.nv)
+    banded = BandedDynamics(model, closures, KP, KD)
+    native = NativeDynamics(model, closures, KP, KD)
+    data = model.createData()
+
+    def passes() -> None:
+        pin.crba(model, data, q)
+        pin.nonLinearEffects(model, data, q, v)
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+
+    return {
+        "banded": _evaluation_us(lambda: banded.acceleration(q, v, tau)),
+        "constraintDynamics": _evaluation_us(lambda: native.acceleration(q, v, tau)),
+        "pinocchio_passes": _evaluation_us(passes),
+    }

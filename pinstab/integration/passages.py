@@ -97,10 +97,14 @@ class Conditioning:
     Args:
         model: the constrained model.
         q: the start configuration: the rank there is the generic rank r.
+        relative: ``(q, r) -> sigma_r / sigma_1`` computed without a dense SVD (the banded path's), or None.
     """
 
-    def __init__(self, model: ConstrainedModel, q: np.ndarray) -> None:
+    def __init__(
+        self, model: ConstrainedModel, q: np.ndarray, relative: Callable[[np.ndarray, int], float] | None = None
+    ) -> None:
         self.model = model
+        self._relative = relative
         self._zero = np.zeros(model.nv)
         values = self._singular_values(q, 0.0)
         largest = values[0] if values.size else 0.0
@@ -121,6 +125,8 @@ class Conditioning:
 
     def relative(self, q: np.ndarray, t: float) -> float:
         """sigma_r / sigma_1 of G at (q, t) [-] (r the generic rank)."""
+        if self._relative is not None:
+            return self._relative(q, self.rank)
         values = self._singular_values(q, t)
         return float(values[self.rank - 1] / values[0]) if values[0] > 0 else math.nan
 
@@ -154,8 +160,15 @@ class PassageWatch:
         step: the run's step [s] (fixed-step runs) or a first estimate (adaptive runs).
     """
 
-    def __init__(self, model: ConstrainedModel, q: np.ndarray, nodes: Sequence[float], step: float) -> None:
-        self.conditioning = Conditioning(model, q)
+    def __init__(
+        self,
+        model: ConstrainedModel,
+        q: np.ndarray,
+        nodes: Sequence[float],
+        step: float,
+        relative: Callable[[np.ndarray, int], float] | None = None,
+    ) -> None:
+        self.conditioning = Conditioning(model, q, relative)
         self.active = self.conditioning.rank > 0
         self.points = np.array(sorted({0.0, 1.0, *(float(c) for c in nodes)}))
         self.centre, half_width = node_gap(self.points)

@@ -45,7 +45,7 @@ class PinocchioSolver(KKTSolver):
     def solve(self, problem: KKTProblem) -> KKTSolution:
         native = self.native
         if not self._checked_planar:
-            name = non_planar_closure(native.model, native.closures, problem.q)
+            name = non_planar_closure(native.model, native.data, native.closures, problem.q)
             if name is not None:
                 raise SolverError(
                     f"solver pinocchio: planar-point closure {name!r} is not on a planar mechanism (its "

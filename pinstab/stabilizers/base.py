@@ -11,7 +11,7 @@ import numpy as np
 
 from ..constraints import ConstraintValues
 from ..registry import Registry
-from ..stability import amplification, spectral_radius
+from ..stability import deviation_radius
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
@@ -103,7 +103,7 @@ class Stabilizer:
         gains = self.deviation_gains(model, q, v)
         if gains is None:
             return None
-        radius = spectral_radius(amplification(*gains, self.step, self.scheme))
+        radius = deviation_radius(*gains, self.step, self.scheme)
         if self.constant_gains:
             self._cached_radius = radius
         return radius

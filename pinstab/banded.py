@@ -1,0 +1,264 @@
+"""The banded path: a long chain of point closures solved at a cost linear in its size.
+
+Pinocchio's ``constraintDynamics`` factors the closures' rows densely: on the N-four-bar its cost per
+call grows as N^2.3 (314 us at N = 40, 2025 us at N = 80; ``benchmarks/chains.py``). A chain of loops
+couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3),
+
+    [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
+
+has a narrow band once its rows are put in reverse Cuthill-McKee order (the pattern depends on the
+tree and the closures, not on q: it is found once). This module forms its entries from three
+Pinocchio passes (joint Jacobians and their time variation, ``crba``, ``nonLinearEffects``) and the
+placements of the joints that carry closure points, all vectorized over the closures, and solves it
+with LAPACK's banded LU (``dgbsv``): O(n b^2) for n unknowns and a band b.
+
+It is the same equation as the native path's (Pinocchio's corrector ``-Kp phi - Kd G v`` on the
+point rows), solved exactly instead of with a proximal term of 1e-12: both agree to rounding while
+the constraint rows are independent. Near a singular configuration (rows losing rank) the banded LU
+says so by a small pivot, and :attr:`BandedDynamics.singular` tells the caller to use the reference
+solve for that evaluation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import eig_banded
+from scipy.linalg.lapack import dgbsv
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from .constraints import FrameClosure
+from .memory import new_data
+
+PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
+MIN_CLOSURES = 24  # fewer: Pinocchio's solve is cheaper (N-four-bar: it is at N = 20, not at N = 40, chains.py)
+MAX_BAND_FRACTION = 0.25  # a band wider than this fraction of the unknowns gains nothing over a dense solve
+
+
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Column-wise cross products of two (3, n) arrays, from rows (x, y, z, x, y) of each: slices, no
+    fancy indexing (np.cross costs ~4x more on short rows)."""
+    a, b = np.concatenate((a, a[:2])), np.concatenate((b, b[:2]))
+    return a[1:4] * b[2:5] - a[2:5] * b[1:4]
+
+
+def _sparse(entries: list[tuple[int, int]], values: np.ndarray, shape: tuple[int, int]) -> csr_matrix:
+    """A CSR matrix of ``shape`` with ``values`` at ``entries`` (row, column)."""
+    rows, cols = (np.array(index, dtype=int) for index in zip(*entries, strict=True)) if entries else ([], [])
+    return csr_matrix((values, (rows, cols)), shape=shape)
+
+
+def _dofs(model: pin.Model, joint: int) -> list[int]:
+    """The velocity indices of joint ``joint`` (none for the world)."""
+    if joint == 0:
+        return []
+    start = model.joints[joint].idx_v
+    return list(range(start, start + model.joints[joint].nv))
+
+
+def _support(model: pin.Model, joint: int) -> list[int]:
+    """The velocity indices that move joint ``joint``'s body (its own and its ancestors')."""
+    return [dof for ancestor in model.supports[joint] for dof in _dofs(model, ancestor)]
+
+
+class BandedDynamics:
+    """The accelerations of a tree closed by ``point`` / ``planar-point`` closures, by a banded LU.
+
+    The closure points are read from Pinocchio's static regressor, which holds every body's placement
+    ``[t, R]`` divided by the total mass in one array: one vectorized read instead of a Python loop
+    over the placements (~0.3 us each).
+
+    Args:
+        model: the Pinocchio model. closures: point and planar-point closures.
+        kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
+        data: a ``Data`` of the model to compute in (shared with another solve: each call recomputes all it
+            reads), or None for its own.
+
+    Attributes:
+        size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
+        singular: the last solve met a pivot below :data:`PIVOT_TOLERANCE` (its result is not to be used).
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        closures: list[FrameClosure],
+        kp: float = 0.0,
+        kd: float = 0.0,
+        data: pin.Data | None = None,
+    ) -> None:
+        self.model = model
+        self.data = new_data(model) if data is None else data
+        self.kp, self.kd = float(kp), float(kd)
+        count = len(closures)
+        # the points: side a of every closure, then side b; (joint, local point), joint 0: a fixed world point
+        sides = [(model.frames[c.frame_a].parentJoint, model.frames[c.frame_a].placement.translation) for c in closures]
+        for closure in closures:
+            if closure.frame_b is None:
+                sides.append((0, closure.world_placement_b.translation))
+            else:
+                frame = model.frames[closure.frame_b]
+                sides.append((frame.parentJoint, frame.placement.translation))
+        points = 2 * count
+        carried = [index for index, (joint, _) in enumerate(sides) if joint != 0]
+        self._carried = np.array(carried, dtype=int)
+        self._bodies = np.array([sides[index][0] - 1 for index in carried], dtype=int)  # regressor blocks
+        self._local = np.array([np.concatenate(([1.0], sides[index][1])) for index in carried]).reshape(-1, 4)
+        self._total_mass = float(sum(inertia.mass for inertia in model.inertias))
+        self._points = (
+            np.array([point if joint == 0 else np.zeros(3) for joint, point in sides]).reshape(-1, 3).T.copy()
+        )
+        # support: row i sums the velocity columns that move point i
+        entries = [(index, dof) for index, (joint, _) in enumerate(sides) for dof in _support(model, joint)]
+        self._support = _sparse(entries, np.ones(len(entries)), (points, model.nv))
+        # closure rows: r = s_r . (T_b - T_a) over the per-point terms T (3, points), raveled by component
+        row_closure = np.repeat(np.arange(count), [closure.selection.shape[0] for closure in closures]).astype(int)
+        selection = np.vstack([closure.selection for closure in closures]).reshape(-1, 3)
+        self.rows = len(row_closure)
+        entries, values = [], []
+        for row, (closure, vector) in enumerate(zip(row_closure, selection, strict=True)):
+            for k in range(3):
+                entries += [(row, k * points + count + closure), (row, k * points + closure)]
+                values += [vector[k], -vector[k]]
+        self._row_map = _sparse(entries, np.array(values), (self.rows, 3 * points))
+        # G entries e = (row, column): s . ((w_a - w_b) J_lin + J_ang x lever), lever = w_a p_a - w_b p_b,
+        # i.e. J[:, column] . c_e with c_e = [(w_a - w_b) s; lever x s], the second half linear in the points
+        g_entries, linear, entries, values = [], [], [], []
+        for row, closure in enumerate(row_closure):
+            side_a = set(_support(model, sides[closure][0]))
+            side_b = set(_support(model, sides[count + closure][0]))
+            skew = np.einsum("ijk,k->ij", _LEVI_CIVITA, selection[row])  # (lever x s)_i = skew[i, j] lever_j
+            for dof in sorted(side_a | side_b):
+                e = len(g_entries)
+                g_entries.append((row, dof))
+                weights = ((closure, float(dof in side_a)), (count + closure, -float(dof in side_b)))
+                linear.append((weights[0][1] + weights[1][1]) * selection[row])
+                for i in range(3):
+                    for j in range(3):
+                        for point, weight in weights:
+                            if weight and skew[i, j]:
+                                entries.append((i, e, j * points + point))
+                                values.append(weight * skew[i, j])
+        self._g_row, self._g_col = (np.array(index, dtype=int) for index in zip(*g_entries, strict=True))
+        size = len(g_entries)
+        self._g_coefficients = np.zeros((6, size))
+        self._g_coefficients[:3] = np.array(linear).T
+        entries = [(i * size + e, column) for i, e, column in entries]
+        self._g_map = _sparse(entries, np.array(values), (3 * size, 3 * points))
+        # M entries (upper triangle read from crba): dofs on one branch
+        m_pairs = {
+            (min(i, k), max(i, k))
+            for joint in range(1, model.njoints)
+            for i in _dofs(model, joint)
+            for k in _support(model, joint)
+        }
+        m_upper = np.array(sorted(m_pairs), dtype=int).reshape(-1, 2)
+        self._m_index = (m_upper[:, 0], m_upper[:, 1])
+        self._m_off = m_upper[:, 0] != m_upper[:, 1]
+        self._build_band(m_upper)
+        self._rhs = np.zeros(self.size)
+        self._solution = np.zeros(self.size)
+        self.singular = False
+
+    def _build_band(self, m_upper: np.ndarray) -> None:
+        """The reverse Cuthill-McKee order of the KKT pattern, its band and the scatter of the entries
+        (M upper, M lower off-diagonal, G, G^T) into LAPACK's band storage."""
+        nv, size = self.model.nv, self.model.nv + self.rows
+        off = m_upper[:, 0] != m_upper[:, 1]
+        rows = np.concatenate([m_upper[:, 0], m_upper[off, 1], nv + self._g_row, self._g_col])
+        cols = np.concatenate([m_upper[:, 1], m_upper[off, 0], self._g_col, nv + self._g_row])
+        pattern = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(size, size)).tocsr()
+        order = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=int)
+        position = np.empty(size, dtype=int)
+        position[order] = np.arange(size)
+        prow, pcol = position[rows], position[cols]
+        band = int(np.max(np.abs(prow - pcol), initial=0))
+        self.size, self.band = size, band
+        self._acceleration_slots, self._row_slots = position[:nv], position[nv:]
+        self._ab = np.zeros((3 * band + 1, size), order="F")  # LAPACK's layout: factored in place
+        # [[0, G], [G^T, 0]] (eigenvalues +-sigma(G) and zeros) in the same order, upper band storage
+        g_count = len(self._g_row)
+        upper, lower = np.maximum(prow, pcol)[-g_count:], np.minimum(prow, pcol)[-g_count:]
+        self._gram = np.zeros((band + 1, size))
+        self._gram_scatter = (band + lower - upper) * size + upper
+        self._scatter = pcol * (3 * band + 1) + 2 * band + prow - pcol  # A[i, j] at ab[2 kl + i - j, j], kl = ku
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m];
+        check :attr:`singular` before using them."""
+        model, data = self.model, self.data
+        points = self._placements(q)
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        jacobian, rate = data.J, data.dJ
+        # per point: spatial velocity and bias acceleration of its body at the world origin, world axes
+        motion = np.ascontiguousarray((self._support @ (np.vstack((jacobian, rate)) * v).T).T)  # (12, points)
+        omega = motion[3:6]
+        velocity = motion[:3] + _cross(omega, points)
+        terms = motion[6:9] + _cross(motion[9:], points) + _cross(omega, velocity)
+        terms += self.kp * points + self.kd * velocity  # point acceleration at a = 0 + Kp p + Kd p'
+        rhs = self._rhs
+        rhs[self._row_slots] = self._row_map @ terms.ravel()  # -gamma0 - Kp phi - Kd G v
+        g_values = self._jacobian_values(jacobian, points)
+        mass = pin.crba(model, data, q)[self._m_index]
+        rhs[self._acceleration_slots] = tau - pin.nonLinearEffects(model, data, q, v)
+        ab = self._ab
+        ab.fill(0.0)  # the LU below fills the band in place
+        ab.ravel(order="F")[self._scatter] = np.concatenate((mass, mass[self._m_off], g_values, g_values))
+        band = self.band
+        lu, _, solution, info = dgbsv(band, band, ab, rhs, overwrite_ab=True, overwrite_b=True)
+        pivots = np.abs(lu[2 * band])
+        self.singular = info != 0 or not pivots.min() > PIVOT_TOLERANCE * pivots.max()
+        self._solution = solution
+        return solution[self._acceleration_slots]
+
+    def _placements(self, q: np.ndarray) -> np.ndarray:
+        """The closure points at q (3, points) [m]."""
+        placements = pin.computeStaticRegressor(self.model, self.data, q).reshape(3, -1, 4)  # [t, R] / total mass
+        points = self._points
+        points[:, self._carried] = self._total_mass * np.einsum("kbc,bc->kb", placements[:, self._bodies], self._local)
+        return points
+
+    def _jacobian_values(self, jacobian: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """G's entries (at the pattern's (row, column) pairs) from the joint Jacobians and the points."""
+        coefficients = self._g_coefficients
+        coefficients[3:] = (self._g_map @ points.ravel()).reshape(3, -1)
+        return np.einsum("ke,ke->e", jacobian[:, self._g_col], coefficients)
+
+    def relative_singular_value(self, q: np.ndarray, rank: int) -> float:
+        """sigma_rank / sigma_1 of the closures' Jacobian G at q [-] (NaN when not finite): the eigenvalues of
+        ``[[0, G], [G^T, 0]]`` are +-sigma(G) and zeros, found in its band by LAPACK's banded symmetric
+        eigensolver (no dense SVD, which runs on OpenBLAS threads that a loaded machine slows badly).
+        Accurate to rounding of sigma_1, as an SVD."""
+        model, data = self.model, self.data
+        points = self._placements(q)
+        values = self._jacobian_values(pin.computeJointJacobians(model, data, q), points)
+        if not np.isfinite(values).all():
+            return math.nan
+        gram = self._gram
+        gram.ravel()[self._gram_scatter] = values
+        size = self.size
+        low = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - rank, size - rank))[0]
+        high = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - 1, size - 1))[0]
+        return float(low / high) if high > 0 else math.nan
+
+    def multipliers(self) -> np.ndarray:
+        """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""
+        return -self._solution[self._row_slots]
+
+
+def banded_obstacle(closures: list[FrameClosure], size: int, band: int | None = None) -> str | None:
+    """Why the banded path does not pay for these closures (fewer than :data:`MIN_CLOSURES`, or a band
+    wider than :data:`MAX_BAND_FRACTION` of the ``size`` unknowns), or None."""
+    if len(closures) < MIN_CLOSURES:
+        return f"{len(closures)} closure(s): fewer than {MIN_CLOSURES}, Pinocchio's own solve is cheaper"
+    if band is not None and band > MAX_BAND_FRACTION * size:
+        return f"the KKT band ({band}) exceeds {MAX_BAND_FRACTION:g} of its {size} unknowns"
+    return None
