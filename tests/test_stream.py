@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import ROBOTS, fourbar_dict
 from pinstab.cli import main
 from pinstab.errors import PinstabError
+from pinstab.scene import scene_from_dict
 from pinstab.simulate import simulate
 from pinstab.stream import BLOCK, read_stream
 from pinstab.trajectory import StreamedTrajectory, Trajectory
@@ -58,15 +60,18 @@ def test_streamed_run_is_the_run_kept_in_memory(tmp_path, every):
 
 
 def test_a_run_the_joint_limits_send_to_the_event_path(tmp_path):
-    """The crank started two turns short of its +1000 rad limit: the held run leaves it, the run is made again by the
+    """A four-bar whose crank is limited to 1.5 rad: the held run leaves the limit, the run is made again by the
     event path (dop853, dense output), streamed to the same file: the samples and info of the run kept in memory."""
-    q0 = np.array([1.0 + 2 * np.pi * 158, -0.9, 1.6])
-    kept = simulate("fourbar", duration=2.0, q0=q0)
-    simulate("fourbar", duration=2.0, q0=q0, stream=tmp_path / "run.h5")
+    data = fourbar_dict()
+    urdf = (ROBOTS / "urdf" / "fourbar.urdf").read_text()
+    data["robot"] = {"urdf_text": urdf.replace("<limit effort", '<limit lower="-10" upper="1.5" effort', 1)}
+    scene = scene_from_dict(data, base_dir=ROBOTS)
+    kept = simulate(scene, duration=1.0)
+    simulate(scene, duration=1.0, stream=tmp_path / "run.h5")
     loaded = Trajectory.load(tmp_path / "run.h5")
     assert kept.info.path == loaded.info.path == "contact-events"
     assert loaded.info.path_reason == kept.info.path_reason
-    assert loaded.info.limits_active_s == kept.info.limits_active_s
+    assert loaded.info.limits_active_s == kept.info.limits_active_s and "crank upper" in kept.info.limits_active_s
     for name in SERIES:
         assert np.array_equal(getattr(kept, name), getattr(loaded, name), equal_nan=True), name
 
