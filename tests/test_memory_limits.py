@@ -157,15 +157,15 @@ def test_a_real_memory_error_under_prlimit_is_named():
 # -- a MemoryError during a run keeps the samples ------------------------------------------------------------
 @pytest.fixture
 def out_of_memory_at_half_a_second(monkeypatch):
-    """Storing a step's state raises MemoryError from t = 0.5 s on (as an allocation during the run would)."""
-    store = StepLoop.store
+    """Keeping a step's state raises MemoryError from t = 0.5 s on (as an allocation during the run would)."""
+    keep = StepLoop.keep
 
-    def failing(self, q, v, k, t=None):
+    def failing(self, k, q, v, iterations=0):
         if self.grid.time(k) >= 0.5:
             raise MemoryError("Unable to allocate 8 GiB for an array")
-        return store(self, q, v, k, t)
+        return keep(self, k, q, v, iterations)
 
-    monkeypatch.setattr(StepLoop, "store", failing)
+    monkeypatch.setattr(StepLoop, "keep", failing)
 
 
 def test_a_memory_error_during_a_run_keeps_the_samples_up_to_it(out_of_memory_at_half_a_second):

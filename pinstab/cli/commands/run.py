@@ -41,7 +41,7 @@ def run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     """Simulate, summarize (``add(scene, trajectory, result)`` adds figures), save and chart when asked."""
     from ...viz.plots import plot_trajectory
 
-    if args.stream:
+    if getattr(args, "stream", None):  # run takes --stream; servo, which runs through here, does not
         _check_stream(args)
     if args.save:
         check_output(args.save, ".npz", "trajectory")
