@@ -52,6 +52,7 @@ from .validation import relative_tolerance
 from .zero_dynamics import warn_runaway
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
+HELD_ONLY = ("method", "integrator", "solver")  # simulate()'s options that event-driven contacts have no use for
 ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
     "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
     "lower --decay",

@@ -21,7 +21,7 @@ from ..generators import GENERATOR_PARAMETERS
 from ..integration import INTEGRATORS
 from ..registry import option_fields
 from ..scene import Scene, load_scene
-from ..simulate import default_contacts, simulate
+from ..simulate import HELD_ONLY, default_contacts, simulate
 from ..solvers import SOLVERS
 from ..stabilizers import STABILIZERS
 from ..tables import toml_scalar
@@ -44,7 +44,6 @@ SIMULATE_OPTIONS: dict[str, type] = {
 }  # the keywords of simulate() a sweep sets
 METHOD_OPTIONS = {field.name: field.kind for entry in STABILIZERS.entries() for field in option_fields(entry.options)}
 RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...: the methods' options
-HELD_ONLY = ("method", "integrator", "solver")  # options that event-driven contacts have no use for
 FIGURES = (
     "steps",
     "t_end",

@@ -8,10 +8,9 @@ from collections.abc import Callable
 from typing import Any
 
 from ..errors import ContactInfeasibleError, PinstabError
+from ..simulate import HELD_ONLY
 from .exits import Kept
 from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, parameters
-
-HELD_ONLY = ("method", "integrator", "solver")  # run options that --contacts event has no use for
 
 
 def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | None = None):
