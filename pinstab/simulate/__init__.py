@@ -1,0 +1,26 @@
+"""``simulate()``: assemble, then step a scene with a stabilizer, an integrator and a KKT backend (:mod:`.api`),
+by the held path (:mod:`.held`), the contact paths (:mod:`.contacts`: event-driven, time-stepping) or, for a run
+that leaves a joint limit, the event path (:mod:`.limits`); what they share is in :mod:`.loop`."""
+
+from .api import DEFAULT_DT, simulate
+from .contacts import EVENT_RTOL, HELD_ONLY, MAX_EVENT_CONTACTS, default_contacts, event_contacts, stop_kinds
+from .limits import limit_left
+from .loop import DEFAULT_DRIFT_LIMIT, MIN_RTOL, Interrupted, error_control, failure_stop, kept_samples
+
+__all__ = [
+    "DEFAULT_DRIFT_LIMIT",
+    "DEFAULT_DT",
+    "EVENT_RTOL",
+    "HELD_ONLY",
+    "MAX_EVENT_CONTACTS",
+    "MIN_RTOL",
+    "Interrupted",
+    "default_contacts",
+    "error_control",
+    "event_contacts",
+    "failure_stop",
+    "kept_samples",
+    "limit_left",
+    "simulate",
+    "stop_kinds",
+]

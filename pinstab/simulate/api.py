@@ -1,0 +1,194 @@
+"""``simulate()``: assemble, then step a scene with a stabilizer, an integrator and a KKT backend; the path (held,
+event-driven or time-stepping contacts, joint limits) chosen from the scene and the options."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..constraints.joint_limits import check_start_inside, joint_limits
+from ..errors import JointLimitsWarning
+from ..files import check_output
+from ..memory import named_when_exhausted
+from ..scene import Scene, load_scene
+from ..stream import h5py_module
+from ..trajectory import StreamedTrajectory, Trajectory
+from ..validation import relative_tolerance
+from .contacts import simulate_events, simulate_stepping, stop_kinds
+from .held import simulate_held
+from .limits import limit_left, not_event_driven
+from .loop import DEFAULT_DRIFT_LIMIT
+
+DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
+
+
+@named_when_exhausted("a run (simulate)")
+def simulate(
+    scene: Scene | str | Path,
+    method: str = "baumgarte",
+    integrator: str = "rk4",
+    dt: float | None = None,
+    duration: float = 1.0,
+    solver: str | None = None,
+    *,
+    solver_options: Mapping[str, Any] | None = None,
+    strict: bool = False,
+    drift_limit: float = DEFAULT_DRIFT_LIMIT,
+    progress: bool = False,
+    q0: np.ndarray | None = None,
+    v0: np.ndarray | None = None,
+    assemble_initial: bool = True,
+    record_every: int = 1,
+    rtol: float | None = None,
+    atol: float | None = None,
+    contacts: str | None = None,
+    stop_on: tuple[str, ...] | frozenset[str] = (),
+    assembly_tol: float | None = None,
+    limits: bool = True,
+    stream: str | Path | None = None,
+    **method_options: Any,
+) -> Trajectory | StreamedTrajectory:
+    """Simulate a scene.
+
+    Args:
+        scene: a :class:`Scene`, a scene file path or a bundled scene name.
+        method: a registered stabilization method (``none``, ``baumgarte``, ``mukharlyamov``,
+            ``projection``, ``post``, ``pinocchio``, or one registered by the user).
+        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``).
+        dt: time step [s] (default: the scene's ``[run] dt``, else :data:`DEFAULT_DT`); the last step is shortened
+            so that the run ends at ``duration`` exactly.
+        duration: simulated time [s].
+        solver: a registered KKT backend (``proxsuite``, ``pinocchio``, ``dense``); None (default):
+            Pinocchio's own algorithm where the scene and the method allow it (the native path,
+            ``info.path``), else the method's backend or ``proxsuite``.
+        solver_options: the backend's options (e.g. ``{"eps_abs": 1e-10}`` for proxsuite).
+        method_options: the method's options, e.g. ``kp``, ``kd`` [1/s^2], [1/s] (``baumgarte``,
+            ``pinocchio``; for ``mukharlyamov`` the stiffness and damping, omitted for automatic
+            gains), ``variant``, ``decay``, ``hold`` (``mukharlyamov``). An option the method does not
+            take is refused, naming the ones it takes.
+        strict: refuse (:class:`UnstableGainsError`) instead of warning when the gains are
+            predicted unstable (rho(R(tau W)) >= 1) at this step and integrator.
+        drift_limit: position drift [m or rad] above which the run stops with DivergenceError; a
+            velocity drift above ``drift_limit / dt`` stops it too.
+        progress: show a progress bar on stderr for runs longer than a couple of seconds.
+        q0, v0: initial state overriding the scene's.
+        assemble_initial: make the initial state consistent first (off: start as given, e.g. to
+            study how a method removes an initial violation).
+        record_every: keep a sample every this many steps (and the last); every step is stepped and
+            checked either way.
+        rtol: with an embedded pair (``dopri5``, ``dop853``), control the step by its error estimate with
+            this relative tolerance [-] (:mod:`pinstab.integration.adaptive`); ``dt`` is then the step of
+            the samples (taken from the dense output), not of the integration.
+        atol: the absolute tolerance [rad, m, rad/s, m/s] of the error control (default: ``rtol``).
+        contacts: ``event``: the scene's plane contacts switch between sticking, sliding and separated at
+            located events, with impacts (:mod:`pinstab.integration.events`; error-controlled ``dop853``,
+            rtol default :data:`EVENT_RTOL`); ``stepping``: time-stepping contacts, a velocity-level Moreau-Jean
+            step of ``dt`` with impulses on the exact round cone (Pinocchio's ADMM in NCP mode;
+            :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
+            change in ``info.contact_events``; None: they are held as constraint rows (see
+            :func:`default_contacts`).
+        stop_on: with ``contacts="event"``, the kinds of contact event that end the run
+            (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
+            ``separation``, a touching contact opens): the trajectory ends at the first such event, with
+            ``info.stopped`` saying which.
+        assembly_tol: the closure residual the assembly accepts, relative to the mechanism's size [-] (in (0, 1);
+            default: the scene's ``[assembly] tolerance``, else 1e-10; :func:`~pinstab.assembly.assemble`).
+        limits: hold the robot's joint limits (:mod:`pinstab.constraints.joint_limits`) as unilateral rows with
+            impacts. A run whose samples stay inside them is the run without them (the held path; its
+            ``info.limits_active_s`` empty); a run that leaves them is run again from the start by the event path
+            (:mod:`pinstab.integration.events`: error-controlled dop853, the scene's closures held, ``method``,
+            ``integrator`` and ``solver`` unused; ``info.path_reason`` names the first limit left), each limit's
+            time held in ``info.limits_active_s`` and its switches in ``info.contact_events``. Event-driven
+            contacts take the limits from the start; time-stepping contacts do not handle them. False: limits
+            ignored. ``info.limits_active_s`` is None when they are ignored or the model has none.
+        stream: an HDF5 file (``.h5``; needs ``h5py``, the ``stream`` extra) the samples are written to as the run
+            proceeds, a block at a time (:mod:`pinstab.stream`), instead of being kept in memory: memory stays
+            bounded whatever the duration. The derived series are computed into it block by block once the run
+            ends; the overlap check of scenes with collision geometry and the servo's zero-dynamics check are
+            not made.
+
+    Returns:
+        The :class:`Trajectory`; its drift, energy and multiplier series are computed from the kept
+        samples when first read. With ``stream``: a :class:`~pinstab.trajectory.StreamedTrajectory` (info and
+        summary; ``load()`` reads the file whole).
+
+    Raises:
+        DivergenceError: non-finite state, drift above ``drift_limit``, or a solve or projection that
+            fails on a state reached inside a step; carries the last finite state, its time, the time of
+            the failed step (``diverged_at``), the partial trajectory (ending with the failed step's
+            sample) and ``finite_trajectory``, which ends at the last finite state.
+        Interrupted: Ctrl-C (a KeyboardInterrupt) while stepping; carries the partial trajectory.
+        ContactInfeasibleError: contacts that cannot hold (held rows), or no consistent contact modes
+            (:class:`~pinstab.errors.PainleveError`, event-driven); raised once the run started, it carries
+            the partial trajectory (``trajectory``, up to the last good state, ``info.stopped`` naming the
+            failure).
+        UnstableGainsError: with ``strict``, gains predicted unstable, before any step.
+
+    Warns:
+        UnstableGainsWarning: gains predicted unstable, before any step (without ``strict``).
+        ZeroDynamicsWarning: with servos, a coordinate they leave free ran away (its speed grew more than
+            tenfold: :mod:`pinstab.zero_dynamics`); ``trajectory.zero_dynamics`` has the figures.
+        PenetrationWarning: a link of the robot and an object overlap deeper than at the start, beyond the
+            tolerance, at the kept samples (:mod:`pinstab.contact.collisions`).
+    """
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    if dt is None:
+        dt = DEFAULT_DT if scene.step is None else scene.step
+    kinds = stop_kinds(stop_on, contacts)
+    if stream is not None:
+        h5py_module()
+        check_output(stream, ".h5", "streamed run")
+    if assembly_tol is not None:
+        relative_tolerance(assembly_tol, "assembly_tol")
+    if contacts == "stepping":
+        return _checked(scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream))
+    table = joint_limits(scene.model).limits if limits else []
+    start = scene.q0 if q0 is None else np.asarray(q0, dtype=float)
+    if table and start.shape == scene.q0.shape:
+        check_start_inside(table, start, scene.name)
+    if contacts is not None:
+        events = simulate_events(
+            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream
+        )
+        return _checked(scene, events)
+    trajectory = simulate_held(
+        scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
+        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream,
+    )  # fmt: skip
+    if not table:
+        return _checked(scene, trajectory)
+    left = limit_left(trajectory, table)
+    if left is None:
+        trajectory.info.limits_active_s = {}
+        return _checked(scene, trajectory)
+    reason = f"joint limits: {left[0].name} left at t = {left[1]:.6g} s on the held path"
+    refused = not_event_driven(scene)
+    if refused:
+        warnings.warn(
+            JointLimitsWarning(
+                f"scene {scene.name}: {reason}, but its constraints {', '.join(refused)} are not closures or "
+                "event-driven contacts, which the joint limits' event path needs: the run ignores the limits"
+            ),
+            stacklevel=2,
+        )
+        return _checked(scene, trajectory)
+    events = simulate_events(
+        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream
+    )
+    return _checked(scene, events)
+
+
+def _checked(scene: Scene, trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
+    """``trajectory``, after warning of the robot-object overlaps at its kept samples
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`); a streamed run instead gets its completed
+    info written to its file."""
+    if isinstance(trajectory, StreamedTrajectory):
+        trajectory.write_info()  # as completed after the file was finished
+    elif scene.collisions is not None:
+        scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
+    return trajectory

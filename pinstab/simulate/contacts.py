@@ -1,0 +1,187 @@
+"""The contact paths of ``simulate()``: event-driven contacts (modes switched at located events, impacts) and
+time-stepping contacts (Moreau-Jean over an NCP solve)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Collection
+from contextlib import closing, nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..assembly import assemble
+from ..constraints import PointContact
+from ..constraints.joint_limits import JointLimit
+from ..contact.modes import STOP_KINDS, stop_kind
+from ..errors import PinstabError
+from ..integration import INTEGRATORS, StepLoop, TimeGrid
+from ..integration.contact_stepping import ContactStepper
+from ..integration.events import EventLoop, RunEnd
+from ..scene import Scene
+from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
+from ..solvers.ncp import NcpSolver
+from ..system import ConstrainedSystem, build_system
+from ..trajectory import StreamedTrajectory, Trajectory
+from .limits import not_event_driven
+from .loop import (
+    DEFAULT_DRIFT_LIMIT,
+    error_control,
+    kept_when_stopped,
+    progress_bar,
+    run_info,
+    stream_records,
+    trajectory_of,
+)
+
+EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
+MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many, default to event-driven contacts
+HELD_ONLY = ("method", "integrator", "solver")  # simulate()'s options that event-driven contacts have no use for
+
+
+def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
+    """The kinds of event a run stops on, checked: a string or a collection of :data:`STOP_KINDS`.
+
+    Raises:
+        PinstabError: an unknown kind (naming the valid ones), or kinds without event-driven contacts.
+    """
+    if isinstance(stop_on, str):
+        stop_on = (stop_on,)
+    if not isinstance(stop_on, Collection) or not all(isinstance(kind, str) for kind in stop_on):
+        raise PinstabError(f"stop_on must name kinds of contact event ({', '.join(STOP_KINDS)}), got {stop_on!r}")
+    kinds = frozenset(stop_on)
+    unknown = sorted(kinds - set(STOP_KINDS))
+    if unknown:
+        raise PinstabError(f"stop_on: {unknown[0]!r} is not a kind of contact event; valid: {', '.join(STOP_KINDS)}")
+    if kinds and contacts != "event":
+        raise PinstabError(
+            f"stop_on ({', '.join(sorted(kinds))}) ends a run at a contact event: it takes contacts='event'"
+        )
+    return kinds
+
+
+def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
+    """(the scene's unilateral contacts as event-driven geometries: plane contacts and point-friction or
+    frictionless grasp contacts, the names of its other constraints)."""
+    geometries = plane_geometries(scene.constraints)
+    names = {g.name for g in geometries}
+    return geometries, [c.name for c in scene.constraints if c.name not in names]
+
+
+def default_contacts(scene: Scene) -> str | None:
+    """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
+    them; None (contacts held as constraint rows) otherwise (grasps are held unless asked)."""
+    plane = [c for c in scene.constraints if isinstance(c, PointContact)]
+    many = len(plane) > MAX_EVENT_CONTACTS
+    return "event" if plane and len(plane) == len(scene.constraints) and not many else None
+
+
+def simulate_events(
+    scene: Scene,
+    contacts: str,
+    dt: float,
+    duration: float,
+    rtol: float | None,
+    atol: float | None,
+    record_every: int,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    progress: bool,
+    stop_on: frozenset[str] = frozenset(),
+    limits: list[JointLimit] | None = None,
+    reason: str = "event-driven contacts",
+    stream: str | Path | None = None,
+) -> Trajectory | StreamedTrajectory:
+    """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
+    event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``."""
+    if contacts != "event":
+        raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
+    limits = limits or []
+    geometries, system, q, v = _contact_system(scene, q0, v0, closures=bool(limits))
+    grid = TimeGrid.of(dt, duration, record_every)
+    control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
+    system.bind(grid.dt, "dop853", q)
+    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0, limits)
+    system.acceleration = dynamics.acceleration
+    system.path, system.path_reason = "contact-events", reason
+    stepper = INTEGRATORS.build("dop853", system)
+    info = run_info(scene, system, "dop853", grid, None, "none", None, record_every)
+    loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
+    loop.stop_on = stop_on
+    stream_records(loop, stream, info)
+    bar = progress_bar(grid.steps, scene.name, progress)
+    end = None
+    with kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+        try:
+            loop.start(q, v)
+            loop.run(q, v, bar)
+        except RunEnd as exc:
+            end = exc
+            loop.records.end_with((loop.grid_index(end.t), float(end.t), end.q, end.v))
+            if end.error is not None:
+                raise end.error from None
+    trajectory = trajectory_of(loop, system, info, elapsed())
+    if limits:
+        info.limits_active_s = loop.limit_times(info.t_end)
+    if end is not None:
+        event = end.event
+        info.stopped = {"reason": stop_kind(event), "t": info.t_end, "contact": event.contact, "event": event.to_dict()}
+    return trajectory
+
+
+def simulate_stepping(
+    scene: Scene,
+    dt: float,
+    duration: float,
+    record_every: int,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    progress: bool,
+    stream: str | Path | None,
+) -> Trajectory | StreamedTrajectory:
+    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``)."""
+    geometries, system, q, v = _contact_system(scene, q0, v0)
+    grid = TimeGrid.of(dt, duration, record_every)
+    system.bind(grid.dt, "semi-implicit-euler", q)
+    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
+    system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
+    info = run_info(scene, system, stepper.name, grid, None, "none", None, record_every)
+    info.solver = "pinocchio-admm"
+    loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
+    stream_records(loop, stream, info)
+    bar = progress_bar(grid.steps, scene.name, progress)
+    with kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+        loop.run(q, v, bar)
+    return trajectory_of(loop, system, info, elapsed())
+
+
+def _contact_system(
+    scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None, closures: bool = False
+) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
+    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them and the
+    start state. Its other constraints must be equality rows kept in the system (assembled at the start) with
+    ``closures`` (joint limits), else there must be none and some contact.
+
+    Raises:
+        PinstabError: a scene whose constraints do not fit (naming them).
+    """
+    geometries, others = event_contacts(scene)
+    kept = [c for c in scene.constraints if c.name in others]
+    refused = not_event_driven(scene) if closures else others
+    if (not geometries and not closures) or refused:
+        raise PinstabError(
+            f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
+            "contacts or point-friction / frictionless grasp contacts (with joint limits, closures too)"
+            + (f"; not yet {', '.join(refused)}" if refused else "; it has none")
+        )
+    # the modes' dynamics replace the system's accelerations: with closures, off Pinocchio's native path
+    system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense") if closures else None
+    system = system or build_system(dataclasses.replace(scene, constraints=[]), "none")
+    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    if closures and kept:
+        report = assemble(system.model, q, v)
+        q, v = report.q, report.v
+    return geometries, system, q, v

@@ -1,0 +1,140 @@
+"""The held path of ``simulate()``: the scene's constraints held as rows by a stabilization method, stepped by a
+fixed-step or error-controlled integrator."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from contextlib import closing, nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..assembly import AssemblyReport, assemble
+from ..errors import PinstabError, UnstableGainsError, UnstableGainsWarning
+from ..integration import INTEGRATORS, AdaptiveLoop, StepLoop, TimeGrid
+from ..scene import Scene
+from ..stability import largest_stable_step
+from ..system import ConstrainedSystem, build_system
+from ..trajectory import StreamedTrajectory, Trajectory
+from ..zero_dynamics import warn_runaway
+from .loop import (
+    error_control,
+    kept_when_stopped,
+    progress_bar,
+    require_memory,
+    run_info,
+    stream_records,
+    trajectory_of,
+)
+
+ALTERNATIVE = {  # what else to try when a method's gains are predicted unstable
+    "mukharlyamov": "or leave the gains to the method (no --kp, --kd: placed for the step and the integrator) or "
+    "lower --decay",
+    None: "or use --method mukharlyamov, whose automatic gains are placed for the step and the integrator",
+}
+
+
+def simulate_held(
+    scene: Scene,
+    method: str,
+    integrator: str,
+    dt: float,
+    duration: float,
+    solver: str | None,
+    solver_options: Mapping[str, Any] | None,
+    strict: bool,
+    drift_limit: float,
+    progress: bool,
+    q0: np.ndarray | None,
+    v0: np.ndarray | None,
+    assemble_initial: bool,
+    assembly_tol: float | None,
+    record_every: int,
+    rtol: float | None,
+    atol: float | None,
+    method_options: Mapping[str, Any],
+    stream: str | Path | None,
+) -> Trajectory | StreamedTrajectory:
+    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored."""
+    carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
+    if carried:
+        raise PinstabError(
+            f"scene {scene.name}: contact {carried[0]} touches a plane carried by a body (frame_b), which only "
+            "event-driven contacts model; run it with contacts='event'"
+        )
+    grid = TimeGrid.of(dt, duration, record_every)
+    if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
+        raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
+    require_memory(scene, grid, record_every, stream)
+    system = build_system(scene, method, solver, solver_options, **method_options)
+    stepper = INTEGRATORS.build(integrator, system)
+    if control is not None and system.stabilizer.step_dependent:
+        raise PinstabError(
+            f"method {method} places its automatic gains for one fixed step; with rtol (error control, steps of "
+            "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
+        )
+    model = system.model
+    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    if q.shape != (model.nq,) or v.shape != (model.nv,):
+        raise PinstabError(f"q0 must have {model.nq} entries and v0 {model.nv}")
+    report: AssemblyReport | None = None
+    if assemble_initial:
+        report = assemble(model, q, v, tolerance=assembly_tol)
+        q, v = report.q, report.v
+    system.bind(grid.dt, integrator, q)
+    # with error control the steps vary: the control, not a criterion at one step, keeps them stable
+    start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
+    warned = start_radius is not None and start_radius >= 1
+
+    info = run_info(scene, system, integrator, grid, report, method, solver_options, record_every)
+    if control is None:
+        loop = StepLoop(system, stepper, grid, record_every, drift_limit, warned)
+    else:
+        loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
+    stream_records(loop, stream, info)
+    bar = progress_bar(grid.steps, scene.name, progress)
+    # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
+    with (
+        np.errstate(over="ignore", invalid="ignore"),
+        kept_when_stopped(loop, system, info) as elapsed,
+        nullcontext() if bar is None else closing(bar),
+    ):
+        loop.run(q, v, bar)
+    trajectory = trajectory_of(loop, system, info, elapsed())
+    if system.servo is not None and stream is None:
+        warn_runaway(trajectory.zero_dynamics, scene.name)
+    return trajectory
+
+
+def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:
+    """Warn (or refuse with ``strict``) before stepping when rho(R(tau W)) >= 1 at the start; returns rho."""
+    stabilizer = system.stabilizer
+    radius = stabilizer.spectral_radius(system.model, q, v, 0.0)
+    if radius is None or radius < 1.0:
+        return radius
+    bound = largest_stable_step(*stabilizer.deviation_gains(system.model, q, v), stabilizer.scheme)
+    step = stabilizer.step
+    gains = stabilizer.parameters()
+    described = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in gains.items())
+    scale = bound / step
+    advice = f"stable for dt < {bound:.3g} s with these gains" if bound > 0 else "no step is stable with these gains"
+    if bound > 0 and ("kp" in gains or "stiffness" in gains):
+        kp = gains.get("kp", gains.get("stiffness"))
+        kd = gains.get("kd", gains.get("damping"))
+        advice += (
+            f"; at dt = {step:g} s, gains below Kp = {kp * scale**2:.3g}, Kd = {kd * scale:.3g} (the same ratio) "
+            "are stable"
+        )
+    message = (
+        f"method {stabilizer.name} ({described}) with {stabilizer.integrator} at dt = {step:g} s: the deviation "
+        f"dynamics have spectral radius rho(R(tau W)) = {radius:.4g} >= 1, so constraint errors grow instead of "
+        f"decaying. {advice[0].upper() + advice[1:]}; {ALTERNATIVE.get(stabilizer.name, ALTERNATIVE[None])}."
+    )
+    if strict:
+        raise UnstableGainsError(message)
+    warnings.warn(UnstableGainsWarning(message), stacklevel=3)
+    return radius

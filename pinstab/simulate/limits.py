@@ -1,0 +1,54 @@
+"""Joint limits on the held path: the first limit a run's samples leave, and the constraints the event path
+(which holds the limits) cannot take."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from contextlib import closing
+
+import numpy as np
+
+from ..constraints import RowKind
+from ..constraints.joint_limits import JointLimit
+from ..integration.events import LIMIT_SLACK
+from ..scene import Scene
+from ..solvers.contact_modes import plane_geometries
+from ..trajectory import StreamedTrajectory, Trajectory
+
+
+def not_event_driven(scene: Scene) -> list[str]:
+    """The constraints of a scene that the event path cannot take with joint limits: those neither event-driven
+    contacts nor holonomic equality rows (servo rows, held contacts, rolling and other Pfaffian rows, which it
+    would hold without their drift correction)."""
+    names = {g.name for g in plane_geometries(scene.constraints)}
+    return [
+        c.name
+        for c in scene.constraints
+        if c.name not in names and (c.row_kind is not RowKind.EQUALITY or c.prescribed or not c.holonomic)
+    ]
+
+
+def limit_left(
+    trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit]
+) -> tuple[JointLimit, float] | None:
+    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None (a
+    streamed run's file read a block at a time)."""
+    if isinstance(trajectory, StreamedTrajectory):
+        with closing(trajectory.blocks()) as blocks:  # the file closed before the event path writes it again
+            return _first_left(blocks, limits)
+    return _first_left([(trajectory.t, trajectory.q)], limits)
+
+
+def _first_left(
+    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit]
+) -> tuple[JointLimit, float] | None:
+    """:func:`limit_left` over consecutive blocks of samples (t [s], q)."""
+    for t, q in blocks:
+        first = None
+        for limit in limits:
+            outside = np.flatnonzero(limit.sign * (q[:, limit.index_q] - limit.bound) < -LIMIT_SLACK)
+            if outside.size and (first is None or t[outside[0]] < first[1]):
+                first = (limit, float(t[outside[0]]))
+        if first is not None:
+            return first
+    return None

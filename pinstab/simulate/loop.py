@@ -1,0 +1,217 @@
+"""What every path of ``simulate()`` shares: the run's records, trajectory and info, the progress bar, the memory
+budget, a run that stops early."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from ..assembly import AssemblyReport
+from ..errors import ContactInfeasibleError, DivergenceError, PinstabError
+from ..integration import CHECK_STEPS, AdaptiveLoop, ErrorControl, StepLoop, StreamedRecords, TimeGrid, embedded_pairs
+from ..integration.events import EventLoop
+from ..memory import RUN_DATA_COPIES, data_bytes, exhausted, require, samples_bytes
+from ..runinfo import RunInfo
+from ..scene import Scene
+from ..series import StateSeries
+from ..stream import BLOCK, StreamWriter
+from ..system import ConstrainedSystem
+from ..trajectory import StreamedTrajectory, Trajectory
+
+DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
+MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
+STREAM_WINDOW = BLOCK + CHECK_STEPS + 16  # samples a streamed run holds: a block and a chunk of steps (a passage's)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`simulate`: a KeyboardInterrupt carrying the partial trajectory.
+
+    Attributes:
+        trajectory: the samples up to the last checked state (at most ``CHECK_STEPS`` steps before the
+            interruption), with its run info.
+    """
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        super().__init__(f"interrupted at t = {trajectory.info.t_end:.6g} s (step {trajectory.steps})")
+        self.trajectory = trajectory
+
+
+def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:
+    """``info.stopped`` of a run ended by ``error`` with its last state at t [s]."""
+    return {"reason": "contact failure", "t": t, "error": type(error).__name__, "message": str(error)}
+
+
+@contextmanager
+def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo) -> Iterator[Callable[[], float]]:
+    """Around a run's stepping, yielding its wall time so far [s]: a run that stops early carries the samples it
+    kept: a DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
+    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a
+    MemoryBudgetError with its ``trajectory``."""
+    start = time.perf_counter()
+
+    def elapsed() -> float:
+        return time.perf_counter() - start
+
+    try:
+        yield elapsed
+    except DivergenceError as exc:
+        wall_time = elapsed()
+        finite = loop.records.count - 1  # without the failed step's sample
+        finite_info = dataclasses.replace(info)
+        exc.trajectory = trajectory_of(loop, system, info, wall_time)
+        exc.finite_trajectory = (
+            exc.trajectory if _streamed(loop) else trajectory_of(loop, system, finite_info, wall_time, finite)
+        )
+        raise
+    except KeyboardInterrupt:
+        raise Interrupted(trajectory_of(loop, system, info, elapsed(), cut_off=True)) from None
+    except ContactInfeasibleError as exc:
+        exc.trajectory = trajectory_of(loop, system, info, elapsed())
+        info.stopped = failure_stop(exc, info.t_end)
+        if _streamed(loop):
+            exc.trajectory.write_info()
+        raise
+    except MemoryError as error:
+        raise exhausted(f"the run of scene {info.scene}", error, trajectory_of(loop, system, info, elapsed())) from None
+
+
+def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
+    """The tolerances of an error-controlled run (``atol`` defaults to ``rtol``).
+
+    Raises:
+        PinstabError: a tolerance that is not a positive number (rtol at least 1e-14: below it the estimate is
+            rounding), or an integrator without an error estimator (naming those that have one).
+    """
+    pairs = embedded_pairs()
+    if integrator not in pairs:
+        raise PinstabError(
+            f"integrator {integrator!r} has no error estimator for rtol/atol; integrators with one: {', '.join(pairs)}"
+        )
+    rtol = atol if rtol is None else rtol
+    atol = rtol if atol is None else atol
+    for label, value, lowest in (("rtol", rtol, MIN_RTOL), ("atol", atol, 0.0)):
+        if isinstance(value, bool) or not isinstance(value, int | float) or not lowest < value < 1.0:
+            raise PinstabError(f"{label} must be a number in ({lowest:g}, 1), got {value!r}")
+    return ErrorControl(float(rtol), float(atol))
+
+
+def kept_samples(scene: Scene, steps: int, record_every: int) -> tuple[int, int]:
+    """(how many samples a run of ``steps`` steps keeping one every ``record_every`` holds at most, their
+    estimated size [bytes])."""
+    samples = steps // record_every + 2
+    model = scene.model
+    return samples, samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows)
+
+
+def require_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str | Path | None) -> None:
+    """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples (a window of them when streamed)
+    would exceed the budget."""
+    model = scene.model
+    samples, size = kept_samples(scene, grid.steps if stream is None else STREAM_WINDOW * record_every, record_every)
+    require(
+        {
+            f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
+            * data_bytes(model.nv, model.njoints),
+            f"{samples:,} kept samples": size,
+        },
+        f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
+        "keep fewer samples (--record-every, record_every), stream them to disk (--stream FILE.h5, stream), use a "
+        "larger step or a shorter duration",
+    )
+
+
+def stream_records(loop: StepLoop, stream: str | Path | None, info: RunInfo) -> None:
+    """With ``stream``, the loop keeps its samples in :class:`StreamedRecords` writing to that file."""
+    if stream is None:
+        return
+    model, rows = loop.system.model, loop.system.model.constraints.rows
+    writer = StreamWriter(stream, info, model.nq, model.nv, rows)
+    loop.records = StreamedRecords(loop.grid, loop.every, model.nq, model.nv, writer, BLOCK, STREAM_WINDOW - BLOCK)
+
+
+def _streamed(loop: StepLoop) -> bool:
+    """Whether the loop streams its samples to a file."""
+    return isinstance(loop.records, StreamedRecords)
+
+
+def trajectory_of(
+    loop: StepLoop,
+    system: ConstrainedSystem,
+    info: RunInfo,
+    wall_time: float,
+    samples: int | None = None,
+    cut_off: bool = False,
+) -> Trajectory | StreamedTrajectory:
+    """The trajectory of the first ``samples`` samples kept (default: all kept so far), with the run info
+    completed; wall_time [s]. A streamed run's file is finished: its last samples written and, unless the run
+    was ``cut_off`` (interrupted), its derived series."""
+    records = loop.records
+    n = records.count if samples is None else samples
+    slot = records.slot(n - 1)
+    info.steps, info.t_end = int(records.steps[slot]), float(records.t[slot])
+    info.solver_statistics = system.statistics
+    info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
+    watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
+    info.passages = [] if watch is None else [p.to_dict() for p in watch.passages if p.t <= info.t_end]
+    events = loop.events if isinstance(loop, EventLoop) else getattr(loop.stepper, "events", None)
+    if events is not None:
+        info.contact_events = [event.to_dict() for event in events if event.t <= info.t_end]
+    if isinstance(loop, AdaptiveLoop):
+        info.error_control = loop.control.summary()
+    if _streamed(loop):
+        records.finish()
+        records.sink.close()
+        return StreamedTrajectory.complete(records.sink.path, info, wall_time, None if cut_off else StateSeries(system))
+    return Trajectory(  # views of the samples: no second copy of a long run
+        records.t[:n],
+        records.q[:n],
+        records.v[:n],
+        wall_time,
+        info,
+        correction_iterations=records.corrections[:n],
+        series=StateSeries(system),
+    )
+
+
+def run_info(
+    scene: Scene,
+    system: ConstrainedSystem,
+    integrator: str,
+    grid: TimeGrid,
+    report: AssemblyReport | None,
+    method: str,
+    solver_options: Mapping[str, Any] | None,
+    record_every: int,
+) -> RunInfo:
+    constraints = system.model.constraints
+    return RunInfo(
+        scene=scene.name,
+        method=method,
+        integrator=integrator,
+        solver="pinocchio" if system.path == "native" else ("servo" if system.servo else system.solver.name),
+        dt=grid.dt,
+        parameters=system.stabilizer.parameters(),
+        solver_options=dict(solver_options or {}),
+        scene_parameters=scene.parameters,
+        constraint_rows={name: [s.start, s.stop] for name, s in constraints.slices.items()},
+        row_kinds={c.name: c.row_kind.value for c in constraints.constraints},
+        force_frames={c.name: c.force_frame for c in constraints.constraints},
+        assembly=None if report is None else report.summary(),
+        path=system.path,
+        path_reason=system.path_reason,
+        record_every=record_every,
+        controls=list(scene.actuation.names) if system.servo is not None else [],
+    )
+
+
+def progress_bar(steps: int, label: str, enabled: bool):
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=steps, desc=label, unit="step", file=sys.stderr, delay=2.0, mininterval=0.5, leave=False)
