@@ -79,3 +79,13 @@ def test_projection_reports_its_iterations():
     assert summary["correction_iterations_max"] == traj.correction_iterations[1]
     assert traj.position_drift[1:].max() <= 1e-13
     assert summary["assembly_iterations"] is None
+
+
+@pytest.mark.parametrize("contacts", [None, "event", "stepping"])
+def test_a_start_of_the_wrong_length_is_named_on_every_path(contacts):
+    """q0 / v0 of the wrong length: a PinstabError naming the lengths, on the held and both contact paths (the
+    contact paths used to end in Pinocchio's raw ValueError)."""
+    with pytest.raises(PinstabError, match="q0 must have 7 entries and v0 6"):
+        simulate("bouncing-ball", contacts=contacts, q0=np.zeros(3), duration=0.01)
+    with pytest.raises(PinstabError, match="q0 must have 7 entries and v0 6"):
+        simulate("bouncing-ball", contacts=contacts, v0=np.zeros(2), duration=0.01)

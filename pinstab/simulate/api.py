@@ -21,7 +21,7 @@ from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
 from .limits import limit_left, not_event_driven
-from .loop import DEFAULT_DRIFT_LIMIT
+from .loop import DEFAULT_DRIFT_LIMIT, start_state
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
 
@@ -145,12 +145,12 @@ def simulate(
         check_output(stream, ".h5", "streamed run")
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
+    q0, v0 = start_state(scene, q0, v0)
     if contacts == "stepping":
         return _checked(scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream))
     table = joint_limits(scene.model).limits if limits else []
-    start = scene.q0 if q0 is None else np.asarray(q0, dtype=float)
-    if table and start.shape == scene.q0.shape:
-        check_start_inside(table, start, scene.name)
+    if table:
+        check_start_inside(table, q0, scene.name)
     if contacts is not None:
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream

@@ -85,8 +85,8 @@ def simulate_events(
     rtol: float | None,
     atol: float | None,
     record_every: int,
-    q0: np.ndarray | None,
-    v0: np.ndarray | None,
+    q0: np.ndarray,
+    v0: np.ndarray,
     progress: bool,
     stop_on: frozenset[str] = frozenset(),
     limits: list[JointLimit] | None = None,
@@ -135,8 +135,8 @@ def simulate_stepping(
     dt: float,
     duration: float,
     record_every: int,
-    q0: np.ndarray | None,
-    v0: np.ndarray | None,
+    q0: np.ndarray,
+    v0: np.ndarray,
     progress: bool,
     stream: str | Path | None,
 ) -> Trajectory | StreamedTrajectory:
@@ -158,7 +158,7 @@ def simulate_stepping(
 
 
 def _contact_system(
-    scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None, closures: bool = False
+    scene: Scene, q0: np.ndarray, v0: np.ndarray, closures: bool = False
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
     """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them and the
     start state. Its other constraints must be equality rows kept in the system (assembled at the start) with
@@ -179,8 +179,7 @@ def _contact_system(
     # the modes' dynamics replace the system's accelerations: with closures, off Pinocchio's native path
     system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense") if closures else None
     system = system or build_system(dataclasses.replace(scene, constraints=[]), "none")
-    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
-    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    q, v = q0.copy(), v0.copy()
     if closures and kept:
         report = assemble(system.model, q, v)
         q, v = report.q, report.v

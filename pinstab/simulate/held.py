@@ -47,8 +47,8 @@ def simulate_held(
     strict: bool,
     drift_limit: float,
     progress: bool,
-    q0: np.ndarray | None,
-    v0: np.ndarray | None,
+    q0: np.ndarray,
+    v0: np.ndarray,
     assemble_initial: bool,
     assembly_tol: float | None,
     record_every: int,
@@ -77,10 +77,7 @@ def simulate_held(
             "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
         )
     model = system.model
-    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
-    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
-    if q.shape != (model.nq,) or v.shape != (model.nv,):
-        raise PinstabError(f"q0 must have {model.nq} entries and v0 {model.nv}")
+    q, v = q0.copy(), v0.copy()
     report: AssemblyReport | None = None
     if assemble_initial:
         report = assemble(model, q, v, tolerance=assembly_tol)

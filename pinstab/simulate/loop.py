@@ -11,6 +11,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..assembly import AssemblyReport
 from ..errors import ContactInfeasibleError, DivergenceError, PinstabError
 from ..integration import CHECK_STEPS, AdaptiveLoop, ErrorControl, StepLoop, StreamedRecords, TimeGrid, embedded_pairs
@@ -215,3 +217,16 @@ def progress_bar(steps: int, label: str, enabled: bool):
     from tqdm import tqdm
 
     return tqdm(total=steps, desc=label, unit="step", file=sys.stderr, delay=2.0, mininterval=0.5, leave=False)
+
+
+def start_state(scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The run's start, as copies: ``q0`` and ``v0`` [rad, m; rad/s, m/s] or the scene's.
+
+    Raises:
+        PinstabError: ``q0`` or ``v0`` of the wrong length (naming the lengths the scene's model needs).
+    """
+    q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+    v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
+    if q.shape != scene.q0.shape or v.shape != scene.v0.shape:
+        raise PinstabError(f"q0 must have {scene.model.nq} entries and v0 {scene.model.nv}")
+    return q, v
