@@ -348,3 +348,18 @@ def test_no_energy_balance_where_contacts_do_work():
     assert "energy_balance_relative" not in sliding.summary()
     held = pinstab.simulate("allegro-sphere", duration=0.1)  # grasp contacts held as rows, grasp-hold torques
     assert held.summary()["energy_balance_relative"] < 1e-8
+
+
+def test_a_bad_inertia_and_copies_are_named(tmp_path):
+    """A link inertia that is not positive semidefinite is a SceneError naming the link (it used to end in
+    Pinocchio's raw RuntimeError); copies of an SDF robot are refused (they are made of URDF documents)."""
+    path = tmp_path / "m.sdf"
+    path.write_text(
+        "<sdf version='1.6'><model name='m'><link name='a'><inertial><mass>1</mass><inertia><ixx>-1</ixx>"
+        "<iyy>1</iyy><izz>1</izz></inertia></inertial></link></model></sdf>"
+    )
+    with pytest.raises(SceneError, match=r"sdf link 'a': inertia is not positive semidefinite: principal moments"):
+        scene_from_dict({"robot": {"sdf": str(path)}}, name="bad")
+    for robot in ({"name": "cassie"}, _sdf(tmp_path, "", links=("a",))["robot"]):
+        with pytest.raises(SceneError, match="robot.copies: copies of a robot are made from a URDF .*not SDF"):
+            scene_from_dict({"robot": {**robot, "copies": [{"prefix": "x_"}]}}, name="bad")

@@ -16,6 +16,7 @@ from .urdf import read_named
 
 load_extensions(__name__, __path__)
 
+URDF_KEYS = ("urdf", "urdf_text")  # the source keys of URDF documents, which copies are made of
 ROBOT_KEYS = {"name", "free_flyer", "locked_joints", "copies", "ignore_limits"}  # with one key per reader (READERS)
 
 
@@ -43,16 +44,31 @@ def _read(robot: dict[str, Any], base_dir: Path) -> RobotSource:
         raise SceneError(f"robot.free_flyer must be true or false, got {free_flyer!r}")
     options = ReaderOptions(base_dir, free_flyer)
     if sources[0] != "name":
+        _refuse_copies(robot, sources[0])
         return READERS.entry(sources[0]).factory(robot, options)
     if not isinstance(robot["name"], str):
         raise SceneError(f"robot.name must be a string, got {robot['name']!r}")
     path, package_dir = example_robot_urdf(robot["name"])
     if path.suffix != ".urdf":  # another format: the reader registered for its suffix
         reader = next(entry for entry in READERS.entries() if path.suffix in entry.capabilities)
+        _refuse_copies(robot, reader.name)
         return reader.factory({**robot, reader.name: str(path)}, options)
     # meshes are named package://example-robot-data/robots/...: the share/ folder resolves them
     package_dirs = [str(package_dir), str(package_dir.parent), str(package_dir.parent.parent)]
     return read_named(robot, options, path, package_dirs)
+
+
+def _refuse_copies(robot: dict[str, Any], format: str) -> None:
+    """``robot.copies`` of a robot read in ``format``: copies are made of URDF documents only.
+
+    Raises:
+        SceneError: naming the format and where copies can be made.
+    """
+    if "copies" in robot and format not in URDF_KEYS:
+        raise SceneError(
+            f"robot.copies: copies of a robot are made from a URDF (robot.urdf, robot.urdf_text or a URDF robot.name), "
+            f"not {format.upper()}"
+        )
 
 
 __all__ = [

@@ -43,8 +43,6 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
         SceneError: a missing file, malformed XML, a file Pinocchio cannot read, a body it dropped, an equality
             naming a missing body, site or joint, or one pinstab cannot hold (named).
     """
-    if "copies" in robot:
-        raise SceneError("robot.copies: copies of a robot are made from a URDF (robot.urdf or robot.name), not MJCF")
     path = resolve_file(robot, "mjcf", options)
     document = read_document(path)
     try:

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices, repeated
+from .urdf_checks import check_inertia
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "ball", "fixed", "gearbox")
 WORLD_LINK = "world"
@@ -139,6 +140,7 @@ def _link(element: ET.Element) -> SdfLink:
         link.inertia = np.array(
             [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]]
         )
+        check_inertia(link.inertia, where, triangle=False)  # SDF robots as published, like example-robot-data's
     link.visuals = _visuals(element, "visual", where)
     link.collisions = _visuals(element, "collision", where)
     return link

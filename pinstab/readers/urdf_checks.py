@@ -86,7 +86,17 @@ def _check_inertial(inertial: ElementTree.Element, where: str, triangle: bool) -
     within_ceiling(mass, f"{where}: mass", "kg")
     element = inertial.find("inertia")
     ixx, ixy, ixz, iyy, iyz, izz = (_number(element, key, f"inertia {key}", where) for key in INERTIA_KEYS)
-    moments = np.linalg.eigvalsh(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]))
+    check_inertia(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]), where, triangle)
+
+
+def check_inertia(inertia: np.ndarray, where: str, triangle: bool) -> None:
+    """A link's rotational inertia (3 x 3, symmetric) [kg m^2]: positive semidefinite, its largest principal moment
+    within the ceiling and, when ``triangle``, each moment at most the sum of the other two.
+
+    Raises:
+        SceneError: naming ``where`` and the principal moments.
+    """
+    moments = np.linalg.eigvalsh(inertia)
     tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
     if moments[0] < -tolerance:
         raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
