@@ -189,3 +189,16 @@ def test_parquet_needs_pyarrow(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(PinstabError, match=r"pip install 'pinstab\[sweep\]'"):
         run_sweep("pinch", {"mu": [0.5]}, tmp_path / "t.parquet")
+
+
+def test_a_parquet_table_of_another_sweep_is_refused_and_kept(tmp_path):
+    """Resuming into a Parquet file of other columns: a PinstabError naming the file, no journal written, the
+    file untouched (it used to end in a raw ValueError and leave a journal that the next run took)."""
+    pyarrow = pytest.importorskip("pyarrow")
+    parquet = pytest.importorskip("pyarrow.parquet")
+    out = tmp_path / "other.parquet"
+    parquet.write_table(pyarrow.table({"x": [1.0], "y": [2.0]}), out)
+    before = out.read_bytes()
+    with pytest.raises(PinstabError, match=r"other.parquet holds another sweep's table \(columns x, y\)"):
+        run_sweep("pinch", {"mu": [0.5]}, out)
+    assert out.read_bytes() == before and not out.with_name(out.name + ".partial.csv").exists()

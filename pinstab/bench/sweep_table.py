@@ -67,7 +67,9 @@ class SweepTable:
         self.parquet = self.path.suffix == ".parquet"
         self.journal = self.path.with_name(self.path.name + JOURNAL) if self.parquet else self.path
         if self.parquet and self.path.exists() and not self.journal.exists():
-            self._write_journal(_pyarrow().parquet.read_table(self.path).to_pylist())
+            table = _pyarrow().parquet.read_table(self.path)
+            _check_columns(self.path, table.column_names, columns)
+            self._write_journal(table.to_pylist())
         rows = read_rows(self.journal, columns) if self.journal.exists() else []
         self.done = {point_key(row[name] for name in columns[:keys]) for row in rows}
         self._handle = None
@@ -119,12 +121,21 @@ def read_rows(path: str | Path, columns: list[str] | None = None) -> list[dict[s
         with open(path, "r+") as handle:
             handle.truncate(len(text.encode()))
     reader = csv.DictReader(text.splitlines())
-    if columns is not None and reader.fieldnames is not None and reader.fieldnames != columns:
-        raise PinstabError(
-            f"{path} holds another sweep's table (columns {', '.join(reader.fieldnames)}); give another --out or "
-            "remove it"
-        )
+    if columns is not None and reader.fieldnames is not None:
+        _check_columns(path, reader.fieldnames, columns)
     return list(reader)
+
+
+def _check_columns(path: Path, found: list[str], columns: list[str]) -> None:
+    """Refuse a table whose columns are not this sweep's.
+
+    Raises:
+        PinstabError: naming the file and the columns it holds.
+    """
+    if list(found) != columns:
+        raise PinstabError(
+            f"{path} holds another sweep's table (columns {', '.join(found)}); give another --out or remove it"
+        )
 
 
 def table_rows(path: str | Path) -> list[dict[str, Any]]:
