@@ -165,3 +165,13 @@ class SceneTables:
         if not isinstance(value, str) or not value:
             raise SceneError(f"{where}.name must be a non-empty string, got {value!r}")
         return value
+
+
+def closure_frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple[int, int | None, pin.SE3 | None]:
+    """A closure entry's two sides: the operational frame of side a (``frame_a`` at ``offset_a``/``rpy_a``), and
+    side b's frame (None for the world) or, on the world, its placement (``offset_b`` [m], ``rpy_b`` [rad])."""
+    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
+    offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
+    if entry.get("frame_b", WORLD) == WORLD:
+        return frame_a, None, offset_b
+    return frame_a, tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b"), None

@@ -60,7 +60,7 @@ def linearized(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, t: float
     model, count = system.model.model, basis.shape[1]
 
     def acceleration(q_: np.ndarray, v_: np.ndarray) -> np.ndarray:
-        values = system.dynamics(q_, v_, t).values  # the constraints at q_, to put v_ back on them
+        values = system.model.constraint_values(q_, v_, t)  # the constraints at q_, to put v_ back on them
         corrected = v_ - np.linalg.pinv(values.jacobian, rcond=1e-12) @ values.velocity_residual
         return system.dynamics(q_, corrected, t).acceleration
 
@@ -88,7 +88,7 @@ def zero_dynamics_report(system: ConstrainedSystem, t: np.ndarray, q: np.ndarray
     """For a servo run's samples (t [s], q, v): the free coordinates, the eigenvalues [1/s] of the zero
     dynamics linearized at the first sample and their ``character``, and per free coordinate its speed at the
     start, its largest speed and when [rad/s or m/s, s], and whether it ran away; ``runaway`` lists those."""
-    values = system.dynamics(q[0], v[0], float(t[0])).values
+    values = system.model.constraint_values(q[0], v[0], float(t[0]))
     basis, indices = free_directions(values.jacobian)
     eigenvalues = np.linalg.eigvals(linearized(system, q[0], v[0], float(t[0]), basis)) if indices.size else np.zeros(0)
     eigenvalues = eigenvalues[np.lexsort((eigenvalues.imag, -eigenvalues.real))]

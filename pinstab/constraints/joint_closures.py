@@ -17,9 +17,9 @@ import pinocchio as pin
 
 from ..errors import SceneError
 from ..kinematics import Kinematics, relative_offset
-from ..tables import SceneTables
+from ..tables import SceneTables, closure_frames
 from .base import CONSTRAINT_KINDS, VelocityTerms
-from .loops import CLOSURE_KEYS, FrameClosure, closure_frames, plane_basis
+from .loops import CLOSURE_KEYS, FrameClosure, plane_basis
 
 JOINT_CLOSURE_KEYS = CLOSURE_KEYS | {"axis"}
 

@@ -12,7 +12,7 @@ import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
-from ..tables import WORLD, SceneTables
+from ..tables import SceneTables, closure_frames
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
@@ -176,16 +176,6 @@ def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, floa
     if isinstance(raw, list):
         return tuple(SceneTables.vector(raw, 3, f"{where}.plane", None))  # type: ignore[return-value]
     raise SceneError(f"{where}: 'plane' must be one of {choices(PLANES)} or a normal vector, got {raw!r}")
-
-
-def closure_frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple[int, int | None, pin.SE3 | None]:
-    """A closure entry's two sides: the operational frame of side a (``frame_a`` at ``offset_a``/``rpy_a``), and
-    side b's frame (None for the world) or, on the world, its placement (``offset_b`` [m], ``rpy_b`` [rad])."""
-    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
-    offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-    if entry.get("frame_b", WORLD) == WORLD:
-        return frame_a, None, offset_b
-    return frame_a, tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b"), None
 
 
 def parse_closure(kind: str):

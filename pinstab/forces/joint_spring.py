@@ -15,7 +15,7 @@ import pinocchio as pin
 
 from ..errors import SceneError, choices
 from ..kinematics import Kinematics, relative_offset, relative_rotation
-from ..tables import WORLD, SceneTables
+from ..tables import SceneTables, closure_frames
 from ..units import within_ceiling
 from .base import FORCE_KINDS, ForceElement
 
@@ -87,12 +87,9 @@ def _frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple:
     axis = tables.vector(entry.get("axis"), 3, f"{where}.axis", None)
     if np.linalg.norm(axis) < 1e-9:
         raise SceneError(f"{where}.axis must be a non-zero direction, got {axis.tolist()}")
-    frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
-    offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-    if entry.get("frame_b", WORLD) == WORLD:
-        return frame_a, None, offset_b, axis / np.linalg.norm(axis), motion
-    frame_b = tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b")
-    return frame_a, frame_b, pin.SE3.Identity(), axis / np.linalg.norm(axis), motion
+    frame_a, frame_b, placement_b = closure_frames(entry, tables, name, where)
+    placement_b = pin.SE3.Identity() if placement_b is None else placement_b  # (read only on the world side)
+    return frame_a, frame_b, placement_b, axis / np.linalg.norm(axis), motion
 
 
 @FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate or a closure's free axis")
