@@ -27,7 +27,7 @@ from ..constraints.loops import FrameClosure
 from ..errors import SceneError, choices
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .analysis import RANK_TOLERANCE
+from .linalg import closest_solution
 
 WELDS = 2  # a squeeze is the internal force between two grasps
 
@@ -58,16 +58,12 @@ class WeldedGrasp:
     def forces(self, kin: Kinematics, grasp_map: np.ndarray, wrench: np.ndarray) -> np.ndarray:
         """The closures' multipliers (12,) [N, N m] that exert ``wrench`` on the object (body frame, [N, N m])
         through ``grasp_map`` G (6 x 12) with the internal force the squeeze s* alone."""
-        smallest = np.linalg.lstsq(grasp_map, wrench, rcond=None)[0]
-        return smallest + self.squeeze * self.squeeze_direction(kin)
+        return closest_solution(grasp_map, wrench, self.squeeze * self.squeeze_direction(kin))  # n: null space of G
 
     def internal_force(self, kin: Kinematics, grasp_map: np.ndarray, forces: np.ndarray) -> tuple[float, float]:
         """(the squeeze s [N], the size of the other internal components [N, N m]) of the multipliers
-        ``forces``: their projection on the null space of ``grasp_map`` (SVD), split along n."""
-        _, singular, right = np.linalg.svd(grasp_map)
-        rank = int(np.count_nonzero(singular > RANK_TOLERANCE * max(float(singular[0]), 1.0)))
-        null = right[rank:].T
-        internal = null @ (null.T @ forces)
+        ``forces``: their projection on the null space of ``grasp_map``, split along n."""
+        internal = closest_solution(grasp_map, np.zeros(grasp_map.shape[0]), forces)
         direction = self.squeeze_direction(kin)
         squeeze = float(direction @ internal / (direction @ direction))
         return squeeze, float(np.linalg.norm(internal - squeeze * direction))
