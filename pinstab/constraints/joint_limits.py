@@ -53,6 +53,10 @@ class JointLimit:
         """The distance to the bound, positive inside the range [rad or m]."""
         return self.sign * (float(q[self.index_q]) - self.bound)
 
+    def gaps(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`gap` of each row of the samples ``q`` (k, nq) [rad or m]."""
+        return self.sign * (q[:, self.index_q] - self.bound)
+
     def speed(self, v: np.ndarray) -> float:
         """The rate of the gap [rad/s or m/s] (negative: approaching the bound)."""
         return self.sign * float(v[self.index_v])

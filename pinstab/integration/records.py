@@ -43,13 +43,14 @@ class Records:
 
     offset = 0  # the sample index of the arrays' first slot
 
-    def __init__(self, grid: Grid, every: int, nq: int, nv: int) -> None:
+    def __init__(self, grid: Grid, every: int, nq: int, nv: int, slots: int | None = None) -> None:
         self.every = every
         self.grid = grid
         self.last = grid.steps // every + (1 if grid.steps % every else 0)
         self.count = self.last + 1
         self.ended = False
-        self.allocate(self.count + 1, nq, nv)  # zeros: no memory taken before a sample is put
+        # every sample (zeros: no memory taken before a sample is put), or a window of ``slots``
+        self.allocate(self.count + 1 if slots is None else slots, nq, nv)
 
     def allocate(self, slots: int, nq: int, nv: int) -> None:
         """The arrays of ``slots`` samples."""
@@ -97,14 +98,8 @@ class StreamedRecords(Records):
     """
 
     def __init__(self, grid: Grid, every: int, nq: int, nv: int, sink: SampleSink, block: int, spare: int) -> None:
-        self.every = every
-        self.grid = grid
-        self.last = grid.steps // every + (1 if grid.steps % every else 0)
-        self.count = self.last + 1
-        self.ended = False
+        super().__init__(grid, every, nq, nv, block + spare)
         self.sink, self.block = sink, block
-        self.offset = 0  # the sample index of slot 0
-        self.allocate(block + spare, nq, nv)
 
     def checked(self, k: int) -> None:
         """Write a block of checked samples when there is one."""

@@ -46,7 +46,7 @@ def _first_left(
     for t, q in blocks:
         first = None
         for limit in limits:
-            outside = np.flatnonzero(limit.sign * (q[:, limit.index_q] - limit.bound) < -LIMIT_SLACK)
+            outside = np.flatnonzero(limit.gaps(q) < -LIMIT_SLACK)
             if outside.size and (first is None or t[outside[0]] < first[1]):
                 first = (limit, float(t[outside[0]]))
         if first is not None:
