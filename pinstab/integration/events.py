@@ -32,6 +32,7 @@ import itertools
 
 import numpy as np
 
+from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..solvers.contact_modes import ModeDynamics, ModeSolution
@@ -99,10 +100,14 @@ class EventLoop(AdaptiveLoop):
         self._since: dict[int, float] = {}  # the active limits: since when [s]
         self.active_time = {limit.name: 0.0 for limit in dynamics.limits}
 
+    def _touches(self, i: int, q: np.ndarray) -> bool:
+        """Whether limit i touches at q: its gap within TOUCH_GAP of where it counts as reached."""
+        return self.dynamics.limits[i].gap(q) - self._floors[i] <= TOUCH_GAP
+
     def start(self, q: np.ndarray, v: np.ndarray) -> None:
         """Choose the modes at the start and record them as events (cause ``start``; limits only when held)."""
         dynamics = self.dynamics
-        self._floors = [min(0.0, limit.gap(q)) - LIMIT_SLACK for limit in dynamics.limits]
+        self._floors = [_floor(limit, q) for limit in dynamics.limits]
         separated = [Mode.SEPARATED.value] * len(dynamics.limits)
         self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(dynamics.contacts), True, separated)
 
@@ -278,11 +283,7 @@ class EventLoop(AdaptiveLoop):
         the held and touching ones (e = 0), closures kept; each limit the impulse reaches is recorded (``before`` turns
         ``closing``)."""
         dynamics = self.dynamics
-        restitutions = {
-            i: 0.0
-            for i, limit in enumerate(dynamics.limits)
-            if dynamics.active[i] or limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP
-        }
+        restitutions = {i: 0.0 for i, limit in enumerate(dynamics.limits) if dynamics.active[i] or self._touches(i, q)}
         restitutions.update({i: dynamics.limits[i].restitution for i in reached})
         result = limit_impact(dynamics, q, v, t, restitutions)
         for i in reached:
@@ -399,9 +400,7 @@ class EventLoop(AdaptiveLoop):
         """
         dynamics = self.dynamics
         candidates = [
-            i
-            for i, limit in enumerate(dynamics.limits)
-            if limit.gap(q) - min(self._floors[i], 0.0) <= TOUCH_GAP and abs(limit.speed(v)) <= TOUCH_SPEED
+            i for i, limit in enumerate(dynamics.limits) if self._touches(i, q) and abs(limit.speed(v)) <= TOUCH_SPEED
         ]
         dynamics.active[:] = [False] * len(dynamics.limits)  # a held limit an impact set moving is released
         error: ContactInfeasibleError | None = None
@@ -451,10 +450,16 @@ class EventLoop(AdaptiveLoop):
                 self._since[i] = t
             elif not held and i in self._since:
                 self.active_time[limit.name] += t - self._since.pop(i)
-                self._floors[i] = min(0.0, limit.gap(q)) - LIMIT_SLACK
+                self._floors[i] = _floor(limit, q)
             if old != new and not (cause == START and not held):
                 event_cause = "impact" if old == CLOSING else cause
                 self.events.append(ContactEvent(t, limit.name, old, new, event_cause, (float(reactions[i]), 0.0, 0.0)))
+
+
+def _floor(limit: JointLimit, q: np.ndarray) -> float:
+    """Where a limit counts as reached [rad, m]: :data:`LIMIT_SLACK` beyond its bound, or beyond q when q is already
+    past it (a start on it, a release there)."""
+    return min(0.0, limit.gap(q)) - LIMIT_SLACK
 
 
 def _force_slack(forces: np.ndarray) -> float:
