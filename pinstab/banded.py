@@ -7,10 +7,12 @@ couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3)
     [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
 
 has a narrow band once its rows are put in reverse Cuthill-McKee order (the pattern depends on the
-tree and the closures, not on q: it is found once). This module forms its entries from three
-Pinocchio passes (joint Jacobians and their time variation, ``crba``, ``nonLinearEffects``) and the
-placements of the joints that carry closure points, all vectorized over the closures, and solves it
-with LAPACK's banded LU (``dgbsv``): O(n b^2) for n unknowns and a band b.
+tree and the closures, not on q: it is found once, here). The compiled kernel (``cpp/banded_kernel.cpp``,
+``pinstab._compiled``) forms its entries from three Pinocchio passes (joint Jacobians and their time
+variation, ``crba``, ``nonLinearEffects``) and the placements of the joints that carry closure points, and
+factors it by LAPACK's unblocked banded LU with partial pivoting (``dgbtf2``/``dgbtrs``, what ``dgbsv`` runs
+for a band below its block size): O(n b^2) for n unknowns and a band b, ~7 us besides the passes on the
+N-four-bar N = 40.
 
 It is the same equation as the native path's (Pinocchio's corrector ``-Kp phi - Kd G v`` on the
 point rows), solved exactly instead of with a proximal term of 1e-12: both agree to rounding while
@@ -26,10 +28,10 @@ import math
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import eig_banded
-from scipy.linalg.lapack import dgbsv
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from ._compiled import BandedKernel
 from .constraints import FrameClosure
 from .memory import new_data
 
@@ -41,13 +43,6 @@ MAX_BAND_FRACTION = 0.25  # a band wider than this fraction of the unknowns gain
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
 _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Column-wise cross products of two (3, n) arrays, from rows (x, y, z, x, y) of each: slices, no
-    fancy indexing (np.cross costs ~4x more on short rows)."""
-    a, b = np.concatenate((a, a[:2])), np.concatenate((b, b[:2]))
-    return a[1:4] * b[2:5] - a[2:5] * b[1:4]
 
 
 def _sparse(entries: list[tuple[int, int]], values: np.ndarray, shape: tuple[int, int]) -> csr_matrix:
@@ -164,9 +159,32 @@ class BandedDynamics:
         self._m_index = (m_upper[:, 0], m_upper[:, 1])
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
         self._build_band(m_upper)
-        self._rhs = np.zeros(self.size)
-        self._solution = np.zeros(self.size)
+        self.kernel = BandedKernel(
+            model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE
+        )
         self.singular = False
+
+    def _pattern(self, sides: list[tuple[int, np.ndarray]], m_upper: np.ndarray) -> dict[str, np.ndarray]:
+        """The arrays the compiled kernel evaluates from (see ``cpp/banded_kernel.hpp``)."""
+        arrays = {
+            "carried": self._carried,
+            "joints": np.array([sides[index][0] for index in self._carried], dtype=int),
+            "local": self._local[:, 1:],
+            "fixed_points": self._points,
+            "g_columns": self._g_col,
+            "g_linear": self._g_coefficients[:3],
+            "m_rows": m_upper[:, 0],
+            "m_cols": m_upper[:, 1],
+            "m_off": np.flatnonzero(self._m_off),
+            "scatter": self._scatter,
+            "acceleration_slots": self._acceleration_slots,
+            "row_slots": self._row_slots,
+        }
+        for name, matrix in (("support", self._support), ("row_map", self._row_map), ("g_map", self._g_map)):
+            arrays.update(
+                {f"{name}_indptr": matrix.indptr, f"{name}_indices": matrix.indices, f"{name}_data": matrix.data}
+            )
+        return {name: np.ascontiguousarray(array) for name, array in arrays.items()}
 
     def _build_band(self, m_upper: np.ndarray) -> None:
         """The reverse Cuthill-McKee order of the KKT pattern, its band and the scatter of the entries
@@ -183,41 +201,20 @@ class BandedDynamics:
         band = int(np.max(np.abs(prow - pcol), initial=0))
         self.size, self.band = size, band
         self._acceleration_slots, self._row_slots = position[:nv], position[nv:]
-        self._ab = np.zeros((3 * band + 1, size), order="F")  # LAPACK's layout: factored in place
         # [[0, G], [G^T, 0]] (eigenvalues +-sigma(G) and zeros) in the same order, upper band storage
         g_count = len(self._g_row)
         upper, lower = np.maximum(prow, pcol)[-g_count:], np.minimum(prow, pcol)[-g_count:]
         self._gram = np.zeros((band + 1, size))
         self._gram_scatter = (band + lower - upper) * size + upper
-        self._scatter = pcol * (3 * band + 1) + 2 * band + prow - pcol  # A[i, j] at ab[2 kl + i - j, j], kl = ku
+        # LAPACK's band storage (column-major, 3 band + 1 rows): A[i, j] at ab[2 kl + i - j, j], kl = ku
+        self._scatter = pcol * (3 * band + 1) + 2 * band + prow - pcol
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m];
-        check :attr:`singular` before using them."""
-        model, data = self.model, self.data
-        points = self._placements(q)
-        pin.computeJointJacobiansTimeVariation(model, data, q, v)
-        jacobian, rate = data.J, data.dJ
-        # per point: spatial velocity and bias acceleration of its body at the world origin, world axes
-        motion = np.ascontiguousarray((self._support @ (np.vstack((jacobian, rate)) * v).T).T)  # (12, points)
-        omega = motion[3:6]
-        velocity = motion[:3] + _cross(omega, points)
-        terms = motion[6:9] + _cross(motion[9:], points) + _cross(omega, velocity)
-        terms += self.kp * points + self.kd * velocity  # point acceleration at a = 0 + Kp p + Kd p'
-        rhs = self._rhs
-        rhs[self._row_slots] = self._row_map @ terms.ravel()  # -gamma0 - Kp phi - Kd G v
-        g_values = self._jacobian_values(jacobian, points)
-        mass = pin.crba(model, data, q)[self._m_index]
-        rhs[self._acceleration_slots] = tau - pin.nonLinearEffects(model, data, q, v)
-        ab = self._ab
-        ab.fill(0.0)  # the LU below fills the band in place
-        ab.ravel(order="F")[self._scatter] = np.concatenate((mass, mass[self._m_off], g_values, g_values))
-        band = self.band
-        lu, _, solution, info = dgbsv(band, band, ab, rhs, overwrite_ab=True, overwrite_b=True)
-        pivots = np.abs(lu[2 * band])
-        self.singular = info != 0 or not pivots.min() > PIVOT_TOLERANCE * pivots.max()
-        self._solution = solution
-        return solution[self._acceleration_slots]
+        check :attr:`singular` before using them. Computed by the compiled kernel (:attr:`kernel`)."""
+        acceleration, usable = self.kernel.acceleration(q, v, tau)
+        self.singular = not usable
+        return acceleration
 
     def _placements(self, q: np.ndarray) -> np.ndarray:
         """The closure points at q (3, points) [m]."""
@@ -251,7 +248,7 @@ class BandedDynamics:
 
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""
-        return -self._solution[self._row_slots]
+        return self.kernel.multipliers()
 
 
 def banded_obstacle(closures: list[FrameClosure], size: int, band: int | None = None) -> str | None:

@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from ._compiled import NativeKernel
 from .constraints import Constraint, FrameClosure, RowKind
 from .kinematics import LWA
 from .memory import new_data
@@ -124,10 +125,28 @@ class NativeDynamics:
             row, column = row + closure.rows, column + width
         self._target = np.zeros(sum(widths))
         self._data_list = list(self.datas)
+        self._kernel: NativeKernel | None = None
+
+    def kernel(self) -> NativeKernel:
+        """The same solve compiled (``cpp/native_kernel.cpp``), for the compiled step loop; built on first use."""
+        if self._kernel is None:
+            models = list(self.models)
+            self._kernel = NativeKernel(
+                self.model.saveToString(),
+                [rcm.joint1_id for rcm in models],
+                [rcm.joint1_placement.homogeneous for rcm in models],
+                [rcm.joint2_id for rcm in models],
+                [rcm.joint2_placement.homogeneous for rcm in models],
+                self.kp,
+                self.kd,
+                self.settings.mu,
+            )
+        return self._kernel
 
     def set_gains(self, kp: float, kd: float) -> None:
         """Set the corrector's Kp [1/s^2] and Kd [1/s] on every closure."""
         self.kp, self.kd = float(kp), float(kd)
+        self._kernel = None
         for rcm in self.models:
             rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(self.kp, self.kd))
 

@@ -75,6 +75,9 @@ class RunInfo:
             closures solved by a banded LU, :mod:`pinstab.banded`) or ``general`` (pinstab's kinematics and
             KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded``.
         record_every: a sample was kept every this many steps (and at the last).
+        compiled_steps: steps taken by the compiled step loop (``pinstab._compiled``, on the native and banded
+            paths with euler, semi-implicit-euler, heun or rk4; :mod:`pinstab.integration.compiled`), the rest
+            by Python.
         controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over
             every step (projection, post).
@@ -111,6 +114,7 @@ class RunInfo:
     path: str = "general"
     path_reason: str = ""
     record_every: int = 1
+    compiled_steps: int = 0
     correction_iterations_total: int = 0
     correction_iterations_max: int = 0
     controls: list[str] = field(default_factory=list)

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ._compiled import Kernel
 from .banded import BandedDynamics, banded_obstacle
 from .constraints import ConstraintValues, FrameClosure
 from .errors import DivergenceError, PinstabError
@@ -167,6 +168,23 @@ class ConstrainedSystem:
         if name is not None:
             return f"planar-point closure {name!r} is not on a planar mechanism"
         return None
+
+    def compiled_kernel(self) -> Kernel | None:
+        """The compiled evaluation of this path for the compiled step loop (:mod:`pinstab.integration.compiled`):
+        the banded solve's, or Pinocchio's on the native path once its solves pass their check; None while they
+        are checked one by one, or on the general path."""
+        if self.banded is not None:
+            return self.banded.kernel
+        if self.native is None or self._checking:
+            return None
+        return self.native.kernel()
+
+    def count_compiled(self, evaluations: int) -> None:
+        """Count ``evaluations`` solves made by the compiled loop on this path."""
+        if self.banded is not None:
+            self._banded_solves += evaluations
+        else:
+            self._native_solves += evaluations
 
     @property
     def conditioning(self) -> Callable[[np.ndarray, int], float] | None:

@@ -17,6 +17,7 @@ import pytest
 import pinstab.memory
 from pinstab import MemoryBudgetError, SceneError, Trajectory, load_scene, simulate
 from pinstab.cli import main
+from pinstab.integration.records import Records
 from pinstab.integration.stepping import CHECK_STEPS, StepLoop
 from pinstab.memory.limits import memory_sources, tightest
 
@@ -157,7 +158,8 @@ def test_a_real_memory_error_under_prlimit_is_named():
 # -- a MemoryError during a run keeps the samples ------------------------------------------------------------
 @pytest.fixture
 def out_of_memory_at_half_a_second(monkeypatch):
-    """Keeping a step's state raises MemoryError from t = 0.5 s on (as an allocation during the run would)."""
+    """Keeping a step's state (one by one, or a compiled run's) raises MemoryError from t = 0.5 s on (as an allocation
+    during the run would)."""
     keep = StepLoop.keep
 
     def failing(self, k, q, v, iterations=0):
@@ -165,7 +167,15 @@ def out_of_memory_at_half_a_second(monkeypatch):
             raise MemoryError("Unable to allocate 8 GiB for an array")
         return keep(self, k, q, v, iterations)
 
+    put_span = Records.put_span
+
+    def failing_span(self, first, q, v):  # the compiled loop's samples
+        if self.grid.time(first + len(q) - 1) >= 0.5:
+            raise MemoryError("Unable to allocate 8 GiB for an array")
+        return put_span(self, first, q, v)
+
     monkeypatch.setattr(StepLoop, "keep", failing)
+    monkeypatch.setattr(Records, "put_span", failing_span)
 
 
 def test_a_memory_error_during_a_run_keeps_the_samples_up_to_it(out_of_memory_at_half_a_second):

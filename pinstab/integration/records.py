@@ -16,6 +16,8 @@ class Grid(Protocol):
 
     def time(self, k: int) -> float: ...
 
+    def times(self, steps: np.ndarray) -> np.ndarray: ...
+
 
 class SampleSink(Protocol):
     """Where streamed samples go (:class:`~pinstab.stream.StreamWriter`): a file at ``path``."""
@@ -70,6 +72,19 @@ class Records:
         step = self.grid.steps if index == self.last else index * self.every
         self.steps[slot], self.t[slot] = step, self.grid.time(step)
         self.q[slot], self.v[slot], self.corrections[slot] = q, v, iterations
+
+    def put_span(self, first: int, q: np.ndarray, v: np.ndarray) -> None:
+        """Keep the recorded ones among the states (rows of q, v) of grid steps first, first + 1, ..."""
+        steps = np.arange(first, first + len(q))
+        kept = (steps % self.every == 0) | (steps == self.grid.steps)
+        if not kept.any():
+            return
+        steps = steps[kept]
+        indices = np.where(steps == self.grid.steps, self.last, steps // self.every)
+        slots = indices - self.offset
+        self.steps[slots] = np.where(indices == self.last, self.grid.steps, indices * self.every)
+        self.t[slots] = self.grid.times(self.steps[slots])
+        self.q[slots], self.v[slots], self.corrections[slots] = q[kept], v[kept], 0
 
     def checked(self, k: int) -> None:
         """The samples up to grid step k passed the loop's check (they will not be replayed)."""

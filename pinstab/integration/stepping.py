@@ -29,6 +29,7 @@ from ..errors import (
 from ..projection import project_positions
 from ..stabilizers import ProjectionOptions
 from ..system import ConstrainedSystem
+from .compiled import CompiledSteps, steps_before
 from .dense import Segment
 from .passages import PassageWatch, Plan
 from .records import Records
@@ -87,6 +88,10 @@ class TimeGrid(NamedTuple):
         """The time of sample k [s]: k dt, and ``duration`` exactly at the last."""
         return self.duration if k == self.steps else k * self.dt
 
+    def times(self, steps: np.ndarray) -> np.ndarray:
+        """:meth:`time` of each grid step in ``steps`` [s]."""
+        return np.where(steps == self.steps, self.duration, steps * self.dt)
+
 
 class Failure(Exception):
     """A check found the state diverged (internal: turned into a DivergenceError at its step)."""
@@ -107,6 +112,7 @@ class StepLoop:
     Attributes:
         records: the kept samples. correction_total, correction_max: post-step correction iterations.
         corrects: the method corrects the state after each step.
+        compiled: the compiled loop taking runs of steps (:mod:`pinstab.integration.compiled`), or None.
     """
 
     def __init__(
@@ -129,6 +135,7 @@ class StepLoop:
         self.correction_total = 0
         self.correction_max = 0
         self.corrects = system.stabilizer.corrects
+        self.compiled = CompiledSteps.of(system, stepper)
 
     def run(self, q: np.ndarray, v: np.ndarray, progress=None) -> tuple[np.ndarray, np.ndarray]:
         """Step from (q, v) at t = 0 to the end of the grid; returns the end state.
@@ -190,7 +197,7 @@ class StepLoop:
         step = self.stepper.step
         grid, watch = self.grid, self.watch
         dt, last = grid.dt, grid.steps
-        corrects, keep = self.corrects, self.keep
+        corrects, keep, compiled = self.corrects, self.keep, self.compiled
         k = start
         while k < stop:
             t = k * dt
@@ -200,6 +207,18 @@ class StepLoop:
                 if plan is not None:
                     q, v, k = self.passage(q, v, k, plan)
                     continue
+            # the steps before the watch's next sample, the last grid step (shortened) excepted
+            span = 0 if compiled is None else steps_before(k, min(stop, last - 1), dt, watch.next_due)
+            if span:
+                run = compiled.run(q, v, dt, span)
+                if run is not None:
+                    qs, vs, done = run
+                    if done:
+                        self.records.put_span(k + 1, qs[:done], vs[:done])
+                        q, v, k = qs[done - 1], vs[done - 1], k + done
+                    if done == span:
+                        continue
+                    t = k * dt  # the next step's evaluation is not to be used: the Python step takes it
             k += 1
             q, v = step(q, v, t, dt if k != last else grid.duration - t)
             if corrects:

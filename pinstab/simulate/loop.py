@@ -158,6 +158,7 @@ def trajectory_of(
     info.steps, info.t_end = int(records.steps[slot]), float(records.t[slot])
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
+    info.compiled_steps = 0 if loop.compiled is None else loop.compiled.steps
     watch = getattr(loop, "watch", None)  # none in a run that ended at its start, before stepping
     info.passages = [] if watch is None else [p.to_dict() for p in watch.passages if p.t <= info.t_end]
     events = loop.events if isinstance(loop, EventLoop) else getattr(loop.stepper, "events", None)

@@ -1,0 +1,117 @@
+// The banded path's evaluation (pinstab.banded.BandedDynamics), compiled: the same terms from the same
+// Pinocchio passes, the KKT matrix scattered into LAPACK's band storage and factored by banded_solve.
+#include "banded_kernel.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+namespace pinstab {
+
+namespace {
+
+// y += A x for a CSR matrix A.
+void multiply_add(const Csr& matrix, const double* x, double* y) {
+  for (int row = 0; row < matrix.rows(); ++row) {
+    double sum = 0.0;
+    for (int entry = matrix.indptr(row); entry < matrix.indptr(row + 1); ++entry) {
+      sum += matrix.data(entry) * x[matrix.indices(entry)];
+    }
+    y[row] += sum;
+  }
+}
+
+}  // namespace
+
+BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, double kp, double kd,
+                           double pivot_tolerance)
+    : model_(model), data_(model_), pattern_(std::move(pattern)), kp_(kp), kd_(kd),
+      pivot_tolerance_(pivot_tolerance) {
+  const int points = static_cast<int>(pattern_.fixed_points.cols());
+  const int size = static_cast<int>(pattern_.acceleration_slots.size() + pattern_.row_slots.size());
+  points_ = pattern_.fixed_points;
+  motion_.resize(12, points);
+  terms_.resize(3, points);
+  rows_.resize(pattern_.row_slots.size());
+  coefficients_ = pattern_.g_linear;  // rows 0-2 fixed, 3-5 from the points
+  coefficients_.conservativeResize(6, Eigen::NoChange);
+  lever_.resize(3 * pattern_.g_columns.size());
+  values_.resize(pattern_.scatter.size());
+  ab_.setZero(3 * pattern_.band + 1, size);
+  rhs_.resize(size);
+}
+
+bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+  const BandedPattern& p = pattern_;
+  const int points = static_cast<int>(points_.cols());
+  pinocchio::computeJointJacobiansTimeVariation(model_, data_, q, v);
+  for (int c = 0; c < p.carried.size(); ++c) {
+    const pinocchio::SE3& placement = data_.oMi[p.joints(c)];
+    points_.col(p.carried(c)) = placement.rotation() * p.local.row(c).transpose() + placement.translation();
+  }
+  // per point: spatial velocity and bias acceleration of its body at the world origin, world axes
+  motion_.setZero();
+  for (int point = 0; point < points; ++point) {
+    for (int entry = p.support.indptr(point); entry < p.support.indptr(point + 1); ++entry) {
+      const int dof = p.support.indices(entry);
+      motion_.col(point).head<6>() += data_.J.col(dof) * v(dof);
+      motion_.col(point).tail<6>() += data_.dJ.col(dof) * v(dof);
+    }
+  }
+  for (int point = 0; point < points; ++point) {
+    const Eigen::Vector3d omega = motion_.col(point).segment<3>(3);
+    const Eigen::Vector3d position = points_.col(point);
+    const Eigen::Vector3d velocity = motion_.col(point).head<3>() + omega.cross(position);
+    terms_.col(point) = motion_.col(point).segment<3>(6) + motion_.col(point).tail<3>().cross(position) +
+                        omega.cross(velocity) + kp_ * position + kd_ * velocity;
+  }
+  // -gamma0 - Kp phi - Kd G v on the closure rows (terms raveled by component, as numpy's ravel)
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> terms = terms_;
+  rows_.setZero();
+  multiply_add(p.row_map, terms.data(), rows_.data());
+  // G's entries: J[:, column] . c_e, c_e = [linear part; lever x s] with the lever linear in the points
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> flat_points = points_;
+  lever_.setZero();
+  multiply_add(p.g_map, flat_points.data(), lever_.data());
+  const int entries = static_cast<int>(p.g_columns.size());
+  for (int e = 0; e < entries; ++e) {
+    for (int i = 0; i < 3; ++i) coefficients_(3 + i, e) = lever_(i * entries + e);
+  }
+  const int upper = static_cast<int>(p.m_rows.size());
+  const int off = static_cast<int>(p.m_off.size());
+  for (int e = 0; e < entries; ++e) {
+    const double value = data_.J.col(p.g_columns(e)).dot(coefficients_.col(e));
+    values_(upper + off + e) = value;
+    values_(upper + off + entries + e) = value;
+  }
+  pinocchio::crba(model_, data_, q);
+  for (int m = 0; m < upper; ++m) values_(m) = data_.M(p.m_rows(m), p.m_cols(m));
+  for (int m = 0; m < off; ++m) values_(upper + m) = values_(p.m_off(m));
+  const VectorXd& bias = pinocchio::nonLinearEffects(model_, data_, q, v);
+  for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
+  for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
+  ab_.setZero();
+  double* band = ab_.data();
+  for (int i = 0; i < values_.size(); ++i) band[p.scatter(i)] = values_(i);
+  const int info = banded_solve(ab_, p.band, rhs_, pivots_);
+  double smallest = INFINITY, largest = 0.0;
+  for (int j = 0; j < ab_.cols(); ++j) {
+    const double pivot = std::abs(ab_(2 * p.band, j));
+    smallest = std::min(smallest, pivot);
+    largest = std::max(largest, pivot);
+  }
+  singular_ = info != 0 || !(smallest > pivot_tolerance_ * largest);
+  for (int i = 0; i < p.acceleration_slots.size(); ++i) a(i) = rhs_(p.acceleration_slots(i));
+  return !singular_;
+}
+
+VectorXd BandedKernel::multipliers() const {
+  VectorXd result(pattern_.row_slots.size());
+  for (int r = 0; r < result.size(); ++r) result(r) = -rhs_(pattern_.row_slots(r));
+  return result;
+}
+
+}  // namespace pinstab

@@ -1,0 +1,43 @@
+#pragma once
+
+#include "kernels.hpp"
+
+namespace pinstab {
+
+// The KKT pattern of pinstab.banded.BandedDynamics (built in Python once per scene).
+struct BandedPattern {
+  VectorXi carried, joints;       // points carried by bodies, and their joints
+  Eigen::MatrixXd local;          // (carried, 3) the points in their joints' frames [m]
+  Eigen::MatrixXd fixed_points;   // (3, points) world points (zero where carried) [m]
+  Csr support;                    // (points, nv) ones where a velocity moves a point's body
+  Csr row_map;                    // (rows, 3 points) closure rows from the per-point terms
+  VectorXi g_columns;             // G's entries: their columns
+  Eigen::MatrixXd g_linear;       // (3, entries) linear part of each entry's coefficient
+  Csr g_map;                      // (3 entries, 3 points) lever part, linear in the points
+  VectorXi m_rows, m_cols;        // M's upper-triangle entries
+  VectorXi m_off;                 // which of them (indices) appear again below the diagonal
+  VectorXi scatter;               // where [M upper, M lower, G, G^T] go in the band storage (column-major)
+  VectorXi acceleration_slots, row_slots;
+  int band = 0;
+};
+
+class BandedKernel : public Kernel {
+ public:
+  BandedKernel(const pinocchio::Model& model, BandedPattern pattern, double kp, double kd, double pivot_tolerance);
+  bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  int nv() const override { return model_.nv; }
+  bool singular() const { return singular_; }
+  VectorXd multipliers() const;
+
+ private:
+  pinocchio::Model model_;
+  pinocchio::Data data_;
+  BandedPattern pattern_;
+  double kp_, kd_, pivot_tolerance_;
+  Eigen::MatrixXd points_, motion_, terms_, coefficients_, ab_;
+  VectorXd rows_, lever_, values_, rhs_;
+  std::vector<int> pivots_;
+  bool singular_ = false;
+};
+
+}  // namespace pinstab

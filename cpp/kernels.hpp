@@ -1,0 +1,48 @@
+// Compiled evaluations of a scene's accelerations and the explicit step loop over them (pinstab._compiled).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <pinocchio/multibody/data.hpp>
+#include <pinocchio/multibody/model.hpp>
+
+namespace pinstab {
+
+using Eigen::VectorXd;
+using Eigen::VectorXi;
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// The model saved by Python's Model.saveToString(), read back (a pin.Model does not cross into nanobind).
+pinocchio::Model model_from_string(const std::string& text);
+
+// One evaluation a(q, v) under applied forces tau; false when its result is not to be used (a small pivot).
+class Kernel {
+ public:
+  virtual ~Kernel() = default;
+  virtual bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
+  virtual int nv() const = 0;
+};
+
+// A sparse matrix in compressed rows (as scipy's CSR arrays).
+struct Csr {
+  VectorXi indptr, indices;
+  VectorXd data;
+  int rows() const { return static_cast<int>(indptr.size()) - 1; }
+};
+
+// LAPACK's dgbtf2 / dgbtrs (no transpose) on band storage with kl = ku = band, ldab = 3 band + 1:
+// the unblocked LU with partial pivoting that dgbsv runs for a band below its block size.
+// Returns LAPACK's info (0: factored; j > 0: U(j, j) is exactly zero).
+int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> b, std::vector<int>& pivots);
+
+// Explicit schemes of pinstab.integration.schemes on a model whose joints all have one coordinate.
+enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };
+
+// Steps of dt from (q, v): fills rows of qs, vs; returns the steps done (fewer than asked when an
+// evaluation was not to be used: the caller takes that step).
+int advance(Kernel& kernel, Scheme scheme, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau, double dt,
+            int steps, RowMatrix& qs, RowMatrix& vs);
+
+}  // namespace pinstab

@@ -1,0 +1,90 @@
+// pinstab._compiled: the compiled step loop (see pinstab/integration/compiled.py).
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
+#include <nanobind/stl/vector.h>
+
+#include "banded_kernel.hpp"
+#include "native_kernel.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace pinstab {
+namespace {
+
+Csr csr(VectorXi indptr, VectorXi indices, VectorXd data) { return Csr{std::move(indptr), std::move(indices), std::move(data)}; }
+
+std::tuple<RowMatrix, RowMatrix, int> run(Kernel& kernel, int scheme, const VectorXd& q, const VectorXd& v,
+                                          const VectorXd& tau, double dt, int steps) {
+  RowMatrix qs(steps, q.size()), vs(steps, v.size());
+  int done;
+  {
+    nb::gil_scoped_release released;
+    done = advance(kernel, static_cast<Scheme>(scheme), q, v, tau, dt, steps, qs, vs);
+  }
+  return {qs, vs, done};
+}
+
+}  // namespace
+}  // namespace pinstab
+
+NB_MODULE(_compiled, m) {
+  using namespace pinstab;
+  m.doc() = "Compiled evaluations and explicit step loops of pinstab's native and banded paths.";
+  nb::class_<Kernel>(m, "Kernel")
+      .def(
+          "acceleration",
+          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau) {
+            VectorXd a(self.nv());
+            const bool usable = self.acceleration(q, v, tau, a);
+            return std::make_tuple(a, usable);
+          },
+          "q"_a, "v"_a, "tau"_a, "(accelerations, usable) at (q, v) under tau.")
+      .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a,
+           "(qs, vs, done): up to `steps` steps of dt of the scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4).");
+  nb::class_<NativeKernel, Kernel>(m, "NativeKernel")
+      .def(
+          "__init__",
+          [](NativeKernel* self, const std::string& model, const std::vector<int>& joints1,
+             const std::vector<Eigen::Matrix4d>& placements1, const std::vector<int>& joints2,
+             const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double mu) {
+            std::vector<ClosureSpec> closures;
+            for (size_t i = 0; i < joints1.size(); ++i) {
+              closures.push_back({joints1[i], joints2[i], placements1[i], placements2[i]});
+            }
+            new (self) NativeKernel(model_from_string(model), closures, kp, kd, mu);
+          },
+          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
+  nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
+      .def(
+          "__init__",
+          [](BandedKernel* self, const std::string& model, nb::dict arrays, int band, double kp, double kd,
+             double pivot_tolerance) {
+            auto vi = [&](const char* key) { return nb::cast<VectorXi>(arrays[key]); };
+            auto vd = [&](const char* key) { return nb::cast<VectorXd>(arrays[key]); };
+            auto md = [&](const char* key) { return nb::cast<Eigen::MatrixXd>(arrays[key]); };
+            BandedPattern pattern;
+            pattern.carried = vi("carried");
+            pattern.joints = vi("joints");
+            pattern.local = md("local");
+            pattern.fixed_points = md("fixed_points");
+            pattern.support = csr(vi("support_indptr"), vi("support_indices"), vd("support_data"));
+            pattern.row_map = csr(vi("row_map_indptr"), vi("row_map_indices"), vd("row_map_data"));
+            pattern.g_columns = vi("g_columns");
+            pattern.g_linear = md("g_linear");
+            pattern.g_map = csr(vi("g_map_indptr"), vi("g_map_indices"), vd("g_map_data"));
+            pattern.m_rows = vi("m_rows");
+            pattern.m_cols = vi("m_cols");
+            pattern.m_off = vi("m_off");
+            pattern.scatter = vi("scatter");
+            pattern.acceleration_slots = vi("acceleration_slots");
+            pattern.row_slots = vi("row_slots");
+            pattern.band = band;
+            new (self) BandedKernel(model_from_string(model), std::move(pattern), kp, kd, pivot_tolerance);
+          },
+          "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a)
+      .def_prop_ro("singular", &BandedKernel::singular)
+      .def("multipliers", &BandedKernel::multipliers);
+}

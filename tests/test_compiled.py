@@ -1,0 +1,105 @@
+"""The compiled step loop (``pinstab._compiled``, ``cpp/``) against the Python loop it takes the steps of: the same
+trajectories to the last bit on the native and the banded paths for every scheme it takes, the same samples
+with ``record_every``, the stop before an evaluation that is not to be used, and the runs it leaves to Python."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pinstab import build_system, load_scene, simulate
+from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, steps_before
+from pinstab.integration.schemes import INTEGRATORS
+
+
+def _run_both(monkeypatch, scene, integrator, duration, **options):
+    fast = simulate(scene, "baumgarte", integrator, 1e-3, duration, **options)
+    with monkeypatch.context() as patch:
+        patch.setattr(CompiledSteps, "of", classmethod(lambda cls, system, stepper: None))
+        slow = simulate(scene, "baumgarte", integrator, 1e-3, duration, **options)
+    return fast, slow
+
+
+@pytest.mark.parametrize("integrator", list(SCHEMES))
+def test_native_path_bitwise_equal_to_the_python_loop(monkeypatch, integrator):
+    """The four-bar over 2 s (2000 steps): q, v and t equal to the last bit (the same Pinocchio call, the same
+    sums in the same order), almost every step compiled (the first chunk's solves are checked in Python)."""
+    fast, slow = _run_both(monkeypatch, load_scene("fourbar"), integrator, 2.0)
+    assert fast.info.path == slow.info.path == "native"
+    assert fast.info.compiled_steps >= 1900 and slow.info.compiled_steps == 0
+    np.testing.assert_array_equal(fast.t, slow.t)
+    np.testing.assert_array_equal(fast.q, slow.q)
+    np.testing.assert_array_equal(fast.v, slow.v)
+    assert fast.info.solver_statistics.solves == slow.info.solver_statistics.solves
+
+
+def test_banded_path_bitwise_equal_to_the_python_loop(monkeypatch):
+    """The N-four-bar, N = 30 (banded), RK4 over 0.5 s, one sample in 7 kept: equal to the last bit, the same
+    samples (steps and times) and solve counts."""
+    fast, slow = _run_both(monkeypatch, load_scene("nfourbar", N=30), "rk4", 0.5, record_every=7)
+    assert fast.info.path == "banded" and fast.info.compiled_steps > 0
+    np.testing.assert_array_equal(fast.t, slow.t)
+    np.testing.assert_array_equal(fast.q, slow.q)
+    np.testing.assert_array_equal(fast.v, slow.v)
+    assert fast.info.solver_statistics.status_counts == slow.info.solver_statistics.status_counts
+
+
+def test_compiled_banded_path_matches_pinocchios_reference():
+    """Independent check: the compiled banded run against Pinocchio's constraintDynamics (solver pinocchio,
+    Python loop) on N = 24, RK4 over 1 s: crank angles to 1e-10 rad."""
+    scene = load_scene("nfourbar", N=24)
+    ours = simulate(scene, "baumgarte", "rk4", 1e-3, 1.0)
+    reference = simulate(scene, "baumgarte", "rk4", 1e-3, 1.0, solver="pinocchio")
+    assert ours.info.path == "banded" and reference.info.path == "native"
+    assert np.abs(ours.q - reference.q).max() <= 1e-10
+
+
+def test_a_singular_evaluation_stops_the_compiled_loop_before_its_step():
+    """At the aligned configuration (every loop singular) the banded kernel refuses the first evaluation: the
+    compiled loop does no step and says so; two steps from a regular state are done."""
+    scene = load_scene("nfourbar", N=24)
+    system = build_system(scene)
+    system.bind(1e-3, "rk4", scene.q0)
+    assert system.path == "banded"
+    kernel = system.compiled_kernel()
+    model = scene.model
+    aligned = np.zeros(model.nq)
+    for joint in range(1, model.njoints):
+        aligned[model.joints[joint].idx_q] = -np.pi / 2 if model.names[joint].startswith("crank") else np.pi / 2
+    tau = np.zeros(model.nv)
+    assert kernel.run(SCHEMES["rk4"], aligned, np.zeros(model.nv), tau, 1e-3, 5)[2] == 0
+    qs, vs, done = kernel.run(SCHEMES["rk4"], scene.q0, scene.v0, tau, 1e-3, 2)
+    assert done == 2 and np.isfinite(qs).all()
+
+
+def test_runs_left_to_python_say_why():
+    """The general path, a scheme outside the four, a correcting method and force elements keep the Python
+    loop, each named."""
+    scene = load_scene("fourbar")
+    cases = [
+        (dict(solver="proxsuite"), "rk4", "general path"),
+        ({}, "dop853", "not one of"),
+    ]
+    for options, integrator, reason in cases:
+        system = build_system(scene, "baumgarte", **options)
+        system.bind(1e-3, integrator, scene.q0)
+        assert reason in compiled_obstacle(system, INTEGRATORS.build(integrator, system))
+    system = build_system(scene, "projection")
+    system.bind(1e-3, "rk4", scene.q0)
+    assert "corrects" in compiled_obstacle(system, INTEGRATORS.build("rk4", system))
+
+
+@pytest.mark.parametrize(
+    ("k", "stop", "due", "expected"), [(0, 100, np.inf, 100), (0, 100, 0.0105, 11), (5, 8, 1.0, 3), (5, 100, 0.005, 0)]
+)
+def test_steps_before_the_watchs_next_sample(k, stop, due, expected):
+    """The steps from k whose start time j dt lies before the due time (dt = 1 ms), capped at stop."""
+    assert steps_before(k, stop, 1e-3, due) == expected
+    taken = [j for j in range(k, stop) if j * 1e-3 < due]
+    assert expected == len(taken)
+
+
+def test_fourbar_compiled_loop_is_used_by_default():
+    """The default run of the four-bar takes its steps compiled and reports how many (JSON key compiled_steps)."""
+    trajectory = simulate(load_scene("fourbar"), "baumgarte", "rk4", 1e-3, 1.0)
+    assert trajectory.info.to_dict()["compiled_steps"] >= 900
