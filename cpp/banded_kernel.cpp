@@ -26,71 +26,80 @@ void multiply_add(const Csr& matrix, const double* x, double* y) {
 
 }  // namespace
 
-BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, double kp, double kd,
-                           double pivot_tolerance)
-    : model_(model), data_(model_), pattern_(std::move(pattern)), kp_(kp), kd_(kd),
+BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram,
+                           double kp, double kd, double pivot_tolerance)
+    : model_(model), data_(model_), pattern_(std::move(pattern)), spectrum_(std::move(gram)), kp_(kp), kd_(kd),
       pivot_tolerance_(pivot_tolerance) {
   const int points = static_cast<int>(pattern_.fixed_points.cols());
   const int size = static_cast<int>(pattern_.acceleration_slots.size() + pattern_.row_slots.size());
   points_ = pattern_.fixed_points;
-  motion_.resize(12, points);
   terms_.resize(3, points);
   rows_.resize(pattern_.row_slots.size());
   coefficients_ = pattern_.g_linear;  // rows 0-2 fixed, 3-5 from the points
   coefficients_.conservativeResize(6, Eigen::NoChange);
   lever_.resize(3 * pattern_.g_columns.size());
+  g_values_.resize(pattern_.g_columns.size());
   values_.resize(pattern_.scatter.size());
   ab_.setZero(3 * pattern_.band + 1, size);
   rhs_.resize(size);
 }
 
-bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+void BandedKernel::jacobian_values() {
+  // the closure points from the joints' placements, then G's entries: J[:, column] . c_e with
+  // c_e = [linear part; lever x s], the lever linear in the points (data_.J and data_.oMi computed)
   const BandedPattern& p = pattern_;
-  const int points = static_cast<int>(points_.cols());
-  pinocchio::computeJointJacobiansTimeVariation(model_, data_, q, v);
   for (int c = 0; c < p.carried.size(); ++c) {
     const pinocchio::SE3& placement = data_.oMi[p.joints(c)];
     points_.col(p.carried(c)) = placement.rotation() * p.local.row(c).transpose() + placement.translation();
   }
-  // per point: spatial velocity and bias acceleration of its body at the world origin, world axes
-  motion_.setZero();
-  for (int point = 0; point < points; ++point) {
-    for (int entry = p.support.indptr(point); entry < p.support.indptr(point + 1); ++entry) {
-      const int dof = p.support.indices(entry);
-      motion_.col(point).head<6>() += data_.J.col(dof) * v(dof);
-      motion_.col(point).tail<6>() += data_.dJ.col(dof) * v(dof);
-    }
-  }
-  for (int point = 0; point < points; ++point) {
-    const Eigen::Vector3d omega = motion_.col(point).segment<3>(3);
-    const Eigen::Vector3d position = points_.col(point);
-    const Eigen::Vector3d velocity = motion_.col(point).head<3>() + omega.cross(position);
-    terms_.col(point) = motion_.col(point).segment<3>(6) + motion_.col(point).tail<3>().cross(position) +
-                        omega.cross(velocity) + kp_ * position + kd_ * velocity;
-  }
-  // -gamma0 - Kp phi - Kd G v on the closure rows (terms raveled by component, as numpy's ravel)
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> terms = terms_;
-  rows_.setZero();
-  multiply_add(p.row_map, terms.data(), rows_.data());
-  // G's entries: J[:, column] . c_e, c_e = [linear part; lever x s] with the lever linear in the points
   const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> flat_points = points_;
   lever_.setZero();
   multiply_add(p.g_map, flat_points.data(), lever_.data());
   const int entries = static_cast<int>(p.g_columns.size());
   for (int e = 0; e < entries; ++e) {
     for (int i = 0; i < 3; ++i) coefficients_(3 + i, e) = lever_(i * entries + e);
+    g_values_(e) = data_.J.col(p.g_columns(e)).dot(coefficients_.col(e));
   }
+}
+
+double BandedKernel::relative_singular_value(const VectorXd& q, int rank) {
+  pinocchio::computeJointJacobians(model_, data_, q);
+  jacobian_values();
+  return spectrum_.relative(g_values_, rank);
+}
+
+bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+  const BandedPattern& p = pattern_;
+  // crba (world convention) also gives the joint Jacobians and placements; the nonlinear effects' pass the
+  // joints' spatial velocities and their accelerations at a = 0 with gravity's (a_gf, local frames)
+  pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
+  const VectorXd& bias = pinocchio::nonLinearEffects(model_, data_, q, v);
+  jacobian_values();
+  const pinocchio::Motion gravity = model_.gravity;
+  terms_ = kp_ * points_;  // points fixed in the world: no motion, the corrector's Kp p
+  for (int c = 0; c < p.carried.size(); ++c) {
+    const int point = p.carried(c);
+    const pinocchio::SE3& placement = data_.oMi[p.joints(c)];
+    // spatial velocity and bias acceleration of the point's body at the world origin, world axes
+    const pinocchio::Motion velocity_0 = placement.act(data_.v[p.joints(c)]);
+    const pinocchio::Motion bias_0 = placement.act(data_.a_gf[p.joints(c)]) + gravity;
+    const Eigen::Vector3d omega = velocity_0.angular();
+    const Eigen::Vector3d position = points_.col(point);
+    const Eigen::Vector3d velocity = velocity_0.linear() + omega.cross(position);
+    terms_.col(point) = bias_0.linear() + bias_0.angular().cross(position) + omega.cross(velocity) +
+                        (kp_ * position + kd_ * velocity);
+  }
+  // -gamma0 - Kp phi - Kd G v on the closure rows (terms raveled by component, as numpy's ravel)
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> terms = terms_;
+  rows_.setZero();
+  multiply_add(p.row_map, terms.data(), rows_.data());
+  const int entries = static_cast<int>(p.g_columns.size());
   const int upper = static_cast<int>(p.m_rows.size());
   const int off = static_cast<int>(p.m_off.size());
-  for (int e = 0; e < entries; ++e) {
-    const double value = data_.J.col(p.g_columns(e)).dot(coefficients_.col(e));
-    values_(upper + off + e) = value;
-    values_(upper + off + entries + e) = value;
-  }
-  pinocchio::crba(model_, data_, q);
+  values_.segment(upper + off, entries) = g_values_;
+  values_.segment(upper + off + entries, entries) = g_values_;
   for (int m = 0; m < upper; ++m) values_(m) = data_.M(p.m_rows(m), p.m_cols(m));
   for (int m = 0; m < off; ++m) values_(upper + m) = values_(p.m_off(m));
-  const VectorXd& bias = pinocchio::nonLinearEffects(model_, data_, q, v);
   for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
   for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
   ab_.setZero();

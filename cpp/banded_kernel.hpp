@@ -1,6 +1,7 @@
 #pragma once
 
 #include "kernels.hpp"
+#include "spectrum.hpp"
 
 namespace pinstab {
 
@@ -9,7 +10,6 @@ struct BandedPattern {
   VectorXi carried, joints;       // points carried by bodies, and their joints
   Eigen::MatrixXd local;          // (carried, 3) the points in their joints' frames [m]
   Eigen::MatrixXd fixed_points;   // (3, points) world points (zero where carried) [m]
-  Csr support;                    // (points, nv) ones where a velocity moves a point's body
   Csr row_map;                    // (rows, 3 points) closure rows from the per-point terms
   VectorXi g_columns;             // G's entries: their columns
   Eigen::MatrixXd g_linear;       // (3, entries) linear part of each entry's coefficient
@@ -23,19 +23,25 @@ struct BandedPattern {
 
 class BandedKernel : public Kernel {
  public:
-  BandedKernel(const pinocchio::Model& model, BandedPattern pattern, double kp, double kd, double pivot_tolerance);
+  BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram, double kp, double kd,
+               double pivot_tolerance);
   bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   bool singular() const { return singular_; }
   VectorXd multipliers() const;
+  // sigma_r / sigma_1 of the closures' Jacobian G at q (the passage watch's sample), by GramSpectrum
+  double relative_singular_value(const VectorXd& q, int rank);
 
  private:
+  void jacobian_values();
+
   pinocchio::Model model_;
   pinocchio::Data data_;
   BandedPattern pattern_;
+  GramSpectrum spectrum_;
   double kp_, kd_, pivot_tolerance_;
-  Eigen::MatrixXd points_, motion_, terms_, coefficients_, ab_;
-  VectorXd rows_, lever_, values_, rhs_;
+  Eigen::MatrixXd points_, terms_, coefficients_, ab_;
+  VectorXd rows_, lever_, values_, rhs_, g_values_;
   std::vector<int> pivots_;
   bool singular_ = false;
 };

@@ -70,7 +70,6 @@ NB_MODULE(_compiled, m) {
             pattern.joints = vi("joints");
             pattern.local = md("local");
             pattern.fixed_points = md("fixed_points");
-            pattern.support = csr(vi("support_indptr"), vi("support_indices"), vd("support_data"));
             pattern.row_map = csr(vi("row_map_indptr"), vi("row_map_indices"), vd("row_map_data"));
             pattern.g_columns = vi("g_columns");
             pattern.g_linear = md("g_linear");
@@ -82,9 +81,20 @@ NB_MODULE(_compiled, m) {
             pattern.acceleration_slots = vi("acceleration_slots");
             pattern.row_slots = vi("row_slots");
             pattern.band = band;
-            new (self) BandedKernel(model_from_string(model), std::move(pattern), kp, kd, pivot_tolerance);
+            GramSpectrum::Pattern gram;
+            gram.entry_rows = vi("gram_entry_rows");
+            gram.entry_cols = vi("g_columns");
+            gram.pair_first = vi("gram_pair_first");
+            gram.pair_second = vi("gram_pair_second");
+            gram.pair_slot = vi("gram_pair_slot");
+            gram.rows = static_cast<int>(pattern.row_slots.size());
+            gram.band = vi("gram_band")(0);  // one entry
+            new (self) BandedKernel(model_from_string(model), std::move(pattern), std::move(gram), kp, kd,
+                                    pivot_tolerance);
           },
           "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a)
       .def_prop_ro("singular", &BandedKernel::singular)
-      .def("multipliers", &BandedKernel::multipliers);
+      .def("multipliers", &BandedKernel::multipliers)
+      .def("relative_singular_value", &BandedKernel::relative_singular_value, "q"_a, "rank"_a,
+           "sigma_r / sigma_1 of the closures' Jacobian at q.");
 }

@@ -23,20 +23,18 @@ solve for that evaluation.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import eig_banded
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ._compiled import BandedKernel
 from .constraints import FrameClosure
-from .memory import new_data
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
-MIN_CLOSURES = 24  # fewer: Pinocchio's solve is cheaper (N-four-bar: it is at N = 20, not at N = 40, chains.py)
+MIN_CLOSURES = (
+    6  # fewer: the band rule below keeps Pinocchio's solve (compiled, the banded solve is cheaper from N = 1)
+)
 MAX_BAND_FRACTION = 0.25  # a band wider than this fraction of the unknowns gains nothing over a dense solve
 
 
@@ -67,15 +65,12 @@ def _support(model: pin.Model, joint: int) -> list[int]:
 class BandedDynamics:
     """The accelerations of a tree closed by ``point`` / ``planar-point`` closures, by a banded LU.
 
-    The closure points are read from Pinocchio's static regressor, which holds every body's placement
-    ``[t, R]`` divided by the total mass in one array: one vectorized read instead of a Python loop
-    over the placements (~0.3 us each).
+    The pattern (which entries exist, where they go in the band) is found here once; the compiled kernel
+    (:attr:`kernel`, ``cpp/banded_kernel.cpp``) evaluates it.
 
     Args:
         model: the Pinocchio model. closures: point and planar-point closures.
         kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
-        data: a ``Data`` of the model to compute in (shared with another solve: each call recomputes all it
-            reads), or None for its own.
 
     Attributes:
         size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
@@ -88,10 +83,8 @@ class BandedDynamics:
         closures: list[FrameClosure],
         kp: float = 0.0,
         kd: float = 0.0,
-        data: pin.Data | None = None,
     ) -> None:
         self.model = model
-        self.data = new_data(model) if data is None else data
         self.kp, self.kd = float(kp), float(kd)
         count = len(closures)
         # the points: side a of every closure, then side b; (joint, local point), joint 0: a fixed world point
@@ -105,15 +98,10 @@ class BandedDynamics:
         points = 2 * count
         carried = [index for index, (joint, _) in enumerate(sides) if joint != 0]
         self._carried = np.array(carried, dtype=int)
-        self._bodies = np.array([sides[index][0] - 1 for index in carried], dtype=int)  # regressor blocks
-        self._local = np.array([np.concatenate(([1.0], sides[index][1])) for index in carried]).reshape(-1, 4)
-        self._total_mass = float(sum(inertia.mass for inertia in model.inertias))
+        self._local = np.array([sides[index][1] for index in carried]).reshape(-1, 3)
         self._points = (
             np.array([point if joint == 0 else np.zeros(3) for joint, point in sides]).reshape(-1, 3).T.copy()
         )
-        # support: row i sums the velocity columns that move point i
-        entries = [(index, dof) for index, (joint, _) in enumerate(sides) for dof in _support(model, joint)]
-        self._support = _sparse(entries, np.ones(len(entries)), (points, model.nv))
         # closure rows: r = s_r . (T_b - T_a) over the per-point terms T (3, points), raveled by component
         row_closure = np.repeat(np.arange(count), [closure.selection.shape[0] for closure in closures]).astype(int)
         selection = np.vstack([closure.selection for closure in closures]).reshape(-1, 3)
@@ -144,8 +132,7 @@ class BandedDynamics:
                                 values.append(weight * skew[i, j])
         self._g_row, self._g_col = (np.array(index, dtype=int) for index in zip(*g_entries, strict=True))
         size = len(g_entries)
-        self._g_coefficients = np.zeros((6, size))
-        self._g_coefficients[:3] = np.array(linear).T
+        self._g_linear = np.array(linear).T.reshape(3, -1)
         entries = [(i * size + e, column) for i, e, column in entries]
         self._g_map = _sparse(entries, np.array(values), (3 * size, 3 * points))
         # M entries (upper triangle read from crba): dofs on one branch
@@ -169,10 +156,10 @@ class BandedDynamics:
         arrays = {
             "carried": self._carried,
             "joints": np.array([sides[index][0] for index in self._carried], dtype=int),
-            "local": self._local[:, 1:],
+            "local": self._local,
             "fixed_points": self._points,
             "g_columns": self._g_col,
-            "g_linear": self._g_coefficients[:3],
+            "g_linear": self._g_linear,
             "m_rows": m_upper[:, 0],
             "m_cols": m_upper[:, 1],
             "m_off": np.flatnonzero(self._m_off),
@@ -180,11 +167,37 @@ class BandedDynamics:
             "acceleration_slots": self._acceleration_slots,
             "row_slots": self._row_slots,
         }
-        for name, matrix in (("support", self._support), ("row_map", self._row_map), ("g_map", self._g_map)):
+        arrays.update(self._gram_pattern())
+        for name, matrix in (("row_map", self._row_map), ("g_map", self._g_map)):
             arrays.update(
                 {f"{name}_indptr": matrix.indptr, f"{name}_indices": matrix.indices, f"{name}_data": matrix.data}
             )
         return {name: np.ascontiguousarray(array) for name, array in arrays.items()}
+
+    def _gram_pattern(self) -> dict[str, np.ndarray]:
+        """The banded Gram matrix G G^T of the closures' rows (reverse Cuthill-McKee order): its band, each G
+        entry's row in that order and the products of entries that share a column with the slot each adds to
+        (lower band storage, column-major: A[i, j] at [i - j, j], i >= j)."""
+        by_column: dict[int, list[int]] = {}
+        for entry, column in enumerate(self._g_col):
+            by_column.setdefault(int(column), []).append(entry)
+        pairs = [(e1, e2) for entries in by_column.values() for e1 in entries for e2 in entries]
+        first, second = (np.array(side, dtype=int) for side in zip(*pairs, strict=True))
+        rows = self._g_row
+        pattern = coo_matrix((np.ones(len(first)), (rows[first], rows[second])), shape=(self.rows, self.rows))
+        order = np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=int)
+        position = np.empty(self.rows, dtype=int)
+        position[order] = np.arange(self.rows)
+        low, high = position[rows[first]], position[rows[second]]
+        kept = low >= high  # each product once, in the lower triangle
+        band = int(np.max(low - high, initial=0))
+        return {
+            "gram_entry_rows": position[rows],
+            "gram_pair_first": first[kept],
+            "gram_pair_second": second[kept],
+            "gram_pair_slot": (low - high)[kept] + (band + 1) * high[kept],
+            "gram_band": np.array([band]),
+        }
 
     def _build_band(self, m_upper: np.ndarray) -> None:
         """The reverse Cuthill-McKee order of the KKT pattern, its band and the scatter of the entries
@@ -201,11 +214,6 @@ class BandedDynamics:
         band = int(np.max(np.abs(prow - pcol), initial=0))
         self.size, self.band = size, band
         self._acceleration_slots, self._row_slots = position[:nv], position[nv:]
-        # [[0, G], [G^T, 0]] (eigenvalues +-sigma(G) and zeros) in the same order, upper band storage
-        g_count = len(self._g_row)
-        upper, lower = np.maximum(prow, pcol)[-g_count:], np.minimum(prow, pcol)[-g_count:]
-        self._gram = np.zeros((band + 1, size))
-        self._gram_scatter = (band + lower - upper) * size + upper
         # LAPACK's band storage (column-major, 3 band + 1 rows): A[i, j] at ab[2 kl + i - j, j], kl = ku
         self._scatter = pcol * (3 * band + 1) + 2 * band + prow - pcol
 
@@ -216,35 +224,12 @@ class BandedDynamics:
         self.singular = not usable
         return acceleration
 
-    def _placements(self, q: np.ndarray) -> np.ndarray:
-        """The closure points at q (3, points) [m]."""
-        placements = pin.computeStaticRegressor(self.model, self.data, q).reshape(3, -1, 4)  # [t, R] / total mass
-        points = self._points
-        points[:, self._carried] = self._total_mass * np.einsum("kbc,bc->kb", placements[:, self._bodies], self._local)
-        return points
-
-    def _jacobian_values(self, jacobian: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """G's entries (at the pattern's (row, column) pairs) from the joint Jacobians and the points."""
-        coefficients = self._g_coefficients
-        coefficients[3:] = (self._g_map @ points.ravel()).reshape(3, -1)
-        return np.einsum("ke,ke->e", jacobian[:, self._g_col], coefficients)
-
     def relative_singular_value(self, q: np.ndarray, rank: int) -> float:
-        """sigma_rank / sigma_1 of the closures' Jacobian G at q [-] (NaN when not finite): the eigenvalues of
-        ``[[0, G], [G^T, 0]]`` are +-sigma(G) and zeros, found in its band by LAPACK's banded symmetric
-        eigensolver (no dense SVD, which runs on OpenBLAS threads that a loaded machine slows badly).
-        Accurate to rounding of sigma_1, as an SVD."""
-        model, data = self.model, self.data
-        points = self._placements(q)
-        values = self._jacobian_values(pin.computeJointJacobians(model, data, q), points)
-        if not np.isfinite(values).all():
-            return math.nan
-        gram = self._gram
-        gram.ravel()[self._gram_scatter] = values
-        size = self.size
-        low = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - rank, size - rank))[0]
-        high = eig_banded(gram, eigvals_only=True, select="i", select_range=(size - 1, size - 1))[0]
-        return float(low / high) if high > 0 else math.nan
+        """sigma_rank / sigma_1 of the closures' Jacobian G at q [-] (NaN when not finite), the passage watch's
+        sample: the compiled kernel's Rayleigh quotient iterations on the banded Gram matrix G G^T, checked by
+        its inertia (``cpp/spectrum.cpp``; no dense SVD, no OpenBLAS threads). Accurate to rounding of
+        sigma_1, as an SVD."""
+        return self.kernel.relative_singular_value(q, rank)
 
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""

@@ -96,16 +96,25 @@ class NativeDynamics:
             :meth:`residual` take point and planar-point closures only.
         kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
         mu: proximal regularization of Pinocchio's solve.
+        data: a ``Data`` of the model to solve in (shared with other computations: each solve recomputes all it
+            reads, and :meth:`multipliers` / :meth:`residual` must follow their solve), or None for its own; a
+            ``Data`` of a long chain costs milliseconds (pin 4.1: 4-20 ms at 81 velocities, 30-140 ms at 161).
 
     Attributes:
         rows: selection from Pinocchio's contact rows to the closures' rows.
     """
 
     def __init__(
-        self, model: pin.Model, closures: list[FrameClosure], kp: float = 0.0, kd: float = 0.0, mu: float = 1e-12
+        self,
+        model: pin.Model,
+        closures: list[FrameClosure],
+        kp: float = 0.0,
+        kd: float = 0.0,
+        mu: float = 1e-12,
+        data: pin.Data | None = None,
     ) -> None:
         self.model = model
-        self.data = new_data(model)
+        self.data = new_data(model) if data is None else data
         self.closures = closures
         self.models = pin.StdVec_RigidConstraintModel()
         self.datas = pin.StdVec_RigidConstraintData()

@@ -113,7 +113,7 @@ class ConstrainedSystem:
         native = self.solver.native
         if native is None:
             closures = [c for c in self.model.constraints.constraints if isinstance(c, FrameClosure)]
-            native = NativeDynamics(self.model.model, closures, *gains, mu=self.native_mu(q))
+            native = NativeDynamics(self.model.model, closures, *gains, mu=self.native_mu(q), data=self.model.scratch)
         native.set_gains(*gains)
         self.native = native
         if self.stabilizer.corrects:
@@ -134,7 +134,7 @@ class ConstrainedSystem:
         allowed, and a method without post-step corrections (those run on Pinocchio's factorization)."""
         if not self._banded_allowed or self.stabilizer.corrects or banded_obstacle(native.closures, 0) is not None:
             return None
-        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd, native.data)
+        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd)
         return banded if banded_obstacle(native.closures, banded.size, banded.band) is None else None
 
     def native_mu(self, q: np.ndarray) -> float:

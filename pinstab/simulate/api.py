@@ -16,6 +16,7 @@ from ..files import check_output
 from ..memory import named_when_exhausted
 from ..scene import Scene, load_scene
 from ..stream import h5py_module
+from ..threads import single_blas_thread
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
@@ -27,6 +28,7 @@ DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
 
 
 @named_when_exhausted("a run (simulate)")
+@single_blas_thread
 def simulate(
     scene: Scene | str | Path,
     method: str = "baumgarte",
