@@ -28,8 +28,8 @@ import pinocchio as pin
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from ._compiled import BandedKernel
 from .constraints import FrameClosure
+from .kernels import BandedKernel
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
 MIN_CLOSURES = (

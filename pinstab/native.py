@@ -21,8 +21,8 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from ._compiled import NativeKernel
 from .constraints import Constraint, FrameClosure, RowKind
+from .kernels import NativeKernel
 from .kinematics import LWA
 from .memory import new_data
 

@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from ._compiled import Kernel
 from .banded import BandedDynamics, banded_obstacle
 from .constraints import ConstraintValues, FrameClosure
 from .errors import DivergenceError, PinstabError
+from .kernels import Kernel
 from .model import ConstrainedModel
 from .native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .projection import GeneralProjector, Projector

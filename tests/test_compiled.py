@@ -4,10 +4,16 @@ with ``record_every``, the stop before an evaluation that is not to be used, and
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from pinstab import build_system, load_scene, simulate
+from pinstab.banded import BandedDynamics
+from pinstab.cli import main
+from pinstab.constraints import FrameClosure
 from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, steps_before
 from pinstab.integration.schemes import INTEGRATORS
 
@@ -99,7 +105,36 @@ def test_steps_before_the_watchs_next_sample(k, stop, due, expected):
     assert expected == len(taken)
 
 
-def test_fourbar_compiled_loop_is_used_by_default():
-    """The default run of the four-bar takes its steps compiled and reports how many (JSON key compiled_steps)."""
-    trajectory = simulate(load_scene("fourbar"), "baumgarte", "rk4", 1e-3, 1.0)
-    assert trajectory.info.to_dict()["compiled_steps"] >= 900
+def test_run_json_counts_the_compiled_steps(capsys):
+    """``pinstab run --json`` of the four-bar says how many of its steps the compiled loop took (all but the
+    first chunk's, whose solves are checked in Python, and the last)."""
+    assert main(["run", "fourbar", "--duration", "1", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["path"] == "native" and 890 <= result["compiled_steps"] <= 999
+
+
+def test_conditioning_with_redundant_rows_equals_the_svds():
+    """3-D point closures on the planar N-four-bar (N = 8): each adds an identically zero z row, so G has 24 rows
+    of rank 16. The compiled sigma_16 / sigma_1 (an interior eigenvalue of the Gram matrix, found past the eight
+    zero ones) equals the dense SVD's to 1e-13 along a path towards the aligned configuration."""
+    scene = load_scene("nfourbar", N=8)
+    model = scene.model
+    points = [FrameClosure(c.name, "point", c.frame_a, c.frame_b) for c in scene.constraints]
+    banded = BandedDynamics(model, points, 0.0, 0.0)
+    aligned = np.zeros(model.nq)
+    for joint in range(1, model.njoints):
+        aligned[model.joints[joint].idx_q] = -np.pi / 2 if model.names[joint].startswith("crank") else np.pi / 2
+    data = model.createData()
+    for share in (0.0, 0.3, 0.9, 0.99, 0.999):
+        q = (1 - share) * scene.q0 + share * aligned
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+        rows = []
+        for closure in points:  # G of point a - point b, world axes
+            jacobians = []
+            for frame in (closure.frame_a, closure.frame_b):
+                jacobians.append(pin.getFrameJacobian(model, data, frame, pin.LOCAL_WORLD_ALIGNED)[:3])
+            rows.append(jacobians[0] - jacobians[1])
+        singular = np.linalg.svd(np.vstack(rows), compute_uv=False)
+        assert int(np.sum(singular > 1e-9 * singular[0])) == 16
+        assert banded.relative_singular_value(q, 16) == pytest.approx(singular[15] / singular[0], rel=0, abs=1e-13)

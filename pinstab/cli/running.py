@@ -97,6 +97,7 @@ def run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
         "parameters": info.parameters,
         "path": info.path,
         "path_reason": info.path_reason,
+        "compiled_steps": info.compiled_steps,
         "record_every": info.record_every,
     }
 

@@ -1,0 +1,25 @@
+"""The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics and the
+banded solve evaluated in C++, and the explicit step loop over them (:mod:`pinstab.integration.compiled`).
+
+The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
+release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    from ._compiled import BandedKernel, Kernel, NativeKernel
+except ImportError as error:  # pragma: no cover - a broken install
+    try:
+        pin_release = version("pin")
+    except PackageNotFoundError:
+        pin_release = "none"
+    raise ImportError(
+        f"pinstab's compiled step loop (pinstab._compiled) cannot be loaded ({error}); it is built by pip install "
+        f"against the pin release in pinstab's requirements (installed now: pin {pin_release}). Reinstall pinstab "
+        "(pip install -e . in its checkout, or pip install --force-reinstall pinstab)"
+    ) from error
+
+__all__ = ["BandedKernel", "Kernel", "NativeKernel"]
