@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pinstab import BranchChangeWarning, load_scene, simulate, trajectory_error
-from pinstab.integration.passages import PassageWatch, node_gap, tangent_turn
+from pinstab.integration.passages import PassageWatch, _parabola_roots, node_gap, tangent_turn
 
 DURATION = 5.0  # [s] five passages (from the upright start at -1 rad/s)
 
@@ -92,3 +92,12 @@ def test_rk4_stage_gap_and_crossing_prediction():
     assert abs(watch.crossing() - 0.3) < 1e-12
     watch.samples = [(0.0, 0.3 - 0.0**2, None), (0.1, 0.3 - 0.1**2 * 10, None), (0.15, 0.3 - 0.15**2 * 10, None)]
     assert abs(watch.crossing() - np.sqrt(0.03)) < 1e-9  # the parabola's root, before the line's
+
+
+def test_parabola_roots_through_three_samples():
+    """The crossing's parabola: through (0.1, s(0.1)), (0.3, s(0.3)), (0.6, s(0.6)) of s = 2 (t - 0.45)(t - 0.9), its
+    roots 0.45 and 0.9 (as times after 0.3: 0.15, 0.6) to 1e-14; a line (a = 0) has one; no real root, none."""
+    samples = [(t, 2 * (t - 0.45) * (t - 0.9), None) for t in (0.1, 0.3, 0.6)]
+    np.testing.assert_allclose(sorted(_parabola_roots(samples, 0.3)), [0.15, 0.6], rtol=0, atol=1e-14)
+    assert _parabola_roots([(t, 1.0 - t, None) for t in (0.0, 0.5, 1.0)], 0.0) == pytest.approx([1.0], abs=1e-15)
+    assert _parabola_roots([(t, 1.0 + t * t, None) for t in (-1.0, 0.0, 1.0)], 0.0) == []

@@ -141,6 +141,24 @@ class Conditioning:
         return right[self.rank :].T
 
 
+def _parabola_roots(samples: list[tuple[float, float, np.ndarray]], origin: float) -> list[float]:
+    """The real roots, as times after ``origin`` [s], of the parabola through three samples (t, s, q): its
+    coefficients from divided differences (what a degree-2 least-squares fit through three points is, without
+    the fit's SVD), the roots by the cancellation-free quadratic formula."""
+    (x0, y0, _), (x1, y1, _), (x2, y2, _) = ((t - origin, value, q) for t, value, q in samples)
+    first, second = (y1 - y0) / (x1 - x0), (y2 - y1) / (x2 - x1)
+    a = (second - first) / (x2 - x0)
+    b = first - a * (x0 + x1)
+    c = y0 - x0 * (first - a * x1)
+    if a == 0.0:
+        return [-c / b] if b != 0.0 else []
+    discriminant = b * b - 4.0 * a * c
+    if discriminant < 0.0:
+        return []
+    q = -0.5 * (b + math.copysign(math.sqrt(discriminant), b))
+    return [q / a] + ([c / q] if q != 0.0 else [])
+
+
 def tangent_turn(before: np.ndarray, after: np.ndarray) -> float:
     """The largest principal angle between the spans of two orthonormal bases [rad] (from its sine, which
     stays accurate for small angles)."""
@@ -221,10 +239,7 @@ class PassageWatch:
         linear = t1 + s1 * (t1 - t0) / (s0 - s1)
         if len(self.samples) < 3 or not self.samples[0][1] > s0:
             return linear
-        times = np.array([sample[0] for sample in self.samples])
-        values = np.array([sample[1] for sample in self.samples])
-        roots = np.roots(np.polyfit(times - t1, values, 2))
-        ahead = [float(root.real) for root in roots if abs(root.imag) < 1e-12 and root.real > 0]
+        ahead = [root for root in _parabola_roots(self.samples, t1) if root > 0]
         return min([linear, *(t1 + root for root in ahead)])
 
     def snapshot(self) -> tuple:
