@@ -109,4 +109,4 @@ def make_pinocchio(
     if reason is not None:
         raise SolverError(f"solver pinocchio: {reason}. Use solver 'proxsuite' or 'dense'.")
     closures = [c for c in constraints if isinstance(c, FrameClosure)]
-    return PinocchioSolver(NativeDynamics(model.model, closures, *corrector_gains, mu=options.mu))
+    return PinocchioSolver(NativeDynamics(model.model, closures, *corrector_gains, mu=options.mu, data=model.scratch))
