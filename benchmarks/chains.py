@@ -21,7 +21,7 @@ def main() -> None:
     result = chain_costs()
     print(
         "  N  path    default  5 s run   native   MuJoCo  default/MuJoCo  5 s/MuJoCo"
-        "  | per evaluation: banded  constraintDynamics  passes"
+        "  | per evaluation: banded  constraintDynamics  passes  conditioning"
     )
     for index, n in enumerate(result["N"]):
         print(
@@ -30,7 +30,7 @@ def main() -> None:
             f"  {result['mujoco_us'][index]:7.0f}  {result['default_over_mujoco'][index]:14.2f}"
             f"  {result['long_over_mujoco'][index]:15.2f}  |"
             f" {result['banded_us'][index]:22.0f}  {result['constraintDynamics_us'][index]:18.0f}"
-            f"  {result['pinocchio_passes_us'][index]:6.0f}"
+            f"  {result['pinocchio_passes_us'][index]:6.0f}  {result['conditioning_us'][index]:12.0f}"
         )
     print(
         "exponent p of cost ~ N^p: "

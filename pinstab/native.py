@@ -98,7 +98,7 @@ class NativeDynamics:
         mu: proximal regularization of Pinocchio's solve.
         data: a ``Data`` of the model to solve in (shared with other computations: each solve recomputes all it
             reads, and :meth:`multipliers` / :meth:`residual` must follow their solve), or None for its own; a
-            ``Data`` of a long chain costs milliseconds (pin 4.1: 4-20 ms at 81 velocities, 30-140 ms at 161).
+            ``Data`` of a long chain is costly (``benchmarks/data_creation.py``).
 
     Attributes:
         rows: selection from Pinocchio's contact rows to the closures' rows.

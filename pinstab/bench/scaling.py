@@ -71,11 +71,11 @@ def chain_costs(
     model; singular passages in proportion), the same run on Pinocchio's solve
     (``solver="pinocchio"``: the native path) and MuJoCo's RK4 ``mj_step`` (loops as ``connect``
     equalities); per evaluation, the banded solve, ``pin.constraintDynamics`` and the two Pinocchio
-    passes the banded solve starts from (``crba`` in the world convention, ``nonLinearEffects``). Exponents p of
-    cost ~ N^p fitted over ``sizes``."""
+    passes the banded solve starts from (``crba`` in the world convention, ``nonLinearEffects``), and the passage
+    watch's sample sigma_r / sigma_1 on the banded path. Exponents p of cost ~ N^p fitted over ``sizes``."""
     steps = round(duration / dt)
     runs = ("default", "long", "native", "mujoco")
-    passes = ("banded", "constraintDynamics", "pinocchio_passes")
+    passes = ("banded", "constraintDynamics", "pinocchio_passes", "conditioning")
     best: dict[str, dict[int, float]] = {name: {n: math.inf for n in sizes} for name in runs + passes}
     paths: dict[int, str] = {}
     for _ in range(rounds):
@@ -104,7 +104,8 @@ def chain_costs(
 def _evaluations(scene: Scene, q: np.ndarray, v: np.ndarray) -> dict[str, float]:
     """CPU microseconds of one dynamics evaluation at (q, v): the banded solve, Pinocchio's
     ``constraintDynamics`` (same closures and gains) and the two Pinocchio passes the banded solve reads
-    (``crba`` in the world convention, ``nonLinearEffects``)."""
+    (``crba`` in the world convention, ``nonLinearEffects``); and the banded conditioning sample, repeated at the
+    one state (its iterations warm-started: the run's samples, a few steps apart, take a few more)."""
     closures = [c for c in scene.constraints if isinstance(c, FrameClosure)]
     model, tau = scene.model, np.zeros(scene.model.nv)
     banded = BandedDynamics(model, closures, KP, KD)
@@ -119,4 +120,5 @@ def _evaluations(scene: Scene, q: np.ndarray, v: np.ndarray) -> dict[str, float]
         "banded": _evaluation_us(lambda: banded.acceleration(q, v, tau)),
         "constraintDynamics": _evaluation_us(lambda: native.acceleration(q, v, tau)),
         "pinocchio_passes": _evaluation_us(passes),
+        "conditioning": _evaluation_us(lambda: banded.relative_singular_value(q, banded.rows)),
     }
