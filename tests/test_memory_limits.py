@@ -19,6 +19,7 @@ from pinstab import MemoryBudgetError, SceneError, Trajectory, load_scene, simul
 from pinstab.cli import main
 from pinstab.integration.records import Records
 from pinstab.integration.stepping import CHECK_STEPS, StepLoop
+from pinstab.memory import limits
 from pinstab.memory.limits import memory_sources, tightest
 
 ROBOTS = Path(__file__).resolve().parent.parent / "robots"
@@ -256,3 +257,16 @@ def test_the_ceiling_itself_is_accepted(tmp_path):
     assert scene.forces[1].stiffness == 1e12
     with pytest.raises(SceneError, match=r"stiffness = 1e\+12 N/m is outside"):
         load_scene(scene_file(tmp_path, "slider-crank", ("stiffness = 0.0", "stiffness = 1.0000001e12")))
+
+
+def test_a_reading_of_the_real_limits_is_reused_for_half_a_second(monkeypatch):
+    """Under the real root, tightest() reads the limits once per FRESH_FOR seconds (a run checks its budget several
+    times at its start): the same reading within it, a new one after it."""
+    clock = [1000.0]
+    monkeypatch.setattr(limits.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(limits, "_recent", [])
+    first = tightest()
+    clock[0] += 0.4 * limits.FRESH_FOR
+    assert tightest() is first
+    clock[0] += limits.FRESH_FOR
+    assert tightest() is not first
