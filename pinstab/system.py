@@ -161,6 +161,8 @@ class ConstrainedSystem:
         reason = unsupported_constraint(constraints, NATIVE_KINDS)
         if reason is not None:
             return reason
+        if self.model.scene.tilt is not None:
+            return "gravity tilts in time ([tilt]); Pinocchio's solve takes the model's one gravity"
         if self.stabilizer.baumgarte_gains() is None:
             return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
         closures = [c for c in constraints if isinstance(c, FrameClosure)]
