@@ -88,13 +88,8 @@ class BandedDynamics:
         self.kp, self.kd = float(kp), float(kd)
         count = len(closures)
         # the points: side a of every closure, then side b; (joint, local point), joint 0: a fixed world point
-        sides = [(model.frames[c.frame_a].parentJoint, model.frames[c.frame_a].placement.translation) for c in closures]
-        for closure in closures:
-            if closure.frame_b is None:
-                sides.append((0, closure.world_placement_b.translation))
-            else:
-                frame = model.frames[closure.frame_b]
-                sides.append((frame.parentJoint, frame.placement.translation))
+        pairs = [closure.sides(model) for closure in closures]
+        sides = [(joint, placement.translation) for side in (0, 1) for joint, placement in (p[side] for p in pairs)]
         points = 2 * count
         carried = [index for index, (joint, _) in enumerate(sides) if joint != 0]
         self._carried = np.array(carried, dtype=int)
@@ -143,7 +138,6 @@ class BandedDynamics:
             for k in _support(model, joint)
         }
         m_upper = np.array(sorted(m_pairs), dtype=int).reshape(-1, 2)
-        self._m_index = (m_upper[:, 0], m_upper[:, 1])
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
         self._build_band(m_upper)
         self.kernel = BandedKernel(

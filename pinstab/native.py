@@ -41,15 +41,8 @@ PLANAR_TOLERANCE = 1e-12  # [m per rad]: out-of-plane Jacobian entries of a plan
 def rigid_constraint(model: pin.Model, closure: FrameClosure, kp: float, kd: float) -> pin.RigidConstraintModel:
     """Pinocchio's model of a closure: a 3-D (point-like) or 6-D (weld) contact between frame a and
     frame b (or the world), in LOCAL_WORLD_ALIGNED, with the corrector (Kp [1/s^2], Kd [1/s])."""
-    frame_a = model.frames[closure.frame_a]
-    if closure.frame_b is None:
-        joint_b, placement_b = 0, closure.world_placement_b
-    else:
-        frame_b = model.frames[closure.frame_b]
-        joint_b, placement_b = frame_b.parentJoint, frame_b.placement
-    rcm = pin.RigidConstraintModel(
-        CONTACT_TYPES[closure.kind], model, frame_a.parentJoint, frame_a.placement, joint_b, placement_b, LWA
-    )
+    (joint_a, placement_a), (joint_b, placement_b) = closure.sides(model)
+    rcm = pin.RigidConstraintModel(CONTACT_TYPES[closure.kind], model, joint_a, placement_a, joint_b, placement_b, LWA)
     rcm.name = closure.name
     rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
     return rcm

@@ -142,8 +142,7 @@ def check_closures(model: pin.Model, constraints: list[Constraint]) -> None:
     for constraint in constraints:
         if not isinstance(constraint, FrameClosure):
             continue
-        joint_a = model.frames[constraint.frame_a].parentJoint
-        joint_b = 0 if constraint.frame_b is None else model.frames[constraint.frame_b].parentJoint
+        (joint_a, _), (joint_b, _) = constraint.sides(model)
         if joint_a == joint_b:
             raise SceneError(
                 f"constraint {constraint.name!r}: both frames are on the same rigid body (joint "

@@ -73,6 +73,15 @@ class FrameClosure(Constraint):
             else ("world axes, force on a" if kind == "point" else "plane axes, force on a")
         )
 
+    def sides(self, model: pin.Model) -> tuple[tuple[int, pin.SE3], tuple[int, pin.SE3]]:
+        """Where the closure's two points sit in ``model``: (joint, placement in the joint's frame) of side a and
+        of side b, side b on the world as joint 0 at :attr:`world_placement_b`."""
+        frame_a = model.frames[self.frame_a]
+        if self.frame_b is None:
+            return (frame_a.parentJoint, frame_a.placement), (0, self.world_placement_b)
+        frame_b = model.frames[self.frame_b]
+        return (frame_a.parentJoint, frame_a.placement), (frame_b.parentJoint, frame_b.placement)
+
     # -- helpers -----------------------------------------------------------------------------
     def _placement_b(self, kin: Kinematics) -> pin.SE3:
         return self.world_placement_b if self.frame_b is None else kin.placement(self.frame_b)
