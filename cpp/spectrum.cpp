@@ -19,17 +19,15 @@ GramSpectrum::GramSpectrum(Pattern pattern) : pattern_(std::move(pattern)) {
   gram_.setZero(b + 1, n);
   work_.setZero(b + 1, n);
   lu_.setZero(3 * b + 1, n);
-  diagonal_.setZero(n);
-  gram_times_.setZero(n);
+  transposed_.setZero(pattern_.entry_cols.size() ? pattern_.entry_cols.maxCoeff() + 1 : 0);
 }
 
 double GramSpectrum::norm_of_transpose_times(const VectorXd& values, const VectorXd& x) {
-  // |G^T x| with G's entries: columns accumulated in a scratch sized by the largest column index
+  // |G^T x| with G's entries, accumulated by column
   const VectorXi& cols = pattern_.entry_cols;
-  const int columns = cols.size() ? cols.maxCoeff() + 1 : 0;
-  VectorXd product = VectorXd::Zero(columns);
-  for (int e = 0; e < values.size(); ++e) product(cols(e)) += values(e) * x(pattern_.entry_rows(e));
-  return product.norm();
+  transposed_.setZero();
+  for (int e = 0; e < values.size(); ++e) transposed_(cols(e)) += values(e) * x(pattern_.entry_rows(e));
+  return transposed_.norm();
 }
 
 int GramSpectrum::count_below(double shift) {
@@ -41,7 +39,6 @@ int GramSpectrum::count_below(double shift) {
   for (int j = 0; j < n; ++j) {
     double pivot = work_(0, j);
     if (pivot == 0.0) pivot = std::numeric_limits<double>::epsilon() * (std::abs(shift) + 1e-300);
-    diagonal_(j) = pivot;
     if (pivot < 0.0) ++negative;
     const int last = std::min(n - 1, j + b);
     for (int i = j + 1; i <= last; ++i) {  // the trailing block minus l_ij d_j l_kj

@@ -31,7 +31,7 @@ class GramSpectrum {
   Pattern pattern_;
   Eigen::MatrixXd gram_;  // lower band storage: gram_(d, j) = A(j + d, j)
   Eigen::MatrixXd work_, lu_;
-  VectorXd diagonal_, gram_times_;
+  VectorXd transposed_;  // G^T x
   VectorXd low_vector_, high_vector_;
   int low_index_ = -1;
   std::vector<int> pivots_;

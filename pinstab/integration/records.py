@@ -76,11 +76,6 @@ class Records:
     def put_span(self, first: int, q: np.ndarray, v: np.ndarray) -> None:
         """Keep the recorded ones among the states (rows of q, v) of grid steps first, first + 1, ..."""
         steps = np.arange(first, first + len(q))
-        if self.every == 1 and steps[-1] < self.grid.steps:  # every one kept, the last sample not among them
-            slots = slice(first - self.offset, first - self.offset + len(q))
-            self.steps[slots], self.t[slots] = steps, self.grid.times(steps)
-            self.q[slots], self.v[slots], self.corrections[slots] = q, v, 0
-            return
         kept = (steps % self.every == 0) | (steps == self.grid.steps)
         if not kept.any():
             return
