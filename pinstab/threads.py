@@ -2,11 +2,9 @@
 
 pinstab's dense linear algebra is small (a Jacobian of 80 x 81 at most on the stepping paths, SVDs and
 least squares at a singular passage, at the start of a run): OpenBLAS's worker threads do not speed it up, and
-after each call they spin waiting for more work. On the N-four-bar N = 40 they doubled a 1 s run's CPU time
-(416 against 221 us a step of wall time, ``python benchmarks/chains.py`` before this module) on a 2-core
-machine where the second core was otherwise free. :func:`single_blas_thread` limits every loaded BLAS to one
-thread for the duration of a call (``threadpoolctl``; the libraries are found once per process, ~3 ms; a
-limit costs ~20-40 us) and restores the user's setting after it.
+after each call they spin waiting for more work, on a core the run does not otherwise use, and their CPU time is
+counted against the run. :func:`single_blas_thread` limits every loaded BLAS to one thread for the duration of a
+call (``threadpoolctl``; the libraries are found once per process) and restores the user's setting after it.
 """
 
 from __future__ import annotations

@@ -2,11 +2,11 @@
 native and banded paths.
 
 A Python step on those paths costs the evaluation (Pinocchio's passes, microseconds) plus Python's calls and
-NumPy's small-array arithmetic around it (5-8 us a step on the four-bar, ~100 us an evaluation on the N-four-bar
-N = 40 before the banded solve was compiled). :class:`CompiledSteps` hands the stepping loop's runs of steps
-between its checks to the compiled loop: the same schemes (:mod:`pinstab.integration.schemes`), the same sums
-in the same order, the same Pinocchio calls (``constraintDynamics`` on the native path: the results are equal
-to the last bit; the banded path's terms are summed in another order: equal to rounding). The loop's checks,
+NumPy's small-array arithmetic around it (on the four-bar, more than the evaluation itself:
+``benchmarks/overhead.py``). :class:`CompiledSteps` hands the stepping loop's runs of steps between its checks to
+the compiled loop: the same schemes (:mod:`pinstab.integration.schemes`), the same sums in the same order, the
+same evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded solve on the banded
+one, which the Python step calls too): the results equal the Python loop's to the last bit. The loop's checks,
 the passage watch, the samples and the fallback of a near-singular banded solve stay in Python: the compiled
 loop stops before a step whose evaluation is not to be used and the Python step takes it.
 """
