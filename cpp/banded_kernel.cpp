@@ -7,6 +7,7 @@
 
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 
 namespace pinstab {
@@ -28,8 +29,8 @@ void multiply_add(const Csr& matrix, const double* x, double* y) {
 
 BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram,
                            double kp, double kd, double pivot_tolerance)
-    : model_(model), data_(model_), pattern_(std::move(pattern)), spectrum_(std::move(gram)), kp_(kp), kd_(kd),
-      pivot_tolerance_(pivot_tolerance) {
+    : model_(model), data_(model_), world_bias_(model_), world_(WorldBias::applies(model_)),
+      pattern_(std::move(pattern)), spectrum_(std::move(gram)), kp_(kp), kd_(kd), pivot_tolerance_(pivot_tolerance) {
   const int points = static_cast<int>(pattern_.fixed_points.cols());
   const int size = static_cast<int>(pattern_.acceleration_slots.size() + pattern_.row_slots.size());
   points_ = pattern_.fixed_points;
@@ -44,14 +45,20 @@ BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern,
   rhs_.resize(size);
 }
 
-void BandedKernel::jacobian_values() {
-  // the closure points from the joints' placements, then G's entries: J[:, column] . c_e with
-  // c_e = [linear part; lever x s], the lever linear in the points (data_.J and data_.oMi computed)
+void BandedKernel::place_points() {
+  // the carried closure points from their joints' placements (data_.oMi computed) [m]
   const BandedPattern& p = pattern_;
   for (int c = 0; c < p.carried.size(); ++c) {
     const pinocchio::SE3& placement = data_.oMi[p.joints(c)];
     points_.col(p.carried(c)) = placement.rotation() * p.local.row(c).transpose() + placement.translation();
   }
+}
+
+void BandedKernel::jacobian_values() {
+  // the closure points, then G's entries: J[:, column] . c_e with c_e = [linear part; lever x s], the lever
+  // linear in the points (data_.J and data_.oMi computed)
+  const BandedPattern& p = pattern_;
+  place_points();
   const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> flat_points = points_;
   lever_.setZero();
   multiply_add(p.g_map, flat_points.data(), lever_.data());
@@ -60,6 +67,25 @@ void BandedKernel::jacobian_values() {
     for (int i = 0; i < 3; ++i) coefficients_(3 + i, e) = lever_(i * entries + e);
     g_values_(e) = data_.J.col(p.g_columns(e)).dot(coefficients_.col(e));
   }
+}
+
+std::pair<double, double> BandedKernel::violation(const VectorXd& q, const VectorXd& v) {
+  const BandedPattern& p = pattern_;
+  pinocchio::forwardKinematics(model_, data_, q, v);
+  place_points();
+  terms_.setZero();  // the points' velocities (zero for world points), world axes [m/s]
+  for (int c = 0; c < p.carried.size(); ++c) {
+    const int joint = p.joints(c);
+    const pinocchio::Motion velocity_0 = data_.oMi[joint].act(data_.v[joint]);
+    const Eigen::Vector3d point = points_.col(p.carried(c));
+    terms_.col(p.carried(c)) = velocity_0.linear() + velocity_0.angular().cross(point);
+  }
+  // the rows' differences of point positions (phi) and of point velocities (G v), raveled by component
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> positions = points_, velocities = terms_;
+  VectorXd phi = VectorXd::Zero(rows_.size()), rate = VectorXd::Zero(rows_.size());
+  multiply_add(p.row_map, positions.data(), phi.data());
+  multiply_add(p.row_map, velocities.data(), rate.data());
+  return {phi.lpNorm<Eigen::Infinity>(), rate.lpNorm<Eigen::Infinity>()};
 }
 
 double BandedKernel::relative_singular_value(const VectorXd& q, int rank) {
@@ -71,18 +97,20 @@ double BandedKernel::relative_singular_value(const VectorXd& q, int rank) {
 bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
   const BandedPattern& p = pattern_;
   // crba (world convention) also gives the joint Jacobians and placements; the nonlinear effects' pass the
-  // joints' spatial velocities and their accelerations at a = 0 with gravity's (a_gf, local frames)
+  // joints' spatial velocities and their accelerations at a = 0 with gravity's (a_gf): WorldBias from the
+  // Jacobian where the joints allow it (world frame), else Pinocchio's nonLinearEffects (local frames)
   pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
-  const VectorXd& bias = pinocchio::nonLinearEffects(model_, data_, q, v);
+  const VectorXd& bias = world_ ? world_bias_.compute(model_, data_, v) : pinocchio::nonLinearEffects(model_, data_, q, v);
   jacobian_values();
   const pinocchio::Motion gravity = model_.gravity;
   terms_ = kp_ * points_;  // points fixed in the world: no motion, the corrector's Kp p
   for (int c = 0; c < p.carried.size(); ++c) {
     const int point = p.carried(c);
-    const pinocchio::SE3& placement = data_.oMi[p.joints(c)];
+    const int joint = p.joints(c);
     // spatial velocity and bias acceleration of the point's body at the world origin, world axes
-    const pinocchio::Motion velocity_0 = placement.act(data_.v[p.joints(c)]);
-    const pinocchio::Motion bias_0 = placement.act(data_.a_gf[p.joints(c)]) + gravity;
+    const pinocchio::Motion velocity_0 = world_ ? world_bias_.velocity(joint) : data_.oMi[joint].act(data_.v[joint]);
+    const pinocchio::Motion bias_0 =
+        (world_ ? world_bias_.acceleration(joint) : data_.oMi[joint].act(data_.a_gf[joint])) + gravity;
     const Eigen::Vector3d omega = velocity_0.angular();
     const Eigen::Vector3d position = points_.col(point);
     const Eigen::Vector3d velocity = velocity_0.linear() + omega.cross(position);

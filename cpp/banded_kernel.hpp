@@ -1,7 +1,10 @@
 #pragma once
 
+#include <utility>
+
 #include "kernels.hpp"
 #include "spectrum.hpp"
+#include "world_bias.hpp"
 
 namespace pinstab {
 
@@ -29,14 +32,19 @@ class BandedKernel : public Kernel {
   int nv() const override { return model_.nv; }
   bool singular() const { return singular_; }
   VectorXd multipliers() const;
+  // max |phi| [m] and max |G v| [m/s] over the closures' rows at (q, v): the stepping loop's drift check
+  std::pair<double, double> violation(const VectorXd& q, const VectorXd& v);
   // sigma_r / sigma_1 of the closures' Jacobian G at q (the passage watch's sample), by GramSpectrum
   double relative_singular_value(const VectorXd& q, int rank);
 
  private:
   void jacobian_values();
+  void place_points();
 
   pinocchio::Model model_;
   pinocchio::Data data_;
+  WorldBias world_bias_;
+  bool world_;  // WorldBias applies to the model's joints
   BandedPattern pattern_;
   GramSpectrum spectrum_;
   double kp_, kd_, pivot_tolerance_;

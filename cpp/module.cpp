@@ -1,6 +1,7 @@
 // pinstab._compiled: the compiled step loop (see pinstab/integration/compiled.py).
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
@@ -95,6 +96,8 @@ NB_MODULE(_compiled, m) {
           "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a)
       .def_prop_ro("singular", &BandedKernel::singular)
       .def("multipliers", &BandedKernel::multipliers)
+      .def("violation", &BandedKernel::violation, "q"_a, "v"_a,
+           "(max |phi| [m], max |G v| [m/s]) over the closures' rows at (q, v).")
       .def("relative_singular_value", &BandedKernel::relative_singular_value, "q"_a, "rank"_a,
            "sigma_r / sigma_1 of the closures' Jacobian at q.");
 }

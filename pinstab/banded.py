@@ -28,7 +28,7 @@ import pinocchio as pin
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from .constraints import FrameClosure
+from .constraints import FrameClosure, Violation
 from .kernels import BandedKernel
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
@@ -224,6 +224,11 @@ class BandedDynamics:
         its inertia (``cpp/spectrum.cpp``; no dense SVD, no OpenBLAS threads). Accurate to rounding of
         sigma_1, as an SVD."""
         return self.kernel.relative_singular_value(q, rank)
+
+    def violation(self, q: np.ndarray, v: np.ndarray) -> Violation:
+        """max |phi| [m] and max |G v| [m/s] over the closures' rows at (q, v) (the model's
+        :meth:`~pinstab.model.ConstrainedModel.violation` of these closures), by the compiled kernel."""
+        return Violation(*self.kernel.violation(q, v))
 
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""

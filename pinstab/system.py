@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .banded import BandedDynamics, banded_obstacle
-from .constraints import ConstraintValues, FrameClosure
+from .constraints import ConstraintValues, FrameClosure, Violation
 from .errors import DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
@@ -247,6 +247,13 @@ class ConstrainedSystem:
 
     def _general_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         return self.dynamics(q, v, t, stage).acceleration
+
+    def violation(self, q: np.ndarray, v: np.ndarray, t: float) -> Violation:
+        """The constraint violation at (q, v, t) [m or rad, m/s or rad/s]: the model's, computed by the banded
+        kernel on the banded path (its closures are all the constraints there; no Python pass over them)."""
+        if self.banded is not None:
+            return self.banded.violation(q, v)
+        return self.model.violation(q, v, t)
 
     def multipliers(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The constraint multipliers at (q, v, t) [N, N m]: Pinocchio's on the native path when its solve

@@ -80,7 +80,7 @@ def coordinate_measure(model: pin.Model, name: str) -> tuple[Measure, str]:
         return (lambda q, q_ref: float(np.linalg.norm(pin.difference(model, q_ref, q)[start:stop]))), unit
     if model.existFrame(name):
         frame = model.getFrameId(name)
-        data = model.createData()
+        data = pin.Data(model)
 
         def distance(q: np.ndarray, q_ref: np.ndarray) -> float:
             pin.forwardKinematics(model, data, q)

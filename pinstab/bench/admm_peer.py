@@ -227,7 +227,7 @@ class AdmmContactPeer:
         warm_start: bool,
     ) -> None:
         self.model = model
-        self.data = self.model.createData()
+        self.data = pin.Data(self.model)
         self.contacts = contacts
         self.models, self.datas = pin.StdVec_ConstraintModel(), pin.StdVec_ConstraintData()
         for contact in self.contacts:

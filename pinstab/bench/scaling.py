@@ -110,7 +110,7 @@ def _evaluations(scene: Scene, q: np.ndarray, v: np.ndarray) -> dict[str, float]
     model, tau = scene.model, np.zeros(scene.model.nv)
     banded = BandedDynamics(model, closures, KP, KD)
     native = NativeDynamics(model, closures, KP, KD)
-    data = model.createData()
+    data = pin.Data(model)
 
     def passes() -> None:
         pin.crba(model, data, q, pin.Convention.WORLD)

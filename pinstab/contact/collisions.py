@@ -104,7 +104,7 @@ class CollisionCheck:
                         continue
                     self.geometry.addCollisionPair(pin.CollisionPair(link, added))
                     self.names.append((model.frames[robot_shape.parentFrame].name, robot_shape.name, item.name))
-        self._data = model.createData()
+        self._data = pin.Data(model)
         self._geometry_data = self.geometry.createData()
 
     def depths(self, q: np.ndarray) -> np.ndarray:
@@ -171,7 +171,7 @@ def edge_contacts(
 ) -> list[str]:
     """An :class:`~pinstab.errors.EdgeContactWarning` per sticking fingertip contact that sits on an edge or a
     vertex of its object's geometry at configuration q (the module's probe test); their names."""
-    data = model.createData()
+    data = pin.Data(model)
     pin.framesForwardKinematics(model, data, q)
     by_joint = {item.joint: item for item in objects}
     found = []

@@ -338,7 +338,7 @@ class StepLoop:
         """
         if not math.isfinite(q @ q + v @ v):
             raise Failure("a non-finite state")
-        position, velocity = self.system.model.violation(q, v, t)
+        position, velocity = self.system.violation(q, v, t)
         drift = max(position, velocity * step)
         if not drift <= self.drift_limit:
             if not math.isfinite(drift):

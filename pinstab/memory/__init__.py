@@ -146,7 +146,11 @@ def named_when_exhausted(what: str) -> Iterator[None]:
 
 
 def new_data(model: pin.Model) -> pin.Data:
-    """``model.createData()`` after checking that one ``Data`` of this model fits the budget.
+    """``pin.Data(model)`` after checking that one ``Data`` of this model fits the budget.
+
+    Not ``model.createData()``: its binding returns the ``Data`` by value and copies it, writing every page of
+    pin 4.1's nv^3 derivative tensors (23 against 1 ms at N-four-bar N = 40, 140 against 8 ms at N = 80:
+    ``python benchmarks/data_creation.py``); the constructor leaves them untouched until used.
 
     Raises:
         MemoryBudgetError: naming the model's size, the estimate and the limit.
@@ -154,7 +158,7 @@ def new_data(model: pin.Model) -> pin.Data:
     what = model_size(model)
     require({"one Pinocchio Data": data_bytes(model.nv, model.njoints)}, what)
     with named_when_exhausted(f"the Pinocchio Data of {what}"):
-        return model.createData()
+        return pin.Data(model)
 
 
 def model_size(model: pin.Model) -> str:

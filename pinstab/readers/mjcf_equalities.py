@@ -58,7 +58,7 @@ class EqualityReader:
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self.data = self.model.createData()
+        self.data = pin.Data(self.model)
         self.reference = reference_configuration(self.model)
         pin.framesForwardKinematics(self.model, self.data, self.reference)
         worldbody = self.document.root.find("worldbody")
