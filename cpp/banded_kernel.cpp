@@ -130,9 +130,8 @@ bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const Vect
   for (int m = 0; m < off; ++m) values_(upper + m) = values_(p.m_off(m));
   for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
   for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
-  ab_.setZero();
-  double* band = ab_.data();
-  for (int i = 0; i < values_.size(); ++i) band[p.scatter(i)] = values_(i);
+  scatter(ab_);
+  right_ = rhs_;
   const int info = banded_solve(ab_, p.band, rhs_, pivots_);
   double smallest = INFINITY, largest = 0.0;
   for (int j = 0; j < ab_.cols(); ++j) {
@@ -140,9 +139,48 @@ bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const Vect
     smallest = std::min(smallest, pivot);
     largest = std::max(largest, pivot);
   }
+  pivot_ratio_ = smallest / largest;
   singular_ = info != 0 || !(smallest > pivot_tolerance_ * largest);
+  if (singular_ && info == 0 && smallest > REFINABLE * largest) {
+    singular_ = !refine();
+    refinements_ += singular_ ? 0 : 1;
+  }
   for (int i = 0; i < p.acceleration_slots.size(); ++i) a(i) = rhs_(p.acceleration_slots(i));
   return !singular_;
+}
+
+void BandedKernel::scatter(Eigen::MatrixXd& band) const {
+  band.setZero();
+  double* const storage = band.data();
+  for (int i = 0; i < values_.size(); ++i) storage[pattern_.scatter(i)] = values_(i);
+}
+
+bool BandedKernel::refine() {
+  // a small pivot: rows near dependence, the LU's solution as inaccurate as the KKT matrix is ill-conditioned;
+  // iterative refinement with residuals in extended precision brings it to rounding while the factors still
+  // contract the error (condition number times 1e-16 below 1), else says it does not converge
+  const BandedPattern& p = pattern_;
+  kkt_.resizeLike(ab_);
+  scatter(kkt_);
+  correction_.resizeLike(rhs_);
+  for (int iteration = 0; iteration < MAX_REFINEMENTS; ++iteration) {
+    banded_residual(kkt_, p.band, rhs_, right_, correction_);
+    banded_substitute(ab_, p.band, pivots_, correction_);
+    if (!correction_.allFinite()) return false;
+    rhs_ += correction_;
+    double change = 0.0, size = 0.0;  // accelerations and multipliers each relative to their own size
+    for (const VectorXi* slots : {&p.acceleration_slots, &p.row_slots}) {
+      double part_change = 0.0, part_size = 0.0;
+      for (int i = 0; i < slots->size(); ++i) {
+        part_change = std::max(part_change, std::abs(correction_((*slots)(i))));
+        part_size = std::max(part_size, std::abs(rhs_((*slots)(i))));
+      }
+      change = std::max(change, part_change / std::max(part_size, 1e-300));
+      size = std::max(size, part_size);
+    }
+    if (change <= REFINED) return std::isfinite(size);
+  }
+  return false;
 }
 
 VectorXd BandedKernel::multipliers() const {

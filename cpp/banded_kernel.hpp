@@ -30,7 +30,12 @@ class BandedKernel : public Kernel {
                double pivot_tolerance);
   bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
+  // the last evaluation met a small pivot and iterative refinement did not bring its solution to rounding
   bool singular() const { return singular_; }
+  // evaluations that met a small pivot and were refined to rounding (used)
+  long refinements() const { return refinements_; }
+  // the last evaluation's smallest |pivot| over its largest
+  double pivot_ratio() const { return pivot_ratio_; }
   VectorXd multipliers() const;
   // max |phi| [m] and max |G v| [m/s] over the closures' rows at (q, v): the stepping loop's drift check
   std::pair<double, double> violation(const VectorXd& q, const VectorXd& v);
@@ -40,6 +45,14 @@ class BandedKernel : public Kernel {
  private:
   void jacobian_values();
   void place_points();
+  void scatter(Eigen::MatrixXd& band) const;  // the KKT entries (values_) into band storage
+  bool refine();
+
+  // a pivot ratio below this: rows dependent to rounding (an exactly singular configuration, redundant rows),
+  // left to the caller (the runs' evaluations near singular passages of the N-four-bar stay above 4e-9)
+  static constexpr double REFINABLE = 1e-12;
+  static constexpr int MAX_REFINEMENTS = 8;
+  static constexpr double REFINED = 1e-15;  // a last correction this small relative to its part: converged
 
   pinocchio::Model model_;
   pinocchio::Data data_;
@@ -48,8 +61,10 @@ class BandedKernel : public Kernel {
   BandedPattern pattern_;
   GramSpectrum spectrum_;
   double kp_, kd_, pivot_tolerance_;
-  Eigen::MatrixXd points_, terms_, coefficients_, ab_;
-  VectorXd rows_, lever_, values_, rhs_, g_values_;
+  Eigen::MatrixXd points_, terms_, coefficients_, ab_, kkt_;
+  VectorXd rows_, lever_, values_, rhs_, g_values_, right_, correction_;
+  long refinements_ = 0;
+  double pivot_ratio_ = 0.0;
   std::vector<int> pivots_;
   bool singular_ = false;
 };

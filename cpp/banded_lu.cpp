@@ -5,12 +5,11 @@
 
 namespace pinstab {
 
-int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> b, std::vector<int>& pivots) {
+int banded_factor(Eigen::Ref<Eigen::MatrixXd> ab, int band, std::vector<int>& pivots) {
   const int n = static_cast<int>(ab.cols());
   const int kl = band, ku = band, kv = ku + kl;
   const Eigen::Index ld = ab.outerStride();
   double* const a = ab.data();  // A(i, j) of the band at a[j * ld + kv + i - j]
-  double* const x = b.data();
   pivots.assign(n, 0);
   int info = 0, ju = 0;
   for (int j = 0; j < n; ++j) {  // dgbtf2 (fill-in rows start at zero: the caller zeroes ab)
@@ -45,7 +44,16 @@ int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> 
       }
     }
   }
-  if (info != 0) return info;
+  return info;
+}
+
+void banded_substitute(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const std::vector<int>& pivots,
+                       Eigen::Ref<VectorXd> b) {
+  const int n = static_cast<int>(ab.cols());
+  const int kl = band, kv = 2 * band;
+  const Eigen::Index ld = ab.outerStride();
+  const double* const a = ab.data();
+  double* const x = b.data();
   for (int j = 0; j < n - 1; ++j) {  // dgbtrs: L, row interchanges as they were made
     const double* const column = a + j * ld + kv;
     const int lm = std::min(kl, n - 1 - j);
@@ -62,7 +70,25 @@ int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> 
       for (int i = std::max(0, j - kv); i < j; ++i) x[i] -= value * column[i - j];
     }
   }
-  return 0;
+}
+
+int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> b, std::vector<int>& pivots) {
+  const int info = banded_factor(ab, band, pivots);
+  if (info == 0) banded_substitute(ab, band, pivots, b);
+  return info;
+}
+
+void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const VectorXd& x, const VectorXd& b,
+                     VectorXd& residual) {
+  const int n = static_cast<int>(ab.cols());
+  const int kv = 2 * band;
+  std::vector<long double> sum(b.data(), b.data() + n);
+  for (int j = 0; j < n; ++j) {
+    const double* const column = ab.data() + j * ab.outerStride() + kv - j;  // column[i] = A(i, j)
+    const long double value = x[j];
+    for (int i = std::max(0, j - band); i <= std::min(n - 1, j + band); ++i) sum[i] -= column[i] * value;
+  }
+  for (int i = 0; i < n; ++i) residual[i] = static_cast<double>(sum[i]);
 }
 
 }  // namespace pinstab

@@ -36,6 +36,14 @@ struct Csr {
 // the unblocked LU with partial pivoting that dgbsv runs for a band below its block size.
 // Returns LAPACK's info (0: factored; j > 0: U(j, j) is exactly zero).
 int banded_solve(Eigen::Ref<Eigen::MatrixXd> ab, int band, Eigen::Ref<VectorXd> b, std::vector<int>& pivots);
+// Its two halves: dgbtf2 (the factors overwrite ab; returns info) and dgbtrs (b overwritten by the solution).
+int banded_factor(Eigen::Ref<Eigen::MatrixXd> ab, int band, std::vector<int>& pivots);
+void banded_substitute(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const std::vector<int>& pivots,
+                       Eigen::Ref<VectorXd> b);
+// residual = b - A x for A in the same band storage (not factored), summed in extended precision (long double):
+// the residual of iterative refinement.
+void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const VectorXd& x, const VectorXd& b,
+                     VectorXd& residual);
 
 // Explicit schemes of pinstab.integration.schemes on a model whose joints all have one coordinate.
 enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };

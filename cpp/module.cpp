@@ -95,6 +95,8 @@ NB_MODULE(_compiled, m) {
           },
           "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a)
       .def_prop_ro("singular", &BandedKernel::singular)
+      .def_prop_ro("refinements", &BandedKernel::refinements)
+      .def_prop_ro("pivot_ratio", &BandedKernel::pivot_ratio)
       .def("multipliers", &BandedKernel::multipliers)
       .def("violation", &BandedKernel::violation, "q"_a, "v"_a,
            "(max |phi| [m], max |G v| [m/s]) over the closures' rows at (q, v).")

@@ -16,9 +16,11 @@ N-four-bar N = 40.
 
 It is the same equation as the native path's (Pinocchio's corrector ``-Kp phi - Kd G v`` on the
 point rows), solved exactly instead of with a proximal term of 1e-12: both agree to rounding while
-the constraint rows are independent. Near a singular configuration (rows losing rank) the banded LU
-says so by a small pivot, and :attr:`BandedDynamics.singular` tells the caller to use the reference
-solve for that evaluation.
+the constraint rows are independent. Near a singular configuration (rows losing rank) the LU meets a small
+pivot: below :data:`PIVOT_TOLERANCE` of the largest its solution is refined (residuals summed in extended
+precision, corrections from the same factors) until the last correction is at rounding; an exactly singular
+matrix (a pivot ratio below 1e-12: redundant rows, the aligned configuration) or a refinement that does not
+converge sets :attr:`BandedDynamics.singular`, and the caller uses the reference solve for that evaluation.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .constraints import FrameClosure, Violation
 from .kernels import BandedKernel
 
-PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which rows are near-dependent
+PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which its solution is refined
 MIN_CLOSURES = (
     6  # fewer: the band rule below keeps Pinocchio's solve (compiled, the banded solve is cheaper from N = 1)
 )
@@ -74,7 +76,8 @@ class BandedDynamics:
 
     Attributes:
         size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
-        singular: the last solve met a pivot below :data:`PIVOT_TOLERANCE` (its result is not to be used).
+        singular: the last solve met a pivot below :data:`PIVOT_TOLERANCE` that refinement did not overcome (its
+            result is not to be used).
     """
 
     def __init__(

@@ -270,7 +270,8 @@ class ConstrainedSystem:
     def statistics(self) -> SolverStatistics:
         """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
         ``native``), the checked ones and the fallbacks; on the banded path its solves (status ``banded``),
-        a near-singular one solved by Pinocchio counted as a fallback."""
+        those of them refined near a singular configuration (status ``banded refined``), a singular one solved by
+        Pinocchio counted as a fallback."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
         if self.native is None:
             return merged
@@ -281,6 +282,7 @@ class ConstrainedSystem:
         if self.banded is not None:
             merged.solves += self._banded_solves
             merged.status_counts["banded"] = self._banded_solves
+            merged.status_counts["banded refined"] = self.banded.kernel.refinements
         merged.worst_primal_residual = max(merged.worst_primal_residual, audit.worst_primal_residual)
         merged.fallbacks += audit.fallbacks
         return merged
