@@ -64,8 +64,9 @@ class ConstrainedModel:
         self._neutral = pin.neutral(self.model)
         self.no_force.flags.writeable = False
         placements = [*self.model.jointPlacements, *(frame.placement for frame in self.model.frames)]
+        offsets = np.array([p.translation for p in placements]).reshape(-1, 3)
         with np.errstate(over="ignore"):  # an offset too large for floating point is refused at assembly
-            self.length_scale = max((float(np.linalg.norm(p.translation)) for p in placements), default=0.0)
+            self.length_scale = float(np.max(np.linalg.norm(offsets, axis=1), initial=0.0))
 
     @property
     def scratch(self) -> pin.Data:
