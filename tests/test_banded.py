@@ -258,8 +258,8 @@ def test_a_near_singular_stage_is_refined_to_the_exact_kkt_solution(closeness):
     aligned configuration by ``closeness``: the LU's pivot ratio 3.7e-7, 3.7e-9, below the 1e-6 that used to hand
     the stage to Pinocchio) the banded LU's solution is refined (residuals in extended precision) and used: its
     accelerations equal the exact rational solution of the KKT system formed independently (Pinocchio's crba and
-    nonLinearEffects, pinstab's Python constraint rows) to 1e-9 of their size (measured 1.9e-11, 1.8e-10: the
-    inputs' rounding times the conditioning; Pinocchio's solve 6e-12, 4.8e-11)."""
+    nonLinearEffects, pinstab's Python constraint rows) to 1e-9 of their size (the inputs' rounding times the
+    conditioning bounds any solve there: Pinocchio's too)."""
     scene = load_scene("nfourbar", N=10)
     model, tau = scene.model, np.zeros(scene.model.nv)
     run = simulate(scene, "baumgarte", "rk4", 1e-3, 0.72)
