@@ -126,7 +126,8 @@ class ConstrainedSystem:
             self.path, self.acceleration = "banded", self._banded_acceleration
             self.path_reason = (
                 f"{len(native.closures)} point closures: KKT system of {self.banded.size} unknowns with a band of "
-                f"{self.banded.band}, solved at linear cost (refined near a singular configuration, Pinocchio's solve at one)"
+                f"{self.banded.band}, solved at linear cost (refined near a singular configuration, Pinocchio's solve "
+                "at one)"
             )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
