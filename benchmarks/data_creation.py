@@ -2,8 +2,8 @@
 by ``model.createData()`` (its binding returns the Data by value: a copy that writes every page) and by the
 constructor ``pin.Data(model)`` (what pinstab calls: pin 4.1's nv^3 derivative tensors stay unwritten until used):
 the smallest and largest wall milliseconds of 6 calls each, interleaved, the resident memory each adds, and the
-milliseconds of ``model.saveToString()`` (how a model crosses into pinstab's compiled kernels). A run creates
-three: the model's two and its compiled kernel's.
+milliseconds of ``model.saveToString()`` (how a model crosses into pinstab's compiled kernels). A run on the
+banded path creates two, the model's (its compiled kernel computes in the model's scratch ``Data``).
 
 python benchmarks/data_creation.py
 """

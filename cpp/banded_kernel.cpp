@@ -28,8 +28,11 @@ void multiply_add(const Csr& matrix, const double* x, double* y) {
 }  // namespace
 
 BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram,
-                           double kp, double kd, double pivot_tolerance)
-    : model_(model), data_(model_), world_bias_(model_), world_(WorldBias::applies(model_)),
+                           double kp, double kd, double pivot_tolerance, pinocchio::Data* data)
+    : model_(model),
+      own_data_(data == nullptr ? std::make_unique<pinocchio::Data>(model_) : nullptr),
+      data_(data == nullptr ? *own_data_ : *data),
+      world_bias_(model_), world_(WorldBias::applies(model_)),
       pattern_(std::move(pattern)), spectrum_(std::move(gram)), kp_(kp), kd_(kd), pivot_tolerance_(pivot_tolerance) {
   const int points = static_cast<int>(pattern_.fixed_points.cols());
   const int size = static_cast<int>(pattern_.acceleration_slots.size() + pattern_.row_slots.size());

@@ -26,8 +26,10 @@ struct BandedPattern {
 
 class BandedKernel : public Kernel {
  public:
+  // data: a Data of the model to compute in (shared with the caller, each evaluation recomputing what it reads), or
+  // nullptr for one of its own
   BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram, double kp, double kd,
-               double pivot_tolerance);
+               double pivot_tolerance, pinocchio::Data* data = nullptr);
   bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // the last evaluation met a small pivot and iterative refinement did not bring its solution to rounding
@@ -55,7 +57,8 @@ class BandedKernel : public Kernel {
   static constexpr double REFINED = 1e-15;  // a last correction this small relative to its part: converged
 
   pinocchio::Model model_;
-  pinocchio::Data data_;
+  std::unique_ptr<pinocchio::Data> own_data_;  // when no Data was given
+  pinocchio::Data& data_;
   WorldBias world_bias_;
   bool world_;  // WorldBias applies to the model's joints
   BandedPattern pattern_;

@@ -4,6 +4,8 @@
 #include <memory>
 #include <vector>
 
+#include <Python.h>
+
 #include <Eigen/Core>
 #include <pinocchio/multibody/data.hpp>
 #include <pinocchio/multibody/model.hpp>
@@ -16,6 +18,10 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 
 // The model saved by Python's Model.saveToString(), read back (a pin.Model does not cross into nanobind).
 pinocchio::Model model_from_string(const std::string& text);
+
+// The pinocchio::Data wrapped by a Python pin.Data of this model (cpp/python_data.cpp); throws
+// std::invalid_argument for another object or a Data of another model. The caller keeps the object alive.
+pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model);
 
 // One evaluation a(q, v) under applied forces tau; false when its result is not to be used (a small pivot).
 class Kernel {

@@ -62,7 +62,7 @@ NB_MODULE(_compiled, m) {
       .def(
           "__init__",
           [](BandedKernel* self, const std::string& model, nb::dict arrays, int band, double kp, double kd,
-             double pivot_tolerance) {
+             double pivot_tolerance, nb::handle data) {
             auto vi = [&](const char* key) { return nb::cast<VectorXi>(arrays[key]); };
             auto vd = [&](const char* key) { return nb::cast<VectorXd>(arrays[key]); };
             auto md = [&](const char* key) { return nb::cast<Eigen::MatrixXd>(arrays[key]); };
@@ -90,10 +90,13 @@ NB_MODULE(_compiled, m) {
             gram.pair_slot = vi("gram_pair_slot");
             gram.rows = static_cast<int>(pattern.row_slots.size());
             gram.band = vi("gram_band")(0);  // one entry
-            new (self) BandedKernel(model_from_string(model), std::move(pattern), std::move(gram), kp, kd,
-                                    pivot_tolerance);
+            const pinocchio::Model loaded = model_from_string(model);
+            pinocchio::Data* shared = data.is_none() ? nullptr : &python_data(data.ptr(), loaded);
+            new (self) BandedKernel(loaded, std::move(pattern), std::move(gram), kp, kd, pivot_tolerance, shared);
           },
-          "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a)
+          "model"_a, "arrays"_a, "band"_a, "kp"_a, "kd"_a, "pivot_tolerance"_a, "data"_a = nb::none(),
+          nb::keep_alive<1, 8>(),  // a shared pin.Data lives as long as the kernel
+          "The banded path's evaluation; data: a pin.Data of the model to compute in (shared), or None for its own.")
       .def_prop_ro("singular", &BandedKernel::singular)
       .def_prop_ro("refinements", &BandedKernel::refinements)
       .def_prop_ro("pivot_ratio", &BandedKernel::pivot_ratio)

@@ -73,6 +73,9 @@ class BandedDynamics:
     Args:
         model: the Pinocchio model. closures: point and planar-point closures.
         kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
+        data: a ``Data`` of the model for the kernel to compute in (shared with other computations: each evaluation
+            recomputes what it reads), or None for one of its own; a ``Data`` of a long chain is costly
+            (``benchmarks/data_creation.py``).
 
     Attributes:
         size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
@@ -86,6 +89,7 @@ class BandedDynamics:
         closures: list[FrameClosure],
         kp: float = 0.0,
         kd: float = 0.0,
+        data: pin.Data | None = None,
     ) -> None:
         self.model = model
         self.kp, self.kd = float(kp), float(kd)
@@ -144,7 +148,7 @@ class BandedDynamics:
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
         self._build_band(m_upper)
         self.kernel = BandedKernel(
-            model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE
+            model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE, data
         )
         self.singular = False
 

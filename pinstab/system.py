@@ -135,7 +135,7 @@ class ConstrainedSystem:
         allowed, and a method without post-step corrections (those run on Pinocchio's factorization)."""
         if not self._banded_allowed or self.stabilizer.corrects or banded_obstacle(native.closures, 0) is not None:
             return None
-        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd)
+        banded = BandedDynamics(self.model.model, native.closures, native.kp, native.kd, data=self.model.scratch)
         return banded if banded_obstacle(native.closures, banded.size, banded.band) is None else None
 
     def native_mu(self, q: np.ndarray) -> float:
