@@ -103,7 +103,8 @@ bool BandedKernel::acceleration(const VectorXd& q, const VectorXd& v, const Vect
   // joints' spatial velocities and their accelerations at a = 0 with gravity's (a_gf): WorldBias from the
   // Jacobian where the joints allow it (world frame), else Pinocchio's nonLinearEffects (local frames)
   pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
-  const VectorXd& bias = world_ ? world_bias_.compute(model_, data_, v) : pinocchio::nonLinearEffects(model_, data_, q, v);
+  const VectorXd& bias =
+      world_ ? world_bias_.compute(model_, data_, v) : pinocchio::nonLinearEffects(model_, data_, q, v);
   jacobian_values();
   const pinocchio::Motion gravity = model_.gravity;
   terms_ = kp_ * points_;  // points fixed in the world: no motion, the corrector's Kp p
