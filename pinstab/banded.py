@@ -1,18 +1,18 @@
 """The banded path: a long chain of point closures solved at a cost linear in its size.
 
 Pinocchio's ``constraintDynamics`` factors the closures' rows densely: on the N-four-bar its cost per
-call grows as N^2.3 (314 us at N = 40, 2025 us at N = 80; ``benchmarks/chains.py``). A chain of loops
+call grows as N^2.2 (about 0.3 ms at N = 40, 2 ms at N = 80; ``benchmarks/chains.py``). A chain of loops
 couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3),
 
     [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
 
 has a narrow band once its rows are put in reverse Cuthill-McKee order (the pattern depends on the
 tree and the closures, not on q: it is found once, here). The compiled kernel (``cpp/banded_kernel.cpp``,
-``pinstab._compiled``) forms its entries from three Pinocchio passes (joint Jacobians and their time
-variation, ``crba``, ``nonLinearEffects``) and the placements of the joints that carry closure points, and
+``pinstab._compiled``) forms its entries from Pinocchio's ``crba`` in the world convention (also the joint
+Jacobians and placements) and a Newton-Euler pass in the world frame over those Jacobian columns
+(``cpp/world_bias.cpp``; Pinocchio's ``nonLinearEffects`` for joints whose motion subspace turns with q), and
 factors it by LAPACK's unblocked banded LU with partial pivoting (``dgbtf2``/``dgbtrs``, what ``dgbsv`` runs
-for a band below its block size): O(n b^2) for n unknowns and a band b, ~7 us besides the passes on the
-N-four-bar N = 40.
+for a band below its block size): O(n b^2) for n unknowns and a band b.
 
 It is the same equation as the native path's (Pinocchio's corrector ``-Kp phi - Kd G v`` on the
 point rows), solved exactly instead of with a proximal term of 1e-12: both agree to rounding while
