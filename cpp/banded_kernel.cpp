@@ -1,4 +1,4 @@
-// The banded path's evaluation (pinstab.banded.BandedDynamics), compiled: the same terms from the same
+// The banded path's evaluation (pinstab.paths.banded.BandedDynamics), compiled: the same terms from the same
 // Pinocchio passes, the KKT matrix scattered into LAPACK's band storage and factored by banded_solve.
 #include "banded_kernel.hpp"
 

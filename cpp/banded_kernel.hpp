@@ -8,7 +8,7 @@
 
 namespace pinstab {
 
-// The KKT pattern of pinstab.banded.BandedDynamics (built in Python once per scene).
+// The KKT pattern of pinstab.paths.banded.BandedDynamics (built in Python once per scene).
 struct BandedPattern {
   VectorXi carried, joints;       // points carried by bodies, and their joints
   Eigen::MatrixXd local;          // (carried, 3) the points in their joints' frames [m]

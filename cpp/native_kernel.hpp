@@ -13,7 +13,7 @@ struct ClosureSpec {
   Eigen::Matrix4d placement1, placement2;  // homogeneous placements in the joints' frames
 };
 
-// pinstab.native.NativeDynamics compiled: Pinocchio's constraintDynamics with the Baumgarte corrector.
+// pinstab.paths.native.NativeDynamics compiled: Pinocchio's constraintDynamics with the Baumgarte corrector.
 class NativeKernel : public Kernel {
  public:
   NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp, double kd,

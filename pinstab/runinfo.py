@@ -72,7 +72,7 @@ class RunInfo:
         assembly: the assembly of the initial state, or None when it was skipped.
         solver_statistics: the KKT solves of the run.
         path: ``native`` (Pinocchio's own algorithm evaluated the dynamics), ``banded`` (a chain of point
-            closures solved by a banded LU, :mod:`pinstab.banded`) or ``general`` (pinstab's kinematics and
+            closures solved by a banded LU, :mod:`pinstab.paths.banded`) or ``general`` (pinstab's kinematics and
             KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded``.
         record_every: a sample was kept every this many steps (and at the last).
         compiled_steps: steps taken by the compiled step loop (``pinstab._compiled``, on the native and banded

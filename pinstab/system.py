@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from .banded import BandedDynamics, banded_obstacle
 from .constraints import ConstraintValues, FrameClosure, Violation
 from .errors import DivergenceError, PinstabError
-from .kernels import Kernel
 from .model import ConstrainedModel
-from .native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
+from .paths.banded import BandedDynamics, banded_obstacle
+from .paths.kernels import Kernel
+from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .projection import GeneralProjector, Projector
 from .runinfo import SolverStatistics
 from .scene import Scene
@@ -58,8 +58,8 @@ class ConstrainedSystem:
 
     Attributes:
         path: ``native`` (Pinocchio's ``constraintDynamics`` with the stabilizer's Baumgarte gains in
-            its corrector, :mod:`pinstab.native`), ``banded`` (the same equations solved by a banded LU
-            at a cost linear in the chain's length, :mod:`pinstab.banded`; Pinocchio's solve at a
+            its corrector, :mod:`pinstab.paths.native`), ``banded`` (the same equations solved by a banded LU
+            at a cost linear in the chain's length, :mod:`pinstab.paths.banded`; Pinocchio's solve at a
             near-singular configuration) or ``general`` (pinstab's kinematics, the stabilizer's term
             and the KKT backend); chosen by :meth:`bind`.
         path_reason: why the general path was taken, or why the banded one ("" on the native path).

@@ -10,13 +10,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pinstab import banded, build_system, load_scene, simulate
-from pinstab.banded import BandedDynamics
+from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import ConstraintSet, FrameClosure
 from pinstab.integration.passages import Conditioning
 from pinstab.kinematics import Kinematics
-from pinstab.native import NativeDynamics
+from pinstab.paths import banded
+from pinstab.paths.banded import BandedDynamics
+from pinstab.paths.native import NativeDynamics
 
 KP, KD = 100.0, 20.0  # [1/s^2], [1/s]
 

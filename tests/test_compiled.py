@@ -11,11 +11,11 @@ import pinocchio as pin
 import pytest
 
 from pinstab import build_system, load_scene, simulate
-from pinstab.banded import BandedDynamics
 from pinstab.cli import main
 from pinstab.constraints import FrameClosure
 from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, steps_before
 from pinstab.integration.schemes import INTEGRATORS
+from pinstab.paths.banded import BandedDynamics
 
 
 def _run_both(monkeypatch, scene, integrator, duration, **options):

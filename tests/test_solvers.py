@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from pinstab import SolverError, build_system, load_scene, simulate
-from pinstab.native import NativeDynamics
+from pinstab.paths.native import NativeDynamics
 from pinstab.scene import scene_from_dict
 from pinstab.solvers import PinocchioSolver
 

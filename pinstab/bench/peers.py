@@ -11,7 +11,7 @@ import pinocchio as pin
 
 from ..errors import PinstabError
 from ..kinematics import Kinematics
-from ..native import NativeDynamics
+from ..paths.native import NativeDynamics
 from ..scene import Scene
 
 NativeStep = Callable[[np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..banded import BandedDynamics
 from ..constraints import FrameClosure
-from ..native import NativeDynamics
+from ..paths.banded import BandedDynamics
+from ..paths.native import NativeDynamics
 from ..scene import Scene, load_scene
 from ..simulate import simulate
 from .mujoco_peer import DEFAULT_SOLREF, run_mujoco

@@ -16,13 +16,13 @@ from ..files import check_output
 from ..memory import named_when_exhausted
 from ..scene import Scene, load_scene
 from ..stream import h5py_module
-from ..threads import single_blas_thread
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
 from .limits import limit_left, not_event_driven
 from .loop import DEFAULT_DRIFT_LIMIT, start_state
+from .threads import single_blas_thread
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
 

@@ -17,7 +17,7 @@ from ..runinfo import SolverStatistics
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
-    from ..native import NativeDynamics
+    from ..paths.native import NativeDynamics
 
 # a solve is accepted when its residuals, relative to the size of the terms they balance, are below
 # this, whatever status flag the backend raised (a singular configuration can make ProxQP report

@@ -1,7 +1,7 @@
 """``pinocchio``: Pinocchio's own ``constraintDynamics`` (sparse constrained Cholesky + proximal loop)
 as a KKT backend of the general path.
 
-It fits scenes whose constraints are point and planar-point closures (:mod:`pinstab.native`); its
+It fits scenes whose constraints are point and planar-point closures (:mod:`pinstab.paths.native`); its
 stabilization term can only be Pinocchio's Baumgarte corrector (scalar Kp, Kd). Every solve is
 checked against pinstab's own rows: when ``|G a - rhs|`` exceeds
 :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL` (relative to the size of the terms) the same problem
@@ -19,7 +19,7 @@ import numpy as np
 
 from ..constraints import FrameClosure
 from ..errors import SolverError
-from ..native import NativeDynamics, non_planar_closure, unsupported_constraint
+from ..paths.native import NativeDynamics, non_planar_closure, unsupported_constraint
 from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, primal_residual
 from .proxsuite_ import ProxsuiteSolver
 

@@ -30,7 +30,7 @@ import pinocchio as pin
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from .constraints import FrameClosure, Violation
+from ..constraints import FrameClosure, Violation
 from .kernels import BandedKernel
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which its solution is refined

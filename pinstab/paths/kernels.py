@@ -10,7 +10,7 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 
 try:
-    from ._compiled import BandedKernel, Kernel, NativeKernel
+    from .._compiled import BandedKernel, Kernel, NativeKernel
 except ImportError as error:  # pragma: no cover - a broken install
     try:
         pin_release = version("pin")

@@ -21,10 +21,10 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from .constraints import Constraint, FrameClosure, RowKind
+from ..constraints import Constraint, FrameClosure, RowKind
+from ..kinematics import LWA
+from ..memory import new_data
 from .kernels import NativeKernel
-from .kinematics import LWA
-from .memory import new_data
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,

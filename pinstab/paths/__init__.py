@@ -1,0 +1,4 @@
+"""The dynamics paths beside pinstab's own KKT backends (the run info's ``path``): ``native``, Pinocchio's
+``constraintDynamics`` with its Baumgarte corrector (:mod:`.native`); ``banded``, the same equations of a long chain
+of point closures solved by a banded LU at linear cost (:mod:`.banded`); and the compiled kernels both run in
+(:mod:`.kernels`, ``pinstab._compiled``, sources in ``cpp/``)."""
