@@ -122,7 +122,7 @@ def check_sweep(scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, A
         raise PinstabError(f"sweep: {both[0]} is both swept (--grid) and fixed (--param); give it once")
     names = scene_parameters(scene)
     parameters = {name: value for name, value in fixed.items() if name in names}
-    loaded = load_scene(scene_name, **parameters)
+    loaded = load_scene(scene_name, **parameters) if parameters else scene
     for name, values in [*grids.items(), *((name, [value]) for name, value in fixed.items())]:
         for value in values:
             if name not in names:
