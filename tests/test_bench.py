@@ -16,12 +16,15 @@ from pinstab.bench.overhead import KD, KP
 from pinstab.bench.peers import STEP_SCHEMES, native_pinocchio
 from pinstab.bench.workprecision import (
     Config,
+    Reference,
+    Result,
     cheapest_within,
     check_sweep,
     default_configs,
     reference_motion,
     run_config,
     sweep,
+    write_outputs,
 )
 from pinstab.cli import main
 from pinstab.errors import PinstabError
@@ -108,6 +111,33 @@ def test_bench_cli_writes_tables_and_charts(tmp_path, capsys):
         assert (out / name).stat().st_size > 0
     rows = (out / "results.csv").read_text().splitlines()
     assert len(rows) == 1 + len(default_configs(["baumgarte"], ["rk4"], [4e-3]))  # header + one row per run
+
+
+def test_the_drift_chart_takes_the_smallest_step_that_has_a_drift_series(tmp_path, monkeypatch):
+    """A sweep whose smallest step has no drift series (MuJoCo's runs at 0.01 ms) draws the drift of the smallest
+    step that has one (it drew an empty chart); a sweep without any draws none."""
+    import pinstab.plotting
+
+    drawn, save = [], pinstab.plotting.save_figure
+
+    def keep(fig, path):  # the drift chart's curves: (label, samples)
+        if path.name == "drift.png":
+            drawn.extend((line.get_label(), len(line.get_xdata())) for line in fig.axes[0].get_lines())
+        return save(fig, path)
+
+    monkeypatch.setattr(pinstab.plotting, "save_figure", keep)
+    reference = Reference("exact", np.array([0.0, 1.0]), np.zeros((2, 1)), 1e-3)
+    ours = [
+        Result(
+            Config("baumgarte", "rk4", dt), 1.0, trajectory_error=1e-6, drift_series=[1e-9] * n, drift_times=[0.0] * n
+        )
+        for dt, n in ((1e-3, 3), (5e-4, 5))
+    ]
+    peer = Result(Config("mujoco", "euler", 1e-5, "mujoco", solref=(2e-5, 1.0)), 2.0, trajectory_error=1e-3)
+    write_outputs(tmp_path / "a", "nfourbar", reference, [*ours, peer], {"duration": 1.0})
+    assert drawn == [("baumgarte + rk4", 5)] and (tmp_path / "a" / "drift.png").stat().st_size > 0
+    write_outputs(tmp_path / "b", "nfourbar", reference, [peer], {"duration": 1.0})
+    assert not (tmp_path / "b" / "drift.png").exists() and (tmp_path / "b" / "results.md").exists()
 
 
 def test_bench_refuses_bad_input(capsys):

@@ -385,7 +385,8 @@ def make_output_folder(out_dir: Path) -> None:
 def write_outputs(
     out_dir: Path, scene_name: str, reference: Reference, results: list[Result], extra: dict[str, Any]
 ) -> dict[str, Any]:
-    """results.json, results.csv, work_precision.png and drift.png in ``out_dir``; returns the JSON.
+    """results.json, results.csv, work_precision.png and drift.png (when a run has a drift series) in ``out_dir``;
+    returns the JSON.
 
     Raises:
         PinstabError: ``out_dir`` cannot be created (:func:`make_output_folder`).
@@ -469,10 +470,14 @@ def _charts(out_dir: Path, scene_name: str, reference: Reference, results: list[
     )
     save_figure(fig, out_dir / "work_precision.png")
 
+    # the drift of the runs with a drift series (peers at their first gains) at the smallest step among them
+    drawn = [r for r in results if r.drift_series and (r.config.peer is None or r.config.kp == PEER_GAINS[0])]
+    if not drawn:
+        return
     fig, ax = plt.subplots(figsize=(7.5, 4.5), dpi=110)
-    smallest = min(r.config.dt for r in results)
-    for r in results:
-        if r.config.dt == smallest and r.drift_series and (r.config.peer is None or r.config.kp == PEER_GAINS[0]):
+    smallest = min(r.config.dt for r in drawn)
+    for r in drawn:
+        if r.config.dt == smallest:
             series = np.maximum(np.array(r.drift_series), np.finfo(float).tiny)
             ax.semilogy(r.drift_times, series, label=r.config.curve)
     ax.set_xlabel("time t [s]")
