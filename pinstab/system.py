@@ -59,8 +59,8 @@ class ConstrainedSystem:
     Attributes:
         path: ``native`` (Pinocchio's ``constraintDynamics`` with the stabilizer's Baumgarte gains in
             its corrector, :mod:`pinstab.paths.native`), ``banded`` (the same equations solved by a banded LU
-            at a cost linear in the chain's length, :mod:`pinstab.paths.banded`; Pinocchio's solve at a
-            near-singular configuration) or ``general`` (pinstab's kinematics, the stabilizer's term
+            at a cost linear in the chain's length, :mod:`pinstab.paths.banded`; refined near a singular
+            configuration, Pinocchio's solve at one) or ``general`` (pinstab's kinematics, the stabilizer's term
             and the KKT backend); chosen by :meth:`bind`.
         path_reason: why the general path was taken, or why the banded one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].

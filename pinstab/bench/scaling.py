@@ -70,9 +70,9 @@ def chain_costs(
     times the duration (the set-up spread over more steps, as MuJoCo's loop is timed without compiling its
     model; singular passages in proportion), the same run on Pinocchio's solve
     (``solver="pinocchio"``: the native path) and MuJoCo's RK4 ``mj_step`` (loops as ``connect``
-    equalities); per evaluation, the banded solve, ``pin.constraintDynamics`` and the two Pinocchio
-    passes the banded solve starts from (``crba`` in the world convention, ``nonLinearEffects``), and the passage
-    watch's sample sigma_r / sigma_1 on the banded path. Exponents p of cost ~ N^p fitted over ``sizes``."""
+    equalities); per evaluation, the banded solve, ``pin.constraintDynamics``, Pinocchio's ``crba`` in the world
+    convention and ``nonLinearEffects`` called from Python (the banded solve forms its bias by its own pass), and
+    the passage watch's sample sigma_r / sigma_1 on the banded path. Exponents p of cost ~ N^p fitted over ``sizes``."""
     steps = round(duration / dt)
     runs = ("default", "long", "native", "mujoco")
     passes = ("banded", "constraintDynamics", "pinocchio_passes", "conditioning")
@@ -103,8 +103,8 @@ def chain_costs(
 
 def _evaluations(scene: Scene, q: np.ndarray, v: np.ndarray) -> dict[str, float]:
     """CPU microseconds of one dynamics evaluation at (q, v): the banded solve, Pinocchio's
-    ``constraintDynamics`` (same closures and gains) and the two Pinocchio passes the banded solve reads
-    (``crba`` in the world convention, ``nonLinearEffects``); and the banded conditioning sample, repeated at the
+    ``constraintDynamics`` (same closures and gains), Pinocchio's ``crba`` (world convention) and
+    ``nonLinearEffects`` from Python; and the banded conditioning sample, repeated at the
     one state (its iterations warm-started: the run's samples, a few steps apart, take a few more)."""
     closures = [c for c in scene.constraints if isinstance(c, FrameClosure)]
     model, tau = scene.model, np.zeros(scene.model.nv)
