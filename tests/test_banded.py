@@ -13,6 +13,7 @@ import pytest
 from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import ConstraintSet, FrameClosure
+from pinstab.errors import SolverError
 from pinstab.integration.passages import Conditioning
 from pinstab.kinematics import Kinematics
 from pinstab.paths import banded
@@ -295,9 +296,9 @@ def test_the_kernel_computes_in_a_given_data():
     v, tau = np.linspace(-1.0, 1.0, model.nv), np.zeros(model.nv)
     np.testing.assert_array_equal(shared.acceleration(scene.q0, v, tau), own.acceleration(scene.q0, v, tau))
     np.testing.assert_allclose(np.triu(data.M), np.triu(pin.crba(model, pin.Data(model), scene.q0)), atol=1e-14)
-    with pytest.raises(ValueError, match="of another model"):
+    with pytest.raises(SolverError, match="data: a pinocchio.Data of another model; give pin.Data"):
         BandedDynamics(model, closures, KP, KD, data=pin.Data(load_scene("fourbar").model))
-    with pytest.raises(ValueError, match="not a pinocchio.Data"):
+    with pytest.raises(SolverError, match="data: not a pinocchio.Data; give pin.Data"):
         BandedDynamics(model, closures, KP, KD, data=model)
     system = build_system(scene, "baumgarte")
     system.bind(1e-3, "rk4", scene.q0)

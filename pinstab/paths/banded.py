@@ -31,6 +31,7 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..constraints import FrameClosure, Violation
+from ..errors import SolverError
 from .kernels import BandedKernel
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which its solution is refined
@@ -76,6 +77,9 @@ class BandedDynamics:
         data: a ``Data`` of the model for the kernel to compute in (shared with other computations: each evaluation
             recomputes what it reads), or None for one of its own; a ``Data`` of a long chain is costly
             (``benchmarks/data_creation.py``).
+
+    Raises:
+        SolverError: ``data`` is not a ``pin.Data`` of ``model``.
 
     Attributes:
         size: unknowns of the KKT system (accelerations and multipliers). band: its half-bandwidth.
@@ -147,9 +151,12 @@ class BandedDynamics:
         m_upper = np.array(sorted(m_pairs), dtype=int).reshape(-1, 2)
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
         self._build_band(m_upper)
-        self.kernel = BandedKernel(
-            model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE, data
-        )
+        try:
+            self.kernel = BandedKernel(
+                model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE, data
+            )
+        except ValueError as error:  # the compiled kernel refused the Data
+            raise SolverError(f"banded solve: {error}; give pin.Data(model) of this model, or None") from None
         self.singular = False
 
     def _pattern(self, sides: list[tuple[int, np.ndarray]], m_upper: np.ndarray) -> dict[str, np.ndarray]:
