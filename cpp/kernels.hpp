@@ -23,11 +23,12 @@ pinocchio::Model model_from_string(const std::string& text);
 // std::invalid_argument for another object or a Data of another model. The caller keeps the object alive.
 pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model);
 
-// One evaluation a(q, v) under applied forces tau; false when its result is not to be used (a small pivot).
+// One evaluation a(t, q, v) under applied forces tau (t [s]: prescribed targets read it); false when its result is
+// not to be used (a small pivot, a servo that loses rank or its bounds).
 class Kernel {
  public:
   virtual ~Kernel() = default;
-  virtual bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
+  virtual bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
   virtual int nv() const = 0;
 };
 
@@ -54,9 +55,9 @@ void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, cons
 // Explicit schemes of pinstab.integration.schemes on a model whose joints all have one coordinate.
 enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };
 
-// Steps of dt from (q, v): fills rows of qs, vs; returns the steps done (fewer than asked when an
-// evaluation was not to be used: the caller takes that step).
+// Steps of dt from (q, v) at grid step `start` (time start dt): fills rows of qs, vs; returns the steps done (fewer
+// than asked when an evaluation was not to be used: the caller takes that step).
 int advance(Kernel& kernel, Scheme scheme, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau, double dt,
-            int steps, RowMatrix& qs, RowMatrix& vs);
+            long start, int steps, RowMatrix& qs, RowMatrix& vs);
 
 }  // namespace pinstab

@@ -1,6 +1,7 @@
 // pinstab._compiled: the compiled step loop (see pinstab/integration/compiled.py).
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
@@ -8,6 +9,7 @@
 
 #include "banded_kernel.hpp"
 #include "native_kernel.hpp"
+#include "servo_kernel.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -18,14 +20,31 @@ namespace {
 Csr csr(VectorXi indptr, VectorXi indices, VectorXd data) { return Csr{std::move(indptr), std::move(indices), std::move(data)}; }
 
 std::tuple<RowMatrix, RowMatrix, int> run(Kernel& kernel, int scheme, const VectorXd& q, const VectorXd& v,
-                                          const VectorXd& tau, double dt, int steps) {
+                                          const VectorXd& tau, double dt, int steps, long start) {
   RowMatrix qs(steps, q.size()), vs(steps, v.size());
   int done;
   {
     nb::gil_scoped_release released;
-    done = advance(kernel, static_cast<Scheme>(scheme), q, v, tau, dt, steps, qs, vs);
+    done = advance(kernel, static_cast<Scheme>(scheme), q, v, tau, dt, start, steps, qs, vs);
   }
   return {qs, vs, done};
+}
+
+// A target of pinstab.constraints.targets in compiled form: ("sinusoid", [offset, amplitude, omega, phase]) or
+// ("piecewise", breaks, origins, coefficients, held).
+Target target(nb::dict spec) {
+  Target target;
+  target.sinusoid = nb::cast<std::string>(spec["kind"]) == "sinusoid";
+  if (target.sinusoid) {
+    const VectorXd wave = nb::cast<VectorXd>(spec["wave"]);
+    target.offset = wave(0), target.amplitude = wave(1), target.omega = wave(2), target.phase = wave(3);
+  } else {
+    target.breaks = nb::cast<VectorXd>(spec["breaks"]);
+    target.origins = nb::cast<VectorXd>(spec["origins"]);
+    target.coefficients = nb::cast<Eigen::MatrixXd>(spec["coefficients"]);
+    target.held = nb::cast<bool>(spec["held"]);
+  }
+  return target;
 }
 
 }  // namespace
@@ -37,14 +56,15 @@ NB_MODULE(_compiled, m) {
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",
-          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau) {
+          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t) {
             VectorXd a(self.nv());
-            const bool usable = self.acceleration(q, v, tau, a);
+            const bool usable = self.acceleration(t, q, v, tau, a);
             return std::make_tuple(a, usable);
           },
-          "q"_a, "v"_a, "tau"_a, "(accelerations, usable) at (q, v) under tau.")
-      .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a,
-           "(qs, vs, done): up to `steps` steps of dt of the scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4).");
+          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "(accelerations, usable) at (t, q, v) under tau.")
+      .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a = 0,
+           "(qs, vs, done): up to `steps` steps of dt of the scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4) "
+           "from grid step `start` (time start dt).");
   nb::class_<NativeKernel, Kernel>(m, "NativeKernel")
       .def(
           "__init__",
@@ -58,6 +78,22 @@ NB_MODULE(_compiled, m) {
             new (self) NativeKernel(model_from_string(model), closures, kp, kd, mu);
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
+  nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
+      .def(
+          "__init__",
+          [](ServoKernel* self, const std::string& model, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& position_rows,
+             const Eigen::MatrixXd& actuation,
+             const VectorXd& lower, const VectorXd& upper, const std::vector<nb::dict>& targets, double kp, double kd,
+             double rank_tolerance) {
+            std::vector<Target> compiled;
+            for (const nb::dict& spec : targets) compiled.push_back(target(spec));
+            new (self) ServoKernel(model_from_string(model), rows, position_rows, actuation, lower, upper, std::move(compiled), kp, kd,
+                                   rank_tolerance);
+          },
+          "model"_a, "rows"_a, "position_rows"_a, "actuation"_a, "lower"_a, "upper"_a, "targets"_a, "kp"_a, "kd"_a, "rank_tolerance"_a,
+          "The servo path's evaluation: prescribed rows S (p x nv; position_rows p x nq), actuation B (nv x k) and bounds, targets (dicts).")
+      .def("controls", &ServoKernel::controls, "The controls [N m or N] of the last evaluation.")
+      .def_prop_ro("last_sign", &ServoKernel::last_sign);
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(
           "__init__",

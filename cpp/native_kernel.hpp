@@ -18,7 +18,7 @@ class NativeKernel : public Kernel {
  public:
   NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp, double kd,
                double mu);
-  bool acceleration(const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
 
  private:

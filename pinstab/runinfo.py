@@ -72,11 +72,12 @@ class RunInfo:
         assembly: the assembly of the initial state, or None when it was skipped.
         solver_statistics: the KKT solves of the run.
         path: ``native`` (Pinocchio's own algorithm evaluated the dynamics), ``banded`` (a chain of point
-            closures solved by a banded LU, :mod:`pinstab.paths.banded`) or ``general`` (pinstab's kinematics and
-            KKT backend; see :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded``.
+            closures solved by a banded LU, :mod:`pinstab.paths.banded`), ``servo`` (prescribed joint relations
+            solved compiled, :mod:`pinstab.paths.servo`) or ``general`` (pinstab's kinematics and KKT backend; see
+            :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded`` or ``servo``.
         record_every: a sample was kept every this many steps (and at the last).
-        compiled_steps: steps taken by the compiled step loop (``pinstab._compiled``, on the native and banded
-            paths with euler, semi-implicit-euler, heun or rk4; :mod:`pinstab.integration.compiled`), the rest
+        compiled_steps: steps taken by the compiled step loop (``pinstab._compiled``, on the native, banded and
+            servo paths with euler, semi-implicit-euler, heun or rk4; :mod:`pinstab.integration.compiled`), the rest
             by Python.
         controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over

@@ -60,6 +60,12 @@ class ServoSolver:
         self.actuation = actuation
         self._last_sign: tuple[float, float] | None = None  # (time [s], sign of det D) of the last solve
 
+    def follow(self, last_sign: tuple[float, float] | None) -> None:
+        """Continue from a solve made elsewhere (the compiled servo kernel's): its (time [s], sign of det D), so that
+        the next solve sees a sign change since then."""
+        if last_sign is not None:
+            self._last_sign = last_sign
+
     def decoupling(
         self, mass_matrix: np.ndarray, jacobian: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

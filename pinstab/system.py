@@ -17,10 +17,11 @@ from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, banded_obstacle
 from .paths.kernels import Kernel
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
+from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector
 from .runinfo import SolverStatistics
 from .scene import Scene
-from .servo import ServoSolver
+from .servo import RANK_TOLERANCE, ServoSolver
 from .solvers import SOLVERS, KKTProblem, KKTSolver
 from .solvers.base import ACCEPTED_RESIDUAL
 from .stabilizers import STABILIZERS, Stabilizer
@@ -60,11 +61,13 @@ class ConstrainedSystem:
         path: ``native`` (Pinocchio's ``constraintDynamics`` with the stabilizer's Baumgarte gains in
             its corrector, :mod:`pinstab.paths.native`), ``banded`` (the same equations solved by a banded LU
             at a cost linear in the chain's length, :mod:`pinstab.paths.banded`; refined near a singular
-            configuration, Pinocchio's solve at one) or ``general`` (pinstab's kinematics, the stabilizer's term
+            configuration, Pinocchio's solve at one), ``servo`` (prescribed joint relations realized by the controls,
+            solved compiled, :mod:`pinstab.paths.servo`) or ``general`` (pinstab's kinematics, the stabilizer's term
             and the KKT backend); chosen by :meth:`bind`.
-        path_reason: why the general path was taken, or why the banded one ("" on the native path).
+        path_reason: why the general path was taken, or why the banded or servo one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
+        servo_path: the compiled servo solve on the servo path, else None.
         projector: the projections of post-step corrections on the chosen path.
     """
 
@@ -81,8 +84,10 @@ class ConstrainedSystem:
         self.solver = solver
         self.native: NativeDynamics | None = None
         self.banded: BandedDynamics | None = None
+        self.servo_path: ServoDynamics | None = None
         self._banded_allowed = banded
         self._banded_solves = 0
+        self._servo_solves = 0
         self.projector: Projector = GeneralProjector(model)
         self.path = "general"
         self.path_reason = "not bound to a step yet"
@@ -103,11 +108,14 @@ class ConstrainedSystem:
         """Bind the stabilizer to the step [s], the integrator and the start configuration, and take the
         native path when the scene, the method and the solver allow it."""
         self.stabilizer.bind(self.model, step, integrator, q)
+        self.servo_path = None
         reason = self.native_obstacle(q)
         if reason is not None:
             self.path, self.path_reason, self.native = "general", reason, None
             self.acceleration = self._general_acceleration
             self.projector = GeneralProjector(self.model)
+            if self.servo is not None and self._named_solver is None:
+                self._bind_servo()
             return
         gains = self.stabilizer.baumgarte_gains()
         native = self.solver.native
@@ -129,6 +137,28 @@ class ConstrainedSystem:
                 f"{self.banded.band}, solved at linear cost (refined near a singular configuration, Pinocchio's solve "
                 "at one)"
             )
+
+    def _bind_servo(self) -> None:
+        """Take the servo path when the scene's constraints, the method and the scene's gravity allow it; else say
+        why in :attr:`path_reason`."""
+        model = self.model
+        gains = self.stabilizer.baumgarte_gains()
+        reason = servo_obstacle(model.constraints.constraints, model.scene.actuation)
+        if reason is None and model.scene.tilt is not None:
+            reason = "gravity tilts in time ([tilt]); the compiled servo solve takes the model's one gravity"
+        if reason is None and gains is None:
+            reason = f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
+        if reason is not None:
+            self.path_reason = reason
+            return
+        relations = list(model.constraints.constraints)
+        self.servo_path = ServoDynamics(model.model, relations, model.scene.actuation, *gains, RANK_TOLERANCE)
+        self.path, self.acceleration = "servo", self._servo_acceleration
+        self.path_reason = (
+            f"{len(relations)} prescribed joint relation(s) realized by {model.scene.actuation.count} control(s): "
+            "M, h and the decoupling matrix S M^-1 B solved compiled (the general solve where it loses rank or a "
+            "control meets its bound)"
+        )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
         """The banded solve of the native path's closures when it pays (see :func:`banded_obstacle`):
@@ -178,13 +208,17 @@ class ConstrainedSystem:
         are checked one by one, or on the general path."""
         if self.banded is not None:
             return self.banded.kernel
+        if self.servo_path is not None:
+            return self.servo_path.kernel
         if self.native is None or self._checking:
             return None
         return self.native.kernel()
 
     def count_compiled(self, evaluations: int) -> None:
         """Count ``evaluations`` solves made by the compiled loop on this path."""
-        if self.banded is not None:
+        if self.servo_path is not None:
+            self._servo_solves += evaluations
+        elif self.banded is not None:
             self._banded_solves += evaluations
         else:
             self._native_solves += evaluations
@@ -212,6 +246,18 @@ class ConstrainedSystem:
             self._audit.fallbacks += 1
             return self._native_acceleration(q, v, t, stage)
         self._banded_solves += 1
+        return acceleration
+
+    def _servo_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        model = self.model
+        if model.forces_need_kinematics:
+            model.kin.update_jacobians(q)
+        acceleration = self.servo_path.acceleration(q, v, model.applied_force(v, t), t)
+        if self.servo_path.unusable:  # the general solve says why (from the kernel's last sign) or takes the bounds
+            self._audit.fallbacks += 1
+            self.servo.follow(self.servo_path.last_sign)
+            return self._general_acceleration(q, v, t, stage)
+        self._servo_solves += 1
         return acceleration
 
     def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
@@ -272,8 +318,13 @@ class ConstrainedSystem:
         """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
         ``native``), the checked ones and the fallbacks; on the banded path its solves (status ``banded``),
         those of them refined near a singular configuration (status ``banded refined``), a singular one solved by
-        Pinocchio counted as a fallback."""
+        Pinocchio counted as a fallback; on the servo path its compiled solves (status ``servo``), those the general
+        solve took counted as fallbacks."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
+        if self.servo_path is not None:
+            merged.solves += self._servo_solves
+            merged.status_counts["servo"] = self._servo_solves
+            merged.fallbacks += self._audit.fallbacks
         if self.native is None:
             return merged
         audit = self._audit

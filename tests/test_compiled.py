@@ -50,6 +50,19 @@ def test_banded_path_bitwise_equal_to_the_python_loop(monkeypatch):
     assert fast.info.solver_statistics.status_counts == slow.info.solver_statistics.status_counts
 
 
+@pytest.mark.parametrize("integrator", list(SCHEMES))
+@pytest.mark.filterwarnings("ignore::pinstab.errors.ZeroDynamicsWarning")  # the free shoulder whirls up
+def test_servo_path_bitwise_equal_to_the_python_loop(monkeypatch, integrator):
+    """double-pendulum-servo over 0.5 s (the servo path; its targets read at the stages' times): the compiled loop's
+    states equal the Python loop's (the same kernel called per stage) to the last bit."""
+    fast, slow = _run_both(monkeypatch, load_scene("double-pendulum-servo"), integrator, 0.5)
+    assert fast.info.path == slow.info.path == "servo"
+    assert fast.info.compiled_steps == 499 and slow.info.compiled_steps == 0
+    np.testing.assert_array_equal(fast.q, slow.q)
+    np.testing.assert_array_equal(fast.v, slow.v)
+    assert fast.info.solver_statistics.status_counts == slow.info.solver_statistics.status_counts
+
+
 def test_compiled_banded_path_matches_pinocchios_reference():
     """Independent check: the compiled banded run against Pinocchio's constraintDynamics (solver pinocchio,
     Python loop) on N = 24, RK4 over 1 s: crank angles to 1e-10 rad."""

@@ -41,6 +41,24 @@ class TargetTrajectory(ABC):
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x, dx/dt, d2x/dt2) at time t [s]: arrays of ``size`` [X, X/s, X/s^2]."""
 
+    def compiled(self, component: int) -> dict[str, Any] | None:
+        """Component ``component`` of the trajectory in the form the compiled servo kernel evaluates
+        (``cpp/targets.hpp``): ``{"kind": "sinusoid", "wave": [offset, amplitude, omega, phase]}`` or
+        ``{"kind": "piecewise", "breaks", "origins", "coefficients" (pieces x (degree + 1), ascending powers of
+        t - origin), "held"}``; None (the default) when it has none: its servo runs on the general path."""
+        return None
+
+
+def piecewise(breaks: list[float], origins: list[float], coefficients: np.ndarray, held: bool) -> dict[str, Any]:
+    """A compiled piecewise polynomial (see :meth:`TargetTrajectory.compiled`)."""
+    return {
+        "kind": "piecewise",
+        "breaks": np.asarray(breaks, dtype=float),
+        "origins": np.asarray(origins, dtype=float),
+        "coefficients": np.atleast_2d(np.asarray(coefficients, dtype=float)),
+        "held": held,
+    }
+
 
 @dataclass(frozen=True)
 class TargetContext:
@@ -103,6 +121,9 @@ class Polynomial(TargetTrajectory):
         second = (powers[2:] * (powers[2:] - 1) * np.power(t, powers[2:] - 2)) @ c[2:]
         return value, first, second
 
+    def compiled(self, component: int) -> dict[str, Any]:
+        return piecewise([-np.inf, np.inf], [0.0], self.coefficients[:, component], held=False)
+
 
 @TRAJECTORY_KINDS.register("polynomial", summary="sum of c_k t^k (coefficients, optional unit)")
 def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynomial:
@@ -138,6 +159,10 @@ class Sinusoid(TargetTrajectory):
         angle = self.omega * t + self.phase
         wave = self.amplitude * np.sin(angle)
         return self.offset + wave, self.amplitude * self.omega * np.cos(angle), -(self.omega**2) * wave
+
+    def compiled(self, component: int) -> dict[str, Any]:
+        wave = (self.offset, self.amplitude, self.omega, self.phase)
+        return {"kind": "sinusoid", "wave": np.array([float(part[component]) for part in wave])}
 
 
 SINUSOID_KEYS = {"amplitude", "omega", "phase", "offset"}
@@ -176,6 +201,12 @@ class MinimumJerk(TargetTrajectory):
         curvature = 60.0 * s * (1.0 - s) * (1.0 - 2.0 * s) / self.duration**2
         return self.origin + shape * self.change, slope * self.change, curvature * self.change
 
+    def compiled(self, component: int) -> dict[str, Any]:
+        change, duration = float(self.change[component]), self.duration
+        quintic = [0.0, 0.0, 0.0, 10.0 * change / duration**3, -15.0 * change / duration**4, 6.0 * change / duration**5]
+        coefficients = np.array(quintic) + np.eye(6)[0] * float(self.origin[component])
+        return piecewise([self.start, self.start + duration], [self.start], coefficients, held=True)
+
 
 @TRAJECTORY_KINDS.register("minimum-jerk", summary="rest to rest from 'from' to 'to' (start, duration)")
 def parse_minimum_jerk(entry: dict, context: TargetContext, where: str) -> MinimumJerk:
@@ -204,6 +235,10 @@ class Spline(TargetTrajectory):
             end = self.first if t < self.first else self.last
             return self.spline(end), np.zeros(self.size), np.zeros(self.size)
         return self.spline(t), self.spline(t, 1), self.spline(t, 2)
+
+    def compiled(self, component: int) -> dict[str, Any]:
+        spline = self.spline  # scipy's c: (4, pieces, size), descending powers of t - x_i
+        return piecewise(spline.x, spline.x[:-1], spline.c[::-1, :, component].T, held=True)
 
 
 SPLINE_ENDS = ("clamped", "natural")

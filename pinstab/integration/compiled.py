@@ -1,14 +1,15 @@
 """The compiled step loop: runs of fixed steps taken in C++ (``pinstab._compiled``, sources in ``cpp/``) on the
-native and banded paths.
+native, banded and servo paths.
 
 A Python step on those paths costs the evaluation (Pinocchio's passes, microseconds) plus Python's calls and
 NumPy's small-array arithmetic around it (on the four-bar, more than the evaluation itself:
 ``benchmarks/overhead.py``). :class:`CompiledSteps` hands the stepping loop's runs of steps between its checks to
 the compiled loop: the same schemes (:mod:`pinstab.integration.schemes`), the same sums in the same order, the
-same evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded solve on the banded
-one, which the Python step calls too): the results equal the Python loop's to the last bit. The loop's checks,
-the passage watch, the samples and the fallback of a near-singular banded solve stay in Python: the compiled
-loop stops before a step whose evaluation is not to be used and the Python step takes it.
+same evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded or servo solve on
+those paths, which the Python step calls too) at the same stage times: the results equal the Python loop's to the
+last bit. The loop's checks, the passage watch, the samples and the fallbacks (a near-singular banded solve, a
+servo that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose evaluation is
+not to be used and the Python step takes it.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
 
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator) -> str | None:
     """Why the compiled loop cannot take this run's steps (naming the first reason), or None."""
-    if system.path not in ("native", "banded"):
+    if system.path not in ("native", "banded", "servo"):
         return f"the {system.path} path (pinstab's KKT backend) runs in Python"
     if stepper.name not in SCHEMES:
         return f"integrator {stepper.name} is not one of {', '.join(SCHEMES)}"
@@ -62,14 +63,17 @@ class CompiledSteps:
         """The compiled steps of this run, or None when :func:`compiled_obstacle` names a reason."""
         return None if compiled_obstacle(system, stepper) is not None else cls(system, stepper)
 
-    def run(self, q: np.ndarray, v: np.ndarray, dt: float, steps: int) -> tuple[np.ndarray, np.ndarray, int] | None:
-        """Up to ``steps`` steps of ``dt`` [s] from (q, v): the states after each (rows) and the number done,
-        fewer when the next step's evaluation is not to be used (a near-singular banded solve); None while the
-        system's solves must be checked one by one (the native path after a failed check)."""
+    def run(
+        self, q: np.ndarray, v: np.ndarray, start: int, dt: float, steps: int
+    ) -> tuple[np.ndarray, np.ndarray, int] | None:
+        """Up to ``steps`` steps of ``dt`` [s] from (q, v) at grid step ``start`` (time ``start * dt``): the states
+        after each (rows) and the number done, fewer when the next step's evaluation is not to be used (a
+        near-singular banded solve, a servo that loses rank or meets a bound); None while the system's solves must
+        be checked one by one (the native path after a failed check)."""
         kernel = self.system.compiled_kernel()
         if kernel is None:
             return None
-        qs, vs, done = kernel.run(self.scheme, q, v, self.system.model.no_force, dt, steps)
+        qs, vs, done = kernel.run(self.scheme, q, v, self.system.model.no_force, dt, steps, start)
         self.system.count_compiled(done * self.stages)
         self.steps += done
         return qs, vs, done

@@ -210,7 +210,7 @@ class StepLoop:
             # the steps before the watch's next sample, the last grid step (shortened) excepted
             span = 0 if compiled is None else steps_before(k, min(stop, last - 1), dt, watch.next_due)
             if span:
-                run = compiled.run(q, v, dt, span)
+                run = compiled.run(q, v, k, dt, span)
                 if run is not None:
                     qs, vs, done = run
                     if done:

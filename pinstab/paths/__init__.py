@@ -1,4 +1,5 @@
 """The dynamics paths beside pinstab's own KKT backends (the run info's ``path``): ``native``, Pinocchio's
 ``constraintDynamics`` with its Baumgarte corrector (:mod:`.native`); ``banded``, the same equations of a long chain
-of point closures solved by a banded LU at linear cost (:mod:`.banded`); and the compiled kernels both run in
-(:mod:`.kernels`, ``pinstab._compiled``, sources in ``cpp/``)."""
+of point closures solved by a banded LU at linear cost (:mod:`.banded`); ``servo``, prescribed joint relations
+realized by controls (:mod:`.servo`); and the compiled kernels they run in (:mod:`.kernels`, ``pinstab._compiled``,
+sources in ``cpp/``)."""

@@ -1,5 +1,6 @@
-"""The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics and the
-banded solve evaluated in C++, and the explicit step loop over them (:mod:`pinstab.integration.compiled`).
+"""The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics, the
+banded solve and the servo solve evaluated in C++, and the explicit step loop over them
+(:mod:`pinstab.integration.compiled`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -10,7 +11,7 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 
 try:
-    from .._compiled import BandedKernel, Kernel, NativeKernel
+    from .._compiled import BandedKernel, Kernel, NativeKernel, ServoKernel
 except ImportError as error:  # pragma: no cover - a broken install
     try:
         pin_release = version("pin")
@@ -22,4 +23,4 @@ except ImportError as error:  # pragma: no cover - a broken install
         "(pip install -e . in its checkout, or pip install --force-reinstall pinstab)"
     ) from error
 
-__all__ = ["BandedKernel", "Kernel", "NativeKernel"]
+__all__ = ["BandedKernel", "Kernel", "NativeKernel", "ServoKernel"]
