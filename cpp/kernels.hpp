@@ -22,6 +22,8 @@ pinocchio::Model model_from_string(const std::string& text);
 // The pinocchio::Data wrapped by a Python pin.Data of this model (cpp/python_data.cpp); throws
 // std::invalid_argument for another object or a Data of another model. The caller keeps the object alive.
 pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model);
+// The pinocchio::Model wrapped by a Python pin.Model (throws std::invalid_argument for another object).
+const pinocchio::Model& python_model(PyObject* object);
 
 // One evaluation a(t, q, v) under applied forces tau (t [s]: prescribed targets read it); false when its result is
 // not to be used (a small pivot, a servo that loses rank or its bounds).

@@ -8,6 +8,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "banded_kernel.hpp"
+#include "contact_terms.hpp"
 #include "native_kernel.hpp"
 #include "servo_kernel.hpp"
 
@@ -78,6 +79,22 @@ NB_MODULE(_compiled, m) {
             new (self) NativeKernel(model_from_string(model), closures, kp, kd, mu);
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
+  m.def(
+      "contact_point_jacobian",
+      [](nb::handle model, nb::handle data, int object_frame, int finger_frame) {
+        const pinocchio::Model& native = python_model(model.ptr());
+        return contact_point_jacobian(native, python_data(data.ptr(), native), object_frame, finger_frame);
+      },
+      "model"_a, "data"_a, "object_frame"_a, "finger_frame"_a,
+      "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
+  m.def(
+      "contact_point_drift",
+      [](nb::handle model, nb::handle data, int object_frame, int finger_frame) {
+        const pinocchio::Model& native = python_model(model.ptr());
+        return contact_point_drift(native, python_data(data.ptr(), native), object_frame, finger_frame);
+      },
+      "model"_a, "data"_a, "object_frame"_a, "finger_frame"_a,
+      "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",

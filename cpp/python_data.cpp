@@ -1,5 +1,5 @@
-// A pin.Data from Python (a boost.python object of Pinocchio's bindings) seen as the C++ object it wraps, so a
-// compiled kernel computes in a Data the Python side already has: a pin 4.1 Data of a long chain is costly to
+// A pin.Data (or pin.Model) from Python (a boost.python object of Pinocchio's bindings) seen as the C++ object it
+// wraps, so a compiled kernel computes in a Data the Python side already has: a pin 4.1 Data of a long chain is costly to
 // create (four nv^3 tensors: 135 MiB and ~65 ms at the N-four-bar N = 80).
 #include <boost/python.hpp>
 
@@ -18,6 +18,13 @@ pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model) {
     throw std::invalid_argument("data: a pinocchio.Data of another model");
   }
   return data;
+}
+
+const pinocchio::Model& python_model(PyObject* object) {
+  namespace converter = boost::python::converter;
+  void* address = converter::get_lvalue_from_python(object, converter::registered<pinocchio::Model>::converters);
+  if (address == nullptr) throw std::invalid_argument("model: not a pinocchio.Model");
+  return *static_cast<const pinocchio::Model*>(address);
 }
 
 }  // namespace pinstab

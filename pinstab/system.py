@@ -13,9 +13,9 @@ import numpy as np
 
 from .constraints import ConstraintValues, FrameClosure, Violation
 from .errors import DivergenceError, PinstabError
+from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, banded_obstacle
-from .paths.kernels import Kernel
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector

@@ -10,6 +10,8 @@ from pinstab import SolverError, build_system, load_scene, simulate
 from pinstab.paths.native import NativeDynamics
 from pinstab.scene import scene_from_dict
 from pinstab.solvers import PinocchioSolver
+from pinstab.solvers.base import KKTProblem
+from pinstab.solvers.proxsuite_ import direct_solve
 
 
 def native_accelerations(scene, kp, kd, states):
@@ -218,3 +220,47 @@ def test_native_path_is_taken_where_it_applies(scene_name, method, solver, integ
     system.bind(1e-3, integrator, scene.q0)
     assert system.path == ("general" if reason else "native")
     assert reason in system.path_reason
+
+
+def test_proxsuite_direct_solve_equals_proxqp_and_dense():
+    """allegro-sphere (12 independent contact rows, nv = 22): the proxsuite backend's Cholesky solve (status
+    'cholesky'), ProxQP itself (direct off) and the dense backend give the same accelerations (1e-10 relative)
+    and multipliers (1e-8 relative) at states along a run; with direct off every status is ProxQP's."""
+    scene = load_scene("allegro-sphere")
+    trajectory = simulate(scene, duration=0.05, progress=False)
+    systems = {
+        "direct": build_system(scene, "baumgarte", "proxsuite"),
+        "qp": build_system(scene, "baumgarte", "proxsuite", solver_options={"direct": False}),
+        "dense": build_system(scene, "baumgarte", "dense"),
+    }
+    for q, v in zip(trajectory.q[::10], trajectory.v[::10], strict=True):
+        results = {name: system.dynamics(q, v, 0.0) for name, system in systems.items()}
+        expected = results["dense"]
+        for name in ("direct", "qp"):
+            scale_a, scale_f = np.abs(expected.acceleration).max(), np.abs(expected.multipliers).max()
+            np.testing.assert_allclose(results[name].acceleration, expected.acceleration, atol=1e-10 * scale_a)
+            np.testing.assert_allclose(results[name].multipliers, expected.multipliers, atol=1e-8 * scale_f)
+    assert set(systems["direct"].solver.statistics.status_counts) == {"cholesky"}
+    assert "cholesky" not in systems["qp"].solver.statistics.status_counts
+
+
+def test_proxsuite_direct_solve_declines_redundant_rows():
+    """fivebar's point closure on a planar mechanism (3 rows, rank 2): the Cholesky pivot of the Delassus matrix
+    falls below DIRECT_PIVOT, the direct solve declines and ProxQP solves (the dense backend refuses it)."""
+    scene = load_scene("fivebar")
+    system = build_system(scene, "baumgarte", "proxsuite")
+    system.dynamics(scene.q0, scene.v0, 0.0)
+    assert set(system.solver.statistics.status_counts) <= {"PROXQP_SOLVED", "PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE"}
+    terms = system.model.dynamics_terms(scene.q0, scene.v0, 0.0)
+    problem = KKTProblem(
+        scene.q0,
+        scene.v0,
+        0.0,
+        terms.tau,
+        terms.mass_matrix,
+        terms.tau - terms.bias,
+        terms.values.jacobian,
+        -terms.values.drift,
+        system.model.constraints.layout,
+    )
+    assert direct_solve(problem) is None

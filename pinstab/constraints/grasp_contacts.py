@@ -30,6 +30,7 @@ from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
+from ..kernels import contact_point_drift, contact_point_jacobian
 from ..kinematics import Kinematics, PerUpdate
 from ..memory import new_data
 from ..tables import SceneTables
@@ -118,32 +119,14 @@ class FingertipContact(Constraint):
         return self._drift(kin)
 
     def _compute_velocity_terms(self, kin: Kinematics) -> VelocityTerms:
-        rotation, difference = self._point_difference(kin)
-        jac_o = kin.jacobian(self.object_frame)
-        jac_f = kin.jacobian(self.finger_frame)
-        # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o
-        linear = rotation.T @ (jac_o[:3] - jac_f[:3] + pin.skew(difference) @ jac_o[3:])
+        # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o (compiled: cpp/contact_terms.cpp)
+        linear = contact_point_jacobian(kin.model, kin.data, self.object_frame, self.finger_frame)
         angular = self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:] if self._weld else None
         return VelocityTerms(self._select(linear, angular), np.zeros(self.rows))
 
     def _compute_drift(self, kin: Kinematics) -> np.ndarray:
-        rotation, difference = self._point_difference(kin)
-        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d), on floats
-        d0, d1, d2 = difference.tolist()
-        velocity_o, velocity_f = kin.velocity(self.object_frame).vector, kin.velocity(self.finger_frame).vector
-        r0, r1, r2, w0, w1, w2 = velocity_o.tolist()
-        f0, f1, f2 = velocity_f[:3].tolist()
-        r0, r1, r2 = 2.0 * (r0 - f0), 2.0 * (r1 - f1), 2.0 * (r2 - f2)
-        acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
-        s0, s1, s2 = (acc_o.linear - acc_f.linear).tolist()
-        k0, k1, k2 = acc_o.angular.tolist()
-        x0, x1, x2 = w1 * d2 - w2 * d1 - r0, w2 * d0 - w0 * d2 - r1, w0 * d1 - w1 * d0 - r2  # w x d - 2 d'
-        turning = [
-            s0 + w1 * x2 - w2 * x1 - (k1 * d2 - k2 * d1),
-            s1 + w2 * x0 - w0 * x2 - (k2 * d0 - k0 * d2),
-            s2 + w0 * x1 - w1 * x0 - (k0 * d1 - k1 * d0),
-        ]
-        linear = rotation.T @ np.array(turning)
+        # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d) (compiled)
+        linear = contact_point_drift(kin.model, kin.data, self.object_frame, self.finger_frame)
         return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None)
 
     # -- forces --------------------------------------------------------------------------------------

@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..constraints import FrameClosure, Violation
 from ..errors import SolverError
-from .kernels import BandedKernel
+from ..kernels import BandedKernel
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which its solution is refined
 MIN_CLOSURES = (

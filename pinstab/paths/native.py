@@ -22,9 +22,9 @@ import numpy as np
 import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
+from ..kernels import NativeKernel
 from ..kinematics import LWA
 from ..memory import new_data
-from .kernels import NativeKernel
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,

@@ -23,7 +23,7 @@ import pinocchio as pin
 from ..actuation import Actuation
 from ..constraints import Constraint
 from ..constraints.joint_relation import JointRelation
-from .kernels import ServoKernel
+from ..kernels import ServoKernel
 
 
 def servo_obstacle(constraints: list[Constraint], actuation: Actuation | None) -> str | None:

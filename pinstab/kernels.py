@@ -1,6 +1,6 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics, the
-banded solve and the servo solve evaluated in C++, and the explicit step loop over them
-(:mod:`pinstab.integration.compiled`).
+banded solve and the servo solve evaluated in C++ (:mod:`pinstab.paths`), the explicit step loop over them
+(:mod:`pinstab.integration.compiled`), and a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -11,7 +11,14 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 
 try:
-    from .._compiled import BandedKernel, Kernel, NativeKernel, ServoKernel
+    from ._compiled import (
+        BandedKernel,
+        Kernel,
+        NativeKernel,
+        ServoKernel,
+        contact_point_drift,
+        contact_point_jacobian,
+    )
 except ImportError as error:  # pragma: no cover - a broken install
     try:
         pin_release = version("pin")
@@ -23,4 +30,4 @@ except ImportError as error:  # pragma: no cover - a broken install
         "(pip install -e . in its checkout, or pip install --force-reinstall pinstab)"
     ) from error
 
-__all__ = ["BandedKernel", "Kernel", "NativeKernel", "ServoKernel"]
+__all__ = ["BandedKernel", "Kernel", "NativeKernel", "ServoKernel", "contact_point_drift", "contact_point_jacobian"]

@@ -1,0 +1,19 @@
+// The point rows of a fingertip contact (pinstab.constraints.grasp_contacts.FingertipContact), compiled: what its
+// Python computed with a dozen Pinocchio calls and small-array NumPy per contact and evaluation.
+#pragma once
+
+#include "kernels.hpp"
+
+namespace pinstab {
+
+// Rows R^T (p_o - p_f) between the object's frame o (rotation R) and the fingertip's frame f, read from a Data
+// after a kinematics pass: their Jacobian R^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv; linear J, angular W in
+// LOCAL_WORLD_ALIGNED; needs the joint Jacobians and frame placements) ...
+Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
+                                       int finger_frame);
+// ... and their second derivative at zero joint acceleration, R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d)
+// with d = p_o - p_f (needs a full pass: velocities and accelerations at zero joint acceleration).
+Eigen::Vector3d contact_point_drift(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
+                                    int finger_frame);
+
+}  // namespace pinstab
