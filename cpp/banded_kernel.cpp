@@ -125,6 +125,19 @@ bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
   const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> terms = terms_;
   rows_.setZero();
   multiply_add(p.row_map, terms.data(), rows_.data());
+  assemble_matrix();
+  for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
+  for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
+  const Outcome outcome = solve_assembled();
+  singular_ = outcome == Outcome::singular;
+  refinements_ += outcome == Outcome::refined ? 1 : 0;
+  for (int i = 0; i < p.acceleration_slots.size(); ++i) a(i) = rhs_(p.acceleration_slots(i));
+  return !singular_;
+}
+
+void BandedKernel::assemble_matrix() {
+  // the KKT matrix's entries [M upper, M lower off-diagonal, G, G^T] (data_.M and g_values_ computed)
+  const BandedPattern& p = pattern_;
   const int entries = static_cast<int>(p.g_columns.size());
   const int upper = static_cast<int>(p.m_rows.size());
   const int off = static_cast<int>(p.m_off.size());
@@ -132,8 +145,11 @@ bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
   values_.segment(upper + off + entries, entries) = g_values_;
   for (int m = 0; m < upper; ++m) values_(m) = data_.M(p.m_rows(m), p.m_cols(m));
   for (int m = 0; m < off; ++m) values_(upper + m) = values_(p.m_off(m));
-  for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
-  for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
+}
+
+BandedKernel::Outcome BandedKernel::solve_assembled() {
+  // the LU of the assembled KKT matrix applied to rhs_ (overwritten by the solution); a small pivot refined
+  const BandedPattern& p = pattern_;
   scatter(ab_);
   right_ = rhs_;
   const int info = banded_solve(ab_, p.band, rhs_, pivots_);
@@ -144,13 +160,31 @@ bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
     largest = std::max(largest, pivot);
   }
   pivot_ratio_ = smallest / largest;
-  singular_ = info != 0 || !(smallest > pivot_tolerance_ * largest);
-  if (singular_ && info == 0 && smallest > REFINABLE * largest) {
-    singular_ = !refine();
-    refinements_ += singular_ ? 0 : 1;
-  }
-  for (int i = 0; i < p.acceleration_slots.size(); ++i) a(i) = rhs_(p.acceleration_slots(i));
-  return !singular_;
+  if (info == 0 && smallest > pivot_tolerance_ * largest) return Outcome::solved;
+  if (info == 0 && smallest > REFINABLE * largest && refine()) return Outcome::refined;
+  return Outcome::singular;
+}
+
+std::pair<VectorXd, VectorXd> BandedKernel::values(const VectorXd& q) {
+  pinocchio::computeJointJacobians(model_, data_, q);
+  jacobian_values();
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> positions = points_;
+  VectorXd phi = VectorXd::Zero(rows_.size());
+  multiply_add(pattern_.row_map, positions.data(), phi.data());  // s . (p_b - p_a) = -phi
+  return {-phi, g_values_};
+}
+
+bool BandedKernel::project(const VectorXd& q, const VectorXd& rows, VectorXd& x) {
+  const BandedPattern& p = pattern_;
+  pinocchio::crba(model_, data_, q, pinocchio::Convention::WORLD);
+  jacobian_values();
+  assemble_matrix();
+  for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = 0.0;
+  for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows(r);
+  if (solve_assembled() == Outcome::singular) return false;
+  x.resize(p.acceleration_slots.size());
+  for (int i = 0; i < x.size(); ++i) x(i) = rhs_(p.acceleration_slots(i));
+  return x.allFinite();
 }
 
 void BandedKernel::scatter(Eigen::MatrixXd& band) const {

@@ -43,8 +43,16 @@ class BandedKernel : public Kernel {
   std::pair<double, double> violation(const VectorXd& q, const VectorXd& v);
   // sigma_r / sigma_1 of the closures' Jacobian G at q (the passage watch's sample), by GramSpectrum
   double relative_singular_value(const VectorXd& q, int rank);
+  // (phi [m], G's entries in the pattern's order) at q: the closures' residuals and Jacobian
+  std::pair<VectorXd, VectorXd> values(const VectorXd& q);
+  // x = M^-1 G^T (G M^-1 G^T)^-1 rows at q (the KKT system with [0; rows] on its right), refined near a small
+  // pivot; false where the matrix is singular to rounding (redundant rows, a singular configuration)
+  bool project(const VectorXd& q, const VectorXd& rows, VectorXd& x);
 
  private:
+  enum class Outcome { solved, refined, singular };
+  void assemble_matrix();
+  Outcome solve_assembled();
   void jacobian_values();
   void place_points();
   void scatter(Eigen::MatrixXd& band) const;  // the KKT entries (values_) into band storage

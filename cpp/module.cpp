@@ -157,5 +157,14 @@ NB_MODULE(_compiled, m) {
       .def("violation", &BandedKernel::violation, "q"_a, "v"_a,
            "(max |phi| [m], max |G v| [m/s]) over the closures' rows at (q, v).")
       .def("relative_singular_value", &BandedKernel::relative_singular_value, "q"_a, "rank"_a,
-           "sigma_r / sigma_1 of the closures' Jacobian at q.");
+           "sigma_r / sigma_1 of the closures' Jacobian at q.")
+      .def("values", &BandedKernel::values, "q"_a, "(phi [m], G's entries) of the closures at q.")
+      .def(
+          "project",
+          [](BandedKernel& self, const VectorXd& q, const VectorXd& rows) {
+            VectorXd x;
+            const bool usable = self.project(q, rows, x);
+            return std::make_tuple(x, usable);
+          },
+          "q"_a, "rows"_a, "(M^-1 G^T (G M^-1 G^T)^-1 rows, usable) at q.");
 }

@@ -15,7 +15,7 @@ from .constraints import ConstraintValues, FrameClosure, Violation
 from .errors import DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
-from .paths.banded import BandedDynamics, banded_obstacle
+from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector
@@ -132,6 +132,7 @@ class ConstrainedSystem:
         self.banded = self._banded(native)
         if self.banded is not None:
             self.path, self.acceleration = "banded", self._banded_acceleration
+            self.projector = BandedProjector(self.banded, GeneralProjector(self.model))
             self.path_reason = (
                 f"{len(native.closures)} point closures: KKT system of {self.banded.size} unknowns with a band of "
                 f"{self.banded.band}, solved at linear cost (refined near a singular configuration, Pinocchio's solve "
@@ -228,6 +229,12 @@ class ConstrainedSystem:
         """``(q, r) -> sigma_r / sigma_1`` of the constraint Jacobian without a dense SVD (the banded path's),
         or None."""
         return None if self.banded is None else self.banded.relative_singular_value
+
+    @property
+    def constraint_jacobian(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """``q -> G`` (rows x nv) without pinstab's Python pass over the rows (the banded path's compiled one), or
+        None."""
+        return None if self.banded is None else self.banded.jacobian
 
     # -- evaluations ---------------------------------------------------------------------------------
     def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:

@@ -98,19 +98,27 @@ class Conditioning:
         model: the constrained model.
         q: the start configuration: the rank there is the generic rank r.
         relative: ``(q, r) -> sigma_r / sigma_1`` computed without a dense SVD (the banded path's), or None.
+        jacobian: ``q -> G`` without the model's Python pass over its rows (the banded path's), or None.
     """
 
     def __init__(
-        self, model: ConstrainedModel, q: np.ndarray, relative: Callable[[np.ndarray, int], float] | None = None
+        self,
+        model: ConstrainedModel,
+        q: np.ndarray,
+        relative: Callable[[np.ndarray, int], float] | None = None,
+        jacobian: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         self.model = model
         self._relative = relative
+        self._jacobian_of = jacobian
         self._zero = np.zeros(model.nv)
         values = self._singular_values(q, 0.0)
         largest = values[0] if values.size else 0.0
         self.rank = int(np.sum(values > GENERIC_RANK_TOLERANCE * largest)) if largest > 0 else 0
 
     def _jacobian(self, q: np.ndarray, t: float) -> np.ndarray:
+        if self._jacobian_of is not None:
+            return self._jacobian_of(q)
         return self.model.constraint_values(q, self._zero, t).jacobian
 
     def _singular_values(self, q: np.ndarray, t: float) -> np.ndarray:
@@ -136,8 +144,13 @@ class Conditioning:
         return int(np.sum(values > RANK_TOLERANCE * values[0])) if values[0] > 0 else 0
 
     def tangent(self, q: np.ndarray, t: float) -> np.ndarray:
-        """An orthonormal basis of ker G at (q, t) of the generic dimension nv - r (nv x (nv - r))."""
-        _, _, right = np.linalg.svd(self._jacobian(q, t))
+        """An orthonormal basis of ker G at (q, t) of the generic dimension nv - r (nv x (nv - r)): the last columns
+        of a complete QR factorization of G^T when the rows are independent at the start (r = rows: G^T's
+        columns span its first r, a fifth of an SVD's cost), else the SVD's right singular vectors."""
+        jacobian = self._jacobian(q, t)
+        if self.rank == jacobian.shape[0] and np.isfinite(jacobian).all():
+            return np.linalg.qr(jacobian.T, mode="complete")[0][:, self.rank :]
+        _, _, right = np.linalg.svd(jacobian)
         return right[self.rank :].T
 
 
@@ -176,6 +189,7 @@ class PassageWatch:
         q: the start configuration.
         nodes: the integrator's stage times as shares of a step.
         step: the run's step [s] (fixed-step runs) or a first estimate (adaptive runs).
+        relative, jacobian: see :class:`Conditioning`.
     """
 
     def __init__(
@@ -185,8 +199,9 @@ class PassageWatch:
         nodes: Sequence[float],
         step: float,
         relative: Callable[[np.ndarray, int], float] | None = None,
+        jacobian: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
-        self.conditioning = Conditioning(model, q, relative)
+        self.conditioning = Conditioning(model, q, relative, jacobian)
         self.active = self.conditioning.rank > 0
         self.points = np.array(sorted({0.0, 1.0, *(float(c) for c in nodes)}))
         self.centre, half_width = node_gap(self.points)

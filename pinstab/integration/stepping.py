@@ -149,7 +149,14 @@ class StepLoop:
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.put(0, q, v)
-        self.watch = PassageWatch(self.system.model, q, self.stepper.nodes, self.grid.dt, self.system.conditioning)
+        self.watch = PassageWatch(
+            self.system.model,
+            q,
+            self.stepper.nodes,
+            self.grid.dt,
+            self.system.conditioning,
+            self.system.constraint_jacobian,
+        )
         k = 0
         try:
             self.system.audit(q, v, 0.0)

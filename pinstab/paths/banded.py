@@ -25,6 +25,8 @@ converge sets :attr:`BandedDynamics.singular`, and the caller uses the reference
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 import pinocchio as pin
 from scipy.sparse import coo_matrix, csr_matrix
@@ -247,6 +249,60 @@ class BandedDynamics:
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""
         return self.kernel.multipliers()
+
+    def residual(self, q: np.ndarray) -> np.ndarray:
+        """phi (rows,) [m] of the closures at q, by the compiled kernel (the model's rows, without its Python pass)."""
+        return self.kernel.values(q)[0]
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """G (rows x nv) [m/rad, 1] of the closures at q, dense, by the compiled kernel."""
+        dense = np.zeros((self.rows, self.model.nv))
+        dense[self._g_row, self._g_col] = self.kernel.values(q)[1]
+        return dense
+
+    def rate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """G v (rows,) [m/s] at (q, v), from the kernel's entries of G."""
+        entries = self.kernel.values(q)[1]
+        return np.bincount(self._g_row, weights=entries * v[self._g_col], minlength=self.rows)
+
+    def project(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray | None:
+        """``M^-1 G^T (G M^-1 G^T)^-1 rows`` (nv,) at q by the banded LU (refined near a small pivot), or None
+        where the KKT matrix is singular to rounding (redundant rows, a singular configuration)."""
+        step, usable = self.kernel.project(q, rows)
+        return step if usable else None
+
+
+class Projections(Protocol):
+    """What :class:`BandedProjector` falls back on (a :class:`pinstab.projection.Projector`)."""
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]: ...
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray: ...
+
+
+class BandedProjector:
+    """The projections of :mod:`pinstab.projection` by the banded solve, for the closures of the banded path:
+    the position step ``-M^-1 G^T (G M^-1 G^T)^-1 phi`` and the velocity projection ``v - M^-1 G^T (G M^-1 G^T)^-1
+    G v`` from one KKT solve each (the general projector builds G in Python and solves a dense least-squares
+    problem); where the KKT matrix is singular to rounding, the ``fallback`` projector's (its pseudo-inverse).
+
+    Args:
+        banded: the banded solve. fallback: a projector of the same model (the general one).
+    """
+
+    def __init__(self, banded: BandedDynamics, fallback: Projections) -> None:
+        self.banded, self.fallback = banded, fallback
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        phi = self.banded.residual(q)
+        step = self.banded.project(q, -phi) if np.isfinite(phi).all() else None
+        if step is None:
+            return self.fallback.position_step(q, t)
+        return step, float(np.max(np.abs(phi), initial=0.0))
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        step = self.banded.project(q, self.banded.rate(q, v))
+        return self.fallback.velocity_projection(q, v, t) if step is None else v - step
 
 
 def banded_obstacle(closures: list[FrameClosure], size: int, band: int | None = None) -> str | None:
