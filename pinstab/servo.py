@@ -11,6 +11,10 @@ below p means some direction of the prescribed rows no control reaches at this s
 :class:`~pinstab.errors.ServoInfeasibleError` names the constraints along it, before any solve fails. With
 more controls than prescribed rows the excess is resolved by the least effort (min |u|^2), and when the
 controls have limits by a ProxSuite QP that respects them (infeasible: the error says which limit).
+
+This is the general path's solve. Prescribed joint relations alone are solved by the compiled kernel of
+:mod:`pinstab.paths.servo` (the same equations without real constraints), which hands this solver the states where D
+loses rank, changes sign or a control meets its bound.
 """
 
 from __future__ import annotations
