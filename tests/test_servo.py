@@ -14,6 +14,7 @@ import pytest
 
 from conftest import ROBOTS
 from pinstab import Actuation, ConstrainedModel, HolonomicConstraint, assemble, load_scene, simulate
+from pinstab import scene as scene_module
 from pinstab.cli import main
 from pinstab.errors import SceneError, ServoInfeasibleError, ZeroDynamicsWarning
 from pinstab.scene import scene_from_dict
@@ -303,3 +304,12 @@ def test_frame_targets_rows_are_derivatives():
         model.kin.update_positions(q)
         rate = (constraint.residual(model.kin, q, t + h) - constraint.residual(model.kin, q, t - h)) / (2 * h)
         np.testing.assert_allclose(time_term, rate, atol=1e-6)
+
+
+def test_pinstab_servo_loads_its_scene_once(monkeypatch, capsys):
+    """`pinstab servo` reads the scene file once (it used to load it again to run it)."""
+    loads = []
+    original = scene_module.load_scene
+    monkeypatch.setattr(scene_module, "load_scene", lambda *a, **k: loads.append(a) or original(*a, **k))
+    assert main(["servo", "two-cars", "--duration", "0.01", "--quiet", "--json"]) == 0
+    assert len(loads) == 1 and json.loads(capsys.readouterr().out)["max_reaction"] == 0.0

@@ -13,14 +13,15 @@ from .exits import Kept
 from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, parameters
 
 
-def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | None = None):
-    """Load the scene, check it with ``before(scene)`` when given, and simulate it with the run options;
-    returns (scene, trajectory, failure): a run that failed once started (ContactInfeasibleError) returns its
-    partial trajectory and the error."""
+def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | None = None, scene: Any = None):
+    """Load the scene (unless ``scene`` is the one already loaded), check it with ``before(scene)`` when given, and
+    simulate it with the run options; returns (scene, trajectory, failure): a run that failed once started
+    (ContactInfeasibleError) returns its partial trajectory and the error."""
     from ..scene import load_scene
     from ..simulate import simulate
 
-    scene = load_scene(args.scene, **parameters(args.param))
+    if scene is None:
+        scene = load_scene(args.scene, **parameters(args.param))
     if before is not None:
         before(scene)
     contacts = _contacts(args, scene)

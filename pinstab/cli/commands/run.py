@@ -37,8 +37,9 @@ def arguments(run: argparse.ArgumentParser) -> None:
     )
 
 
-def run(args: argparse.Namespace, add=None) -> dict[str, Any]:
-    """Simulate, summarize (``add(scene, trajectory, result)`` adds figures), save and chart when asked."""
+def run(args: argparse.Namespace, add=None, scene=None) -> dict[str, Any]:
+    """Simulate (``scene``: the scene already loaded, else loaded here), summarize (``add(scene, trajectory,
+    result)`` adds figures), save and chart when asked."""
     from ...viz.plots import plot_trajectory
 
     if getattr(args, "stream", None):  # run takes --stream; servo, which runs through here, does not
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace, add=None) -> dict[str, Any]:
     if reference is None and getattr(args, "error_of", None):
         raise PinstabError("--error-of names what --reference compares: give --reference exact or RUN.npz")
     scene, trajectory, failure = simulate_scene(
-        args, None if reference is None else lambda scene: _check_reference(args, scene)
+        args, None if reference is None else lambda scene: _check_reference(args, scene), scene
     )
     result = run_summary(args, trajectory)
     if add is not None:

@@ -45,7 +45,7 @@ def servo(args: argparse.Namespace) -> dict[str, Any]:
             "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
             "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
         }
-    return run(args, _add_reactions)
+    return run(args, _add_reactions, scene)
 
 
 def _add_reactions(scene, trajectory, result: dict[str, Any]) -> None:
