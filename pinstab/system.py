@@ -108,7 +108,7 @@ class ConstrainedSystem:
         """Bind the stabilizer to the step [s], the integrator and the start configuration, and take the
         native path when the scene, the method and the solver allow it."""
         self.stabilizer.bind(self.model, step, integrator, q)
-        self.servo_path = None
+        self.servo_path = self.banded = None  # a previous bind's
         reason = self.native_obstacle(q)
         if reason is not None:
             self.path, self.path_reason, self.native = "general", reason, None
