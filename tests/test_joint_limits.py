@@ -205,3 +205,13 @@ def test_a_limit_left_beside_rolling_rows_keeps_the_held_run_with_a_warning():
         held = pinstab.simulate(scene, "mukharlyamov", "rk4", dt=1e-3, duration=1.0, solver="dense")
     free = pinstab.simulate(scene, "mukharlyamov", "rk4", dt=1e-3, duration=1.0, solver="dense", limits=False)
     np.testing.assert_array_equal(held.q, free.q)
+
+
+def test_the_event_path_assembles_to_the_given_tolerance():
+    """panda-anchor reaches a limit within 1 s and reruns on the event path: that path's assembly takes
+    ``assembly_tol`` (it used its default) and its report reaches the run info (it was None)."""
+    tight = pinstab.simulate("panda-anchor", duration=1.0, assembly_tol=1e-9, progress=False).info
+    loose = pinstab.simulate("panda-anchor", duration=1.0, assembly_tol=1e-6, progress=False).info
+    assert tight.path == loose.path == "contact-events"
+    assert loose.assembly.tolerance == pytest.approx(1e3 * tight.assembly.tolerance, rel=1e-12)
+    assert tight.assembly.residual <= tight.assembly.tolerance

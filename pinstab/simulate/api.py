@@ -155,8 +155,9 @@ def simulate(
         check_start_inside(table, q0, scene.name)
     if contacts is not None:
         events = simulate_events(
-            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream
-        )
+            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,
+            assembly_tol=assembly_tol,
+        )  # fmt: skip
         return _checked(scene, events)
     trajectory = simulate_held(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
@@ -180,8 +181,9 @@ def simulate(
         )
         return _checked(scene, trajectory)
     events = simulate_events(
-        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream
-    )
+        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream,
+        assembly_tol,
+    )  # fmt: skip
     return _checked(scene, events)
 
 

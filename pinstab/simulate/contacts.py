@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..assembly import assemble
+from ..assembly import AssemblyReport, assemble
 from ..constraints import PointContact
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import STOP_KINDS, stop_kind
@@ -92,13 +92,15 @@ def simulate_events(
     limits: list[JointLimit] | None = None,
     reason: str = "event-driven contacts",
     stream: str | Path | None = None,
+    assembly_tol: float | None = None,
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
-    event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``."""
+    event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``; ``assembly_tol``: the closures' assembly
+    tolerance (see :func:`~pinstab.assembly.assemble`)."""
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
     limits = limits or []
-    geometries, system, q, v = _contact_system(scene, q0, v0, closures=bool(limits))
+    geometries, system, q, v, report = _contact_system(scene, q0, v0, closures=bool(limits), tolerance=assembly_tol)
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
@@ -106,7 +108,7 @@ def simulate_events(
     system.acceleration = dynamics.acceleration
     system.path, system.path_reason = "contact-events", reason
     stepper = INTEGRATORS.build("dop853", system)
-    info = run_info(scene, system, "dop853", grid, None, "none", None, record_every)
+    info = run_info(scene, system, "dop853", grid, report, "none", None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
     loop.stop_on = stop_on
     stream_records(loop, stream, info)
@@ -141,7 +143,7 @@ def simulate_stepping(
     stream: str | Path | None,
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``)."""
-    geometries, system, q, v = _contact_system(scene, q0, v0)
+    geometries, system, q, v, _ = _contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
     dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
@@ -158,10 +160,11 @@ def simulate_stepping(
 
 
 def _contact_system(
-    scene: Scene, q0: np.ndarray, v0: np.ndarray, closures: bool = False
-) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray]:
-    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them and the
-    start state. Its other constraints must be equality rows kept in the system (assembled at the start) with
+    scene: Scene, q0: np.ndarray, v0: np.ndarray, closures: bool = False, tolerance: float | None = None
+) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray, AssemblyReport | None]:
+    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them, the
+    start state and its assembly report (None without closures). Its other constraints must be equality rows kept
+    in the system (assembled at the start, to ``tolerance``: see :func:`~pinstab.assembly.assemble`) with
     ``closures`` (joint limits), else there must be none and some contact.
 
     Raises:
@@ -180,7 +183,8 @@ def _contact_system(
     system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense") if closures else None
     system = system or build_system(dataclasses.replace(scene, constraints=[]), "none")
     q, v = q0.copy(), v0.copy()
+    report = None
     if closures and kept:
-        report = assemble(system.model, q, v)
+        report = assemble(system.model, q, v, tolerance=tolerance)
         q, v = report.q, report.v
-    return geometries, system, q, v
+    return geometries, system, q, v, report
