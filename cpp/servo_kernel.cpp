@@ -43,12 +43,13 @@ bool ServoKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, c
   }
   demand_.noalias() -= rows_ * free_;
   double sign = 0.0;
-  if (p == 1) {
+  if (p == 1) {  // (k >= 1: an actuation has a control)
     const double norm = decoupling_.row(0).norm();
     if (!(norm > rank_tolerance_ * std::max(norm, 1.0))) return false;
     controls_ = decoupling_.row(0).transpose() * (demand_(0) / decoupling_.row(0).squaredNorm());
     sign = decoupling_(0, 0) > 0.0 ? 1.0 : (decoupling_(0, 0) < 0.0 ? -1.0 : 0.0);
   } else {
+    if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
     const VectorXd singular = decoupling_.jacobiSvd().singularValues();
     if (!(singular(p - 1) > rank_tolerance_ * std::max(singular(0), 1.0))) return false;
     controls_ = decoupling_.completeOrthogonalDecomposition().solve(demand_);

@@ -11,7 +11,7 @@ import pytest
 from pinstab import Actuation, load_scene, simulate
 from pinstab.constraints.joint_relation import JointRelation
 from pinstab.constraints.targets import TargetContext, read_trajectory
-from pinstab.errors import ZeroDynamicsWarning
+from pinstab.errors import ServoInfeasibleError, ZeroDynamicsWarning
 from pinstab.paths.servo import ServoDynamics
 from pinstab.scene import scene_from_dict
 from pinstab.servo import RANK_TOLERANCE
@@ -103,3 +103,18 @@ def test_servos_the_kernel_cannot_take_keep_the_general_path():
     }
     info = simulate(scene_from_dict(data), duration=0.01, progress=False).info
     assert info.path == "general" and "'gear' is a real constraint beside the servos" in info.path_reason
+
+
+def test_more_servo_rows_than_controls_are_refused_by_name():
+    """Two prescribed joint relations and one control (D is 2 x 1): the kernel refuses every evaluation and the
+    general solve raises ServoInfeasibleError at t = 0 naming the servos (no out-of-range read in the kernel)."""
+    data = {
+        "robot": {"name": "double_pendulum"},
+        "servos": [
+            {"name": "shoulder", "kind": "joint-relation", "joints": {"joint1": 1.0}, "value": 0.0},
+            {"name": "elbow", "kind": "joint-relation", "joints": {"joint2": 1.0}, "value": 0.0},
+        ],
+        "actuation": {"joints": ["joint2"]},
+    }
+    with pytest.raises(ServoInfeasibleError, match=r"cannot be realized at t = 0 s.*rank 1 < 2"):
+        simulate(scene_from_dict(data), duration=0.01, progress=False)

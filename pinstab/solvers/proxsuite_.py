@@ -119,6 +119,8 @@ def direct_solve(problem: KKTProblem) -> tuple[np.ndarray, np.ndarray] | None:
     if failed:
         return None
     free, spread = solved[:, 0], solved[:, 1:]  # M^-1 f, M^-1 G^T
+    if not len(jacobian):  # no rows: the free motion
+        return free, np.zeros(0)
     delassus = jacobian @ spread
     inner, failed = dpotrf(delassus, lower=1)
     largest = float(np.max(np.diagonal(delassus), initial=0.0))
