@@ -48,6 +48,13 @@ BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern,
   rhs_.resize(size);
 }
 
+void BandedKernel::closure_rows(const Eigen::MatrixXd& per_point, VectorXd& rows) const {
+  // s_r . (T_b - T_a) for every closure row r, from per-point terms T (3, points) raveled by component (numpy's ravel)
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> raveled = per_point;
+  rows.setZero(pattern_.row_map.rows());
+  multiply_add(pattern_.row_map, raveled.data(), rows.data());
+}
+
 void BandedKernel::place_points() {
   // the carried closure points from their joints' placements (data_.oMi computed) [m]
   const BandedPattern& p = pattern_;
@@ -83,11 +90,10 @@ std::pair<double, double> BandedKernel::violation(const VectorXd& q, const Vecto
     const Eigen::Vector3d point = points_.col(p.carried(c));
     terms_.col(p.carried(c)) = velocity_0.linear() + velocity_0.angular().cross(point);
   }
-  // the rows' differences of point positions (phi) and of point velocities (G v), raveled by component
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> positions = points_, velocities = terms_;
-  VectorXd phi = VectorXd::Zero(rows_.size()), rate = VectorXd::Zero(rows_.size());
-  multiply_add(p.row_map, positions.data(), phi.data());
-  multiply_add(p.row_map, velocities.data(), rate.data());
+  // the rows' differences of point positions (phi) and of point velocities (G v)
+  VectorXd phi, rate;
+  closure_rows(points_, phi);
+  closure_rows(terms_, rate);
   return {phi.lpNorm<Eigen::Infinity>(), rate.lpNorm<Eigen::Infinity>()};
 }
 
@@ -121,10 +127,8 @@ bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
     terms_.col(point) = bias_0.linear() + bias_0.angular().cross(position) + omega.cross(velocity) +
                         (kp_ * position + kd_ * velocity);
   }
-  // -gamma0 - Kp phi - Kd G v on the closure rows (terms raveled by component, as numpy's ravel)
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> terms = terms_;
-  rows_.setZero();
-  multiply_add(p.row_map, terms.data(), rows_.data());
+  // -gamma0 - Kp phi - Kd G v on the closure rows
+  closure_rows(terms_, rows_);
   assemble_matrix();
   for (int i = 0; i < p.acceleration_slots.size(); ++i) rhs_(p.acceleration_slots(i)) = tau(i) - bias(i);
   for (int r = 0; r < p.row_slots.size(); ++r) rhs_(p.row_slots(r)) = rows_(r);
@@ -168,9 +172,8 @@ BandedKernel::Outcome BandedKernel::solve_assembled() {
 std::pair<VectorXd, VectorXd> BandedKernel::values(const VectorXd& q) {
   pinocchio::computeJointJacobians(model_, data_, q);
   jacobian_values();
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> positions = points_;
-  VectorXd phi = VectorXd::Zero(rows_.size());
-  multiply_add(pattern_.row_map, positions.data(), phi.data());  // s . (p_b - p_a) = -phi
+  VectorXd phi;
+  closure_rows(points_, phi);  // s . (p_b - p_a) = -phi
   return {-phi, g_values_};
 }
 

@@ -55,6 +55,7 @@ class BandedKernel : public Kernel {
   Outcome solve_assembled();
   void jacobian_values();
   void place_points();
+  void closure_rows(const Eigen::MatrixXd& per_point, VectorXd& rows) const;  // the rows' s . (T_b - T_a)
   void scatter(Eigen::MatrixXd& band) const;  // the KKT entries (values_) into band storage
   bool refine();
 

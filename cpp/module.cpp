@@ -31,6 +31,15 @@ std::tuple<RowMatrix, RowMatrix, int> run(Kernel& kernel, int scheme, const Vect
   return {qs, vs, done};
 }
 
+// f(model, data, object_frame, finger_frame) bound to a Python pin.Model and one of its pin.Data (cpp/python_data.cpp).
+template <class Function>
+auto on_python_data(Function function) {
+  return [function](nb::handle model, nb::handle data, int object_frame, int finger_frame) {
+    const pinocchio::Model& native = python_model(model.ptr());
+    return function(native, python_data(data.ptr(), native), object_frame, finger_frame);
+  };
+}
+
 // A target of pinstab.constraints.targets in compiled form: ("sinusoid", [offset, amplitude, omega, phase]) or
 // ("piecewise", breaks, origins, coefficients, held).
 Target target(nb::dict spec) {
@@ -79,22 +88,10 @@ NB_MODULE(_compiled, m) {
             new (self) NativeKernel(model_from_string(model), closures, kp, kd, mu);
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
-  m.def(
-      "contact_point_jacobian",
-      [](nb::handle model, nb::handle data, int object_frame, int finger_frame) {
-        const pinocchio::Model& native = python_model(model.ptr());
-        return contact_point_jacobian(native, python_data(data.ptr(), native), object_frame, finger_frame);
-      },
-      "model"_a, "data"_a, "object_frame"_a, "finger_frame"_a,
-      "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
-  m.def(
-      "contact_point_drift",
-      [](nb::handle model, nb::handle data, int object_frame, int finger_frame) {
-        const pinocchio::Model& native = python_model(model.ptr());
-        return contact_point_drift(native, python_data(data.ptr(), native), object_frame, finger_frame);
-      },
-      "model"_a, "data"_a, "object_frame"_a, "finger_frame"_a,
-      "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
+  m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,
+        "finger_frame"_a, "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
+  m.def("contact_point_drift", on_python_data(contact_point_drift), "model"_a, "data"_a, "object_frame"_a,
+        "finger_frame"_a, "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",
@@ -109,7 +106,6 @@ NB_MODULE(_compiled, m) {
           },
           "model"_a, "rows"_a, "position_rows"_a, "actuation"_a, "lower"_a, "upper"_a, "targets"_a, "kp"_a, "kd"_a, "rank_tolerance"_a,
           "The servo path's evaluation: prescribed rows S (p x nv; position_rows p x nq), actuation B (nv x k) and bounds, targets (dicts).")
-      .def("controls", &ServoKernel::controls, "The controls [N m or N] of the last evaluation.")
       .def_prop_ro("last_sign", &ServoKernel::last_sign);
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(

@@ -24,8 +24,6 @@ class ServoKernel : public Kernel {
               VectorXd upper, std::vector<Target> targets, double kp, double kd, double rank_tolerance);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
-  // the controls [N m or N] of the last evaluation
-  const VectorXd& controls() const { return controls_; }
   // (time [s], sign of det D) of the last usable evaluation with a square D, if any
   std::optional<std::pair<double, double>> last_sign() const { return last_sign_; }
 
