@@ -90,6 +90,13 @@ class ConstrainedModel:
         """Configuration dimension."""
         return self.model.nq
 
+    def applied_force_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """:meth:`applied_force` at (q, v, t) [N, N m], after a Jacobian pass at q when a force element reads the
+        kinematics (the compiled paths make none of their own in ``kin``)."""
+        if self.forces_need_kinematics:
+            self.kin.update_jacobians(q)
+        return self.applied_force(v, t)
+
     def applied_force(self, v: np.ndarray, t: float) -> np.ndarray:
         """Sum of the force elements [N, N m]; ``kin`` must be current where they need it."""
         if not self.forces:

@@ -3,7 +3,8 @@ velocities by the M-weighted least-change projection. Redundancy-safe (least-squ
 A unilateral row is projected only while it is closed or penetrating (and, for velocities, approaching).
 
 A :class:`Projector` gives the two projections on one path: :class:`GeneralProjector` from pinstab's
-rows, :class:`pinstab.paths.native.NativeProjector` from Pinocchio's algorithms.
+rows, :class:`pinstab.paths.native.NativeProjector` from Pinocchio's algorithms,
+:class:`pinstab.paths.banded.BandedProjector` from the banded solve.
 """
 
 from __future__ import annotations

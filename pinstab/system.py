@@ -143,16 +143,14 @@ class ConstrainedSystem:
         """Take the servo path when the scene's constraints, the method and the scene's gravity allow it; else say
         why in :attr:`path_reason`."""
         model = self.model
-        gains = self.stabilizer.baumgarte_gains()
         reason = servo_obstacle(model.constraints.constraints, model.scene.actuation)
-        if reason is None and model.scene.tilt is not None:
-            reason = "gravity tilts in time ([tilt]); the compiled servo solve takes the model's one gravity"
-        if reason is None and gains is None:
-            reason = f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
+        if reason is None:
+            reason = self._compiled_form_obstacle("the compiled servo solve")
         if reason is not None:
             self.path_reason = reason
             return
         relations = list(model.constraints.constraints)
+        gains = self.stabilizer.baumgarte_gains()
         self.servo_path = ServoDynamics(model.model, relations, model.scene.actuation, *gains, RANK_TOLERANCE)
         self.path, self.acceleration = "servo", self._servo_acceleration
         self.path_reason = (
@@ -185,6 +183,15 @@ class ConstrainedSystem:
         delassus = jacobian @ np.linalg.solve(self.model.mass_matrix(q), jacobian.T)
         return max(NATIVE_MU, REDUNDANT_MU * float(np.linalg.eigvalsh(delassus)[-1]))
 
+    def _compiled_form_obstacle(self, solve: str) -> str | None:
+        """Why the scene's gravity or the method keeps a compiled ``solve`` (named in the reason) off: gravity that
+        tilts in time, a stabilization term not of Baumgarte's form; or None."""
+        if self.model.scene.tilt is not None:
+            return f"gravity tilts in time ([tilt]); {solve} takes the model's one gravity"
+        if self.stabilizer.baumgarte_gains() is None:
+            return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
+        return None
+
     def native_obstacle(self, q: np.ndarray) -> str | None:
         """Why the native path cannot run this system from configuration q, or None."""
         if self._named_solver is not None:
@@ -193,10 +200,9 @@ class ConstrainedSystem:
         reason = unsupported_constraint(constraints, NATIVE_KINDS)
         if reason is not None:
             return reason
-        if self.model.scene.tilt is not None:
-            return "gravity tilts in time ([tilt]); Pinocchio's solve takes the model's one gravity"
-        if self.stabilizer.baumgarte_gains() is None:
-            return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
+        reason = self._compiled_form_obstacle("Pinocchio's solve")
+        if reason is not None:
+            return reason
         closures = [c for c in constraints if isinstance(c, FrameClosure)]
         name = non_planar_closure(self.model.model, self.model.scratch, closures, q)
         if name is not None:
@@ -239,16 +245,10 @@ class ConstrainedSystem:
     # -- evaluations ---------------------------------------------------------------------------------
     def _native_solve(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Pinocchio's accelerations at (q, v, t) under the scene's forces, unchecked."""
-        model = self.model
-        if model.forces_need_kinematics:
-            model.kin.update_jacobians(q)
-        return self.native.acceleration(q, v, model.applied_force(v, t))
+        return self.native.acceleration(q, v, self.model.applied_force_at(q, v, t))
 
     def _banded_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
-        model = self.model
-        if model.forces_need_kinematics:
-            model.kin.update_jacobians(q)
-        acceleration = self.banded.acceleration(q, v, model.applied_force(v, t))
+        acceleration = self.banded.acceleration(q, v, self.model.applied_force_at(q, v, t))
         if self.banded.singular:
             self._audit.fallbacks += 1
             return self._native_acceleration(q, v, t, stage)
@@ -256,10 +256,7 @@ class ConstrainedSystem:
         return acceleration
 
     def _servo_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
-        model = self.model
-        if model.forces_need_kinematics:
-            model.kin.update_jacobians(q)
-        acceleration = self.servo_path.acceleration(q, v, model.applied_force(v, t), t)
+        acceleration = self.servo_path.acceleration(q, v, self.model.applied_force_at(q, v, t), t)
         if self.servo_path.unusable:  # the general solve says why (from the kernel's last sign) or takes the bounds
             self._audit.fallbacks += 1
             self.servo.follow(self.servo_path.last_sign)

@@ -8,12 +8,10 @@ import pytest
 
 from pinstab import SolverError, build_system, load_scene, simulate
 from pinstab.paths.native import NativeDynamics
-from pinstab.readers.sources import bundled_scenes
 from pinstab.scene import scene_from_dict
 from pinstab.solvers import PinocchioSolver
 from pinstab.solvers.base import KKTProblem
 from pinstab.solvers.proxsuite_ import direct_solve
-from pinstab.validation import read_scene_file
 
 
 def native_accelerations(scene, kp, kd, states):
@@ -269,10 +267,9 @@ def test_proxsuite_direct_solve_declines_redundant_rows():
 
 
 def test_proxsuite_direct_solve_of_a_scene_without_constraints():
-    """two-cars without its servo (no constraint rows) with the proxsuite backend named: the free motion, equal to
+    """The double pendulum alone (no constraint rows) with the proxsuite backend named: the free motion, equal to
     the native path's (Pinocchio's ABA) to 1e-12 over 1 s (the direct solve of zero rows crashed in LAPACK)."""
-    data = {k: v for k, v in read_scene_file(bundled_scenes()["two-cars"]).items() if k not in ("servos", "actuation")}
-    scene = scene_from_dict(data, name="two cars", base_dir=bundled_scenes()["two-cars"].parent)
+    scene = scene_from_dict({"robot": {"name": "double_pendulum"}, "initial": {"q": {"joint1": 0.5}}})
     general = simulate(scene, duration=1.0, solver="proxsuite", progress=False)
     native = simulate(scene, duration=1.0, progress=False)
     assert general.info.path == "general" and native.info.path == "native"

@@ -25,8 +25,6 @@ converge sets :attr:`BandedDynamics.singular`, and the caller uses the reference
 
 from __future__ import annotations
 
-from typing import Protocol
-
 import numpy as np
 import pinocchio as pin
 from scipy.sparse import coo_matrix, csr_matrix
@@ -35,6 +33,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from ..constraints import FrameClosure, Violation
 from ..errors import SolverError
 from ..kernels import BandedKernel
+from ..projection import Projector
 
 PIVOT_TOLERANCE = 1e-6  # smallest |pivot| of the LU over the largest below which its solution is refined
 MIN_CLOSURES = (
@@ -272,14 +271,6 @@ class BandedDynamics:
         return step if usable else None
 
 
-class Projections(Protocol):
-    """What :class:`BandedProjector` falls back on (a :class:`pinstab.projection.Projector`)."""
-
-    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]: ...
-
-    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray: ...
-
-
 class BandedProjector:
     """The projections of :mod:`pinstab.projection` by the banded solve, for the closures of the banded path:
     the position step ``-M^-1 G^T (G M^-1 G^T)^-1 phi`` and the velocity projection ``v - M^-1 G^T (G M^-1 G^T)^-1
@@ -290,7 +281,7 @@ class BandedProjector:
         banded: the banded solve. fallback: a projector of the same model (the general one).
     """
 
-    def __init__(self, banded: BandedDynamics, fallback: Projections) -> None:
+    def __init__(self, banded: BandedDynamics, fallback: Projector) -> None:
         self.banded, self.fallback = banded, fallback
 
     def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
