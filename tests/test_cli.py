@@ -122,3 +122,27 @@ def test_too_large_step_is_named_with_a_suggestion(capsys):
     assert code == 3, err
     assert "dt = 0.008 s is too large" in err and "--dt 0.004" in err and "Traceback" not in err
     assert json.loads(out)["diverged"] is True
+
+
+def test_a_signal_swallowed_by_a_destructor_is_delivered_again():
+    """SIGTERM's KeyboardInterrupt raised while Python runs a destructor is swallowed there ("Exception ignored in",
+    seen in CI inside a WeakValueDictionary callback: the run went on); the command's handler delivers it again."""
+    import os
+    import signal
+
+    from pinstab.cli.dispatch import _terminate_as_interrupt
+
+    class Dying:
+        def __del__(self) -> None:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(10_000):  # the handler runs here; its exception cannot leave a destructor
+                pass
+
+    received: list[int] = []
+    hook = sys.unraisablehook
+    with pytest.raises(KeyboardInterrupt), _terminate_as_interrupt(received):
+        Dying()
+        for _ in range(10**7):
+            pass
+    assert received[0] == signal.SIGTERM
+    assert sys.unraisablehook is hook  # restored

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import json
 import signal
@@ -70,10 +71,29 @@ def _terminate_as_interrupt(received: list[int]) -> Iterator[None]:
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGTERM, terminate)
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _redeliver(received, previous_hook)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+        sys.unraisablehook = previous_hook
+
+
+def _redeliver(received: list[int], previous):
+    """An unraisable-exception hook: a signal's KeyboardInterrupt raised while Python ran a destructor or a weakref
+    callback is swallowed there ("Exception ignored in ..."), and the run would go on; the signal is delivered again
+    to the main thread instead (SIGINT when none was recorded), 10 ms later from a helper thread: delivered at once
+    it would be handled inside this hook, where it is swallowed as well."""
+
+    def hook(unraisable) -> None:
+        if not issubclass(unraisable.exc_type, KeyboardInterrupt):
+            previous(unraisable)
+            return
+        signum = received[-1] if received else signal.SIGINT
+        threading.Timer(0.01, _thread.interrupt_main, (signum,)).start()
+
+    return hook
 
 
 def _dispatch(args: argparse.Namespace) -> int:
