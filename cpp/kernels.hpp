@@ -16,9 +16,6 @@ using Eigen::VectorXd;
 using Eigen::VectorXi;
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// The model saved by Python's Model.saveToString(), read back (a pin.Model does not cross into nanobind).
-pinocchio::Model model_from_string(const std::string& text);
-
 // The pinocchio::Data wrapped by a Python pin.Data of this model (cpp/python_data.cpp); throws
 // std::invalid_argument for another object or a Data of another model. The caller keeps the object alive.
 pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model);

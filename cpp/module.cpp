@@ -78,14 +78,14 @@ NB_MODULE(_compiled, m) {
   nb::class_<NativeKernel, Kernel>(m, "NativeKernel")
       .def(
           "__init__",
-          [](NativeKernel* self, const std::string& model, const std::vector<int>& joints1,
+          [](NativeKernel* self, nb::handle model, const std::vector<int>& joints1,
              const std::vector<Eigen::Matrix4d>& placements1, const std::vector<int>& joints2,
              const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double mu) {
             std::vector<ClosureSpec> closures;
             for (size_t i = 0; i < joints1.size(); ++i) {
               closures.push_back({joints1[i], joints2[i], placements1[i], placements2[i]});
             }
-            new (self) NativeKernel(model_from_string(model), closures, kp, kd, mu);
+            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, mu);
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
   m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,
@@ -95,13 +95,13 @@ NB_MODULE(_compiled, m) {
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",
-          [](ServoKernel* self, const std::string& model, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& position_rows,
+          [](ServoKernel* self, nb::handle model, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& position_rows,
              const Eigen::MatrixXd& actuation,
              const VectorXd& lower, const VectorXd& upper, const std::vector<nb::dict>& targets, double kp, double kd,
              double rank_tolerance) {
             std::vector<Target> compiled;
             for (const nb::dict& spec : targets) compiled.push_back(target(spec));
-            new (self) ServoKernel(model_from_string(model), rows, position_rows, actuation, lower, upper, std::move(compiled), kp, kd,
+            new (self) ServoKernel(python_model(model.ptr()), rows, position_rows, actuation, lower, upper, std::move(compiled), kp, kd,
                                    rank_tolerance);
           },
           "model"_a, "rows"_a, "position_rows"_a, "actuation"_a, "lower"_a, "upper"_a, "targets"_a, "kp"_a, "kd"_a, "rank_tolerance"_a,
@@ -110,7 +110,7 @@ NB_MODULE(_compiled, m) {
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(
           "__init__",
-          [](BandedKernel* self, const std::string& model, nb::dict arrays, int band, double kp, double kd,
+          [](BandedKernel* self, nb::handle model, nb::dict arrays, int band, double kp, double kd,
              double pivot_tolerance, nb::handle data) {
             auto vi = [&](const char* key) { return nb::cast<VectorXi>(arrays[key]); };
             auto vd = [&](const char* key) { return nb::cast<VectorXd>(arrays[key]); };
@@ -139,7 +139,7 @@ NB_MODULE(_compiled, m) {
             gram.pair_slot = vi("gram_pair_slot");
             gram.rows = static_cast<int>(pattern.row_slots.size());
             gram.band = vi("gram_band")(0);  // one entry
-            const pinocchio::Model loaded = model_from_string(model);
+            const pinocchio::Model& loaded = python_model(model.ptr());
             pinocchio::Data* shared = data.is_none() ? nullptr : &python_data(data.ptr(), loaded);
             new (self) BandedKernel(loaded, std::move(pattern), std::move(gram), kp, kd, pivot_tolerance, shared);
           },

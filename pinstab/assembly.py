@@ -150,10 +150,10 @@ def assemble(
         )
     inverse_mass = _inverse_mass(model, q)
     try:
-        v = project_velocities(model, q, v, t, inverse_mass)
+        v = project_velocities(model, q, v, t, inverse_mass, model.scratch_kinematics)
     except ProjectionError:
         v = np.full(model.nv, np.nan)  # the rows or the velocity overflow: refused below
-    rates = model.constraint_values(q, v, t).velocity_residual
+    rates = model.constraint_values(q, v, t, model.scratch_kinematics).velocity_residual
     velocity_residual = float(np.max(np.abs(rates), initial=0.0))
     if not (np.all(np.isfinite(v)) and np.isfinite(velocity_residual)):
         worst = _worst_constraint(model, np.where(np.isfinite(rates), rates, np.inf), np.ones(len(rates), bool))
@@ -177,7 +177,7 @@ def _inverse_mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:
 
 
 def _residual(model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    values = model.constraint_values(q, np.zeros(model.nv), t)
+    values = model.constraint_values(q, np.zeros(model.nv), t, model.scratch_kinematics)
     return values.phi[mask], values.jacobian[mask]
 
 

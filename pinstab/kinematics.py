@@ -47,9 +47,9 @@ class Kinematics:
     from one update (:class:`PerUpdate`) is reused until the next.
     """
 
-    def __init__(self, model: pin.Model) -> None:
+    def __init__(self, model: pin.Model, data: pin.Data | None = None) -> None:
         self.model = model
-        self.data = new_data(model)
+        self._data = data
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
         self.lower = mirror_indices(model.nv)
@@ -58,6 +58,14 @@ class Kinematics:
         self.stamp = 0
         self._full_stamp = -1  # the stamp of the last full update
         self._gravity_data: pin.Data | None = None  # for g(q) after a partial update
+
+    @property
+    def data(self) -> pin.Data:
+        """The Pinocchio ``Data`` the updates write, built at first use (a long chain's takes ~9 ms to build,
+        and a run whose compiled kernel does every pass never needs it)."""
+        if self._data is None:
+            self._data = new_data(self.model)
+        return self._data
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""

@@ -57,6 +57,7 @@ class ConstrainedModel:
         self.forces = scene.forces
         self.forces_need_kinematics = any(element.needs_kinematics for element in self.forces)
         self._data = new_data(scene.model)
+        self._scratch_kin: Kinematics | None = None
         joints = [self.model.joints[j] for j in range(1, self.model.njoints)]
         self.flat = all(joint.nv == 1 for joint in joints)
         self.euclidean = self.flat and all(joint.nq == 1 for joint in joints)  # q (+) dq = q + dq
@@ -121,10 +122,23 @@ class ConstrainedModel:
         values = self.constraints.values(self.kin, q, v, t, with_drift=True)
         return DynamicsTerms(self.kin.mass_matrix, self.kin.bias, tau, values)
 
-    def constraint_values(self, q: np.ndarray, v: np.ndarray, t: float) -> ConstraintValues:
-        """phi, G, g at (q, v, t) without drift terms (one Jacobian pass)."""
-        self.kin.update_jacobians(q)
-        return self.constraints.values(self.kin, q, v, t, with_drift=False)
+    def constraint_values(
+        self, q: np.ndarray, v: np.ndarray, t: float, kin: Kinematics | None = None
+    ) -> ConstraintValues:
+        """phi, G, g at (q, v, t) without drift terms (one Jacobian pass in ``kin``: the model's own by default,
+        :attr:`scratch_kinematics` for a one-off evaluation)."""
+        kin = self.kin if kin is None else kin
+        kin.update_jacobians(q)
+        return self.constraints.values(kin, q, v, t, with_drift=False)
+
+    @property
+    def scratch_kinematics(self) -> Kinematics:
+        """A :class:`Kinematics` over :attr:`scratch`, for one-off evaluations (the assembly before a run) that need
+        not build the model's own ``Data`` (``kin``'s, built at first use: a run whose compiled kernel makes every
+        pass never does)."""
+        if self._scratch_kin is None:
+            self._scratch_kin = Kinematics(self.model, self._data)
+        return self._scratch_kin
 
     def violation(self, q: np.ndarray, v: np.ndarray, t: float) -> Violation:
         """The constraint violation at (q, v, t) [m or rad, m/s or rad/s]."""

@@ -16,6 +16,7 @@ import numpy as np
 from .errors import ProjectionError
 
 if TYPE_CHECKING:
+    from .kinematics import Kinematics
     from .model import ConstrainedModel
 
 RCOND = 1e-12
@@ -116,10 +117,15 @@ def project_positions(
 
 
 def project_velocities(
-    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, inverse_mass: np.ndarray
+    model: ConstrainedModel,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    inverse_mass: np.ndarray,
+    kin: Kinematics | None = None,
 ) -> np.ndarray:
     """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric
-    (open or separating unilateral rows left out)."""
-    values = model.constraint_values(q, v, t)
+    (open or separating unilateral rows left out); ``kin``: as in :meth:`ConstrainedModel.constraint_values`."""
+    values = model.constraint_values(q, v, t, kin)
     rows = model.constraints.enforced_velocities(values)
     return v + weighted_correction(inverse_mass, values.jacobian[rows], values.velocity_residual[rows])

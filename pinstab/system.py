@@ -175,8 +175,8 @@ class ConstrainedSystem:
         amplifies rounding to 1e-10 relative errors in the accelerations (10^-8 of the energy in 10 s on
         ``bricard``); the larger mu keeps them at rounding while the proximal loop still converges.
         """
-        values = self.model.constraint_values(q, np.zeros(self.model.model.nv), 0.0)
-        jacobian = values.jacobian
+        model = self.model
+        jacobian = model.constraint_values(q, np.zeros(model.nv), 0.0, model.scratch_kinematics).jacobian
         singular = np.linalg.svd(jacobian, compute_uv=False)
         if not singular.size or np.sum(singular > REDUNDANT_RANK_TOLERANCE * singular[0]) == jacobian.shape[0]:
             return NATIVE_MU

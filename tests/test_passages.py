@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pinstab import BranchChangeWarning, load_scene, simulate, trajectory_error
-from pinstab.integration.passages import PassageWatch, _parabola_roots, node_gap, tangent_turn
+from pinstab.integration.passages import LOCATE_TOLERANCE, PassageWatch, _least, _parabola_roots, node_gap, tangent_turn
 
 DURATION = 5.0  # [s] five passages (from the upright start at -1 rad/s)
 
@@ -101,3 +101,32 @@ def test_parabola_roots_through_three_samples():
     np.testing.assert_allclose(sorted(_parabola_roots(samples, 0.3)), [0.15, 0.6], rtol=0, atol=1e-14)
     assert _parabola_roots([(t, 1.0 - t, None) for t in (0.0, 0.5, 1.0)], 0.0) == pytest.approx([1.0], abs=1e-15)
     assert _parabola_roots([(t, 1.0 + t * t, None) for t in (-1.0, 0.0, 1.0)], 0.0) == []
+
+
+@pytest.mark.parametrize(
+    ("crossing", "floor", "expected"),
+    [
+        (0.0264, 0.0, 0.0264),  # a crossing through the singular configuration, early in the step
+        (0.7897, 1e-9, 0.7897),  # one that misses it by a little
+        (0.31, 1e-4, 0.31),
+        (1.3, 0.0, 1.0),  # s falls all through the step: the least at its end
+        (-0.2, 0.0, 0.0),  # s rises all through the step: the least at its start
+    ],
+)
+def test_the_least_relative_singular_value_is_located_in_few_evaluations(crossing, floor, expected):
+    """s = sqrt(a^2 (t - t*)^2 + c^2) (with a curve in the slope, as across a real step) on a step of h = 0.06 s:
+    the least s and its time against the closed form, to the location tolerance, in at most 14 evaluations
+    (Brent's search on s took 18-33)."""
+    h, t0 = 0.06, 4.0
+    evaluations = []
+
+    def level(t: float) -> float:
+        evaluations.append(t)
+        x = (t - t0) / h - crossing
+        return float(np.sqrt((0.8 * x * (1 + 0.4 * x)) ** 2 + floor**2))
+
+    least, time = _least(level, t0, t0 + h, h)
+    assert time == pytest.approx(t0 + expected * h, abs=10 * LOCATE_TOLERANCE * h)
+    assert least == pytest.approx(level(time), rel=1e-12)
+    assert least <= min(level(t0 + k * h / 1000) for k in range(1001)) * (1 + 1e-9) + 1e-15
+    assert len(evaluations) - 1002 <= 14

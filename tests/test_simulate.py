@@ -89,3 +89,21 @@ def test_a_start_of_the_wrong_length_is_named_on_every_path(contacts):
         simulate("bouncing-ball", contacts=contacts, q0=np.zeros(3), duration=0.01)
     with pytest.raises(PinstabError, match="q0 must have 7 entries and v0 6"):
         simulate("bouncing-ball", contacts=contacts, v0=np.zeros(2), duration=0.01)
+
+
+@pytest.mark.parametrize("every", [1, 3])
+def test_samples_kept_one_step_at_a_time_equal_those_of_a_block(every):
+    """A watched run keeps its states one step at a time (put_span of one row, a path without the block's index
+    arrays): the kept times, steps and states equal those of one block, the shortened last step included."""
+    from pinstab.integration.records import Records
+    from pinstab.integration.stepping import TimeGrid
+
+    grid = TimeGrid.of(0.1, 1.05, every)
+    states = np.arange(grid.steps + 1, dtype=float)[:, None] * [1.0, -2.0]
+    one, block = Records(grid, every, 2, 2), Records(grid, every, 2, 2)
+    for k in range(grid.steps + 1):
+        one.put_span(k, states[k : k + 1], -states[k : k + 1])
+    block.put_span(0, states, -states)
+    assert grid.steps == 11 and np.array_equal(one.steps, block.steps) and np.array_equal(one.t, block.t)
+    assert np.array_equal(one.q, block.q) and np.array_equal(one.v, block.v)
+    assert one.t[one.last] == pytest.approx(1.05) and one.q[one.last, 0] == 11.0

@@ -75,6 +75,10 @@ class Records:
 
     def put_span(self, first: int, q: np.ndarray, v: np.ndarray) -> None:
         """Keep the recorded ones among the states (rows of q, v) of grid steps first, first + 1, ..."""
+        if len(q) == 1:  # one step at a time (a watched run near its singular passages): without the arrays
+            if first % self.every == 0 or first == self.grid.steps:
+                self.put(self.index(first), q[0], v[0])
+            return
         steps = np.arange(first, first + len(q))
         kept = (steps % self.every == 0) | (steps == self.grid.steps)
         if not kept.any():

@@ -154,7 +154,7 @@ class BandedDynamics:
         self._build_band(m_upper)
         try:
             self.kernel = BandedKernel(
-                model.saveToString(), self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE, data
+                model, self._pattern(sides, m_upper), self.band, self.kp, self.kd, PIVOT_TOLERANCE, data
             )
         except ValueError as error:  # the compiled kernel refused the Data
             raise SolverError(f"banded solve: {error}; give pin.Data(model) of this model, or None") from None

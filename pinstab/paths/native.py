@@ -134,7 +134,7 @@ class NativeDynamics:
         if self._kernel is None:
             models = list(self.models)
             self._kernel = NativeKernel(
-                self.model.saveToString(),
+                self.model,
                 [rcm.joint1_id for rcm in models],
                 [rcm.joint1_placement.homogeneous for rcm in models],
                 [rcm.joint2_id for rcm in models],

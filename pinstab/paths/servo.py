@@ -71,7 +71,7 @@ class ServoDynamics:
             rows[index, relation.v_indices] = relation.row
             position_rows[index, relation.q_indices] = relation.row
         self.kernel = ServoKernel(
-            model.saveToString(),
+            model,
             rows,
             position_rows,
             actuation.matrix,
