@@ -233,7 +233,8 @@ def tangent_turn(before: np.ndarray, after: np.ndarray) -> float:
     if before.shape[1] == 0:
         return 0.0
     residue = before - after @ (after.T @ before)
-    return float(math.asin(min(1.0, np.linalg.norm(residue, 2))))
+    # its spectral norm from the small (d x d) Gram matrix, without an SVD of the nv x d residue
+    return float(math.asin(min(1.0, math.sqrt(max(float(np.linalg.eigvalsh(residue.T @ residue)[-1]), 0.0)))))
 
 
 class PassageWatch:

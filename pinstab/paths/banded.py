@@ -61,9 +61,13 @@ def _dofs(model: pin.Model, joint: int) -> list[int]:
     return list(range(start, start + model.joints[joint].nv))
 
 
-def _support(model: pin.Model, joint: int) -> list[int]:
-    """The velocity indices that move joint ``joint``'s body (its own and its ancestors')."""
-    return [dof for ancestor in model.supports[joint] for dof in _dofs(model, ancestor)]
+def _supports(model: pin.Model) -> list[list[int]]:
+    """Per joint, the velocity indices that move its body (its own and its ancestors'), from its parent's (a
+    Pinocchio model lists parents before children)."""
+    supports: list[list[int]] = [[]]
+    for joint in range(1, model.njoints):
+        supports.append(supports[model.parents[joint]] + _dofs(model, joint))
+    return supports
 
 
 class BandedDynamics:
@@ -122,9 +126,10 @@ class BandedDynamics:
         # G entries e = (row, column): s . ((w_a - w_b) J_lin + J_ang x lever), lever = w_a p_a - w_b p_b,
         # i.e. J[:, column] . c_e with c_e = [(w_a - w_b) s; lever x s], the second half linear in the points
         g_entries, linear, entries, values = [], [], [], []
+        supports = _supports(model)
         for row, closure in enumerate(row_closure):
-            side_a = set(_support(model, sides[closure][0]))
-            side_b = set(_support(model, sides[count + closure][0]))
+            side_a = set(supports[sides[closure][0]])
+            side_b = set(supports[sides[count + closure][0]])
             skew = np.einsum("ijk,k->ij", _LEVI_CIVITA, selection[row])  # (lever x s)_i = skew[i, j] lever_j
             for dof in sorted(side_a | side_b):
                 e = len(g_entries)
@@ -147,7 +152,7 @@ class BandedDynamics:
             (min(i, k), max(i, k))
             for joint in range(1, model.njoints)
             for i in _dofs(model, joint)
-            for k in _support(model, joint)
+            for k in supports[joint]
         }
         m_upper = np.array(sorted(m_pairs), dtype=int).reshape(-1, 2)
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
