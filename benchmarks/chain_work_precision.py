@@ -19,7 +19,7 @@ from pinstab.bench.workprecision import MUJOCO_DTS, MUJOCO_INTEGRATORS, Config, 
 OUT = Path(__file__).parent / "nfourbar40"
 PARAMETERS = {"N": 40}
 DURATION = 20.0  # [s]: 20 s of the parallelogram's motion through its singular configurations
-PINSTAB_DTS = (5e-2, 4e-2, 2e-2, 1e-2, 8e-3, 4e-3, 2e-3, 1e-3, 5e-4)  # [s] RK4
+PINSTAB_DTS = (7e-2, 6e-2, 5e-2, 4e-2, 2e-2, 1e-2, 8e-3, 4e-3, 2e-3, 1e-3, 5e-4)  # [s] RK4
 
 
 def main() -> None:
