@@ -88,6 +88,7 @@ def test_the_internal_force_qp_converges_with_headroom(lift_run, monkeypatch):
     RecordingQP.solves.clear()
     monkeypatch.setattr(holding.proxsuite.proxqp, "dense", SimpleNamespace(QP=RecordingQP))
     monkeypatch.setattr(scene.forces[0], "_qp", holding.WarmQP())  # the first solve cold, then warm
+    monkeypatch.setattr(holding, "_on_active_set", lambda *args: None)  # every QP to ProxQP, none by its active set
     control_series(scene, trajectory, scene.forces[0])
     statuses = {status for status, _ in RecordingQP.solves}
     assert len(RecordingQP.solves) == len(trajectory.t) and statuses == {"PROXQP_SOLVED"}
@@ -166,3 +167,31 @@ def test_a_margin_beyond_the_torque_limits_is_refused_naming_the_contacts():
 def test_bad_control_input_is_named(change, pattern):
     with pytest.raises(SceneError, match=pattern):
         lift_scene(**change)
+
+
+def test_a_qp_solved_on_its_previous_active_set_equals_proxqp():
+    """Random strictly convex QPs (12 variables, 6 equalities, 40 bounded rows) moved a little between solves, as a
+    force element's are: after the first (ProxQP) solve the previous active set gives x, equal to a cold ProxQP
+    solve of the same QP to 1e-8 (ProxQP's eps_abs 1e-10 on its residuals), and a QP whose active set changed
+    (its bounds moved) goes to ProxQP again."""
+    rng = np.random.default_rng(7)
+    root = rng.normal(size=(12, 12))
+    hessian, equality, inequality = root @ root.T + np.eye(12), rng.normal(size=(6, 12)), rng.normal(size=(40, 12))
+    gradient = -hessian @ (3.0 * rng.normal(size=12))  # an unconstrained optimum far outside the bounds
+    rhs = equality @ (0.05 * rng.normal(size=12))  # a feasible point well inside them
+    lower, upper = np.full(40, -1.0), np.full(40, 1.0)
+    warm = holding.WarmQP()
+    first, solved, info = warm.solve(hessian, gradient, equality, rhs, inequality, lower, upper)
+    assert solved and info is not None and 0 < len(warm._active[0]) < 40  # some rows at a bound
+    for shift in (1e-6, 1e-4):
+        moved = gradient + shift * rng.normal(size=12)
+        x, solved, info = warm.solve(hessian, moved, equality, rhs, inequality, lower, upper)
+        cold, cold_solved, _ = holding.WarmQP().solve(hessian, moved, equality, rhs, inequality, lower, upper)
+        assert solved and cold_solved and info is None  # by the active set
+        np.testing.assert_allclose(x, cold, atol=1e-8)
+    loose = np.full(40, 10.0)  # every bound far away: the old active set's rows leave their bounds
+    x, solved, info = warm.solve(hessian, gradient, equality, rhs, inequality, -loose, loose)
+    assert solved and info is not None
+    np.testing.assert_allclose(
+        x, holding.WarmQP().solve(hessian, gradient, equality, rhs, inequality, -loose, loose)[0], atol=1e-8
+    )
