@@ -49,7 +49,8 @@ class Kinematics:
 
     def __init__(self, model: pin.Model, data: pin.Data | None = None) -> None:
         self.model = model
-        self._data = data
+        if data is not None:
+            self.data = data
         self.mass_matrix = np.zeros((model.nv, model.nv))
         self.bias = np.zeros(model.nv)
         self.lower = mirror_indices(model.nv)
@@ -59,13 +60,13 @@ class Kinematics:
         self._full_stamp = -1  # the stamp of the last full update
         self._gravity_data: pin.Data | None = None  # for g(q) after a partial update
 
-    @property
-    def data(self) -> pin.Data:
-        """The Pinocchio ``Data`` the updates write, built at first use (a long chain's takes ~9 ms to build,
-        and a run whose compiled kernel does every pass never needs it)."""
-        if self._data is None:
-            self._data = new_data(self.model)
-        return self._data
+    def __getattr__(self, name: str) -> Any:
+        """``data``, the Pinocchio ``Data`` the updates write, is built at first use (a long chain's takes ~9 ms to
+        build, and a run whose compiled kernel makes every pass never needs it); then it is a plain attribute."""
+        if name != "data":
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        self.data = new_data(self.model)
+        return self.data
 
     def update(self, q: np.ndarray, v: np.ndarray) -> None:
         """Full pass at (q, v): M, h, placements, Jacobians and zero-acceleration frame motions."""

@@ -356,3 +356,24 @@ def test_the_banded_projector_falls_back_at_a_singular_configuration():
     np.testing.assert_array_equal(step, expected)
     assert worst == expected_worst
     assert np.isfinite(system.projector.velocity_projection(q, v, 0.0)).all()
+
+
+def test_a_banded_run_builds_one_pinocchio_data(monkeypatch):
+    """The assembly, the native solve's proximal choice and the compiled kernel compute in the model's scratch
+    ``Data``; the kinematics' own (a long chain's is costly: four nv^3 tensors) is never built on the banded path,
+    and is built once where Python's passes need it (the general path)."""
+    import pinstab.kinematics
+    import pinstab.model
+
+    built = []
+    for module in (pinstab.kinematics, pinstab.model):
+        original = module.new_data
+        monkeypatch.setattr(
+            module,
+            "new_data",
+            lambda model, original=original, where=module.__name__: built.append(where) or original(model),
+        )
+    run = simulate(load_scene("nfourbar", N=10), dt=1e-3, duration=0.05)
+    assert run.info.path == "banded" and built == ["pinstab.model"]
+    simulate(load_scene("nfourbar", N=10), dt=1e-3, duration=0.05, solver="dense")
+    assert built == ["pinstab.model", "pinstab.model", "pinstab.kinematics"]

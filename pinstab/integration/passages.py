@@ -159,8 +159,7 @@ class Conditioning:
 
 def _trailing_q(matrix: np.ndarray) -> np.ndarray:
     """The last m - n columns of Q in the complete QR factorization of ``matrix`` (m x n, m >= n): LAPACK's
-    Householder reflectors (``dgeqrf``) applied to those unit vectors (``dormqr``), without forming Q (0.6x the
-    time of NumPy's complete QR at 81 x 80)."""
+    Householder reflectors (``dgeqrf``) applied to those unit vectors (``dormqr``), without forming Q."""
     rows, columns = matrix.shape
     factors, reflectors, _, _ = lapack.dgeqrf(matrix)
     unit = np.zeros((rows, rows - columns), order="F")
