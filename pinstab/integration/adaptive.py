@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import DivergenceError
+from ..errors import ContactInfeasibleError, DivergenceError
 from .dense import Segment
 from .schemes import ExplicitRungeKutta
 from .stepping import GRID_SLACK, StepLoop
@@ -145,15 +145,27 @@ class AdaptiveLoop(StepLoop):
         """Steps from (q, v, a) at t [s], shorter after each rejection, until one meets the tolerance; counts
         them.
 
+        A trial step one of whose stages finds a sticking contact outside its cone (a stage of a step too long
+        overshoots the state, and the contact forces with it) is rejected like one whose error is not finite.
+
         Raises:
             DivergenceError: the step fell below :data:`MIN_STEP` (the tolerance cannot be met).
+            ContactInfeasibleError: a contact still leaves its cone within a step of :data:`MIN_STEP`.
         """
         control, size = self.control, self._size(q, v)
         self.rejected_last = False
         while True:
-            q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
-            end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
-            error = self.error_norm(size, self._size(q_new, v_new), slopes, end_slope, h)
+            try:
+                q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
+            except ContactInfeasibleError:
+                if MIN_FACTOR * h < MIN_STEP * max(1.0, t):
+                    raise
+                q_new = v_new = slopes = None
+            if slopes is None:
+                error = math.inf
+            else:
+                end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
+                error = self.error_norm(size, self._size(q_new, v_new), slopes, end_slope, h)
             if error <= 1.0:
                 control.accepted += 1
                 control.smallest_step = min(control.smallest_step, h)
