@@ -190,12 +190,12 @@ def _least(level: Callable[[float], float], t0: float, t1: float, h: float) -> t
     """(least value, its time [s]) of s = ``level`` >= 0 on [t0, t1] to :data:`LOCATE_TOLERANCE` of the step h [s].
 
     Near a simple crossing s^2 = a^2 (t - t*)^2 + c^2 is a parabola (s itself is a V, on which Brent's search
-    falls back to golden sections, ~20 evaluations): successive parabolic interpolation of s^2 through its three
-    lowest samples (from the step's quarters) takes ~8. It ends when the vertex moves less than the tolerance, or
-    when the samples lie within :data:`ROUNDING_SPAN` of the step and the last one did not lower the least (s is
-    resolved to rounding there). Where the samples fall towards one end of the step (the vertex beyond it, or no
-    upward curve), that end is sampled, and is the least when they keep falling towards it. Brent's bounded search
-    on s^2 in any other case."""
+    falls back to golden sections): successive parabolic interpolation of s^2 through its three lowest samples (from
+    the step's quarters) converges superlinearly (at most 14 evaluations, ``tests/test_passages.py``). It ends when
+    the vertex moves less than the tolerance, or when the samples lie within :data:`ROUNDING_SPAN` of the step and
+    the last one did not lower the least (s is resolved to rounding there). Where the samples fall towards one end of
+    the step (the vertex beyond it, or no upward curve), that end is sampled, and is the least when they keep falling
+    towards it. Brent's bounded search on s^2 in any other case."""
     tolerance = LOCATE_TOLERANCE * h
     samples = {t: level(t) ** 2 for t in (t0 + 0.25 * (t1 - t0), 0.5 * (t0 + t1), t0 + 0.75 * (t1 - t0))}
     vertex = math.inf
