@@ -8,6 +8,12 @@ namespace {
 constexpr auto LWA = pinocchio::LOCAL_WORLD_ALIGNED;
 }
 
+Eigen::Vector3d contact_point_residual(const pinocchio::Model&, pinocchio::Data& data, int object_frame,
+                                       int finger_frame) {
+  const pinocchio::SE3& placement = data.oMf[object_frame];
+  return placement.rotation().transpose() * (placement.translation() - data.oMf[finger_frame].translation());
+}
+
 Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
                                        int finger_frame) {
   Eigen::Matrix<double, 6, Eigen::Dynamic> object(6, model.nv), finger(6, model.nv);

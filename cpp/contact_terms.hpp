@@ -7,7 +7,10 @@
 namespace pinstab {
 
 // Rows R^T (p_o - p_f) between the object's frame o (rotation R) and the fingertip's frame f, read from a Data
-// after a kinematics pass: their Jacobian R^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv; linear J, angular W in
+// after a kinematics pass (frame placements) ...
+Eigen::Vector3d contact_point_residual(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
+                                       int finger_frame);
+// ... their Jacobian R^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv; linear J, angular W in
 // LOCAL_WORLD_ALIGNED; needs the joint Jacobians and frame placements) ...
 Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
                                        int finger_frame);

@@ -88,6 +88,8 @@ NB_MODULE(_compiled, m) {
             new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, mu);
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
+  m.def("contact_point_residual", on_python_data(contact_point_residual), "model"_a, "data"_a, "object_frame"_a,
+        "finger_frame"_a, "R_o^T (p_o - p_f) (3,) from a pin.Data after a placements pass.");
   m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
   m.def("contact_point_drift", on_python_data(contact_point_drift), "model"_a, "data"_a, "object_frame"_a,

@@ -18,6 +18,7 @@ try:
         ServoKernel,
         contact_point_drift,
         contact_point_jacobian,
+        contact_point_residual,
     )
 except ImportError as error:  # pragma: no cover - a broken install
     try:
@@ -30,4 +31,12 @@ except ImportError as error:  # pragma: no cover - a broken install
         "(pip install -e . in its checkout, or pip install --force-reinstall pinstab)"
     ) from error
 
-__all__ = ["BandedKernel", "Kernel", "NativeKernel", "ServoKernel", "contact_point_drift", "contact_point_jacobian"]
+__all__ = [
+    "BandedKernel",
+    "Kernel",
+    "NativeKernel",
+    "ServoKernel",
+    "contact_point_drift",
+    "contact_point_jacobian",
+    "contact_point_residual",
+]

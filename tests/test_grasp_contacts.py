@@ -294,3 +294,21 @@ def test_copies_keep_their_meshes():
     )
     assert composed.ngeoms == 2 * single.ngeoms > 0
     assert {g.meshPath for g in composed.geometryObjects} == {g.meshPath for g in single.geometryObjects}
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_the_compiled_residual_is_the_points_difference_in_the_contact_frame(model):
+    """phi's point rows = R_C^T (p_o - p_f) from Pinocchio's placements (1e-15 m), the slip its norm, after a
+    placements-only pass as after a full one."""
+    scene = scene_from_dict(finger_ball(model))
+    kin = Kinematics(scene.model)
+    q, _ = perturbed_state(scene)
+    kin.update_positions(q)
+    contact = scene.constraints[0]
+    on_object = kin.placement(contact.object_frame)
+    expected = on_object.rotation.T @ (on_object.translation - kin.placement(contact.finger_frame).translation)
+    point_rows = contact.components < 3
+    phi = contact.residual(kin, q, 0.0)
+    assert np.linalg.norm(expected) > 1e-3
+    assert np.abs(phi[point_rows] - expected[contact.components[point_rows]]).max() < 1e-15
+    assert contact.slip(kin) == pytest.approx(np.linalg.norm(expected), abs=1e-15) or contact.model == "frictionless"

@@ -30,7 +30,7 @@ from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
-from ..kernels import contact_point_drift, contact_point_jacobian
+from ..kernels import contact_point_drift, contact_point_jacobian, contact_point_residual
 from ..kinematics import Kinematics, PerUpdate
 from ..memory import new_data
 from ..tables import SceneTables
@@ -87,18 +87,18 @@ class FingertipContact(Constraint):
         self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
         # the constraint stack, a grasp force element and a grasp controller read them at the same state
-        self._points = PerUpdate(self._compute_point_difference)
+        self._points = PerUpdate(self._compute_point_residual)
         self._velocity_terms = PerUpdate(self._compute_velocity_terms)
         self._drift = PerUpdate(self._compute_drift)
 
     # -- rows ----------------------------------------------------------------------------------------
-    def _point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        """(R_C, d = p_o - p_f) in world axes (shared: not to be modified)."""
+    def _point_residual(self, kin: Kinematics) -> np.ndarray:
+        """R_C^T (p_o - p_f) [m]: the material points' difference in C (shared: not to be modified)."""
         return self._points(kin)
 
-    def _compute_point_difference(self, kin: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        on_object = kin.placement(self.object_frame)
-        return on_object.rotation, on_object.translation - kin.placement(self.finger_frame).translation
+    def _compute_point_residual(self, kin: Kinematics) -> np.ndarray:
+        # compiled: cpp/contact_terms.cpp
+        return contact_point_residual(kin.model, kin.data, self.object_frame, self.finger_frame)
 
     def _select(self, linear: np.ndarray, angular) -> np.ndarray:
         if angular is None and self.rows == 3:  # point-friction: the point rows as they are
@@ -107,9 +107,8 @@ class FingertipContact(Constraint):
         return full[self.components]
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        rotation, difference = self._point_difference(kin)
         angular = self._weld.residual(kin, q, t)[3:] if self._weld else None
-        return self._select(rotation.T @ difference, angular)
+        return self._select(self._point_residual(kin), angular)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         return self._velocity_terms(kin)
@@ -151,7 +150,7 @@ class FingertipContact(Constraint):
         be current."""
         if self.model == "frictionless":
             return None
-        return float(np.linalg.norm(self._point_difference(kin)[1]))
+        return float(np.linalg.norm(self._point_residual(kin)))
 
 
 # -- scene table ---------------------------------------------------------------------------------------
