@@ -24,9 +24,9 @@ from .limits import MemorySource, format_size, tightest
 
 DEFAULT_FRACTION = 0.8  # of the memory available when checked (before the allocations, at the start)
 DATA_CUBIC, DATA_SQUARE, DATA_FIXED = 6.5, 100, 3000  # doubles per nv^3, nv^2 and joint of a Pinocchio Data
-RUN_DATA_COPIES = (
-    3  # Pinocchio Data a run holds at most: the model's two and the native kernel's (the banded one shares)
-)
+# Pinocchio Data a run holds at most: the model's scratch, its kinematics' (built at first use: never on the banded
+# path, whose kernel computes in the scratch) and the native kernel's
+RUN_DATA_COPIES = 3
 SAMPLE_SERIES = 16  # doubles a kept sample adds besides q, v, multipliers: time, drifts, energy, copies written
 UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}
 UNITS |= {"kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}
