@@ -6,12 +6,16 @@ namespace pinstab {
 
 namespace {
 constexpr auto LWA = pinocchio::LOCAL_WORLD_ALIGNED;
+
+// d = p_o - p_f in world axes (frame placements computed)
+Eigen::Vector3d difference(const pinocchio::Data& data, int object_frame, int finger_frame) {
+  return data.oMf[object_frame].translation() - data.oMf[finger_frame].translation();
 }
+}  // namespace
 
 Eigen::Vector3d contact_point_residual(const pinocchio::Model&, pinocchio::Data& data, int object_frame,
                                        int finger_frame) {
-  const pinocchio::SE3& placement = data.oMf[object_frame];
-  return placement.rotation().transpose() * (placement.translation() - data.oMf[finger_frame].translation());
+  return data.oMf[object_frame].rotation().transpose() * difference(data, object_frame, finger_frame);
 }
 
 Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
@@ -22,7 +26,7 @@ Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio:
   pinocchio::getFrameJacobian(model, data, object_frame, LWA, object);
   pinocchio::getFrameJacobian(model, data, finger_frame, LWA, finger);
   const pinocchio::SE3& placement = data.oMf[object_frame];
-  const Eigen::Vector3d d = placement.translation() - data.oMf[finger_frame].translation();
+  const Eigen::Vector3d d = difference(data, object_frame, finger_frame);
   Eigen::Matrix<double, 3, Eigen::Dynamic> linear = object.topRows<3>() - finger.topRows<3>();
   for (int j = 0; j < model.nv; ++j) linear.col(j) += d.cross(Eigen::Vector3d(object.block<3, 1>(3, j)));
   return placement.rotation().transpose() * linear;
@@ -31,7 +35,7 @@ Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio:
 Eigen::Vector3d contact_point_drift(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
                                     int finger_frame) {
   const pinocchio::SE3& placement = data.oMf[object_frame];
-  const Eigen::Vector3d d = placement.translation() - data.oMf[finger_frame].translation();
+  const Eigen::Vector3d d = difference(data, object_frame, finger_frame);
   const pinocchio::Motion object = pinocchio::getFrameVelocity(model, data, object_frame, LWA);
   const pinocchio::Motion finger = pinocchio::getFrameVelocity(model, data, finger_frame, LWA);
   const pinocchio::Motion object_acc = pinocchio::getFrameClassicalAcceleration(model, data, object_frame, LWA);

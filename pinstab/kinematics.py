@@ -61,8 +61,9 @@ class Kinematics:
         self._gravity_data: pin.Data | None = None  # for g(q) after a partial update
 
     def __getattr__(self, name: str) -> Any:
-        """``data``, the Pinocchio ``Data`` the updates write, is built at first use (a long chain's takes ~9 ms to
-        build, and a run whose compiled kernel makes every pass never needs it); then it is a plain attribute."""
+        """``data``, the Pinocchio ``Data`` the updates write, is built at first use (a long chain's is costly to build,
+        ``benchmarks/data_creation.py``, and a run whose compiled kernel makes every pass never needs it); then it is
+        a plain attribute."""
         if name != "data":
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         self.data = new_data(self.model)

@@ -370,10 +370,15 @@ class WarmQP:
         """ProxQP's x, its active set kept for the next solve (multipliers z: H x + g + E^T y + C^T z = 0, z > 0 at an
         upper bound, z < 0 at a lower one)."""
         multipliers = np.array(qp.results.z)
-        threshold = ACTIVE_SET_TOLERANCE * max(1.0, float(np.max(np.abs(multipliers), initial=0.0)))
-        rows = np.flatnonzero(np.abs(multipliers) > threshold)
+        rows = np.flatnonzero(_pushed(multipliers))
         self._active = rows, np.sign(multipliers[rows])
         return np.array(qp.results.x)
+
+
+def _pushed(multipliers: np.ndarray) -> np.ndarray:
+    """The rows whose multiplier pushes them against a bound: beyond :data:`ACTIVE_SET_TOLERANCE` of the largest."""
+    magnitude = np.abs(multipliers)
+    return magnitude > ACTIVE_SET_TOLERANCE * max(1.0, float(np.max(magnitude, initial=0.0)))
 
 
 def _complementary(qp: proxsuite.proxqp.dense.QP, inequality, lower, upper) -> bool:
@@ -383,9 +388,8 @@ def _complementary(qp: proxsuite.proxqp.dense.QP, inequality, lower, upper) -> b
     previous x and multipliers, rows pushed against bounds they no longer touch (measured: a row 9 from its
     moved bound, ``tests/test_grasp_control.py``)."""
     multipliers, product = np.array(qp.results.z), inequality @ np.array(qp.results.x)
-    threshold = ACTIVE_SET_TOLERANCE * max(1.0, float(np.max(np.abs(multipliers), initial=0.0)))
     gap = np.where(multipliers > 0, upper - product, product - lower)
-    pushed = np.abs(multipliers) > threshold
+    pushed = _pushed(multipliers)
     return bool(
         np.all(
             np.abs(gap[pushed])

@@ -160,8 +160,6 @@ class AdaptiveLoop(StepLoop):
             except ContactInfeasibleError:
                 if MIN_FACTOR * h < MIN_STEP * max(1.0, t):
                     raise
-                q_new = v_new = slopes = None
-            if slopes is None:
                 error = math.inf
             else:
                 end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None

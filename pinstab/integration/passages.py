@@ -200,8 +200,8 @@ def _least(level: Callable[[float], float], t0: float, t1: float, h: float) -> t
     samples = {t: level(t) ** 2 for t in (t0 + 0.25 * (t1 - t0), 0.5 * (t0 + t1), t0 + 0.75 * (t1 - t0))}
     vertex = math.inf
     for _ in range(VERTEX_ITERATIONS):
-        least = min(samples, key=samples.__getitem__)
-        lowest = sorted(sorted(samples, key=samples.__getitem__)[:3])
+        by_value = sorted(samples, key=samples.__getitem__)
+        least, lowest = by_value[0], sorted(by_value[:3])
         (x0, y0), (x1, y1), (x2, y2) = ((x, samples[x]) for x in lowest)
         clustered = x2 - x0 <= ROUNDING_SPAN * h
         slope_left, slope_right = (y1 - y0) / (x1 - x0), (y2 - y1) / (x2 - x1)
