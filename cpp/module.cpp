@@ -9,6 +9,7 @@
 
 #include "banded_kernel.hpp"
 #include "contact_terms.hpp"
+#include "grasp_kernel.hpp"
 #include "native_kernel.hpp"
 #include "servo_kernel.hpp"
 
@@ -55,6 +56,26 @@ Target target(nb::dict spec) {
     target.held = nb::cast<bool>(spec["held"]);
   }
   return target;
+}
+
+// pinstab.grasp.hold.GraspHold.compiled_form: arrays by name, the cones as rows (normal, tangent1, tangent2; -1: none).
+HoldSpec hold(nb::dict form) {
+  HoldSpec hold;
+  hold.rows = nb::cast<VectorXi>(form["rows"]);
+  hold.object_columns = nb::cast<VectorXi>(form["object_columns"]);
+  hold.hand_columns = nb::cast<VectorXi>(form["hand_columns"]);
+  hold.pressing = nb::cast<VectorXd>(form["pressing"]);
+  const Eigen::MatrixXi columns = nb::cast<Eigen::MatrixXi>(form["cone_columns"]);
+  const VectorXd mu = nb::cast<VectorXd>(form["cone_mu"]);
+  for (int k = 0; k < columns.rows(); ++k) hold.cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), mu(k)});
+  hold.q_start = nb::cast<VectorXd>(form["q_start"]);
+  hold.stiffness = nb::cast<double>(form["stiffness"]);
+  hold.damping = nb::cast<double>(form["damping"]);
+  hold.cap = nb::cast<double>(form["cap"]);
+  hold.feasibility = nb::cast<double>(form["feasibility"]);
+  hold.rank = nb::cast<double>(form["rank"]);
+  hold.condition = nb::cast<double>(form["condition"]);
+  return hold;
 }
 
 }  // namespace
@@ -109,6 +130,36 @@ NB_MODULE(_compiled, m) {
           "model"_a, "rows"_a, "position_rows"_a, "actuation"_a, "lower"_a, "upper"_a, "targets"_a, "kp"_a, "kd"_a, "rank_tolerance"_a,
           "The servo path's evaluation: prescribed rows S (p x nv; position_rows p x nq), actuation B (nv x k) and bounds, targets (dicts).")
       .def_prop_ro("last_sign", &ServoKernel::last_sign);
+  nb::class_<GraspKernel, Kernel>(m, "GraspKernel")
+      .def(
+          "__init__",
+          [](GraspKernel* self, nb::handle model, const std::vector<nb::dict>& contacts,
+             const std::vector<nb::dict>& forces, double kp, double kd, double direct_pivot, double margin_slack) {
+            std::vector<FingertipSpec> fingertips;
+            for (const nb::dict& form : contacts) {
+              fingertips.push_back({nb::cast<int>(form["object_frame"]), nb::cast<int>(form["finger_frame"]),
+                                    nb::cast<std::vector<int>>(form["components"]), nb::cast<double>(form["mu"])});
+            }
+            std::vector<HoldSpec> holds;
+            std::vector<WrenchSpec> wrenches;
+            for (const nb::dict& form : forces) {
+              const std::string kind = nb::cast<std::string>(form["kind"]);
+              if (kind == "hold") {
+                holds.push_back(hold(form));
+              } else if (kind == "wrench") {
+                wrenches.push_back({nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
+              } else {
+                throw std::invalid_argument("GraspKernel: no compiled force of kind " + kind);
+              }
+            }
+            new (self) GraspKernel(python_model(model.ptr()), std::move(fingertips), std::move(holds),
+                                   std::move(wrenches), kp, kd, direct_pivot, margin_slack);
+          },
+          "model"_a, "contacts"_a, "forces"_a, "kp"_a, "kd"_a, "direct_pivot"_a, "margin_slack"_a,
+          "The grasp path's evaluation: fingertip contacts (dicts: object_frame, finger_frame, components, mu), the "
+          "force elements' compiled forms (ForceElement.compiled_form), Baumgarte gains, the direct solve's pivot "
+          "tolerance and the contact check's slack.")
+      .def("multipliers", &GraspKernel::multipliers, "The last evaluation's contact forces [N] (rows of G).");
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(
           "__init__",

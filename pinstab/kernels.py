@@ -1,5 +1,5 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics, the
-banded solve and the servo solve evaluated in C++ (:mod:`pinstab.paths`), the explicit step loop over them
+banded solve, the servo solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
 (:mod:`pinstab.integration.compiled`), and a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
@@ -13,6 +13,7 @@ from importlib.metadata import PackageNotFoundError, version
 try:
     from ._compiled import (
         BandedKernel,
+        GraspKernel,
         Kernel,
         NativeKernel,
         ServoKernel,
@@ -33,6 +34,7 @@ except ImportError as error:  # pragma: no cover - a broken install
 
 __all__ = [
     "BandedKernel",
+    "GraspKernel",
     "Kernel",
     "NativeKernel",
     "ServoKernel",

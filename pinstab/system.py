@@ -12,10 +12,12 @@ from typing import Any
 import numpy as np
 
 from .constraints import ConstraintValues, FrameClosure, Violation
+from .constraints.grasp_contacts import FingertipContact
 from .errors import DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
+from .paths.grasp import GraspDynamics, grasp_obstacle
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector
@@ -24,10 +26,12 @@ from .scene import Scene
 from .servo import RANK_TOLERANCE, ServoSolver
 from .solvers import SOLVERS, KKTProblem, KKTSolver
 from .solvers.base import ACCEPTED_RESIDUAL
+from .solvers.proxsuite_ import DIRECT_PIVOT
 from .stabilizers import STABILIZERS, Stabilizer
 
 DEFAULT_SOLVER = "proxsuite"
 NATIVE_SOLVER = "pinocchio"  # the backend whose algorithm the native path runs
+GRASP_SOLVER = "proxsuite"  # the backend whose direct solve the grasp path repeats
 NATIVE_MU = 1e-12  # proximal regularization of the native solve (the pinocchio backend's own option when named)
 REDUNDANT_MU = 1e-8  # ... with redundant closure rows: relative to the largest eigenvalue of G M^-1 G^T
 REDUNDANT_RANK_TOLERANCE = 1e-9  # singular values of G below this fraction of the largest: redundant rows
@@ -67,7 +71,8 @@ class ConstrainedSystem:
         path_reason: why the general path was taken, or why the banded or servo one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
-        servo_path: the compiled servo solve on the servo path, else None.
+        compiled_path: the compiled servo solve on the servo path, the compiled grasp evaluation on the grasp path, else
+            None.
         projector: the projections of post-step corrections on the chosen path.
     """
 
@@ -84,10 +89,10 @@ class ConstrainedSystem:
         self.solver = solver
         self.native: NativeDynamics | None = None
         self.banded: BandedDynamics | None = None
-        self.servo_path: ServoDynamics | None = None
+        self.compiled_path: ServoDynamics | GraspDynamics | None = None
         self._banded_allowed = banded
         self._banded_solves = 0
-        self._servo_solves = 0
+        self._compiled_solves = 0
         self.projector: Projector = GeneralProjector(model)
         self.path = "general"
         self.path_reason = "not bound to a step yet"
@@ -108,14 +113,16 @@ class ConstrainedSystem:
         """Bind the stabilizer to the step [s], the integrator and the start configuration, and take the
         native path when the scene, the method and the solver allow it."""
         self.stabilizer.bind(self.model, step, integrator, q)
-        self.servo_path = self.banded = None  # a previous bind's
+        self.compiled_path = self.banded = None  # a previous bind's
         reason = self.native_obstacle(q)
         if reason is not None:
             self.path, self.path_reason, self.native = "general", reason, None
             self.acceleration = self._general_acceleration
             self.projector = GeneralProjector(self.model)
-            if self.servo is not None and self._named_solver is None:
+            if self._named_solver is None and self.servo is not None:
                 self._bind_servo()
+            elif self._named_solver is None:
+                self._bind_grasp()
             return
         gains = self.stabilizer.baumgarte_gains()
         native = self.solver.native
@@ -151,12 +158,34 @@ class ConstrainedSystem:
             return
         relations = list(model.constraints.constraints)
         gains = self.stabilizer.baumgarte_gains()
-        self.servo_path = ServoDynamics(model.model, relations, model.scene.actuation, *gains, RANK_TOLERANCE)
-        self.path, self.acceleration = "servo", self._servo_acceleration
+        self.compiled_path = ServoDynamics(model.model, relations, model.scene.actuation, *gains, RANK_TOLERANCE)
+        self.path, self.acceleration = "servo", self._compiled_acceleration
         self.path_reason = (
             f"{len(relations)} prescribed joint relation(s) realized by {model.scene.actuation.count} control(s): "
             "M, h and the decoupling matrix S M^-1 B solved compiled (the general solve where it loses rank or a "
             "control meets its bound)"
+        )
+
+    def _bind_grasp(self) -> None:
+        """Take the grasp path when the scene's contacts and forces, the method and the solver allow it; else, on a
+        scene with fingertip contacts, say why in :attr:`path_reason`."""
+        model = self.model
+        constraints = model.constraints.constraints
+        reason = grasp_obstacle(constraints, model.forces)
+        if reason is None:
+            reason = self._compiled_form_obstacle("the compiled grasp evaluation")
+        if reason is None and not (self.solver.name == GRASP_SOLVER and self.solver.options.direct):
+            reason = f"solver {self.solver.name} solves every evaluation by its own method (not Cholesky factors)"
+        if reason is not None:
+            if any(isinstance(c, FingertipContact) for c in constraints):
+                self.path_reason = reason
+            return
+        gains = self.stabilizer.baumgarte_gains()
+        self.compiled_path = GraspDynamics(model.model, constraints, model.forces, *gains, DIRECT_PIVOT)
+        self.path, self.acceleration = "grasp", self._compiled_acceleration
+        self.path_reason = (
+            f"{len(constraints)} sticking fingertip contact(s): kinematics, contact rows, hold forces and the KKT "
+            "solve compiled (the general solve where a hold needs its QP, a pivot is small or a force leaves its cone)"
         )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
@@ -215,16 +244,16 @@ class ConstrainedSystem:
         are checked one by one, or on the general path."""
         if self.banded is not None:
             return self.banded.kernel
-        if self.servo_path is not None:
-            return self.servo_path.kernel
+        if self.compiled_path is not None:
+            return self.compiled_path.kernel
         if self.native is None or self._checking:
             return None
         return self.native.kernel()
 
     def count_compiled(self, evaluations: int) -> None:
         """Count ``evaluations`` solves made by the compiled loop on this path."""
-        if self.servo_path is not None:
-            self._servo_solves += evaluations
+        if self.compiled_path is not None:
+            self._compiled_solves += evaluations
         elif self.banded is not None:
             self._banded_solves += evaluations
         else:
@@ -255,13 +284,16 @@ class ConstrainedSystem:
         self._banded_solves += 1
         return acceleration
 
-    def _servo_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
-        acceleration = self.servo_path.acceleration(q, v, self.model.applied_force_at(q, v, t), t)
-        if self.servo_path.unusable:  # the general solve says why (from the kernel's last sign) or takes the bounds
+    def _compiled_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        path, model = self.compiled_path, self.model
+        tau = model.applied_force_at(q, v, t) if self.servo is not None else path.force(model.kin, v, t)
+        acceleration = path.acceleration(q, v, tau, t)
+        if path.unusable:  # the general solve says why (a servo: from the kernel's last sign) or solves it otherwise
             self._audit.fallbacks += 1
-            self.servo.follow(self.servo_path.last_sign)
+            if self.servo is not None:
+                self.servo.follow(path.last_sign)
             return self._general_acceleration(q, v, t, stage)
-        self._servo_solves += 1
+        self._compiled_solves += 1
         return acceleration
 
     def _native_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
@@ -325,9 +357,9 @@ class ConstrainedSystem:
         Pinocchio counted as a fallback; on the servo path its compiled solves (status ``servo``), those the general
         solve took counted as fallbacks."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
-        if self.servo_path is not None:
-            merged.solves += self._servo_solves
-            merged.status_counts["servo"] = self._servo_solves
+        if self.compiled_path is not None:
+            merged.solves += self._compiled_solves
+            merged.status_counts[self.compiled_path.status] = self._compiled_solves
             merged.fallbacks += self._audit.fallbacks
         if self.native is None:
             return merged

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -42,6 +42,12 @@ class ForceElement(ABC):
     @abstractmethod
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         """Generalized force [N, N m] (nv,); needs placements and Jacobians current."""
+
+    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+        """The element as the compiled grasp evaluation takes it (``cpp/grasp_kernel.cpp``: a dict with ``kind``
+        ``hold`` or ``wrench``), given the stacked constraint rows of the scene's contacts by name; None (the default):
+        it has none, and an evaluation computes it in Python."""
+        return None
 
     def potential_energy(self, kin: Kinematics) -> float:
         """Stored energy [J]; zero for non-conservative elements."""

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from ..kinematics import Kinematics
@@ -25,6 +28,9 @@ class ExternalForce(ForceElement):
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         return kin.jacobian(self.frame).T @ self.wrench
+
+    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any]:
+        return {"kind": "wrench", "frame": self.frame, "wrench": self.wrench}
 
 
 @FORCE_KINDS.register("external-force", summary="a constant world-axes force [N] and moment [N m] at a body point")

@@ -23,6 +23,7 @@ an object-level controller.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -34,12 +35,13 @@ from ..forces.base import FORCE_KINDS, ForceElement
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
-from .holding import ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
-from .linalg import closest_solution
+from .holding import FEASIBILITY, ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
+from .linalg import NORMAL_EQUATIONS_CONDITION, RANK_TOLERANCE, closest_solution
 
 HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
+NO_TANGENT = -1  # a frictionless contact's tangent columns in the compiled form
 
 
 class GraspHold(ForceElement):
@@ -133,6 +135,31 @@ class GraspHold(ForceElement):
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
         return self.torques(rows, kin.gravity(), kin.q, v)
+
+    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any]:
+        """The hold for the compiled grasp evaluation: its contacts' rows in the stack, the columns, the squeeze, the
+        cones' columns (normal, tangents; -1: none) and the tolerances of its least squares and cone test. (The
+        kernel keeps the least-squares forces only: where they leave a cone or the cap, the evaluation is not used
+        and this element's QPs take them.)"""
+        columns, _ = cone_columns(self.contacts)
+        return {
+            "kind": "hold",
+            "rows": np.concatenate([rows[c.name] for c in self.contacts]).astype(np.int32),
+            "object_columns": np.asarray(self.object_columns, dtype=np.int32),
+            "hand_columns": np.asarray(self.hand_columns, dtype=np.int32),
+            "pressing": self.pressing,
+            "cone_columns": np.array(
+                [[c.normal, *(c.tangents or (NO_TANGENT, NO_TANGENT))] for c in columns], dtype=np.int32
+            ).reshape(-1, 3),
+            "cone_mu": np.array([c.mu for c in columns], dtype=float),
+            "q_start": self.q_start,
+            "stiffness": float(self.stiffness),
+            "damping": float(self.damping),
+            "cap": float(self.max_squeeze),  # inf: none
+            "feasibility": FEASIBILITY,
+            "rank": RANK_TOLERANCE,
+            "condition": NORMAL_EQUATIONS_CONDITION,
+        }
 
 
 @FORCE_KINDS.register(

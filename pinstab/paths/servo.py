@@ -54,7 +54,10 @@ class ServoDynamics:
     Attributes:
         kernel: the compiled evaluation (``cpp/servo_kernel.cpp``).
         unusable: the last :meth:`acceleration` is not to be used (rank lost, a sign change, a bound, non-finite).
+        status: the solver status its solves count under.
     """
+
+    status = "servo"
 
     def __init__(
         self,
