@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/SVD>
 #include <pinocchio/algorithm/compute-all-terms.hpp>
@@ -25,6 +26,7 @@ GraspKernel::GraspKernel(const pinocchio::Model& model, std::vector<FingertipSpe
       direct_pivot_(direct_pivot),
       margin_slack_(margin_slack),
       rows_(0),
+      worst_residual_(0.0),
       frame_jacobian_(Eigen::MatrixXd::Zero(6, model_.nv)) {
   for (const FingertipSpec& contact : contacts_) rows_ += static_cast<int>(contact.components.size());
   jacobian_.resize(rows_, model_.nv);
@@ -74,7 +76,18 @@ bool GraspKernel::acceleration(double, const VectorXd& q, const VectorXd& v, con
   multipliers_ = inner_.solve(rhs - jacobian_ * free_);
   a = free_;
   a.noalias() += spread_ * multipliers_;
-  return a.allFinite() && inside_cones();
+  if (!a.allFinite() || !inside_cones()) return false;
+  worst_residual_ = std::max(worst_residual_, primal_residual(a, rhs));
+  return true;
+}
+
+// pinstab.solvers.base.primal_residual: |G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M))
+double GraspKernel::primal_residual(const VectorXd& a, const VectorXd& rhs) const {
+  const double miss = (jacobian_ * a - rhs).norm();
+  if (miss == 0.0) return 0.0;
+  const double natural = force_.norm() / data_.M.diagonal().minCoeff();
+  const double scale = rhs.norm() + jacobian_.norm() * (a.norm() + natural);
+  return scale > 0.0 ? miss / scale : std::numeric_limits<double>::infinity();
 }
 
 bool GraspKernel::hold_torques(const HoldSpec& hold, const VectorXd& q, const VectorXd& v, VectorXd& force) {

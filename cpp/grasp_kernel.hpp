@@ -57,12 +57,15 @@ class GraspKernel : public Kernel {
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   const VectorXd& multipliers() const { return multipliers_; }
+  // the largest relative |G a - rhs| of the evaluations used (pinstab.solvers.base.primal_residual)
+  double worst_residual() const { return worst_residual_; }
 
  private:
   bool hold_torques(const HoldSpec& hold, const VectorXd& q, const VectorXd& v, VectorXd& force);
   static bool closest_solution(const HoldSpec& hold, const Eigen::MatrixXd& matrix, const VectorXd& rhs, VectorXd& x);
   static bool holds(const HoldSpec& hold, const VectorXd& forces);
   bool inside_cones() const;
+  double primal_residual(const VectorXd& a, const VectorXd& rhs) const;
 
   pinocchio::Model model_;
   pinocchio::Data data_;
@@ -73,6 +76,7 @@ class GraspKernel : public Kernel {
   double direct_pivot_;  // the Delassus matrix's smallest pivot^2 over its largest diagonal entry (solvers.proxsuite_)
   double margin_slack_;  // the contact check's slack (contact.models.MARGIN_SLACK)
   int rows_;
+  double worst_residual_;
   Eigen::MatrixXd jacobian_, spread_, delassus_, frame_jacobian_;
   VectorXd phi_, drift_, force_, free_, multipliers_;
   Eigen::LLT<Eigen::MatrixXd> mass_, inner_;

@@ -159,7 +159,9 @@ NB_MODULE(_compiled, m) {
           "The grasp path's evaluation: fingertip contacts (dicts: object_frame, finger_frame, components, mu), the "
           "force elements' compiled forms (ForceElement.compiled_form), Baumgarte gains, the direct solve's pivot "
           "tolerance and the contact check's slack.")
-      .def("multipliers", &GraspKernel::multipliers, "The last evaluation's contact forces [N] (rows of G).");
+      .def("multipliers", &GraspKernel::multipliers, "The last evaluation's contact forces [N] (rows of G).")
+      .def_prop_ro("worst_residual", &GraspKernel::worst_residual,
+                   "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).");
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(
           "__init__",

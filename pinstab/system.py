@@ -360,6 +360,7 @@ class ConstrainedSystem:
         if self.compiled_path is not None:
             merged.solves += self._compiled_solves
             merged.status_counts[self.compiled_path.status] = self._compiled_solves
+            merged.worst_primal_residual = max(merged.worst_primal_residual, self.compiled_path.worst_residual)
             merged.fallbacks += self._audit.fallbacks
         if self.native is None:
             return merged

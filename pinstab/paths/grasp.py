@@ -103,6 +103,11 @@ class GraspDynamics:
             return self._zero
         return sum((element.generalized_force(kin, v, t) for element in self._python), np.zeros(len(v)))
 
+    @property
+    def worst_residual(self) -> float:
+        """The largest relative ``|G a - rhs|`` of the evaluations used [-] (the general path's measure)."""
+        return self.kernel.worst_residual
+
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (t, q, v) under the applied forces ``tau`` [N, N m] besides the
         compiled elements'; check :attr:`unusable` before using them."""

@@ -55,9 +55,12 @@ class ServoDynamics:
         kernel: the compiled evaluation (``cpp/servo_kernel.cpp``).
         unusable: the last :meth:`acceleration` is not to be used (rank lost, a sign change, a bound, non-finite).
         status: the solver status its solves count under.
+        worst_residual: not measured (0): the controls are the least-norm solution of the rows, which are checked for
+            rank before it is used.
     """
 
     status = "servo"
+    worst_residual = 0.0
 
     def __init__(
         self,
