@@ -68,7 +68,7 @@ class ConstrainedSystem:
             configuration, Pinocchio's solve at one), ``servo`` (prescribed joint relations realized by the controls,
             solved compiled, :mod:`pinstab.paths.servo`) or ``general`` (pinstab's kinematics, the stabilizer's term
             and the KKT backend); chosen by :meth:`bind`.
-        path_reason: why the general path was taken, or why the banded or servo one ("" on the native path).
+        path_reason: why the general path was taken, or why the banded, servo or grasp one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
         compiled_path: the compiled servo solve on the servo path, the compiled grasp evaluation on the grasp path, else
@@ -285,9 +285,8 @@ class ConstrainedSystem:
         return acceleration
 
     def _compiled_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
-        path, model = self.compiled_path, self.model
-        tau = model.applied_force_at(q, v, t) if self.servo is not None else path.force(model.kin, v, t)
-        acceleration = path.acceleration(q, v, tau, t)
+        path = self.compiled_path
+        acceleration = path.acceleration(q, v, path.force(self.model, q, v, t), t)
         if path.unusable:  # the general solve says why (a servo: from the kernel's last sign) or solves it otherwise
             self._audit.fallbacks += 1
             if self.servo is not None:
@@ -354,8 +353,8 @@ class ConstrainedSystem:
         """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
         ``native``), the checked ones and the fallbacks; on the banded path its solves (status ``banded``),
         those of them refined near a singular configuration (status ``banded refined``), a singular one solved by
-        Pinocchio counted as a fallback; on the servo path its compiled solves (status ``servo``), those the general
-        solve took counted as fallbacks."""
+        Pinocchio counted as a fallback; on the servo and grasp paths their compiled solves (status ``servo``,
+        ``grasp``), those the general solve took counted as fallbacks."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
         if self.compiled_path is not None:
             merged.solves += self._compiled_solves

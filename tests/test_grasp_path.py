@@ -20,14 +20,17 @@ ROBOTS = Path(__file__).parents[1] / "robots"
 
 
 def sphere_scene(**changes):
-    """allegro-sphere with its push force and contacts' mu replaced (``push`` [N] along y, ``mu`` [-]), or with a
-    joint torque ramping on the index finger's base joint (``torque`` [N m] at 1 s)."""
+    """allegro-sphere with its push force and contacts' mu replaced (``push`` [N] along y, ``mu`` [-]), the hold's
+    normal forces capped (``cap`` [N]), or with a joint torque ramping on the index finger's base joint (``torque``
+    [N m] at 1 s)."""
     data = tomllib.loads((ROBOTS / "allegro-sphere.toml").read_text())
     if "push" in changes:
         data["forces"][1]["force"] = [0.0, changes["push"], 0.0]
     if "mu" in changes:
         for contact in data["contacts"]:
             contact["mu"] = changes["mu"]
+    if "cap" in changes:
+        data["forces"][0]["max_squeeze"] = changes["cap"]
     if "torque" in changes:
         ramp = [[0.0, 0.0], [1.0, changes["torque"]]]
         data["forces"].append({"name": "nudge", "kind": "joint-torque", "joint": "joint_1.0", "table": ramp})
@@ -92,6 +95,19 @@ def test_hold_forces_outside_their_cones_go_to_the_general_path():
     np.testing.assert_allclose(acceleration, general, rtol=0, atol=1e-6 * np.max(np.abs(general)))
     assert system.statistics.fallbacks == 1
     assert "grasp" not in system.statistics.status_counts or system.statistics.status_counts["grasp"] == 0
+
+
+@pytest.mark.parametrize(("cap", "used"), [(3.0, True), (2.2, False)])
+def test_a_capped_hold_is_compiled_while_its_forces_keep_the_cap(cap, used):
+    """The hold's least-squares normal forces at the start are 1.87, 1.54, 1.76 and 2.51 N: under a cap of 3 N the
+    compiled evaluation is used (and equals the general path's to 1e-11 of the largest acceleration); under 2.2 N the
+    thumb's force exceeds it and the general path's capped solve is taken."""
+    system, q, v = bound(sphere_scene(cap=cap))
+    acceleration = system.acceleration(q, v, 0.0, 0)
+    assert system.compiled_path.unusable is not used
+    general = system.dynamics(q, v, 0.0).acceleration
+    tolerance = 1e-11 if used else 1e-6  # the capped solve is a warm-started QP: the same to its tolerance
+    np.testing.assert_allclose(acceleration, general, rtol=0, atol=tolerance * np.max(np.abs(general)))
 
 
 def test_a_lost_grasp_is_named_as_on_the_general_path():

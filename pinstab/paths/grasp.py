@@ -24,7 +24,7 @@ from ..constraints.grasp_contacts import FingertipContact
 from ..contact.models import MARGIN_SLACK
 from ..forces.base import ForceElement
 from ..kernels import GraspKernel
-from ..kinematics import Kinematics
+from ..model import ConstrainedModel
 
 POINT_MODELS = ("frictionless", "point-friction")  # contact models whose rows are the point's (no rotation rows)
 
@@ -97,11 +97,12 @@ class GraspDynamics:
         self._zero.flags.writeable = False
         self.unusable = False
 
-    def force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        """The applied forces the kernel does not compute (elements that read no kinematics) [N, N m]."""
+    def force(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The applied forces the kernel takes [N, N m]: those of the elements without a compiled form (which read
+        no kinematics, :func:`grasp_obstacle`)."""
         if not self._python:
             return self._zero
-        return sum((element.generalized_force(kin, v, t) for element in self._python), np.zeros(len(v)))
+        return sum((element.generalized_force(model.kin, v, t) for element in self._python), np.zeros(len(v)))
 
     @property
     def worst_residual(self) -> float:

@@ -24,6 +24,7 @@ from ..actuation import Actuation
 from ..constraints import Constraint
 from ..constraints.joint_relation import JointRelation
 from ..kernels import ServoKernel
+from ..model import ConstrainedModel
 
 
 def servo_obstacle(constraints: list[Constraint], actuation: Actuation | None) -> str | None:
@@ -89,6 +90,10 @@ class ServoDynamics:
             rank_tolerance,
         )
         self.unusable = False
+
+    def force(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The applied forces the kernel takes [N, N m]: every force element's (in Python)."""
+        return model.applied_force_at(q, v, t)
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (t, q, v) under the applied forces ``tau`` [N, N m]; check
