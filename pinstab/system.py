@@ -170,22 +170,23 @@ class ConstrainedSystem:
         """Take the grasp path when the scene's contacts and forces, the method and the solver allow it; else, on a
         scene with fingertip contacts, say why in :attr:`path_reason`."""
         model = self.model
-        constraints = model.constraints.constraints
+        constraints = model.constraints
         reason = grasp_obstacle(constraints, model.forces)
         if reason is None:
             reason = self._compiled_form_obstacle("the compiled grasp evaluation")
         if reason is None and not (self.solver.name == GRASP_SOLVER and self.solver.options.direct):
             reason = f"solver {self.solver.name} solves every evaluation by its own method (not Cholesky factors)"
         if reason is not None:
-            if any(isinstance(c, FingertipContact) for c in constraints):
+            if any(isinstance(c, FingertipContact) for c in constraints.constraints):
                 self.path_reason = reason
             return
         gains = self.stabilizer.baumgarte_gains()
         self.compiled_path = GraspDynamics(model.model, constraints, model.forces, *gains, DIRECT_PIVOT)
         self.path, self.acceleration = "grasp", self._compiled_acceleration
         self.path_reason = (
-            f"{len(constraints)} sticking fingertip contact(s): kinematics, contact rows, hold forces and the KKT "
-            "solve compiled (the general solve where a hold needs its QP, a pivot is small or a force leaves its cone)"
+            f"{len(constraints.constraints)} sticking fingertip contact(s): kinematics, contact rows, hold forces and "
+            "the KKT solve compiled (the general solve where a hold needs its QP, a pivot is small or a force leaves "
+            "its cone)"
         )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:

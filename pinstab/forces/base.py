@@ -43,10 +43,10 @@ class ForceElement(ABC):
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         """Generalized force [N, N m] (nv,); needs placements and Jacobians current."""
 
-    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
         """The element as the compiled grasp evaluation takes it (``cpp/grasp_kernel.cpp``: a dict with ``kind``
-        ``hold`` or ``wrench``), given the stacked constraint rows of the scene's contacts by name; None (the default):
-        it has none, and an evaluation computes it in Python."""
+        ``hold`` or ``wrench``), given each constraint's rows in the stack by name (``ConstraintSet.slices``); None
+        (the default): it has none, and an evaluation computes it in Python."""
         return None
 
     def potential_energy(self, kin: Kinematics) -> float:

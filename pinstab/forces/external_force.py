@@ -29,7 +29,7 @@ class ExternalForce(ForceElement):
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         return kin.jacobian(self.frame).T @ self.wrench
 
-    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
         return {"kind": "wrench", "frame": self.frame, "wrench": self.wrench}
 
 

@@ -136,7 +136,7 @@ class GraspHold(ForceElement):
         rows = contact_rows(self.contacts, kin, 0.0)
         return self.torques(rows, kin.gravity(), kin.q, v)
 
-    def compiled_form(self, rows: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
         """The hold for the compiled grasp evaluation: its contacts' rows in the stack, the columns, the squeeze, the
         cones' columns (normal, tangents; -1: none) and the tolerances of its least squares and cone test. (The
         kernel keeps the least-squares forces only: where they leave a cone or the cap, the evaluation is not used
@@ -144,7 +144,7 @@ class GraspHold(ForceElement):
         columns, _ = cone_columns(self.contacts)
         return {
             "kind": "hold",
-            "rows": np.concatenate([rows[c.name] for c in self.contacts]).astype(np.int32),
+            "rows": np.r_[tuple(rows[c.name] for c in self.contacts)].astype(np.int32),
             "object_columns": np.asarray(self.object_columns, dtype=np.int32),
             "hand_columns": np.asarray(self.hand_columns, dtype=np.int32),
             "pressing": self.pressing,

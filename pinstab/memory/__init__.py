@@ -25,7 +25,7 @@ from .limits import MemorySource, format_size, tightest
 DEFAULT_FRACTION = 0.8  # of the memory available when checked (before the allocations, at the start)
 DATA_CUBIC, DATA_SQUARE, DATA_FIXED = 6.5, 100, 3000  # doubles per nv^3, nv^2 and joint of a Pinocchio Data
 # Pinocchio Data a run holds at most: the model's scratch, its kinematics' (built at first use: never on the banded
-# path, whose kernel computes in the scratch) and the native kernel's
+# path, whose kernel computes in the scratch) and a compiled kernel's own (the native, servo or grasp kernel's)
 RUN_DATA_COPIES = 3
 SAMPLE_SERIES = 16  # doubles a kept sample adds besides q, v, multipliers: time, drifts, energy, copies written
 UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..constraints import Constraint
+from ..constraints import ConstraintSet
 from ..constraints.grasp_contacts import FingertipContact
 from ..contact.models import MARGIN_SLACK
 from ..forces.base import ForceElement
@@ -29,37 +29,27 @@ from ..model import ConstrainedModel
 POINT_MODELS = ("frictionless", "point-friction")  # contact models whose rows are the point's (no rotation rows)
 
 
-def grasp_obstacle(constraints: list[Constraint], forces: list[ForceElement]) -> str | None:
+def grasp_obstacle(constraints: ConstraintSet, forces: list[ForceElement]) -> str | None:
     """Why the grasp path cannot evaluate these constraints and forces (naming the first it cannot), or None."""
-    if not constraints:
+    if not constraints.constraints:
         return "no constraints"
-    for constraint in constraints:
+    for constraint in constraints.constraints:
         if not isinstance(constraint, FingertipContact):
             return f"constraint {constraint.name!r} is a {type(constraint).__name__}, not a fingertip contact"
         if constraint.model not in POINT_MODELS:
             models = ", ".join(POINT_MODELS)
             return f"contact {constraint.name!r} is {constraint.model!r}, not a point contact ({models})"
-    rows = contact_rows(constraints)
     for element in forces:
-        if element.needs_kinematics and element.compiled_form(rows) is None:
+        if element.needs_kinematics and element.compiled_form(constraints.slices) is None:
             return f"force {element.name!r} ({type(element).__name__}) has no compiled form and reads the kinematics"
     return None
-
-
-def contact_rows(contacts: list[Constraint]) -> dict[str, np.ndarray]:
-    """Each contact's rows in the stacked constraint rows (the stack's order), by name."""
-    rows, offset = {}, 0
-    for contact in contacts:
-        rows[contact.name] = np.arange(offset, offset + contact.rows)
-        offset += contact.rows
-    return rows
 
 
 class GraspDynamics:
     """The compiled grasp evaluation (see :func:`grasp_obstacle`).
 
     Args:
-        model: the Pinocchio model. contacts: the fingertip contacts, in the constraint stack's order.
+        model: the Pinocchio model. constraints: the scene's constraint stack, all fingertip contacts.
         forces: the scene's force elements. kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
         direct_pivot: the general path's direct solve's smallest Delassus pivot (squared) over its largest diagonal
             entry; below it the general path leaves that solve, and the kernel's evaluation is not used.
@@ -75,17 +65,16 @@ class GraspDynamics:
     def __init__(
         self,
         model: pin.Model,
-        contacts: list[FingertipContact],
+        constraints: ConstraintSet,
         forces: list[ForceElement],
         kp: float,
         kd: float,
         direct_pivot: float,
     ) -> None:
-        rows = contact_rows(contacts)
-        forms = [element.compiled_form(rows) for element in forces]
+        forms = [element.compiled_form(constraints.slices) for element in forces]
         self.kernel = GraspKernel(
             model,
-            [_contact_form(contact) for contact in contacts],
+            [_contact_form(contact) for contact in constraints.constraints],
             [form for form in forms if form is not None],
             float(kp),
             float(kd),
