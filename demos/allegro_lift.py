@@ -1,11 +1,17 @@
-"""The Allegro hand lifts a ball 3 cm and turns it 20 degrees by object-level computed torque, headless:
+"""
+Allegro hand: lift a ball and turn it
+=====================================
+
+The Allegro hand lifts a ball 3 cm and turns it 20 degrees by object-level computed torque, headless:
 a recording and a chart of the pose error, the smallest friction-cone margin and the joint torques.
+
+.. code-block:: bash
 
     python demos/allegro_lift.py -o allegro-lift.html --chart allegro-lift.png
 
-(The README's chart: `python demos/allegro_lift.py -o /tmp/allegro-lift.html --chart docs/allegro-lift.png`.)
-The scene is `robots/allegro-lift.toml`; `--no-internal-forces` switches the internal-force QP off and
-shows the grasp lost at once.
+(The chart of the documentation's grasp guide: ``python demos/allegro_lift.py -o /tmp/allegro-lift.html
+--chart docs/allegro-lift.png``.) The scene is ``robots/allegro-lift.toml``; ``--no-internal-forces`` switches
+the internal-force QP off and shows the grasp lost at once.
 """
 
 from __future__ import annotations
@@ -46,7 +52,9 @@ def chart(series: ControlSeries, path: str) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description="The Allegro hand lifts a ball 3 cm and turns it 20 degrees by object-level computed torque."
+    )
     parser.add_argument("-o", "--output", default="allegro-lift.html", help="recording to write")
     parser.add_argument("--chart", default="allegro-lift.png", help="chart to write (PNG)")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated time [s]")

@@ -1,7 +1,13 @@
-"""Compare the stabilization methods on a bundled scene: drift, energy error and cost, side by side.
+"""
+Compare the stabilization methods
+=================================
 
-python demos/compare_methods.py                 # fourbar, 10 s, dt = 1e-3, rk4
-python demos/compare_methods.py delta --duration 2 --integrator semi-implicit-euler
+Compare the stabilization methods on a bundled scene: drift, energy error and cost, side by side.
+
+.. code-block:: bash
+
+    python demos/compare_methods.py                 # fourbar, 10 s, dt = 1e-3, rk4
+    python demos/compare_methods.py delta --duration 2 --integrator semi-implicit-euler
 """
 
 from __future__ import annotations
@@ -12,7 +18,9 @@ import pinstab
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description="Compare the stabilization methods on a bundled scene: drift, energy error and cost, side by side."
+    )
     parser.add_argument("scene", nargs="?", default="fourbar")
     parser.add_argument("--duration", type=float, default=10.0, help="simulated time [s]")
     parser.add_argument("--dt", type=float, default=1e-3, help="time step [s]")

@@ -1,10 +1,16 @@
-"""Record a bundled scene as a standalone HTML file and take a still of it in headless Chromium.
+"""
+Record a scene without a screen
+===============================
+
+Record a bundled scene as a standalone HTML file and take a still of it in headless Chromium.
+
+.. code-block:: bash
 
     python demos/recording.py panda-anchor --duration 2 -o panda-anchor.html --still panda-anchor.png
 
-(The README's still: `python demos/recording.py panda-anchor --duration 2 -o /tmp/panda-anchor.html
---still docs/recording-panda-anchor.png --time 1.0`.) Writing the HTML needs no browser; the still
-needs the Debian package `chromium`.
+(The still of the documentation's recordings guide: ``python demos/recording.py panda-anchor --duration 2
+-o /tmp/panda-anchor.html --still docs/recording-panda-anchor.png --time 1.0``.) Writing the HTML needs no
+browser; the still needs the Debian package ``chromium``.
 """
 
 from __future__ import annotations
@@ -18,7 +24,9 @@ from pinstab.viz.recording import write_recording
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description="Record a bundled scene as a standalone HTML file and take a still of it in headless Chromium."
+    )
     parser.add_argument("scene", nargs="?", default="fourbar")
     parser.add_argument("--duration", type=float, default=2.0, help="simulated time [s]")
     parser.add_argument("-o", "--output", default="recording.html", help="HTML file to write")

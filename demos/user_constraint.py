@@ -1,7 +1,13 @@
-"""A constraint written in Python: the planar pendulum as a free point mass with x^2 + y^2 = l^2.
+"""
+A constraint written in Python
+==============================
+
+The planar pendulum as a free point mass with x^2 + y^2 = l^2.
 
 The multiplier is checked against the closed form lambda = -m (l w^2 + g cos(theta)) / (2 l)
 [Murray, Li & Sastry, ex. 6.1]. Runs headless in a second:
+
+.. code-block:: bash
 
     python demos/user_constraint.py
 """
@@ -16,7 +22,11 @@ import pinstab
 from pinstab.scene import scene_from_dict
 
 MASS, LENGTH, GRAVITY = 2.0, 0.8, 9.81
-URDF = Path(__file__).resolve().parents[1] / "tests" / "data" / "point_mass.urdf"
+try:
+    HERE = Path(__file__).resolve().parent
+except NameError:  # sphinx-gallery runs the script without __file__, from the script's folder
+    HERE = Path.cwd()
+URDF = HERE.parent / "tests" / "data" / "point_mass.urdf"
 
 
 def main() -> None:

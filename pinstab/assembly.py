@@ -35,8 +35,8 @@ class AssemblyReport:
     Attributes:
         q, v: consistent configuration and velocity.
         iterations: Levenberg-Marquardt iterations.
-        residual: final max |phi| [m or rad].
-        velocity_residual: final max |G v + g_t| [m/s or rad/s].
+        residual: final max ``|phi|`` [m or rad].
+        velocity_residual: final max ``|G v + g_t|`` [m/s or rad/s].
         displacement: norm of the configuration change from the given q (tangent space).
         tolerance: the largest residual accepted [m or rad] (the relative tolerance times the size).
         size: the mechanism's size L [m] (:func:`mechanism_size`).

@@ -166,8 +166,8 @@ class ConstrainedModel:
         return pin.difference(self.model, q0, q1)
 
     def magnitude(self, q: np.ndarray) -> np.ndarray:
-        """The size of each coordinate of q in the tangent space (nv,) [rad or m]: |q| on models whose joints
-        have one coordinate each, else |neutral (-) q| (angles of rotations, translations of free flyers);
+        """The size of each coordinate of q in the tangent space (nv,) [rad or m]: ``|q|`` on models whose joints
+        have one coordinate each, else ``|neutral (-) q|`` (angles of rotations, translations of free flyers);
         what a relative error tolerance is relative to."""
         if self.euclidean:
             return np.abs(q)

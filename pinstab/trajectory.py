@@ -91,7 +91,7 @@ class Trajectory:
     Attributes:
         t: times [s] (n,). q: configurations (n, nq). v: velocities (n, nv) [rad/s, m/s].
         multipliers: constraint multipliers (n, s) [N, N m]; see ``info.force_frames``.
-        position_drift: max |phi| per sample [m or rad]. velocity_drift: max |g| [m/s or rad/s].
+        position_drift: max ``|phi|`` per sample [m or rad]. velocity_drift: max ``|g|`` [m/s or rad/s].
         energy: total mechanical energy [J].
         correction_iterations: post-step projection iterations of each sampled step (projection, post).
         spectral_radius: rho(R(tau W)) of the deviation dynamics per sample (methods with a

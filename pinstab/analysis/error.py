@@ -30,7 +30,7 @@ def trajectory_error(
         trajectory: the run.
         reference: ``"exact"`` (the scene's exact motion from the run's first sample), a saved run (its
             path or the loaded :class:`~pinstab.trajectory.Trajectory`) of the same scene.
-        of: coordinates to compare: joint names (error |q (-) q_ref| of that joint [rad or m]), frame
+        of: coordinates to compare: joint names (error ``|q (-) q_ref|`` of that joint [rad or m]), frame
             names (distance of the frame origins [m]), or ``"joints"`` (the largest joint error). Default:
             the exact reference's natural coordinate (fourbar: ``crank``; nfourbar: ``crank0_joint``),
             else ``joints``.
