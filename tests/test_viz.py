@@ -7,6 +7,11 @@ import base64
 import json
 import math
 import re
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
 
 import numpy as np
 import pinocchio as pin
@@ -69,6 +74,33 @@ def test_live_mode_streams_every_frame_to_the_viewer():
     play_live(ConstrainedModel(scene), trajectory, fps=50, viewer=meshcat.Visualizer(window=window))
     transforms = sum(command.count(b"set_transform") for command in window.commands)
     assert transforms >= 11 * 3  # 11 frames x 3 links at least
+
+
+@pytest.mark.parametrize(("signum", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_live_record_keeps_serving_after_the_motion_until_interrupted(signum, code):
+    """``record --live``: the viewer's page is still served after the 0.2 s motion has played (HTTP 200), the
+    figures are on stdout as one JSON object with the URL, and Ctrl-C or SIGTERM ends it with 130 or 143, no
+    traceback."""
+    argv = ["record", "fourbar", "--live", "--duration", "0.2", "--fps", "10", "--json", "--quiet"]
+    process = subprocess.Popen([sys.executable, "-m", "pinstab.cli", *argv], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        lines = []
+        while not lines or "replaying" not in lines[-1]:  # printed once the motion has played
+            lines.append(process.stderr.readline())
+            assert lines[-1], f"the command ended early: {''.join(lines)}"
+        (url,) = {match for line in lines for match in re.findall(r"live viewer at (\S+)", line)}
+        time.sleep(0.5)  # past the motion's end (0.2 s), holding its last frame
+        with urllib.request.urlopen(url, timeout=10) as response:
+            assert response.status == 200 and b"<html" in response.read().lower()
+        assert process.poll() is None
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=30)
+    finally:
+        process.kill()
+    assert process.returncode == code
+    assert json.loads(out)["live_url"] == url
+    assert "Traceback" not in err and ("interrupted" if signum == signal.SIGINT else "SIGTERM") in err
 
 
 def test_plot_axes_carry_units(tmp_path):

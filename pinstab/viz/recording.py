@@ -12,6 +12,7 @@ ones (prescribed paths) plug in the same way.
 from __future__ import annotations
 
 import base64
+import contextlib
 import math
 import sys
 import time
@@ -47,6 +48,7 @@ GRID_MIN_EXTENT = 0.5  # [m] smaller regions hide meshcat's grid (0.5 m cells) a
 # where the camera sits by default, from the centre of the swept region, in units of its extent: in
 # front (-y), a little to the side and above
 CAMERA_OFFSET = (0.9, -2.2, 0.7)
+LIVE_PAUSE = 1.0  # [s] a live viewer holds the last frame this long before replaying
 MAX_FRAMES = 100_000  # frames of a recording (55 min at 30 fps; about 1 kB of HTML each)
 
 
@@ -297,19 +299,49 @@ document.title = "pinstab ready: {title}";
 """
 
 
-def play_live(model: ConstrainedModel, trajectory: Trajectory, fps: float = 30.0, viewer=None) -> str:
-    """Stream the motion of ``model`` in real time to a meshcat server (started on 127.0.0.1 unless
-    ``viewer`` is given); returns the viewer's URL."""
-    times, states = frame_states(trajectory, model.model, fps)
-    if viewer is None:
+def live_viewer() -> meshcat.Visualizer:
+    """A meshcat viewer whose server this process starts on 127.0.0.1 (it ends with the process); its URL printed on
+    stderr."""
+    with contextlib.redirect_stdout(sys.stderr):  # meshcat prints its URL on stdout, where --json goes
         viewer = meshcat.Visualizer()
-        print(f"pinstab record: live viewer at {viewer.window.web_url}", file=sys.stderr, flush=True)
+    print(f"pinstab record: live viewer at {viewer.url()}", file=sys.stderr, flush=True)
+    return viewer
+
+
+def play_live(
+    model: ConstrainedModel,
+    trajectory: Trajectory,
+    fps: float = 30.0,
+    viewer=None,
+    *,
+    hold: bool = False,
+    pause: float = LIVE_PAUSE,
+) -> str:
+    """Stream the motion of ``model`` in real time to a meshcat server (started on 127.0.0.1 unless ``viewer`` is
+    given; its URL printed on stderr); returns the viewer's URL once the motion has played.
+
+    With ``hold``, it never returns: the motion is replayed, each replay after ``pause`` [s] on its last frame, until
+    the process is interrupted (KeyboardInterrupt: Ctrl-C, or SIGTERM under ``pinstab``), so that the viewer's page
+    stays served (the server ends with the process).
+    """
+    times, states = frame_states(trajectory, model.model, fps)
+    viewer = live_viewer() if viewer is None else viewer
     player = ScenePlayer(model, viewer, trajectory, times, states)
     player.frame_camera()
+    _play(player, viewer, times, states)
+    if not hold:
+        return getattr(viewer.window, "web_url", "")
+    print(f"pinstab record: replaying every {times[-1] + pause:.3g} s until Ctrl-C", file=sys.stderr, flush=True)
+    while True:
+        time.sleep(pause)
+        _play(player, viewer, times, states)
+
+
+def _play(player: ScenePlayer, viewer, times: np.ndarray, states: np.ndarray) -> None:
+    """Pose the frames ``states`` in ``viewer`` at their ``times`` [s] from now, in real time."""
     start = time.perf_counter()
     for t, q in zip(times, states, strict=True):
         delay = t - (time.perf_counter() - start)
         if delay > 0:
             time.sleep(delay)
         player.pose(viewer, q, float(t))
-    return getattr(viewer.window, "web_url", "")

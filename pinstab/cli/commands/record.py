@@ -3,14 +3,20 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+import sys
+from typing import TYPE_CHECKING, Any
 
 from ...errors import PinstabError
 from ...files import check_output
 from ..exits import EXIT_CODES
 from ..options import run_options, scene_arguments
+from ..output import emit
 from ..running import ended, run_summary, simulate_scene
 from .base import Command, register
+
+if TYPE_CHECKING:
+    from ...model import ConstrainedModel
+    from ...trajectory import Trajectory
 
 
 def arguments(record: argparse.ArgumentParser) -> None:
@@ -20,7 +26,12 @@ def arguments(record: argparse.ArgumentParser) -> None:
     run_options(record)
     record.add_argument("-o", "--output", metavar="OUT.html", help="the recording to write")
     record.add_argument("--fps", type=float, default=30.0, help="frames per second of the recording (default: 30)")
-    record.add_argument("--live", action="store_true", help="stream to a meshcat server on 127.0.0.1 instead")
+    record.add_argument(
+        "--live",
+        action="store_true",
+        help="stream to a meshcat server on 127.0.0.1 (its URL on stderr), replaying the motion until Ctrl-C "
+        "(exit 130) or SIGTERM (exit 143); the run's figures are printed first",
+    )
     record.add_argument(
         "--from",
         dest="run_file",
@@ -33,7 +44,7 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     import time
 
     from ...model import ConstrainedModel
-    from ...viz.recording import check_frames, play_live, write_recording
+    from ...viz.recording import check_frames, write_recording
 
     if not args.live and not args.output:
         raise PinstabError("record: give -o OUT.html for a recording, or --live to stream to a meshcat viewer")
@@ -47,8 +58,6 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
         scene, trajectory, failure = simulate_scene(args)
     model = ConstrainedModel(scene)
     result = run_summary(args, trajectory)
-    if args.live:
-        result["live_url"] = play_live(model, trajectory, fps=args.fps)
     if args.output:
         recording = write_recording(model, trajectory, args.output, fps=args.fps)
         result.update(
@@ -59,7 +68,29 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
             force_scale=recording.force_scale,
         )
     result["record_wall_s"] = time.perf_counter() - start
+    if args.live:
+        _serve(args, model, trajectory, result, failure)
     return ended(result, failure)
+
+
+def _serve(
+    args: argparse.Namespace,
+    model: ConstrainedModel,
+    trajectory: Trajectory,
+    result: dict[str, Any],
+    failure: PinstabError | None,
+) -> None:
+    """``--live``: the viewer started, the run's figures (with ``live_url``) and its failure printed, then its motion
+    replayed in the viewer until the process is interrupted (Ctrl-C: exit 130, SIGTERM: 143); never returns."""
+    from ...viz.recording import live_viewer, play_live
+
+    viewer = live_viewer()
+    result["live_url"] = viewer.url()
+    if failure is not None:
+        result["error"] = str(failure)
+        print(f"pinstab record: error: {failure}", file=sys.stderr)
+    emit(result, args.json)
+    play_live(model, trajectory, fps=args.fps, viewer=viewer, hold=True)
 
 
 def _saved_run(args: argparse.Namespace):
