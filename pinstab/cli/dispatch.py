@@ -29,13 +29,14 @@ from .exits import (
     EXIT_STOPPED,
     Kept,
 )
+from .options import Parser, common_arguments
 from .output import clean, emit, stopped_text, write
 from .running import run_summary
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The parser of ``pinstab`` with a sub-parser per registered command."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="pinstab",
         description="Constrained multibody simulation with measurable constraint stabilization.",
         epilog=EXIT_CODES,
@@ -43,7 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pinstab {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for command in sorted(COMMANDS.values(), key=lambda c: c.order):
-        command.arguments(sub.add_parser(command.name, help=command.help))
+        command_parser = sub.add_parser(command.name, help=command.help)
+        command.arguments(command_parser)
+        common_arguments(command_parser)
     return parser
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from typing import Any
 
 from ..contact.modes import STOP_KINDS
@@ -17,6 +18,59 @@ from ..tables import toml_scalar
 DEFAULT_METHOD = "baumgarte"
 CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
 METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
+# a word that starts with a minus and a digit, ``-1,0,0``, ``-1e-3``: a value, not an option
+NEGATIVE_VALUE = re.compile(r"^-\.?\d[\w.,+-]*$")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser that reads a word starting with a minus and a digit as a value (:data:`NEGATIVE_VALUE`):
+    ``--tilt-axis -1,0,0``, which argparse alone takes for an unknown option. Its sub-parsers are of this class."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_VALUE  # argparse's test for "-1", "-.5", without commas
+
+
+def _numbers(text: str) -> list[float]:
+    """``-1,0,0`` (or one number) -> [-1.0, 0.0, 0.0]."""
+    try:
+        return [float(item) for item in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number or comma-separated numbers") from None
+
+
+class _Vector(argparse.Action):
+    """The three numbers of ``X,Y,Z`` (one word: ``--flag=-1,0,0`` too) or ``X Y Z``, as a list."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        flat = [number for value in values for number in value]
+        if len(flat) != 3:
+            raise argparse.ArgumentError(self, f"expects three numbers, X,Y,Z or X Y Z; got {len(flat)}")
+        setattr(namespace, self.dest, flat)
+
+
+def vector_argument(parser: argparse.ArgumentParser, flag: str, help: str) -> None:
+    """``flag X,Y,Z`` (also ``flag=X,Y,Z``, ``flag X Y Z``; negative numbers too): a 3-vector, as a list of floats."""
+    parser.add_argument(flag, nargs="+", type=_numbers, action=_Vector, metavar="X,Y,Z", help=help)
+
+
+def output_argument(parser: argparse.ArgumentParser, metavar: str, help: str, required: bool = False) -> None:
+    """``-o``/``--out``/``--output`` (``args.output``): the file or folder a command writes, the same spelling in
+    every command."""
+    parser.add_argument("-o", "--out", "--output", dest="output", metavar=metavar, required=required, help=help)
+
+
+def common_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options every command takes: ``--quiet``."""
+    parser.add_argument(
+        "--quiet", action="store_true", help="no progress bar on stderr (a command without one prints the same)"
+    )
 
 
 def parameters(pairs: list[str]) -> dict[str, Any]:
@@ -184,5 +238,4 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         help="ignore the robot's joint limits (default: held as one-sided constraints with impacts; a run that "
         "reaches one is run by the event path, reported in limits_active_s and the events)",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     assembly_argument(parser)

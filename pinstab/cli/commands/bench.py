@@ -10,7 +10,7 @@ from ...errors import PinstabError
 from ...integration import INTEGRATORS
 from ...simulate import MIN_RTOL
 from ...stabilizers import STABILIZERS
-from ..options import parameters
+from ..options import output_argument, parameters
 from .base import Command, register
 
 
@@ -33,7 +33,7 @@ def arguments(bench: argparse.ArgumentParser) -> None:
         listed = ", ".join(f"{dt:g}" for dt in steps)
         bench.add_argument(flag, nargs="+", type=float, default=list(steps), help=f"{whose} (default: {listed})")
     bench.add_argument("--duration", type=float, default=2.0, help="simulated time [s] (default: 2)")
-    bench.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for results.json/.csv and charts")
+    output_argument(bench, "DIR", "folder for results.json/.csv and charts", required=True)
     bench.add_argument(
         "--scheduler", metavar="ADDRESS", help="join a Dask scheduler (tcp://host:port); default: local cluster"
     )
@@ -42,7 +42,6 @@ def arguments(bench: argparse.ArgumentParser) -> None:
         "--tolerance", type=float, default=1e-6, help="trajectory error for the cost comparison [rad, m]"
     )
     bench.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    bench.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def bench(args: argparse.Namespace) -> dict[str, Any]:

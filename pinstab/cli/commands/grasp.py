@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..options import parameters, scene_arguments
+from ..options import parameters, scene_arguments, vector_argument
 from .base import Command, register
 
 
@@ -22,12 +22,11 @@ def arguments(grasp: argparse.ArgumentParser) -> None:
         type=float,
         help="largest normal force per contact [N] for the largest load and tilt (default: the scene's grasp-hold)",
     )
-    grasp.add_argument(
+    vector_argument(
+        grasp,
         "--tilt-axis",
-        type=float,
-        nargs=3,
-        metavar=("X", "Y", "Z"),
-        help="world axis of the hand's tilt (default: the two horizontal world axes)",
+        "world axis of the hand's tilt, e.g. --tilt-axis=-1,0,0 or --tilt-axis -1 0 0 (default: the two horizontal "
+        "world axes)",
     )
 
 

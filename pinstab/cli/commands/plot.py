@@ -6,13 +6,14 @@ import argparse
 from typing import Any
 
 from ...files import check_output
+from ..options import output_argument
 from .base import Command, register
 
 
 def arguments(plot: argparse.ArgumentParser) -> None:
     """The saved run, ``-o``, ``--json``."""
     plot.add_argument("run_file", metavar="RUN.npz|RUN.h5", help="a saved (--save) or streamed (--stream) run")
-    plot.add_argument("-o", "--output", metavar="OUT.png", required=True)
+    output_argument(plot, "OUT.png", "the chart to write", required=True)
     plot.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 

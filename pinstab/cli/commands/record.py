@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from ...errors import PinstabError
 from ...files import check_output
 from ..exits import EXIT_CODES
-from ..options import run_options, scene_arguments
+from ..options import output_argument, run_options, scene_arguments
 from ..output import emit
 from ..running import ended, run_summary, simulate_scene
 from .base import Command, register
@@ -24,7 +24,7 @@ def arguments(record: argparse.ArgumentParser) -> None:
     record.epilog = EXIT_CODES
     scene_arguments(record)
     run_options(record)
-    record.add_argument("-o", "--output", metavar="OUT.html", help="the recording to write")
+    output_argument(record, "OUT.html", "the recording to write")
     record.add_argument("--fps", type=float, default=30.0, help="frames per second of the recording (default: 30)")
     record.add_argument(
         "--live",

@@ -9,7 +9,7 @@ from ...files import check_output
 from ...integration import INTEGRATORS
 from ...solvers import SOLVERS
 from ...stability_map import map_methods
-from ..options import parameters, scene_arguments
+from ..options import output_argument, parameters, scene_arguments
 from .base import Command, register
 
 
@@ -44,8 +44,7 @@ def arguments(stability: argparse.ArgumentParser) -> None:
     stability.add_argument(
         "--solver", default="dense", choices=SOLVERS, help="KKT backend of the runs (default: dense)"
     )
-    stability.add_argument("-o", "--output", metavar="MAP.png", help="write the map as a PNG")
-    stability.add_argument("--quiet", action="store_true", help="no progress bar")
+    output_argument(stability, "MAP.png", "write the map as a PNG")
 
 
 def stability(args: argparse.Namespace) -> dict[str, Any]:

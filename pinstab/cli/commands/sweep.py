@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import PinstabError
-from ..options import parameters
+from ..options import output_argument, parameters
 from .base import Command, register
 
 
@@ -31,12 +31,12 @@ def arguments(sweep: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         help="a scene parameter or run option every point takes, e.g. duration=0.5",
     )
-    sweep.add_argument(
-        "--out",
+    output_argument(
+        sweep,
+        "FILE.csv|FILE.parquet",
+        "the table, a row per point appended as it finishes; the points already in it are skipped (a killed sweep "
+        "resumes). Parquet needs pyarrow: pip install 'pinstab[sweep]'",
         required=True,
-        metavar="FILE.csv|FILE.parquet",
-        help="the table, a row per point appended as it finishes; the points already in it are skipped (a killed "
-        "sweep resumes). Parquet needs pyarrow: pip install 'pinstab[sweep]'",
     )
     sweep.add_argument(
         "--scheduler", metavar="ADDRESS", help="run on the Dask scheduler at tcp://host:port (default: local cluster)"
@@ -48,9 +48,8 @@ def arguments(sweep: argparse.ArgumentParser) -> None:
         help="draw column Y against column X of the table (also X,Y) into --chart-file",
     )
     sweep.add_argument("--color", metavar="Z", help="with --chart: the column that colours the markers")
-    sweep.add_argument("--chart-file", metavar="FILE.png", help="the chart (default: --out with the suffix .png)")
+    sweep.add_argument("--chart-file", metavar="FILE.png", help="the chart (default: -o/--out with the suffix .png)")
     sweep.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    sweep.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def sweep(args: argparse.Namespace) -> dict[str, Any]:
@@ -67,16 +66,16 @@ def sweep(args: argparse.Namespace) -> dict[str, Any]:
             raise PinstabError(f"--grid {name} given twice; give its values in one --grid {name}=V1,V2,...")
         grids[name] = values
     fixed = parameters(args.param)
-    check_table(args.out)
+    check_table(args.output)
     chart = _chart_columns(args)
     if chart is not None:
         check_chart([*chart, args.color], columns(grids))
-        png = args.chart_file or str(Path(args.out).with_suffix(".png"))
+        png = args.chart_file or str(Path(args.output).with_suffix(".png"))
         check_output(png, ".png", "chart")
-    result = run_sweep(args.scene, grids, args.out, fixed, args.scheduler, show_progress=not args.quiet)
+    result = run_sweep(args.scene, grids, args.output, fixed, args.scheduler, show_progress=not args.quiet)
     if chart is not None:
         title = f"{result['scene']}: {chart[1]} over {chart[0]}"
-        result["chart_points"] = draw_chart(args.out, *chart, png, args.color, title)
+        result["chart_points"] = draw_chart(args.output, *chart, png, args.color, title)
         result["chart"] = png
     return result
 
