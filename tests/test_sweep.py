@@ -202,3 +202,20 @@ def test_a_parquet_table_of_another_sweep_is_refused_and_kept(tmp_path):
     with pytest.raises(PinstabError, match=r"other.parquet holds another sweep's table \(columns x, y\)"):
         run_sweep("pinch", {"mu": [0.5]}, out)
     assert out.read_bytes() == before and not out.with_name(out.name + ".partial.csv").exists()
+
+
+def test_a_sweep_with_failed_points_exits_6(scheduler, tmp_path, capsys):
+    """One point of two diverges (a drift limit of 1e-14 on an unstabilized four-bar, as in
+    test_point_rows_hold_slip_and_failure): the sweep ends with exit 6 naming it; a re-run that skips both still
+    does."""
+    out = tmp_path / "fourbar.csv"
+    fixed = ["--param", "method=none", "--param", "duration=0.5", "--param", "dt=0.01"]
+    args = ["sweep", "fourbar", "--grid", "drift_limit=1e-14,1", "-o", str(out), *fixed, "--quiet"]
+    assert main([*args, "--scheduler", scheduler]) == 6
+    assert "1 of 2 points failed; their rows in" in capsys.readouterr().err
+    errors = {row["drift_limit"]: row["error"] or "" for row in table_rows(out)}
+    assert errors[1e-14].startswith("DivergenceError") and errors[1] == ""
+    assert main([*args, "--scheduler", scheduler, "--json"]) == 6
+    captured = capsys.readouterr()
+    assert (json.loads(captured.out)["skipped"], json.loads(captured.out)["failed_before"]) == (2, 1)
+    assert "1 of 2 points failed, 1 of them in an earlier run" in captured.err

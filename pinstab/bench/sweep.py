@@ -239,7 +239,8 @@ def run_sweep(
             (default: an embedded LocalCluster). show_progress: a progress bar on stderr.
 
     Returns:
-        ``points``, ``skipped`` (already in ``out``), ``ran``, ``failed`` (rows with an error, this run), ``out``.
+        ``points``, ``skipped`` (already in ``out``), ``ran``, ``failed`` (rows with an error, this run),
+        ``failed_before`` (skipped points whose row holds an error), ``out``.
 
     Raises:
         PinstabError: refused before any work (:func:`check_sweep`, the output: :class:`SweepTable`), or a
@@ -251,7 +252,8 @@ def run_sweep(
     points = sweep_points(grids)
     failed = 0
     table = SweepTable(out, columns(grids), len(grids))
-    pending = [point for point in points if point_key(point.values()) not in table.done]
+    keys = [point_key(point.values()) for point in points]
+    pending = [point for point, key in zip(points, keys, strict=True) if key not in table.done]
     running = dask_client(scheduler, "sweep", "pip install 'pinstab[sweep]'") if pending else nullcontext()
     with running as client, table:  # the client first: no table is started for a scheduler out of reach
         futures = [client.submit(run_point, source, point, fixed, names, pure=False) for point in pending]
@@ -266,6 +268,7 @@ def run_sweep(
         "skipped": len(points) - len(pending),
         "ran": len(pending),
         "failed": failed,
+        "failed_before": sum(key in table.failed for key in keys),
         "out": str(out),
     }
 

@@ -55,7 +55,7 @@ class SweepTable:
 
     Attributes:
         path: the target. journal: the CSV the rows are appended to. done: the keys (:func:`point_key`) of the
-            points already in it.
+            points already in it. failed: those of them whose row holds an error.
 
     Raises:
         PinstabError: the target refused (:func:`check_table`), or a table of another sweep (other columns).
@@ -71,7 +71,9 @@ class SweepTable:
             _check_columns(self.path, table.column_names, columns)
             self._write_journal(table.to_pylist())
         rows = read_rows(self.journal, columns) if self.journal.exists() else []
-        self.done = {point_key(row[name] for name in columns[:keys]) for row in rows}
+        keyed = [(point_key(row[name] for name in columns[:keys]), row["error"]) for row in rows]
+        self.done = {key for key, _ in keyed}
+        self.failed = {key for key, error in keyed if error}
         self._handle = None
 
     def __enter__(self) -> SweepTable:

@@ -25,6 +25,7 @@ from .exits import (
     EXIT_CONTACT_FAILED,
     EXIT_DIVERGED,
     EXIT_OK,
+    EXIT_POINTS_FAILED,
     EXIT_SIGNAL_BASE,
     EXIT_STOPPED,
     Kept,
@@ -124,12 +125,17 @@ def _dispatch(args: argparse.Namespace) -> int:
     except PinstabError as exc:
         _fail(exc, args)
         return EXIT_BAD_INPUT
-    emit(result, args.json, COMMANDS[args.command].text)
+    command = COMMANDS[args.command]
+    emit(result, args.json, command.text)
     stopped = result.get("stopped")
-    if stopped is None or args.command not in SIMULATING:
+    if stopped is not None and args.command in SIMULATING:
+        print(f"pinstab {args.command}: stopped (--stop-on): {stopped_text(stopped)}", file=sys.stderr)
+        return EXIT_STOPPED
+    failed = None if command.failures is None else command.failures(result)
+    if failed is None:
         return EXIT_OK
-    print(f"pinstab {args.command}: stopped (--stop-on): {stopped_text(stopped)}", file=sys.stderr)
-    return EXIT_STOPPED
+    print(f"pinstab {args.command}: {failed}", file=sys.stderr)
+    return EXIT_POINTS_FAILED
 
 
 def _show_warning(command: str):

@@ -20,6 +20,8 @@ class Command:
             arguments and returns the result (printed as JSON with ``--json``).
         text: the result as lines a person reads (default: one ``key  value`` line per figure).
         simulates: the command runs a simulation (it may stop at a contact event: exit 4).
+        failures: what failed in a finished result, in words (a sweep's failed points), or None: the command
+            then exits 6 with it on stderr.
         order: place in ``pinstab --help``.
     """
 
@@ -29,6 +31,7 @@ class Command:
     execute: Callable[[argparse.Namespace], dict[str, Any]]
     text: Callable[[dict[str, Any]], str] | None = None
     simulates: bool = False
+    failures: Callable[[dict[str, Any]], str | None] | None = None
     order: int = 100
 
 

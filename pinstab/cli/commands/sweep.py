@@ -8,12 +8,14 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import PinstabError
+from ..exits import EXIT_CODES
 from ..options import output_argument, parameters
 from .base import Command, register
 
 
 def arguments(sweep: argparse.ArgumentParser) -> None:
     """The scene, the grids, the fixed values, the table, Dask, the chart."""
+    sweep.epilog = EXIT_CODES
     sweep.add_argument("scene", help="bundled scene name (pinch, nfourbar, ...: see README) or a .toml file")
     sweep.add_argument(
         "--grid",
@@ -93,12 +95,22 @@ def _chart_columns(args: argparse.Namespace) -> tuple[str, str] | None:
     return names[0], names[1]
 
 
+def failures(result: dict[str, Any]) -> str | None:
+    """The sweep's failed points in words (exit 6), or None when every point of the table ran."""
+    failed = result["failed"] + result["failed_before"]
+    if not failed:
+        return None
+    before = f", {result['failed_before']} of them in an earlier run" if result["failed_before"] else ""
+    return f"{failed} of {result['points']} points failed{before}; their rows in {result['out']} name the errors"
+
+
 register(
     Command(
         "sweep",
         "run a scene over grids of parameters and run options on Dask into a CSV/Parquet table; chart it",
         arguments,
         sweep,
+        failures=failures,
         order=7,
     )
 )
