@@ -69,6 +69,23 @@ def test_bad_error_control_is_refused(fourbar, options, message):
         simulate(fourbar, duration=0.1, **options)
 
 
+@pytest.mark.parametrize("tolerance", [{"rtol": 1e-8}, {"atol": 1e-8}])
+def test_a_tolerance_without_an_integrator_picks_dop853_as_the_cli_does(fourbar, capsys, tolerance):
+    """simulate(rtol=...) or (atol=...) without an integrator runs dop853 (it refused rk4, its old default, here):
+    the very run of integrator="dop853", within 1e-6 rad of the exact crank angle; ``--rtol``/``--atol`` on the
+    command line take the same rule and give the same run."""
+    run = simulate(fourbar, dt=1e-2, duration=2.0, **tolerance)
+    named = simulate(fourbar, integrator="dop853", dt=1e-2, duration=2.0, **tolerance)
+    assert run.info.integrator == "dop853" and run.info.error_control == named.info.error_control
+    assert np.array_equal(run.q, named.q)
+    assert trajectory_error(run, "exact", scene=fourbar).error.max() <= 1e-6
+    ((flag, value),) = tolerance.items()
+    argv = ["run", "fourbar", f"--{flag}", str(value), "--dt", "1e-2", "--duration", "2", "--json", "--quiet"]
+    assert main(argv) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["integrator"] == "dop853" and result["error_control"] == named.info.error_control
+
+
 def test_cli_rtol_defaults_to_dop853_and_reports_the_control(capsys):
     assert main(["run", "fourbar", "--rtol", "1e-8", "--duration", "1", "--json", "--quiet"]) == 0
     result = json.loads(capsys.readouterr().out)

@@ -10,7 +10,7 @@ from ..contact.modes import STOP_KINDS
 from ..errors import SceneError
 from ..integration import INTEGRATORS
 from ..registry import Registry, option_fields
-from ..simulate import EVENT_RTOL, MAX_EVENT_CONTACTS
+from ..simulate import ERROR_CONTROLLED_INTEGRATOR, EVENT_RTOL, FIXED_STEP_INTEGRATOR, MAX_EVENT_CONTACTS
 from ..solvers import SOLVERS
 from ..stabilizers import STABILIZERS
 from ..tables import toml_scalar
@@ -191,7 +191,8 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         choices=INTEGRATORS,
         metavar="INTEGRATOR",
-        help=f"integrator (default: rk4; dop853 with --rtol). {_listed(INTEGRATORS)}",
+        help=f"integrator (default: {FIXED_STEP_INTEGRATOR}; {ERROR_CONTROLLED_INTEGRATOR} with --rtol or --atol). "
+        f"{_listed(INTEGRATORS)}",
     )
     parser.add_argument(
         "--solver",

@@ -25,12 +25,11 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
     if before is not None:
         before(scene)
     contacts = _contacts(args, scene)
-    adaptive = args.rtol is not None or args.atol is not None
     try:
         trajectory = simulate(
             scene,
             method=args.method or DEFAULT_METHOD,
-            integrator=args.integrator or ("dop853" if adaptive else "rk4"),
+            integrator=args.integrator,  # None: simulate()'s default_integrator, dop853 with --rtol/--atol
             rtol=args.rtol,
             atol=args.atol,
             dt=args.dt,

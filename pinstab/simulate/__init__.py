@@ -2,7 +2,7 @@
 by the held path (:mod:`.held`), the contact paths (:mod:`.contacts`: event-driven, time-stepping) or, for a run
 that leaves a joint limit, the event path (:mod:`.limits`); what they share is in :mod:`.loop`."""
 
-from .api import DEFAULT_DT, simulate
+from .api import DEFAULT_DT, ERROR_CONTROLLED_INTEGRATOR, FIXED_STEP_INTEGRATOR, default_integrator, simulate
 from .contacts import EVENT_RTOL, HELD_ONLY, MAX_EVENT_CONTACTS, default_contacts, event_contacts, stop_kinds
 from .limits import limit_left
 from .loop import DEFAULT_DRIFT_LIMIT, MIN_RTOL, Interrupted, error_control, failure_stop, kept_samples
@@ -10,12 +10,15 @@ from .loop import DEFAULT_DRIFT_LIMIT, MIN_RTOL, Interrupted, error_control, fai
 __all__ = [
     "DEFAULT_DRIFT_LIMIT",
     "DEFAULT_DT",
+    "ERROR_CONTROLLED_INTEGRATOR",
     "EVENT_RTOL",
+    "FIXED_STEP_INTEGRATOR",
     "HELD_ONLY",
     "MAX_EVENT_CONTACTS",
     "MIN_RTOL",
     "Interrupted",
     "default_contacts",
+    "default_integrator",
     "error_control",
     "event_contacts",
     "failure_stop",

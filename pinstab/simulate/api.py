@@ -25,6 +25,16 @@ from .loop import DEFAULT_DRIFT_LIMIT, start_state
 from .threads import single_blas_thread
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
+FIXED_STEP_INTEGRATOR, ERROR_CONTROLLED_INTEGRATOR = "rk4", "dop853"  # the defaults without and with rtol/atol
+
+
+def default_integrator(integrator: str | None, rtol: float | None, atol: float | None) -> str:
+    """``integrator``, or when it is None the default: ``dop853`` (an embedded pair) when a tolerance ``rtol`` or
+    ``atol`` asks for error control, else ``rk4``; the rule of :func:`simulate` and of ``--rtol`` on the command
+    line."""
+    if integrator is not None:
+        return integrator
+    return FIXED_STEP_INTEGRATOR if rtol is None and atol is None else ERROR_CONTROLLED_INTEGRATOR
 
 
 @named_when_exhausted("a run (simulate)")
@@ -32,7 +42,7 @@ DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
 def simulate(
     scene: Scene | str | Path,
     method: str = "baumgarte",
-    integrator: str = "rk4",
+    integrator: str | None = None,
     dt: float | None = None,
     duration: float = 1.0,
     solver: str | None = None,
@@ -60,7 +70,9 @@ def simulate(
         scene: a :class:`Scene`, a scene file path or a bundled scene name.
         method: a registered stabilization method (``none``, ``baumgarte``, ``mukharlyamov``,
             ``projection``, ``post``, ``pinocchio``, or one registered by the user).
-        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``).
+        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``; ``dopri5``,
+            ``dop853`` with error control); None (default): ``rk4``, or ``dop853`` when ``rtol`` or ``atol`` is
+            given (:func:`default_integrator`).
         dt: time step [s] (default: the scene's ``[run] dt``, else :data:`DEFAULT_DT`); the last step is shortened
             so that the run ends at ``duration`` exactly.
         duration: simulated time [s].
@@ -141,6 +153,7 @@ def simulate(
         scene = load_scene(scene)
     if dt is None:
         dt = DEFAULT_DT if scene.step is None else scene.step
+    integrator = default_integrator(integrator, rtol, atol)
     kinds = stop_kinds(stop_on, contacts)
     if stream is not None:
         h5py_module()
