@@ -72,6 +72,20 @@ def test_pinch_tilted_across_its_axis_slips_at_the_closed_form_tilt():
         assert need == pytest.approx(closed, rel=1e-9)
 
 
+@pytest.mark.parametrize("mu", [0.3, 0.5, 1.0])
+def test_tilted_pinch_needs_the_closed_form_squeeze_at_every_degree(mu):
+    """The least squeeze m g (cos(theta) / (2 mu) + sin(theta)) of the pinch tilted about y, every degree from 0
+    to 89 (1e-9 rel). Regression: SLSQP's step relaxes its constraints where their linearization is inconsistent,
+    f_n >= 0 among them; an iterate then reached the mirror cone (f_n < 0, mu^2 f_n^2 >= |f_t|^2 holds there too)
+    and the squeeze came out high: the inscribed pyramids' start's, up to 1 / cos(pi / 16) - 1 = 2 % (SciPy 1.15: mu 1
+    at 21 deg, 1.1 %; 1.17: mu 0.5 at 10 deg, 1.7 %), or where SLSQP stopped on its way back (1.17: mu 1 at 80 deg)."""
+    contacts = pinch(mu)
+    matrix = grasp_map(contacts)
+    for theta in np.radians(np.arange(90.0)):
+        need = least_squeeze(matrix, block(1.0).load(theta, np.array([0.0, 1.0, 0.0])), contacts).squeeze
+        assert need == pytest.approx(G * (math.cos(theta) / (2 * mu) + math.sin(theta)), rel=1e-9), math.degrees(theta)
+
+
 def pyramid_squeeze(matrix: np.ndarray, contacts: list[GraspContact], load: np.ndarray, sides: int, widen: float):
     """The least largest normal force on pyramids of ``sides`` sides inscribed in the cones of widen * mu
     (point contacts), by a linear program written here: variables (f per contact, s)."""

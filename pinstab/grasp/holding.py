@@ -11,7 +11,10 @@ carries anything. The *squeeze* of ``lambda`` is its largest normal force [N].
 
 Method: a linear program on the inscribed pyramids (HiGHS) gives a feasible start (the circumscribed
 pyramids decide that no force holds), then SciPy's SLSQP solves the problem on the round cones
-(``mu^2 f_n^2 >= |f_t|^2`` with ``f_n >= 0``).
+(``mu^2 f_n^2 >= |f_t|^2`` with ``f_n >= 0``). ``mu^2 f_n^2 >= |f_t|^2`` alone is the double cone (its mirror
+has ``f_n <= 0``): ``f_n >= 0`` is a bound of SLSQP's, which every iterate keeps, not one of its constraints,
+which its step relaxes where their linearization is inconsistent (an iterate then landed on the mirror on tilted
+pinches, SciPy 1.15 and 1.17 alike, and the squeeze fell back to the inscribed pyramids' start, up to 2 % high).
 """
 
 from __future__ import annotations
@@ -94,12 +97,12 @@ def normal_columns(columns: list[ConeColumns]) -> list[int]:
 
 
 def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(values g >= 0 inside the exact limits: f_n, mu^2 f_n^2 - |f_t|^2, torsion f_n -+ m_z; their Jacobian
-    with respect to the forces): smooth, for SLSQP."""
+    """(values g >= 0 inside the exact limits with f_n >= 0 (a bound, see :class:`_Problem`): mu^2 f_n^2 - |f_t|^2,
+    torsion f_n -+ m_z; their Jacobian with respect to the forces): smooth, for SLSQP."""
     values, jacobian = [], []
     for contact in columns:
         n = contact.normal
-        rows = [(forces[n], {n: 1.0})]
+        rows = []
         if contact.tangents is not None:
             t1, t2 = contact.tangents
             a, b = forces[t1], forces[t2]
@@ -220,7 +223,12 @@ class _Problem:
         )
         self.equality = np.hstack([left[:, :rank].T @ self.carrier, np.zeros((rank, 1))])
         self.rhs = left[:, :rank].T @ self.load / self.scale
+        # f_n >= 0 as bounds: SLSQP keeps every iterate inside its bounds, also through a step whose linearized
+        # constraints were inconsistent (it relaxes those, never the bounds), so the quadratic limit holds the
+        # iterates on the cone, not on its mirror (f_n < 0)
         self.bounds = [(None, None)] * count + [(0.0, None if math.isinf(cap) else cap / self.scale)]
+        for normal in normals:
+            self.bounds[normal] = (0.0, None)
 
     def start(self) -> tuple[np.ndarray, bool] | None:
         """(x of the linear program min s on the inscribed pyramids, True) or, when those hold nothing, on
@@ -240,6 +248,7 @@ class _Problem:
                 A_eq=self.equality,
                 b_eq=self.rhs,
                 bounds=self.bounds,
+                method="highs",
             )
             if result.status == 0:
                 return result.x, widen == 1.0
