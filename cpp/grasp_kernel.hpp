@@ -1,5 +1,5 @@
 // pinstab.paths.grasp.GraspDynamics compiled: sticking fingertip contacts (point rows), hold torques and constant
-// wrenches, with the Baumgarte corrector, solved through Cholesky factors (MATH.md section 4).
+// wrenches, with the Baumgarte corrector, solved through Cholesky factors (docs/mathematics.md section 4).
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-// pinstab.paths.servo.ServoDynamics compiled: prescribed joint relations realized by controls (MATH.md section 5).
+// pinstab.paths.servo.ServoDynamics compiled: prescribed joint relations realized by controls (docs/mathematics.md section 5).
 #pragma once
 
 #include <optional>

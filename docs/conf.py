@@ -71,3 +71,34 @@ html_show_sourcelink = True
 # nothing fetched at build time: no intersphinx, no external images
 intersphinx_mapping: dict = {}
 suppress_warnings: list[str] = []
+
+
+# Links from a page to a Markdown file of the repository outside docs/ (benchmarks/README.md, results tables) work
+# on GitHub as they are; in the site MyST would take them for pages it does not have. They become download links to
+# the file itself, as MyST makes of every other file (JSON results, CSV tables).
+def _outside_markdown_as_downloads(app, doctree) -> None:
+    from docutils import nodes
+    from sphinx import addnodes
+
+    env = app.env
+    srcdir = Path(env.srcdir).resolve()
+    here = (srcdir / env.docname).parent
+    for node in list(doctree.findall(addnodes.pending_xref)):
+        if node.get("refdomain") != "doc" or node.get("reftype") != "myst":
+            continue
+        target = str(node["reftarget"])
+        if target in env.found_docs:
+            continue
+        path = Path(target + ".md")
+        path = path if path.is_absolute() else srcdir / path
+        if not path.is_file() or srcdir in path.resolve().parents:
+            continue
+        download = addnodes.download_reference(
+            refdomain=None, reftarget=os.path.relpath(path, here), refdoc=env.docname, reftype="myst", refexplicit=True
+        )
+        download += node.children or [nodes.literal(text=path.name)]
+        node.replace_self(download)
+
+
+def setup(app) -> None:
+    app.connect("doctree-read", _outside_markdown_as_downloads, priority=100)

@@ -1,5 +1,5 @@
 """Actuation of a scene: the matrix B (nv x k) through which controls u enter the dynamics,
-``M a + h = tau + B u + G^T lambda`` (MATH.md section 5), with the controls' names and limits.
+``M a + h = tau + B u + G^T lambda`` (docs/mathematics.md section 5), with the controls' names and limits.
 
 Scene table ``[actuation]``: ``joints = [...]`` (each a 1-DOF joint: u is its torque [N m] or force [N];
 limits from the URDF's effort limits), or ``matrix = [[...], ...]`` (nv rows, k columns, in the model's

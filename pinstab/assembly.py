@@ -1,5 +1,5 @@
 """Assembly: the configuration nearest the given one that satisfies the closures, then the
-consistent velocity (MATH.md section 1, eq. 1).
+consistent velocity (docs/mathematics.md section 1, eq. 1).
 
 The residual accepted is relative to the mechanism's size L (:func:`mechanism_size`): a closure residual up
 to ``tolerance * L`` [m or rad] is accepted, :data:`DEFAULT_TOLERANCE` unless ``assemble(tolerance=...)``,

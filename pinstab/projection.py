@@ -1,4 +1,4 @@
-"""Projection onto the constraint manifold (MATH.md 3.4): positions by M-weighted Gauss-Newton,
+"""Projection onto the constraint manifold (docs/mathematics.md 3.4): positions by M-weighted Gauss-Newton,
 velocities by the M-weighted least-change projection. Redundancy-safe (least-squares Delassus solves).
 A unilateral row is projected only while it is closed or penetrating (and, for velocities, approaching).
 

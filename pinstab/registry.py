@@ -2,7 +2,7 @@
 
 Every extension registers a name with a factory and an options dataclass; the scene reader, the
 ``simulate()`` API and the command line look extensions up here instead of naming them, so adding
-one is one new module plus one registration (see README, "Extending pinstab")::
+one is one new module plus one registration (see docs/guide/extending.md)::
 
     @STABILIZERS.register("my-method", options=MyOptions, summary="what it does")
     class MyStabilizer(Stabilizer):

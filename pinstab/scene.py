@@ -63,7 +63,7 @@ INITIAL_KEYS = {"q", "v"}
 KIND_TABLES = {  # scene array: (what an entry is called, whether its blocks are prescribed)
     "closures": ("closure", False),
     "contacts": ("contact", False),
-    "servos": ("servo", True),  # prescribed constraints: realized by the controls (MATH.md 5)
+    "servos": ("servo", True),  # prescribed constraints: realized by the controls (docs/mathematics.md 5)
 }
 
 

@@ -1,4 +1,4 @@
-"""Dynamics with prescribed constraints (servoconstraints) realized by controls (MATH.md section 5).
+"""Dynamics with prescribed constraints (servoconstraints) realized by controls (docs/mathematics.md section 5).
 
 At a state, with the real constraint rows G (reactions lambda), the prescribed rows S (no reaction: the
 controls realize them) and the actuation B, solve for (a, lambda, u):

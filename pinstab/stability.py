@@ -1,4 +1,4 @@
-"""The discrete stability criterion of the deviation dynamics (MATH.md 3.2-3.3, [M] section 5).
+"""The discrete stability criterion of the deviation dynamics (docs/mathematics.md 3.2-3.3, [M] section 5).
 
 The constraint deviations ``y = (q~, v~)`` (position residual on the m holonomic rows, velocity
 residual on all s rows) obey, linearized, ``dy/dt = W y`` with::
@@ -6,7 +6,7 @@ residual on all s rows) obey, linearized, ``dy/dt = W y`` with::
     W = [[0, P], [-S, -K]]      P: s -> m picks the holonomic rows of v~
 
 An explicit scheme maps ``y_{k+1} = R(tau W) y_k + rho_k``; the deviations stay bounded when the
-spectral radius of R is below one. Besides the four schemes of the MATH.md table (stabilization term
+spectral radius of R is below one. Besides the four schemes of the docs/mathematics.md table (stabilization term
 evaluated at every stage) there is ``held``: a Runge-Kutta step whose stabilization term is evaluated
 at the first stage and held over the step. The deviations then see a constant acceleration, which
 any scheme of order >= 2 integrates exactly: ``R = [[E - tau^2 P S / 2, tau P - tau^2 P K / 2],
@@ -67,7 +67,7 @@ def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask:
 def amplification(
     stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray, step: float, scheme: str
 ) -> np.ndarray:
-    """R(tau W) of one step of ``scheme`` [dimensionless], per the MATH.md table (huge gains overflow its
+    """R(tau W) of one step of ``scheme`` [dimensionless], per the docs/mathematics.md table (huge gains overflow its
     entries to inf or nan, which :func:`spectral_radius` reads as an unbounded radius)."""
     _check_scheme(scheme)
     w = deviation_matrix(stiffness, damping, holonomic_mask)
@@ -164,7 +164,7 @@ class PlacedGains:
 def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
     """Scalar gains placing the eigenvalues of R(tau W) at ``decay`` (r in [0, 1)).
 
-    Closed forms for the Euler schemes (MATH.md 3.3) and for ``held`` (trace 2r and determinant
+    Closed forms for the Euler schemes (docs/mathematics.md 3.3) and for ``held`` (trace 2r and determinant
     r^2 of its R give S = (1 - r)^2 / tau^2, K = (1 - r)(3 + r) / (2 tau)). For Heun and RK4, R = p(tau W), so the
     eigenvalues of R are p(mu) for the eigenvalues mu of tau W: choosing mu1, mu2 as two roots of
     p(mu) = r (a real pair or a conjugate pair, the one nearest zero) gives S = mu1 mu2 / tau^2,

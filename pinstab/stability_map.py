@@ -1,5 +1,5 @@
 """Stability maps: observed behaviour of a stabilizer over a (step, gain) grid beside the prediction
-rho(R(tau W)) = 1 of the discrete criterion (MATH.md 3.3)."""
+rho(R(tau W)) = 1 of the discrete criterion (docs/mathematics.md 3.3)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The stepping system: a :class:`~pinstab.model.ConstrainedModel` with a stabilizer and a KKT backend,
-``(q, v, t) -> (a, lambda)`` (MATH.md eq. 3)."""
+``(q, v, t) -> (a, lambda)`` (docs/mathematics.md eq. 3)."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ class Evaluation:
 
 
 class ConstrainedSystem:
-    """MATH.md eq. (3): ``M a + h = tau + G^T lambda``, ``G a = -gamma0 + gamma_stab``.
+    """docs/mathematics.md eq. (3): ``M a + h = tau + G^T lambda``, ``G a = -gamma0 + gamma_stab``.
 
     Args:
         model: the constrained model.

@@ -1,5 +1,5 @@
 """The internal (zero) dynamics of a servo run: the motion that the constraints, real and prescribed, leave
-free, which the controls do not steer (MATH.md section 5).
+free, which the controls do not steer (docs/mathematics.md section 5).
 
 The free directions are the null space Z of the stacked constraint Jacobian at the start; the free
 coordinates that name them are the velocity coordinates a pivoted QR of Z^T picks (those Z moves most

@@ -86,19 +86,19 @@ INITIAL = {"q": {"x": 1.2, "y": -0.9}, "v": {"x": 0.3}}
 
 
 def readme_example() -> str:
-    """The Python block after the ``extending-example`` marker in README.md."""
-    text = (ROOT / "README.md").read_text()
+    """The Python block after the ``extending-example`` marker in docs/guide/extending.md."""
+    text = (ROOT / "docs" / "guide" / "extending.md").read_text()
     after = text.split("<!-- extending-example -->", 1)[1]
     return after.split("```python\n", 1)[1].split("```", 1)[0]
 
 
 @pytest.fixture
 def spring_method():
-    """The README's extension, registered for one test and removed after it."""
+    """The documentation's extension, registered for one test and removed after it."""
     from pinstab.stabilizers import STABILIZERS
 
     namespace: dict = {}
-    exec(compile(readme_example(), "README.md", "exec"), namespace)  # noqa: S102 (the README's own code)
+    exec(compile(readme_example(), "docs/guide/extending.md", "exec"), namespace)  # noqa: S102 (the docs' own code)
     try:
         yield namespace
     finally:
@@ -112,7 +112,7 @@ def test_a_stabilizer_registered_outside_the_package_reaches_simulate_the_cli_an
     from pinstab.cli import main
     from pinstab.stability_map import stability_map
 
-    # simulate(): the README block ran it; the same gains through baumgarte give the same motion
+    # simulate(): the docs' block ran it; the same gains through baumgarte give the same motion
     ours = spring_method["traj"]
     builtin = simulate("fourbar", method="baumgarte", kp=400.0, kd=40.0, duration=1.0)
     np.testing.assert_allclose(ours.q, builtin.q, rtol=0, atol=1e-12)

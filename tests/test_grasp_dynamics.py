@@ -1,5 +1,5 @@
-"""The Lagrange-d'Alembert object-space form of a grasp (MATH.md section 4, [MLS 6.2]) against the full KKT
-solution (MATH.md eq. 4), on trifinger-cube (three 3-DOF fingers, three point contacts: J_h is 9 x 9).
+"""The Lagrange-d'Alembert object-space form of a grasp (docs/mathematics.md section 4, [MLS 6.2]) against the full KKT
+solution (docs/mathematics.md eq. 4), on trifinger-cube (three 3-DOF fingers, three point contacts: J_h is 9 x 9).
 
 Everything on the object-space side is built here, without pinstab's constraint rows: the contact points and
 frames from the cube's geometry at the start (contact point = fingertip centre projected on the nearest face,
@@ -220,7 +220,7 @@ def world_forces(grasp: Grasp, force: np.ndarray) -> np.ndarray:
 
 
 def numpy_kkt(grasp: Grasp, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """The cube's acceleration from the full KKT system (MATH.md eq. 4) solved with numpy, the constraint
+    """The cube's acceleration from the full KKT system (docs/mathematics.md eq. 4) solved with numpy, the constraint
     ``A = [J_h, -G^T]`` built here (rows: J_h theta_ddot - G^T xi_dot = -w)."""
     model, data = grasp.model, grasp.data
     mass = pin.crba(model, data, q)

@@ -1,4 +1,4 @@
-"""Servoconstraints (MATH.md section 5): a virtual constraint on the double pendulum against the
+"""Servoconstraints (docs/mathematics.md section 5): a virtual constraint on the double pendulum against the
 partial-feedback-linearization control computed from Pinocchio's M and h, the two-car exact answer,
 rank loss of the decoupling matrix detected (at a configuration, and when a run passes it), controls
 within limits, refusals."""

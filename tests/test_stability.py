@@ -100,7 +100,7 @@ def test_euler_closed_forms_of_math_md():
 
 
 def test_baumgarte_semi_implicit_boundary_is_two_alpha_tau_equals_two():
-    """det R = 1 - tau Kd for semi-implicit Euler (MATH.md 3.3): Kd tau = 2 is the boundary."""
+    """det R = 1 - tau Kd for semi-implicit Euler (docs/mathematics.md 3.3): Kd tau = 2 is the boundary."""
     assert scalar_radius(1e6, 2e3, 1e-3, "semi-implicit-euler") > 1.0
     bound = largest_stable_step(np.array([[1e6]]), np.array([[2e3]]), np.array([True]), "semi-implicit-euler")
     assert (

@@ -1,4 +1,4 @@
-"""The interface every constraint family implements (MATH.md section 1), its row kinds, and the
+"""The interface every constraint family implements (docs/mathematics.md section 1), its row kinds, and the
 registry of constraint kinds that scene files name."""
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ class Constraint(ABC):
     Holonomic blocks have a residual ``phi(q, t)`` with ``G = d phi / dq`` (right-trivialized on
     the configuration group, i.e. through ``pin.integrate``). Pfaffian blocks only have the velocity
     level ``A(q, t) v + b(q, t) = 0``. Both give the drift term ``gamma0`` of
-    ``G a + gamma0 = 0`` (MATH.md eq. 2).
+    ``G a + gamma0 = 0`` (docs/mathematics.md eq. 2).
 
     Attributes:
         name: unique name, used in messages and to slice multipliers.
@@ -56,7 +56,7 @@ class Constraint(ABC):
             (a contact that can only push, a friction cone): :meth:`check_force` after every solve.
         force_partners: blocks whose multipliers come before this block's own in what :meth:`margins`
             and :meth:`check_force` receive (a rolling contact's normal force is its touching block's).
-        prescribed: a servoconstraint (MATH.md section 5): the controls realize it, its reaction is zero
+        prescribed: a servoconstraint (docs/mathematics.md section 5): the controls realize it, its reaction is zero
             (a scene's ``[[servos]]``).
         nv: the velocity dimension the block was written for (a user block declares it), or None: the model's.
         touch: a fingertip contact's finger and object frames, for the collision checks

@@ -1,4 +1,4 @@
-"""Sticking fingertip contacts on a scene object [MLS ch. 5] (MATH.md section 4).
+"""Sticking fingertip contacts on a scene object [MLS ch. 5] (docs/mathematics.md section 4).
 
 Kind ``grasp-contact``: the fingertip is a sphere of ``radius`` [m] centred at the ``finger`` frame's
 origin, touching ``object`` (a scene object). At the scene's start the finger's joints are moved (least

@@ -1,4 +1,4 @@
-"""Rolling fingertip contacts on a scene object [MLS ch. 5] (MATH.md section 4).
+"""Rolling fingertip contacts on a scene object [MLS ch. 5] (docs/mathematics.md section 4).
 
 Kind ``rolling-contact``: the fingertip is a sphere of ``radius`` r [m] centred at the ``finger`` frame's
 origin c; it rolls on the surface of ``object`` (a scene object) without slipping. The contact point is

@@ -1,4 +1,4 @@
-"""A thin disk (a wheel) rolling without slipping on a fixed world plane [MLS ex. 6.2] (MATH.md section 1).
+"""A thin disk (a wheel) rolling without slipping on a fixed world plane [MLS ex. 6.2] (docs/mathematics.md section 1).
 
 The disk is a rigid circle of ``radius`` r centred at a frame's origin c, in the plane orthogonal to its
 ``axis`` a (world axes: ``a = R_c a_local``). Its contact point with the plane ``{x : n . (x - p0) = 0}``

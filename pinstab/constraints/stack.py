@@ -1,4 +1,4 @@
-"""All constraint blocks of a scene stacked into one set of rows (MATH.md eq. 1-2)."""
+"""All constraint blocks of a scene stacked into one set of rows (docs/mathematics.md eq. 1-2)."""
 
 from __future__ import annotations
 

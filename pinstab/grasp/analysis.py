@@ -1,4 +1,4 @@
-"""Grasp analysis [MLS ch. 5] (MATH.md section 4): the grasp map, internal forces,
+"""Grasp analysis [MLS ch. 5] (docs/mathematics.md section 4): the grasp map, internal forces,
 force closure and grasp quality.
 
 Frames: the object frame O (at the object's reference point); contact frame C_i at the contact point on

@@ -1,4 +1,4 @@
-"""``grasp-control``: computed torque in object coordinates [MLS 6.3] (MATH.md section 4).
+"""``grasp-control``: computed torque in object coordinates [MLS 6.3] (docs/mathematics.md section 4).
 
 The object follows a pose path from where the scene starts it: translated by ``move`` [m] (world axes)
 and turned by ``turn`` [rad] about the world ``axis``, along a quintic time law over ``duration`` [s]

@@ -1,5 +1,5 @@
 """Welded (rigid) grasps for ``grasp-control``: an object held by two hands through two ``weld``
-closures, 6 rows each (wrench basis ``rigid``: a weld transmits any wrench) [MLS ch. 5] (MATH.md section 4).
+closures, 6 rows each (wrench basis ``rigid``: a weld transmits any wrench) [MLS ch. 5] (docs/mathematics.md section 4).
 
 With the closures' rows ``A = [A_hand, A_object]`` (12 rows), the grasp map is ``G = A_object^T`` (6 x 12:
 the closures' multipliers to the wrench on the object, in its body frame O) and the hand Jacobian

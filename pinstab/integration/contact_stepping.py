@@ -14,7 +14,7 @@ the exact round cone, a sliding contact keeps its normal velocity at its bound, 
 * ``b_n = gap / dt``: the gap at the step's end, ``gap + dt v_n+``, is non-negative. For an open contact it
   lets the gap close exactly within the step (no hovering above the plane); for a penetration (the chord
   ``dt v+`` misses the arc of a rotating body by O(dt^2)) it is the velocity-level Baumgarte/ERP term of
-  the stabilizers (MATH.md section 3.3) with decay factor r = 0 per step: the deviation obeys
+  the stabilizers (docs/mathematics.md section 3.3) with decay factor r = 0 per step: the deviation obeys
   ``gap_{k+1} = r gap_k``, dead-beat, the automatic choice of ``mukharlyamov``'s kinematic variant. It was
   chosen over a post-step projection because it needs no second solve: the correction is one more term of
   the same cone problem, so it can never push a contact out of its cone (a projection of the penetrating

@@ -2,7 +2,7 @@
 
 Pinocchio's ``constraintDynamics`` factors the closures' rows densely: on the N-four-bar its cost per
 call grows as N^2.2 (about 0.3 ms at N = 40, 2 ms at N = 80; ``benchmarks/chains.py``). A chain of loops
-couples each loop with its neighbours only, so the KKT matrix of MATH.md eq. (3),
+couples each loop with its neighbours only, so the KKT matrix of docs/mathematics.md eq. (3),
 
     [[M, G^T], [G, 0]] [a; -lambda] = [tau - h; -gamma0 - Kp phi - Kd G v],
 

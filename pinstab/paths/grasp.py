@@ -3,13 +3,13 @@
 A scene whose constraints are all point-row fingertip contacts (``grasp-contact``, ``frictionless`` or
 ``point-friction``) under a Baumgarte term, and whose force elements have a compiled form
 (:meth:`~pinstab.forces.base.ForceElement.compiled_form`: ``grasp-hold``, ``external-force``) or read no kinematics,
-needs per evaluation one kinematics pass, the contacts' rows, the holds' least-squares forces and one KKT solve
-through Cholesky factors (MATH.md section 4). The general path makes the same through pinstab's kinematics, a dozen
+needs per evaluation one kinematics pass, the contacts' rows, the holds' least-squares forces and one KKT solve through
+Cholesky factors (docs/mathematics.md section 4). The general path makes the same through pinstab's kinematics, a dozen
 small NumPy operations per contact and LAPACK calls; the compiled kernel (``cpp/grasp_kernel.cpp``: Pinocchio's
 ``computeAllTerms``, the rows of ``cpp/contact_terms.cpp``, Eigen's Cholesky factors) makes it in one call. An
 evaluation is not used where the general path would leave its direct solve or a hold's least-squares forces (for the
-proximal solve or the hold's QP), or where a contact's force leaves its cone: the general path then solves it, or
-names the contact in :class:`~pinstab.errors.GraspLostError`.
+proximal solve or the hold's QP), or where a contact's force leaves its cone: the general path then solves it, or names
+the contact in :class:`~pinstab.errors.GraspLostError`.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The servo path: prescribed joint relations realized by controls, evaluated compiled.
 
 A scene whose constraints are all prescribed ``joint-relation`` rows ``S q = c(t)`` (``[[servos]]``; S constant)
-with a Baumgarte term needs per evaluation only M, h and a few small solves (MATH.md section 5, with no real
+with a Baumgarte term needs per evaluation only M, h and a few small solves (docs/mathematics.md section 5, with no real
 constraint rows):
 
     a0 = M^-1 (tau - h),    D = S M^-1 B,    D u = c'' - Kd (S v - c') - Kp (S q - c) - S a0,    a = a0 + M^-1 B u,

@@ -1,4 +1,4 @@
-"""KKT backends (MATH.md eq. 4-5), one per module, each registered in :data:`SOLVERS`:
+"""KKT backends (docs/mathematics.md eq. 4-5), one per module, each registered in :data:`SOLVERS`:
 ``proxsuite`` (default), ``pinocchio``, ``dense``."""
 
 from ..registry import load_extensions

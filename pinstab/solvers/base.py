@@ -1,4 +1,4 @@
-"""The constrained-dynamics problem handed to a KKT backend, what comes back (MATH.md eq. 4-5), how
+"""The constrained-dynamics problem handed to a KKT backend, what comes back (docs/mathematics.md eq. 4-5), how
 a solve is judged, and the registry of backends."""
 
 from __future__ import annotations

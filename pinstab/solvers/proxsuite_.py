@@ -1,6 +1,6 @@
 """``proxsuite``: Gauss's principle as a QP solved by ProxQP, scaled, warm-started, judged by residuals.
 
-Equality rows only (closures, user rows): ``min_a 1/2 a^T M a - f^T a  s.t.  G a = rhs`` (MATH.md
+Equality rows only (closures, user rows): ``min_a 1/2 a^T M a - f^T a  s.t.  G a = rhs`` (docs/mathematics.md
 eq. 5). The proximal method keeps the problem well-posed when G is rank-deficient (redundant or
 singular rows): the accelerations stay unique, the multipliers are the minimum-norm ones.
 

@@ -1,4 +1,4 @@
-"""Constraint stabilization methods (MATH.md section 3), one per module, each registered in
+"""Constraint stabilization methods (docs/mathematics.md section 3), one per module, each registered in
 :data:`STABILIZERS` (``none``, ``baumgarte``, ``mukharlyamov``, ``projection``, ``post``, ``pinocchio``)."""
 
 from ..registry import load_extensions

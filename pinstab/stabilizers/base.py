@@ -1,4 +1,4 @@
-"""What a stabilizer provides (MATH.md section 3): a term gamma_stab and/or a post-step correction,
+"""What a stabilizer provides (docs/mathematics.md section 3): a term gamma_stab and/or a post-step correction,
 and, where it has one, the discrete stability indicator rho(R(tau W)) of its deviation dynamics; and
 the registry of stabilization methods."""
 

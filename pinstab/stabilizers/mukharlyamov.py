@@ -1,4 +1,4 @@
-"""``mukharlyamov``: the extended system with designed perturbation equations (MATH.md 3.2, [M]).
+"""``mukharlyamov``: the extended system with designed perturbation equations (docs/mathematics.md 3.2, [M]).
 
 The deviations ``q~ = phi`` (holonomic rows) and ``v~ = g`` (all rows) are driven by the Lagrange
 equations of ``L~ = 1/2 v~^T A v~ - 1/2 q~^T H q~`` with dissipation ``D~ = 1/2 v~^T B v~``:
