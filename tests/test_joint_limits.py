@@ -152,6 +152,7 @@ def test_pendulum_reaches_holds_and_leaves_its_limit_as_in_closed_form():
     assert events[0]["impulse"][0] == pytest.approx(
         inertia * omega * math.sqrt(2 * (math.cos(LOWER) - math.cos(START))), rel=1e-8
     )
+    assert events[0]["work"] == pytest.approx(-MASS * GRAVITY * COM * (math.cos(LOWER) - math.cos(START)), rel=1e-8)
     assert events[1]["force"][0] == pytest.approx(reaction, rel=1e-9)
     assert abs(events[2]["t"] - t_release) <= 1e-9
     held = (run.t > t_reach + 1e-6) & (run.t < t_release)

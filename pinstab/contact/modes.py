@@ -39,7 +39,9 @@ class ContactEvent:
             zero``, ``friction reached the cone``, ``slip velocity reached zero``, ``gap closed``, ``start``,
             ``impact``, ``at rest``). force: the contact force after the event in the contact frame (normal, t1,
             t2) [N]. slip_velocity: the tangential velocity of the contact point (t1, t2) [m/s]. impulse: the
-            impact's impulse (normal, t1, t2) [N s], or None.
+            impact's impulse (normal, t1, t2) [N s], or None. work: the work of the impact's impulse on this contact
+            (or joint limit) [J], ``impulse . (u- + u+) / 2`` with u the contact point's velocity (the limit's rate)
+            before and after: the change of kinetic energy it makes (negative: lost), or None.
     """
 
     t: float
@@ -50,6 +52,7 @@ class ContactEvent:
     force: tuple[float, float, float] = (0.0, 0.0, 0.0)
     slip_velocity: tuple[float, float] = (0.0, 0.0)
     impulse: tuple[float, float, float] | None = field(default=None)
+    work: float | None = None
 
     def to_dict(self) -> dict:
         """The event as JSON-ready data."""
@@ -64,6 +67,8 @@ class ContactEvent:
         }
         if self.impulse is not None:
             data["impulse"] = list(self.impulse)
+        if self.work is not None:
+            data["work"] = float(self.work)
         return data
 
 

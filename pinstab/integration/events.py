@@ -287,14 +287,16 @@ class EventLoop(AdaptiveLoop):
         restitutions.update({i: dynamics.limits[i].restitution for i in reached})
         result = limit_impact(dynamics, q, v, t, restitutions)
         for i in reached:
+            limit = dynamics.limits[i]
             self.events.append(
                 ContactEvent(
                     t,
-                    dynamics.limits[i].name,
+                    limit.name,
                     before[i],
                     CLOSING,
                     "impact",
                     impulse=(float(result.impulses[i]), 0.0, 0.0),
+                    work=float(result.impulses[i]) * (limit.speed(v) + limit.speed(result.velocity)) / 2,
                 )
             )
             before[i] = CLOSING
@@ -328,12 +330,13 @@ class EventLoop(AdaptiveLoop):
             )
             raise RunEnd(t, q, v, error=error)
         reach = np.einsum("ij,ji->i", contacts.jacobian[0::3], solution.mobility[:, 0::3])  # [m/s per N s]
+        mean = (contacts.jacobian @ (v + result.velocity)).reshape(-1, 3) / 2  # each contact point's (u- + u+) / 2
         for i in sorted(restitutions):
             if i in closing or result.impulses[i, 0] * reach[i] > TOUCH_SPEED:
+                work = float(result.impulses[i] @ mean[i])
+                name = dynamics.contacts[i].name
                 self.events.append(
-                    ContactEvent(
-                        t, dynamics.contacts[i].name, before[i], CLOSING, "impact", impulse=as_tuple(result.impulses[i])
-                    )
+                    ContactEvent(t, name, before[i], CLOSING, "impact", impulse=as_tuple(result.impulses[i]), work=work)
                 )
                 before[i] = CLOSING
         return result.velocity

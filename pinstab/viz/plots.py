@@ -1,4 +1,4 @@
-"""Charts of a trajectory: drift, energy error and constraint forces against time; for event-driven
+"""Charts of a trajectory: drift, energy budget and constraint forces against time; for event-driven
 contacts, each contact's mode over time and its normal and friction forces."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis.energy import EnergyBudget, energy_budget
 from ..errors import PinstabError
 from ..plotting import pyplot, save_figure
 from ..scene import Scene, load_scene
@@ -17,6 +18,7 @@ from .contacts import MODE_COLORS
 
 LABEL_SPACING = 0.02  # contact events are labelled at times this fraction of the time axis apart (all are marked)
 LABELS_PER_TIME = 3  # ... with this many events each, then "+n"
+WORK_COLORS = ("tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")  # not E's, the error's
 
 
 def plot_trajectory(trajectory: Trajectory, path: str | Path, scene: Scene | None = None) -> Path:
@@ -29,7 +31,10 @@ def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
 
     * position drift max|phi| [m] and velocity drift max|g| [m/s], log scale over the positive samples
       (a drift of exactly 0, at the start of most runs, is left out rather than drawn at 1e-300);
-    * energy error E(t) - E(0) [J];
+    * the energy change E(t) - E(0) [J] and the work W(t) [J] of what is meant to change it (dampers, motors,
+      loads, servo controls, impacts: :func:`~pinstab.analysis.energy.energy_budget`), then in a panel of its own the
+      energy error E(t) - E(0) - W(t) [J]; without such work, the one panel E(t) - E(0), called the energy error
+      only when nothing the budget cannot count (sliding friction, time-stepping impulses, ...) did work;
     * the norm of each constraint's multipliers [N]; with event-driven contacts instead each contact's
       normal force (solid) and friction force magnitude (dashed) [N] at the samples (:func:`contact_panels`);
     * with prescribed constraints, the controls u that realize them [N m or N];
@@ -48,10 +53,20 @@ def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
     servo = trajectory.servo_figures
     comparison = trajectory.comparison
     events = info.contact_events
-    panels = (("servo", servo), ("error", comparison is not None), ("modes", bool(events)))
-    extra = [panel for panel, present in panels if present]
-    fig, axes = plt.subplots(3 + len(extra), 1, figsize=(7.5, 8.0 + 2.5 * len(extra)), dpi=110, sharex=True)
-    drift_axis, energy_axis, force_axis = axes[:3]
+    budget = energy_budget(trajectory, scene)
+    panels = (
+        ("drift", True),
+        ("energy", True),
+        ("remainder", bool(budget.work)),
+        ("force", True),
+        ("servo", servo),
+        ("error", comparison is not None),
+        ("modes", bool(events)),
+    )
+    names = [panel for panel, present in panels if present]
+    fig, axes = plt.subplots(len(names), 1, figsize=(7.5, 8.0 + 2.5 * (len(names) - 3)), dpi=110, sharex=True)
+    axis = dict(zip(names, axes, strict=True))
+    drift_axis, force_axis = axis["drift"], axis["force"]
     _log_panel(
         drift_axis,
         t,
@@ -61,10 +76,9 @@ def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
         },
     )
     drift_axis.set_ylabel("constraint drift [m], [m/s]")
-    energy_axis.plot(t, trajectory.energy - trajectory.energy[0], color="tab:green")
-    energy_axis.set_ylabel("energy error E(t) - E(0) [J]")
+    energy_panels(axis["energy"], axis.get("remainder"), budget)
     if events:
-        contact_panels(axes[3 + extra.index("modes")], force_axis, trajectory, scene)
+        contact_panels(axis["modes"], force_axis, trajectory, scene)
     else:
         for name, (start, stop) in info.constraint_rows.items():
             norms = np.linalg.norm(trajectory.multipliers[:, start:stop], axis=1)
@@ -73,13 +87,13 @@ def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
         if info.constraint_rows:
             force_axis.legend(fontsize=8)
     if servo:
-        servo_axis = axes[3 + extra.index("servo")]
+        servo_axis = axis["servo"]
         for name, column in zip(info.controls, servo["controls"].T, strict=True):
             servo_axis.plot(t, column, label=name)
         servo_axis.set_ylabel("controls u [N m or N]")
         servo_axis.legend(fontsize=8)
     if comparison is not None:
-        error_axis = axes[3 + extra.index("error")]
+        error_axis = axis["error"]
         labels = [f"{name} [{unit}]" for name, unit in zip(comparison.names, comparison.units, strict=True)]
         _log_panel(error_axis, t, dict(zip(labels, comparison.error.T, strict=True)))
         error_axis.set_ylabel("trajectory error")
@@ -92,6 +106,37 @@ def trajectory_figure(trajectory: Trajectory, scene: Scene | None = None):
     fig.suptitle(f"{info.scene}: {method} + {info.integrator}, dt = {info.dt} s", fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def energy_panels(energy_axis, remainder_axis, budget: EnergyBudget) -> None:
+    """The energy change E(t) - E(0) [J] with the work of each counted term W [J] (dashed) on ``energy_axis``, and the
+    energy error E(t) - E(0) - W(t) [J] on ``remainder_axis`` (None when no term is counted: the change alone, the
+    energy error only when nothing uncounted did work); what is not counted noted on the panel holding it."""
+    t = budget.t
+    energy_axis.plot(t, budget.change, color="tab:green", label="E(t) - E(0)")
+    uncounted = f"not counted: {', '.join(budget.uncounted)}" if budget.uncounted else ""
+    if remainder_axis is None:
+        error = "energy error" if not budget.uncounted else "energy change"
+        energy_axis.set_ylabel(f"{error} E(t) - E(0) [J]")
+        _note(energy_axis, uncounted)
+        return
+    for index, (name, work) in enumerate(budget.work.items()):
+        color = WORK_COLORS[index % len(WORK_COLORS)]
+        energy_axis.plot(t, work, linestyle="--", color=color, label=f"work of {name}")
+    if len(budget.work) > 1:
+        energy_axis.plot(t, budget.counted, linestyle=":", color="black", label="W(t), their sum")
+    energy_axis.set_ylabel("energy change, work [J]")
+    energy_axis.legend(fontsize=8)
+    remainder_axis.plot(t, budget.remainder, color="tab:red", label="E(t) - E(0) - W(t)")
+    remainder_axis.set_ylabel("energy error E - E(0) - W [J]")
+    remainder_axis.legend(fontsize=8, loc="upper left")
+    _note(remainder_axis, uncounted)
+
+
+def _note(axis, text: str) -> None:
+    """A small note in the lower left corner of ``axis`` (nothing for an empty one)."""
+    if text:
+        axis.text(0.01, 0.03, text, transform=axis.transAxes, fontsize=7, va="bottom", ha="left", color="tab:gray")
 
 
 def _log_panel(axis, t: np.ndarray, series: dict[str, np.ndarray]) -> None:
