@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
@@ -136,10 +137,59 @@ def deviation_radius(
 
 
 def scalar_radius(kp: float, kd: float, step: float, scheme: str, holonomic: bool = True) -> float:
-    """rho(R) for scalar gains: S = Kp, K = Kd on a holonomic row (2 x 2), or K = Kd alone."""
-    mask = np.array([holonomic])
-    stiffness = np.array([[kp]]) if holonomic else np.zeros((1, 0))
-    return spectral_radius(amplification(stiffness, np.array([[kd]]), mask, step, scheme))
+    """rho(R) for scalar gains: S = Kp, K = Kd on a holonomic row (2 x 2), or K = Kd alone.
+
+    From closed forms of R's eigenvalues, not an eigenvalue solve of R: critically damped gains (Kd^2 = 4 Kp, as
+    :func:`place_gains` and Kd = 2 sqrt(Kp) give them) make R a Jordan block, whose double eigenvalue a solve of
+    the rounded R splits by the square root of the rounding (3.6e-9 on rho at tau Kd = 0.2 for DOPRI5). A
+    Runge-Kutta scheme's eigenvalues are p(mu) at the roots mu of mu^2 + tau Kd mu + tau^2 Kp (first order:
+    mu = -tau Kd); semi-implicit Euler's and ``held``'s the roots of lambda^2 - t lambda + d, R's trace t and
+    determinant d. Each quadratic's discriminant is exact (rational arithmetic on the gains' binary values): a
+    double root stays double, a split one is split by its own amount. Non-finite gains: inf, as R's entries.
+    """
+    _check_scheme(scheme)
+    if not (math.isfinite(kp) and math.isfinite(kd) and math.isfinite(step)):
+        return math.inf
+    try:
+        moduli = [abs(value) for value in _scalar_eigenvalues(kp, kd, step, scheme, holonomic)]
+    except OverflowError:  # a discriminant beyond the floating-point range: R's own eigenvalue solve
+        mask = np.array([holonomic])
+        stiffness = np.array([[kp]]) if holonomic else np.zeros((1, 0))
+        return spectral_radius(amplification(stiffness, np.array([[kd]]), mask, step, scheme))
+    return max(moduli) if all(map(math.isfinite, moduli)) else math.inf  # overflowed: unbounded, as R's entries
+
+
+def _scalar_eigenvalues(kp: float, kd: float, step: float, scheme: str, holonomic: bool) -> list[complex]:
+    """The eigenvalues of R(tau W) for scalar gains (see :func:`scalar_radius`)."""
+    tau, stiffness, damping = Fraction(step), Fraction(kp), Fraction(kd)
+    if scheme in POLYNOMIALS:
+        roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
+        eigenvalues = []
+        for mu in roots:
+            value = 0.0
+            for coefficient in reversed(POLYNOMIALS[scheme]):
+                value = value * mu + coefficient
+            eigenvalues.append(value)
+        return eigenvalues
+    if not holonomic:
+        return [float(1 - tau * damping)]
+    # R of the module docstring and amplification(): semi-implicit Euler [[1 - tau^2 Kp, tau (1 - tau Kd)],
+    # [-tau Kp, 1 - tau Kd]], held [[1 - tau^2 Kp / 2, tau - tau^2 Kd / 2], [-tau Kp, 1 - tau Kd]]
+    share = Fraction(1, 2) if scheme == "held" else Fraction(1)
+    trace = 2 - share * tau * tau * stiffness - tau * damping
+    determinant = 1 - tau * damping + (1 - share) * tau * tau * stiffness
+    return _quadratic_roots(-trace, determinant)
+
+
+def _quadratic_roots(linear: Fraction, constant: Fraction) -> list[complex]:
+    """The roots of x^2 + linear x + constant (exact coefficients): the discriminant exact, then the larger root
+    without cancellation and the other from the product of the two."""
+    discriminant = linear * linear - 4 * constant
+    if discriminant < 0:
+        real, imaginary = -float(linear) / 2, math.sqrt(float(-discriminant)) / 2
+        return [complex(real, imaginary), complex(real, -imaginary)]
+    larger = -(float(linear) + math.copysign(math.sqrt(float(discriminant)), float(linear))) / 2
+    return [larger, float(constant) / larger if larger else 0.0]
 
 
 @dataclass(frozen=True)
