@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -208,3 +209,28 @@ def test_ctrl_c_in_an_event_driven_run_saves_the_samples_so_far(capsys, tmp_path
     run = Trajectory.load(saved)
     assert run.t[-1] == pytest.approx(0.4, abs=1e-12) and len(run.t) == 401
     assert [(x["from"], x["to"]) for x in run.info.contact_events] == [("separated", "separated")]
+
+
+def test_the_event_path_reports_the_dynamics_it_ran(capsys):
+    """Event-driven contacts name what computed the accelerations (each contact's mode rows solved densely, no
+    stabilization method or KKT backend) and count their evaluations as the held path does: DOP853 with FSAL makes
+    12 per attempted step (they read ``method none`` and ``dynamics_evaluations 0``, the count of a Pinocchio
+    solve the run never used)."""
+    code, result, err = run_json(capsys, "run", "incline", "--contacts", "event", "--duration", "0.3", "--json")
+    assert code == 0, err
+    assert (result["method"], result["integrator"], result["solver"]) == ("contact-modes", "dop853", "dense")
+    control = result["error_control"]
+    attempts = control["steps_accepted"] + control["steps_rejected"]
+    assert 11 * attempts <= result["dynamics_evaluations"] <= 14 * attempts + 10
+    assert result["solver_status"] == {"contact modes": result["dynamics_evaluations"]}
+    assert result["solver_worst_residual"] < 1e-9
+
+
+@pytest.mark.parametrize("scene", ["incline", "sphere-spin"])
+def test_the_text_summary_prints_plain_numbers(capsys, scene):
+    """The error control's step sizes of an event run printed ``np.float64(0.0071...)`` in the text summary."""
+    code = cli.main(["run", scene, "--duration", "0.3", "--quiet"])
+    out = capsys.readouterr().out
+    assert code == 0
+    control = next(line for line in out.splitlines() if line.startswith("error_control"))
+    assert "np." not in out and re.search(r"'smallest_step': [\d.e+-]+, 'largest_step': [\d.e+-]+}$", control)

@@ -63,8 +63,8 @@ class ErrorControl:
             "atol": self.atol,
             "steps_accepted": self.accepted,
             "steps_rejected": self.rejected,
-            "smallest_step": self.smallest_step if self.accepted else None,
-            "largest_step": self.largest_step if self.accepted else None,
+            "smallest_step": float(self.smallest_step) if self.accepted else None,
+            "largest_step": float(self.largest_step) if self.accepted else None,
         }
 
 

@@ -40,6 +40,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
 from ..errors import ConstraintError, ContactInfeasibleError
 from ..model import ConstrainedModel
+from ..runinfo import SolverStatistics
 
 SLIP_FLOOR = 1e-9  # [m/s] below this slip speed the slip direction is the one it started in
 RANK_TOLERANCE = 1e-12  # relative singular values of the force system below this: redundant rows
@@ -112,12 +113,16 @@ class ModeDynamics:
             held as bilateral rows. contacts: the plane contacts.
         kp, kd: Baumgarte's gains on the contact, closure and limit rows [1/s^2], [1/s].
         limits: the joint limits (:mod:`pinstab.constraints.joint_limits`), each active (a bilateral row) or not.
+        statistics: where its evaluations are counted (a run's solver statistics; default: its own).
 
     Attributes:
-        modes: each contact's mode. directions: the slip direction (t1, t2) each sliding contact started
-            in. active: whether each limit is held. evaluations: dynamics evaluations so far (states; a state
-            solved in several modes counts once).
+        name: what a run reports as its method (``info.method``). modes: each contact's mode. directions: the slip
+            direction (t1, t2) each sliding contact started in. active: whether each limit is held. statistics:
+            the dynamics evaluations so far (states: a state solved in several modes counts once; status
+            ``contact modes``), the worst relative residual of the mode's force system [-].
     """
+
+    name = "contact-modes"  # each contact's rows of its mode solved for the forces (numpy, dense)
 
     def __init__(
         self,
@@ -126,6 +131,7 @@ class ModeDynamics:
         kp: float,
         kd: float,
         limits: list[JointLimit] | None = None,
+        statistics: SolverStatistics | None = None,
     ) -> None:
         self.model = model
         self.contacts = contacts
@@ -134,7 +140,7 @@ class ModeDynamics:
         self.active = [False] * len(self.limits)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
         self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
-        self.evaluations = 0
+        self.statistics = SolverStatistics() if statistics is None else statistics
         self._redundant: dict[tuple[Mode, ...], bool] = {}
         self._state: tuple | None = None
         self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None] | None = None
@@ -183,6 +189,7 @@ class ModeDynamics:
         if key not in self._redundant:  # the rank of the rows: fixed by the modes and the contacts' layout
             self._redundant[key] = not np.linalg.cond(system) < 1.0 / RANK_TOLERANCE
         forces = _forces(system, rhs, self._redundant[key])
+        self._measure(system, forces, rhs)
         if not np.isfinite(forces).all():
             names = ", ".join(c.name for c, m in zip(self.contacts, modes, strict=True) if m is not Mode.SEPARATED)
             raise ContactInfeasibleError(
@@ -194,6 +201,14 @@ class ModeDynamics:
         acceleration = free + mobility @ forces
         reactions = np.zeros(0) if bilateral is None else bilateral.reactions + bilateral.response @ forces
         return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions)
+
+    def _measure(self, system: np.ndarray, forces: np.ndarray, rhs: np.ndarray) -> None:
+        """The force system's residual ``|system f - rhs|`` relative to its terms' size [-] into the statistics'
+        worst (a least-squares solve of redundant rows leaves one where the rows disagree)."""
+        scale = max(np.linalg.norm(rhs), np.linalg.norm(system) * np.linalg.norm(forces), np.finfo(float).tiny)
+        residual = np.linalg.norm(system @ forces - rhs) / scale
+        if math.isfinite(residual):
+            self.statistics.worst_primal_residual = max(self.statistics.worst_primal_residual, float(residual))
 
     def limit_reactions(self, solution: ModeSolution) -> np.ndarray:
         """Each limit's reaction in ``solution`` [N m or N], positive when it pushes away from its bound (zero for
@@ -228,7 +243,7 @@ class ModeDynamics:
         solves one state in many of them (applied forces may cost a QP each)."""
         key = (t, q.tobytes(), v.tobytes(), tuple(self.active))
         if key != self._state:
-            self.evaluations += 1
+            self.statistics.record("contact modes", 0, math.nan, math.nan)
             terms = self.model.dynamics_terms(q, v, t)
             contacts = self.kinematics_from_kin(v)
             columns = [terms.tau - terms.bias, contacts.jacobian.T]
