@@ -34,7 +34,7 @@ class ConstraintValues:
 
 
 class Violation(NamedTuple):
-    """How far a state is from the constraints: max |phi| [m or rad] and max |g| [m/s or rad/s]
+    """How far a state is from the constraints: max ``|phi|`` [m or rad] and max ``|g|`` [m/s or rad/s]
     (a unilateral row counts only its penetration and its approach)."""
 
     position: float
@@ -195,7 +195,7 @@ class ConstraintSet:
         return ~(unilateral & ((values.phi > 0.0) | (values.velocity_residual >= 0.0)))
 
     def violation(self, values: ConstraintValues) -> Violation:
-        """The violation at ``values``: max |phi|, |g| over the rows, where a unilateral row counts
+        """The violation at ``values``: max ``|phi|``, ``|g|`` over the rows, where a unilateral row counts
         only its penetration (phi < 0) and its approach (g < 0) [m or rad, m/s or rad/s]."""
         phi, rate = values.phi, values.velocity_residual
         if self._has_unilateral:

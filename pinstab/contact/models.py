@@ -38,8 +38,8 @@ class ContactLimits(NamedTuple):
 
     def margins(self, wrench: np.ndarray) -> dict[str, float]:
         """How far ``wrench`` (fx, fy, fz, mx, my, mz of the finger on the object in C [N, N m]) is inside:
-        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` mu f_n - |f_t| [N] and, for a soft finger,
-        ``torsion`` torsion f_n - |m_z| [N m]. A rigid contact carries anything (no margins)."""
+        ``normal`` f_n [N] (>= 0: it pushes), ``friction`` ``mu f_n - |f_t|`` [N] and, for a soft finger,
+        ``torsion`` ``torsion f_n - |m_z|`` [N m]. A rigid contact carries anything (no margins)."""
         if self.model == "rigid":
             return {}
         margins = {"normal": float(wrench[2])}

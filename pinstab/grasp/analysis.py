@@ -33,7 +33,7 @@ class GraspContact:
         name: the contact's name. model: a key of :data:`~pinstab.contact.models.WRENCH_BASES`.
         position: the contact point in O [m]. rotation: C_i's axes in O (3 x 3, z the inward normal).
         mu: Coulomb friction coefficient [-]. torsion: the soft finger's torsional coefficient [m]
-            (|moment about the normal| <= torsion x normal force).
+            (``|moment about the normal| <= torsion x normal force``).
     """
 
     name: str

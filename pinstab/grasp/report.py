@@ -244,8 +244,8 @@ class ControlSeries:
     """An object-level controlled run, per recorded sample.
 
     Attributes:
-        t: times [s]. position_error: |p - p_desired| [m]. orientation_error: |log3(R_d^T R)| [rad].
-        cone_margin: the smallest friction-cone margin over the contacts, mu f_n - |f_t| [N].
+        t: times [s]. position_error: ``|p - p_desired|`` [m]. orientation_error: ``|log3(R_d^T R)|`` [rad].
+        cone_margin: the smallest friction-cone margin over the contacts, ``mu f_n - |f_t|`` [N].
         torques: the controller's joint torques (samples x hand DOF) [N m]. joints: their names.
         effort_limit: the URDF's limits of those joints [N m] (inf where none).
     """

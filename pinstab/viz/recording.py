@@ -120,7 +120,7 @@ class ClosurePoints:
 @dataclass
 class Recording:
     """What :func:`write_recording` wrote: file [path], size [bytes], frames and their rate [1/s], and
-    the contact arrows' scale [N/m] (an arrow is |f| / force_scale long; None without contacts)."""
+    the contact arrows' scale [N/m] (an arrow is ``|f| / force_scale`` long; None without contacts)."""
 
     path: Path
     size_bytes: int
