@@ -204,7 +204,7 @@ class Trajectory:
 
     def drift_growth_exponent(self) -> float | None:
         """p in position drift ~ t^p, fitted (log-log) over the second half of the run; None when the
-        drift there is zero or the run is too short. About 2 for an unstabilized run (MATH.md 3)."""
+        drift there is zero or the run is too short. About 2 for an unstabilized run (docs/mathematics.md 3)."""
         figures = SeriesFigures(len(self.t))
         figures.add(self.t, self.position_drift, self.velocity_drift, self.energy, self.spectral_radius)
         return figures.growth_exponent()
