@@ -152,7 +152,7 @@ def test_a_signal_swallowed_by_a_destructor_is_delivered_again():
     "spelling", [["--tilt-axis=-1,0,0"], ["--tilt-axis", "-1,0,0"], ["--tilt-axis", "-1", "0", "0"]]
 )
 def test_grasp_tilt_axis_takes_a_negative_vector_in_each_spelling(capsys, spelling):
-    """The README's ``--tilt-axis=-1,0,0`` (argparse alone refuses it): about -x the allegro ball held at 0.56 N
+    """The docs' ``--tilt-axis=-1,0,0`` (argparse alone refuses it): about -x the allegro ball held at 0.56 N
     slips at 1.787 deg (the tilt tests/test_grasp_capacity.py checks against the dynamics); about +x, the other
     sense, it holds at any tilt (null)."""
     code, out, err = run_cli(capsys, "grasp", "allegro-sphere", "--squeeze", "0.56", *spelling, "--json")

@@ -1,6 +1,6 @@
 """dual-panda-box: two Pandas welded to a box carry it along a path (grasp-control on a welded grasp) with the
 squeeze between the hands set to 20 N. The runs here last 1 s of the scene's 5 s path: a 5 s run takes 17 to
-42 s of wall time on a shared machine, its figures as long again; they are in the README, from ``pinstab run
+42 s of wall time on a shared machine, its figures as long again; they are in docs/guide/grasps.md, from ``pinstab run
 dual-panda-box --duration 5 --json``. Checked against what the controller does not compute: the path's closed
 form, the box's Newton-Euler equation and the null space of the grasp map built from the simulator's rows."""
 
@@ -61,7 +61,7 @@ def test_the_start_posture_puts_the_hands_on_the_box_faces():
 
 
 def test_the_run_reports_tracking_and_squeeze_within_the_acceptance(carry_run):
-    """Acceptance figures over the first second (the README has the 5 s run's): box tracking error <= 1e-4 m
+    """Acceptance figures over the first second (docs/guide/grasps.md has the 5 s run's): box tracking error <= 1e-4 m
     (measured 1.3e-11 m, the assembly's correction of the start), squeeze within 1 % of 20 N (measured 7e-14
     relative), drift <= 1e-8 m (measured 9e-15 m)."""
     _, trajectory = carry_run

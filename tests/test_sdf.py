@@ -154,7 +154,7 @@ def test_check_lists_the_16_closures_with_rank_and_mobility(capsys, cassie):
 
 
 def test_cassie_legs_drift_and_energy_balance(capsys):
-    """Short run (the README's is 2 s): drift <= 1e-8 m and the energy balance closed to 1e-6 relative."""
+    """Short run (docs/guide/robots.md's is 2 s): drift <= 1e-8 m and the energy balance closed to 1e-6 relative."""
     assert main(["run", "cassie-legs", "--duration", "0.2", "--dt", "5e-4", "--json", "--quiet"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["solver"] == "pinocchio"
