@@ -11,6 +11,7 @@
 #include "contact_terms.hpp"
 #include "grasp_kernel.hpp"
 #include "native_kernel.hpp"
+#include "series.hpp"
 #include "servo_kernel.hpp"
 
 namespace nb = nanobind;
@@ -108,13 +109,39 @@ NB_MODULE(_compiled, m) {
             }
             new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, mu);
           },
-          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a);
+          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a)
+      .def(
+          "multipliers",
+          [](NativeKernel& self, const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
+             const Eigen::MatrixXd& rows) {
+            nb::gil_scoped_release released;
+            return self.multipliers(qs, vs, tau, rows);
+          },
+          "qs"_a, "vs"_a, "tau"_a, "rows"_a,
+          "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples (rows "
+          "of qs, vs) under tau; NaN where not finite.");
   m.def("contact_point_residual", on_python_data(contact_point_residual), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "R_o^T (p_o - p_f) (3,) from a pin.Data after a placements pass.");
   m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
   m.def("contact_point_drift", on_python_data(contact_point_drift), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
+  m.def(
+      "closure_series",
+      [](nb::handle model, nb::handle data, const VectorXi& joints_a, const Eigen::MatrixXd& local_a,
+         const VectorXi& joints_b, const Eigen::MatrixXd& local_b, const Eigen::MatrixXd& selection,
+         const VectorXi& owner, const RowMatrix& qs, const RowMatrix& vs) {
+        const pinocchio::Model& native = python_model(model.ptr());
+        pinocchio::Data& shared = python_data(data.ptr(), native);
+        const ClosurePoints points{joints_a, joints_b, local_a, local_b, selection, owner};
+        nb::gil_scoped_release released;
+        return closure_series(native, shared, points, qs, vs);
+      },
+      "model"_a, "data"_a, "joints_a"_a, "local_a"_a, "joints_b"_a, "local_b"_a, "selection"_a, "owner"_a, "qs"_a,
+      "vs"_a,
+      "(max |phi| [m], max |G v| [m/s], energy [J]) per sample (rows of qs, vs; NaN where not finite) of point "
+      "closures: each side's joint and point in its frame, each row's direction (rows, 3) and closure; computed in "
+      "data (a pin.Data of the model, overwritten).");
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",

@@ -1,10 +1,15 @@
 #include "native_kernel.hpp"
 
+#include <cmath>
+#include <limits>
+
+#include <pinocchio/constraints.hpp>
+
 namespace pinstab {
 
 NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp,
                            double kd, double mu)
-    : model_(model), data_(model_), settings_(1e-14, 1e-12, mu, 50) {
+    : model_(model), data_(model_), settings_(1e-14, 1e-12, mu, 50), kp_(kp), kd_(kd) {
   for (const ClosureSpec& closure : closures) {
     pinocchio::RigidConstraintModel constraint(pinocchio::CONTACT_3D, model_, closure.joint1,
                                                pinocchio::SE3(closure.placement1), closure.joint2,
@@ -19,6 +24,36 @@ NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<Clos
 bool NativeKernel::acceleration(double, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
   a = pinocchio::constraintDynamics(model_, data_, q, v, tau, models_, datas_, settings_);
   return true;
+}
+
+std::pair<RowMatrix, VectorXd> NativeKernel::multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
+                                                        const Eigen::MatrixXd& rows) {
+  const long n = qs.rows();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  RowMatrix forces = RowMatrix::Constant(n, rows.rows(), nan);
+  VectorXd residuals = VectorXd::Constant(n, nan);
+  Eigen::MatrixXd jacobian(rows.cols(), model_.nv);
+  VectorXd target(rows.cols());
+  for (long k = 0; k < n; ++k) {
+    if (!qs.row(k).allFinite() || !vs.row(k).allFinite()) continue;
+    const VectorXd v = vs.row(k).transpose();
+    const VectorXd a = pinocchio::constraintDynamics(model_, data_, qs.row(k).transpose(), v, tau, models_, datas_,
+                                                     settings_);
+    forces.row(k) = (rows * data_.lambda_c).transpose();
+    jacobian.setZero();
+    pinocchio::getConstraintsJacobian(model_, data_, models_, datas_, jacobian);
+    for (size_t c = 0; c < datas_.size(); ++c) {  // -gamma0 - Kp phi, contact by contact, world axes
+      const pinocchio::RigidConstraintData& contact = datas_[c];
+      target.segment<3>(3 * c) =
+          contact.contact2_acceleration_drift.linear() - contact.contact1_acceleration_drift.linear() -
+          kp_ * (contact.oMc1.translation() - contact.oMc2.translation());
+    }
+    const VectorXd rhs = rows * (target - kd_ * (jacobian * v));
+    const VectorXd residual = rows * (jacobian * a) - rhs;
+    const double scale = rhs.squaredNorm() + jacobian.squaredNorm() * a.squaredNorm();
+    residuals(k) = !std::isfinite(scale) ? nan : (scale > 0.0 ? std::sqrt(residual.squaredNorm() / scale) : 0.0);
+  }
+  return {forces, residuals};
 }
 
 }  // namespace pinstab

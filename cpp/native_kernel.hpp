@@ -1,5 +1,7 @@
 #pragma once
 
+#include <utility>
+
 #include <pinocchio/algorithm/constrained-dynamics.hpp>
 #include <pinocchio/algorithm/proximal.hpp>
 
@@ -20,6 +22,11 @@ class NativeKernel : public Kernel {
                double mu);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
+  // At each sample (rows of qs, vs) under tau: the multipliers rows * lambda_c [N] (rows: Pinocchio's contact rows to
+  // the closures' rows) and the solve's relative residual |G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2), rhs =
+  // -gamma0 - Kp phi - Kd G v (pinstab.paths.native.NativeDynamics.residual); NaN where q or v is not finite.
+  std::pair<RowMatrix, VectorXd> multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
+                                             const Eigen::MatrixXd& rows);
 
  private:
   pinocchio::Model model_;
@@ -27,6 +34,7 @@ class NativeKernel : public Kernel {
   pinocchio::RigidConstraintModelVector models_;
   pinocchio::RigidConstraintDataVector datas_;
   pinocchio::ProximalSettings settings_;
+  double kp_, kd_;
 };
 
 }  // namespace pinstab

@@ -1,6 +1,7 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics, the
 banded solve, the servo solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
-(:mod:`pinstab.integration.compiled`), and a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`).
+(:mod:`pinstab.integration.compiled`), a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`)
+and the drift and energy series of a run of point closures (:mod:`pinstab.series`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -17,6 +18,7 @@ try:
         Kernel,
         NativeKernel,
         ServoKernel,
+        closure_series,
         contact_point_drift,
         contact_point_jacobian,
         contact_point_residual,
@@ -38,6 +40,7 @@ __all__ = [
     "Kernel",
     "NativeKernel",
     "ServoKernel",
+    "closure_series",
     "contact_point_drift",
     "contact_point_jacobian",
     "contact_point_residual",

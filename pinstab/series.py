@@ -13,8 +13,50 @@ from scipy.integrate import cumulative_simpson
 from .constraints import RowKind
 from .errors import ContactInfeasibleError
 from .forces.base import Sample
+from .kernels import closure_series
+from .model import ConstrainedModel
+from .paths.native import NATIVE_KINDS, unsupported_constraint
+from .solvers.base import ACCEPTED_RESIDUAL
 from .system import ConstrainedSystem
 from .zero_dynamics import zero_dynamics_report
+
+
+class ClosureSeries:
+    """The drift and energy series of a scene whose constraints are all point or planar-point closures and that has
+    no force elements, by the compiled kernel (``closure_series``, ``cpp/series.cpp``): one kinematics pass per
+    sample. The position drift and the energy are the Python pass's to the last bit (the same Pinocchio sums); the
+    velocity drift is the closure points' relative velocity instead of ``G v``, equal to rounding.
+
+    Args:
+        model: the scene's model (see :meth:`of`).
+    """
+
+    def __init__(self, model: ConstrainedModel) -> None:
+        self.model = model
+        closures = model.constraints.constraints
+        sides = [closure.sides(model.model) for closure in closures]
+        self.joints_a = np.array([a[0] for a, _ in sides], dtype=np.int32)
+        self.joints_b = np.array([b[0] for _, b in sides], dtype=np.int32)
+        self.local_a = np.array([a[1].translation for a, _ in sides]).reshape(-1, 3)
+        self.local_b = np.array([b[1].translation for _, b in sides]).reshape(-1, 3)
+        self.selection = np.vstack([np.zeros((0, 3)), *(closure.selection for closure in closures)])
+        self.owner = np.repeat(np.arange(len(closures), dtype=np.int32), [closure.rows for closure in closures])
+
+    @classmethod
+    def of(cls, model: ConstrainedModel) -> ClosureSeries | None:
+        """The compiled series of ``model``, or None when it has force elements (their potential energy) or a
+        constraint other than a point or planar-point closure."""
+        if model.forces or unsupported_constraint(model.constraints.constraints, NATIVE_KINDS) is not None:
+            return None
+        return cls(model)
+
+    def drift_and_energy(self, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`StateSeries.drift_and_energy` at the samples (rows of q, v) [m, m/s, J]."""
+        position, velocity, energy = closure_series(
+            self.model.model, self.model.scratch, self.joints_a, self.local_a, self.joints_b, self.local_b,
+            self.selection, self.owner, q, v,
+        )  # fmt: skip
+        return {"position_drift": position, "velocity_drift": velocity, "energy": energy}
 
 
 class StateSeries:
@@ -26,10 +68,14 @@ class StateSeries:
 
     def __init__(self, system: ConstrainedSystem) -> None:
         self.system = system
+        self._closures = ClosureSeries.of(system.model)
 
     def drift_and_energy(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
         """Position drift max |phi| [m or rad], velocity drift max |g| [m/s or rad/s] and total energy
-        [J] per sample; NaN at non-finite samples."""
+        [J] per sample; NaN at non-finite samples. Compiled (:class:`ClosureSeries`) for a scene of point closures
+        without force elements, else a pass over the constraints per sample."""
+        if self._closures is not None:
+            return self._closures.drift_and_energy(q, v)
         model = self.system.model
         n = len(t)
         position, velocity, energy = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
@@ -69,10 +115,19 @@ class StateSeries:
 
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the contacts cannot
-        hold (the last sample of a run that ended with ContactInfeasibleError)."""
+        hold (the last sample of a run that ended with ContactInfeasibleError). On the native path without force
+        elements, Pinocchio's solves at every sample in one compiled call (``NativeKernel.multipliers``), those that
+        miss the check (:meth:`~pinstab.paths.native.NativeDynamics.residual`) taken again one by one as
+        :meth:`~pinstab.system.ConstrainedSystem.multipliers` takes them."""
         system = self.system
         out = np.full((len(t), system.model.constraints.rows), np.nan)
         finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)
+        native = system.native
+        if native is not None and system.banded is None and not system.model.forces:
+            forces, residuals = native.kernel().multipliers(q, v, system.model.no_force, native.rows)
+            passed = finite & (residuals <= ACCEPTED_RESIDUAL)
+            out[passed] = forces[passed]
+            finite &= ~passed
         with np.errstate(over="ignore", invalid="ignore"):
             for k in np.flatnonzero(finite):
                 try:
