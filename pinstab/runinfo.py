@@ -95,6 +95,10 @@ class RunInfo:
             ``t`` [s]; None when it ran to the end.
         limits_active_s: with joint limits on, how long each limit was held [s] by name (``panda_joint4
             upper``), empty when none was reached; None with limits off or a model without limits.
+        timings: the wall time of the :func:`~pinstab.simulate` call split [s]: ``setup_s`` (checks, system,
+            assembly, kernels), ``stepping_s`` (the stepping loops), ``post_s`` (the trajectory, its drift and
+            energy series, a streamed run's derived series); they add up to the trajectory's ``wall_time``. Empty in
+            files saved before it was kept.
     """
 
     scene: str
@@ -124,6 +128,7 @@ class RunInfo:
     contact_events: list[dict[str, Any]] = field(default_factory=list)
     stopped: dict[str, Any] | None = None
     limits_active_s: dict[str, float] | None = None
+    timings: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

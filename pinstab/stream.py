@@ -157,10 +157,11 @@ def write_info(file, info: RunInfo) -> None:
     file.attrs["scene_parameters"] = json.dumps(info.scene_parameters)
 
 
-def rewrite_info(path: str | Path, info: RunInfo) -> None:
-    """Replace the run info of a finished run file (:func:`write_info`)."""
+def rewrite_info(path: str | Path, info: RunInfo, wall_time: float) -> None:
+    """Replace the run info (:func:`write_info`) and the wall time [s] of a finished run file."""
     with h5py_module().File(path, "r+") as file:
         write_info(file, info)
+        file.attrs["wall_time"] = wall_time
 
 
 def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:

@@ -96,7 +96,8 @@ class Trajectory:
         correction_iterations: post-step projection iterations of each sampled step (projection, post).
         spectral_radius: rho(R(tau W)) of the deviation dynamics per sample (methods with a
             stabilization term; NaN otherwise).
-        wall_time: wall-clock time of the stepping loop [s].
+        wall_time: wall-clock time of the :func:`~pinstab.simulate` call [s]: set-up, stepping and post-processing
+            (``info.timings`` splits it; a file saved without ``info.timings`` holds the stepping loop's alone).
         info: scene, method, integrator, solver, path, step and end time, options, constraint layout,
             assembly report, solver statistics (:class:`~pinstab.runinfo.RunInfo`).
         comparison: the trajectory error against a reference, when one was computed (saved with the run).
@@ -143,6 +144,10 @@ class Trajectory:
             else:
                 self._derived.update(series.drift_and_energy(self.t, self.q, self.v))
         return self._derived[name]
+
+    def compute_series(self) -> None:
+        """Compute the drift and energy series now (else they are computed when first read)."""
+        self._get("energy")
 
     multipliers = property(lambda self: self._get("multipliers"), doc="(n, s) [N, N m]")
     position_drift = property(lambda self: self._get("position_drift"), doc="(n,) [m or rad]")
@@ -363,6 +368,7 @@ def run_figures(info: RunInfo, wall_time: float, t_end: float, figures: dict[str
         "steps": info.steps,
         "t_end": t_end,
         "wall_s": wall_time,
+        "timings": info.timings,
         **figures,
         "assembly_iterations": None if assembly is None else assembly.iterations,
         "assembly_residual": None if assembly is None else assembly.residual,
@@ -393,7 +399,8 @@ class StreamedTrajectory:
     """A run streamed to an HDF5 file (:mod:`pinstab.stream`): its info and summary, its samples on disk.
 
     Attributes:
-        path: the file. info: the run info. wall_time: the stepping loop's wall time [s].
+        path: the file. info: the run info. wall_time: the wall time of the :func:`~pinstab.simulate` call [s]
+            (``info.timings`` splits it).
         figures: the summary's figures (:meth:`summary`); None for a run cut off (interrupted).
     """
 
@@ -433,8 +440,9 @@ class StreamedTrajectory:
         return {**run_figures(self.info, self.wall_time, self.info.t_end, figures), "stream": str(self.path)}
 
     def write_info(self) -> None:
-        """Write :attr:`info` to the file again (after the run's end completed it: limits, stop)."""
-        rewrite_info(self.path, self.info)
+        """Write :attr:`info` and :attr:`wall_time` to the file again (after the run's end completed them: limits,
+        stop, timings)."""
+        rewrite_info(self.path, self.info, self.wall_time)
 
     def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """(t [s], q) of the file's samples, a block at a time."""

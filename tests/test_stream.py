@@ -50,8 +50,10 @@ def test_streamed_run_is_the_run_kept_in_memory(tmp_path, every):
     assert loaded.info.to_dict() == {
         **kept.info.to_dict(),
         "solver_statistics": loaded.info.to_dict()["solver_statistics"],
+        "timings": loaded.info.to_dict()["timings"],  # wall-clock times: the two runs' own
     }
     assert loaded.info.steps == kept.info.steps and loaded.info.t_end == kept.info.t_end
+    assert loaded.wall_time == streamed.wall_time == sum(streamed.info.timings.values())
     figures, reference = streamed.summary(), kept.summary()
     for name in ("max_position_drift", "max_velocity_drift", "final_position_drift", "energy_start", "energy_end"):
         assert figures[name] == reference[name], name

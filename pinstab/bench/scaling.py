@@ -27,12 +27,12 @@ PATHS = {
 
 def step_time(n: int, method: str, solver: str | None, dt: float = 1e-3, steps: int = 200) -> float:
     """Median seconds per semi-implicit-Euler step of ``simulate()``'s stepping loop (its
-    ``wall_time``, 5 runs) on nfourbar N = n."""
+    ``info.timings["stepping_s"]``, 5 runs) on nfourbar N = n."""
     scene = load_scene("nfourbar", N=n)
     rounds = []
     for _ in range(5):
         trajectory = simulate(scene, method, "semi-implicit-euler", dt, steps * dt, solver)
-        rounds.append(trajectory.wall_time / steps)
+        rounds.append(trajectory.info.timings["stepping_s"] / steps)
     return float(np.median(rounds))
 
 

@@ -21,7 +21,7 @@ from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
 from .limits import limit_left, not_event_driven
-from .loop import DEFAULT_DRIFT_LIMIT, start_state
+from .loop import DEFAULT_DRIFT_LIMIT, RunClock, start_state
 from .threads import single_blas_thread
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
@@ -149,6 +149,7 @@ def simulate(
         PenetrationWarning: a link of the robot and an object overlap deeper than at the start, beyond the
             tolerance, at the kept samples (:mod:`pinstab.contact.collisions`).
     """
+    clock = RunClock()
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     if dt is None:
@@ -162,26 +163,28 @@ def simulate(
         relative_tolerance(assembly_tol, "assembly_tol")
     q0, v0 = start_state(scene, q0, v0)
     if contacts == "stepping":
-        return _checked(scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream))
+        return _checked(
+            scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock), clock
+        )
     table = joint_limits(scene.model).limits if limits else []
     if table:
         check_start_inside(table, q0, scene.name)
     if contacts is not None:
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,
-            assembly_tol=assembly_tol,
+            assembly_tol=assembly_tol, clock=clock,
         )  # fmt: skip
-        return _checked(scene, events)
+        return _checked(scene, events, clock)
     trajectory = simulate_held(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
-        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream,
+        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream, clock,
     )  # fmt: skip
     if not table:
-        return _checked(scene, trajectory)
+        return _checked(scene, trajectory, clock)
     left = limit_left(trajectory, table)
     if left is None:
         trajectory.info.limits_active_s = {}
-        return _checked(scene, trajectory)
+        return _checked(scene, trajectory, clock)
     reason = f"joint limits: {left[0].name} left at t = {left[1]:.6g} s on the held path"
     refused = not_event_driven(scene)
     if refused:
@@ -192,20 +195,27 @@ def simulate(
             ),
             stacklevel=2,
         )
-        return _checked(scene, trajectory)
+        return _checked(scene, trajectory, clock)
     events = simulate_events(
         scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream,
-        assembly_tol,
+        assembly_tol, clock,
     )  # fmt: skip
-    return _checked(scene, events)
+    return _checked(scene, events, clock)
 
 
-def _checked(scene: Scene, trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
+def _checked(
+    scene: Scene, trajectory: Trajectory | StreamedTrajectory, clock: RunClock
+) -> Trajectory | StreamedTrajectory:
     """``trajectory``, after warning of the robot-object overlaps at its kept samples
-    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`); a streamed run instead gets its completed
-    info written to its file."""
+    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`), its drift and energy series computed (what
+    its summary reads) and its timings set (``clock``); a streamed run instead gets its completed info and timings
+    written to its file."""
     if isinstance(trajectory, StreamedTrajectory):
+        clock.stamp(trajectory)
         trajectory.write_info()  # as completed after the file was finished
-    elif scene.collisions is not None:
+        return trajectory
+    if scene.collisions is not None:
         scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
+    trajectory.compute_series()  # within the call: its wall time covers them
+    clock.stamp(trajectory)
     return trajectory

@@ -27,6 +27,7 @@ from ..trajectory import StreamedTrajectory, Trajectory
 from .limits import not_event_driven
 from .loop import (
     DEFAULT_DRIFT_LIMIT,
+    RunClock,
     error_control,
     kept_when_stopped,
     progress_bar,
@@ -93,10 +94,12 @@ def simulate_events(
     reason: str = "event-driven contacts",
     stream: str | Path | None = None,
     assembly_tol: float | None = None,
+    clock: RunClock | None = None,
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
     event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``; ``assembly_tol``: the closures' assembly
-    tolerance (see :func:`~pinstab.assembly.assemble`)."""
+    tolerance (see :func:`~pinstab.assembly.assemble`); ``clock``: the call's (None: one from here)."""
+    clock = RunClock() if clock is None else clock
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
     limits = limits or []
@@ -114,7 +117,7 @@ def simulate_events(
     stream_records(loop, stream, info)
     bar = progress_bar(grid.steps, scene.name, progress)
     end = None
-    with kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+    with kept_when_stopped(loop, system, info, clock), nullcontext() if bar is None else closing(bar):
         try:
             loop.start(q, v)
             loop.run(q, v, bar)
@@ -123,7 +126,7 @@ def simulate_events(
             loop.records.end_with((loop.grid_index(end.t), float(end.t), end.q, end.v))
             if end.error is not None:
                 raise end.error from None
-    trajectory = trajectory_of(loop, system, info, elapsed())
+    trajectory = trajectory_of(loop, system, info, clock)
     if limits:
         info.limits_active_s = loop.limit_times(info.t_end)
     if end is not None:
@@ -141,8 +144,9 @@ def simulate_stepping(
     v0: np.ndarray,
     progress: bool,
     stream: str | Path | None,
+    clock: RunClock,
 ) -> Trajectory | StreamedTrajectory:
-    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``)."""
+    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), timed by the call's ``clock``."""
     geometries, system, q, v, _ = _contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
@@ -154,9 +158,9 @@ def simulate_stepping(
     loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
     stream_records(loop, stream, info)
     bar = progress_bar(grid.steps, scene.name, progress)
-    with kept_when_stopped(loop, system, info) as elapsed, nullcontext() if bar is None else closing(bar):
+    with kept_when_stopped(loop, system, info, clock), nullcontext() if bar is None else closing(bar):
         loop.run(q, v, bar)
-    return trajectory_of(loop, system, info, elapsed())
+    return trajectory_of(loop, system, info, clock)
 
 
 def _contact_system(

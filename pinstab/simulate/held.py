@@ -20,6 +20,7 @@ from ..system import ConstrainedSystem, build_system
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..zero_dynamics import warn_runaway
 from .loop import (
+    RunClock,
     error_control,
     kept_when_stopped,
     progress_bar,
@@ -56,8 +57,10 @@ def simulate_held(
     atol: float | None,
     method_options: Mapping[str, Any],
     stream: str | Path | None,
+    clock: RunClock,
 ) -> Trajectory | StreamedTrajectory:
-    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored."""
+    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored; timed
+    by the call's ``clock``."""
     carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
     if carried:
         raise PinstabError(
@@ -97,11 +100,11 @@ def simulate_held(
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise
     with (
         np.errstate(over="ignore", invalid="ignore"),
-        kept_when_stopped(loop, system, info) as elapsed,
+        kept_when_stopped(loop, system, info, clock),
         nullcontext() if bar is None else closing(bar),
     ):
         loop.run(q, v, bar)
-    trajectory = trajectory_of(loop, system, info, elapsed())
+    trajectory = trajectory_of(loop, system, info, clock)
     if system.servo is not None and stream is None:
         warn_runaway(trajectory.zero_dynamics, scene.name)
     return trajectory

@@ -4,9 +4,10 @@ budget, a run that stops early."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -48,38 +49,66 @@ def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:
     return {"reason": "contact failure", "t": t, "error": type(error).__name__, "message": str(error)}
 
 
+class RunClock:
+    """The wall-clock split of one :func:`~pinstab.simulate` call [s] (``time.perf_counter``): the set-up (scene
+    checks, system, assembly, kernels; and whatever lies between two stepping loops: a run the joint limits send to
+    the event path steps twice), the stepping loops, and the post-processing after the last (the trajectory, the
+    derived series a streamed run writes, the checks on the samples)."""
+
+    def __init__(self) -> None:
+        self.began = time.perf_counter()
+        self.stepping = 0.0
+        self.stepped: float | None = None  # when the last stepping loop ended
+
+    @contextmanager
+    def stepping_loop(self) -> Iterator[None]:
+        """Around a stepping loop (however it ends): its time counts as stepping."""
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.stepped = time.perf_counter()
+            self.stepping += self.stepped - start
+
+    def split(self) -> dict[str, float]:
+        """``setup_s``, ``stepping_s`` and ``post_s`` so far [s]; they add up to the time since the call began."""
+        now = time.perf_counter()
+        stepped = now if self.stepped is None else self.stepped
+        return {"setup_s": stepped - self.began - self.stepping, "stepping_s": self.stepping, "post_s": now - stepped}
+
+    def stamp(self, trajectory: Trajectory | StreamedTrajectory) -> None:
+        """Set the trajectory's ``info.timings`` to the split so far and its ``wall_time`` to their sum [s]."""
+        trajectory.info.timings = self.split()
+        trajectory.wall_time = sum(trajectory.info.timings.values())
+
+
 @contextmanager
-def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo) -> Iterator[Callable[[], float]]:
-    """Around a run's stepping, yielding its wall time so far [s]: a run that stops early carries the samples it
-    kept: a DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
+def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, clock: RunClock) -> Iterator[None]:
+    """Around a run's stepping, timed by ``clock``: a run that stops early carries the samples it kept: a
+    DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
     ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a
     MemoryBudgetError with its ``trajectory``."""
-    start = time.perf_counter()
-
-    def elapsed() -> float:
-        return time.perf_counter() - start
-
     try:
-        yield elapsed
+        with clock.stepping_loop():
+            yield
     except DivergenceError as exc:
-        wall_time = elapsed()
         finite = loop.records.count - 1  # without the failed step's sample
         finite_info = dataclasses.replace(info)
-        exc.trajectory = trajectory_of(loop, system, info, wall_time)
+        exc.trajectory = trajectory_of(loop, system, info, clock)
         exc.finite_trajectory = (
-            exc.trajectory if _streamed(loop) else trajectory_of(loop, system, finite_info, wall_time, finite)
+            exc.trajectory if _streamed(loop) else trajectory_of(loop, system, finite_info, clock, finite)
         )
         raise
     except KeyboardInterrupt:
-        raise Interrupted(trajectory_of(loop, system, info, elapsed(), cut_off=True)) from None
+        raise Interrupted(trajectory_of(loop, system, info, clock, cut_off=True)) from None
     except ContactInfeasibleError as exc:
-        exc.trajectory = trajectory_of(loop, system, info, elapsed())
+        exc.trajectory = trajectory_of(loop, system, info, clock)
         info.stopped = failure_stop(exc, info.t_end)
         if _streamed(loop):
             exc.trajectory.write_info()
         raise
     except MemoryError as error:
-        raise exhausted(f"the run of scene {info.scene}", error, trajectory_of(loop, system, info, elapsed())) from None
+        raise exhausted(f"the run of scene {info.scene}", error, trajectory_of(loop, system, info, clock)) from None
 
 
 def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
@@ -145,13 +174,13 @@ def trajectory_of(
     loop: StepLoop,
     system: ConstrainedSystem,
     info: RunInfo,
-    wall_time: float,
+    clock: RunClock,
     samples: int | None = None,
     cut_off: bool = False,
 ) -> Trajectory | StreamedTrajectory:
     """The trajectory of the first ``samples`` samples kept (default: all kept so far), with the run info
-    completed; wall_time [s]. A streamed run's file is finished: its last samples written and, unless the run
-    was ``cut_off`` (interrupted), its derived series."""
+    completed and its timings so far (``clock``). A streamed run's file is finished: its last samples written and,
+    unless the run was ``cut_off`` (interrupted), its derived series."""
     records = loop.records
     n = records.count if samples is None else samples
     slot = records.slot(n - 1)
@@ -169,16 +198,22 @@ def trajectory_of(
     if _streamed(loop):
         records.finish()
         records.sink.close()
-        return StreamedTrajectory.complete(records.sink.path, info, wall_time, None if cut_off else StateSeries(system))
-    return Trajectory(  # views of the samples: no second copy of a long run
+        series = None if cut_off else StateSeries(system)
+        streamed = StreamedTrajectory.complete(records.sink.path, info, math.nan, series)
+        clock.stamp(streamed)
+        streamed.write_info()  # with the wall time and timings that include the series
+        return streamed
+    trajectory = Trajectory(  # views of the samples: no second copy of a long run
         records.t[:n],
         records.q[:n],
         records.v[:n],
-        wall_time,
+        math.nan,
         info,
         correction_iterations=records.corrections[:n],
         series=StateSeries(system),
     )
+    clock.stamp(trajectory)
+    return trajectory
 
 
 def run_info(

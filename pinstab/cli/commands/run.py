@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import time
 from typing import Any
 
 from ...analysis import check_coordinates, check_reference, trajectory_error
 from ...errors import PinstabError
 from ...files import check_output
+from ..clock import command_timings
 from ..exits import EXIT_CODES
 from ..options import run_options, scene_arguments, stream_argument
 from ..running import ended, run_summary, simulate_scene
@@ -42,6 +44,7 @@ def run(args: argparse.Namespace, add=None, scene=None) -> dict[str, Any]:
     result)`` adds figures), save and chart when asked."""
     from ...viz.plots import plot_trajectory
 
+    began = time.perf_counter()
     if getattr(args, "stream", None):  # run takes --stream; servo, which runs through here, does not
         _check_stream(args)
     if args.save:
@@ -54,18 +57,21 @@ def run(args: argparse.Namespace, add=None, scene=None) -> dict[str, Any]:
     scene, trajectory, failure = simulate_scene(
         args, None if reference is None else lambda scene: _check_reference(args, scene), scene
     )
+    simulated = time.perf_counter()
     result = run_summary(args, trajectory)
     if add is not None:
         add(scene, trajectory, result)
     if reference is not None:
         trajectory.comparison = trajectory_error(trajectory, reference, args.error_of, scene)
         result["trajectory_error"] = trajectory.comparison.summary(trajectory.t)
+    writing = time.perf_counter()
     if args.save:
         trajectory.save(args.save)
         result["saved"] = args.save
     if args.plot:
         plot_trajectory(trajectory, args.plot, scene)
         result["plot"] = args.plot
+    result.update(command_timings(trajectory.info.timings, began, simulated, writing))  # the whole command's
     return ended(result, failure)
 
 
