@@ -12,13 +12,13 @@ For each integrator, step and r, on the bundled four-bar:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 import pinstab
 from pinstab.assembly import perturbed_start
+from pinstab.bench import save_results
 
 DECAYS = (0.0, 0.3, 0.5, 0.7, 0.9, 0.97)
 STEPS = (1e-4, 1e-3, 1e-2)
@@ -67,8 +67,7 @@ def main() -> None:
             )
             label = integrator + (" held" if hold and integrator != "semi-implicit-euler" else "")
             print(f"{label:20s} dt={dt:<7g} {text}", flush=True)
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(rows, indent=1))
+    save_results(OUT, {"rows": rows})
     print(f"(steps to 1e-3 of the initial violation / max drift over 2 s) -> {OUT}")
 
 

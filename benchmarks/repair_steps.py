@@ -10,7 +10,6 @@ smallest drift reached is printed beside it.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 
 import pinstab
 from pinstab.assembly import perturbed_start
+from pinstab.bench import save_results
 
 STEPS = (1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2e-2)
 TARGET = 1e-10
@@ -62,9 +62,7 @@ def main() -> None:
             for n in CONFIGURATIONS
         ]
         print(f"{dt:>8g}  " + "  ".join(f"{c:>40}" for c in cells), flush=True)
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(rows, indent=1))
-    print(f"-> {OUT}")
+    save_results(OUT, {"rows": rows})
 
 
 if __name__ == "__main__":

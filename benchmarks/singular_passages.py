@@ -16,11 +16,11 @@ It prints a markdown table and writes benchmarks/results/singular_passages.json.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import pinstab
+from pinstab.bench import save_results
 
 METHODS = ("baumgarte", "projection", "post", "mukharlyamov")
 OUT = Path(__file__).parent / "results" / "singular_passages.json"
@@ -80,8 +80,7 @@ def main() -> None:
             f"{args.dt:g}",
         ]
     )
-    OUT.write_text(json.dumps({"command": command, "integrator": "rk4", "dt": args.dt, "rows": rows}, indent=1) + "\n")
-    print(f"wrote {OUT}")
+    save_results(OUT, {"command": command, "integrator": "rk4", "dt": args.dt, "rows": rows})
 
 
 if __name__ == "__main__":

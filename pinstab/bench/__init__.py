@@ -6,9 +6,17 @@ import json
 from pathlib import Path
 from typing import Any
 
+from pinstab.bench.provenance import provenance
+
+
+def stamped(results: dict[str, Any]) -> dict[str, Any]:
+    """``results`` with a ``provenance`` entry first: the commit, versions and command that produced them."""
+    return {"provenance": provenance(), **results}
+
 
 def save_results(path: Path, results: dict[str, Any]) -> None:
-    """Write a benchmark's results as indented JSON (creating the folder) and say where."""
+    """Write a benchmark's results, stamped with their provenance, as indented JSON (creating the folder) and say
+    where."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(results, indent=1))
+    path.write_text(json.dumps(stamped(results), indent=1) + "\n")
     print(f"-> {path}")

@@ -30,6 +30,7 @@ from ..model import ConstrainedModel
 from ..scene import load_scene
 from ..simulate import MIN_RTOL, simulate
 from ..trajectory import configurations_at
+from . import stamped
 from .cluster import dask_client, progress
 from .mujoco_peer import run_mujoco
 from .peers import PEER_SCHEMES, native_pinocchio
@@ -395,7 +396,7 @@ def write_outputs(
     rows = [r.row() for r in results]
     summary = {"scene": scene_name, "reference": reference.kind, **extra, "results": rows}
     with atomic_output(out_dir / "results.json", ".json", "results") as temp:
-        Path(temp).write_text(json.dumps(summary, indent=1))
+        Path(temp).write_text(json.dumps(stamped(summary), indent=1) + "\n")
     with atomic_output(out_dir / "results.csv", ".csv", "results") as temp, open(temp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
