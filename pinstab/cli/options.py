@@ -89,7 +89,8 @@ def parameters(pairs: list[str]) -> dict[str, Any]:
 def scene_arguments(parser: argparse.ArgumentParser) -> None:
     """The scene (bundled name or file), ``--param``, ``--json`` and ``--memory-limit``."""
     parser.add_argument(
-        "scene", help="bundled scene name (fourbar, nfourbar, allegro-sphere, ...: see README) or a .toml file"
+        "scene",
+        help="bundled scene name (fourbar, nfourbar, allegro-sphere, ...: see docs/guide/scenes.md) or a .toml file",
     )
     parser.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"

@@ -35,4 +35,6 @@ def plot(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-register(Command("plot", "chart a saved run (drift, energy error, constraint forces)", arguments, plot, order=5))
+register(
+    Command("plot", "chart a saved run (drift, energy budget and error, constraint forces)", arguments, plot, order=5)
+)

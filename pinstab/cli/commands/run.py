@@ -23,7 +23,12 @@ def arguments(run: argparse.ArgumentParser) -> None:
     run_options(run)
     stream_argument(run)
     run.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
-    run.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error and constraint forces")
+    run.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="chart drift, the energy budget (E - E(0) with the work of force elements, servo controls and impacts, "
+        "and the energy error E - E(0) - W) and constraint forces",
+    )
     run.add_argument(
         "--reference",
         metavar="exact|RUN.npz",

@@ -23,7 +23,12 @@ def arguments(servo: argparse.ArgumentParser) -> None:
         "--check", action="store_true", help="only check at the start that the controls can realize them"
     )
     servo.add_argument("--save", metavar="FILE.npz", help="save the trajectory")
-    servo.add_argument("--plot", metavar="FILE.png", help="chart drift, energy error, constraint forces and controls")
+    servo.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="chart drift, the energy budget (E - E(0) with the work of the controls, force elements and impacts, "
+        "and the energy error E - E(0) - W), constraint forces and controls",
+    )
 
 
 def servo(args: argparse.Namespace) -> dict[str, Any]:

@@ -16,7 +16,9 @@ from .base import Command, register
 def arguments(sweep: argparse.ArgumentParser) -> None:
     """The scene, the grids, the fixed values, the table, Dask, the chart."""
     sweep.epilog = EXIT_CODES
-    sweep.add_argument("scene", help="bundled scene name (pinch, nfourbar, ...: see README) or a .toml file")
+    sweep.add_argument(
+        "scene", help="bundled scene name (pinch, nfourbar, ...: see docs/guide/scenes.md) or a .toml file"
+    )
     sweep.add_argument(
         "--grid",
         action="append",
