@@ -150,7 +150,8 @@ def test_nfourbar_150_under_prlimit_is_refused_naming_rlimit_as():
 def test_a_real_memory_error_under_prlimit_is_named():
     """With the budget raised past the address space (--memory-limit), Pinocchio's allocation fails for real."""
     args = ("run", "nfourbar", "--param", "N=150", "--quiet", "--memory-limit", "100GB")
-    done = python_under_address_limit(CLI, *args)
+    # 1.2 GB: the banded path holds one Data of about 1.4 GB (52 nv^3 bytes), which fits under 2 GB
+    done = python_under_address_limit(CLI, *args, limit=1_200_000_000)
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
     assert "the Pinocchio Data of a model of 301 velocities and 301 joints ran out of memory" in done.stderr
     assert "the tightest limit on this process:" in done.stderr and "RLIMIT_AS" in done.stderr
