@@ -22,10 +22,11 @@ from .zero_dynamics import zero_dynamics_report
 
 
 class ClosureSeries:
-    """The drift and energy series of a scene whose constraints are all point or planar-point closures and that has
-    no force elements, by the compiled kernel (``closure_series``, ``cpp/series.cpp``): one kinematics pass per
-    sample. The position drift and the energy are the Python pass's to the last bit (the same Pinocchio sums); the
-    velocity drift is the closure points' relative velocity instead of ``G v``, equal to rounding.
+    """The drift and energy series of a scene whose constraints are all point or planar-point closures and whose force
+    elements store no energy (motors, dampers, loads: the energy is the mechanism's), by the compiled kernel
+    (``closure_series``, ``cpp/series.cpp``): one kinematics pass per sample. The position drift and the energy are
+    the Python pass's to the last bit (the same Pinocchio sums); the velocity drift is the closure points' relative
+    velocity instead of ``G v``, equal to rounding.
 
     Args:
         model: the scene's model (see :meth:`of`).
@@ -44,9 +45,10 @@ class ClosureSeries:
 
     @classmethod
     def of(cls, model: ConstrainedModel) -> ClosureSeries | None:
-        """The compiled series of ``model``, or None when it has force elements (their potential energy) or a
-        constraint other than a point or planar-point closure."""
-        if model.forces or unsupported_constraint(model.constraints.constraints, NATIVE_KINDS) is not None:
+        """The compiled series of ``model``, or None when a force element stores energy (a spring's potential) or a
+        constraint is other than a point or planar-point closure."""
+        springs = any(element.stores_energy for element in model.forces)
+        if springs or unsupported_constraint(model.constraints.constraints, NATIVE_KINDS) is not None:
             return None
         return cls(model)
 
@@ -73,7 +75,7 @@ class StateSeries:
     def drift_and_energy(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
         """Position drift max |phi| [m or rad], velocity drift max |g| [m/s or rad/s] and total energy
         [J] per sample; NaN at non-finite samples. Compiled (:class:`ClosureSeries`) for a scene of point closures
-        without force elements, else a pass over the constraints per sample."""
+        whose force elements store no energy, else a pass over the constraints per sample."""
         if self._closures is not None:
             return self._closures.drift_and_energy(q, v)
         model = self.system.model

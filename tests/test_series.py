@@ -4,6 +4,8 @@ pinstab's Python pass over the constraints, and Pinocchio's solve sample by samp
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -13,7 +15,8 @@ from pinstab.series import ClosureSeries, StateSeries
 
 LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 EPS = np.finfo(float).eps
-SCENES = [("fourbar", {}), ("nfourbar", {"N": 3}), ("bricard", {})]  # planar-point; on the world (bricard)
+# planar-point; on the world (bricard); a motor and a damper, which store no energy (slider-crank)
+SCENES = [("fourbar", {}), ("nfourbar", {"N": 3}), ("bricard", {}), ("slider-crank", {})]
 
 
 def pinocchio_series(model: pin.Model, closures, q: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
@@ -63,9 +66,9 @@ def test_compiled_series_equal_pinocchio_sample_by_sample(name, parameters):
     assert trajectory.position_drift.max() > 0 and trajectory.velocity_drift.max() > 0  # not a vacuous comparison
 
 
-def test_compiled_series_are_nan_at_non_finite_samples_and_left_to_python_with_forces():
-    """A non-finite sample gives NaN (as the Python pass); a scene with force elements (their potential energy) and
-    one with a weld are left to the Python pass."""
+def test_compiled_series_are_nan_at_non_finite_samples_and_left_to_python_with_springs(tmp_path):
+    """A non-finite sample gives NaN (as the Python pass); a scene with a spring (its potential energy) and one with
+    a weld are left to the Python pass."""
     trajectory = simulate("fourbar", duration=0.01)
     closures = ClosureSeries(trajectory._series.system.model)
     q, v = trajectory.q.copy(), trajectory.v.copy()
@@ -74,7 +77,11 @@ def test_compiled_series_are_nan_at_non_finite_samples_and_left_to_python_with_f
     series = closures.drift_and_energy(q, v)
     for values in series.values():
         assert np.isnan(values[[3, 5]]).all() and np.isfinite(np.delete(values, [3, 5])).all()
-    assert ClosureSeries.of(build_system(load_scene("slider-crank"), "baumgarte").model) is None  # spring-damper
+    robots = Path(__file__).resolve().parents[1] / "robots"
+    sprung = (robots / "slider-crank.toml").read_text().replace("stiffness = 0.0", "stiffness = 50.0")
+    (tmp_path / "sprung.toml").write_text(sprung.replace('"urdf/', f'"{robots}/urdf/'))
+    assert ClosureSeries.of(build_system(load_scene("slider-crank"), "baumgarte").model) is not None  # no spring
+    assert ClosureSeries.of(build_system(load_scene(tmp_path / "sprung.toml"), "baumgarte").model) is None
     assert ClosureSeries.of(build_system(load_scene("delta"), "baumgarte").model) is None  # welds
 
 

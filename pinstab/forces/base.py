@@ -53,6 +53,12 @@ class ForceElement(ABC):
         """Stored energy [J]; zero for non-conservative elements."""
         return 0.0
 
+    @property
+    def stores_energy(self) -> bool:
+        """Whether :meth:`potential_energy` can be non-zero (a spring); False by default: the element stores none,
+        and a run's energy series is the mechanism's alone."""
+        return False
+
     def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
         """Power [W] of the element's non-conservative part, ``tau . v + dV/dt`` (V: :meth:`potential_energy`);
         all of ``tau . v`` for an element that stores none. Needs placements and Jacobians current."""

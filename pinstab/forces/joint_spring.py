@@ -73,6 +73,10 @@ class JointSpring(ForceElement):
         _, gradient = self.coordinate(kin)
         return -self.damping * float(gradient @ v) ** 2
 
+    @property
+    def stores_energy(self) -> bool:
+        return bool(self.stiffness)
+
     def potential_energy(self, kin: Kinematics) -> float:
         if not self.stiffness:
             return 0.0

@@ -61,6 +61,10 @@ class SpringDamper(ForceElement):
             return 0.0
         return -self.damping * float(diff / length @ (jac @ v)) ** 2
 
+    @property
+    def stores_energy(self) -> bool:
+        return self.stiffness != 0.0
+
     def potential_energy(self, kin: Kinematics) -> float:
         _, length, _ = self._geometry(kin)
         return 0.5 * self.stiffness * (length - self.rest_length) ** 2
