@@ -32,10 +32,16 @@ def _version(name: str) -> str | None:
         return None
 
 
+# What a benchmark's figures depend on: the source, not the results that benchmarks write (a run of several
+# benchmarks in one checkout changes those as it goes).
+SOURCE = ("pinstab", "cpp", "benchmarks/*.py", "CMakeLists.txt", "pyproject.toml")
+
+
 def provenance() -> dict[str, Any]:
-    """The commit (``dirty`` when the work tree holds uncommitted changes to tracked files), the versions of
-    pinstab's dependencies and peers, Python, the machine (CPU count) and the command line of this process."""
-    status = _git("status", "--porcelain", "--untracked-files=no")
+    """The commit (``dirty`` when the source differs from it: uncommitted changes to tracked files of
+    :data:`SOURCE`), the versions of pinstab's dependencies and peers, Python, the machine (CPU count) and the
+    command line of this process."""
+    status = _git("status", "--porcelain", "--untracked-files=no", "--", *SOURCE)
     return {
         "commit": _git("rev-parse", "HEAD"),
         "dirty": None if status is None else bool(status),
