@@ -37,9 +37,13 @@ def step(name: str, command: str, cwd: Path) -> dict:
     done = subprocess.run(["bash", "-c", command], cwd=cwd, capture_output=True, text=True)
     wall = time.perf_counter() - began
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    tail = (done.stdout + done.stderr).strip().splitlines()[-1:] or [""]
-    print(f"{name:28s} exit {done.returncode:3d}  {wall:7.1f} s  peak process {peak:6.0f} MiB  {tail[0][:80]}")
-    return {"step": name, "command": command, "exit": done.returncode, "wall_s": wall, "peak_rss_mib": peak}
+    print(f"{name:28s} exit {done.returncode:3d}  {wall:7.1f} s  peak process {peak:6.0f} MiB")
+    record = {"step": name, "command": command, "exit": done.returncode, "wall_s": wall, "peak_rss_mib": peak}
+    if done.returncode:  # what it said last, on either stream (pytest's summary, pip's error)
+        record["stdout_tail"] = done.stdout.strip().splitlines()[-30:]
+        record["stderr_tail"] = done.stderr.strip().splitlines()[-30:]
+        print("\n".join(record["stdout_tail"] + record["stderr_tail"]))
+    return record
 
 
 def main() -> None:
