@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,12 @@ ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 @pytest.fixture
 def data_dir() -> Path:
     return DATA
+
+
+def interruptible() -> None:
+    """``preexec_fn`` of a child a test sends SIGINT: SIGINT at its default, as in a terminal's foreground job (a
+    shell started in the background without job control hands its children SIGINT ignored, and Python keeps it so)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def random_configuration(model: pin.Model, rng: np.random.Generator, scale: float = 1.0) -> np.ndarray:

@@ -13,6 +13,7 @@ import sys
 import numpy as np
 import pytest
 
+from conftest import interruptible
 from pinstab import DivergenceError, SolverError, Trajectory, simulate
 from pinstab import scene as scene_module
 from pinstab.cli import main
@@ -198,7 +199,9 @@ def test_a_real_signal_mid_run_saves_the_partial_trajectory_and_no_temporary_fil
     compiled loop takes the four-bar to about t = 470 s in those 5 s: a run of 1e6 steps would end soon after)."""
     path = tmp_path / "partial.npz"
     argv = ("run", "fourbar", "--duration", "10000", "--record-every", "100", "--quiet", "--save", str(path))
-    process = subprocess.Popen(cli(*argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        cli(*argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible
+    )
     try:
         process.wait(timeout=5.0)
     except subprocess.TimeoutExpired:

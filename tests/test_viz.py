@@ -19,6 +19,7 @@ import pytest
 import umsgpack
 
 import pinstab
+from conftest import interruptible
 from pinstab.cli import main
 from pinstab.errors import SceneError
 from pinstab.model import ConstrainedModel
@@ -83,7 +84,7 @@ def test_live_record_keeps_serving_after_the_motion_until_interrupted(signum, co
     traceback."""
     argv = ["record", "fourbar", "--live", "--duration", "0.2", "--fps", "10", "--json", "--quiet"]
     process = subprocess.Popen([sys.executable, "-m", "pinstab.cli", *argv], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)  # fmt: skip
+                               stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)  # fmt: skip
     try:
         lines = []
         while not lines or "replaying" not in lines[-1]:  # printed once the motion has played
