@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import re
 import subprocess
@@ -13,6 +14,7 @@ import pytest
 from packaging.requirements import Requirement
 
 from pinstab.bench import save_results
+from pinstab.bench.provenance import SOURCE
 
 ROOT = Path(__file__).resolve().parents[1]
 PROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())
@@ -22,10 +24,12 @@ def _name(requirement: str) -> str:
     return re.match(r"[A-Za-z0-9_.-]+", requirement).group(0).lower()
 
 
-def _readme_commands() -> list[str]:
-    """The README's first two bash blocks' command lines (comments dropped)."""
-    blocks = re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), re.S)[:2]
-    return [next(line for line in block.splitlines() if line and not line.startswith("#")) for block in blocks]
+def _readme_commands() -> tuple[str, str]:
+    """The README's main-job and test commands, as ``benchmarks/setup_sequence.py`` reads and runs them."""
+    spec = importlib.util.spec_from_file_location("setup_sequence", ROOT / "benchmarks" / "setup_sequence.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.readme_commands()
 
 
 def test_the_build_group_is_the_build_systems_requirements_with_cmake_and_ninja():
@@ -73,8 +77,7 @@ def test_save_results_stamps_the_commit_and_versions(tmp_path):
     stamp = written["provenance"]
     assert stamp["commit"] == _git("rev-parse", "HEAD")
     assert stamp["versions"]["numpy"] == np.__version__
-    source = ("pinstab", "cpp", "benchmarks/*.py", "CMakeLists.txt", "pyproject.toml")
-    assert stamp["dirty"] == bool(_git("status", "--porcelain", "--untracked-files=no", "--", *source))
+    assert stamp["dirty"] == bool(_git("status", "--porcelain", "--untracked-files=no", "--", *SOURCE))
 
 
 RESULTS = sorted(p for p in (ROOT / "benchmarks").rglob("*.json"))
