@@ -162,6 +162,18 @@ def test_grasp_tilt_axis_takes_a_negative_vector_in_each_spelling(capsys, spelli
     assert tilts["-axis"] is None
 
 
+@pytest.mark.parametrize("scale", ["1e300", "1e-300"])
+def test_grasp_tilt_axis_is_a_direction_at_any_scale(capsys, scale):
+    """An axis of length 1e300 or 1e-300 is the direction -x (its norm overflowed to inf, then the axis to zero:
+    slip at 0 deg, exit 0), as in the test above: 1.787 deg."""
+    code, out, err = run_cli(
+        capsys, "grasp", "allegro-sphere", "--squeeze", "0.56", f"--tilt-axis=-{scale},0,0", "--json"
+    )
+    assert code == 0, err
+    tilts = json.loads(out)["objects"]["ball"]["first_slip_tilt_deg"]
+    assert tilts["+axis"] == pytest.approx(1.787, abs=1e-3) and tilts["-axis"] is None
+
+
 @pytest.mark.parametrize(("value", "message"), [("1,0", "got 2"), ("x,0,0", "'x,0,0' is not a number")])
 def test_grasp_tilt_axis_refuses_other_than_three_numbers(capsys, value, message):
     with pytest.raises(SystemExit) as exit_:

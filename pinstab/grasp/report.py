@@ -158,8 +158,9 @@ def analyse_scene_grasps(
         axes = horizontal_axes(gravity) if np.linalg.norm(gravity) > 0 else {}
     else:
         axis = np.asarray(tilt_axis, float)
-        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or not np.any(axis):
             raise PinstabError(f"the tilt axis must be three finite numbers, not all zero, got {tilt_axis!r}")
+        axis = axis / np.abs(axis).max()  # first to its largest entry: the norm of 1e300 or 1e-300 is inf or 0
         axes = {"axis": axis / np.linalg.norm(axis)}
     model = ConstrainedModel(scene)
     start = assemble(model, scene.q0, scene.v0)
