@@ -21,6 +21,7 @@ from ..trajectory import StreamedTrajectory, Trajectory
 from ..zero_dynamics import warn_runaway
 from .loop import (
     RunClock,
+    check_drift_limit,
     error_control,
     kept_when_stopped,
     progress_bar,
@@ -68,8 +69,7 @@ def simulate_held(
             "event-driven contacts model; run it with contacts='event'"
         )
     grid = TimeGrid.of(dt, duration, record_every)
-    if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
-        raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    check_drift_limit(drift_limit)
     control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
     require_memory(scene, grid, record_every, stream)
     system = build_system(scene, method, solver, solver_options, **method_options)

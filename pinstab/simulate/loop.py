@@ -139,17 +139,29 @@ def kept_samples(scene: Scene, steps: int, record_every: int) -> tuple[int, int]
     return samples, samples_bytes(samples, model.nq, model.nv, scene.constraint_set.rows)
 
 
-def require_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str | Path | None) -> None:
-    """Refuse (MemoryBudgetError) a run whose Pinocchio data and kept samples (a window of them when streamed)
-    would exceed the budget."""
+def check_drift_limit(drift_limit: Any) -> float:
+    """``drift_limit`` [m or rad] as a float; refused (PinstabError) unless a positive number."""
+    if isinstance(drift_limit, bool) or not isinstance(drift_limit, int | float) or not drift_limit > 0:
+        raise PinstabError(f"drift_limit must be a positive number, got {drift_limit!r}")
+    return float(drift_limit)
+
+
+def run_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str | Path | None) -> dict[str, int]:
+    """The estimated memory of a run [bytes] by item: its Pinocchio data and its kept samples (a window of them
+    when streamed)."""
     model = scene.model
     samples, size = kept_samples(scene, grid.steps if stream is None else STREAM_WINDOW * record_every, record_every)
+    return {
+        f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
+        * data_bytes(model.nv, model.njoints),
+        f"{samples:,} kept samples": size,
+    }
+
+
+def require_memory(scene: Scene, grid: TimeGrid, record_every: int, stream: str | Path | None) -> None:
+    """Refuse (MemoryBudgetError) a run whose :func:`run_memory` would exceed the budget."""
     require(
-        {
-            f"Pinocchio data ({RUN_DATA_COPIES} copies, nv = {model.nv})": RUN_DATA_COPIES
-            * data_bytes(model.nv, model.njoints),
-            f"{samples:,} kept samples": size,
-        },
+        run_memory(scene, grid, record_every, stream),
         f"a run of scene {scene.name} ({grid.steps:,} steps, a sample kept every {record_every})",
         "keep fewer samples (--record-every, record_every), stream them to disk (--stream FILE.h5, stream), use a "
         "larger step or a shorter duration",
