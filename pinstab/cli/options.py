@@ -96,6 +96,11 @@ def scene_arguments(parser: argparse.ArgumentParser) -> None:
         "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    memory_limit_argument(parser)
+
+
+def memory_limit_argument(parser: argparse.ArgumentParser) -> None:
+    """``--memory-limit SIZE``: the memory budget of the command's work (``args.memory_limit``)."""
     parser.add_argument(
         "--memory-limit",
         metavar="SIZE",
