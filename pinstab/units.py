@@ -34,6 +34,9 @@ MAGNITUDE_REASON = (
     "products overflow"
 )
 
+MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate (or a target's value) beyond it is a mistake
+COORDINATE_REASON = "where sines, cosines and positions lose their digits"
+
 # joint-coordinate dimensions: a revolute coordinate is an angle, a prismatic one a length
 COORDINATE_DIMENSIONS = {"angle", "length"}
 RATE_DIMENSIONS = {"angular-velocity", "velocity"}

@@ -24,14 +24,13 @@ import pinocchio as pin
 from .constraints import Constraint, FrameClosure
 from .errors import SceneError, repeated
 from .tables import WORLD
-from .units import within_ceiling
+from .units import COORDINATE_REASON, MAX_COORDINATE, within_ceiling
 
 MAX_SCENE_BYTES = 1_000_000
 MAX_DEPTH = 20
 UNIT_TOLERANCE = 1e-3
 # (first, end) of the unit part of a joint's configuration: quaternion [qx, qy, qz, qw] or [cos, sin]
 UNIT_PARTS = {"JointModelFreeFlyer": (3, 7), "JointModelSpherical": (0, 4), "JointModelPlanar": (2, 4)}
-MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate beyond it is a mistake
 
 
 # -- scene files ---------------------------------------------------------------------------------
@@ -157,8 +156,7 @@ def check_configuration(model: pin.Model, q: np.ndarray, where: str) -> None:
     for index in np.flatnonzero(~(np.abs(q) <= MAX_COORDINATE)):
         joint_id = next(j for j in range(1, model.njoints) if index < model.idx_qs[j] + model.nqs[j])
         raise SceneError(
-            f"{where}.{model.names[joint_id]}: {q[index]:g} is beyond {MAX_COORDINATE:g} m or rad, where "
-            "sines, cosines and positions lose their digits"
+            f"{where}.{model.names[joint_id]}: {q[index]:g} is beyond {MAX_COORDINATE:g} m or rad, {COORDINATE_REASON}"
         )
     for joint_id in range(1, model.njoints):
         joint = model.joints[joint_id]
