@@ -14,11 +14,16 @@ A trajectory is a table with a ``kind`` among :data:`TRAJECTORY_KINDS`; its valu
 * ``cubic-spline``: through ``times`` [s] (strictly increasing, at least 2) and ``values``; ``ends =
   "clamped"`` (zero end slopes, the default) or ``"natural"`` (zero end curvature); held outside the times.
 
-Each gives the value and its first and second time derivatives, exactly.
+Each gives the value and its first and second time derivatives, exactly. Every value lies within
+:data:`~pinstab.units.MAX_COORDINATE` [m or rad], every time within :data:`MAX_TIME` [s], every feature in time (a
+move's duration, a spline's interval, a sinusoid's half period) lasts at least :data:`MIN_SPAN` [s], and a
+polynomial's coefficients c_k (k >= 1) lie within :data:`~pinstab.units.MAX_MAGNITUDE` (SI), of degree at most
+:data:`MAX_DEGREE`: refused by name otherwise, before any work.
 """
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
@@ -29,7 +34,23 @@ from scipy.interpolate import CubicSpline
 from ..errors import SceneError, WaypointError, choices
 from ..registry import Registry
 from ..tables import check_keys, vector
-from ..units import quantity
+from ..units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, quantity
+
+MIN_SPAN = 1e-6  # [s] the shortest feature of a target in time: a move's duration, a spline's interval, a
+# sinusoid's half period. Drives' current loops run at 10-100 kHz (10 us and slower); a move of 1 mm in 1 us already
+# asks 6e9 m/s^2 (5.77 change / duration^2), and from about 1e-154 s the derivatives overflow
+MAX_TIME = 1e9  # [s] (32 years) the latest (or earliest) time a target names: float64 resolves times up to it to
+# 1.2e-7 s, finer than MIN_SPAN; beyond, a move's start and end round to the same time
+MAX_OMEGA = math.pi / MIN_SPAN  # [rad/s] a sinusoid's half period at least MIN_SPAN
+MAX_DEGREE = 15  # a polynomial's: at t = 10 s the terms of degree 0 to 15 span 15 decades, all of float64's digits
+# (minimum-snap and minimum-crackle moves are of degree 7 and 9; longer shapes are cubic-spline waypoints)
+SPAN_REASON = (
+    f"a target's feature in time (a move's duration, a spline's interval, a sinusoid's half period) shorter than "
+    f"{MIN_SPAN:g} s is beyond any actuator (current loops run at 10-100 kHz) and its derivatives grow as "
+    "1/duration^2, overflowing from about 1e-154 s"
+)
+TIME_REASON = f"float64 resolves times up to {MAX_TIME:g} s to 1.2e-7 s, finer than a target's shortest feature"
+UNIT_NAMES = {"length": "m", "angle": "rad", "coordinate": "m or rad"}  # SI units of a target's dimension
 
 
 class TargetTrajectory(ABC):
@@ -74,16 +95,43 @@ class TargetContext:
     start: np.ndarray
 
     def value(self, raw: Any, where: str) -> np.ndarray:
-        """One value of the target: a number (size 1) or a list of 3 (size 3), with units of the dimension."""
+        """One value of the target: a number (size 1) or a list of 3 (size 3), with units of the dimension, within
+        :data:`~pinstab.units.MAX_COORDINATE` [m or rad]."""
         if self.size == 1:
-            return np.array([quantity(raw, self.dimension, where)])
-        return vector(raw, self.size, where, self.dimension)
+            values = np.array([quantity(raw, self.dimension, where)])
+        else:
+            values = vector(raw, self.size, where, self.dimension)
+        return within(values, MAX_COORDINATE, where, UNIT_NAMES[self.dimension], COORDINATE_REASON)
 
     def rate(self, raw: Any, dimension: str, where: str) -> np.ndarray:
         """A number for every component, or (size 3) one per component, in ``dimension``."""
         if self.size > 1 and isinstance(raw, list):
             return vector(raw, self.size, where, dimension)
         return np.full(self.size, quantity(raw, dimension, where))
+
+
+def within(
+    values: np.ndarray, bound: float, where: str, unit: str, reason: str, lower: float | None = None
+) -> np.ndarray:
+    """``values`` [SI] when each lies in [``lower`` (default -bound), ``bound``].
+
+    Raises:
+        SceneError: naming the first outside (``where``, or ``where[i]`` of a vector), the allowed range and why.
+    """
+    low = -bound if lower is None else lower
+    outside = np.flatnonzero(~((values >= low) & (values <= bound)))
+    if outside.size:
+        i = int(outside[0])
+        name = where if values.size == 1 else f"{where}[{i}]"
+        raise SceneError(
+            f"{name} = {values.flat[i]:.3g} {unit} is outside the allowed range [{low:g}, {bound:g}] {unit}: {reason}"
+        )
+    return values
+
+
+def instant(raw: Any, where: str) -> float:
+    """A time a target names [s]: finite, within +-:data:`MAX_TIME`."""
+    return float(within(np.array([quantity(raw, "time", where)]), MAX_TIME, where, "s", TIME_REASON)[0])
 
 
 TRAJECTORY_KINDS: Registry[TargetTrajectory] = Registry("trajectory kind")
@@ -132,13 +180,25 @@ def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynom
     raw = entry.get("coefficients")
     if not isinstance(raw, list) or not raw:
         raise SceneError(f"{where}: 'coefficients' must be a non-empty list [c0, c1, ...] (c_k in unit/s^k)")
+    if len(raw) > MAX_DEGREE + 1:
+        raise SceneError(
+            f"{where}: {len(raw)} coefficients, a polynomial of degree {len(raw) - 1}; at most {MAX_DEGREE + 1} "
+            f"(degree {MAX_DEGREE}: beyond, its terms span more decades than float64 has digits); give longer "
+            "shapes as cubic-spline waypoints"
+        )
     unit = entry.get("unit")
     scale = 1.0 if unit is None else quantity(f"1 {unit}", context.dimension, f"{where}.unit")
     if context.size == 1:
         rows = [[_number(c, f"{where}.coefficients[{k}]")] for k, c in enumerate(raw)]
     else:
         rows = [vector(c, context.size, f"{where}.coefficients[{k}]", None) for k, c in enumerate(raw)]
-    return Polynomial(scale * np.array(rows, dtype=float))
+    coefficients = scale * np.array(rows, dtype=float)
+    unit_name = UNIT_NAMES[context.dimension]
+    within(coefficients[0], MAX_COORDINATE, f"{where}.coefficients[0]", unit_name, COORDINATE_REASON)
+    per = unit_name if " " not in unit_name else f"({unit_name})"
+    for k, row in enumerate(coefficients[1:], start=1):
+        within(row, MAX_MAGNITUDE, f"{where}.coefficients[{k}]", f"{per}/s^{k}", MAGNITUDE_REASON)
+    return Polynomial(coefficients)
 
 
 def _number(value: Any, where: str) -> float:
@@ -179,11 +239,13 @@ def sinusoid(entry: dict, context: TargetContext, where: str) -> Sinusoid:
     """The sinusoid of a table of :data:`SINUSOID_KEYS` (also the older ``sine = {...}`` forms)."""
     zero = [0.0] * context.size if context.size > 1 else 0.0
     offset = context.value(entry["offset"], f"{where}.offset") if "offset" in entry else context.start
+    omega = context.rate(entry.get("omega", 0.0), "angular-velocity", f"{where}.omega")
+    phase = context.rate(entry.get("phase", 0.0), "angle", f"{where}.phase")
     return Sinusoid(
         offset,
         context.value(entry.get("amplitude", zero), f"{where}.amplitude"),
-        context.rate(entry.get("omega", 0.0), "angular-velocity", f"{where}.omega"),
-        context.rate(entry.get("phase", 0.0), "angle", f"{where}.phase"),
+        within(omega, MAX_OMEGA, f"{where}.omega", "rad/s", SPAN_REASON),
+        within(phase, MAX_COORDINATE, f"{where}.phase", "rad", COORDINATE_REASON),
     )
 
 
@@ -215,10 +277,11 @@ def parse_minimum_jerk(entry: dict, context: TargetContext, where: str) -> Minim
     if "to" not in entry or "duration" not in entry:
         raise SceneError(f"{where}: 'to' and 'duration' are required ('from' and 'start' are optional)")
     origin = context.value(entry["from"], f"{where}.from") if "from" in entry else context.start
-    duration = quantity(entry["duration"], "time", f"{where}.duration")
+    duration = instant(entry["duration"], f"{where}.duration")
     if not duration > 0:
         raise SceneError(f"{where}.duration must be positive, got {entry['duration']!r}")
-    start = quantity(entry.get("start", 0.0), "time", f"{where}.start")
+    within(np.array([duration]), MAX_TIME, f"{where}.duration", "s", SPAN_REASON, lower=MIN_SPAN)
+    start = instant(entry.get("start", 0.0), f"{where}.start")
     return MinimumJerk(origin, context.value(entry["to"], f"{where}.to"), start, duration)
 
 
@@ -255,13 +318,20 @@ def parse_spline(entry: dict, context: TargetContext, where: str) -> Spline:
         raise WaypointError(
             f"{where}: {len(times)} times and {len(values)} values; give as many values as times, at least 2"
         )
-    seconds = np.array([quantity(x, "time", f"{where}.times[{k}]") for k, x in enumerate(times)])
+    seconds = np.array([instant(x, f"{where}.times[{k}]") for k, x in enumerate(times)])
     backwards = np.flatnonzero(np.diff(seconds) <= 0)
     if backwards.size:
         k = int(backwards[0])
         raise WaypointError(
             f"{where}: times must increase strictly: times[{k + 1}] = {seconds[k + 1]:g} s after "
             f"times[{k}] = {seconds[k]:g} s"
+        )
+    close = np.flatnonzero(np.diff(seconds) < MIN_SPAN)
+    if close.size:
+        k = int(close[0])
+        raise WaypointError(
+            f"{where}: times[{k + 1}] = {seconds[k + 1]:.9g} s is {seconds[k + 1] - seconds[k]:.3g} s after "
+            f"times[{k}]; waypoints at least {MIN_SPAN:g} s apart: {SPAN_REASON}"
         )
     ends = entry.get("ends", "clamped")
     if ends not in SPLINE_ENDS:
