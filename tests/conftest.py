@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import signal
 from pathlib import Path
 
@@ -88,18 +89,21 @@ def pendulum_scene(length: float, gravity: float, initial: dict | None = None):
     return scene
 
 
-# Hypothesis profiles for tests/test_fuzz.py, chosen by HYPOTHESIS_PROFILE: "default" (200 examples per
-# property, derandomized so CI is reproducible) or "nightly" (2000 examples, random).
+# Hypothesis profiles of the fuzzers (tests/test_fuzz*.py), chosen by HYPOTHESIS_PROFILE: "default" (CI: each
+# property's own bound, tests/fuzzing.py examples(); derandomized and without a database, so reproducible),
+# "nightly" (2000 examples per property, random) or "long" (10,000 per property, random; README's development section).
+HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "default")
+
+
 def _register_hypothesis_profiles() -> None:
     """Register and load the Hypothesis settings profiles."""
-    import os
-
     from hypothesis import HealthCheck, settings
 
     relaxed = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-    settings.register_profile("default", max_examples=200, derandomize=True, print_blob=True, **relaxed)
+    settings.register_profile("default", max_examples=200, derandomize=True, database=None, print_blob=True, **relaxed)
     settings.register_profile("nightly", max_examples=2000, print_blob=True, **relaxed)
-    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+    settings.register_profile("long", max_examples=10_000, print_blob=True, **relaxed)
+    settings.load_profile(HYPOTHESIS_PROFILE)
 
 
 _register_hypothesis_profiles()
