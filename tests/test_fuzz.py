@@ -21,11 +21,8 @@ The number of examples comes from the Hypothesis profile (tests/conftest.py, ``H
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import datetime
-import io
-import json
 import math
 import tomllib
 from collections.abc import Callable
@@ -35,13 +32,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fuzzing import assert_error, check_file, toml_document
 from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import DATA, ROBOTS
 from pinstab import AssemblyError, HolonomicConstraint, PfaffianConstraint, assemble, simulate
 from pinstab.actuation import ACTUATION_KEYS
-from pinstab.cli import main
 from pinstab.constraints import CONSTRAINT_KINDS
 from pinstab.contact.objects import OBJECT_KEYS
 from pinstab.errors import ConstraintError, PinstabError, SceneError
@@ -54,33 +51,6 @@ DT = 1e-3
 SCENE_FILES = sorted(ROBOTS.glob("*.toml"))
 SCENES: dict[str, dict[str, Any]] = {path.stem: tomllib.loads(path.read_text()) for path in SCENE_FILES}
 TEXTS: dict[str, str] = {path.stem: path.read_text() for path in SCENE_FILES}
-
-
-# -- TOML writing --------------------------------------------------------------------------------------
-def toml_value(value: Any) -> str:
-    """``value`` as a TOML value (tables inline, so one line)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        return ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
-    if isinstance(value, (datetime.date, datetime.time)):
-        return value.isoformat()
-    if isinstance(value, list):
-        return "[" + ", ".join(toml_value(item) for item in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{toml_value(str(key))} = {toml_value(item)}" for key, item in value.items()) + "}"
-    raise TypeError(f"no TOML form for {type(value).__name__}")
-
-
-def toml_document(data: dict[str, Any]) -> str:
-    """A TOML document whose top-level table is ``data``."""
-    return "".join(f"{toml_value(str(key))} = {toml_value(value)}\n" for key, value in data.items())
 
 
 # -- what the fuzzer draws from ------------------------------------------------------------------------
@@ -305,25 +275,6 @@ def scene_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("fuzz")
     (folder / "urdf").symlink_to(ROBOTS / "urdf", target_is_directory=True)
     return folder
-
-
-def assert_error(exc: PinstabError) -> None:
-    """A PinstabError must say something."""
-    assert str(exc).strip(), f"{type(exc).__name__} with an empty message"
-
-
-def check_file(path: Path) -> None:
-    """``pinstab check FILE --json`` in process: exit 0 with finite figures, or 2/3 with a message."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["check", str(path), "--json"])
-    if code == 0:
-        result = json.loads(out.getvalue())
-        figures = ("nq", "nv", "rows", "rank", "assembly_residual", "assembly_velocity_residual")
-        assert all(result[key] is not None for key in figures), result  # None: the figure was not finite
-    else:
-        assert code in (2, 3), code
-        assert "error:" in err.getvalue() and err.getvalue().split("error:", 1)[1].strip()
 
 
 def run_briefly(scene: Scene) -> None:

@@ -1,0 +1,198 @@
+"""What the property-based fuzzers share (tests/test_fuzz*.py): TOML writing, the command line run in process, the
+time bound of an example, outputs that must not be lost, and the physics a contact scene guarantees (gaps, energy).
+
+The invariant every fuzzer asserts: an input either runs with finite results, or ends in a
+:class:`~pinstab.errors.PinstabError` (exit 2, 3, 4 or 5 on the command line) whose message says what is wrong;
+never another exception or a traceback, never a hang, never a file lost, never a body through a plane it touches.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import faulthandler
+import io
+import json
+import math
+import signal
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from hypothesis import settings
+
+from conftest import HYPOTHESIS_PROFILE
+from pinstab.cli import main
+from pinstab.constraints.contacts import PointContact
+from pinstab.errors import PinstabError
+from pinstab.scene import Scene
+
+FAILURE_CODES = (2, 3, 4, 5)  # bad input, divergence, stopped at a contact event, contacts without a solution
+EXAMPLE_SECONDS = 30  # [s] wall time of one example before it counts as a hang (runs of a few steps take < 1 s)
+
+
+def examples(ci: int) -> settings:
+    """The examples of a property: ``ci`` under the default profile (CI: the fuzzers together within about two
+    minutes), the profile's own number under the others (``long``: 10,000)."""
+    return settings(max_examples=ci) if HYPOTHESIS_PROFILE == "default" else settings()
+
+
+# -- TOML writing --------------------------------------------------------------------------------------
+def toml_value(value: Any) -> str:
+    """``value`` as a TOML value (tables inline, so one line)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        return ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
+    if isinstance(value, (datetime.date, datetime.time)):
+        return value.isoformat()
+    if isinstance(value, list):
+        return "[" + ", ".join(toml_value(item) for item in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{toml_value(str(key))} = {toml_value(item)}" for key, item in value.items()) + "}"
+    raise TypeError(f"no TOML form for {type(value).__name__}")
+
+
+def toml_document(data: dict[str, Any]) -> str:
+    """A TOML document whose top-level table is ``data``."""
+    return "".join(f"{toml_value(str(key))} = {toml_value(value)}\n" for key, value in data.items())
+
+
+# -- outcomes ------------------------------------------------------------------------------------------
+def assert_error(exc: PinstabError) -> None:
+    """A PinstabError must say something."""
+    assert str(exc).strip(), f"{type(exc).__name__} with an empty message"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A command's exit code, stdout and stderr."""
+
+    code: int
+    out: str
+    err: str
+
+    @property
+    def message(self) -> str:
+        """The text after ``error:`` on stderr ('' when there is none)."""
+        return self.err.split("error:", 1)[1].strip() if "error:" in self.err else ""
+
+
+def cli(argv: list[str]) -> Outcome:
+    """``pinstab ARGV`` in process: its exit code, never an exception or a traceback; a failure (exit 2-5) says
+    why after ``error:``, and ``--json`` puts one JSON object (or nothing) on stdout."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    outcome = Outcome(code, out.getvalue(), err.getvalue())
+    assert "Traceback" not in outcome.err, outcome.err
+    if code in FAILURE_CODES:
+        assert outcome.message, f"exit {code} without a message: {outcome.err!r}"
+    if "--json" in argv and outcome.out.strip():
+        json.loads(outcome.out)  # nothing but the JSON object on stdout
+    return outcome
+
+
+def check_file(path: Path) -> Outcome:
+    """``pinstab check FILE --json`` in process: exit 0 with finite figures, or 2/3 with a message."""
+    outcome = cli(["check", str(path), "--json"])
+    if outcome.code == 0:
+        result = json.loads(outcome.out)
+        figures = ("nq", "nv", "rows", "rank", "assembly_residual", "assembly_velocity_residual")
+        assert all(result[key] is not None for key in figures), result  # None: the figure was not finite
+    else:
+        assert outcome.code in (2, 3), outcome
+    return outcome
+
+
+class Hang(AssertionError):
+    """An example ran longer than :data:`EXAMPLE_SECONDS`."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float = EXAMPLE_SECONDS) -> Iterator[None]:
+    """Raise :class:`Hang` in the main thread after ``seconds`` of wall time; a hang inside compiled code, which
+    never returns to Python, ends the process with every thread's stack after three times that."""
+
+    def expire(signum: int, frame: Any) -> None:
+        raise Hang(f"the example ran longer than {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    faulthandler.dump_traceback_later(3 * seconds, exit=True)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        faulthandler.cancel_dump_traceback_later()
+        signal.signal(signal.SIGALRM, previous)
+
+
+# -- outputs that must not be lost ---------------------------------------------------------------------
+PRECIOUS = "precious: not pinstab's to overwrite\n"
+OUTPUT_STATES = ("absent", "file", "link")  # what an output path is before the command
+
+
+def prepare_output(path: Path, state: str) -> Path | None:
+    """Put ``path`` in ``state`` (absent, an existing file, a symbolic link to one); returns the file that
+    holds :data:`PRECIOUS` (None when absent)."""
+    path.unlink(missing_ok=True)
+    if state == "absent":
+        return None
+    precious = path if state == "file" else path.with_name(path.name + ".target")
+    precious.write_text(PRECIOUS)
+    if state == "link":
+        path.symlink_to(precious)
+    return precious
+
+
+def assert_not_lost(path: Path, precious: Path | None, state: str) -> None:
+    """A link's target keeps its content whatever the command did (the link replaced or left); a file is either
+    left as it was or replaced by a complete output (never a half-written one: the caller loads it)."""
+    if precious is None:
+        return
+    if state == "link":
+        assert precious.read_text() == PRECIOUS, f"the target of the link {path} was overwritten"
+        assert path.is_symlink() or not path.exists() or path.resolve() != precious.resolve()
+
+
+# -- what a contact scene guarantees ---------------------------------------------------------------------
+def plane_contacts(scene: Scene) -> list[PointContact]:
+    """The scene's plane contacts."""
+    return [constraint for constraint in scene.constraints if isinstance(constraint, PointContact)]
+
+
+def contact_gaps(scene: Scene, q: np.ndarray) -> np.ndarray:
+    """Signed distances (samples, contacts) [m] of each plane contact's point (less its sphere's radius) from its
+    plane at the configurations ``q`` (samples, nq), by Pinocchio's frame placements: negative inside the plane."""
+    data = scene.model.createData()
+    contacts = plane_contacts(scene)
+    gaps = np.zeros((len(q), len(contacts)))
+    for k, configuration in enumerate(q):
+        pin.framesForwardKinematics(scene.model, data, configuration)
+        for i, contact in enumerate(contacts):
+            point = data.oMf[contact.frame_a].translation
+            if contact.plane_frame is not None:
+                point = data.oMf[contact.plane_frame].actInv(point)
+            gaps[k, i] = contact.selection[0] @ (point - contact.plane_point) - contact.radius
+    return gaps
+
+
+def mechanical_energy(scene: Scene, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Kinetic plus gravitational energy [J] at each sample, by Pinocchio (gravity of the scene's model)."""
+    data = scene.model.createData()
+    energy = np.zeros(len(q))
+    for k, (configuration, velocity) in enumerate(zip(q, v, strict=True)):
+        energy[k] = pin.computeKineticEnergy(scene.model, data, configuration, velocity) + pin.computePotentialEnergy(
+            scene.model, data, configuration
+        )
+    return energy
