@@ -15,6 +15,11 @@ from .units import quantity
 
 WORLD = "world"
 FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
+MIN_SCENE_SIZE = 1.0  # [m] the size of a smaller scene (a hand, a pendulum): its lengths keep their digits anyway
+MAX_REACH = 10.0  # [-] scene sizes: the farthest a point read on a body (a contact, closure or target point, a
+# fingertip's radius) may lie from its frame's origin, or a point on the world from the world's origin. The scene's
+# size bounds every body's frames and mass; a point ten times farther is on no body of the scene (a typing or
+# unit mistake: 1e6 for 1e-6), and next to the scene's lengths it leaves float64 fewer digits for them
 
 
 def toml_scalar(text: str) -> Any:
@@ -90,6 +95,20 @@ def frame_id(model: pin.Model, name: Any, where: str) -> int:
     raise SceneError(f"{where}: unknown frame {name!r}; valid frames: {WORLD}, {choices(valid)}")
 
 
+@np.errstate(over="ignore", invalid="ignore")  # a model too large for floating point: an infinite size
+def scene_size(model: pin.Model, q: np.ndarray) -> float:
+    """The scene's size [m]: the diagonal of the box holding, at configuration ``q``, the world origin and the
+    origins of every joint and frame and every body's centre of mass, or the largest body's gyration diameter
+    ``2 sqrt(tr(I_c) / m)`` (a box of side s: 1.41 s) if larger, at least :data:`MIN_SCENE_SIZE`."""
+    data = new_data(model)
+    pin.framesForwardKinematics(model, data, q)
+    centres = [data.oMi[joint].act(inertia.lever) for joint, inertia in enumerate(model.inertias)]
+    points = np.array([np.zeros(3), *(m.translation for m in (*data.oMi, *data.oMf)), *centres])
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    gyration = [2.0 * np.sqrt(np.trace(i.inertia) / i.mass) for i in model.inertias if i.mass > 0]
+    return max(MIN_SCENE_SIZE, diagonal, *gyration)
+
+
 class SceneTables:
     """What a constraint or force kind needs to read its scene table: the (reduced) model, to which
     it may add operational frames at its points.
@@ -104,6 +123,8 @@ class SceneTables:
         claimed_joints: joints a kind has positioned in ``q0``, with the item that did (a later item
             leaves them alone).
         constraints: the scene's constraint blocks by name, once they are read (force kinds see them).
+        size: the scene's size [m] at ``q0`` (:func:`scene_size`), before any kind adds a frame; the points the
+            kinds read are checked against it (:meth:`within_reach`).
     """
 
     def __init__(self, model: pin.Model, q0: np.ndarray, objects: dict[str, Any] | None = None) -> None:
@@ -112,6 +133,7 @@ class SceneTables:
         self.objects = objects or {}
         self.claimed_joints: dict[int, str] = {}
         self.constraints: dict[str, Any] = {}
+        self.size = scene_size(model, q0)
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)
@@ -125,6 +147,20 @@ class SceneTables:
     def frame_id(self, name: Any, where: str) -> int:
         """A frame's index by name."""
         return frame_id(self.model, name, where)
+
+    def within_reach(self, point: np.ndarray | float, where: str) -> None:
+        """Refuse a point [m] (a 3-vector: on a body in its frame's axes, or on the world) or a length on a body
+        farther than :data:`MAX_REACH` times :attr:`size` from its frame's origin."""
+        with np.errstate(over="ignore"):  # an overflowing norm is infinite: refused
+            distance = float(np.linalg.norm(point))
+        limit = MAX_REACH * self.size
+        if not distance <= limit:
+            shown = f"[{', '.join(f'{x:.6g}' for x in point)}]" if np.ndim(point) else f"{point:.6g}"
+            raise SceneError(
+                f"{where} = {shown} m lies {distance:.3g} m from its frame's origin, beyond {MAX_REACH:g} times the "
+                f"scene's size ({self.size:.3g} m: its frames and bodies at the start), the allowed range [0, "
+                f"{limit:.3g}] m: a point that far is on no body of the scene (check its value and unit)"
+            )
 
     def point_frame(self, frame_name: Any, offset: pin.SE3, new_name: str, where: str) -> int:
         """Add an operational frame ``new_name`` at ``offset`` in frame ``frame_name``; its index."""
@@ -142,6 +178,7 @@ class SceneTables:
         if frame_key not in entry:
             raise SceneError(f"{where}: {frame_key!r} is required")
         offset = placement(entry, offset_key, rpy_key, where)
+        self.within_reach(offset.translation, f"{where}.{offset_key}")
         return self.point_frame(entry[frame_key], offset, new_name, f"{where}.{frame_key}")
 
     def initial_placement(self, frame: int) -> pin.SE3:
@@ -172,6 +209,7 @@ def closure_frames(entry: dict, tables: SceneTables, name: str, where: str) -> t
     side b's frame (None for the world) or, on the world, its placement (``offset_b`` [m], ``rpy_b`` [rad])."""
     frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
+    tables.within_reach(offset_b.translation, f"{where}.offset_b")
     if entry.get("frame_b", WORLD) == WORLD:
         return frame_a, None, offset_b
     return frame_a, tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b"), None
