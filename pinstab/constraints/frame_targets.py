@@ -127,7 +127,7 @@ def parse_frame_path(entry: dict, tables: SceneTables, name: str, where: str) ->
     point's start), ``amplitude`` [m] and ``phase`` [rad] (3 each), ``omega`` [rad/s]."""
     tables.check_keys(entry, PATH_KEYS, where)
     frame = tables.attached_frame(entry, "frame", "offset", "rpy", f"{name}/point", where)
-    context = TargetContext(3, "length", tables.initial_placement(frame).translation)
+    context = TargetContext(3, "length", tables.initial_placement(frame).translation, tables.within_reach)
     if "path" not in entry:
         sine = {key: entry[key] for key in SINE_PATH_KEYS & set(entry)}
         if "centre" in sine:
@@ -146,7 +146,8 @@ def parse_frame_pose(entry: dict, tables: SceneTables, name: str, where: str) ->
     frame = tables.attached_frame(entry, "frame", "offset", "rpy", f"{name}/frame", where)
     start = tables.initial_placement(frame)
     held = {"kind": "sinusoid"}  # of no amplitude: the start value
-    path = read_trajectory(entry.get("path", held), TargetContext(3, "length", start.translation), f"{where}.path")
+    context = TargetContext(3, "length", start.translation, tables.within_reach)
+    path = read_trajectory(entry.get("path", held), context, f"{where}.path")
     axis = tables.vector(entry.get("axis", [0.0, 0.0, 1.0]), 3, f"{where}.axis", None)
     if not np.any(axis):
         raise SceneError(f"{where}.axis must be a non-zero vector, got {entry['axis']!r}")

@@ -15,7 +15,8 @@ A trajectory is a table with a ``kind`` among :data:`TRAJECTORY_KINDS`; its valu
   "clamped"`` (zero end slopes, the default) or ``"natural"`` (zero end curvature); held outside the times.
 
 Each gives the value and its first and second time derivatives, exactly. Every value lies within
-:data:`~pinstab.units.MAX_COORDINATE` [m or rad], every time within :data:`MAX_TIME` [s], every feature in time (a
+:data:`~pinstab.units.MAX_COORDINATE` [m or rad] (a point's positions and amplitudes also within the scene's reach,
+:data:`~pinstab.tables.MAX_REACH` scene sizes), every time within :data:`MAX_TIME` [s], every feature in time (a
 move's duration, a spline's interval, a sinusoid's half period) lasts at least :data:`MIN_SPAN` [s], and a
 polynomial's coefficients c_k (k >= 1) lie within :data:`~pinstab.units.MAX_MAGNITUDE` (SI), of degree at most
 :data:`MAX_DEGREE`: refused by name otherwise, before any work.
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -88,20 +90,29 @@ class TargetContext:
     Attributes:
         size: 1 (a scalar target) or 3 (a point). dimension: the values' quantity (``length``, ``angle`` or
             ``coordinate``). start: the target's value at the scene's initial configuration (size,).
+        reach: for a point, the check of a position or an amplitude [m] against the scene's size
+            (:meth:`~pinstab.tables.SceneTables.within_reach`), naming ``where``; None: none.
     """
 
     size: int
     dimension: str
     start: np.ndarray
+    reach: Callable[[np.ndarray, str], None] | None = None
 
     def value(self, raw: Any, where: str) -> np.ndarray:
-        """One value of the target: a number (size 1) or a list of 3 (size 3), with units of the dimension, within
-        :data:`~pinstab.units.MAX_COORDINATE` [m or rad]."""
+        """One value of the target: a number (size 1) or a list of 3 (size 3), with units of the dimension
+        (:meth:`bounded`)."""
         if self.size == 1:
-            values = np.array([quantity(raw, self.dimension, where)])
-        else:
-            values = vector(raw, self.size, where, self.dimension)
-        return within(values, MAX_COORDINATE, where, UNIT_NAMES[self.dimension], COORDINATE_REASON)
+            return self.bounded(np.array([quantity(raw, self.dimension, where)]), where)
+        return self.bounded(vector(raw, self.size, where, self.dimension), where)
+
+    def bounded(self, values: np.ndarray, where: str) -> np.ndarray:
+        """``values`` [SI] when within :data:`~pinstab.units.MAX_COORDINATE` [m or rad] and, for a point, the
+        scene's reach."""
+        within(values, MAX_COORDINATE, where, UNIT_NAMES[self.dimension], COORDINATE_REASON)
+        if self.reach is not None:
+            self.reach(values, where)
+        return values
 
     def rate(self, raw: Any, dimension: str, where: str) -> np.ndarray:
         """A number for every component, or (size 3) one per component, in ``dimension``."""
@@ -194,7 +205,7 @@ def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynom
         rows = [vector(c, context.size, f"{where}.coefficients[{k}]", None) for k, c in enumerate(raw)]
     coefficients = scale * np.array(rows, dtype=float)
     unit_name = UNIT_NAMES[context.dimension]
-    within(coefficients[0], MAX_COORDINATE, f"{where}.coefficients[0]", unit_name, COORDINATE_REASON)
+    context.bounded(coefficients[0], f"{where}.coefficients[0]")
     per = unit_name if " " not in unit_name else f"({unit_name})"
     for k, row in enumerate(coefficients[1:], start=1):
         within(row, MAX_MAGNITUDE, f"{where}.coefficients[{k}]", f"{per}/s^{k}", MAGNITUDE_REASON)
