@@ -31,7 +31,7 @@ from .exits import (
     Kept,
 )
 from .options import Parser, common_arguments
-from .output import clean, emit, stopped_text, write
+from .output import clean, emit, json_only_stdout, stopped_text, write
 from .running import run_summary
 
 
@@ -55,7 +55,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     args = build_parser().parse_args(argv)
     received: list[int] = []
-    with _terminate_as_interrupt(received):
+    with _terminate_as_interrupt(received), json_only_stdout() if getattr(args, "json", False) else nullcontext():
         try:
             return _dispatch(args)
         except KeyboardInterrupt as exc:
@@ -185,9 +185,17 @@ def _divergence_payload(
     exc: DivergenceError | ProjectionError, args: argparse.Namespace, saved: str | None
 ) -> dict[str, Any]:
     """A stopped run's JSON: the run's figures up to the last finite state, ``diverged_at`` [s] (the failed
-    step's time) and ``last_finite_state`` (t [s], q, v)."""
+    step's time) and ``last_finite_state`` (t [s], q, v). Figures that cannot be had there (a servo's controls at a
+    state whose dynamics are not finite) are left out, said in ``figures_error`` and on stderr: the JSON never
+    changes the exit code."""
     trajectory = getattr(exc, "finite_trajectory", None)
-    payload = {"scene": args.scene} if trajectory is None else run_summary(args, trajectory)
+    payload: dict[str, Any] = {"scene": args.scene}
+    if trajectory is not None:
+        try:
+            payload = run_summary(args, trajectory)
+        except Exception as error:  # the run's failure is the answer; these figures are extras
+            payload["figures_error"] = f"{type(error).__name__}: {error}"
+            print(f"pinstab {args.command}: the figures up to the last finite state: {error}", file=sys.stderr)
     payload.update(diverged=True, error=str(exc))
     if isinstance(exc, DivergenceError):
         payload["diverged_at"] = exc.diverged_at

@@ -1,16 +1,59 @@
-"""What the commands print: one JSON object, or lines a person reads; a closed stdout ends quietly."""
+"""What the commands print: one JSON object, or lines a person reads; a closed stdout ends quietly; with ``--json``
+nothing but the JSON on stdout (:func:`json_only_stdout`)."""
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import sys
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TextIO
 
 import numpy as np
 
 EVENT_ROWS = 20  # contact events listed in text output (all of them in the JSON)
+_held: list[TextIO] = []  # the original stdout, while json_only_stdout() points file descriptor 1 at stderr
+
+
+@contextmanager
+def json_only_stdout() -> Iterator[None]:
+    """Stdout for the JSON alone: while the command works, file descriptor 1 points at stderr, so that whatever writes
+    to it below the JSON (LAPACK's ``DLASCL`` complaints from Fortran and C, a library's print) lands on stderr, and
+    :func:`write` prints to the original stdout, held meanwhile (or to ``sys.stdout`` when it is not descriptor 1: a
+    capture). Descriptor 1 is restored on every way out (a result, an error, Ctrl-C), after what Python and C buffered
+    for it went to stderr (POSIX: C's buffers flushed by ``fflush(NULL)``)."""
+    stdout = sys.stdout
+    stdout.flush()
+    saved = os.dup(1)
+    held = stdout
+    try:
+        if _descriptor(stdout) == 1:
+            held = open(saved, "w", encoding=stdout.encoding, errors=stdout.errors, closefd=False)
+        _held.append(held)
+        os.dup2(2, 1)
+        yield
+    finally:
+        try:
+            if held in _held:
+                _held.remove(held)
+            if held is not stdout:
+                held.close()
+            sys.stdout.flush()  # Python's and C's buffered text for descriptor 1 to stderr, before it is stdout again
+            ctypes.CDLL(None).fflush(None)
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def _descriptor(stream: TextIO) -> int | None:
+    """The file descriptor a stream writes to, or None (an in-memory stream, a capture)."""
+    try:
+        return stream.fileno()
+    except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation is an OSError and a ValueError
+        return None
 
 
 def stopped_text(stopped: dict[str, Any]) -> str:
@@ -23,13 +66,15 @@ def stopped_text(stopped: dict[str, Any]) -> str:
 
 
 def write(text: str) -> None:
-    """Print ``text`` on stdout; a reader that closed it (``| head``) ends the output quietly: stdout is
-    pointed at /dev/null so that the interpreter's last flush does not fail again."""
+    """Print ``text`` on stdout (the original one, held by :func:`json_only_stdout`); a reader that closed it
+    (``| head``) ends the output quietly: stdout is pointed at /dev/null so that the interpreter's last flush does not
+    fail again."""
+    stream = _held[-1] if _held else sys.stdout
     try:
-        print(text, flush=True)
+        print(text, file=stream, flush=True)
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        os.dup2(devnull, stream.fileno())
         os.close(devnull)
 
 
@@ -71,13 +116,17 @@ def events_table(events: list[dict[str, Any]], rows: int = EVENT_ROWS) -> list[s
 
 
 def clean(value: Any) -> Any:
-    """JSON-safe: numpy scalars to Python, non-finite floats to None."""
+    """JSON-safe: numpy arrays and scalars to Python, paths to strings, non-finite floats to None."""
     if isinstance(value, dict):
         return {k: clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return clean(value.tolist())
     if isinstance(value, (np.floating, float)):
         return float(value) if np.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
+    if isinstance(value, np.generic):  # integers, booleans
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
     return value
