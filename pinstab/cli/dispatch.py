@@ -154,6 +154,7 @@ def _interrupted(exc: KeyboardInterrupt, args: argparse.Namespace, signum: int) 
     kept = f"; the partial trajectory is saved to {saved}" if saved else ""
     streamed = getattr(trajectory, "path", None)
     kept += f"; the samples so far are in {streamed}" if streamed else ""
+    kept += f"; {exc.kept}" if getattr(exc, "kept", None) else ""  # work that stops after its pieces in flight
     cause = "interrupted" if signum == signal.SIGINT else f"stopped by {signal.Signals(signum).name}"
     print(f"pinstab {args.command}: {cause}{where}{kept}", file=sys.stderr)
     return EXIT_SIGNAL_BASE + signum
