@@ -11,6 +11,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from .contact.coefficients import friction_coefficient, restitution_coefficient
 from .errors import SceneError, choices
 from .urdf_text import Joint, Rod, UrdfDocument
 
@@ -125,7 +126,7 @@ def incline(theta: float = 0.5, mu: float = 0.3, v_down: float = 0.0, v_across: 
     gravity is tilted (down the slope is +x): from rest the cube sticks for mu >= tan(theta), else slides
     with x(t) = g (sin theta - mu cos theta) t^2 / 2."""
     theta = _number("incline", "theta", theta, 0.0, math.pi / 2, " [rad]")
-    mu = _number("incline", "mu", mu, 0.0, unit=" [-]")
+    mu = friction_coefficient(mu, "generator incline: parameter mu")
     v_down = _number("incline", "v_down", v_down, -math.inf, unit=" [m/s]")
     v_across = _number("incline", "v_across", v_across, -math.inf, unit=" [m/s]")
     half, inertia = BOX_SIDE / 2, BOX_SIDE**2 / 6
@@ -153,7 +154,7 @@ def sphere_spin(v0: float = 2.0, omega0: float = 5.0, mu: float = 0.3, radius: f
     v* = (5 v0 - 2 r omega0) / 7."""
     v0 = _number("sphere-spin", "v0", v0, -math.inf, unit=" [m/s]")
     omega0 = _number("sphere-spin", "omega0", omega0, -math.inf, unit=" [rad/s]")
-    mu = _number("sphere-spin", "mu", mu, 0.0, unit=" [-]")
+    mu = friction_coefficient(mu, "generator sphere-spin: parameter mu")
     radius = _number("sphere-spin", "radius", radius, 1e-6, unit=" [m]")
     return {
         **_ball(radius),
@@ -169,7 +170,7 @@ def bouncing_ball(height: float = 1.0, restitution: float = 0.5) -> dict[str, An
     """A 1 kg ball (radius 0.05 m) dropped from a gap ``height`` [m] above the plane z = 0 with Newton's
     ``restitution`` e: apex gaps e^(2k) h, at rest at t0 (1 + e) / (1 - e), t0 = sqrt(2 h / g)."""
     height = _number("bouncing-ball", "height", height, 0.0, unit=" [m]")
-    restitution = _number("bouncing-ball", "restitution", restitution, 0.0, 1.0, " [-]")
+    restitution = restitution_coefficient(restitution, "generator bouncing-ball: parameter restitution")
     radius = 0.05
     return {
         **_ball(radius),
@@ -195,7 +196,7 @@ def pinch(mu: float = 0.5, squeeze: float = 1.0, mass: float = 0.1) -> dict[str,
     each pushed against a side face with ``squeeze`` [N]; friction ``mu`` at the two contacts (the fingertip
     point on the face's plane, carried by the cube), gravity along -z. The cube holds iff
     2 mu F >= m g, else slides down with acceleration g - 2 mu F / m."""
-    mu = _number("pinch", "mu", mu, 0.0, unit=" [-]")
+    mu = friction_coefficient(mu, "generator pinch: parameter mu")
     squeeze = _number("pinch", "squeeze", squeeze, 0.0, unit=" [N]")
     mass = _number("pinch", "mass", mass, 1e-9, unit=" [kg]")
     half, inertia = PINCH_SIDE / 2, mass * PINCH_SIDE**2 / 6
@@ -256,7 +257,7 @@ def painleve_rod(mu: float = 2.0) -> dict[str, Any]:
     the least over theta), sliding contact needs N = m g / bracket < 0 (a floor that pulls) and separation
     (N = 0) gives z_A'' = -g < 0 (the end goes through the floor): no mode is consistent. Sticking is not a
     mode of a contact that slips. For mu < 4/3 the end slides with N > 0."""
-    mu = _number("painleve-rod", "mu", mu, 0.0, unit=" [-]")
+    mu = friction_coefficient(mu, "generator painleve-rod: parameter mu")
     half = 0.5
     c, s = math.cos(ROD_ANGLE), math.sin(ROD_ANGLE)
     urdf = _rigid_body("rod", '<box size="1.0 0.02 0.02"/>', 1.0, (5e-5, 1.0 / 12, 1.0 / 12))

@@ -70,6 +70,21 @@ def vector(value: Any, size: int, where: str, dimension: str | None) -> np.ndarr
     return np.array([quantity(x, dimension, where) for x in value])
 
 
+def unit(vector: np.ndarray) -> np.ndarray:
+    """A finite, non-zero ``vector`` scaled to length 1, first to its largest entry (the norm of 1e300 or 1e-300
+    overflows or underflows)."""
+    scaled = np.asarray(vector, dtype=float) / np.abs(vector).max()
+    return scaled / np.linalg.norm(scaled)
+
+
+def direction(value: Any, where: str) -> np.ndarray:
+    """A direction: a list of 3 numbers, not all zero (any scale), as a unit vector."""
+    raw = vector(value, 3, where, None)
+    if not np.any(raw):
+        raise SceneError(f"{where} must be a non-zero vector (a direction), got {value!r}")
+    return unit(raw)
+
+
 def placement(entry: dict[str, Any], offset_key: str, rpy_key: str, where: str) -> pin.SE3:
     """An SE3 from an offset [m] and roll-pitch-yaw angles [rad] (both optional, zero by default)."""
     offset = vector(entry.get(offset_key, [0.0, 0.0, 0.0]), 3, f"{where}.{offset_key}", "length")
@@ -137,6 +152,7 @@ class SceneTables:
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)
+    direction = staticmethod(direction)
     placement = staticmethod(placement)
     quantity = staticmethod(quantity)
 

@@ -170,7 +170,7 @@ BAD_GRASP = [
         r"contact 'tip'\.object: 'finger_lower_link' is not an object of the scene; 'finger_lower_link' is a body "
         r"of the robot, not an object; objects: ball",
     ),
-    ({"contact": {"mu": -0.1}}, r"contact 'tip'\.mu must be >= 0, got -0\.1"),
+    ({"contact": {"mu": -0.1}}, r"contact 'tip'\.mu must be a number in \[0, 10\] \[-\], got -0\.1"),
     ({"contact": {"radius": 0.0}}, r"contact 'tip'\.radius must be > 0, got 0\.0"),
     ({"contact": {"radius": "-2 mm"}}, r"contact 'tip'\.radius must be > 0, got '-2 mm'"),
     ({"position": FAR}, r"contact 'tip': fingertip 'finger_tip_link' cannot reach object 'ball': a gap of"),

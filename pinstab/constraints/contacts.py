@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from ..contact.coefficients import friction_coefficient, restitution_coefficient
 from ..contact.cones import FrictionCone
 from ..errors import ConstraintError, SceneError
 from ..kinematics import Kinematics
-from ..tables import SceneTables
+from ..tables import SceneTables, unit
 from .base import CONSTRAINT_KINDS, RowKind
 from .loops import FrameClosure, plane_basis
 
@@ -37,11 +38,15 @@ CONTACT_KEYS = {
     "restitution",
     "radius",
 }
+MAX_PENETRATION = 1e-4  # [-] scene sizes: the deepest a contact point may start inside its plane. Declared starts
+# are rounded (unit quaternions to 4 digits leave a 0.1 m arm 1e-5 m off); deeper, the start is a mistake: a rigid
+# contact cannot start inside its plane (event-driven contacts keep the depth, time-stepping ones pop the body
+# out at depth / dt)
 
 
 def contact_basis(normal: np.ndarray) -> np.ndarray:
     """Rows (n, t1, t2): the unit normal and the plane's two tangents, t1 x t2 = n."""
-    return np.vstack([np.asarray(normal, dtype=float) / np.linalg.norm(normal), plane_basis(normal)])
+    return np.vstack([unit(normal), plane_basis(normal)])
 
 
 class PointContact(FrameClosure):
@@ -105,31 +110,40 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
         plane_frame = tables.attached_frame(entry, "frame_b", "offset_b", "rpy_b", f"{name}/b", where)
     elif "offset_b" in entry or "rpy_b" in entry:
         raise SceneError(f"{where}: 'offset_b' and 'rpy_b' place the plane on body 'frame_b'; give 'frame_b' too")
-    normal = tables.vector(entry.get("normal", [0.0, 0.0, 1.0]), 3, f"{where}.normal", None)
-    if np.linalg.norm(normal) < 1e-12:
-        raise SceneError(f"{where}.normal must be a non-zero vector")
-    normal = normal / np.linalg.norm(normal)
+    normal = tables.direction(entry.get("normal", [0.0, 0.0, 1.0]), f"{where}.normal")
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
-    plane = pin.SE3.Identity() if plane_frame is None else tables.initial_placement(plane_frame)
-    start = plane.actInv(tables.initial_placement(frame).translation)
-    anchor = start - normal * float(normal @ (start - point))
+    tables.within_reach(point, f"{where}.point")
     friction = None
     if "mu" in entry:
         try:
-            friction = FrictionCone(tables.number(entry, "mu", where), entry.get("facets", 8))
+            friction = FrictionCone(friction_coefficient(entry["mu"], f"{where}.mu"), entry.get("facets", 8))
         except ConstraintError as exc:
             raise SceneError(f"{where}: {exc}") from None
     elif "facets" in entry:
         raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
-    restitution = tables.number(entry, "restitution", where, 0.0)
-    if not 0.0 <= restitution <= 1.0:
-        raise SceneError(f"{where}.restitution must be in [0, 1] (0: plastic, 1: elastic), got {restitution!r}")
+    restitution = restitution_coefficient(entry.get("restitution", 0.0), f"{where}.restitution")
     radius = tables.number(entry, "radius", where, 0.0)
     if radius < 0.0:
         raise SceneError(f"{where}.radius must be >= 0 [m], got {radius!r}")
+    tables.within_reach(radius, f"{where}.radius")
     if radius and plane_frame is not None:
         raise SceneError(f"{where}: 'radius' takes a plane fixed in the world; a plane on 'frame_b' touches a point")
-    return PointContact(name, frame, anchor, normal, friction, restitution, radius, plane_frame)
+    plane = pin.SE3.Identity() if plane_frame is None else tables.initial_placement(plane_frame)
+    start = plane.actInv(tables.initial_placement(frame).translation)
+    gap = float(normal @ (start - point))
+    _check_penetration(gap - radius, tables.size, where)
+    return PointContact(name, frame, start - normal * gap, normal, friction, restitution, radius, plane_frame)
+
+
+def _check_penetration(gap: float, size: float, where: str) -> None:
+    """Refuse a contact starting deeper than :data:`MAX_PENETRATION` scene sizes (``size`` [m]) inside its plane
+    (``gap`` [m] < 0: inside)."""
+    if gap < -MAX_PENETRATION * size:
+        raise SceneError(
+            f"{where}: the contact point starts {-gap:.6g} m inside its plane, deeper than {MAX_PENETRATION:g} times "
+            f"the scene's size ({size:.3g} m), the allowed depth [0, {MAX_PENETRATION * size:.3g}] m: a rigid "
+            "contact cannot start inside its plane; check the offset, the plane's point and normal, and initial.q"
+        )
 
 
 CONSTRAINT_KINDS.register(

@@ -26,6 +26,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ..contact.coefficients import friction_coefficient
 from ..contact.collisions import Touch
 from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
@@ -235,14 +236,22 @@ def read_fingertip(entry: dict, tables: SceneTables, where: str) -> Fingertip:
     radius = tables.quantity(entry["radius"], "length", f"{where}.radius")
     if not radius > 0:
         raise SceneError(f"{where}.radius must be > 0, got {entry['radius']!r}")
+    tables.within_reach(radius, f"{where}.radius")
     return Fingertip(finger, str(entry["finger"]), radius, item)
 
 
 def read_coefficients(entry: dict, tables: SceneTables, model_name: str, where: str) -> tuple[float, float]:
-    """(mu [-], torsion [m]) of a contact ``model_name``: ``mu`` for ``point-friction`` / ``soft-finger``,
-    ``torsion`` for ``soft-finger``, each refused on a model that takes none."""
-    mu = _coefficient(tables, entry, "mu", None, model_name in FRICTION_MODELS, model_name, where)
-    torsion = _coefficient(tables, entry, "torsion", "length", model_name == "soft-finger", model_name, where)
+    """(mu [-], torsion [m]) of a contact ``model_name``: ``mu`` for ``point-friction`` / ``soft-finger``
+    (:func:`~pinstab.contact.coefficients.friction_coefficient`), ``torsion`` >= 0 for ``soft-finger`` (a length on
+    the fingertip, :meth:`~pinstab.tables.SceneTables.within_reach`), each refused on a model that takes none."""
+    mu = torsion = 0.0
+    if _takes(entry, "mu", model_name in FRICTION_MODELS, model_name, where):
+        mu = friction_coefficient(entry["mu"], f"{where}.mu")
+    if _takes(entry, "torsion", model_name == "soft-finger", model_name, where):
+        torsion = tables.quantity(entry["torsion"], "length", f"{where}.torsion")
+        if torsion < 0:
+            raise SceneError(f"{where}.torsion must be >= 0, got {torsion!r}")
+        tables.within_reach(torsion, f"{where}.torsion")
     return mu, torsion
 
 
@@ -272,24 +281,13 @@ def _is_frame(tables: SceneTables, entry: dict) -> bool:
     return isinstance(name, str) and tables.model.existFrame(name)
 
 
-def _coefficient(
-    tables: SceneTables, entry: dict, key: str, dimension: str | None, needed: bool, model_name: str, where: str
-) -> float:
-    """A friction coefficient (``dimension`` None: a plain number; else a quantity) >= 0 that the contact
-    model needs, refused when it takes none."""
-    if not needed:
-        if key in entry:
-            raise SceneError(f"{where}: a {model_name!r} contact takes no {key!r}")
-        return 0.0
-    if key not in entry:
+def _takes(entry: dict, key: str, needed: bool, model_name: str, where: str) -> bool:
+    """Whether the contact model takes ``key`` (then the entry must give it); refused when it takes none."""
+    if not needed and key in entry:
+        raise SceneError(f"{where}: a {model_name!r} contact takes no {key!r}")
+    if needed and key not in entry:
         raise SceneError(f"{where}: a {model_name!r} contact needs {key!r} (>= 0)")
-    if dimension is None:
-        value = tables.number(entry, key, where)
-    else:
-        value = tables.quantity(entry[key], dimension, f"{where}.{key}")
-    if value < 0:
-        raise SceneError(f"{where}.{key} must be >= 0, got {value!r}")
-    return value
+    return needed
 
 
 def _frame_at(tables: SceneTables, parent: int, world: pin.SE3, name: str) -> int:

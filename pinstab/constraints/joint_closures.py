@@ -84,9 +84,7 @@ def parse_joint_closure(kind: str):
         tables.check_keys(entry, JOINT_CLOSURE_KEYS, where)
         if "axis" not in entry:
             raise SceneError(f"{where}: 'axis' (the free direction, in the frames' axes) is required")
-        axis = tables.vector(entry["axis"], 3, f"{where}.axis", None)
-        if np.linalg.norm(axis) < 1e-9:
-            raise SceneError(f"{where}.axis must be a non-zero direction, got {axis.tolist()}")
+        axis = tables.direction(entry["axis"], f"{where}.axis")
         return JointClosure(name, kind, *closure_frames(entry, tables, name, where), axis)
 
     return parse

@@ -12,7 +12,7 @@ import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError, choices
 from ..kinematics import Kinematics
-from ..tables import SceneTables, closure_frames
+from ..tables import SceneTables, closure_frames, unit
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
@@ -27,9 +27,9 @@ def plane_basis(plane: str | np.ndarray) -> np.ndarray:
             raise ConstraintError(f"unknown plane {plane!r}; valid planes: {choices(PLANES)} or a normal vector")
         return np.eye(3)[list(PLANES[plane])]
     normal = np.asarray(plane, dtype=float).reshape(-1)
-    if normal.shape != (3,) or not np.all(np.isfinite(normal)) or np.linalg.norm(normal) < 1e-12:
+    if normal.shape != (3,) or not np.all(np.isfinite(normal)) or not np.any(normal):
         raise ConstraintError(f"plane normal must be a non-zero 3-vector, got {plane!r}")
-    normal = normal / np.linalg.norm(normal)
+    normal = unit(normal)
     helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
     first = np.cross(normal, helper)
     first /= np.linalg.norm(first)
@@ -183,7 +183,7 @@ def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, floa
     if isinstance(raw, str) and raw in PLANES:
         return raw
     if isinstance(raw, list):
-        return tuple(SceneTables.vector(raw, 3, f"{where}.plane", None))  # type: ignore[return-value]
+        return tuple(SceneTables.direction(raw, f"{where}.plane"))  # type: ignore[return-value]
     raise SceneError(f"{where}: 'plane' must be one of {choices(PLANES)} or a normal vector, got {raw!r}")
 
 

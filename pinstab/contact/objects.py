@@ -23,8 +23,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
-from ..tables import check_keys, list_of_tables, placement, vector
-from ..units import MAX_MAGNITUDE, quantity, within_ceiling
+from ..tables import check_keys, list_of_tables, vector
+from ..units import COORDINATE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, quantity, within_ceiling
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}
@@ -160,6 +160,19 @@ def _urdf_body(entry: dict[str, Any], base_dir: Path, where: str):
     return body.inertias[0], shapes, list(visual.geometryObjects)
 
 
+def _placement(entry: dict[str, Any], where: str) -> pin.SE3:
+    """The object frame's world placement from ``position`` [m] and ``rpy`` [rad] (zero by default), each
+    coordinate within :data:`~pinstab.units.MAX_COORDINATE`, as the joint coordinates of ``initial.q``."""
+    position = vector(entry.get("position", [0.0, 0.0, 0.0]), 3, f"{where}.position", "length")
+    rpy = vector(entry.get("rpy", [0.0, 0.0, 0.0]), 3, f"{where}.rpy", "angle")
+    for key, values, unit in (("position", position, "m"), ("rpy", rpy, "rad")):
+        if not np.all(np.abs(values) <= MAX_COORDINATE):
+            raise SceneError(
+                f"{where}.{key} = {values.tolist()} {unit} is beyond {MAX_COORDINATE:g} {unit}, {COORDINATE_REASON}"
+            )
+    return pin.SE3(pin.rpy.rpyToMatrix(rpy), position)
+
+
 def add_objects(model: pin.Model, value: Any, base_dir: Path) -> list[SceneObject]:
     """Add every ``[[objects]]`` entry to ``model`` as a free-flyer body (after the robot's joints, so
     the joint order stays depth-first); the objects, in order."""
@@ -198,7 +211,7 @@ def add_objects(model: pin.Model, value: Any, base_dir: Path) -> list[SceneObjec
                 joint=joint,
                 frame=frame,
                 mass=float(inertia.mass),
-                placement=placement(entry, "position", "rpy", where),
+                placement=_placement(entry, where),
                 geometries=geometries,
                 visuals=visuals,
                 idx_q=model.joints[joint].idx_q,
