@@ -109,6 +109,16 @@ def memory_limit_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def limits_argument(parser: argparse.ArgumentParser) -> None:
+    """``--ignore-limits``: run (or check) without the robot's joint limits, whose start is then not checked."""
+    parser.add_argument(
+        "--ignore-limits",
+        action="store_true",
+        help="ignore the robot's joint limits (default: held as one-sided constraints with impacts, the start inside "
+        "them; a run that reaches one is run by the event path, reported in limits_active_s and the events)",
+    )
+
+
 def assembly_argument(parser: argparse.ArgumentParser) -> None:
     """``--assembly-tol``: the closure residual the assembly accepts, relative to the mechanism's size."""
     parser.add_argument(
@@ -239,10 +249,5 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         metavar="K",
         help="keep a sample every K steps and the last (default: 1, every step)",
     )
-    parser.add_argument(
-        "--ignore-limits",
-        action="store_true",
-        help="ignore the robot's joint limits (default: held as one-sided constraints with impacts; a run that "
-        "reaches one is run by the event path, reported in limits_active_s and the events)",
-    )
+    limits_argument(parser)
     assembly_argument(parser)

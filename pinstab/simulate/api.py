@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from ..constraints.joint_limits import check_start_inside, joint_limits
 from ..errors import JointLimitsWarning
 from ..files import check_output
 from ..memory import named_when_exhausted
@@ -20,7 +19,7 @@ from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
-from .limits import limit_left, not_event_driven
+from .limits import held_limits, limit_left, not_event_driven
 from .loop import DEFAULT_DRIFT_LIMIT, RunClock, start_state
 from .threads import single_blas_thread
 
@@ -166,9 +165,7 @@ def simulate(
         return _checked(
             scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock), clock
         )
-    table = joint_limits(scene.model).limits if limits else []
-    if table:
-        check_start_inside(table, q0, scene.name)
+    table = held_limits(scene, q0, limits)
     if contacts is not None:
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,

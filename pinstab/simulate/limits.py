@@ -1,5 +1,5 @@
-"""Joint limits on the held path: the first limit a run's samples leave, and the constraints the event path
-(which holds the limits) cannot take."""
+"""Joint limits on the held path: the limits a run holds (its start inside them), the first limit a run's samples
+leave, and the constraints the event path (which holds the limits) cannot take."""
 
 from __future__ import annotations
 
@@ -9,11 +9,23 @@ from contextlib import closing
 import numpy as np
 
 from ..constraints import RowKind
-from ..constraints.joint_limits import JointLimit
+from ..constraints.joint_limits import JointLimit, check_start_inside, joint_limits
 from ..integration.events import LIMIT_SLACK
 from ..scene import Scene
 from ..solvers.contact_modes import plane_geometries
 from ..trajectory import StreamedTrajectory, Trajectory
+
+
+def held_limits(scene: Scene, q0: np.ndarray, limits: bool = True) -> list[JointLimit]:
+    """The joint limits a run from ``q0`` [rad, m] holds, none when ``limits`` is False (``--ignore-limits``,
+    ``simulate(limits=False)``); ``run``, ``servo`` and ``check`` refuse the same starts.
+
+    Raises:
+        SceneError: ``q0`` outside the limits (:func:`~pinstab.constraints.joint_limits.check_start_inside`).
+    """
+    table = joint_limits(scene.model).limits if limits else []
+    check_start_inside(table, q0, scene.name)
+    return table
 
 
 def not_event_driven(scene: Scene) -> list[str]:

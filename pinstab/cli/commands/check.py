@@ -1,5 +1,6 @@
 """``pinstab check``: assemble a scene and report its constraint structure and its joint limits (each limited
-joint's [lower, upper], and why the others are unlimited)."""
+joint's [lower, upper], and why the others are unlimited); a start that ``run`` refuses (outside the joint limits) is
+refused here too."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..options import assembly_argument, assembly_tolerance, parameters, scene_arguments
+from ..options import assembly_argument, assembly_tolerance, limits_argument, parameters, scene_arguments
 from .base import Command, register
 
 
@@ -17,8 +18,10 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...constraints.joint_limits import joint_limits
     from ...model import ConstrainedModel
     from ...scene import load_scene
+    from ...simulate.limits import held_limits
 
     scene = load_scene(args.scene, **parameters(args.param))
+    held_limits(scene, scene.q0, not args.ignore_limits)
     model = ConstrainedModel(scene)
     report = assemble(model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     values = model.constraint_values(report.q, report.v, 0.0)
@@ -65,8 +68,9 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def arguments(parser: argparse.ArgumentParser) -> None:
-    """The scene and ``--assembly-tol``."""
+    """The scene, ``--ignore-limits`` and ``--assembly-tol``."""
     scene_arguments(parser)
+    limits_argument(parser)
     assembly_argument(parser)
 
 

@@ -34,12 +34,14 @@ def arguments(servo: argparse.ArgumentParser) -> None:
 def servo(args: argparse.Namespace) -> dict[str, Any]:
     from ...assembly import assemble
     from ...scene import load_scene
+    from ...simulate.limits import held_limits
     from ...system import build_system
 
     scene = load_scene(args.scene, **parameters(args.param))
     if not any(c.prescribed for c in scene.constraints):
         raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
     if args.check:
+        held_limits(scene, scene.q0, not args.ignore_limits)  # the start that the run would refuse
         system = build_system(scene, args.method or DEFAULT_METHOD)
         start = assemble(system.model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
         evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
