@@ -110,15 +110,26 @@ def frame_id(model: pin.Model, name: Any, where: str) -> int:
     raise SceneError(f"{where}: unknown frame {name!r}; valid frames: {WORLD}, {choices(valid)}")
 
 
+def joint_placements(model: pin.Model, q: np.ndarray) -> list[pin.SE3]:
+    """The world placement of every joint of ``model`` at configuration ``q``, in one pass from the root (a parent's
+    index is smaller than its children's), without a Pinocchio ``Data`` (one grows as nv^3)."""
+    placements = [pin.SE3.Identity()]
+    for joint in range(1, model.njoints):
+        motion = model.joints[joint].createData()
+        model.joints[joint].calc(motion, q)
+        placements.append(placements[model.parents[joint]] * model.jointPlacements[joint] * motion.M)
+    return placements
+
+
 @np.errstate(over="ignore", invalid="ignore")  # a model too large for floating point: an infinite size
 def scene_size(model: pin.Model, q: np.ndarray) -> float:
     """The scene's size [m]: the diagonal of the box holding, at configuration ``q``, the world origin and the
     origins of every joint and frame and every body's centre of mass, or the largest body's gyration diameter
     ``2 sqrt(tr(I_c) / m)`` (a box of side s: 1.41 s) if larger, at least :data:`MIN_SCENE_SIZE`."""
-    data = new_data(model)
-    pin.framesForwardKinematics(model, data, q)
-    centres = [data.oMi[joint].act(inertia.lever) for joint, inertia in enumerate(model.inertias)]
-    points = np.array([np.zeros(3), *(m.translation for m in (*data.oMi, *data.oMf)), *centres])
+    joints = joint_placements(model, q)
+    frames = [joints[frame.parentJoint] * frame.placement for frame in model.frames]
+    centres = [joints[joint].act(inertia.lever) for joint, inertia in enumerate(model.inertias)]
+    points = np.array([np.zeros(3), *(m.translation for m in (*joints, *frames)), *centres])
     diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
     gyration = [2.0 * np.sqrt(np.trace(i.inertia) / i.mass) for i in model.inertias if i.mass > 0]
     return max(MIN_SCENE_SIZE, diagonal, *gyration)
