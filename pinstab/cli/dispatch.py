@@ -196,7 +196,10 @@ def _divergence_payload(
             payload = run_summary(args, trajectory)
         except Exception as error:  # the run's failure is the answer; these figures are extras
             payload["figures_error"] = f"{type(error).__name__}: {error}"
-            print(f"pinstab {args.command}: the figures up to the last finite state: {error}", file=sys.stderr)
+            print(
+                f"pinstab {args.command}: the JSON leaves out the figures up to the last finite state: {error}",
+                file=sys.stderr,
+            )
     payload.update(diverged=True, error=str(exc))
     if isinstance(exc, DivergenceError):
         payload["diverged_at"] = exc.diverged_at
