@@ -148,12 +148,9 @@ def parse_frame_pose(entry: dict, tables: SceneTables, name: str, where: str) ->
     held = {"kind": "sinusoid"}  # of no amplitude: the start value
     context = TargetContext(3, "length", start.translation, tables.within_reach)
     path = read_trajectory(entry.get("path", held), context, f"{where}.path")
-    axis = tables.vector(entry.get("axis", [0.0, 0.0, 1.0]), 3, f"{where}.axis", None)
-    if not np.any(axis):
-        raise SceneError(f"{where}.axis must be a non-zero vector, got {entry['axis']!r}")
-    axis = axis / np.abs(axis).max()  # first to its largest entry: the norm of 1e300 or 1e-300 is inf or 0
+    axis = tables.direction(entry.get("axis", [0.0, 0.0, 1.0]), f"{where}.axis")
     turn = read_trajectory(entry.get("turn", held), TargetContext(1, "angle", np.zeros(1)), f"{where}.turn")
-    return FramePose(name, frame, path, axis / np.linalg.norm(axis), turn, start)
+    return FramePose(name, frame, path, axis, turn, start)
 
 
 def parse_frame_orientation(entry: dict, tables: SceneTables, name: str, where: str) -> FrameOrientation:
