@@ -11,7 +11,7 @@ import pinocchio as pin
 
 from .errors import SceneError, choices
 from .memory import new_data
-from .units import quantity
+from .units import COORDINATE_REASON, MAX_COORDINATE, quantity
 
 WORLD = "world"
 FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
@@ -85,11 +85,19 @@ def direction(value: Any, where: str) -> np.ndarray:
     return unit(raw)
 
 
+def coordinates(values: np.ndarray, where: str, unit: str) -> np.ndarray:
+    """``values`` [m or rad] when each is within :data:`~pinstab.units.MAX_COORDINATE`, as a joint coordinate."""
+    if not np.all(np.abs(values) <= MAX_COORDINATE):
+        raise SceneError(f"{where} = {values.tolist()} {unit} is beyond {MAX_COORDINATE:g} {unit}, {COORDINATE_REASON}")
+    return values
+
+
 def placement(entry: dict[str, Any], offset_key: str, rpy_key: str, where: str) -> pin.SE3:
-    """An SE3 from an offset [m] and roll-pitch-yaw angles [rad] (both optional, zero by default)."""
+    """An SE3 from an offset [m] and roll-pitch-yaw angles [rad] (both optional, zero by default; the angles within
+    :data:`~pinstab.units.MAX_COORDINATE`)."""
     offset = vector(entry.get(offset_key, [0.0, 0.0, 0.0]), 3, f"{where}.{offset_key}", "length")
     rpy = vector(entry.get(rpy_key, [0.0, 0.0, 0.0]), 3, f"{where}.{rpy_key}", "angle")
-    return pin.SE3(pin.rpy.rpyToMatrix(rpy), offset)
+    return pin.SE3(pin.rpy.rpyToMatrix(coordinates(rpy, f"{where}.{rpy_key}", "rad")), offset)
 
 
 def joint_id(model: pin.Model, name: Any, where: str) -> int:

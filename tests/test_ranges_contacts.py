@@ -117,6 +117,13 @@ RANGE_CASES = [
         changes=(('frame_b = "rocker"\noffset_b = [0.5, 0.0, 0.0]', "offset_b = [0.0, 0.0, 1e9]"),),
     ),
     Case(
+        "closure angle beyond the coordinates",
+        "{command} {scene}",
+        "SceneError",
+        "closure 'coupler-rocker'.rpy_a = [0.0, 0.0, 1e+300] rad is beyond 1e+06 rad",
+        changes=((FOURBAR_OFFSET, FOURBAR_OFFSET + "\nrpy_a = [0.0, 0.0, 1e300]"),),
+    ),
+    Case(
         "object far away",
         "{command} {scene}",
         "SceneError",

@@ -23,8 +23,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
-from ..tables import check_keys, list_of_tables, vector
-from ..units import COORDINATE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, quantity, within_ceiling
+from ..tables import check_keys, coordinates, list_of_tables, placement, vector
+from ..units import MAX_MAGNITUDE, quantity, within_ceiling
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}
@@ -163,14 +163,9 @@ def _urdf_body(entry: dict[str, Any], base_dir: Path, where: str):
 def _placement(entry: dict[str, Any], where: str) -> pin.SE3:
     """The object frame's world placement from ``position`` [m] and ``rpy`` [rad] (zero by default), each
     coordinate within :data:`~pinstab.units.MAX_COORDINATE`, as the joint coordinates of ``initial.q``."""
-    position = vector(entry.get("position", [0.0, 0.0, 0.0]), 3, f"{where}.position", "length")
-    rpy = vector(entry.get("rpy", [0.0, 0.0, 0.0]), 3, f"{where}.rpy", "angle")
-    for key, values, unit in (("position", position, "m"), ("rpy", rpy, "rad")):
-        if not np.all(np.abs(values) <= MAX_COORDINATE):
-            raise SceneError(
-                f"{where}.{key} = {values.tolist()} {unit} is beyond {MAX_COORDINATE:g} {unit}, {COORDINATE_REASON}"
-            )
-    return pin.SE3(pin.rpy.rpyToMatrix(rpy), position)
+    frame = placement(entry, "position", "rpy", where)
+    coordinates(frame.translation, f"{where}.position", "m")
+    return frame
 
 
 def add_objects(model: pin.Model, value: Any, base_dir: Path) -> list[SceneObject]:
