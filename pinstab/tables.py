@@ -186,8 +186,9 @@ class SceneTables:
     def within_reach(self, point: np.ndarray | float, where: str) -> None:
         """Refuse a point [m] (a 3-vector: on a body in its frame's axes, or on the world) or a length on a body
         farther than :data:`MAX_REACH` times :attr:`size` from its frame's origin."""
-        with np.errstate(over="ignore"):  # an overflowing norm is infinite: refused
-            distance = float(np.linalg.norm(point))
+        scale = float(np.abs(point).max(initial=0.0))
+        with np.errstate(over="ignore"):  # a norm beyond floating point is infinite: refused
+            distance = scale * float(np.linalg.norm(np.asarray(point) / scale)) if scale else 0.0
         limit = MAX_REACH * self.size
         if not distance <= limit:
             shown = f"[{', '.join(f'{x:.6g}' for x in point)}]" if np.ndim(point) else f"{point:.6g}"

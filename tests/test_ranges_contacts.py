@@ -56,7 +56,7 @@ ISSUE_CASES = [
         "fourbar closure offset -1e308",
         "{command} {scene}",
         "SceneError",
-        "closure 'coupler-rocker'.offset_a = [-1e+308, 0, 0] m",
+        "closure 'coupler-rocker'.offset_a = [-1e+308, 0, 0] m lies 1e+308 m from its frame's origin",
         changes=((FOURBAR_OFFSET, "offset_a = [-1e308, 0.0, 0.0]"),),
     ),
 ]
