@@ -208,7 +208,8 @@ def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynom
     context.bounded(coefficients[0], f"{where}.coefficients[0]")
     per = unit_name if " " not in unit_name else f"({unit_name})"
     for k, row in enumerate(coefficients[1:], start=1):
-        within(row, MAX_MAGNITUDE, f"{where}.coefficients[{k}]", f"{per}/s^{k}", MAGNITUDE_REASON)
+        rate = f"{per}/s" if k == 1 else f"{per}/s^{k}"
+        within(row, MAX_MAGNITUDE, f"{where}.coefficients[{k}]", rate, MAGNITUDE_REASON)
     return Polynomial(coefficients)
 
 
