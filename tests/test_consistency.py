@@ -413,3 +413,12 @@ def test_descriptor_1_is_restored_on_every_way_out(capsys, monkeypatch):
     assert run(capsys, "check", "fourbar", "--json")[0] == 130
     after = os.fstat(1)
     assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)
+
+
+@pytest.mark.parametrize(("argv", "expected"), [(["check", "fourbar"], 0), (["run", "fourbar", "--duration", "0"], 2)])
+def test_a_closed_stdout_keeps_the_exit_code_with_json(argv, expected):
+    """Descriptor 1 closed from the start (`>&-`): the command ends as without --json (it exited 1 with a traceback)."""
+    for flag in ([], ["--json"]):
+        closed = ["sh", "-c", 'exec "$@" >&-', "sh", sys.executable, "-m", "pinstab.cli", *argv, *flag]
+        completed = subprocess.run(closed, capture_output=True, text=True, timeout=120, check=False)
+        assert completed.returncode == expected and "Traceback" not in completed.stderr, completed.stderr

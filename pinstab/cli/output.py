@@ -26,6 +26,9 @@ def json_only_stdout() -> Iterator[None]:
     capture). Descriptor 1 is restored on every way out (a result, an error, Ctrl-C), after what Python and C buffered
     for it went to stderr (POSIX: C's buffers flushed by ``fflush(NULL)``)."""
     stdout = sys.stdout
+    if stdout is None:  # descriptor 1 closed from the start: no stdout to keep (print writes nothing), as without
+        yield
+        return
     stdout.flush()
     saved = os.dup(1)
     held = stdout
