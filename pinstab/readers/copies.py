@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import SceneError, repeated
 from ..tables import check_keys, vector
+from .bounds import check_count, check_nesting
 
 COPY_KEYS = {"prefix", "xyz", "rpy"}
 ROOT_LINK = "copies_root"
@@ -118,16 +119,21 @@ def _check_unique(composed: ET.Element) -> None:
             )
 
 
-def compose_copies(urdf_text: str, copies: list[RobotCopy]) -> str:
+def compose_copies(urdf_text: str | bytes, copies: list[RobotCopy]) -> str:
     """One URDF document holding every copy of the robot ``urdf_text`` under :data:`ROOT_LINK`.
 
     Raises:
-        SceneError: the URDF is not XML with a ``<robot>`` root and one root link, or the prefixed names collide.
+        SceneError: the URDF is not XML with a ``<robot>`` root and one root link, nested deeper than
+            :data:`~.bounds.MAX_XML_NESTING`, copies of more links or joints than :data:`~.bounds.MAX_BODIES`, or
+            the prefixed names collide.
     """
     try:
         source = ET.fromstring(urdf_text)
     except ET.ParseError as exc:
         raise SceneError(f"{WHERE}: the robot's URDF is not valid XML: {exc}") from None
+    check_nesting(source, f"{WHERE}: the robot's URDF")  # before its elements are copied (recursively)
+    # before the copies are made (the composed document's joints are counted by check_links)
+    check_count(1 + len(copies) * len(source.findall("link")), f"links in {len(copies)} copies", WHERE)
     if source.tag != "robot":
         raise SceneError(f"{WHERE}: the robot's URDF has <{source.tag}> at its root, not <robot>")
     root = _root_link(source)

@@ -11,7 +11,11 @@ that parser is wrong or silent:
 - joint limits: ``range`` and ``limited`` (``<compiler autolimits>``, ``<default>`` classes), a hinge's range in
   the file's angle unit, a slide's in metres (the parser also converts a slide's range as an angle and limits a
   joint with ``limited="false"``); an unlimited joint has infinite limits;
-- ``<equality>``: closures and joint relations with their names (:mod:`.mjcf_equalities`).
+- ``<equality>``: closures and joint relations with their names (:mod:`.mjcf_equalities`);
+- the file within the bounds on size, depth and memory, its masses and inertias physical, checked before the
+  parser reads it, and the inertias it compiled after (:mod:`.mjcf_bodies`);
+- ``<include>``: the parser ignores it (the included bodies, defaults and assets left out); when the file
+  includes others, the parser is given a temporary copy with the includes inlined (:func:`parser_file`).
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
 it), actuators, tendons, sensors, contact pairs, a ball joint's cone limit, the soft-constraint parameters.
@@ -19,14 +23,21 @@ it), actuators, tendons, sensors, contact pairs, a ball joint's cone limit, the 
 
 from __future__ import annotations
 
+import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
+from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from ..memory import named_when_exhausted
 from .base import READERS, ReaderOptions, RobotSource
+from .mjcf_bodies import check_before_parser, check_compiled, joint_kind
 from .mjcf_equalities import EqualityReader
 from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
@@ -41,18 +52,23 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
 
     Raises:
         SceneError: a missing file, malformed XML, a file Pinocchio cannot read, a body it dropped, an equality
-            naming a missing body, site or joint, or one pinstab cannot hold (named).
+            naming a missing body, site or joint, or one pinstab cannot hold, a file beyond a bound, a non-physical
+            mass or inertia (named).
+        MemoryBudgetError: the parser's Data would not fit the memory budget.
     """
     path = resolve_file(robot, "mjcf", options)
     document = read_document(path)
+    check_before_parser(document, options.free_flyer)
     try:
-        if options.free_flyer:
-            model = pin.buildModelFromMJCFAndRootJoint(str(path), pin.JointModelFreeFlyer(), "root_joint")
-        else:
-            model = pin.buildModelFromMJCF(str(path))
+        with parser_file(document) as parsed, named_when_exhausted(f"Pinocchio's MJCF parser on {path}"):
+            if options.free_flyer:
+                model = pin.buildModelFromMJCFAndRootJoint(str(parsed), pin.JointModelFreeFlyer(), "root_joint")
+            else:
+                model = pin.buildModelFromMJCF(str(parsed))
     except (ValueError, RuntimeError) as exc:
         raise SceneError(f"robot.mjcf: Pinocchio cannot read {path}: {exc}") from None
     _check_bodies(document, model)
+    check_compiled(document, model)
     _check_axis_angles(document)
     _place_root(document, model)
     notes = _joint_limits(document, model)
@@ -61,7 +77,8 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     notes += equalities.notes + _not_read(document)
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
-        return pin.buildGeomFromMJCF(full, str(path), kind)  # placed by the model's body frames; meshes by path
+        with parser_file(document) as parsed:  # placed by the model's body frames; meshes by path
+            return pin.buildGeomFromMJCF(full, str(parsed), kind)
 
     return RobotSource(
         model, "mjcf", path, package_dirs=[str(path.parent)], tables=equalities.tables, notes=notes, geometry=geometry
@@ -124,10 +141,8 @@ def _joint_limits(document: MjcfDocument, model: pin.Model) -> list[str]:
             notes.append(f"body {body.get('name')!r}: its joints {', '.join(names)} are one composite joint")
         offset = 0
         for joint, name in zip(joints, names, strict=True):
-            kind = "free" if joint.tag == "freejoint" else document.attribute(joint, "type") or "hinge"
             where = f"robot.mjcf joint {name!r}"
-            if kind not in SCALAR_JOINTS:
-                raise SceneError(f"{where}: unknown type {kind!r}; MJCF joint types: {', '.join(SCALAR_JOINTS)}")
+            kind = joint_kind(document, joint, where)
             index = _q_index(model, name, names[0], offset)
             offset += SCALAR_JOINTS[kind]
             limits = _limits(document, joint, kind, where)
@@ -165,6 +180,57 @@ def _q_index(model: pin.Model, name: str, first: str, offset: int) -> int | None
         if model.existJointName(joint_name):
             return model.joints[model.getJointId(joint_name)].idx_q + start
     return None
+
+
+@contextmanager
+def parser_file(document: MjcfDocument) -> Iterator[Path]:
+    """The file Pinocchio's MJCF parser is given: the model's own, or, when it includes others (which the parser
+    ignores), a temporary copy with the includes inlined and the mesh and texture folders made absolute (as MuJoCo
+    reads them: relative to the model's folder), removed on leaving."""
+    if not document.origins:
+        yield document.path
+        return
+    root = ET.Element(document.root.tag, document.root.attrib)  # the same elements, the compilers rewritten
+    if document.root.find("compiler") is None:
+        root.append(ET.Element("compiler", _absolute_folders({}, document.path.parent)))
+    for child in document.root:
+        if child.tag == "compiler":
+            compiler = ET.SubElement(root, "compiler", _absolute_folders(child.attrib, document.path.parent))
+            compiler.extend(child)
+        else:
+            root.append(child)
+    with tempfile.TemporaryDirectory(prefix="pinstab-mjcf-") as temporary:
+        parsed = Path(temporary) / document.path.name
+        parsed.write_text(_xml_text(root), encoding="utf-8")
+        yield parsed
+
+
+def _absolute_folders(attributes: dict[str, str], folder: Path) -> dict[str, str]:
+    """A ``<compiler>``'s attributes with its asset, mesh and texture folders absolute (from ``folder``, the
+    model's), the mesh and texture ones given (``folder``) when no asset folder stands for them."""
+    absolute = dict(attributes)
+    for key in ("assetdir", "meshdir", "texturedir"):
+        given = attributes.get(key)
+        if given is not None or (key != "assetdir" and "assetdir" not in attributes):
+            absolute[key] = str(folder / (given or ""))
+    return absolute
+
+
+def _xml_text(root: ET.Element) -> str:
+    """The XML text of ``root`` written without recursion (``ET.tostring`` takes a Python frame per level: an MJCF
+    may nest its bodies :data:`~.bounds.MAX_TREE_DEPTH` deep, as deep as Python's recursion limit)."""
+    out: list[str] = []
+    stack: list[tuple[ET.Element, bool]] = [(root, False)]
+    while stack:
+        element, closing = stack.pop()
+        if closing:
+            out.append(f"</{element.tag}>{escape(element.tail or '')}")
+            continue
+        attributes = "".join(f" {key}={quoteattr(value)}" for key, value in element.attrib.items())
+        out.append(f"<{element.tag}{attributes}>{escape(element.text or '')}")
+        stack.append((element, True))
+        stack.extend((child, False) for child in reversed(element))
+    return "".join(out)
 
 
 def _not_read(document: MjcfDocument) -> list[str]:

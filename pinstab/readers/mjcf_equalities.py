@@ -28,6 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
+from ..memory import new_data
 from ..tables import WORLD
 from .mjcf_xml import MjcfDocument
 
@@ -58,7 +59,7 @@ class EqualityReader:
     notes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self.data = pin.Data(self.model)
+        self.data = new_data(self.model)
         self.reference = reference_configuration(self.model)
         pin.framesForwardKinematics(self.model, self.data, self.reference)
         worldbody = self.document.root.find("worldbody")

@@ -1,19 +1,29 @@
 """The MJCF document as the standard library's XML reads it: ``<include>`` files inlined, the compiler's angle
-unit and autolimits, attributes through the ``<default>`` classes, numbers and poses of elements."""
+unit and autolimits, attributes through the ``<default>`` classes, numbers and poses of elements.
+
+Includes are bounded before they are read: at most :data:`MAX_INCLUDED_FILES` files, nested at most
+:data:`MAX_INCLUDE_DEPTH` deep, :data:`~.bounds.MAX_FILE_BYTES` bytes with the model's file; a file including
+itself (directly or not) is refused, naming the chain.
+"""
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from .bounds import check_nesting, read_bounded
 
-MAX_INCLUDES = 100  # deeper than any model: a file including itself
+# <include> files of a model: a robot split into files has a few (a MuJoCo Menagerie scene.xml includes its robot's
+# file); files that include 10 files each, 3 levels deep, are 1110
+MAX_INCLUDED_FILES = 100
+MAX_INCLUDE_DEPTH = 10  # includes within includes (a scene that includes a robot that includes its parts: 2)
 
 
 @dataclass
@@ -26,6 +36,7 @@ class MjcfDocument:
         degrees: angles in the file are in degrees (``<compiler angle>``, MuJoCo's default).
         autolimits: a joint with a ``range`` and no ``limited`` is limited (``<compiler autolimits>``).
         eulerseq: the axes of ``euler`` angles (``<compiler eulerseq>``).
+        origins: the elements read from an included file (the top ones of each), with that file.
     """
 
     root: ET.Element
@@ -33,6 +44,7 @@ class MjcfDocument:
     degrees: bool = True
     autolimits: bool = True
     eulerseq: str = "xyz"
+    origins: dict[ET.Element, Path] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.parents = {child: parent for parent in self.root.iter() for child in parent}
@@ -48,10 +60,19 @@ class MjcfDocument:
         if len(self.eulerseq) != 3 or any(axis not in "xyzXYZ" for axis in self.eulerseq):
             raise SceneError(f"robot.mjcf: <compiler eulerseq={self.eulerseq!r}> is not 3 of x, y, z, X, Y, Z")
 
-    def _collect(self, default: ET.Element, name: str) -> None:
-        self.classes[name] = default
-        for child in default.findall("default"):
-            self._collect(child, child.get("class", name))
+    def _collect(self, top: ET.Element, name: str) -> None:
+        """The ``<default>`` classes nested in ``top`` (named ``name``), walked without recursion."""
+        stack = [(top, name)]
+        while stack:
+            default, name = stack.pop()
+            self.classes[name] = default
+            stack.extend((child, child.get("class", name)) for child in default.findall("default"))
+
+    def file_of(self, element: ET.Element) -> Path:
+        """The file ``element`` was read from: an included one, or the model's."""
+        while element is not None and element not in self.origins:
+            element = self.parents.get(element)
+        return self.path if element is None else self.origins[element]
 
     def attribute(self, element: ET.Element, key: str) -> str | None:
         """``key`` of ``element``, else of its default class (its ``class``, the nearest ``childclass`` of the
@@ -134,34 +155,63 @@ def read_document(path: Path) -> MjcfDocument:
     """The MJCF file ``path`` with its includes (paths relative to ``path``'s folder, as MuJoCo reads them).
 
     Raises:
-        SceneError: a file that is not XML, a root other than ``<mujoco>``, a missing or circular include.
+        SceneError: a file that is not XML, a root other than ``<mujoco>``, a missing or circular include, includes
+            or bytes or nesting beyond their bounds (named).
     """
-    root = _parse(path)
+    data = read_bounded(path, "robot.mjcf")
+    root = _parse(data, path)
     if root.tag != "mujoco":
         raise SceneError(f"robot.mjcf: {path} has <{root.tag}> at its root, not <mujoco>")
-    _inline_includes(root, path.parent, 0)
-    return MjcfDocument(root, path)
+    origins = _inline_includes(root, path, len(data))
+    check_nesting(root, f"robot.mjcf {path} (its includes inlined)", body="body")
+    return MjcfDocument(root, path, origins=origins)
 
 
-def _parse(path: Path) -> ET.Element:
+def _parse(data: bytes, path: Path) -> ET.Element:
     try:
-        return ET.parse(path).getroot()
+        return ET.fromstring(data)
     except ET.ParseError as exc:
         raise SceneError(f"robot.mjcf: {path} is not valid XML: {exc}") from None
 
 
-def _inline_includes(element: ET.Element, folder: Path, depth: int) -> None:
-    for index, child in reversed(list(enumerate(element))):
-        if child.tag != "include":
-            _inline_includes(child, folder, depth)
-            continue
-        if depth >= MAX_INCLUDES:
-            raise SceneError(f"robot.mjcf: includes nested deeper than {MAX_INCLUDES} (a file includes itself?)")
-        path = folder / child.get("file", "")
-        if not path.is_file():
-            raise SceneError(f"robot.mjcf: included file {path} does not exist")
-        included = _parse(path)
-        _inline_includes(included, folder, depth + 1)
-        element.remove(child)
-        for offset, item in enumerate(included):
-            element.insert(index + offset, item)
+def _inline_includes(root: ET.Element, path: Path, used: int) -> dict[ET.Element, Path]:
+    """Replace every ``<include>`` below ``root`` (read from ``path``, ``used`` bytes) by the included file's
+    children, in place and in order, walking the elements with a stack and each element's children with a queue
+    (an included file's own includes are among them); the included elements with their file.
+
+    Raises:
+        SceneError: beyond :data:`MAX_INCLUDED_FILES`, :data:`MAX_INCLUDE_DEPTH` or the bytes' bound, a missing
+            file, a file including itself (each naming the including file and the include).
+    """
+    origins: dict[ET.Element, Path] = {}
+    files = 0
+    stack: list[tuple[ET.Element, tuple[Path, ...]]] = [(root, (path.resolve(),))]  # element, chain of its files
+    while stack:
+        element, chain = stack.pop()
+        children: list[ET.Element] = []
+        queue = deque((child, chain) for child in element)
+        while queue:
+            child, files_of_child = queue.popleft()
+            if child.tag != "include":
+                children.append(child)
+                stack.append((child, files_of_child))
+                continue
+            included = path.parent / child.get("file", "")
+            where = f"robot.mjcf {files_of_child[-1]}: <include file={child.get('file')!r}>"
+            if included.resolve() in files_of_child:
+                cycle = " -> ".join(str(item) for item in (*files_of_child, included.resolve()))
+                raise SceneError(f"{where}: the file includes itself ({cycle})")
+            if len(files_of_child) > MAX_INCLUDE_DEPTH:
+                raise SceneError(f"{where}: includes nested more than {MAX_INCLUDE_DEPTH} deep")
+            files += 1
+            if files > MAX_INCLUDED_FILES:
+                raise SceneError(f"{where}: more than {MAX_INCLUDED_FILES} files included into {path}")
+            if not included.is_file():
+                raise SceneError(f"{where}: included file {included} does not exist")
+            data = read_bounded(included, where, used)
+            used += len(data)
+            items = list(_parse(data, included))
+            origins.update((item, included) for item in items)
+            queue.extendleft((item, (*files_of_child, included.resolve())) for item in reversed(items))
+        element[:] = children
+    return origins

@@ -19,6 +19,7 @@ import pinocchio as pin
 
 from ..errors import SceneError
 from .base import READERS, ReaderOptions, RobotSource
+from .bounds import check_depth
 from .sdf_document import WORLD_LINK, SdfModel, SdfVisual, read_document, rpy_of
 from .sdf_tables import scene_tables
 from .sdf_tree import SdfTree, build_model, spanning_tree
@@ -94,11 +95,13 @@ def read_sdf_file(path: Path, free_flyer: bool | None = None) -> RobotSource:
     """The robot of the SDF file ``path``: floating as the SDF says when ``free_flyer`` is None.
 
     Raises:
-        SceneError: see :func:`.sdf_document.read_document`; a link not connected to the root; a gearbox whose
-            bodies do not hang from its reference body; a mesh that is not found (each named).
+        SceneError: see :func:`.sdf_document.read_document`; a link not connected to the root; a tree deeper than
+            :data:`~.bounds.MAX_TREE_DEPTH`; a gearbox whose bodies do not hang from its reference body; a mesh
+            that is not found (each named).
     """
     sdf = read_document(path)
     tree = spanning_tree(sdf)
+    check_depth(tree.depth(), f"robot.sdf {path}")  # its geometry is read by Pinocchio's (recursive) URDF parser
     floating = free_flyer if free_flyer is not None else (tree.root != WORLD_LINK and not sdf.static)
     model = build_model(sdf, tree, floating)
     notes: list[str] = []

@@ -17,7 +17,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices, repeated
-from .urdf_checks import check_inertia
+from .bounds import check_count, check_nesting, read_bounded
+from .inertia import check_body
 
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "ball", "fixed", "gearbox")
 WORLD_LINK = "world"
@@ -132,15 +133,13 @@ def _link(element: ET.Element) -> SdfLink:
     inertial = element.find("inertial")
     if inertial is not None:
         link.mass = _number(inertial, "mass", 1.0, where)
-        if link.mass < 0:
-            raise SceneError(f"{where}: mass {link.mass} kg is negative")
         link.inertial_pose = _pose(inertial, f"{where} <inertial>")
         moments = inertial.find("inertia")
         i = {key: _number(moments, key, 1.0 if key[1] == key[2] else 0.0, where) for key in _INERTIA_KEYS}
         link.inertia = np.array(
             [[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]]
         )
-        check_inertia(link.inertia, where, triangle=False)  # SDF robots as published, like example-robot-data's
+        check_body(link.mass, link.inertia, where, triangle=False)  # SDF robots as published, like example-robot-data's
     link.visuals = _visuals(element, "visual", where)
     link.collisions = _visuals(element, "collision", where)
     return link
@@ -228,17 +227,21 @@ def read_document(path: Path) -> SdfModel:
     """The one model of the SDF file ``path``.
 
     Raises:
-        SceneError: the file is missing or not XML, not an ``<sdf>`` with one model, a name defined twice, a joint
-            naming a missing link, an unsupported joint type or pose frame, a limit with lower > upper (named).
+        SceneError: the file is missing, not XML or beyond a bound of :mod:`.bounds`, not an ``<sdf>`` with one
+            model, a name defined twice, a joint naming a missing link, an unsupported joint type or pose frame, a
+            limit with lower > upper, a non-physical mass or inertia (named).
     """
+    if not path.is_file():
+        raise SceneError(f"robot.sdf: file {path} does not exist")
+    where = f"robot.sdf {path}"
     try:
-        root = ET.parse(path).getroot()
-    except FileNotFoundError:
-        raise SceneError(f"robot.sdf: file {path} does not exist") from None
-    except (ET.ParseError, OSError) as exc:
-        raise SceneError(f"robot.sdf {path}: not a readable XML document: {exc}") from None
+        root = ET.fromstring(read_bounded(path, where))
+    except ET.ParseError as exc:
+        raise SceneError(f"{where}: not a readable XML document: {exc}") from None
+    check_nesting(root, where)
     element = _model_element(root, path)
     for tag in ("link", "joint"):
+        check_count(len(element.findall(tag)), f"{tag}s", where)
         twice = repeated(item.get("name") for item in element.findall(tag))
         if twice:
             raise SceneError(f"robot.sdf {path}: {tag} {twice[0]!r} is defined twice")

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from .bounds import tree_depth
 from .sdf_document import WORLD_LINK, SdfJoint, SdfModel
 
 ROOT_JOINT = "root_joint"  # the free flyer's name, as Pinocchio's URDF reader calls it
@@ -33,16 +34,29 @@ class SdfTree:
     loops: list[SdfJoint] = field(default_factory=list)
     frames: dict[str, pin.SE3] = field(default_factory=dict)
 
-    def children(self, link: str, joints: list[SdfJoint]) -> list[SdfJoint]:
-        """Tree joints whose parent is ``link``, in document order."""
-        return [joint for joint in joints if joint.parent == link and self.parent_joint.get(joint.child) is joint]
+    def children(self, joints: list[SdfJoint]) -> dict[str, list[SdfJoint]]:
+        """The tree joints (of ``joints``) by parent link, in document order."""
+        children: dict[str, list[SdfJoint]] = {}
+        for joint in joints:
+            if self.parent_joint.get(joint.child) is joint:
+                children.setdefault(joint.parent, []).append(joint)
+        return children
 
-    def ancestors(self, link: str) -> list[str]:
-        """``link`` and the links above it."""
-        chain = [link]
-        while chain[-1] in self.parent_joint:
-            chain.append(self.parent_joint[chain[-1]].parent)
-        return chain
+    def depth(self) -> int:
+        """The joints on the longest path from the root (the world, or the root link) down."""
+        return tree_depth({child: joint.parent for child, joint in self.parent_joint.items()})
+
+
+def _top(up: dict[str, str], link: str) -> str:
+    """The topmost link above ``link`` in the tree so far (``up``: a link above each link; shortened on the way,
+    so that the joints are placed in time about linear in their number)."""
+    path = []
+    while link in up:
+        path.append(link)
+        link = up[link]
+    for item in path:
+        up[item] = link
+    return link
 
 
 def spanning_tree(sdf: SdfModel) -> SdfTree:
@@ -57,18 +71,20 @@ def spanning_tree(sdf: SdfModel) -> SdfTree:
     else:
         root = next((name for name in sdf.links if name not in children), next(iter(sdf.links)))
     tree = SdfTree(root)
+    up: dict[str, str] = {}
     for joint in sdf.joints:
         child = joint.child
         if joint.type == "gearbox" or child == root or child in tree.parent_joint:
             tree.loops.append(joint)
-        elif child in tree.ancestors(joint.parent):
+        elif _top(up, joint.parent) == child:  # the child (without a parent yet) is above the parent: a cycle
             tree.loops.append(joint)
         else:
             tree.parent_joint[child] = joint
+            up[child] = joint.parent
     for name, link in sdf.links.items():
         tree.frames[name] = tree.parent_joint[name].placement if name in tree.parent_joint else link.pose
     tree.frames[WORLD_LINK] = pin.SE3.Identity()
-    unreached = [name for name in sdf.links if tree.ancestors(name)[-1] != root]
+    unreached = [name for name in sdf.links if _top(up, name) != root]
     if unreached:
         raise SceneError(
             f"sdf model {sdf.name!r}: links {', '.join(unreached)} are not connected to the root link {root!r}"
@@ -107,33 +123,41 @@ class _Builder:
         self.joint_of[name] = (joint_id, joint_frame, body)
 
     def add_subtree(self, name: str) -> None:
-        parent_joint, parent_frame, parent_body = self.joint_of[name]
-        for joint in self.tree.children(name, self.sdf.joints):
-            child_frame = self.tree.frames[joint.child]
-            if joint.type == "fixed":
-                frame = self.model.addFrame(
-                    pin.Frame(
-                        joint.name,
-                        parent_joint,
-                        parent_body,
-                        parent_frame.actInv(child_frame),
-                        pin.FrameType.FIXED_JOINT,
-                    )
+        """The links below ``name``, depth-first, children in document order (a stack: no recursion)."""
+        children = self.tree.children(self.sdf.joints)
+        stack = list(reversed(children.get(name, [])))
+        while stack:
+            joint = stack.pop()
+            self.add_joint(joint)
+            stack.extend(reversed(children.get(joint.child, [])))
+
+    def add_joint(self, joint: SdfJoint) -> None:
+        """The tree joint ``joint`` (a Pinocchio joint, or a frame when fixed) and its child link's body."""
+        parent_joint, parent_frame, parent_body = self.joint_of[joint.parent]
+        child_frame = self.tree.frames[joint.child]
+        if joint.type == "fixed":
+            frame = self.model.addFrame(
+                pin.Frame(
+                    joint.name,
+                    parent_joint,
+                    parent_body,
+                    parent_frame.actInv(child_frame),
+                    pin.FrameType.FIXED_JOINT,
                 )
-                self.add_body(joint.child, parent_joint, parent_frame, frame)
-            else:
-                joint_id = self.model.addJoint(
-                    parent_joint, _joint_model(joint, child_frame), parent_frame.actInv(child_frame), joint.name
-                )
-                if joint.type in ("revolute", "prismatic"):
-                    index = self.model.joints[joint_id].idx_q
-                    if joint.lower is not None:
-                        self.model.lowerPositionLimit[index] = joint.lower
-                    if joint.upper is not None:
-                        self.model.upperPositionLimit[index] = joint.upper
-                frame = self.model.addJointFrame(joint_id, parent_body)
-                self.add_body(joint.child, joint_id, child_frame, frame)
-            self.add_subtree(joint.child)
+            )
+            self.add_body(joint.child, parent_joint, parent_frame, frame)
+        else:
+            joint_id = self.model.addJoint(
+                parent_joint, _joint_model(joint, child_frame), parent_frame.actInv(child_frame), joint.name
+            )
+            if joint.type in ("revolute", "prismatic"):
+                index = self.model.joints[joint_id].idx_q
+                if joint.lower is not None:
+                    self.model.lowerPositionLimit[index] = joint.lower
+                if joint.upper is not None:
+                    self.model.upperPositionLimit[index] = joint.upper
+            frame = self.model.addJointFrame(joint_id, parent_body)
+            self.add_body(joint.child, joint_id, child_frame, frame)
 
 
 def build_model(sdf: SdfModel, tree: SdfTree, floating: bool) -> pin.Model:

@@ -9,6 +9,7 @@ import pinocchio as pin
 
 from ..errors import SceneError
 from .base import READERS, ReaderOptions, RobotSource
+from .bounds import read_bounded
 from .copies import compose_copies, parse_copies
 from .urdf_checks import check_links
 
@@ -50,7 +51,8 @@ def resolve_file(robot: dict[str, Any], key: str, options: ReaderOptions):
 def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, triangle: bool = True) -> RobotSource:
     if "copies" in robot:  # one document of prefixed copies; package_dirs still resolve the meshes
         copies = parse_copies(robot["copies"])
-        urdf_text = compose_copies(urdf_path.read_text() if urdf_text is None else urdf_text, copies)
+        source = read_bounded(urdf_path, f"robot: URDF {urdf_path}") if urdf_text is None else urdf_text
+        urdf_text = compose_copies(source, copies)
         urdf_path = None
     check_links(urdf_text, urdf_path, triangle=triangle)  # names what urdfdom would only refuse
     root = [pin.JointModelFreeFlyer()] if options.free_flyer else []

@@ -1,5 +1,6 @@
-"""Checks of a URDF document that urdfdom would only refuse, or not see: names, joints between links that
-exist, moving joints with an axis, finite masses and physical inertias.
+"""Checks of a URDF document that urdfdom would only refuse, or not see: its size, nesting and depth
+(:mod:`.bounds`), names, joints between links that exist, moving joints with an axis, finite masses and physical
+inertias (:mod:`.inertia`).
 
 The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
 inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
@@ -16,24 +17,34 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import SceneError, repeated
-from ..units import within_ceiling
+from .bounds import check_count, check_depth, check_nesting, check_text_size, read_bounded, tree_depth
+from .inertia import check_body
 
-INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 MOVING_JOINTS = ("revolute", "continuous", "prismatic")
 AXIS_MIN = 1e-9  # a shorter joint axis is no direction
 
 
 def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -> None:
-    """Every link's mass [kg] in [0, 1e12], its inertia [kg m^2] positive semidefinite, its principal moments
-    at most 1e12 (:data:`~pinstab.units.MAX_MAGNITUDE`) and, when
-    ``triangle``, with each principal moment at most the sum of the other two."""
-    text = urdf_text if urdf_text is not None else urdf_path.read_text(encoding="utf-8")
+    """The document within the bounds of :mod:`.bounds` (bytes, nesting, links, joints, depth), and every link's
+    mass [kg] in [0, 1e12], its inertia [kg m^2] positive semidefinite, its principal moments at most 1e12
+    (:data:`~pinstab.units.MAX_MAGNITUDE`) and, when ``triangle``, with each principal moment at most the sum of
+    the other two."""
+    where = "robot.urdf_text" if urdf_path is None else f"robot: URDF {urdf_path}"
+    if urdf_text is not None:
+        check_text_size(urdf_text, where)
+    text = urdf_text if urdf_text is not None else read_bounded(urdf_path, where)
     try:
         root = ElementTree.fromstring(text)
     except ElementTree.ParseError as exc:
         raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+    check_nesting(root, where)
     _check_tree(root)
+    links, joints = root.findall("link"), root.findall("joint")
+    check_count(len(links), "links", where)
+    check_count(len(joints), "joints", where)
+    parents = {str(joint.find("child").get("link")): str(joint.find("parent").get("link")) for joint in joints}
+    check_depth(tree_depth(parents), where)
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is not None:
@@ -81,35 +92,6 @@ def _number(element: ElementTree.Element | None, key: str, what: str, where: str
 
 def _check_inertial(inertial: ElementTree.Element, where: str, triangle: bool) -> None:
     mass = _number(inertial.find("mass"), "value", "mass", where)
-    if mass < 0:
-        raise SceneError(f"{where}: mass {mass} kg is negative")
-    within_ceiling(mass, f"{where}: mass", "kg")
     element = inertial.find("inertia")
     ixx, ixy, ixz, iyy, iyz, izz = (_number(element, key, f"inertia {key}", where) for key in INERTIA_KEYS)
-    check_inertia(np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]), where, triangle)
-
-
-def check_inertia(inertia: np.ndarray, where: str, triangle: bool) -> None:
-    """A link's rotational inertia (3 x 3, symmetric) [kg m^2]: positive semidefinite, its largest principal moment
-    within the ceiling and, when ``triangle``, each moment at most the sum of the other two.
-
-    Raises:
-        SceneError: naming ``where`` and the principal moments.
-    """
-    moments = np.linalg.eigvalsh(inertia)
-    tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
-    if moments[0] < -tolerance:
-        raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
-    within_ceiling(float(moments[2]), f"{where}: inertia's largest principal moment", "kg m^2")
-    if triangle and moments[2] > moments[0] + moments[1] + tolerance:
-        raise SceneError(
-            f"{where}: inertia violates the triangle inequality: {_moments(moments)} "
-            "(each must be at most the sum of the other two)"
-        )
-
-
-def _moments(moments: np.ndarray) -> str:
-    return f"principal moments {np.round(moments, 12).tolist()} kg m^2"
-
-
-# -- the model -----------------------------------------------------------------------------------
+    check_body(mass, np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]]), where, triangle)

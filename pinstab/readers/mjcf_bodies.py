@@ -1,0 +1,123 @@
+"""The bodies of an MJCF file checked before Pinocchio's MJCF parser reads them, and the inertias it compiled.
+
+Before (the bodies' nesting is bounded as the document is read, :mod:`.mjcf_xml`): the bodies and joints within
+:data:`~.bounds.MAX_BODIES`, the one Pinocchio ``Data`` the parser
+builds within the memory budget (its resident size grows with nv^3: 0.9 GB at nv = 300, 33 GB at nv = 1000),
+every ``<inertial>``'s mass and inertia physical (the parser runs a mass of -0.5 kg as 0 and an inertia diagonal
+of (-1, 1, 1) as (0, 1, 1); MuJoCo refuses both), every geom's mass, density and sizes, from which the inertia of a
+body without ``<inertial>`` is computed (``<compiler inertiafromgeom>``), not negative (the parser makes a body of
+negative mass of a geom of negative density; MuJoCo refuses it). After: the inertia of every joint's bodies as the
+parser compiled them, by the same check (:func:`~.inertia.check_body`).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import SceneError
+from ..memory import data_bytes, require
+from .bounds import check_count
+from .inertia import check_body, check_nonnegative
+from .mjcf_xml import MjcfDocument
+
+JOINT_DOFS = {"hinge": 1, "slide": 1, "ball": 3, "free": 6}  # MJCF joint type -> velocities
+GEOM_QUANTITIES = (("mass", "kg"), ("density", "kg/m^3"))
+
+
+def joint_kind(document: MjcfDocument, joint: ET.Element, where: str) -> str:
+    """The type of a ``<joint>`` (through the defaults; ``hinge`` when none) or ``free`` for a ``<freejoint>``.
+
+    Raises:
+        SceneError: an unknown type, naming the joint and the types.
+    """
+    kind = "free" if joint.tag == "freejoint" else document.attribute(joint, "type") or "hinge"
+    if kind not in JOINT_DOFS:
+        raise SceneError(f"{where}: unknown type {kind!r}; MJCF joint types: {', '.join(JOINT_DOFS)}")
+    return kind
+
+
+def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
+    """What the file asks of Pinocchio's MJCF parser (see the module docstring), checked before it runs.
+
+    Raises:
+        SceneError: a bound passed or a non-physical value, naming the file, the body or geom and the value.
+        MemoryBudgetError: the parser's Data would not fit the memory budget.
+    """
+    where = f"robot.mjcf {document.path}"
+    worldbody = document.root.find("worldbody")
+    bodies = [] if worldbody is None else list(worldbody.iter("body"))
+    joints = [] if worldbody is None else [j for j in worldbody.iter() if j.tag in ("joint", "freejoint")]
+    check_count(len(bodies), "bodies", where)
+    check_count(len(joints), "joints", where)
+    nv = 6 * free_flyer + sum(JOINT_DOFS[joint_kind(document, j, _name(document, j))] for j in joints)
+    require(
+        {"the Pinocchio Data its MJCF parser builds": data_bytes(nv, len(joints) + 1)},
+        f"Pinocchio's MJCF parser on {document.path} ({nv} velocities)",
+        remedy="give a model of fewer joints",
+    )
+    for body in bodies:
+        inertial = body.find("inertial")
+        if inertial is not None:
+            _check_inertial(document, inertial, _name(document, body))
+    for geom in [] if worldbody is None else worldbody.iter("geom"):
+        _check_geom(document, geom, _name(document, geom))
+
+
+def check_compiled(document: MjcfDocument, model: pin.Model) -> None:
+    """The inertia of each joint's bodies as Pinocchio's parser compiled them (from ``<inertial>`` or the geoms),
+    by :func:`~.inertia.check_body` (no triangle inequality: a sum of bodies' inertias about one point).
+
+    Raises:
+        SceneError: naming the file, the joint and the value.
+    """
+    for joint in range(model.njoints):
+        inertia = model.inertias[joint]
+        bodies = "the bodies fixed to the world" if joint == 0 else f"the bodies on joint {model.names[joint]!r}"
+        where = f"robot.mjcf {document.path}: {bodies} (as Pinocchio's MJCF parser compiled them)"
+        check_body(inertia.mass, inertia.inertia, where, triangle=False)
+
+
+def _name(document: MjcfDocument, element: ET.Element) -> str:
+    """``robot.mjcf <file> <tag> '<name>'`` (an unnamed element: ``<tag> number <i> of body '<name>'``), the file
+    the element was read from (the model's or an included one)."""
+    label = f"{element.tag} {element.get('name')!r}"
+    parent = document.parents.get(element)
+    if element.get("name") is None and parent is not None:
+        index = [item for item in parent if item.tag == element.tag].index(element)
+        label = f"{element.tag} number {index} of {parent.tag} {parent.get('name')!r}"
+    return f"robot.mjcf {document.file_of(element)} {label}"
+
+
+def _check_inertial(document: MjcfDocument, inertial: ET.Element, where: str) -> None:
+    """An ``<inertial>``: ``mass`` and ``diaginertia`` (ixx iyy izz) or ``fullinertia`` (ixx iyy izz ixy ixz iyz),
+    held to the triangle inequality as MuJoCo holds them."""
+    mass = float(document.numbers(inertial, "mass", 1, f"{where} <inertial>")[0])
+    if inertial.get("fullinertia") is not None:
+        xx, yy, zz, xy, xz, yz = document.numbers(inertial, "fullinertia", 6, f"{where} <inertial>")
+        inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    elif inertial.get("diaginertia") is not None:
+        inertia = np.diag(document.numbers(inertial, "diaginertia", 3, f"{where} <inertial>"))
+    else:
+        raise SceneError(
+            f"{where}: <inertial> gives neither diaginertia nor fullinertia (Pinocchio's MJCF parser would take "
+            "1 kg m^2 about each axis, MuJoCo 0)"
+        )
+    check_body(mass, inertia, where, triangle=True)
+
+
+def _check_geom(document: MjcfDocument, geom: ET.Element, where: str) -> None:
+    """A geom's ``mass`` [kg], ``density`` [kg/m^3] and ``size`` [m] (through the defaults) finite, not negative
+    and within the ceiling."""
+    for key, unit in GEOM_QUANTITIES:
+        if document.attribute(geom, key) is not None:
+            check_nonnegative(float(document.numbers(geom, key, 1, where)[0]), f"{where}: {key}", unit)
+    text = document.attribute(geom, "size")
+    if text is not None:
+        count = len(text.split())
+        if not 1 <= count <= 3:
+            raise SceneError(f"{where}: size={text!r} is not 1 to 3 numbers")
+        for value in document.numbers(geom, "size", count, where):
+            check_nonnegative(float(value), f"{where}: size", "m")
