@@ -163,7 +163,7 @@ def read_document(path: Path) -> MjcfDocument:
     if root.tag != "mujoco":
         raise SceneError(f"robot.mjcf: {path} has <{root.tag}> at its root, not <mujoco>")
     origins = _inline_includes(root, path, len(data))
-    check_nesting(root, f"robot.mjcf {path} (its includes inlined)", body="body")
+    check_nesting(root, f"robot.mjcf {path}", body="body")  # its includes inlined
     return MjcfDocument(root, path, origins=origins)
 
 
