@@ -4,6 +4,8 @@
 Scene table ``[actuation]``: ``joints = [...]`` (each a 1-DOF joint: u is its torque [N m] or force [N];
 limits from the URDF's effort limits), or ``matrix = [[...], ...]`` (nv rows, k columns, in the model's
 velocity order) with ``names``; optional ``lower`` / ``upper`` (k numbers, [N m or N]) override the limits.
+The matrix entries (transmission ratios [-] or lever arms [m]) and the bounds are at most
+:data:`~pinstab.units.MAX_MAGNITUDE` in size, each named when beyond.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import SceneError
-from .tables import check_keys, joint_id, table, vector
+from .tables import check_keys, joint_id, table, unit, vector
+from .units import within_ceiling
 
 ACTUATION_KEYS = {"joints", "matrix", "names", "lower", "upper"}
 
@@ -56,7 +59,9 @@ def read_actuation(value: Any, model: pin.Model) -> Actuation | None:
         lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
     for key in ("lower", "upper"):
         if key in entry:
-            bound = vector(entry[key], len(names), f"actuation.{key}", None)
+            bound = _within_ceiling(
+                vector(entry[key], len(names), f"actuation.{key}", None), f"actuation.{key}", "N m or N"
+            )
             lower, upper = (bound, upper) if key == "lower" else (lower, bound)
     if np.any(lower >= upper):
         raise SceneError(f"actuation: every lower bound must be below its upper bound, got {lower} and {upper}")
@@ -85,10 +90,26 @@ def _matrix_actuation(entry: dict[str, Any], model: pin.Model) -> tuple[np.ndarr
     width = len(rows[0]) if isinstance(rows[0], list) else 0
     if width == 0:
         raise SceneError("actuation.matrix rows must be non-empty lists of numbers")
-    matrix = np.array([vector(row, width, f"actuation.matrix[{i}]", None) for i, row in enumerate(rows)])
+    matrix = np.array(
+        [_within_ceiling(vector(row, width, f"actuation.matrix[{i}]", None), f"actuation.matrix[{i}]", "[-] or m")
+         for i, row in enumerate(rows)]
+    )  # fmt: skip
     names = entry.get("names", [f"u{i}" for i in range(width)])
     if not isinstance(names, list) or len(names) != width or not all(isinstance(n, str) for n in names):
         raise SceneError(f"actuation.names must be {width} strings, one per column of the matrix")
-    if np.linalg.matrix_rank(matrix) < width:
+    for column, name in enumerate(names):
+        if not np.any(matrix[:, column]):
+            raise SceneError(f"actuation.matrix: column {column} ({name!r}) is zero: that control acts on nothing")
+    # each column scaled to length 1: the rank asks whether the controls act in independent directions, whatever
+    # the units of each (matrix_rank's tolerance grows with the largest entry, and would count a column of 1 next to
+    # one of 1e12 as dependent)
+    if np.linalg.matrix_rank(np.column_stack([unit(c) for c in matrix.T])) < width:
         raise SceneError("actuation.matrix: its columns are dependent (two controls act the same way)")
     return matrix, tuple(names)
+
+
+def _within_ceiling(values: np.ndarray, where: str, unit_name: str) -> np.ndarray:
+    """``values`` when each is at most :data:`~pinstab.units.MAX_MAGNITUDE` in size (``where[k]`` named if not)."""
+    for k, value in enumerate(values):
+        within_ceiling(abs(float(value)), f"|{where}[{k}]|", unit_name)
+    return values

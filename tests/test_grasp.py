@@ -92,7 +92,7 @@ def test_the_grasp_map_moves_a_contact_force_to_the_object_centre():
     ("contact", "message"),
     [
         (dict(model="sticky"), "unknown contact model 'sticky'; models: frictionless, point-friction"),
-        (dict(model="point-friction", mu=-0.1), "mu must be a finite number >= 0"),
+        (dict(model="point-friction", mu=-0.1), r"contact 'tip'.mu must be a number in \[0, 10\] \[-\], got -0.1"),
         (dict(model="point-friction", rotation=np.ones((3, 3))), "rotation must be a 3 x 3 rotation matrix"),
     ],
 )

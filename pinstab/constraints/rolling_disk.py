@@ -37,7 +37,7 @@ import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError
 from ..kinematics import Kinematics
-from ..tables import SceneTables
+from ..tables import SceneTables, unit
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .contacts import contact_basis
 from .grasp_contacts import cross
@@ -71,7 +71,7 @@ class DiskPlaneContact(Constraint):
         basis = contact_basis(normal)
         self.name = name
         self.frame = frame
-        self.axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        self.axis = unit(axis)
         self.radius = float(radius)
         self.normal = basis[0]
         self.point = np.asarray(point, dtype=float)
@@ -128,14 +128,6 @@ class DiskPlaneContact(Constraint):
         return (w_rate - towards * float(towards @ w_rate)) / size
 
 
-def _unit_vector(entry: dict, key: str, default: list[float], where: str) -> np.ndarray:
-    """``entry[key]`` (or ``default``), a non-zero 3-vector, normalized."""
-    value = SceneTables.vector(entry.get(key, default), 3, f"{where}.{key}", None)
-    if np.linalg.norm(value) < 1e-12:
-        raise SceneError(f"{where}.{key} must be a non-zero vector, got {entry.get(key)!r}")
-    return value / np.linalg.norm(value)
-
-
 def parse_disk(holonomic: bool) -> Callable[[dict, SceneTables, str, str], DiskPlaneContact]:
     """The scene-table reader of ``disk-touch`` (``holonomic``) or ``rolling-disk``: ``frame`` (the disk's
     centre, + ``offset`` [m] in it), ``axis`` in that frame (default y), ``radius`` [m], the plane's
@@ -148,8 +140,8 @@ def parse_disk(holonomic: bool) -> Callable[[dict, SceneTables, str, str], DiskP
         radius = tables.quantity(entry["radius"], "length", f"{where}.radius")
         if not radius > 0:
             raise SceneError(f"{where}.radius must be > 0, got {entry['radius']!r}")
-        axis = _unit_vector(entry, "axis", [0.0, 1.0, 0.0], where)
-        normal = _unit_vector(entry, "normal", [0.0, 0.0, 1.0], where)
+        axis = tables.direction(entry.get("axis", [0.0, 1.0, 0.0]), f"{where}.axis")
+        normal = tables.direction(entry.get("normal", [0.0, 0.0, 1.0]), f"{where}.normal")
         point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
         frame = tables.attached_frame(entry, "frame", "offset", "rpy", f"{name}/centre", where)
         axis_start = tables.initial_placement(frame).rotation @ axis

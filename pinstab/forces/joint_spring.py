@@ -88,12 +88,10 @@ def _frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple:
     motion = entry.get("motion")
     if motion not in MOTIONS:
         raise SceneError(f"{where}.motion must be one of {choices(MOTIONS)}, got {motion!r}")
-    axis = tables.vector(entry.get("axis"), 3, f"{where}.axis", None)
-    if np.linalg.norm(axis) < 1e-9:
-        raise SceneError(f"{where}.axis must be a non-zero direction, got {axis.tolist()}")
+    axis = tables.direction(entry.get("axis"), f"{where}.axis")
     frame_a, frame_b, placement_b = closure_frames(entry, tables, name, where)
     placement_b = pin.SE3.Identity() if placement_b is None else placement_b  # (read only on the world side)
-    return frame_a, frame_b, placement_b, axis / np.linalg.norm(axis), motion
+    return frame_a, frame_b, placement_b, axis, motion
 
 
 @FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate or a closure's free axis")

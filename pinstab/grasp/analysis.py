@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from ..contact.coefficients import friction_coefficient
 from ..contact.models import WRENCH_BASES
 from ..errors import PinstabError, choices
 
@@ -32,8 +33,9 @@ class GraspContact:
     Attributes:
         name: the contact's name. model: a key of :data:`~pinstab.contact.models.WRENCH_BASES`.
         position: the contact point in O [m]. rotation: C_i's axes in O (3 x 3, z the inward normal).
-        mu: Coulomb friction coefficient [-]. torsion: the soft finger's torsional coefficient [m]
-            (``|moment about the normal| <= torsion x normal force``).
+        mu: Coulomb friction coefficient [-], in [0, :data:`~pinstab.contact.coefficients.MAX_FRICTION`].
+        torsion: the soft finger's torsional coefficient [m] (``|moment about the normal| <= torsion x normal
+            force``).
     """
 
     name: str
@@ -48,9 +50,10 @@ class GraspContact:
             raise PinstabError(
                 f"contact {self.name!r}: unknown contact model {self.model!r}; models: {choices(WRENCH_BASES)}"
             )
-        for label, value in (("mu", self.mu), ("torsion", self.torsion)):
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise PinstabError(f"contact {self.name!r}: {label} must be a finite number >= 0, got {value!r}")
+        friction_coefficient(self.mu, f"contact {self.name!r}.mu")
+        torsion = self.torsion
+        if not (isinstance(torsion, int | float) and math.isfinite(torsion) and torsion >= 0):
+            raise PinstabError(f"contact {self.name!r}: torsion must be a finite number >= 0, got {torsion!r}")
         rotation = np.asarray(self.rotation, dtype=float)
         if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-9):
             raise PinstabError(f"contact {self.name!r}: rotation must be a 3 x 3 rotation matrix")

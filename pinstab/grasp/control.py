@@ -314,9 +314,7 @@ def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str)
         welds = None
     move = tables.vector(entry.get("move", [0.0, 0.0, 0.0]), 3, f"{where}.move", "length")
     turn = tables.quantity(entry.get("turn", 0.0), "angle", f"{where}.turn")
-    axis = tables.vector(entry.get("axis", [0.0, 0.0, 1.0]), 3, f"{where}.axis", None)
-    if np.linalg.norm(axis) < 1e-12:
-        raise SceneError(f"{where}.axis must be a non-zero vector")
+    axis = tables.direction(entry.get("axis", [0.0, 0.0, 1.0]), f"{where}.axis")
     start = tables.quantity(entry.get("start", 0.0), "time", f"{where}.start")
     duration = tables.quantity(entry.get("duration", 1.0), "time", f"{where}.duration")
     if not duration > 0 or start < 0:
@@ -332,7 +330,7 @@ def parse_grasp_control(entry: dict, tables: SceneTables, name: str, where: str)
     internal = entry.get("internal_forces", True)
     if not isinstance(internal, bool):
         raise SceneError(f"{where}.internal_forces must be true or false, got {internal!r}")
-    path = PosePath(tables.initial_placement(item.frame), move, turn, axis / np.linalg.norm(axis), start, duration)
+    path = PosePath(tables.initial_placement(item.frame), move, turn, axis, start, duration)
     return GraspControl(
         name, tables.model, contacts, item.frame, columns, path, gains, margin, facets, internal, tables.q0, welds
     )
