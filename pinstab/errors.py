@@ -92,6 +92,15 @@ class PainleveError(ContactInfeasibleError):
     """
 
 
+class ContactSolveError(ContactInfeasibleError):
+    """The frictional contact problem of a step was not solved: no solver tried (ADMM, then PGS) met the contact
+    law to its tolerance (the problem may have a solution; the run keeps its samples up to the step).
+
+    Attributes:
+        contacts: the contacts of the problem. time: the step's start [s].
+    """
+
+
 class ServoInfeasibleError(PinstabError):
     """A prescribed constraint (servoconstraint) that the controls cannot realize at a state.
 
