@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 from test_catalogue import Case, run_case
 
 from pinstab.errors import SceneError
 from pinstab.readers import read_robot
 from pinstab.readers.bounds import MAX_BODIES, MAX_FILE_BYTES, MAX_TREE_DEPTH, MAX_XML_NESTING, tree_depth
-from pinstab.readers.mjcf_xml import MAX_INCLUDE_DEPTH, MAX_INCLUDED_FILES
+from pinstab.readers.mjcf_bodies import check_compiled
+from pinstab.readers.mjcf_xml import MAX_INCLUDE_DEPTH, MAX_INCLUDED_FILES, read_document
 
 INERTIAL = '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>'
 URDF_INERTIAL = (
@@ -186,6 +188,35 @@ CASES = [
         mjcf_body('<geom type="box" size="100 100 100" density="1e12"/>'),
         "SceneError",
         "the bodies on joint 'j' (as Pinocchio's MJCF parser compiled them): mass = 8e+18 kg is outside",
+    ),
+    # numbers Pinocchio's parser reads as memory it never wrote (pos="1 2": z = 2e243) or cuts (MuJoCo refuses both)
+    robot_case(
+        "MJCF body pos of 2 numbers",
+        "mjcf",
+        mjcf_body(INERTIAL).replace('<body name="b">', '<body name="b" pos="1 2">'),
+        "SceneError",
+        "robot.mjcf body 'b': pos='1 2' is not 3 finite numbers",
+    ),
+    robot_case(
+        "MJCF inertial pos empty",
+        "mjcf",
+        mjcf_body('<inertial pos="" mass="1" diaginertia="1 1 1"/>'),
+        "SceneError",
+        "inertial number 0 of body 'b': pos='' is not 3 finite numbers",
+    ),
+    robot_case(
+        "MJCF default joint axis of 4 numbers",
+        "mjcf",
+        mjcf_body(INERTIAL, before='<default><joint axis="0 0 1 0"/></default>'),
+        "SceneError",
+        "joint number 0 of default 'main': axis='0 0 1 0' is not 3 finite numbers",
+    ),
+    robot_case(
+        "MJCF geom quat nan",
+        "mjcf",
+        mjcf_body(INERTIAL + '<geom name="g" type="sphere" size="0.1" quat="1 nan 0 0"/>'),
+        "SceneError",
+        "geom 'g': quat='1 nan 0 0' is not 4 finite numbers",
     ),
     # the same mass refused by every reader, in the same words
     robot_case(
@@ -361,6 +392,17 @@ def test_bad_robot_file_ends_in_its_named_error(case, tmp_path, capsys):
     assert (code, error) == (case.code, case.error), err
     assert case.phrase in err and "Traceback" not in err
     assert time.perf_counter() - start < 10.0
+
+
+def test_mjcf_compiled_placements_are_checked_finite(tmp_path):
+    """The last guard, after Pinocchio's parser: a placement it compiled to NaN (from any attribute it misreads)."""
+    (tmp_path / "robot.mjcf").write_text(mjcf_body(INERTIAL))
+    document = read_document(tmp_path / "robot.mjcf")
+    model = read_robot({"mjcf": "robot.mjcf"}, tmp_path).model
+    check_compiled(document, model)
+    model.jointPlacements[1].translation = np.array([0.0, np.nan, 0.0])
+    with pytest.raises(SceneError, match="the bodies on joint 'j' .*: a placement or centre of mass is not finite"):
+        check_compiled(document, model)
 
 
 # -- the largest models allowed load -------------------------------------------------------------

@@ -38,12 +38,14 @@ def check_nonnegative(value: float, where: str, unit: str) -> None:
 
 
 def check_inertia(inertia: np.ndarray, where: str, triangle: bool) -> None:
-    """A body's rotational inertia (3 x 3, symmetric) [kg m^2]: positive semidefinite, its largest principal moment
-    within the ceiling and, when ``triangle``, each moment at most the sum of the other two.
+    """A body's rotational inertia (3 x 3, symmetric) [kg m^2]: finite, positive semidefinite, its largest principal
+    moment within the ceiling and, when ``triangle``, each moment at most the sum of the other two.
 
     Raises:
         SceneError: naming ``where`` and the principal moments.
     """
+    if not np.isfinite(inertia).all():
+        raise SceneError(f"{where}: inertia {np.asarray(inertia).tolist()} kg m^2 is not finite")
     moments = np.linalg.eigvalsh(inertia)
     tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
     if moments[0] < -tolerance:

@@ -25,6 +25,12 @@ from .mjcf_xml import MjcfDocument
 
 JOINT_DOFS = {"hinge": 1, "slide": 1, "ball": 3, "free": 6}  # MJCF joint type -> velocities
 GEOM_QUANTITIES = (("mass", "kg"), ("density", "kg/m^3"))
+# the numbers of the attributes Pinocchio's MJCF parser reads, as MuJoCo requires them: the parser reads fewer as
+# memory it never wrote (pos="1 2": a z of 2e243) and ignores more, where MuJoCo refuses both
+NUMBERS = {"pos": 3, "quat": 4, "axisangle": 4, "euler": 3, "xyaxes": 6, "zaxis": 3, "axis": 3, "range": 2}
+NUMBERS |= {key: 1 for key in ("ref", "springref", "stiffness", "damping", "armature", "frictionloss")}
+NUMBERS |= {"mass": 1, "density": 1, "diaginertia": 3, "fullinertia": 6, "fromto": 6, "rgba": 4}
+NUMBERED = ("body", "inertial", "joint", "freejoint", "geom", "site")  # elements of the tree, or their defaults
 
 
 def joint_kind(document: MjcfDocument, joint: ET.Element, where: str) -> str:
@@ -58,6 +64,9 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
         f"Pinocchio's MJCF parser on {document.path} ({nv} velocities)",
         remedy="give a model of fewer joints",
     )
+    for element in document.root.iter():
+        if element.tag in NUMBERED:
+            _check_numbers(document, element, _name(document, element))
     for body in bodies:
         inertial = body.find("inertial")
         if inertial is not None:
@@ -77,18 +86,37 @@ def check_compiled(document: MjcfDocument, model: pin.Model) -> None:
         inertia = model.inertias[joint]
         bodies = "the bodies fixed to the world" if joint == 0 else f"the bodies on joint {model.names[joint]!r}"
         where = f"robot.mjcf {document.path}: {bodies} (as Pinocchio's MJCF parser compiled them)"
+        placement = model.jointPlacements[joint].homogeneous
+        if not (np.isfinite(placement).all() and np.isfinite(inertia.lever).all()):
+            raise SceneError(f"{where}: a placement or centre of mass is not finite")
         check_body(inertia.mass, inertia.inertia, where, triangle=False)
 
 
 def _name(document: MjcfDocument, element: ET.Element) -> str:
-    """``robot.mjcf <file> <tag> '<name>'`` (an unnamed element: ``<tag> number <i> of body '<name>'``), the file
-    the element was read from (the model's or an included one)."""
+    """``robot.mjcf <file> <tag> '<name>'`` (an unnamed element: ``<tag> number <i> of body '<name>'``, or of its
+    default class), the file the element was read from (the model's or an included one)."""
     label = f"{element.tag} {element.get('name')!r}"
     parent = document.parents.get(element)
     if element.get("name") is None and parent is not None:
         index = [item for item in parent if item.tag == element.tag].index(element)
-        label = f"{element.tag} number {index} of {parent.tag} {parent.get('name')!r}"
+        named = parent.get("name", parent.get("class", "main" if parent.tag == "default" else None))
+        label = f"{element.tag} number {index} of {parent.tag} {named!r}"
     return f"robot.mjcf {document.file_of(element)} {label}"
+
+
+def _check_numbers(document: MjcfDocument, element: ET.Element, where: str) -> None:
+    """The element's own attributes of :data:`NUMBERS`: each as many finite numbers as MuJoCo requires; its
+    ``size`` (a geom's or a site's) 1 to 3 of them, not negative."""
+    for key in element.attrib:
+        if key in NUMBERS:
+            document.numbers(element, key, NUMBERS[key], where)
+    text = element.get("size")
+    if text is not None and element.tag in ("geom", "site"):
+        count = len(text.split())
+        if not 1 <= count <= 3:
+            raise SceneError(f"{where}: size={text!r} is not 1 to 3 numbers")
+        for value in document.numbers(element, "size", count, where):
+            check_nonnegative(float(value), f"{where}: size", "m")
 
 
 def _check_inertial(document: MjcfDocument, inertial: ET.Element, where: str) -> None:
@@ -109,15 +137,8 @@ def _check_inertial(document: MjcfDocument, inertial: ET.Element, where: str) ->
 
 
 def _check_geom(document: MjcfDocument, geom: ET.Element, where: str) -> None:
-    """A geom's ``mass`` [kg], ``density`` [kg/m^3] and ``size`` [m] (through the defaults) finite, not negative
-    and within the ceiling."""
+    """A geom's ``mass`` [kg] and ``density`` [kg/m^3] (through the defaults: MuJoCo applies them, Pinocchio's
+    parser not always) not negative and within the ceiling."""
     for key, unit in GEOM_QUANTITIES:
         if document.attribute(geom, key) is not None:
             check_nonnegative(float(document.numbers(geom, key, 1, where)[0]), f"{where}: {key}", unit)
-    text = document.attribute(geom, "size")
-    if text is not None:
-        count = len(text.split())
-        if not 1 <= count <= 3:
-            raise SceneError(f"{where}: size={text!r} is not 1 to 3 numbers")
-        for value in document.numbers(geom, "size", count, where):
-            check_nonnegative(float(value), f"{where}: size", "m")
