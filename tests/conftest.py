@@ -97,9 +97,13 @@ HYPOTHESIS_PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "default")
 
 def _register_hypothesis_profiles() -> None:
     """Register and load the Hypothesis settings profiles."""
-    from hypothesis import HealthCheck, settings
+    from hypothesis import HealthCheck, Phase, settings
 
-    relaxed = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    relaxed = dict(
+        deadline=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+        phases=[phase for phase in Phase if phase is not Phase.explain],  # explaining re-runs a failure dozens of times
+    )
     settings.register_profile("default", max_examples=200, derandomize=True, database=None, print_blob=True, **relaxed)
     settings.register_profile("nightly", max_examples=2000, print_blob=True, **relaxed)
     settings.register_profile("long", max_examples=10_000, print_blob=True, **relaxed)
