@@ -218,6 +218,13 @@ CASES = [
         "SceneError",
         "geom 'g': quat='1 nan 0 0' is not 4 finite numbers",
     ),
+    robot_case(  # Pinocchio's parser ended in an IndexError (std::out_of_range), MuJoCo refuses it
+        "MJCF class not defined",
+        "mjcf",
+        mjcf_body(INERTIAL).replace('type="slide"', 'type="slide" class="nowhere"'),
+        "SceneError",
+        "joint 'j': class='nowhere' is not a default class; classes: none",
+    ),
     # the same mass refused by every reader, in the same words
     robot_case(
         "URDF mass -0.5", "urdf", urdf_tree(2, True, mass="-0.5"), "SceneError", "link 'l0': mass -0.5 kg is negative"

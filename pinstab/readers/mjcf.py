@@ -65,7 +65,7 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
                 model = pin.buildModelFromMJCFAndRootJoint(str(parsed), pin.JointModelFreeFlyer(), "root_joint")
             else:
                 model = pin.buildModelFromMJCF(str(parsed))
-    except (ValueError, RuntimeError) as exc:
+    except (ValueError, RuntimeError, IndexError) as exc:  # IndexError: its std::out_of_range
         raise SceneError(f"robot.mjcf: Pinocchio cannot read {path}: {exc}") from None
     _check_bodies(document, model)
     check_compiled(document, model)

@@ -67,6 +67,12 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
     for element in document.root.iter():
         if element.tag in NUMBERED:
             _check_numbers(document, element, _name(document, element))
+        for key in ("class", "childclass"):
+            if element.get(key) is not None and element.tag != "default" and element.get(key) not in document.classes:
+                raise SceneError(
+                    f"{_name(document, element)}: {key}={element.get(key)!r} is not a default class; classes: "
+                    f"{', '.join(document.classes) or 'none'}"
+                )
     for body in bodies:
         inertial = body.find("inertial")
         if inertial is not None:
