@@ -504,6 +504,18 @@ def test_includes_as_many_and_as_deep_as_the_bounds_load(tmp_path):
         read_robot({"mjcf": "wider.mjcf"}, tmp_path)
 
 
+def test_robot_files_of_the_most_bytes_allowed_load(tmp_path):
+    """The model's file and its include together: exactly MAX_FILE_BYTES load, one byte more is refused."""
+    main = mjcf_body(INERTIAL, before='<include file="big.xml"/>').encode()
+    (tmp_path / "robot.mjcf").write_bytes(main)
+    padding = MAX_FILE_BYTES - len(main) - len(b"<mujoco></mujoco>")
+    (tmp_path / "big.xml").write_bytes(b"<mujoco>" + b" " * padding + b"</mujoco>")
+    assert read_robot({"mjcf": "robot.mjcf"}, tmp_path).model.nv == 1
+    (tmp_path / "big.xml").write_bytes(b"<mujoco>" + b" " * (padding + 1) + b"</mujoco>")
+    with pytest.raises(SceneError, match=f"big.xml has {padding + 18} bytes \\(after {len(main)} bytes"):
+        read_robot({"mjcf": "robot.mjcf"}, tmp_path)
+
+
 # -- the depth of a tree -------------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("parents", "depth"),
