@@ -11,7 +11,7 @@ import numpy as np
 from scipy.integrate import cumulative_simpson
 
 from .constraints import RowKind
-from .errors import ContactInfeasibleError
+from .errors import ContactInfeasibleError, DivergenceError, ServoInfeasibleError
 from .forces.base import Sample
 from .kernels import closure_series
 from .model import ConstrainedModel
@@ -19,6 +19,10 @@ from .paths.native import NATIVE_KINDS, unsupported_constraint
 from .solvers.base import ACCEPTED_RESIDUAL
 from .system import ConstrainedSystem
 from .zero_dynamics import zero_dynamics_report
+
+# what ConstrainedSystem.dynamics raises at a finite state where the dynamics cannot be had: non-finite (a diverged
+# run's last finite state, whose next step failed), controls that do not exist there, contacts that cannot hold
+NO_DYNAMICS = (DivergenceError, ServoInfeasibleError, ContactInfeasibleError)
 
 
 class ClosureSeries:
@@ -116,8 +120,9 @@ class StateSeries:
         }
 
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the contacts cannot
-        hold (the last sample of a run that ended with ContactInfeasibleError). On the native path without force
+        """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the dynamics cannot be
+        had (:data:`NO_DYNAMICS`: the last sample of a run that ended with ContactInfeasibleError, or the last finite
+        state of one that diverged from it). On the native path without force
         elements, Pinocchio's solves at every sample in one compiled call (``NativeKernel.multipliers``), those that
         miss the check (:meth:`~pinstab.paths.native.NativeDynamics.residual`) taken again one by one as
         :meth:`~pinstab.system.ConstrainedSystem.multipliers` takes them."""
@@ -134,7 +139,7 @@ class StateSeries:
             for k in np.flatnonzero(finite):
                 try:
                     out[k] = system.multipliers(q[k], v[k], float(t[k]))
-                except ContactInfeasibleError:
+                except NO_DYNAMICS:
                     continue
         return out
 
@@ -220,7 +225,8 @@ class StateSeries:
     def servo_figures(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
         """For a scene with prescribed constraints: per sample the controls u [N m or N] and the largest
         prescribed-row residual: |sigma| [m or rad] on holonomic rows, the velocity residual [m/s or rad/s]
-        on Pfaffian ones; empty otherwise."""
+        on Pfaffian ones; NaN at a sample that is not finite or whose dynamics cannot be had (:data:`NO_DYNAMICS`:
+        the last finite state of a run that diverged from it); empty otherwise, and when no sample has them."""
         system = self.system
         if system.servo is None:
             return {}
@@ -230,17 +236,28 @@ class StateSeries:
         pfaffian = constraints.prescribed_mask & ~constraints.holonomic_mask
         controls = np.full((len(t), system.servo.actuation.count), np.nan)
         error = np.full(len(t), np.nan)
-        for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
-            evaluation = system.dynamics(q[k], v[k], float(t[k]))  # its values are those at (q, v, t) too
-            controls[k], values = evaluation.controls, evaluation.values
-            residual = np.concatenate([values.phi[holonomic], values.velocity_residual[pfaffian]])
-            error[k] = float(np.max(np.abs(residual), initial=0.0))
+        with np.errstate(over="ignore", invalid="ignore"):
+            for k in np.flatnonzero(np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)):
+                try:
+                    evaluation = system.dynamics(q[k], v[k], float(t[k]))  # its values are those at (q, v, t) too
+                except NO_DYNAMICS:
+                    continue
+                controls[k], values = evaluation.controls, evaluation.values
+                residual = np.concatenate([values.phi[holonomic], values.velocity_residual[pfaffian]])
+                error[k] = float(np.max(np.abs(residual), initial=0.0))
+        if np.isnan(error).all():
+            return {}
         return {"controls": controls, "servo_error": error}
 
     def zero_dynamics(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, Any]:
         """For a scene with prescribed constraints: the free coordinates, the eigenvalues of the zero dynamics
         at the start and the free coordinates' speeds (:func:`~pinstab.zero_dynamics.zero_dynamics_report`);
-        empty otherwise."""
+        empty otherwise, and when the dynamics cannot be had at the start (:data:`NO_DYNAMICS`: a run that diverged
+        at its first step), where they are linearized."""
         if self.system.servo is None:
             return {}
-        return zero_dynamics_report(self.system, t, q, v)
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                return zero_dynamics_report(self.system, t, q, v)
+        except NO_DYNAMICS:
+            return {}

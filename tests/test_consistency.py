@@ -21,7 +21,7 @@ from conftest import ROBOTS
 from pinstab import cli
 from pinstab.cli.commands import COMMANDS
 from pinstab.constraints.targets import MAX_DEGREE, MAX_OMEGA, MAX_TIME, MIN_SPAN, TargetContext, read_trajectory
-from pinstab.errors import DivergenceError, SceneError, WaypointError
+from pinstab.errors import SceneError, WaypointError
 from pinstab.scene import scene_from_dict
 from pinstab.tables import MAX_REACH, scene_size
 from pinstab.trajectory import Trajectory
@@ -312,22 +312,20 @@ def test_json_never_changes_the_exit_code(capsys, tmp_path, name):
         assert isinstance(json.loads(out), dict)
 
 
-def test_a_divergence_whose_figures_fail_keeps_exit_3_with_json(capsys, monkeypatch):
+def test_a_divergence_whose_figures_cannot_be_had_keeps_exit_3_with_json(capsys, tmp_path):
     """The issue's servo target of 1e308 diverged at the first step, and its figures up to the last finite state
-    (the servo's controls there) raised again while the JSON was built: exit 1 and a traceback with --json, 3 without.
-    Any failure of those figures now leaves them out (figures_error) and keeps exit 3."""
-
-    def fails(self):
-        raise DivergenceError("non-finite acceleration at t = 0 s", 0.0, np.zeros(3), np.zeros(3))
-
-    monkeypatch.setattr(Trajectory, "summary", fails)
-    argv = "run fourbar --method baumgarte --kp 1e6 --kd 2e3 --integrator euler --dt 1e-2 --duration 5".split()
+    (the servo's controls there, where the dynamics were not finite) raised again while the JSON was built: exit 1
+    and a traceback with --json, 3 without. The same failure now that the target is refused (a start at 1e160 rad/s,
+    whose Coriolis terms overflow): exit 3 both ways, the controls left out (pinstab.series.NO_DYNAMICS)."""
+    start = "q = { joint1 = 0.5 }"
+    text = (ROBOTS / "double-pendulum-servo.toml").read_text().replace(start, f"{start}\nv = {{ joint1 = 1e160 }}")
+    argv = ["servo", write(tmp_path, "fast.toml", text), "--duration", "0.01"]
     assert run(capsys, *argv)[0] == 3
     code, out, err = run(capsys, *argv, "--json")
-    assert code == 3 and "Traceback" not in err and "non-finite acceleration at t = 0 s" in err
+    assert code == 3 and "Traceback" not in err and "a non-finite state" in err
     payload = json.loads(out)
-    assert payload["diverged"] is True and payload["diverged_at"] == pytest.approx(0.04)
-    assert payload["figures_error"] == "DivergenceError: non-finite acceleration at t = 0 s"
+    assert payload["diverged"] is True and payload["diverged_at"] == pytest.approx(1e-3) and payload["t_end"] == 0
+    assert "controls" not in payload and "zero_dynamics" not in payload
 
 
 # -- nothing but JSON on stdout (item 5) -----------------------------------------------------------------------------

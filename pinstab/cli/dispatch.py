@@ -185,21 +185,11 @@ def _fail(exc: PinstabError, args: argparse.Namespace, saved: str | None = None)
 def _divergence_payload(
     exc: DivergenceError | ProjectionError, args: argparse.Namespace, saved: str | None
 ) -> dict[str, Any]:
-    """A stopped run's JSON: the run's figures up to the last finite state, ``diverged_at`` [s] (the failed
-    step's time) and ``last_finite_state`` (t [s], q, v). Figures that cannot be had there (a servo's controls at a
-    state whose dynamics are not finite) are left out, said in ``figures_error`` and on stderr: the JSON never
-    changes the exit code."""
+    """A stopped run's JSON: the run's figures up to the last finite state (NaN, null in the JSON, where they cannot
+    be had: a servo's controls at a state whose dynamics are not finite, :data:`pinstab.series.NO_DYNAMICS`),
+    ``diverged_at`` [s] (the failed step's time) and ``last_finite_state`` (t [s], q, v)."""
     trajectory = getattr(exc, "finite_trajectory", None)
-    payload: dict[str, Any] = {"scene": args.scene}
-    if trajectory is not None:
-        try:
-            payload = run_summary(args, trajectory)
-        except Exception as error:  # the run's failure is the answer; these figures are extras
-            payload["figures_error"] = f"{type(error).__name__}: {error}"
-            print(
-                f"pinstab {args.command}: the JSON leaves out the figures up to the last finite state: {error}",
-                file=sys.stderr,
-            )
+    payload: dict[str, Any] = {"scene": args.scene} if trajectory is None else run_summary(args, trajectory)
     payload.update(diverged=True, error=str(exc))
     if isinstance(exc, DivergenceError):
         payload["diverged_at"] = exc.diverged_at
