@@ -227,3 +227,8 @@ class JointLimitsWarning(PinstabWarning):
 class BranchChangeWarning(PinstabWarning):
     """The motion left its branch of the constraint manifold at a singular configuration (its tangent space
     turned by a finite angle at once)."""
+
+
+class CutShortWarning(PinstabWarning):
+    """A run file read back holds a run cut short (interrupted, or killed) before its end: its samples up to the last
+    one written, not its derived series."""
