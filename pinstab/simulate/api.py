@@ -116,7 +116,8 @@ def simulate(
             (:mod:`pinstab.integration.events`: error-controlled dop853, the scene's closures held, ``method``,
             ``integrator`` and ``solver`` unused; ``info.path_reason`` names the first limit left), each limit's
             time held in ``info.limits_active_s`` and its switches in ``info.contact_events``. Event-driven
-            contacts take the limits from the start; time-stepping contacts do not handle them. False: limits
+            contacts take the limits from the start; time-stepping contacts do not hold them (a start outside them
+            is refused, and leaving them warns: :class:`~pinstab.errors.JointLimitsWarning`). False: limits
             ignored. ``info.limits_active_s`` is None when they are ignored or the model has none.
         stream: an HDF5 file (``.h5``; needs ``h5py``, the ``stream`` extra) the samples are written to as the run
             proceeds, a block at a time (:mod:`pinstab.stream`), instead of being kept in memory: memory stays
@@ -161,11 +162,19 @@ def simulate(
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
     q0, v0 = start_state(scene, q0, v0)
+    table = held_limits(scene, q0, limits)  # every path refuses a start outside the limits
     if contacts == "stepping":
-        return _checked(
-            scene, simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock), clock
-        )
-    table = held_limits(scene, q0, limits)
+        stepped = simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock)
+        left = limit_left(stepped, table) if table else None
+        if left is not None:
+            warnings.warn(
+                JointLimitsWarning(
+                    f"scene {scene.name}: joint limits: {left[0].name} left at t = {left[1]:.6g} s, which "
+                    "time-stepping contacts do not hold: the run ignores the limits (event-driven contacts hold them)"
+                ),
+                stacklevel=2,
+            )
+        return _checked(scene, stepped, clock)
     if contacts is not None:
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,

@@ -1,10 +1,12 @@
 """``pinstab check``: assemble a scene and report its constraint structure and its joint limits (each limited
 joint's [lower, upper], and why the others are unlimited); a start that ``run`` refuses (outside the joint limits) is
-refused here too."""
+refused here too, and only what ``run`` refuses: like a run with its default contacts, a scene of plane contacts only
+(event-driven contacts) starts as given, its contacts not assembled (a corner a hair inside its plane is no error)."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -18,12 +20,16 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...constraints.joint_limits import joint_limits
     from ...model import ConstrainedModel
     from ...scene import load_scene
+    from ...simulate.contacts import default_contacts
     from ...simulate.limits import held_limits
 
     scene = load_scene(args.scene, **parameters(args.param))
     held_limits(scene, scene.q0, not args.ignore_limits)
     model = ConstrainedModel(scene)
-    report = assemble(model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
+    assembled = (
+        model if default_contacts(scene) is None else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
+    )
+    report = assemble(assembled, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     values = model.constraint_values(report.q, report.v, 0.0)
     limits = joint_limits(scene.model)
     rows = model.constraints.rows
