@@ -1,6 +1,10 @@
 """Parameter sweeps: a scene run over the product of grids of its generator parameters and run options, on
 Dask, each finished point appended to a table (:mod:`.sweep_table`) that a re-run resumes.
 
+Every point is checked before any runs (:mod:`.sweep_grid`), their number bounded, the memory budgeted; the points
+are submitted a few at a time as others finish, so that the rows come at once and the client holds little; SIGINT
+and SIGTERM stop the sweep once the points in flight are written.
+
 A point's row holds its grid values, the run's scalar figures (:data:`FIGURES`, :data:`RUN_FIGURES`) and
 ``error``: the message of a point whose run failed (its figures empty), so that one failure does not end the
 sweep.
@@ -9,41 +13,19 @@ sweep.
 from __future__ import annotations
 
 import itertools
-import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
 from ..contact.modes import Mode
-from ..errors import PinstabError, choices
-from ..generators import GENERATOR_PARAMETERS
-from ..integration import INTEGRATORS
-from ..registry import option_fields
-from ..scene import Scene, load_scene
-from ..simulate import HELD_ONLY, default_contacts, simulate
-from ..solvers import SOLVERS
-from ..stabilizers import STABILIZERS
-from ..tables import toml_scalar
-from .cluster import dask_client, progress
-from .sweep_table import SweepTable, point_key
+from ..memory import require
+from ..scene import load_scene
+from ..simulate import default_contacts, simulate
+from .cluster import LOCAL_WORKERS, StopAfterFlight, dask_client, progress
+from .sweep_grid import MAX_POINTS, CheckedSweep, check_sweep, scene_parameters, sweep_points
+from .sweep_table import SweepTable, check_table, existing_rows, point_key
 
-CONTACT_TREATMENTS = ("event", "stepping", "held")  # held: simulate(contacts=None)
-NAMED_CHOICES = {"method": STABILIZERS, "integrator": INTEGRATORS, "solver": SOLVERS, "contacts": CONTACT_TREATMENTS}
-SIMULATE_OPTIONS: dict[str, type] = {
-    "method": str,
-    "integrator": str,
-    "solver": str,
-    "contacts": str,
-    "dt": float,
-    "duration": float,
-    "rtol": float,
-    "atol": float,
-    "drift_limit": float,
-    "record_every": int,
-}  # the keywords of simulate() a sweep sets
-METHOD_OPTIONS = {field.name: field.kind for entry in STABILIZERS.entries() for field in option_fields(entry.options)}
-RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...: the methods' options
 FIGURES = (
     "steps",
     "t_end",
@@ -63,100 +45,10 @@ FIGURES = (
     "max_servo_error",
 )  # the scalar figures of Trajectory.summary() a row keeps (empty where a run has none)
 RUN_FIGURES = ("path", "contact_events", "sliding_s", "held", "stopped")  # from the run's info and contact events
-
-
-def parse_grid(text: str) -> tuple[str, list[Any]]:
-    """``NAME=V1,V2,...`` -> (NAME, [V1, V2, ...]), the values read as TOML scalars (``0.5`` a float, ``20`` an
-    int, ``rk4`` a string).
-
-    Raises:
-        PinstabError: no ``=``, no name, an empty value or a value given twice.
-    """
-    name, sep, listed = text.partition("=")
-    name = name.strip()
-    values = [toml_scalar(item.strip()) for item in listed.split(",")]
-    if not sep or not name or any(value == "" for value in values):
-        raise PinstabError(f"--grid expects NAME=V1,V2,..., got {text!r}")
-    keys = [point_key([value]) for value in values]
-    repeated = sorted({key for key in keys if keys.count(key) > 1})
-    if repeated:
-        raise PinstabError(f"--grid {name}: value {repeated[0][0]} given twice; give each value once")
-    return name, values
-
-
-def scene_parameters(scene: Scene) -> list[str]:
-    """The generator parameters of ``scene`` (none for a scene without a ``[generator]``)."""
-    return list(GENERATOR_PARAMETERS.get(scene.generator or "", {}))
-
-
-def sweep_names(scene: Scene) -> list[str]:
-    """The names a sweep of ``scene`` takes: its generator's parameters, then :data:`RUN_OPTIONS`."""
-    parameters = scene_parameters(scene)
-    return parameters + [name for name in RUN_OPTIONS if name not in parameters]
-
-
-def check_sweep(scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any]) -> Scene:
-    """Refuse a sweep before any work; returns the scene (without the fixed values).
-
-    Refused: no grid, a name that is neither a generator parameter of the scene nor a run option (the error
-    lists the valid ones), a name both swept and fixed, a run option's value of the wrong type or not among its
-    choices, a scene parameter's value the generator refuses (each value loaded once, over the fixed ones), the
-    held contacts' options (``method``, ``kp``...) on a scene whose contacts are event-driven.
-
-    Args:
-        scene_name: a bundled scene's name or a scene file. grids: name -> values. fixed: name -> the value
-            every point takes.
-
-    Raises:
-        PinstabError (SceneError for the scene's own refusals).
-    """
-    if not grids:
-        raise PinstabError("sweep: give at least one --grid NAME=V1,V2,...")
-    scene = load_scene(scene_name)
-    valid = sweep_names(scene)
-    for name in [*grids, *fixed]:
-        if name not in valid:
-            raise PinstabError(f"sweep {scene.name}: unknown name {name!r}; valid names: {', '.join(valid)}")
-    both = sorted(set(grids) & set(fixed))
-    if both:
-        raise PinstabError(f"sweep: {both[0]} is both swept (--grid) and fixed (--param); give it once")
-    names = scene_parameters(scene)
-    parameters = {name: value for name, value in fixed.items() if name in names}
-    loaded = load_scene(scene_name, **parameters) if parameters else scene
-    for name, values in [*grids.items(), *((name, [value]) for name, value in fixed.items())]:
-        for value in values:
-            if name not in names:
-                _check_option(name, value)
-            elif name in grids:
-                load_scene(scene_name, **parameters, **{name: value})
-    contacts = fixed.get("contacts", default_contacts(loaded) or "held")
-    held_only = [name for name in [*grids, *fixed] if name in HELD_ONLY or name in METHOD_OPTIONS]
-    if contacts == "event" and "contacts" not in grids and held_only:
-        raise PinstabError(
-            f"sweep {scene.name}: {', '.join(held_only)} set, but the contacts are event-driven (error-controlled "
-            "dop853, no stabilization method or KKT backend); fix or sweep contacts=held to use them"
-        )
-    return scene
-
-
-def _check_option(name: str, value: Any) -> None:
-    """Refuse a run option's value of the wrong type [number, int, name] or outside its choices."""
-    kind = RUN_OPTIONS[name]
-    if name in NAMED_CHOICES:
-        if value not in NAMED_CHOICES[name]:
-            raise PinstabError(f"sweep: {name} {value!r} unknown; valid: {choices(NAMED_CHOICES[name])}")
-        return
-    if kind is float:
-        good = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-    else:
-        good = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
-    if not good:
-        raise PinstabError(f"sweep: {name} takes a {kind.__name__}, got {value!r}")
-
-
-def sweep_points(grids: dict[str, list[Any]]) -> list[dict[str, Any]]:
-    """Every point of the product of the grids, the last grid varying fastest."""
-    return [dict(zip(grids, values, strict=True)) for values in itertools.product(*grids.values())]
+WORKER_BYTES = 200_000_000  # [bytes] a local worker process: the interpreter, pinstab, Pinocchio, Dask (170-185 MB)
+KEY_BYTES, KEY_VALUE_BYTES = 150, 80  # [bytes] a row's key held for resuming: the tuple and its set slot; a value
+PARQUET_CELL_BYTES = 24  # [bytes] a cell converting the journal to Parquet: pyarrow's column and the written page
+IN_FLIGHT = 2  # points submitted per worker thread: each has its next point queued while one runs
 
 
 def run_point(
@@ -215,7 +107,7 @@ def _sliding_time(events: list[dict[str, Any]], t_end: float) -> float:
     return total + (t_end - since if since is not None else 0.0)
 
 
-def columns(grids: dict[str, list[Any]]) -> list[str]:
+def columns(grids: Iterable[str]) -> list[str]:
     """A sweep table's columns: the grid names, :data:`FIGURES`, :data:`RUN_FIGURES`, ``error``."""
     return [*grids, *FIGURES, *RUN_FIGURES, "error"]
 
@@ -227,6 +119,7 @@ def run_sweep(
     fixed: dict[str, Any] | None = None,
     scheduler: str | None = None,
     show_progress: bool = False,
+    max_points: int = MAX_POINTS,
 ) -> dict[str, Any]:
     """Run ``scene_name`` at every point of the grids on Dask, appending each finished point's row to ``out``
     (``.csv``, or ``.parquet`` with pyarrow); the points already in ``out`` are skipped (a killed sweep resumes).
@@ -234,49 +127,93 @@ def run_sweep(
     Args:
         scene_name: a bundled scene's name or a scene file.
         grids: name -> values: generator parameters of the scene (``mu``, ``squeeze``; ``N``) or run options
-            (:data:`RUN_OPTIONS`: ``method``, ``dt`` [s], ``duration`` [s], ``kp`` [1/s^2]...).
+            (``method``, ``dt`` [s], ``duration`` [s], ``kp`` [1/s^2]...: :data:`~.sweep_grid.RUN_OPTIONS`).
         out: the table. fixed: name -> the value every point takes. scheduler: a Dask scheduler's address
-            (default: an embedded LocalCluster). show_progress: a progress bar on stderr.
+            (default: an embedded LocalCluster). show_progress: a progress bar on stderr. max_points: the most
+            points the grids may make (:data:`~.sweep_grid.MAX_POINTS`).
 
     Returns:
         ``points``, ``skipped`` (already in ``out``), ``ran``, ``failed`` (rows with an error, this run),
         ``failed_before`` (skipped points whose row holds an error), ``out``.
 
     Raises:
-        PinstabError: refused before any work (:func:`check_sweep`, the output: :class:`SweepTable`), or a
-            scheduler that cannot be reached.
+        PinstabError: refused before any work (:func:`~.sweep_grid.check_sweep`: a name, a value, a point, their
+            number; the output: :class:`SweepTable`), MemoryBudgetError (:func:`sweep_memory`), or a scheduler
+            that cannot be reached.
+        Stopped: SIGINT or SIGTERM (a KeyboardInterrupt): the points in flight were written, the table closed
+            (a Parquet table converted) and kept.
     """
     fixed = dict(fixed or {})
-    scene = check_sweep(scene_name, grids, fixed)
+    checked = check_sweep(scene_name, grids, fixed, max_points)
+    scene = checked.scene
+    path = check_table(out)
+    require(
+        sweep_memory(checked, existing_rows(path), list(grids), path.suffix == ".parquet", scheduler is None),
+        f"a sweep of {checked.points:,} points of scene {scene.name}",
+        "sweep fewer points at once (a table resumes: sweep some values, then the others into it)",
+    )
+    table = SweepTable(path, columns(grids), len(grids))
+    skipped = failed_before = 0
+    for point in sweep_points(grids):
+        key = point_key(point.values())
+        skipped += key in table.done
+        failed_before += key in table.failed
+    pending = (point for point in sweep_points(grids) if point_key(point.values()) not in table.done)
+    ran = checked.points - skipped
     source, names = str(scene.source or scene_name), tuple(scene_parameters(scene))
-    points = sweep_points(grids)
-    failed = 0
-    table = SweepTable(out, columns(grids), len(grids))
-    keys = [point_key(point.values()) for point in points]
-    pending = [point for point, key in zip(points, keys, strict=True) if key not in table.done]
-    running = dask_client(scheduler, "sweep", "pip install 'pinstab[sweep]'") if pending else nullcontext()
-    with running as client, table:  # the client first: no table is started for a scheduler out of reach
-        futures = [client.submit(run_point, source, point, fixed, names, pure=False) for point in pending]
-        skipped = len(points) - len(pending)
-        for future in progress(_finished(futures), show_progress, "sweep", total=len(points), initial=skipped):
-            row = future.result()
+    running = dask_client(scheduler, "sweep", "pip install 'pinstab[sweep]'") if ran else nullcontext()
+    written = failed = 0
+    with StopAfterFlight() as stop, running as client, table:  # the client first: no table for a scheduler away
+        rows = _rows(client, (source, fixed, names), pending, stop) if ran else iter(())
+        for row in progress(rows, show_progress, "sweep", total=checked.points, initial=skipped):
             failed += bool(row["error"])
             table.append(row)
+            written += 1
+    stop.deliver(f"the sweep stopped after its points in flight; {written} new rows in {out}, resumed by a re-run")
     return {
         "scene": scene.name,
-        "points": len(points),
-        "skipped": len(points) - len(pending),
-        "ran": len(pending),
+        "points": checked.points,
+        "skipped": skipped,
+        "ran": ran,
         "failed": failed,
-        "failed_before": sum(key in table.failed for key in keys),
+        "failed_before": failed_before,
         "out": str(out),
     }
 
 
-def _finished(futures: list[Any]) -> Iterator[Any]:
-    """The futures as they finish (none: nothing)."""
-    if not futures:
-        return iter(())
+def sweep_memory(checked: CheckedSweep, rows: int, grids: list[str], parquet: bool, local: bool) -> dict[str, int]:
+    """The estimated memory of a sweep [bytes] by item: on the local cluster (``local``), its worker processes each
+    running the point whose run takes the most; the keys of the table's ``rows`` (those already in it, read to
+    resume it), and with ``parquet`` the conversion of every row. The points are made one at a time as they are
+    submitted: none is held ahead."""
+    items = {}
+    if local:
+        largest = ", ".join(f"{name} {size:,} B" for name, size in checked.run_memory.items())
+        items[f"{LOCAL_WORKERS} worker processes each running the largest point ({largest})"] = LOCAL_WORKERS * (
+            WORKER_BYTES + sum(checked.run_memory.values())
+        )
+    items[f"the keys of the table's {rows:,} rows"] = rows * (KEY_BYTES + KEY_VALUE_BYTES * len(grids))
+    if parquet:
+        total = rows + checked.points
+        items[f"the Parquet conversion of {total:,} rows"] = total * len(columns(grids)) * PARQUET_CELL_BYTES
+    return items
+
+
+def _rows(client: Any, sweep: tuple[str, dict[str, Any], tuple[str, ...]], pending: Iterator[dict], stop):
+    """The rows of the ``pending`` points as they finish (:func:`run_point` of each with the ``sweep``'s scene,
+    fixed values and scene parameters), :data:`IN_FLIGHT` per worker thread submitted at a time (each finished
+    one replaced by the next), none submitted once ``stop`` (:class:`~.cluster.StopAfterFlight`) has a signal."""
     from distributed import as_completed
 
-    return as_completed(futures)
+    source, fixed, names = sweep
+
+    def submit(point: dict[str, Any]) -> Any:
+        return client.submit(run_point, source, point, fixed, names, pure=False)
+
+    window = IN_FLIGHT * max(1, sum(client.nthreads().values()))
+    flight = as_completed([submit(point) for point in itertools.islice(pending, window)])
+    for future in flight:
+        if stop.signum is None:
+            for point in itertools.islice(pending, 1):
+                flight.add(submit(point))
+        yield future.result()

@@ -4,14 +4,15 @@
 The rows go to a CSV journal, each flushed when written: the ``.csv`` itself, or ``FILE.parquet.partial.csv``
 beside a Parquet target, converted to ``FILE.parquet`` (atomically) when the sweep ends and then removed. On
 opening, the points already in the journal (or in an existing Parquet file) are :attr:`SweepTable.done`; a last
-line cut short by a kill is dropped.
+line cut short by a kill is dropped. A file that is not a table (not UTF-8 text, a malformed CSV, a corrupt
+Parquet file) is a named error.
 """
 
 from __future__ import annotations
 
 import csv
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,8 @@ from ..files import atomic_output, check_output
 
 SUFFIXES = (".csv", ".parquet")
 JOURNAL = ".partial.csv"  # appended to a Parquet target's name
+SHOWN = 300  # characters of a foreign header an error quotes
+CHUNK = 1 << 20  # [bytes] read at a time when counting rows or looking for a cut last line
 
 
 def point_key(values: Iterable[Any]) -> tuple[str, ...]:
@@ -67,13 +70,16 @@ class SweepTable:
         self.parquet = self.path.suffix == ".parquet"
         self.journal = self.path.with_name(self.path.name + JOURNAL) if self.parquet else self.path
         if self.parquet and self.path.exists() and not self.journal.exists():
-            table = _pyarrow().parquet.read_table(self.path)
+            table = _parquet_table(self.path)
             _check_columns(self.path, table.column_names, columns)
             self._write_journal(table.to_pylist())
-        rows = read_rows(self.journal, columns) if self.journal.exists() else []
-        keyed = [(point_key(row[name] for name in columns[:keys]), row["error"]) for row in rows]
-        self.done = {key for key, _ in keyed}
-        self.failed = {key for key, error in keyed if error}
+        self.done: set[tuple[str, ...]] = set()
+        self.failed: set[tuple[str, ...]] = set()
+        for row in read_rows(self.journal, columns) if self.journal.exists() else ():
+            key = point_key(row[name] for name in columns[:keys])
+            self.done.add(key)
+            if row["error"]:
+                self.failed.add(key)
         self._handle = None
 
     def __enter__(self) -> SweepTable:
@@ -106,26 +112,79 @@ class SweepTable:
             writer.writerows(rows)
 
 
-def read_rows(path: str | Path, columns: list[str] | None = None) -> list[dict[str, str]]:
-    """The rows of a sweep's CSV (the journal of a Parquet table too) as text; a last line cut short by a kill
-    is dropped (and cut from the file).
+def read_rows(path: str | Path, columns: list[str] | None = None) -> Iterator[dict[str, str]]:
+    """The rows of a sweep's CSV (the journal of a Parquet table too) as text, one at a time; a last line cut short
+    by a kill is dropped (and cut from the file).
 
     Args:
         path: the CSV. columns: the columns it must have (None: any).
 
     Raises:
-        PinstabError: other columns than ``columns`` (a table of another sweep).
+        PinstabError: not a table: not UTF-8 text, a malformed line (a NUL byte, an unclosed quote, a cell beyond
+            the csv module's field limit, another number of cells than the header); or other columns than
+            ``columns`` (a table of another sweep). Each names the file and the line.
     """
     path = Path(path)
-    text = path.read_text()
-    if text and not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-        with open(path, "r+") as handle:
-            handle.truncate(len(text.encode()))
-    reader = csv.DictReader(text.splitlines())
-    if columns is not None and reader.fieldnames is not None:
-        _check_columns(path, reader.fieldnames, columns)
-    return list(reader)
+    _drop_cut_line(path)
+    reader = None
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            reader = csv.reader(handle)
+            header = next(reader, None)
+            if header is None:
+                return
+            if columns is not None:
+                _check_columns(path, header, columns)
+            for cells in reader:
+                if len(cells) != len(header):
+                    raise _not_a_table(path, reader.line_num, f"{len(cells)} cells where the header has {len(header)}")
+                yield dict(zip(header, cells, strict=True))
+    except UnicodeDecodeError as exc:
+        raise _not_a_table(path, _line(reader) + 1, f"not UTF-8 text ({exc.reason})") from None
+    except csv.Error as exc:
+        raise _not_a_table(path, _line(reader), str(exc)) from None
+
+
+def _line(reader: Any) -> int:
+    """The line a CSV reader has reached (counted from 1), 1 before it starts."""
+    return max(getattr(reader, "line_num", 1), 1)
+
+
+def _not_a_table(path: Path, line: int, reason: str) -> PinstabError:
+    """The error for a file that is not a sweep table, at ``line`` (counted from 1) of it."""
+    return PinstabError(f"{path} is not a sweep table: line {line}: {reason}; give another --out or remove it")
+
+
+def _drop_cut_line(path: Path) -> None:
+    """Cut from the file a last line without its newline (a row cut short by a kill)."""
+    with open(path, "rb") as handle:
+        end = cut = handle.seek(0, os.SEEK_END)
+        while cut > 0:
+            start = max(0, cut - CHUNK)
+            handle.seek(start)
+            block = handle.read(cut - start)
+            if cut == end and block.endswith(b"\n"):
+                return
+            newline = block.rfind(b"\n")
+            cut = start if newline < 0 else start + newline + 1
+            if newline >= 0:
+                break
+    if cut < end:
+        os.truncate(path, cut)
+
+
+def existing_rows(path: str | Path) -> int:
+    """The rows already in a sweep's table [count], without reading them: its journal's lines less the header,
+    else a Parquet file's row count (its metadata); 0 for none."""
+    path = Path(path)
+    journal = path.with_name(path.name + JOURNAL) if path.suffix == ".parquet" else path
+    if journal.exists():
+        with open(journal, "rb") as handle:
+            lines = sum(block.count(b"\n") for block in iter(lambda: handle.read(CHUNK), b""))
+        return max(lines - 1, 0)
+    if path.exists():
+        return _parquet(path, lambda parquet: parquet.read_metadata(path).num_rows)
+    return 0
 
 
 def _check_columns(path: Path, found: list[str], columns: list[str]) -> None:
@@ -135,17 +194,44 @@ def _check_columns(path: Path, found: list[str], columns: list[str]) -> None:
         PinstabError: naming the file and the columns it holds.
     """
     if list(found) != columns:
-        raise PinstabError(
-            f"{path} holds another sweep's table (columns {', '.join(found)}); give another --out or remove it"
-        )
+        held = ", ".join(found)
+        shown = held if held.isprintable() and len(held) <= SHOWN else f"{held[:SHOWN]!r}..."
+        raise PinstabError(f"{path} holds another sweep's table (columns {shown}); give another --out or remove it")
 
 
 def table_rows(path: str | Path) -> list[dict[str, Any]]:
-    """The rows of a sweep's table, CSV or Parquet, with numbers, booleans and None (an empty cell) as such."""
+    """The rows of a sweep's table, CSV or Parquet (the journal of one cut short, when it is there: it holds the
+    rows so far), with numbers, booleans and None (an empty cell) as such.
+
+    Raises:
+        PinstabError: not a table (:func:`read_rows`, or not a Parquet file).
+    """
     path = Path(path)
-    if path.suffix == ".parquet":
-        return _pyarrow().parquet.read_table(path).to_pylist()
-    return [{name: _cell(text) for name, text in row.items()} for row in read_rows(path)]
+    journal = path.with_name(path.name + JOURNAL)
+    if path.suffix == ".parquet" and not journal.exists():
+        return _parquet_table(path).to_pylist()
+    rows = read_rows(journal if path.suffix == ".parquet" else path)
+    return [{name: _cell(text) for name, text in row.items()} for row in rows]
+
+
+def _parquet_table(path: Path) -> Any:
+    """A Parquet file's table (pyarrow).
+
+    Raises:
+        PinstabError: not a Parquet file, naming it and pyarrow's reason.
+    """
+    return _parquet(path, lambda parquet: parquet.read_table(path))
+
+
+def _parquet(path: Path, read: Any) -> Any:
+    """``read(pyarrow.parquet)``, pyarrow's error on a file that is not Parquet named as a PinstabError."""
+    pyarrow = _pyarrow()
+    try:
+        return read(pyarrow.parquet)
+    except (pyarrow.ArrowException, OSError) as exc:
+        raise PinstabError(
+            f"{path} is not a sweep table: not a Parquet file ({exc}); give another --out or remove it"
+        ) from None
 
 
 def _cell(text: str) -> Any:

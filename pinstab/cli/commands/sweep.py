@@ -7,9 +7,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from ...bench.sweep_grid import MAX_POINTS
 from ...errors import PinstabError
 from ..exits import EXIT_CODES
-from ..options import output_argument, parameters
+from ..options import memory_limit_argument, output_argument, parameters
 from .base import Command, register
 
 
@@ -53,13 +54,23 @@ def arguments(sweep: argparse.ArgumentParser) -> None:
     )
     sweep.add_argument("--color", metavar="Z", help="with --chart: the column that colours the markers")
     sweep.add_argument("--chart-file", metavar="FILE.png", help="the chart (default: -o/--out with the suffix .png)")
+    sweep.add_argument(
+        "--max-points",
+        type=int,
+        default=MAX_POINTS,
+        metavar="N",
+        help="the most points the grids may make (default %(default)s: each is checked before any runs, the scene "
+        "loaded for each combination of its swept parameters); more are refused before any work",
+    )
+    memory_limit_argument(sweep)
     sweep.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
 def sweep(args: argparse.Namespace) -> dict[str, Any]:
     """Check everything (grids, values, table, chart columns and file), run the missing points, draw the chart."""
-    from ...bench.sweep import columns, parse_grid, run_sweep
+    from ...bench.sweep import columns, run_sweep
     from ...bench.sweep_chart import check_chart, draw_chart
+    from ...bench.sweep_grid import parse_grid
     from ...bench.sweep_table import check_table
     from ...files import check_output
 
@@ -76,7 +87,7 @@ def sweep(args: argparse.Namespace) -> dict[str, Any]:
         check_chart([*chart, args.color], columns(grids))
         png = args.chart_file or str(Path(args.output).with_suffix(".png"))
         check_output(png, ".png", "chart")
-    result = run_sweep(args.scene, grids, args.output, fixed, args.scheduler, show_progress=not args.quiet)
+    result = run_sweep(args.scene, grids, args.output, fixed, args.scheduler, not args.quiet, args.max_points)
     if chart is not None:
         title = f"{result['scene']}: {chart[1]} over {chart[0]}"
         result["chart_points"] = draw_chart(args.output, *chart, png, args.color, title)

@@ -1,0 +1,234 @@
+"""A sweep's grids: what they may name, their points, and every point checked before any runs, by the checks a
+run makes before its first step (the same functions, the same messages), the number of points bounded."""
+
+from __future__ import annotations
+
+import inspect
+import itertools
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import PinstabError, choices
+from ..generators import GENERATOR_PARAMETERS
+from ..integration import INTEGRATORS, TimeGrid
+from ..registry import option_fields
+from ..scene import Scene, load_scene
+from ..simulate import DEFAULT_DT, HELD_ONLY, default_contacts, default_integrator, error_control, simulate
+from ..simulate.loop import check_drift_limit, run_memory
+from ..solvers import SOLVERS
+from ..stabilizers import STABILIZERS
+from ..tables import toml_scalar
+from .sweep_table import point_key
+
+CONTACT_TREATMENTS = ("event", "stepping", "held")  # held: simulate(contacts=None)
+NAMED_CHOICES = {"method": STABILIZERS, "integrator": INTEGRATORS, "solver": SOLVERS, "contacts": CONTACT_TREATMENTS}
+SIMULATE_OPTIONS: dict[str, type] = {
+    "method": str,
+    "integrator": str,
+    "solver": str,
+    "contacts": str,
+    "dt": float,
+    "duration": float,
+    "rtol": float,
+    "atol": float,
+    "drift_limit": float,
+    "record_every": int,
+}  # the keywords of simulate() a sweep sets
+METHOD_OPTIONS = {field.name: field.kind for entry in STABILIZERS.entries() for field in option_fields(entry.options)}
+RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...: the methods' options
+# simulate()'s defaults: duration [s], record_every, drift_limit [m or rad], method...
+DEFAULTS = {name: parameter.default for name, parameter in inspect.signature(simulate).parameters.items()}
+# A point is a whole run: about a second of wall time for a typical second of simulated time, so 10,000 points keep
+# the two workers of the local cluster busy for hours, and its table and the keys of its points stay in megabytes.
+# A grid beyond it is more often two long value lists multiplied by mistake than a plan: --max-points asks for it.
+MAX_POINTS = 10_000
+
+
+@dataclass(frozen=True)
+class CheckedSweep:
+    """A sweep found valid before any work.
+
+    Attributes:
+        scene: the scene (without the fixed values). points: how many points the grids make. run_memory: the
+            estimated memory [bytes] by item of the point whose run takes the most (``simulate.loop.run_memory``).
+    """
+
+    scene: Scene
+    points: int
+    run_memory: dict[str, int]
+
+
+def parse_grid(text: str) -> tuple[str, list[Any]]:
+    """``NAME=V1,V2,...`` -> (NAME, [V1, V2, ...]), the values read as TOML scalars (``0.5`` a float, ``20`` an
+    int, ``rk4`` a string).
+
+    Raises:
+        PinstabError: no ``=``, no name, an empty value or a value given twice.
+    """
+    name, sep, listed = text.partition("=")
+    name = name.strip()
+    values = [toml_scalar(item.strip()) for item in listed.split(",")]
+    if not sep or not name or any(value == "" for value in values):
+        raise PinstabError(f"--grid expects NAME=V1,V2,..., got {text!r}")
+    keys = [point_key([value]) for value in values]
+    repeated = sorted({key for key in keys if keys.count(key) > 1})
+    if repeated:
+        raise PinstabError(f"--grid {name}: value {repeated[0][0]} given twice; give each value once")
+    return name, values
+
+
+def scene_parameters(scene: Scene) -> list[str]:
+    """The generator parameters of ``scene`` (none for a scene without a ``[generator]``)."""
+    return list(GENERATOR_PARAMETERS.get(scene.generator or "", {}))
+
+
+def sweep_names(scene: Scene) -> list[str]:
+    """The names a sweep of ``scene`` takes: its generator's parameters, then :data:`RUN_OPTIONS`."""
+    parameters = scene_parameters(scene)
+    return parameters + [name for name in RUN_OPTIONS if name not in parameters]
+
+
+def sweep_points(grids: dict[str, list[Any]]) -> Iterator[dict[str, Any]]:
+    """Every point of the product of the grids, the last grid varying fastest, one at a time (none is built
+    ahead)."""
+    return (dict(zip(grids, values, strict=True)) for values in itertools.product(*grids.values()))
+
+
+def point_count(grids: dict[str, list[Any]]) -> int:
+    """How many points the product of the grids has."""
+    return math.prod(len(values) for values in grids.values())
+
+
+def check_sweep(
+    scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], max_points: int = MAX_POINTS
+) -> CheckedSweep:
+    """Refuse a sweep before any work: the names and values, then (:func:`check_points`) every point.
+
+    Refused: no grid, a name that is neither a generator parameter of the scene nor a run option (the error
+    lists the valid ones), a name both swept and fixed, a run option's value of the wrong type or not among its
+    choices, the held contacts' options (``method``, ``kp``...) on a scene whose contacts are event-driven, more
+    points than ``max_points``, a point the scene or a run refuses.
+
+    Args:
+        scene_name: a bundled scene's name or a scene file. grids: name -> values. fixed: name -> the value
+            every point takes. max_points: the most points the sweep may have (:data:`MAX_POINTS`).
+
+    Raises:
+        PinstabError (SceneError for the scene's own refusals; the point named in the message).
+    """
+    if not grids:
+        raise PinstabError("sweep: give at least one --grid NAME=V1,V2,...")
+    scene = load_scene(scene_name)
+    valid = sweep_names(scene)
+    for name in [*grids, *fixed]:
+        if name not in valid:
+            raise PinstabError(f"sweep {scene.name}: unknown name {name!r}; valid names: {', '.join(valid)}")
+    both = sorted(set(grids) & set(fixed))
+    if both:
+        raise PinstabError(f"sweep: {both[0]} is both swept (--grid) and fixed (--param); give it once")
+    names = scene_parameters(scene)
+    for name, values in [*grids.items(), *((name, [value]) for name, value in fixed.items())]:
+        if name not in names:
+            for value in values:
+                _check_option(name, value)
+    held_only = [name for name in [*grids, *fixed] if name in HELD_ONLY or name in METHOD_OPTIONS]
+    if "contacts" not in grids and held_only and _contacts(fixed, scene_name, names) == "event":
+        raise PinstabError(
+            f"sweep {scene.name}: {', '.join(held_only)} set, but the contacts are event-driven (error-controlled "
+            "dop853, no stabilization method or KKT backend); fix or sweep contacts=held to use them"
+        )
+    if isinstance(max_points, bool) or not isinstance(max_points, int) or max_points < 1:
+        raise PinstabError(f"sweep: max_points (--max-points) must be a whole number >= 1, got {max_points!r}")
+    count = point_count(grids)
+    if count > max_points:
+        sizes = " x ".join(f"{len(values)} {name}" for name, values in grids.items())
+        raise PinstabError(
+            f"sweep: {count:,} points ({sizes}) exceed the limit of {max_points:,}; sweep fewer values, or give "
+            f"--max-points {count} (max_points) to run them all"
+        )
+    return CheckedSweep(scene, count, check_points(scene_name, grids, fixed, tuple(names)))
+
+
+def _contacts(fixed: dict[str, Any], scene_name: str, names: list[str]) -> str:
+    """The contact treatment of the fixed values: theirs, else the default of the scene they make."""
+    if "contacts" in fixed:
+        return fixed["contacts"]
+    scene = load_scene(scene_name, **{name: value for name, value in fixed.items() if name in names})
+    return default_contacts(scene) or "held"
+
+
+def _check_option(name: str, value: Any) -> None:
+    """Refuse a run option's value of the wrong type [number, int, name] or outside its choices."""
+    kind = RUN_OPTIONS[name]
+    if name in NAMED_CHOICES:
+        if value not in NAMED_CHOICES[name]:
+            raise PinstabError(f"sweep: {name} {value!r} unknown; valid: {choices(NAMED_CHOICES[name])}")
+        return
+    if kind is float:
+        good = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    else:
+        good = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
+    if not good:
+        raise PinstabError(f"sweep: {name} takes a {kind.__name__}, got {value!r}")
+
+
+def check_points(
+    scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], parameters: tuple[str, ...]
+) -> dict[str, int]:
+    """Refuse before any work a point whose scene (each combination of the swept scene parameters loaded once, over
+    the fixed ones) or run (:func:`check_run`) would be refused; returns the :func:`check_run` memory of the point
+    whose run takes the most.
+
+    Raises:
+        PinstabError: the refusal of the first such point (its class: SceneError from the scene...), its message
+            prefixed by the point's values (``sweep point dt=0: dt must be a positive number, got 0``).
+    """
+    scene_grids = {name: values for name, values in grids.items() if name in parameters}
+    option_grids = {name: values for name, values in grids.items() if name not in parameters}
+    fixed_parameters = {name: value for name, value in fixed.items() if name in parameters}
+    fixed_options = {name: value for name, value in fixed.items() if name not in parameters}
+    largest: dict[str, int] = {}
+    for scene_point in sweep_points(scene_grids):
+        scene = _at_point(scene_point, load_scene, scene_name, **fixed_parameters, **scene_point)
+        for option_point in sweep_points(option_grids):
+            memory = _at_point({**scene_point, **option_point}, check_run, scene, {**fixed_options, **option_point})
+            if sum(memory.values()) > sum(largest.values()):
+                largest = memory
+    return largest
+
+
+def _at_point(point: dict[str, Any], check: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``check(*args, **kwargs)``, its PinstabError's message prefixed by ``point``'s values (the same class)."""
+    try:
+        return check(*args, **kwargs)
+    except PinstabError as exc:
+        if point:
+            exc.args = (f"sweep point {', '.join(f'{name}={value}' for name, value in point.items())}: {exc}",)
+        raise
+
+
+def check_run(scene: Scene, options: dict[str, Any]) -> dict[str, int]:
+    """Refuse the run of ``scene`` with the run ``options`` (:data:`RUN_OPTIONS`) that
+    :func:`~pinstab.simulate.simulate` would refuse before its first step: the time grid (``dt``, ``duration``,
+    ``record_every``: ``TimeGrid.of``), the tolerances (``error_control``), and held contacts' ``drift_limit``
+    (``check_drift_limit``) and method options (``kp``, ``kd``...: the method's options class); returns the
+    run's estimated memory [bytes] by item (``run_memory``).
+
+    Raises:
+        PinstabError: with the message the run gives.
+    """
+    contacts = options.get("contacts") or default_contacts(scene) or "held"
+    dt = options.get("dt", DEFAULT_DT if scene.step is None else scene.step)
+    every = options.get("record_every", DEFAULTS["record_every"])
+    grid = TimeGrid.of(dt, options.get("duration", DEFAULTS["duration"]), every)
+    rtol, atol = options.get("rtol"), options.get("atol")
+    if contacts != "stepping" and (rtol is not None or atol is not None):
+        integrator = "dop853" if contacts == "event" else default_integrator(options.get("integrator"), rtol, atol)
+        error_control(rtol, atol, integrator)
+    if contacts == "held":
+        check_drift_limit(options.get("drift_limit", DEFAULTS["drift_limit"]))
+        method = options.get("method", DEFAULTS["method"])
+        STABILIZERS.make_options(method, {name: value for name, value in options.items() if name in METHOD_OPTIONS})
+    return run_memory(scene, grid, every, None)
