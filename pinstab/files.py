@@ -53,19 +53,39 @@ def atomic_output(path: str | Path, suffix: str, kind: str) -> Iterator[str]:
     Raises:
         PinstabError: the target is refused (:func:`check_output`).
     """
-    target = _checked_target(path, suffix, kind)
-    remove_stale_temporaries(target)
-    handle, temp = _temporary(target, suffix)
+    target, temp = temporary_output(path, suffix, kind)
     try:  # the temporary file goes on every exit path: an error, Ctrl-C, SIGTERM, or the rename
-        os.close(handle)
         yield temp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temp, 0o666 & ~umask)
-        os.replace(temp, target)
+        publish(temp, target)
     finally:
         if os.path.exists(temp):
             os.remove(temp)
+
+
+def temporary_output(path: str | Path, suffix: str, kind: str) -> tuple[Path, str]:
+    """(the checked target, a new empty temporary file beside it) for a writer that renames the temporary file
+    onto the target itself (:func:`publish`); the temporaries of earlier writers killed are removed first.
+
+    Args:
+        path: the target file. suffix: its required suffix. kind: what the file is, for error messages.
+
+    Raises:
+        PinstabError: the target is refused (:func:`check_output`).
+    """
+    target = _checked_target(path, suffix, kind)
+    remove_stale_temporaries(target)
+    handle, temp = _temporary(target, suffix)
+    os.close(handle)
+    return target, temp
+
+
+def publish(temp: str | Path, target: Path) -> None:
+    """Give the temporary file ``temp`` the permissions of a new file (0666 less the umask: mkstemp makes it 0600)
+    and rename it onto ``target``: a file there is replaced, a symbolic link there is replaced, never followed."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temp, 0o666 & ~umask)
+    os.replace(temp, target)
 
 
 def _checked_target(path: str | Path, suffix: str, kind: str) -> Path:

@@ -4,8 +4,11 @@ time, constraint layout, assembly report, solver statistics). It round-trips thr
 
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import asdict, dataclass, field, fields
+import types
+import typing
+from dataclasses import asdict, dataclass, field, fields, is_dataclass
 from typing import Any
 
 from .errors import PinstabError
@@ -99,6 +102,10 @@ class RunInfo:
             assembly, kernels), ``stepping_s`` (the stepping loops), ``post_s`` (the trajectory, its drift and
             energy series, a streamed run's derived series); they add up to the trajectory's ``wall_time``. Empty in
             files saved before it was kept.
+        cut_short: a run read back from a file whose run was cut short before its end (a streamed run interrupted
+            by Ctrl-C or SIGTERM, or killed): ``t`` [s] and ``step`` of its last sample written, ``cause``
+            (``interrupted``: its final info was written; ``killed``: the info is its start's, with ``t_end`` and
+            ``steps`` from its samples); None otherwise.
     """
 
     scene: str
@@ -129,6 +136,7 @@ class RunInfo:
     stopped: dict[str, Any] | None = None
     limits_active_s: dict[str, float] | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    cut_short: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""
@@ -139,13 +147,17 @@ class RunInfo:
         """The inverse of :meth:`to_dict`.
 
         Raises:
-            PinstabError: a key is missing or unknown.
+            PinstabError: not a dict, a key missing or unknown, or a value of the wrong type (naming the field).
         """
+        if not isinstance(data, dict):
+            raise PinstabError(f"run info: a JSON object of fields, got {type(data).__name__}")
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
             raise PinstabError(f"run info: unknown field {unknown[0]!r}")
         values = dict(data)
+        for name, value in values.items():
+            _check_type(name, value, RUN_INFO_TYPES[name])
         try:
             if values.get("assembly") is not None:
                 values["assembly"] = AssemblySummary(**values["assembly"])
@@ -153,3 +165,52 @@ class RunInfo:
             return cls(**values)
         except TypeError as exc:
             raise PinstabError(f"run info: {exc}") from None
+
+    @classmethod
+    def from_json(cls, text: str | bytes, source: str) -> RunInfo:
+        """The run info saved as JSON in the file ``source`` (:meth:`to_dict`).
+
+        Raises:
+            PinstabError: not JSON, or not a run info (:meth:`from_dict`); the message names ``source``.
+        """
+        try:
+            data = json.loads(text)
+        except (TypeError, ValueError) as exc:
+            raise PinstabError(f"{source}: the run info is not JSON ({exc})") from None
+        try:
+            return cls.from_dict(data)
+        except PinstabError as exc:
+            raise PinstabError(f"{source}: {exc}") from None
+
+
+RUN_INFO_TYPES = typing.get_type_hints(RunInfo)
+
+
+def _check_type(name: str, value: Any, hint: Any) -> None:
+    """Refuse a value read back from JSON that does not have the type ``hint`` of field ``name`` (a dataclass: its
+    fields; a dict or list: its entries), naming the field and the entry."""
+    origin, arguments = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (types.UnionType, typing.Union):
+        options = [option for option in arguments if option is not type(None)]
+        if value is not None:
+            _check_type(name, value, options[0])
+        return
+    if hint is Any:
+        return
+    if is_dataclass(hint):
+        _check_type(name, value, dict[str, Any])
+        nested = typing.get_type_hints(hint)
+        for key, entry in value.items():
+            if key in nested:  # an unknown one is refused by the dataclass
+                _check_type(f"{name}.{key}", entry, nested[key])
+        return
+    kinds = {float: (int, float), int: (int,), str: (str,), dict: (dict,), list: (list,)}[origin or hint]
+    if isinstance(value, bool) or not isinstance(value, kinds):
+        words = {float: "a number", int: "an integer", str: "a string", dict: "a JSON object", list: "a list"}
+        raise PinstabError(f"run info: {name} must be {words[origin or hint]}, got {json.dumps(value)[:60]}")
+    if origin is dict:
+        for key, entry in value.items():
+            _check_type(f"{name}[{key!r}]", entry, arguments[1])
+    elif origin is list:
+        for index, entry in enumerate(value):
+            _check_type(f"{name}[{index}]", entry, arguments[0])

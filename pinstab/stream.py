@@ -7,20 +7,40 @@ single-writer / multiple-reader mode (open it with ``h5py.File(path, "r", swmr=T
 from the samples in blocks, as a run kept in memory computes them when first read). The run's
 :class:`~pinstab.runinfo.RunInfo` is the root attribute ``info`` (JSON), its main fields also plain
 attributes; ``complete`` says whether the run ended normally (finished, diverged or stopped, with its
-derived series) or was cut off (interrupted, killed: the rows flushed so far, derived series empty).
+derived series) or was cut short (interrupted, killed: the rows flushed so far, derived series empty).
 Needs ``h5py`` (the ``stream`` extra: ``pip install pinstab[stream]``).
+
+Written as :func:`pinstab.files.atomic_output` writes ``--save``'s files, a link at the target replaced, never
+followed: the file is created as a temporary file in the target's folder (``.run.h5.pinstab-<pid>-<random>.h5``,
+mkstemp's: never through a link) and renamed onto the target once its datasets and attributes exist and it is in
+SWMR mode, before the first sample. It is renamed then rather than when the run ends because a stream is for runs
+that may not end as planned: from its first row on, the target is the run's own file, readable while the run
+proceeds and holding every block flushed whatever ends the run, Ctrl-C, SIGTERM or ``kill -9`` included (a run
+killed before the rename leaves a temporary file without rows, removed by the next write to the target). An earlier
+file at the target is thus replaced when the run starts stepping, not when it ends. Its end (the derived series,
+the final info) is written to the file at the target.
+
+Read back (:func:`read_stream`, :func:`open_run_file`), a file its writer closed is opened as any HDF5 file; one
+still being written or whose writer was killed (its superblock says so) in SWMR mode, with few attempts at a
+damaged block (:data:`SWMR_READ_ATTEMPTS`). A truncated or damaged file, or an HDF5 file of something else, is a
+PinstabError naming the file and what cannot be read.
 """
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import json
+import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .errors import PinstabError
+from .files import publish, temporary_output
 from .runinfo import RunInfo
 
 FORMAT = "pinstab-stream"  # the root attribute ``format``
@@ -74,11 +94,26 @@ class StreamWriter:
 
     def __init__(self, path: str | Path, info: RunInfo, nq: int, nv: int, rows: int) -> None:
         h5py = h5py_module()
-        self.path = Path(path)
-        try:
-            self.file = h5py.File(self.path, "w", libver="latest", rdcc_nbytes=CHUNK_CACHE)
-        except OSError as exc:
-            raise PinstabError(f"cannot write {path}: {exc}") from None
+        self.path, temp = temporary_output(path, ".h5", "streamed run")
+        self.file = None
+        try:  # the temporary file goes unless renamed: an error, Ctrl-C or SIGTERM while the layout is written
+            try:
+                self.file = h5py.File(temp, "w", libver="latest", rdcc_nbytes=CHUNK_CACHE)
+            except OSError as exc:
+                raise PinstabError(f"cannot write {path}: {exc}") from None
+            self._create_layout(info, nq, nv, rows)
+            self.file.swmr_mode = True  # no new datasets or attributes from here: readers may open it
+            publish(temp, self.path)
+        except BaseException:
+            if self.file is not None:
+                self.file.close()
+            Path(temp).unlink(missing_ok=True)
+            raise
+        self.size = 0
+
+    def _create_layout(self, info: RunInfo, nq: int, nv: int, rows: int) -> None:
+        """The empty datasets of :data:`SAMPLES` and :data:`DERIVED` (``q``, ``v`` and ``multipliers`` of widths
+        ``nq``, ``nv`` and ``rows``) and the root attributes."""
         widths = {"q": nq, "v": nv, "multipliers": rows}
         integers = ("step", "correction_iterations")
         for name, units in (SAMPLES | DERIVED).items():
@@ -94,8 +129,6 @@ class StreamWriter:
             dataset.attrs["units"] = units
         self.file.attrs.update(format=FORMAT, version=VERSION, complete=False, wall_time=float("nan"))
         write_info(self.file, info)
-        self.file.swmr_mode = True  # no new datasets or attributes from here: readers may open it
-        self.size = 0
 
     def write(
         self, start: int, t: np.ndarray, steps: np.ndarray, q: np.ndarray, v: np.ndarray, corrections: np.ndarray
@@ -166,7 +199,7 @@ def rewrite_info(path: str | Path, info: RunInfo, wall_time: float) -> None:
 
 def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """(t [s], q) of a run file's samples, :data:`BLOCK` at a time."""
-    with h5py_module().File(path, "r", swmr=True, locking=False, rdcc_nbytes=CHUNK_CACHE) as file:
+    with open_run_file(path) as file:
         times, configurations = file["t"], file["q"]
         for start in range(0, min(len(times), len(configurations)), BLOCK):
             yield times[start : start + BLOCK], configurations[start : start + BLOCK]
@@ -174,30 +207,139 @@ def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:
 
 def read_stream(path: str | Path) -> tuple[dict[str, np.ndarray], RunInfo, float, bool]:
     """(arrays by name, info, wall time [s], complete) of a run file; a run cut off before its derived series
-    were written has them NaN. Opened read-only in SWMR mode: a file whose run still proceeds reads up to the
-    last flushed block.
+    were written has them NaN. A file whose run still proceeds, or was killed, reads up to the last flushed block
+    (:func:`open_run_file`).
 
     Raises:
-        PinstabError: not an HDF5 file, or not a pinstab run file (naming what is missing).
+        PinstabError: not an HDF5 file, a truncated or damaged one, or not a pinstab run file (naming what is
+            missing or cannot be read).
     """
-    h5py = h5py_module()
-    try:
-        file = h5py.File(path, "r", swmr=True, locking=False)
-    except OSError as exc:
-        raise PinstabError(f"{path}: not a readable HDF5 run file ({exc})") from None
-    with file:
-        missing = [name for name in (*SAMPLES, *DERIVED) if name not in file]
-        if file.attrs.get("format") != FORMAT or missing or "info" not in file.attrs:
+    with open_run_file(path) as file:
+        with _reading(path, "the root attributes and the datasets' names"):
+            attributes = dict(file.attrs)
+            missing = [name for name in (*SAMPLES, *DERIVED) if name not in file]
+        if attributes.get("format") != FORMAT or missing or "info" not in attributes:
             raise PinstabError(
-                f"{path}: not a pinstab run file (format {file.attrs.get('format')!r}"
+                f"{path}: not a pinstab run file (format {attributes.get('format')!r}"
                 + (f", no {', '.join(missing)})" if missing else ")")
             )
-        info = RunInfo.from_dict(json.loads(file.attrs["info"]))
-        n = min(len(file[name]) for name in SAMPLES)  # a reader may see a block's t before its q
-        arrays = {name: file[name][:n] for name in SAMPLES}
+        info = RunInfo.from_json(attributes["info"], str(path))
+        datasets = {}
+        for name in (*SAMPLES, *DERIVED):
+            with _reading(path, f"dataset {name!r}"):
+                datasets[name] = np.asarray(file[name][()])
+            if datasets[name].ndim == 0:
+                raise PinstabError(f"{path}: dataset {name!r} holds a single value, not a row per sample")
+        n = min(len(datasets[name]) for name in SAMPLES)  # a reader may see a block's t before its q
+        arrays = {name: datasets[name][:n] for name in SAMPLES}
         for name in DERIVED:
-            rows = file[name][()]
-            if len(rows) < n:  # cut off before the derived series
+            rows = datasets[name]
+            if len(rows) < n:  # cut short before the derived series
                 rows = np.full((n, *rows.shape[1:]), np.nan)
             arrays[name] = rows[:n]
-        return arrays, info, float(file.attrs["wall_time"]), bool(file.attrs["complete"])
+        with _reading(path, "attributes 'wall_time' and 'complete'"):
+            return arrays, info, float(attributes["wall_time"]), bool(attributes["complete"])
+
+
+READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)  # what h5py raises on a damaged file
+
+
+@contextmanager
+def _reading(path: str | Path, what: str) -> Iterator[None]:
+    """Around a read of ``what``: h5py's errors on a damaged file become a PinstabError naming the file and what."""
+    try:
+        yield
+    except READ_ERRORS as exc:
+        raise PinstabError(f"{path}: a damaged HDF5 run file: {what} cannot be read ({exc})") from None
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+BEING_WRITTEN = 0x01 | 0x04  # the superblock's file consistency flags: open for writing, for SWMR writing
+SWMR_READ_ATTEMPTS = 20  # a SWMR reader retries a metadata read whose checksum fails (the writer may be amid a
+# flush), its back-off doubling from 1 ns up to 1 s: HDF5's default of 100 attempts waits some 70 s on each damaged
+# block (a damaged file seemed to hang: over 100 s measured on a killed run's file cut to 150 bytes), 20 wait about
+# 1 ms in all (13 ms measured on the same file), beyond any flush of a BLOCK of rows (HDF5's own example uses 20)
+
+
+@contextmanager
+def open_run_file(path: str | Path) -> Iterator[Any]:
+    """The HDF5 file ``path`` opened read-only (an ``h5py.File``): a file closed by its writer as usual, a file
+    still being written or whose writer was killed (its superblock says so) in SWMR mode, which reads up to the
+    last flushed block, with :data:`SWMR_READ_ATTEMPTS` attempts at each metadata read.
+
+    Raises:
+        PinstabError: the file is not HDF5, is shorter than its superblock declares (truncated), or HDF5 cannot
+            open it (naming the file and HDF5's reason).
+    """
+    h5py = h5py_module()
+    being_written = _superblock_check(path)
+    try:
+        if being_written:
+            flags = h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ
+            file = h5py.File(h5py.h5f.open(os.fsencode(path), flags, fapl=_swmr_access(h5py)))
+        else:
+            file = h5py.File(path, "r", locking=False, rdcc_nbytes=CHUNK_CACHE)
+    except READ_ERRORS as exc:
+        raise PinstabError(f"{path}: not a readable HDF5 run file ({exc})") from None
+    with file:
+        yield file
+
+
+def _superblock_check(path: str | Path) -> bool:
+    """Whether the HDF5 file ``path`` is being written (or its writer was killed), by its superblock's consistency
+    flags (version 2 and later, as a stream's; False for earlier ones and a file without the signature at its start,
+    left to HDF5's own checks).
+
+    Raises:
+        PinstabError: the file is shorter than the end of file its superblock declares.
+    """
+    try:
+        with open(path, "rb") as handle:
+            header = handle.read(64)
+            size = os.fstat(handle.fileno()).st_size
+    except OSError as exc:
+        raise PinstabError(f"{path}: cannot be read ({exc.strerror})") from None
+    if not header.startswith(HDF5_SIGNATURE) or len(header) < 12 or header[8] < 2:
+        return False
+    width = header[9]  # bytes of an address: base address, extension address, end of file address
+    fields = header[12 : 12 + 3 * width]
+    if width not in (2, 4, 8) or len(fields) < 3 * width:
+        raise PinstabError(f"{path}: a truncated HDF5 file ({size} bytes, its superblock cut short)")
+    base, _, end = (int.from_bytes(fields[k * width : (k + 1) * width], "little") for k in range(3))
+    if size < base + end:
+        raise PinstabError(
+            f"{path}: a truncated HDF5 file: {size} bytes where its superblock declares {base + end} (a copy or a "
+            "download cut short, or a full disk)"
+        )
+    return bool(header[11] & BEING_WRITTEN)
+
+
+def _swmr_access(h5py) -> Any:
+    """A file access property list for a SWMR reader: no file locking (the writer holds the lock), no chunk cache,
+    :data:`SWMR_READ_ATTEMPTS` attempts at a metadata read (set through the HDF5 library h5py loaded, found in the
+    process's memory map; HDF5's default where it cannot be found)."""
+    access = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    access.set_fclose_degree(h5py.h5f.CLOSE_STRONG)
+    access.set_file_locking(False, True)
+    metadata, slots, _, weight = access.get_cache()
+    access.set_cache(metadata, slots, CHUNK_CACHE, weight)
+    library = _hdf5_library()
+    if library is not None:
+        library.H5Pset_metadata_read_attempts(access.id, SWMR_READ_ATTEMPTS)
+    return access
+
+
+@functools.cache
+def _hdf5_library() -> ctypes.CDLL | None:
+    """The HDF5 library h5py loaded (its path in ``/proc/self/maps``), or None where it cannot be found."""
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split()[-1] for line in maps if "/libhdf5" in line and "libhdf5_hl" not in line}
+    except OSError:
+        return None
+    for path in sorted(paths):
+        library = ctypes.CDLL(path)
+        if hasattr(library, "H5Pset_metadata_read_attempts"):
+            library.H5Pset_metadata_read_attempts.argtypes = (ctypes.c_int64, ctypes.c_uint)
+            return library
+    return None

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import json
+import math
+import warnings
 import zipfile
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,10 +15,10 @@ from typing import Any, Protocol
 import numpy as np
 import pinocchio as pin
 
-from .errors import PinstabError
+from .errors import CutShortWarning, PinstabError
 from .files import atomic_output
 from .runinfo import RunInfo
-from .stream import StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
+from .stream import BLOCK, StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
 
 
 class SeriesSource(Protocol):
@@ -226,11 +229,12 @@ class Trajectory:
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
         """Read a trajectory written by :meth:`save` (``.npz``) or streamed (``.h5``, :mod:`pinstab.stream`: a run
-        cut off holds its samples so far, its derived series NaN, ``info.stopped`` saying so).
+        cut short holds its samples so far, its derived series NaN, ``info.cut_short`` and a CutShortWarning saying so).
 
         Raises:
-            PinstabError: the file is missing, truncated, not an NPZ, or an NPZ of something else (named:
-                the missing array or the one whose shape does not fit).
+            PinstabError: the file is missing, truncated or damaged, not an NPZ or HDF5 run file, or one whose
+                arrays do not describe a run (named: the missing array, the one whose shape does not fit, the first
+                sample whose time or state is not finite, times that go back).
         """
         if Path(path).is_dir():
             raise PinstabError(f"{path} is a folder, not a pinstab trajectory file (.npz, .h5)")
@@ -249,7 +253,7 @@ class Trajectory:
                         f"{', '.join(data.files) or 'nothing'})"
                     )
                 arrays = {name: data[name] for name in SAVED_ARRAYS}
-                info = RunInfo.from_dict(json.loads(str(arrays.pop("info"))))
+                info = RunInfo.from_json(str(arrays.pop("info")), str(path))
                 comparison = (
                     Comparison.from_arrays(str(data["comparison"]), data["comparison_error"])
                     if "comparison" in data.files
@@ -257,9 +261,9 @@ class Trajectory:
                 )
         except PinstabError:
             raise
-        except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
             raise PinstabError(f"{path}: not a readable pinstab trajectory file ({exc})") from None
-        _check_shapes(path, arrays)
+        _check_arrays(path, arrays)
         if comparison is not None and comparison.error.shape != (arrays["t"].size, len(comparison.names)):
             raise PinstabError(f"{path}: the trajectory error's shape {comparison.error.shape} does not fit the run")
         wall_time = float(arrays.pop("wall_time"))
@@ -269,16 +273,40 @@ class Trajectory:
 
     @classmethod
     def _load_stream(cls, path: str | Path) -> Trajectory:
-        """The trajectory of a streamed run file, read whole."""
+        """The trajectory of a streamed run file, read whole; a run cut short is marked (``info.cut_short``) and
+        warned of (:class:`~pinstab.errors.CutShortWarning`)."""
         arrays, info, wall_time, complete = read_stream(path)
-        arrays.pop("step")
+        steps = arrays.pop("step")
         if not len(arrays["t"]):
-            raise PinstabError(f"{path}: the streamed run holds no sample yet")
-        if not complete and info.stopped is None:
-            info.stopped = {"reason": "stream cut off", "t": float(arrays["t"][-1])}
-            info.t_end = float(arrays["t"][-1])
-        _check_shapes(path, {"wall_time": np.asarray(wall_time), **arrays})
+            raise PinstabError(
+                f"{path}: the streamed run holds no sample yet (its rows are written {BLOCK} at a time: a run "
+                "killed before its first block leaves none)"
+            )
+        _check_arrays(path, {"wall_time": np.asarray(wall_time), "step": steps, **arrays})
+        if not complete:
+            _mark_cut_short(path, info, float(arrays["t"][-1]), int(steps[-1]), wall_time)
         return cls(info=info, wall_time=wall_time, **arrays)
+
+
+def _mark_cut_short(path: str | Path, info: RunInfo, t: float, step: int, wall_time: float) -> None:
+    """Mark the info of a streamed run cut short at its last sample (t [s], ``step``): ``info.cut_short``, and the
+    end time and steps of a killed run's info (its start's); warn of it (CutShortWarning). A wall time [s] written
+    (finite) means the run's final info was written: it was interrupted (Ctrl-C, SIGTERM), not killed."""
+    interrupted = math.isfinite(wall_time)
+    info.cut_short = {"t": t, "step": step, "cause": "interrupted" if interrupted else "killed"}
+    info.t_end, info.steps = t, step
+    how = (
+        "interrupted (Ctrl-C or SIGTERM)"
+        if interrupted
+        else "killed (kill -9, a crash or a power cut; the rows flushed before, its info as at its start)"
+    )
+    warnings.warn(
+        CutShortWarning(
+            f"{path}: the run was cut short at t = {t:.9g} s (step {step}): {how}; its samples up to there are "
+            f"read, its derived series ({', '.join(Trajectory.DERIVED)}) were not written: NaN"
+        ),
+        stacklevel=4,
+    )
 
 
 class SeriesFigures:
@@ -392,6 +420,8 @@ def run_figures(info: RunInfo, wall_time: float, t_end: float, figures: dict[str
     summary["stopped"] = info.stopped
     if info.limits_active_s is not None:
         summary["limits_active_s"] = info.limits_active_s
+    if info.cut_short is not None:
+        summary["cut_short"] = info.cut_short
     return summary
 
 
@@ -468,12 +498,12 @@ SAVED_ARRAYS = (  # what save() writes and load() requires: the attributes of th
 )
 
 
-def _check_shapes(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
-    """Refuse a file whose arrays do not describe one run: n >= 1 increasing sample times, and every series
-    with n rows of numbers."""
+def _check_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    """Refuse a file whose arrays do not describe one run: n >= 1 finite increasing sample times [s], every series
+    with n rows of numbers, and finite states (but the last, which is a diverged run's failed step)."""
     t = arrays["t"]
-    if t.ndim != 1 or t.size == 0 or t.dtype.kind not in "fi" or not np.all(np.diff(t) >= 0):
-        raise PinstabError(f"{path}: 't' must be a non-empty increasing list of sample times, got shape {t.shape}")
+    if t.ndim != 1 or t.size == 0 or t.dtype.kind not in "fi":
+        raise PinstabError(f"{path}: 't' must be a non-empty list of sample times, got shape {t.shape}")
     for name, array in arrays.items():
         if name == "wall_time":
             ok = array.shape == () and array.dtype.kind in "fi"
@@ -484,6 +514,23 @@ def _check_shapes(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
             raise PinstabError(
                 f"{path}: array {name!r} (shape {array.shape}, {array.dtype}) does not fit {t.size} samples"
             )
+    for name in ("t", "q", "v"):
+        finite = np.isfinite(arrays[name])
+        bad = ~(finite if finite.ndim == 1 else finite.all(axis=1))
+        bad[-1] &= name == "t"
+        if bad.any():
+            first = int(np.argmax(bad))
+            raise PinstabError(
+                f"{path}: array {name!r} is not finite at sample {first} of {t.size} (t = {t[first]:.9g} s): a damaged "
+                "file (only the last sample's state may be, the failed step of a diverged run)"
+            )
+    backwards = np.diff(t) < 0
+    if backwards.any():
+        first = int(np.argmax(backwards)) + 1
+        raise PinstabError(
+            f"{path}: the sample times 't' must increase; sample {first} (t = {t[first]:.9g} s) is before the one "
+            f"before it (t = {t[first - 1]:.9g} s)"
+        )
 
 
 def _finite_max(values: np.ndarray) -> float | None:

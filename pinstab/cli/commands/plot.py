@@ -31,6 +31,7 @@ def plot(args: argparse.Namespace) -> dict[str, Any]:
         "steps": trajectory.steps,
         "t_end": float(trajectory.t[-1]),
         "stopped": info.stopped,
+        "cut_short": info.cut_short,
         "contact_events": info.contact_events,
     }
 
