@@ -14,7 +14,7 @@ from test_catalogue import Case, run_case
 
 from conftest import ROBOTS
 from pinstab.contact.coefficients import MAX_FRICTION
-from pinstab.errors import ConstraintError, PainleveError, SceneError
+from pinstab.errors import PainleveError, SceneError
 from pinstab.scene import load_scene, scene_from_dict
 from pinstab.simulate.api import simulate
 from pinstab.tables import MAX_REACH, SceneTables, scene_size
@@ -183,18 +183,12 @@ def test_painleve_rod_at_the_friction_ceiling_is_painleves_paradox():
         simulate(load_scene("painleve-rod", mu=MAX_FRICTION), contacts="event", duration=1.0)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=(ConstraintError, AssertionError),
-    reason="Pinocchio's ADMM (NCP mode, pinstab/solvers/ncp.py) fails on the rod's one-contact problem from mu = 4 "
-    "(not converged, the end goes 4e-4 m into the floor) and returns NaN from mu = 10",
-)
 def test_painleve_rod_time_stepping_at_the_friction_ceiling_stops_the_end():
     run = simulate(load_scene("painleve-rod", mu=MAX_FRICTION), contacts="stepping", duration=1.0)
     end = pin.SE3(np.eye(3), np.array([-0.5, 0.0, 0.0]))
     heights = [(pin.XYZQUATToSE3(x) * end).translation[2] for x in np.asarray(run.q)]
     assert min(heights) > -1e-5
-    assert run.summary()["solver_status"].get("ADMM not converged", 0) == 0
+    assert set(run.summary()["solver_status"]) <= {"ADMM converged", "PGS converged"}  # every step's solve checked
 
 
 def test_elastic_ball_bounces_back_to_its_height():

@@ -28,9 +28,14 @@ speed at the step's end exceeds :data:`SPEED_FLOOR` (its impulse then lies on th
 the slip); *sticking* otherwise (the point held, the impulse inside or on the cone). Every change is a
 :class:`~pinstab.contact.modes.ContactEvent` (cause ``impulse``) at the step's end, where its velocity holds;
 the first step records every contact's mode (cause ``start``) at the step's start. Every cone solve is
-counted in the run's solver statistics (status ``ADMM converged`` or ``ADMM not converged``, ADMM's
-iterations and its absolute primal and dual residuals [m/s]). The scheme is of order 1 (semi-implicit
-Euler between events; an impact or a switch is located to within a step).
+checked against the contact law (:meth:`~pinstab.solvers.ncp.NcpSolver.solve_contacts`: ADMM, PGS when ADMM's
+answer misses) and counted in the run's solver statistics (status ``ADMM converged``, ``PGS converged``, a
+fallback, or ``ADMM, PGS not converged``, the solver's iterations and its absolute primal and dual residuals
+[m/s]); a step whose solve no solver met ends the run with a :class:`~pinstab.errors.ContactSolveError` (exit 5,
+the run kept up to the step's start), never with a state off the law. The scheme is of order 1 (semi-implicit
+Euler between events; an impact or a switch is located to within a step): a contact point on a rotating body
+ends a step up to ``dt^2 omega^2 r / 2`` inside its plane (the chord ``dt v+`` against the arc, ``r`` the point's
+distance from the axis), which the next step's gap term takes back.
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ import math
 import numpy as np
 
 from ..contact.modes import ContactEvent, Mode, as_tuple
+from ..errors import ContactSolveError
 from ..solvers.contact_modes import ModeDynamics
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
@@ -71,9 +77,12 @@ class ContactStepper(Integrator):
         self.events: list[ContactEvent] = []
         self.modes: list[Mode] | None = None
         self.impulses = np.zeros((count, 3))
+        self._index = {contact.name: i for i, contact in enumerate(dynamics.contacts)}
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
+        if self.events and self.events[-1].t > t + dt / 2:
+            self._rewind(t + dt / 2)
         model = self.system.model
         terms = model.dynamics_terms(q, v, t)
         contacts = self.dynamics.kinematics_from_kin(v)
@@ -90,12 +99,36 @@ class ContactStepper(Integrator):
             mus = [self.dynamics.contacts[i].mu for i in active]
             impulses[np.array(active)] = self.solver.solve_contacts(contacts.jacobian, mobility, offset, active, mus)
             self.solver.record(self.system.solver.statistics)
+            if not self.solver.status().converged:
+                raise self._unsolved(active, t)
             v_new = v_free + mobility @ impulses.ravel()
         velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
         normal = contacts.jacobian[0::3]
         self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
         self.impulses = impulses
         return self.integrate(q, dt * v_new), v_new
+
+    def _rewind(self, t: float) -> None:
+        """Forget the events after t [s] and take back the modes before them: the loop replays steps it took
+        (after a failed check or solve, to locate it; its probes of a smaller step)."""
+        self.events = [event for event in self.events if event.t <= t]
+        modes = [Mode.SEPARATED] * len(self.impulses)  # the first step's events give every contact's mode
+        for event in self.events:
+            modes[self._index[event.contact]] = Mode(event.after)
+        self.modes = modes
+
+    def _unsolved(self, active: tuple[int, ...], t: float) -> ContactSolveError:
+        """The error of a step from t [s] whose contact problem (the contacts ``active``) no solver met."""
+        names = [self.dynamics.contacts[i].name for i in active]
+        solver = self.solver
+        return ContactSolveError(
+            f"at t = {t:.9g} s the impulses of contacts {', '.join(names)} were not found: neither ADMM nor PGS "
+            f"(NCP mode, {solver.settings.max_iterations} iterations) met the contact law (residual "
+            f"{solver.residual:.3g} m/s, accepted {solver.tolerance:.3g} m/s); the run is kept up to t; event-driven "
+            "contacts (contacts='event', --contacts event) or another dt pose other problems",
+            names,
+            t,
+        )
 
     def _normal_bias(self, i: int, gap: float, normal_velocity: float, dt: float) -> float:
         """b_n of contact i [m/s]: the gap's term, or Newton's impact law when it asks for more."""

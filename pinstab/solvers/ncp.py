@@ -1,4 +1,4 @@
-"""The frictional contact problem on exact round cones, solved by Pinocchio 4.1's ADMM in NCP mode.
+"""The frictional contact problem on exact round cones, solved by Pinocchio 4.1's ADMM in NCP mode, checked.
 
 Given the Delassus matrix ``D = J M^-1 J^T`` of some contacts and the offset ``g`` (contact velocities or
 accelerations without contact forces, plus any bias), find the contact impulses (or forces) ``lambda`` with
@@ -9,10 +9,23 @@ per contact, K the round cone ``|lambda_t| <= mu lambda_n`` (De Saxce's form of 
 contact's sigma_n is exactly 0 and its friction opposes sigma_t; ``solve_ncp``). The convex relaxation
 (CCP, ``solve_ncp = False``) would let sliding contacts lift off by ``mu |sigma_t|``; it is never used here.
 Each contact's three rows are in Pinocchio's order (t1, t2, n): normal last.
+
+:meth:`NcpSolver.solve_contacts` does not take a solver's word for it. It poses the problem with each contact's
+tangential impulse in units of ``s = max(mu, 1)`` times the normal one (``lambda = S lambda'``, ``D' = S D S``,
+``g' = S g``, cones of ``mu / s <= 1``: the same problem, ``lambda' . sigma' = lambda . sigma`` and
+``sigma'_n + (mu / s) |sigma'_t| = sigma_n + mu |sigma_t|``), because ADMM in NCP mode fails on steep cones: on
+the painleve-rod's first step it did not converge for mu = 4 (residual 1.05 m/s on a 1 m/s slip) and returned
+NaN for mu = 10 where the scaled problem converges in 160 to 200 iterations. Cones below 1 are left as they are
+(scaling them up would shrink the tangential block of D by mu^2). Each answer is then measured by
+:func:`ncp_residual`, the natural map of the De Saxce law computed here, and kept only within
+:data:`CHECK_RTOL`; else Pinocchio's projected Gauss-Seidel in NCP mode (PGS) solves the same problem, checked
+the same way, and if it misses too the solve reports that it did not converge (the callers stop the run with a
+:class:`~pinstab.errors.ContactSolveError` or :class:`~pinstab.errors.ContactInfeasibleError`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -21,6 +34,12 @@ import pinocchio as pin
 
 from ..runinfo import SolverStatistics
 
+CHECK_RTOL = 1e-6
+"""[-] the largest residual :func:`ncp_residual` accepts, relative to the problem's velocity scale (the largest
+entry of g or of D lambda): a contact velocity off the law by less moves a contact by 1e-6 of its free travel
+per step (1 nm per 1 ms step at 1 m/s). It lies 400 times above the worst residual of ADMM's converged
+answers (tolerance 1e-12) over the bundled contact scenes at mu in [0, 10] (2.4e-9, allegro-tilt) and far below
+the misses it must catch (ADMM on the painleve-rod at mu = 4: 0.9 of the 1 m/s slip; 1e-2 at mu = 7)."""
 CONE_ROWS = (1, 2, 0)  # Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
 CONE_ORDER = np.eye(3)[list(CONE_ROWS)]  # (n, t1, t2) -> (t1, t2, n)
 
@@ -38,9 +57,21 @@ def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettin
     return settings
 
 
+def pgs_settings(tolerance: float, max_iterations: int) -> pin.PGSSolverSettings:
+    """PGS's settings in NCP mode with every feasibility and complementarity tolerance at ``tolerance``."""
+    settings = pin.PGSSolverSettings()
+    settings.max_iterations = max_iterations
+    settings.solve_ncp = True
+    for name in ("feasibility", "complementarity"):
+        setattr(settings, f"absolute_{name}_tol", tolerance)
+        setattr(settings, f"relative_{name}_tol", tolerance)
+    return settings
+
+
 class NcpStatus(NamedTuple):
-    """How the last solve ended: ADMM's iterations, convergence flag and final primal and dual
-    feasibility and complementarity residuals (in the units of g; complementarity times lambda's)."""
+    """How the last solve ended: the solver's iterations, convergence flag (for :meth:`NcpSolver.solve_contacts`:
+    the answer kept passed :func:`ncp_residual`) and final primal and dual feasibility and complementarity
+    residuals (in the units of g; complementarity times lambda's)."""
 
     iterations: int
     converged: bool
@@ -50,18 +81,20 @@ class NcpStatus(NamedTuple):
 
 
 class NcpSolver:
-    """Pinocchio's ``ADMMConstraintSolver`` on a dense Delassus matrix, in NCP mode.
+    """Pinocchio's ``ADMMConstraintSolver`` on a dense Delassus matrix, in NCP mode, with a checked fallback.
 
     Args:
         size: the largest problem size (3 per contact).
-        tolerance: ADMM's absolute and relative feasibility and complementarity tolerances.
-        max_iterations: ADMM's iteration limit.
+        tolerance: ADMM's and PGS's absolute and relative feasibility and complementarity tolerances.
+        max_iterations: ADMM's and PGS's iteration limit.
         compliance: the compliance R added to D's diagonal (units of g per unit of lambda), 0 for rigid
-            contacts.
-        warm_start: start each solve from the previous one's lambda (when the sizes match).
+            contacts (used by :meth:`solve` alone).
+        warm_start: start each :meth:`solve` from the previous one's lambda (when the sizes match).
 
     Attributes:
-        result: Pinocchio's ``ADMMSolverResult`` of the last solve.
+        result: Pinocchio's ``ADMMSolverResult`` of the last ADMM solve. method: the solver whose answer the last
+            :meth:`solve_contacts` kept (``ADMM`` or ``PGS``; the last one tried when none passed). residual:
+            that answer's :func:`ncp_residual` [units of g]. tolerance: the residual it accepted [units of g].
     """
 
     def __init__(
@@ -72,17 +105,23 @@ class NcpSolver:
         compliance: float = 0.0,
         warm_start: bool = False,
     ) -> None:
+        size = max(size, 3)
         self.settings = admm_settings(tolerance, max_iterations)
-        self.solver = pin.ADMMConstraintSolver(max(size, 3))
+        self.solver = pin.ADMMConstraintSolver(size)
         self.result = pin.ADMMSolverResult()
+        self.pgs_settings = pgs_settings(tolerance, max_iterations)
+        self.pgs = pin.PGSConstraintSolver(size)
+        self.pgs_result = pin.PGSSolverResult()
         self.compliance = compliance
         self.warm_start = warm_start
+        self.method, self.residual, self.tolerance = "ADMM", 0.0, 0.0
         self._last_size = -1
+        self._status = NcpStatus(0, False, math.nan, math.nan, math.nan)
         self._cones: dict[tuple[float, ...], tuple] = {}
 
     def solve(self, delassus: np.ndarray, g: np.ndarray, models, datas) -> np.ndarray:
-        """lambda of the problem ``(D, g)`` on the cones of the constraint ``models`` (their friction
-        coefficients; ``datas`` their data), in Pinocchio's row order (t1, t2, n per contact)."""
+        """ADMM's lambda of the problem ``(D, g)`` on the cones of the constraint ``models`` (their friction
+        coefficients; ``datas`` their data), in Pinocchio's row order (t1, t2, n per contact), unchecked."""
         operator = pin.DelassusOperatorDense(0.5 * (delassus + delassus.T))
         if self.compliance:
             operator.updateCompliance(self.compliance)
@@ -91,6 +130,7 @@ class NcpSolver:
             result.setConstraintImpulseGuess(result.retrieveConstraintImpulses().copy())
         self.solver.solve(operator, g, models, datas, self.settings, result)
         self._last_size = g.size
+        self.method, self._status = "ADMM", _status_of(result)
         return result.retrieveConstraintImpulses().copy()
 
     def solve_contacts(
@@ -104,35 +144,93 @@ class NcpSolver:
         """The impulses (or forces) (len(active), 3) in the contact bases (n, t1, t2) of the contacts
         ``active`` with friction coefficients ``mus`` [-]: ``jacobian`` (3k, nv) and ``offset`` (3k,) [units of
         g] have each contact's rows (n, t1, t2), ``mobility`` (nv, 3k) is M^-1 J^T; D = J M^-1 J^T of the
-        active rows (converted to Pinocchio's order for the solve)."""
+        active rows (converted to Pinocchio's order for the solve). ADMM on the problem with the cones scaled to
+        at most 1, then PGS when ADMM's answer misses :func:`ncp_residual`'s tolerance; :meth:`status` says
+        whether the answer returned passed it."""
         rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
         key = tuple(float(mu) for mu in mus)
         if key not in self._cones:
-            self._cones[key] = friction_cones(key)
-        solution = self.solve(jacobian[rows] @ mobility[:, rows], offset[rows], *self._cones[key])
+            self._cones[key] = (*friction_cones([min(mu, 1.0) for mu in key]), cone_scales(key))
+        models, datas, scales = self._cones[key]
+        delassus, g = jacobian[rows] @ mobility[:, rows], offset[rows]
+        scaled = (scales[:, None] * delassus * scales, scales * g)
+        solution = scales * self.solve(*scaled, models, datas)
+        if not self._check(delassus, g, solution, key):
+            operator = pin.DelassusOperatorDense(0.5 * (scaled[0] + scaled[0].T))
+            self.pgs.solve(operator, scaled[1], models, datas, self.pgs_settings, self.pgs_result)
+            solution = scales * self.pgs_result.retrieveConstraintImpulses()
+            self.method, self._status = "PGS", _status_of(self.pgs_result)
+            self._check(delassus, g, solution, key)
         return solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
 
+    def _check(self, delassus: np.ndarray, g: np.ndarray, solution: np.ndarray, mus: Sequence[float]) -> bool:
+        """Whether ``solution`` meets the law to :data:`CHECK_RTOL` of the problem's velocity scale (the largest
+        entry of g or of D lambda); the status's converged flag says so from now on."""
+        self.residual = ncp_residual(delassus, g, solution, mus)
+        finite = bool(np.all(np.isfinite(solution)))
+        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))) if finite else 0.0)
+        self.tolerance = CHECK_RTOL * scale
+        passed = self.residual <= self.tolerance
+        self._status = self._status._replace(converged=passed)
+        return passed
+
     def record(self, statistics: SolverStatistics) -> None:
-        """Count the last solve in ``statistics`` (status ``ADMM converged`` or ``ADMM not converged``, its
-        iterations and absolute primal and dual residuals)."""
+        """Count the last solve in ``statistics`` (status ``ADMM converged``, ``PGS converged`` or ``ADMM, PGS
+        not converged``, the kept solver's iterations and absolute primal and dual residuals; a PGS solve after
+        ADMM's miss is a fallback)."""
         status = self.status()
-        statistics.record(
-            "ADMM converged" if status.converged else "ADMM not converged",
-            status.iterations,
-            status.primal_feasibility,
-            status.dual_feasibility,
-        )
+        label = f"{self.method} converged" if status.converged else "ADMM, PGS not converged"
+        statistics.record(label, status.iterations, status.primal_feasibility, status.dual_feasibility)
+        statistics.fallbacks += self.method == "PGS"
 
     def status(self) -> NcpStatus:
         """How the last solve ended."""
-        result = self.result
-        return NcpStatus(
-            int(result.iterations),
-            bool(result.converged),
-            float(result.primal_feasibility),
-            float(result.dual_feasibility),
-            float(result.complementarity),
-        )
+        return self._status
+
+
+def _status_of(result) -> NcpStatus:
+    """The status of an ADMM or PGS ``result``."""
+    return NcpStatus(
+        int(result.iterations),
+        bool(result.converged),
+        float(result.primal_feasibility),
+        float(result.dual_feasibility),
+        float(result.complementarity),
+    )
+
+
+def cone_scales(mus: Sequence[float]) -> np.ndarray:
+    """Each row's unit (t1, t2, n per contact, Pinocchio's order): ``max(mu, 1)`` on the tangential rows of a
+    contact of friction coefficient ``mu`` [-], 1 on its normal row."""
+    return np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
+
+
+def ncp_residual(delassus: np.ndarray, g: np.ndarray, impulses: np.ndarray, mus: Sequence[float]) -> float:
+    """How far ``impulses`` (Pinocchio's order, t1, t2, n per contact) are from solving the problem ``(D, g)``
+    with friction coefficients ``mus`` [-], in the units of g: the largest contact's natural map
+    ``|lambda - P_K(lambda - rho (sigma + mu |sigma_t| e_n))| / rho``, ``rho = 1 / |D|_2`` (0 exactly at a
+    solution: lambda in K, sigma_n >= 0, lambda orthogonal to the De Saxce velocity; inf for a non-finite
+    lambda)."""
+    if not np.all(np.isfinite(impulses)):
+        return math.inf
+    sigma = (delassus @ impulses + g).reshape(-1, 3)
+    rho = 1.0 / max(float(np.linalg.norm(delassus, 2)), np.finfo(float).tiny)
+    worst = 0.0
+    for impulse, velocity, mu in zip(impulses.reshape(-1, 3), sigma, mus, strict=True):
+        desaxce = velocity + np.array([0.0, 0.0, mu * math.hypot(*velocity[:2])])
+        worst = max(worst, float(np.linalg.norm(impulse - cone_projection(impulse - rho * desaxce, mu))) / rho)
+    return worst
+
+
+def cone_projection(x: np.ndarray, mu: float) -> np.ndarray:
+    """The nearest point to x = (t1, t2, n) of the cone ``|t| <= mu n``."""
+    tangential, normal = math.hypot(*x[:2]), x[2]
+    if tangential <= mu * normal and normal >= 0.0:
+        return x.copy()
+    if mu * tangential <= -normal:
+        return np.zeros(3)
+    along = (normal + mu * tangential) / (1.0 + mu * mu)  # the normal part of the projection
+    return np.array([*(mu * along * x[:2] / tangential), along])
 
 
 def friction_cones(mus: Sequence[float]) -> tuple[pin.StdVec_ConstraintModel, pin.StdVec_ConstraintData]:
