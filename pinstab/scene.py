@@ -8,6 +8,7 @@ schema.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ from .generators import generate
 from .memory import named_when_exhausted
 from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
 from .readers.base import robot_geometry
+from .readers.urdf import read_body
 from .registry import Registry
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
 from .units import quantity
@@ -234,7 +236,7 @@ def scene_from_dict(
     locked_positions = {j: float(q_full[full_model.joints[joint_id(full_model, j, "robot")].idx_q]) for j in locked}
     model.gravity = pin.Motion(_gravity(data.get("gravity", [0.0, 0.0, -9.81])), np.zeros(3))
 
-    objects = add_objects(model, data.get("objects", []), base_dir)
+    objects = add_objects(model, data.get("objects", []), functools.partial(read_body, base_dir=base_dir))
     for j in list(q_table):
         if j in locked:
             q_table.pop(j)

@@ -14,8 +14,8 @@ object's free-flyer joint and its body frame are both named after the object; it
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, NamedTuple
 
 import coal
@@ -31,6 +31,10 @@ OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "
 URDF_OBJECT_KEYS = {"name", "shape", "urdf", "position", "rpy", "color"}
 DEFAULT_COLOR = (0.85, 0.55, 0.15, 1.0)
 SI_UNITS = {"length": "m", "mass": "kg", "density": "kg/m^3"}
+# reads the URDF file an object's ``urdf`` names (the value, and where it is given, e.g. ``object 'crate'.urdf``) into
+# its model, collision and visual geometry, or raises a SceneError naming where. The scene hands in the URDF reader of
+# :mod:`pinstab.readers` (a layer above this one), so that an object's file meets every check of a robot's file
+UrdfReader = Callable[[Any, str], tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]]
 
 
 @dataclass
@@ -136,26 +140,18 @@ def _color(entry: dict[str, Any], where: str) -> np.ndarray:
     return color
 
 
-def _urdf_body(entry: dict[str, Any], base_dir: Path, where: str):
+def _urdf_body(entry: dict[str, Any], read_urdf: UrdfReader, where: str):
     """(inertia, [(collision shape, placement)], [visual GeometryObject]) of a one-body URDF."""
-    if not isinstance(entry.get("urdf"), str):
+    if "urdf" not in entry:
         raise SceneError(f"{where}: a 'urdf' object needs 'urdf', the path of its URDF file")
-    path = (base_dir / entry["urdf"]).resolve()
-    if not path.is_file():
-        raise SceneError(f"{where}.urdf: file {path} does not exist")
-    try:
-        body = pin.buildModelFromUrdf(str(path))
-        collision = pin.buildGeomFromUrdf(body, str(path), pin.GeometryType.COLLISION, package_dirs=[str(path.parent)])
-        visual = pin.buildGeomFromUrdf(body, str(path), pin.GeometryType.VISUAL, package_dirs=[str(path.parent)])
-    except (ValueError, RuntimeError) as exc:
-        raise SceneError(f"{where}.urdf: the URDF cannot be read: {exc}") from None
+    body, collision, visual = read_urdf(entry["urdf"], f"{where}.urdf")
     if body.njoints > 1:
         raise SceneError(
-            f"{where}.urdf: an object is one rigid body, but joint {body.names[1]!r} of {path.name} moves; "
+            f"{where}.urdf: an object is one rigid body, but joint {body.names[1]!r} of {entry['urdf']} moves; "
             "make every joint fixed"
         )
     if body.inertias[0].mass <= 0:
-        raise SceneError(f"{where}.urdf: the links of {path.name} have no mass")
+        raise SceneError(f"{where}.urdf: the links of {entry['urdf']} have no mass")
     shapes = [(g.geometry, g.placement) for g in collision.geometryObjects]
     return body.inertias[0], shapes, list(visual.geometryObjects)
 
@@ -168,9 +164,10 @@ def _placement(entry: dict[str, Any], where: str) -> pin.SE3:
     return frame
 
 
-def add_objects(model: pin.Model, value: Any, base_dir: Path) -> list[SceneObject]:
+def add_objects(model: pin.Model, value: Any, read_urdf: UrdfReader) -> list[SceneObject]:
     """Add every ``[[objects]]`` entry to ``model`` as a free-flyer body (after the robot's joints, so
-    the joint order stays depth-first); the objects, in order."""
+    the joint order stays depth-first); the objects, in order. ``read_urdf`` reads a ``urdf`` object's file (the
+    scene's URDF reader, :func:`pinstab.readers.urdf.read_body`, which holds it to a robot file's checks)."""
     objects: list[SceneObject] = []
     for index, entry in enumerate(list_of_tables(value, "objects")):
         where = f"objects[{index}]"
@@ -186,7 +183,7 @@ def add_objects(model: pin.Model, value: Any, base_dir: Path) -> list[SceneObjec
         check_keys(entry, URDF_OBJECT_KEYS if shape == "urdf" else OBJECT_KEYS, where)
         color = _color(entry, where)
         if shape == "urdf":
-            inertia, geometries, visuals = _urdf_body(entry, base_dir, where)
+            inertia, geometries, visuals = _urdf_body(entry, read_urdf, where)
         else:
             geometry, volume, unit_inertia = _shape(entry, where)
             inertia = _shape_inertia(entry, volume, unit_inertia, where)

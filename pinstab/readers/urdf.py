@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import coal
@@ -38,23 +39,51 @@ def read_named(robot: dict[str, Any], options: ReaderOptions, path, package_dirs
     return _build(robot, options, path, None, package_dirs, triangle=False)
 
 
-def resolve_file(robot: dict[str, Any], key: str, options: ReaderOptions):
+def read_body(value: Any, where: str, base_dir: Path) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+    """The model, collision and visual geometry of the URDF file ``value`` (a path relative to ``base_dir``, meshes
+    found next to it) given at ``where`` in a scene table other than ``[robot]`` (an object's ``urdf``: ``object
+    'crate'.urdf``), held to the checks of the scene's own robot URDF (:func:`.urdf_checks.check_links`).
+
+    Raises:
+        SceneError: naming ``where``: not a path, a missing file, one beyond the bounds of :mod:`.bounds`, not UTF-8,
+            a link with a non-physical inertia, a document urdfdom cannot read, a mesh that cannot be loaded.
+    """
+    path = _file(value, base_dir, where)
+    source = _build({}, ReaderOptions(base_dir), path, None, [str(path.parent)], owner=where)
+    try:
+        collision, visual = (
+            source.geometry(source.model, kind, source.package_dirs)
+            for kind in (pin.GeometryType.COLLISION, pin.GeometryType.VISUAL)
+        )
+    except (ValueError, RuntimeError) as exc:
+        raise SceneError(f"{where}: the URDF cannot be read: {exc}") from None
+    return source.model, collision, visual
+
+
+def resolve_file(robot: dict[str, Any], key: str, options: ReaderOptions) -> Path:
     """The path ``robot[key]``, relative to the scene's folder; SceneError when it is not a file."""
-    if not isinstance(robot[key], str):
-        raise SceneError(f"robot.{key} must be a path string, got {robot[key]!r}")
-    path = (options.base_dir / robot[key]).resolve()
+    return _file(robot[key], options.base_dir, f"robot.{key}")
+
+
+def _file(value: Any, base_dir: Path, where: str) -> Path:
+    """The file ``value`` names, relative to ``base_dir``; SceneError naming ``where`` when it is not one."""
+    if not isinstance(value, str):
+        raise SceneError(f"{where} must be a path string, got {value!r}")
+    path = (base_dir / value).resolve()
     if not path.is_file():
-        raise SceneError(f"robot.{key}: file {path} does not exist")
+        raise SceneError(f"{where}: file {path} does not exist")
     return path
 
 
-def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, triangle: bool = True) -> RobotSource:
+def _build(
+    robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, triangle: bool = True, owner: str = "robot"
+) -> RobotSource:
     if "copies" in robot:  # one document of prefixed copies; package_dirs still resolve the meshes
         copies = parse_copies(robot["copies"])
         source = read_bounded(urdf_path, f"robot: URDF {urdf_path}") if urdf_text is None else urdf_text
         urdf_text = compose_copies(source, copies)
         urdf_path = None
-    check_links(urdf_text, urdf_path, triangle=triangle)  # names what urdfdom would only refuse
+    check_links(urdf_text, urdf_path, triangle, owner)  # names what urdfdom would only refuse
     root = [pin.JointModelFreeFlyer()] if options.free_flyer else []
     try:
         if urdf_text is not None:
@@ -62,7 +91,7 @@ def _build(robot, options: ReaderOptions, urdf_path, urdf_text, package_dirs, tr
         else:
             model = pin.buildModelFromUrdf(str(urdf_path), *root)
     except (ValueError, RuntimeError) as exc:
-        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+        raise SceneError(f"{owner}: the URDF cannot be read: {exc}") from None
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         if urdf_text is not None:

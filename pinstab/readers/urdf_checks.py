@@ -1,11 +1,11 @@
 """Checks of a URDF document that urdfdom would only refuse, or not see: its size, nesting and depth
-(:mod:`.bounds`), names, joints between links that exist, moving joints with an axis, finite masses and physical
-inertias (:mod:`.inertia`).
+(:mod:`.bounds`), its encoding, names, joints between links that exist, moving joints with an axis, finite masses
+and physical inertias (:mod:`.inertia`).
 
 The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
 inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
 impossible but positive definite inertia, harmless to the numerics); a URDF of the scene (``robot.urdf``,
-``robot.urdf_text``) is held to it.
+``robot.urdf_text``, an object's ``urdf``) is held to it.
 """
 
 from __future__ import annotations
@@ -25,21 +25,23 @@ MOVING_JOINTS = ("revolute", "continuous", "prismatic")
 AXIS_MIN = 1e-9  # a shorter joint axis is no direction
 
 
-def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -> None:
-    """The document within the bounds of :mod:`.bounds` (bytes, nesting, links, joints, depth), and every link's
+def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool, owner: str) -> None:
+    """The document within the bounds of :mod:`.bounds` (bytes, nesting, links, joints, depth), a file UTF-8 text
+    (urdfdom's XML parser, tinyxml2, reads every file as UTF-8 whatever its declaration says), and every link's
     mass [kg] in [0, 1e12], its inertia [kg m^2] positive semidefinite, its principal moments at most 1e12
     (:data:`~pinstab.units.MAX_MAGNITUDE`) and, when ``triangle``, with each principal moment at most the sum of
-    the other two."""
-    where = "robot.urdf_text" if urdf_path is None else f"robot: URDF {urdf_path}"
+    the other two. ``owner`` begins every message: the scene key the document was given at (``robot``, or an
+    object's ``object 'crate'.urdf``)."""
+    where = f"{owner}.urdf_text" if urdf_path is None else f"{owner}: URDF {urdf_path}"
     if urdf_text is not None:
         check_text_size(urdf_text, where)
-    text = urdf_text if urdf_text is not None else read_bounded(urdf_path, where)
+    text = urdf_text if urdf_text is not None else _utf8(read_bounded(urdf_path, where), where)
     try:
         root = ElementTree.fromstring(text)
     except ElementTree.ParseError as exc:
-        raise SceneError(f"robot: the URDF cannot be read: {exc}") from None
+        raise SceneError(f"{owner}: the URDF cannot be read: {exc}") from None
     check_nesting(root, where)
-    _check_tree(root)
+    _check_tree(root, owner)
     links, joints = root.findall("link"), root.findall("joint")
     check_count(len(links), "links", where)
     check_count(len(joints), "joints", where)
@@ -48,10 +50,26 @@ def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool) -
     for link in root.iter("link"):
         inertial = link.find("inertial")
         if inertial is not None:
-            _check_inertial(inertial, f"robot link {link.get('name')!r}", triangle)
+            _check_inertial(inertial, f"{owner} link {link.get('name')!r}", triangle)
 
 
-def _check_tree(root: ElementTree.Element) -> None:
+def _utf8(data: bytes, where: str) -> bytes:
+    """``data`` when it is UTF-8 text.
+
+    Raises:
+        SceneError: naming ``where`` and the first byte that is not (a binary file, or text in another encoding).
+    """
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(
+            f"{where}: byte {exc.start} (0x{data[exc.start]:02x}) is not UTF-8: a URDF file is UTF-8 text "
+            "(urdfdom reads it so whatever its XML declaration says)"
+        ) from None
+    return data
+
+
+def _check_tree(root: ElementTree.Element, owner: str) -> None:
     """Names defined once, joints between links that exist, moving joints with a non-zero axis (urdfdom
     would refuse the first two without naming them)."""
     links = [link.get("name") for link in root.findall("link")]
@@ -60,9 +78,9 @@ def _check_tree(root: ElementTree.Element) -> None:
     for kind, names in (("link", links), ("joint", [joint.get("name") for joint in joints])):
         twice = repeated(names)
         if twice:
-            raise SceneError(f"robot: {kind} {twice[0]!r} is defined twice")
+            raise SceneError(f"{owner}: {kind} {twice[0]!r} is defined twice")
     for joint in joints:
-        where = f"robot joint {joint.get('name')!r}"
+        where = f"{owner} joint {joint.get('name')!r}"
         for end in ("parent", "child"):
             element = joint.find(end)
             link = None if element is None else element.get("link")
