@@ -37,6 +37,18 @@ def symmetric_copy(upper: np.ndarray, out: np.ndarray, lower: tuple[np.ndarray, 
     return out
 
 
+def with_columns(matrix: np.ndarray, nv: int) -> np.ndarray:
+    """A k x nv Jacobian from Pinocchio as a 2-D array (a view): its Python binding hands a matrix of one column
+    (one degree of freedom, nv = 1) or of one row back as a 1-D array."""
+    return matrix.reshape(-1, nv)
+
+
+def frame_jacobian(model: pin.Model, data: pin.Data, frame_id: int) -> np.ndarray:
+    """6 x nv Jacobian of a frame in LOCAL_WORLD_ALIGNED (linear rows first) [m/rad, 1] from ``data``'s joint
+    Jacobians (current after ``computeJointJacobians`` or ``computeAllTerms``)."""
+    return with_columns(pin.getFrameJacobian(model, data, frame_id, LWA), model.nv)
+
+
 class Kinematics:
     """Owns a Pinocchio ``Data`` and updates everything the constraint layer reads, once per state.
 
@@ -110,7 +122,7 @@ class Kinematics:
 
     def jacobian(self, frame_id: int) -> np.ndarray:
         """6 x nv frame Jacobian in LOCAL_WORLD_ALIGNED (linear rows first) [m/rad, 1]."""
-        return pin.getFrameJacobian(self.model, self.data, frame_id, LWA)
+        return frame_jacobian(self.model, self.data, frame_id)
 
     def drift_acceleration(self, frame_id: int) -> pin.Motion:
         """Classical acceleration of a frame at zero joint acceleration, LOCAL_WORLD_ALIGNED."""

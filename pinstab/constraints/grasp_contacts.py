@@ -32,7 +32,7 @@ from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
 from ..kernels import contact_point_drift, contact_point_jacobian, contact_point_residual
-from ..kinematics import Kinematics, PerUpdate
+from ..kinematics import Kinematics, PerUpdate, frame_jacobian
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
@@ -189,7 +189,7 @@ def close_gap(tables: SceneTables, fingertip: Fingertip, where: str) -> Nearest:
         gap = nearest.distance
         if abs(gap) <= GAP_TOLERANCE or not columns:
             break
-        row = -nearest.normal @ pin.getFrameJacobian(model, data, frame, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+        row = -nearest.normal @ frame_jacobian(model, data, frame)[:3]
         step = np.zeros(model.nv)
         sub = row[columns]
         if float(sub @ sub) < 1e-24:

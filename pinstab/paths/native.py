@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
 from ..kernels import NativeKernel
-from ..kinematics import LWA
+from ..kinematics import LWA, frame_jacobian, with_columns
 from ..memory import new_data
 
 CONTACT_TYPES = {
@@ -71,9 +71,9 @@ def non_planar_closure(model: pin.Model, data: pin.Data, closures: list[FrameClo
     for closure in closures:
         if closure.kind != "planar-point":
             continue
-        jac = pin.getFrameJacobian(model, data, closure.frame_a, LWA)[:3]
+        jac = frame_jacobian(model, data, closure.frame_a)[:3]
         if closure.frame_b is not None:
-            jac = jac - pin.getFrameJacobian(model, data, closure.frame_b, LWA)[:3]
+            jac = jac - frame_jacobian(model, data, closure.frame_b)[:3]
         normal = np.cross(closure.selection[0], closure.selection[1])
         if np.abs(normal @ jac).max() > PLANAR_TOLERANCE:
             return closure.name
@@ -167,7 +167,7 @@ class NativeDynamics:
         if not self._data_list:  # no closures: nothing to miss
             return 0.0
         model, data = self.model, self.data
-        jac = pin.getConstraintsJacobian(model, data, self.models, self.datas)
+        jac = with_columns(pin.getConstraintsJacobian(model, data, self.models, self.datas), model.nv)
         target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
         for index, contact in enumerate(self._data_list):
             rows = slice(3 * index, 3 * index + 3)
@@ -211,7 +211,8 @@ class NativeProjector:
         dynamics = self.dynamics
         step = dynamics.acceleration(q, self._zero, self._zero)
         self._factored = q
-        self._jacobian = pin.getConstraintsJacobian(dynamics.model, dynamics.data, dynamics.models, dynamics.datas)
+        jacobian = pin.getConstraintsJacobian(dynamics.model, dynamics.data, dynamics.models, dynamics.datas)
+        self._jacobian = with_columns(jacobian, dynamics.model.nv)
         phi = dynamics.rows @ (self._jacobian @ step)  # = -phi
         return step, float(np.max(np.abs(phi), initial=0.0))
 
