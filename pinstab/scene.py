@@ -38,6 +38,7 @@ from .validation import (
     check_depth,
     check_locked_joints,
     check_model,
+    check_velocity,
     read_scene_file,
     relative_tolerance,
 )
@@ -248,6 +249,7 @@ def scene_from_dict(
     place_objects(objects, q0, set(q_table))
     check_model(model)
     v0 = _velocity(model, v_table)
+    check_velocity(model, v0, "initial.v")
 
     tables = SceneTables(model, q0, {item.name: item for item in objects})
     constraints: list[Constraint] = []
