@@ -36,6 +36,14 @@ MAGNITUDE_REASON = (
 
 MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate (or a target's value) beyond it is a mistake
 COORDINATE_REASON = "where sines, cosines and positions lose their digits"
+# [rad/s or m/s]: a joint rate (or a body's twist) beyond it is a mistake: the fastest rotors (ultracentrifuges,
+# 1.6e4 rad/s) and projectiles (1e4 m/s) are far below, and beyond it the centrifugal and Coriolis terms (v^2)
+# pass MAX_MAGNITUDE and a coordinate passes MAX_COORDINATE within a second
+MAX_RATE = 1e6
+RATE_REASON = (
+    "past any mechanism's speed (ultracentrifuges turn at 1.6e4 rad/s); beyond it the centrifugal and Coriolis "
+    "terms (rate^2) pass 1e12 and a coordinate passes 1e6 within a second"
+)
 
 # joint-coordinate dimensions: a revolute coordinate is an angle, a prismatic one a length
 COORDINATE_DIMENSIONS = {"angle", "length"}

@@ -24,7 +24,7 @@ import pinocchio as pin
 from .constraints import Constraint, FrameClosure
 from .errors import SceneError, repeated
 from .tables import WORLD
-from .units import COORDINATE_REASON, MAX_COORDINATE, within_ceiling
+from .units import COORDINATE_REASON, MAX_COORDINATE, MAX_RATE, RATE_REASON, within_ceiling
 
 MAX_SCENE_BYTES = 1_000_000
 MAX_DEPTH = 20
@@ -171,6 +171,18 @@ def check_configuration(model: pin.Model, q: np.ndarray, where: str) -> None:
                 f"(norm {norm:.6g}; only a norm within {UNIT_TOLERANCE} of 1 is normalized)"
             )
         unit /= norm
+
+
+def check_velocity(model: pin.Model, v: np.ndarray, where: str) -> None:
+    """Refuse an entry of ``v`` (joint rates, a free joint's twist) beyond :data:`~pinstab.units.MAX_RATE`
+    [rad/s or m/s] in size, naming the joint (and the entry of a joint of several)."""
+    for index in np.flatnonzero(~(np.abs(v) <= MAX_RATE)):
+        joint_id = next(j for j in range(1, model.njoints) if index < model.idx_vs[j] + model.nvs[j])
+        entry = "" if model.nvs[joint_id] == 1 else f"[{index - model.idx_vs[joint_id]}]"
+        raise SceneError(
+            f"{where}.{model.names[joint_id]}{entry}: {v[index]:g} is outside [-{MAX_RATE:g}, {MAX_RATE:g}] rad/s or "
+            f"m/s, {RATE_REASON}"
+        )
 
 
 # -- tolerances ----------------------------------------------------------------------------------

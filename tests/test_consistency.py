@@ -312,20 +312,18 @@ def test_json_never_changes_the_exit_code(capsys, tmp_path, name):
         assert isinstance(json.loads(out), dict)
 
 
-def test_a_divergence_whose_figures_cannot_be_had_keeps_exit_3_with_json(capsys, tmp_path):
+def test_a_start_too_fast_for_its_figures_is_refused_alike_with_json(capsys, tmp_path):
     """The issue's servo target of 1e308 diverged at the first step, and its figures up to the last finite state
     (the servo's controls there, where the dynamics were not finite) raised again while the JSON was built: exit 1
-    and a traceback with --json, 3 without. The same failure now that the target is refused (a start at 1e160 rad/s,
-    whose Coriolis terms overflow): exit 3 both ways, the controls left out (pinstab.series.NO_DYNAMICS)."""
+    and a traceback with --json, 3 without. The target is refused now, and so is the other start whose dynamics
+    overflow (1e160 rad/s: initial.v within MAX_RATE): exit 2 both ways, named, nothing on stdout."""
     start = "q = { joint1 = 0.5 }"
     text = (ROBOTS / "double-pendulum-servo.toml").read_text().replace(start, f"{start}\nv = {{ joint1 = 1e160 }}")
     argv = ["servo", write(tmp_path, "fast.toml", text), "--duration", "0.01"]
-    assert run(capsys, *argv)[0] == 3
+    assert run(capsys, *argv)[0] == 2
     code, out, err = run(capsys, *argv, "--json")
-    assert code == 3 and "Traceback" not in err and "a non-finite state" in err
-    payload = json.loads(out)
-    assert payload["diverged"] is True and payload["diverged_at"] == pytest.approx(1e-3) and payload["t_end"] == 0
-    assert "controls" not in payload and "zero_dynamics" not in payload
+    assert code == 2 and "Traceback" not in err and "initial.v.joint1: 1e+160 is outside [-1e+06, 1e+06]" in err
+    assert out == ""
 
 
 # -- nothing but JSON on stdout (item 5) -----------------------------------------------------------------------------

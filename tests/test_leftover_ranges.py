@@ -10,7 +10,6 @@ import json
 import math
 import textwrap
 import tomllib
-import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -20,7 +19,7 @@ from test_catalogue import Case, run_case
 from conftest import ROBOTS, bundled_with_force
 from pinstab import cli, load_scene, simulate
 from pinstab.actuation import read_actuation
-from pinstab.errors import DivergenceError, JointLimitsWarning, SceneError
+from pinstab.errors import JointLimitsWarning, SceneError
 from pinstab.grasp import GraspContact, grasp_map
 from pinstab.grasp.capacity import Weight, grasp_capacity
 from pinstab.scene import scene_from_dict
@@ -125,20 +124,14 @@ def test_actuation_at_the_ceiling_holds_the_pendulum(tmp_path):
 
 
 # -- 2. the summary of a diverged servo run --------------------------------------------------------------------------
-def test_summary_of_a_servo_run_diverged_at_its_start_leaves_the_servo_figures_out():
-    """double-pendulum-servo from 1e160 rad/s: the Coriolis terms overflow, the run diverges at its first step and
-    its last finite state is its start, where the dynamics are not finite. Its summary raised DivergenceError
-    (non-finite acceleration at t = 0 s) again; now it has the figures of that sample without the servo's."""
+def test_a_servo_start_whose_dynamics_overflow_is_refused_before_any_step():
+    """double-pendulum-servo from 1e160 rad/s: the Coriolis terms overflowed, the run diverged at its first step
+    from a start where the dynamics are not finite, and its summary raised DivergenceError again. Such a start is
+    refused now (v0 within MAX_RATE, as initial.v), naming the joint; the summary's rule for samples without
+    dynamics (pinstab.series.NO_DYNAMICS) is checked on the series below."""
     scene = load_scene("double-pendulum-servo")
-    with pytest.raises(DivergenceError, match="a non-finite state") as info:
+    with pytest.raises(SceneError, match=r"v0\.joint1: 1e\+160 is outside \[-1e\+06, 1e\+06\] rad/s"):
         simulate(scene, duration=0.01, v0=np.array([1e160, 0.0]))
-    trajectory = info.value.finite_trajectory
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # nor a numpy warning
-        summary = trajectory.summary()
-    assert summary["t_end"] == 0.0 and summary["steps"] == 0
-    assert "controls" not in summary and "zero_dynamics" not in summary
-    assert trajectory.servo_figures == {} and trajectory.zero_dynamics == {}
 
 
 def test_servo_figures_are_nan_only_where_the_dynamics_cannot_be_had(tmp_path):

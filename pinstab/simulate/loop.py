@@ -25,6 +25,7 @@ from ..series import StateSeries
 from ..stream import BLOCK, StreamWriter
 from ..system import ConstrainedSystem
 from ..trajectory import StreamedTrajectory, Trajectory
+from ..validation import check_velocity
 
 DEFAULT_DRIFT_LIMIT = 1.0  # [m or rad]: beyond this the run is declared diverged
 MIN_RTOL = 1e-14  # below this a relative error estimate is rounding
@@ -272,9 +273,11 @@ def start_state(scene: Scene, q0: np.ndarray | None, v0: np.ndarray | None) -> t
 
     Raises:
         PinstabError: ``q0`` or ``v0`` of the wrong length (naming the lengths the scene's model needs).
+        SceneError: an entry of ``v0`` beyond :data:`~pinstab.units.MAX_RATE`, as in ``initial.v``.
     """
     q = scene.q0.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
     v = scene.v0.copy() if v0 is None else np.asarray(v0, dtype=float).copy()
     if q.shape != scene.q0.shape or v.shape != scene.v0.shape:
         raise PinstabError(f"q0 must have {scene.model.nq} entries and v0 {scene.model.nv}")
+    check_velocity(scene.model, v, "v0")
     return q, v
