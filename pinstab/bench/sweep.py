@@ -154,7 +154,7 @@ def run_sweep(
     )
     table = SweepTable(path, columns(grids), len(grids))
     skipped = failed_before = 0
-    for point in sweep_points(grids):
+    for point in sweep_points(grids) if table.done else ():  # a new table: no pass over the points
         key = point_key(point.values())
         skipped += key in table.done
         failed_before += key in table.failed

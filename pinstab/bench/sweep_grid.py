@@ -40,9 +40,10 @@ METHOD_OPTIONS = {field.name: field.kind for entry in STABILIZERS.entries() for 
 RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...: the methods' options
 # simulate()'s defaults: duration [s], record_every, drift_limit [m or rad], method...
 DEFAULTS = {name: parameter.default for name, parameter in inspect.signature(simulate).parameters.items()}
-# A point is a whole run: about a second of wall time for a typical second of simulated time, so 10,000 points keep
-# the two workers of the local cluster busy for hours, and its table and the keys of its points stay in megabytes.
-# A grid beyond it is more often two long value lists multiplied by mistake than a plan: --max-points asks for it.
+# Each point is checked before any runs, the scene loaded for each combination of its swept parameters (1 to 7 ms
+# a load for the bundled scenes: 11 s for 10,000 of pinch's), and each is a whole run (from 10 ms to seconds: 10,000
+# points keep the two local workers busy from a minute to hours). A grid beyond it is more often long value lists
+# multiplied by mistake than a plan: --max-points asks for it.
 MAX_POINTS = 10_000
 
 
@@ -166,8 +167,8 @@ def _check_option(name: str, value: Any) -> None:
         if value not in NAMED_CHOICES[name]:
             raise PinstabError(f"sweep: {name} {value!r} unknown; valid: {choices(NAMED_CHOICES[name])}")
         return
-    if kind is float:
-        good = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    if kind is float:  # its range (finite or not...) is the run's to check (check_run)
+        good = isinstance(value, int | float) and not isinstance(value, bool)
     else:
         good = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
     if not good:
@@ -177,25 +178,32 @@ def _check_option(name: str, value: Any) -> None:
 def check_points(
     scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], parameters: tuple[str, ...]
 ) -> dict[str, int]:
-    """Refuse before any work a point whose scene (each combination of the swept scene parameters loaded once, over
-    the fixed ones) or run (:func:`check_run`) would be refused; returns the :func:`check_run` memory of the point
-    whose run takes the most.
+    """Refuse before any work a point whose scene or run would be refused: each combination of the swept scene
+    parameters loaded (over the fixed ones), and for each such scene each check of :data:`RUN_CHECKS` made on every
+    combination of the values it reads (and ``contacts``, which decides whether it applies). A point passes the
+    checks iff its values pass each: the checks of 10^6 points of 1000 kp x 1000 drift_limit cost 2000.
+
+    Returns:
+        The estimated memory [bytes] by item of the run that takes the most (``simulate.loop.run_memory``).
 
     Raises:
-        PinstabError: the refusal of the first such point (its class: SceneError from the scene...), its message
-            prefixed by the point's values (``sweep point dt=0: dt must be a positive number, got 0``).
+        PinstabError: the first refusal (its class: SceneError from the scene...), its message the run's, prefixed
+            by the values that make it (``sweep point dt=0: dt must be a positive number, got 0``).
     """
     scene_grids = {name: values for name, values in grids.items() if name in parameters}
-    option_grids = {name: values for name, values in grids.items() if name not in parameters}
     fixed_parameters = {name: value for name, value in fixed.items() if name in parameters}
     fixed_options = {name: value for name, value in fixed.items() if name not in parameters}
     largest: dict[str, int] = {}
     for scene_point in sweep_points(scene_grids):
         scene = _at_point(scene_point, load_scene, scene_name, **fixed_parameters, **scene_point)
-        for option_point in sweep_points(option_grids):
-            memory = _at_point({**scene_point, **option_point}, check_run, scene, {**fixed_options, **option_point})
-            if sum(memory.values()) > sum(largest.values()):
-                largest = memory
+        for names, check in RUN_CHECKS:
+            read = {name: values for name, values in grids.items() if name in names or name == "contacts"}
+            for point in sweep_points(read):
+                options = {**fixed_options, **point}
+                contacts = options.get("contacts") or default_contacts(scene) or "held"
+                memory = _at_point({**scene_point, **point}, check, scene, contacts, options)
+                if memory is not None and sum(memory.values()) > sum(largest.values()):
+                    largest = memory
     return largest
 
 
@@ -209,26 +217,42 @@ def _at_point(point: dict[str, Any], check: Callable[..., Any], *args: Any, **kw
         raise
 
 
-def check_run(scene: Scene, options: dict[str, Any]) -> dict[str, int]:
-    """Refuse the run of ``scene`` with the run ``options`` (:data:`RUN_OPTIONS`) that
-    :func:`~pinstab.simulate.simulate` would refuse before its first step: the time grid (``dt``, ``duration``,
-    ``record_every``: ``TimeGrid.of``), the tolerances (``error_control``), and held contacts' ``drift_limit``
-    (``check_drift_limit``) and method options (``kp``, ``kd``...: the method's options class); returns the
-    run's estimated memory [bytes] by item (``run_memory``).
-
-    Raises:
-        PinstabError: with the message the run gives.
-    """
-    contacts = options.get("contacts") or default_contacts(scene) or "held"
-    dt = options.get("dt", DEFAULT_DT if scene.step is None else scene.step)
+# The checks simulate() makes before its first step, each on the run options it reads, with the scene and the
+# contact treatment (event, stepping, held); each raises the run's PinstabError. Options not given take simulate()'s
+# defaults (DEFAULTS), dt the scene's [run] dt, else DEFAULT_DT.
+def _time_grid(scene: Scene, contacts: str, options: dict[str, Any]) -> dict[str, int]:
+    """``dt`` [s], ``duration`` [s], ``record_every``: ``TimeGrid.of``; returns the run's memory by item [bytes]."""
     every = options.get("record_every", DEFAULTS["record_every"])
+    dt = options.get("dt", DEFAULT_DT if scene.step is None else scene.step)
     grid = TimeGrid.of(dt, options.get("duration", DEFAULTS["duration"]), every)
+    return run_memory(scene, grid, every, None)
+
+
+def _tolerances(scene: Scene, contacts: str, options: dict[str, Any]) -> None:
+    """``rtol``, ``atol`` (with the ``integrator`` they control: dop853 with event-driven contacts; none with
+    time-stepping contacts): ``error_control``."""
     rtol, atol = options.get("rtol"), options.get("atol")
     if contacts != "stepping" and (rtol is not None or atol is not None):
         integrator = "dop853" if contacts == "event" else default_integrator(options.get("integrator"), rtol, atol)
         error_control(rtol, atol, integrator)
+
+
+def _drift_limit(scene: Scene, contacts: str, options: dict[str, Any]) -> None:
+    """``drift_limit`` [m or rad] of held contacts: ``check_drift_limit``."""
     if contacts == "held":
         check_drift_limit(options.get("drift_limit", DEFAULTS["drift_limit"]))
-        method = options.get("method", DEFAULTS["method"])
-        STABILIZERS.make_options(method, {name: value for name, value in options.items() if name in METHOD_OPTIONS})
-    return run_memory(scene, grid, every, None)
+
+
+def _method_options(scene: Scene, contacts: str, options: dict[str, Any]) -> None:
+    """The ``method``'s options of held contacts (``kp`` [1/s^2], ``kd`` [1/s]...): its options class."""
+    if contacts == "held":
+        given = {name: value for name, value in options.items() if name in METHOD_OPTIONS}
+        STABILIZERS.make_options(options.get("method", DEFAULTS["method"]), given)
+
+
+RUN_CHECKS: tuple[tuple[tuple[str, ...], Callable[[Scene, str, dict[str, Any]], dict[str, int] | None]], ...] = (
+    (("dt", "duration", "record_every"), _time_grid),
+    (("rtol", "atol", "integrator"), _tolerances),
+    (("drift_limit",), _drift_limit),
+    (("method", *METHOD_OPTIONS), _method_options),
+)  # (the options a check reads, the check)

@@ -22,7 +22,9 @@ from ..files import atomic_output, check_output
 SUFFIXES = (".csv", ".parquet")
 JOURNAL = ".partial.csv"  # appended to a Parquet target's name
 SHOWN = 300  # characters of a foreign header an error quotes
-CHUNK = 1 << 20  # [bytes] read at a time when counting rows or looking for a cut last line
+CHUNK = 1 << 20  # [bytes] read at a time when counting rows
+TEXT = {"encoding": "utf-8"}  # a table's text, whatever the locale
+MAX_LINE = 1 << 20  # [bytes] a row: its ~27 cells take hundreds, an error message's a few thousand at most
 
 
 def point_key(values: Iterable[Any]) -> tuple[str, ...]:
@@ -84,7 +86,7 @@ class SweepTable:
 
     def __enter__(self) -> SweepTable:
         new = not self.journal.exists() or self.journal.stat().st_size == 0
-        self._handle = open(self.journal, "a", newline="")  # noqa: SIM115 - closed in __exit__
+        self._handle = open(self.journal, "a", newline="", **TEXT)  # noqa: SIM115 - closed in __exit__
         self._writer = csv.DictWriter(self._handle, fieldnames=self.columns)
         if new:
             self._writer.writeheader()
@@ -106,10 +108,12 @@ class SweepTable:
             os.remove(self.journal)
 
     def _write_journal(self, rows: list[dict[str, Any]]) -> None:
-        with open(self.journal, "w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=self.columns)
-            writer.writeheader()
-            writer.writerows(rows)
+        """The journal of a Parquet table's ``rows``, written whole or not at all (a kill keeps the Parquet file's)."""
+        with atomic_output(self.journal, ".csv", "sweep journal") as temp:
+            with open(temp, "w", newline="", **TEXT) as handle:
+                writer = csv.DictWriter(handle, fieldnames=self.columns)
+                writer.writeheader()
+                writer.writerows(rows)
 
 
 def read_rows(path: str | Path, columns: list[str] | None = None) -> Iterator[dict[str, str]]:
@@ -120,57 +124,65 @@ def read_rows(path: str | Path, columns: list[str] | None = None) -> Iterator[di
         path: the CSV. columns: the columns it must have (None: any).
 
     Raises:
-        PinstabError: not a table: not UTF-8 text, a malformed line (a NUL byte, an unclosed quote, a cell beyond
-            the csv module's field limit, another number of cells than the header); or other columns than
-            ``columns`` (a table of another sweep). Each names the file and the line.
+        PinstabError: not a table: a line not UTF-8 text, with a NUL byte or too long (:class:`_Lines`), a cell
+            beyond the csv module's field limit, another number of cells than the header, no complete header; or
+            other columns than ``columns`` (a table of another sweep). Each names the file and the line. The file
+            is then left as it is.
     """
     path = Path(path)
-    _drop_cut_line(path)
-    reader = None
+    lines = _Lines(path)
+    reader = csv.reader(lines)
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            reader = csv.reader(handle)
-            header = next(reader, None)
-            if header is None:
-                return
-            if columns is not None:
-                _check_columns(path, header, columns)
-            for cells in reader:
-                if len(cells) != len(header):
-                    raise _not_a_table(path, reader.line_num, f"{len(cells)} cells where the header has {len(header)}")
-                yield dict(zip(header, cells, strict=True))
-    except UnicodeDecodeError as exc:
-        raise _not_a_table(path, _line(reader) + 1, f"not UTF-8 text ({exc.reason})") from None
+        header = next(reader, None)
+        if header is None:
+            if lines.cut is not None:
+                raise _not_a_table(path, 1, "no complete header line")
+            return
+        if columns is not None:
+            _check_columns(path, header, columns)
+        for cells in reader:
+            if len(cells) != len(header):
+                raise _not_a_table(path, lines.count, f"{len(cells)} cell(s), the header {len(header)}")
+            yield dict(zip(header, cells, strict=True))
     except csv.Error as exc:
-        raise _not_a_table(path, _line(reader), str(exc)) from None
+        raise _not_a_table(path, lines.count, str(exc)) from None
+    if lines.cut is not None:
+        os.truncate(path, lines.cut)
 
 
-def _line(reader: Any) -> int:
-    """The line a CSV reader has reached (counted from 1), 1 before it starts."""
-    return max(getattr(reader, "line_num", 1), 1)
+class _Lines:
+    """The complete lines of a file as text, one at a time (for ``csv.reader``): a last line without its newline
+    (cut short by a kill) left out, its offset [bytes] in :attr:`cut` once the lines are read.
+
+    Raises:
+        PinstabError: a line that is not UTF-8 text, holds a NUL byte or is longer than :data:`MAX_LINE` bytes.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path, self.count, self.cut = path, 0, None
+
+    def __iter__(self) -> Iterator[str]:
+        with open(self.path, "rb") as handle:
+            offset = 0
+            while line := handle.readline(MAX_LINE + 1):
+                self.count += 1
+                if not line.endswith(b"\n"):
+                    if len(line) > MAX_LINE:
+                        raise _not_a_table(self.path, self.count, f"longer than {MAX_LINE:,} bytes")
+                    self.cut = offset
+                    return
+                if b"\0" in line:
+                    raise _not_a_table(self.path, self.count, "a NUL byte (binary data)")
+                try:
+                    yield line.decode("utf-8")
+                except UnicodeDecodeError as exc:
+                    raise _not_a_table(self.path, self.count, f"not UTF-8 text ({exc.reason})") from None
+                offset += len(line)
 
 
 def _not_a_table(path: Path, line: int, reason: str) -> PinstabError:
     """The error for a file that is not a sweep table, at ``line`` (counted from 1) of it."""
     return PinstabError(f"{path} is not a sweep table: line {line}: {reason}; give another --out or remove it")
-
-
-def _drop_cut_line(path: Path) -> None:
-    """Cut from the file a last line without its newline (a row cut short by a kill)."""
-    with open(path, "rb") as handle:
-        end = cut = handle.seek(0, os.SEEK_END)
-        while cut > 0:
-            start = max(0, cut - CHUNK)
-            handle.seek(start)
-            block = handle.read(cut - start)
-            if cut == end and block.endswith(b"\n"):
-                return
-            newline = block.rfind(b"\n")
-            cut = start if newline < 0 else start + newline + 1
-            if newline >= 0:
-                break
-    if cut < end:
-        os.truncate(path, cut)
 
 
 def existing_rows(path: str | Path) -> int:
