@@ -208,29 +208,28 @@ def cone_scales(mus: Sequence[float]) -> np.ndarray:
 def ncp_residual(delassus: np.ndarray, g: np.ndarray, impulses: np.ndarray, mus: Sequence[float]) -> float:
     """How far ``impulses`` (Pinocchio's order, t1, t2, n per contact) are from solving the problem ``(D, g)``
     with friction coefficients ``mus`` [-], in the units of g: the largest contact's natural map
-    ``|lambda - P_K(lambda - rho (sigma + mu |sigma_t| e_n))| / rho``, ``rho = 1 / |D|_2`` (0 exactly at a
-    solution: lambda in K, sigma_n >= 0, lambda orthogonal to the De Saxce velocity; inf for a non-finite
-    lambda)."""
+    ``|lambda - P_K(lambda - rho (sigma + mu |sigma_t| e_n))| / rho``, ``rho = 1 / trace D`` (at most
+    ``1 / |D|_2``: the map over rho only grows as rho shrinks); 0 exactly at a solution (lambda in K, sigma_n >= 0,
+    lambda orthogonal to the De Saxce velocity), inf for a non-finite lambda."""
     if not np.all(np.isfinite(impulses)):
         return math.inf
-    sigma = (delassus @ impulses + g).reshape(-1, 3)
-    rho = 1.0 / max(float(np.linalg.norm(delassus, 2)), np.finfo(float).tiny)
-    worst = 0.0
-    for impulse, velocity, mu in zip(impulses.reshape(-1, 3), sigma, mus, strict=True):
-        desaxce = velocity + np.array([0.0, 0.0, mu * math.hypot(*velocity[:2])])
-        worst = max(worst, float(np.linalg.norm(impulse - cone_projection(impulse - rho * desaxce, mu))) / rho)
-    return worst
+    rho = 1.0 / max(float(np.trace(delassus)), np.finfo(float).tiny)
+    impulses3 = impulses.reshape(-1, 3)
+    desaxce = (delassus @ impulses + g).reshape(-1, 3)
+    desaxce[:, 2] += np.asarray(mus) * np.hypot(desaxce[:, 0], desaxce[:, 1])
+    gaps = impulses3 - cone_projections(impulses3 - rho * desaxce, np.asarray(mus, dtype=float))
+    return float(np.max(np.linalg.norm(gaps, axis=1), initial=0.0)) / rho
 
 
-def cone_projection(x: np.ndarray, mu: float) -> np.ndarray:
-    """The nearest point to x = (t1, t2, n) of the cone ``|t| <= mu n``."""
-    tangential, normal = math.hypot(*x[:2]), x[2]
-    if tangential <= mu * normal and normal >= 0.0:
-        return x.copy()
-    if mu * tangential <= -normal:
-        return np.zeros(3)
-    along = (normal + mu * tangential) / (1.0 + mu * mu)  # the normal part of the projection
-    return np.array([*(mu * along * x[:2] / tangential), along])
+def cone_projections(x: np.ndarray, mus: np.ndarray) -> np.ndarray:
+    """The nearest point of each row (t1, t2, n) of ``x`` to the cone ``|t| <= mu n`` of its entry of ``mus``."""
+    tangential, normal = np.hypot(x[:, 0], x[:, 1]), x[:, 2]
+    along = np.maximum(normal + mus * tangential, 0.0) / (1.0 + mus * mus)  # the normal part (0: in the polar cone)
+    shrink = np.divide(mus * along, tangential, out=np.zeros_like(along), where=tangential > 0.0)
+    projected = np.column_stack([x[:, 0] * shrink, x[:, 1] * shrink, along])
+    inside = (tangential <= mus * normal) & (normal >= 0.0)
+    projected[inside] = x[inside]
+    return projected
 
 
 def friction_cones(mus: Sequence[float]) -> tuple[pin.StdVec_ConstraintModel, pin.StdVec_ConstraintData]:
