@@ -167,7 +167,7 @@ def _check_option(name: str, value: Any) -> None:
         if value not in NAMED_CHOICES[name]:
             raise PinstabError(f"sweep: {name} {value!r} unknown; valid: {choices(NAMED_CHOICES[name])}")
         return
-    if kind is float:  # its range (finite or not...) is the run's to check (check_run)
+    if kind is float:  # its range (finite or not...) is the run's to check (RUN_CHECKS)
         good = isinstance(value, int | float) and not isinstance(value, bool)
     else:
         good = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
