@@ -47,7 +47,9 @@ FIGURES = (
 RUN_FIGURES = ("path", "contact_events", "sliding_s", "held", "stopped")  # from the run's info and contact events
 WORKER_BYTES = 200_000_000  # [bytes] a local worker process: the interpreter, pinstab, Pinocchio, Dask (170-185 MB)
 KEY_BYTES, KEY_VALUE_BYTES = 150, 80  # [bytes] a row's key held for resuming: the tuple and its set slot; a value
-PARQUET_CELL_BYTES = 24  # [bytes] a cell converting the journal to Parquet: pyarrow's column and the written page
+# [bytes] a cell converting the journal to Parquet: pyarrow's table takes ~6 (docs/sweeps/pinch.csv), the rest for
+# the writer's pages and long error messages
+PARQUET_CELL_BYTES = 24
 IN_FLIGHT = 2  # points submitted per worker thread: each has its next point queued while one runs
 
 
