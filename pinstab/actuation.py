@@ -2,9 +2,9 @@
 ``M a + h = tau + B u + G^T lambda`` (docs/mathematics.md section 5), with the controls' names and limits.
 
 Scene table ``[actuation]``: ``joints = [...]`` (each a 1-DOF joint: u is its torque [N m] or force [N];
-limits from the URDF's effort limits), or ``matrix = [[...], ...]`` (nv rows, k columns, in the model's
-velocity order) with ``names``; optional ``lower`` / ``upper`` (k numbers, [N m or N]) override the limits.
-The matrix entries (transmission ratios [-] or lever arms [m]) and the bounds are at most
+limits from the robot file's effort limits, :func:`effort_bounds`), or ``matrix = [[...], ...]`` (nv rows, k
+columns, in the model's velocity order) with ``names``; optional ``lower`` / ``upper`` (k numbers, [N m or N])
+override the limits. The matrix entries (transmission ratios [-] or lever arms [m]) and the bounds are at most
 :data:`~pinstab.units.MAX_MAGNITUDE` in size, each named when beyond.
 """
 
@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from .errors import SceneError
 from .tables import check_keys, joint_id, table, unit, vector
-from .units import within_ceiling
+from .units import MAX_MAGNITUDE, within_ceiling
 
 ACTUATION_KEYS = {"joints", "matrix", "names", "lower", "upper"}
 
@@ -72,15 +72,31 @@ def _joint_actuation(joints: Any, model: pin.Model) -> tuple[np.ndarray, tuple[s
     if not isinstance(joints, list) or not joints or len(set(map(str, joints))) != len(joints):
         raise SceneError(f"actuation.joints must be a non-empty list of distinct joint names, got {joints!r}")
     matrix = np.zeros((model.nv, len(joints)))
-    limits = np.zeros(len(joints))
     for column, name in enumerate(joints):
         joint = model.joints[joint_id(model, name, "actuation.joints")]
         if joint.nv != 1:
             raise SceneError(f"actuation.joints: joint {name!r} has {joint.nv} DOF; an actuated joint has 1")
         matrix[joint.idx_v, column] = 1.0
-        effort = float(model.effortLimit[joint.idx_v])
-        limits[column] = effort if 0.0 < effort < 1e30 else np.inf
-    return matrix, tuple(joints), -limits, limits
+    lower, upper = effort_bounds(model, matrix.argmax(axis=0))  # each column's velocity coordinate
+    return matrix, tuple(joints), lower, upper
+
+
+def effort_bounds(model: pin.Model, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) effort bounds [N m or N] of the velocity coordinates ``indices`` as the robot file gives them
+    (a URDF's ``<limit effort>``: -effort, effort; an MJCF joint's ``actuatorfrcrange``), -inf / inf where none.
+
+    None: both bounds zero (a URDF's ``effort="0"``, which exporters write when they give none: the
+    double pendulum of example-robot-data), or a bound beyond :data:`~pinstab.units.MAX_MAGNITUDE` in size (a
+    URDF cannot say "no limit" on a revolute or prismatic joint, so files write a large number, and Pinocchio reads
+    an absent limit as 1.8e308 or inf; 1e12 N m is past any actuator, and a bound beyond it is no bound next to
+    torques of order 1 in float64).
+    """
+    lower = np.asarray(model.lowerEffortLimit, dtype=float)[indices]
+    upper = np.asarray(model.upperEffortLimit, dtype=float)[indices]
+    none = (lower == 0.0) & (upper == 0.0)
+    lower = np.where(none | ~(np.abs(lower) <= MAX_MAGNITUDE), -np.inf, lower)
+    upper = np.where(none | ~(np.abs(upper) <= MAX_MAGNITUDE), np.inf, upper)
+    return lower, upper
 
 
 def _matrix_actuation(entry: dict[str, Any], model: pin.Model) -> tuple[np.ndarray, tuple[str, ...]]:

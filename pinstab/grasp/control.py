@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..actuation import effort_bounds
 from ..constraints.grasp_contacts import cross
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import ContactInfeasibleError, SceneError
@@ -148,8 +149,8 @@ class GraspControl(ForceElement):
         self.margin, self.internal_forces = margin, internal_forces
         self.hand_columns = hand_columns(model.nv, object_columns)
         self.q_start = q_start.copy()
-        limits = np.asarray(model.effortLimit, dtype=float)[self.hand_columns]
-        self.effort_limit = np.where((limits > 0) & (limits < 1e30), limits, np.inf)
+        lower, upper = effort_bounds(model, self.hand_columns)
+        self.effort_limit = np.minimum(-lower, upper)  # symmetric: the tighter side (a URDF's are symmetric)
         self.welds = welds
         self.cone_rows, self.cone_bounds = self._cone_constraints(facets) if welds is None else (None, None)
         self._qp = WarmQP()  # the internal-force QP, warm-started from the previous evaluation's

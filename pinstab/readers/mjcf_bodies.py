@@ -29,6 +29,7 @@ GEOM_QUANTITIES = (("mass", "kg"), ("density", "kg/m^3"))
 # memory it never wrote (pos="1 2": a z of 2e243) and ignores more, where MuJoCo refuses both
 NUMBERS = {"pos": 3, "quat": 4, "axisangle": 4, "euler": 3, "xyaxes": 6, "zaxis": 3, "axis": 3, "range": 2}
 NUMBERS |= {key: 1 for key in ("ref", "springref", "stiffness", "damping", "armature", "frictionloss")}
+NUMBERS |= {"actuatorfrcrange": 2}  # a joint's effort bounds (Pinocchio read "nan nan" as 7e-310)
 NUMBERS |= {"mass": 1, "density": 1, "diaginertia": 3, "fullinertia": 6, "fromto": 6, "rgba": 4}
 NUMBERED = ("body", "inertial", "joint", "freejoint", "geom", "site")  # elements of the tree, or their defaults
 
