@@ -103,7 +103,7 @@ def simulate_events(
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
     limits = limits or []
-    geometries, system, q, v, report = _contact_system(scene, q0, v0, closures=bool(limits), tolerance=assembly_tol)
+    geometries, system, q, v, report = contact_system(scene, q0, v0, closures=bool(limits), tolerance=assembly_tol)
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
@@ -147,7 +147,7 @@ def simulate_stepping(
     clock: RunClock,
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), timed by the call's ``clock``."""
-    geometries, system, q, v, _ = _contact_system(scene, q0, v0)
+    geometries, system, q, v, _ = contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
     dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
@@ -163,13 +163,13 @@ def simulate_stepping(
     return trajectory_of(loop, system, info, clock)
 
 
-def _contact_system(
+def contact_system(
     scene: Scene, q0: np.ndarray, v0: np.ndarray, closures: bool = False, tolerance: float | None = None
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray, AssemblyReport | None]:
     """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them, the
     start state and its assembly report (None without closures). Its other constraints must be equality rows kept
     in the system (assembled at the start, to ``tolerance``: see :func:`~pinstab.assembly.assemble`) with
-    ``closures`` (joint limits), else there must be none and some contact.
+    ``closures`` (joint limits), else there must be none and some contact. A sweep checks its points with it.
 
     Raises:
         PinstabError: a scene whose constraints do not fit (naming them).

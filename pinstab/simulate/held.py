@@ -13,7 +13,7 @@ import numpy as np
 
 from ..assembly import AssemblyReport, assemble
 from ..errors import PinstabError, UnstableGainsError, UnstableGainsWarning
-from ..integration import INTEGRATORS, AdaptiveLoop, StepLoop, TimeGrid
+from ..integration import INTEGRATORS, AdaptiveLoop, ErrorControl, Integrator, StepLoop, TimeGrid
 from ..scene import Scene
 from ..stability import largest_stable_step
 from ..system import ConstrainedSystem, build_system
@@ -62,23 +62,11 @@ def simulate_held(
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored; timed
     by the call's ``clock``."""
-    carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
-    if carried:
-        raise PinstabError(
-            f"scene {scene.name}: contact {carried[0]} touches a plane carried by a body (frame_b), which only "
-            "event-driven contacts model; run it with contacts='event'"
-        )
     grid = TimeGrid.of(dt, duration, record_every)
     check_drift_limit(drift_limit)
     control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
     require_memory(scene, grid, record_every, stream)
-    system = build_system(scene, method, solver, solver_options, **method_options)
-    stepper = INTEGRATORS.build(integrator, system)
-    if control is not None and system.stabilizer.step_dependent:
-        raise PinstabError(
-            f"method {method} places its automatic gains for one fixed step; with rtol (error control, steps of "
-            "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
-        )
+    system, stepper = held_system(scene, method, integrator, solver, solver_options, control, method_options)
     model = system.model
     q, v = q0.copy(), v0.copy()
     report: AssemblyReport | None = None
@@ -108,6 +96,39 @@ def simulate_held(
     if system.servo is not None and stream is None:
         warn_runaway(trajectory.zero_dynamics, scene.name)
     return trajectory
+
+
+def held_system(
+    scene: Scene,
+    method: str,
+    integrator: str,
+    solver: str | None,
+    solver_options: Mapping[str, Any] | None,
+    control: ErrorControl | None,
+    method_options: Mapping[str, Any],
+) -> tuple[ConstrainedSystem, Integrator]:
+    """The system and the integrator of the held path (:func:`simulate_held`), refused before any step: a contact on
+    a plane carried by a body, a method and a solver that do not go together or a solver that does not take the
+    scene's rows (:func:`~pinstab.system.build_system`), a method whose automatic gains are placed for one step under
+    error ``control`` (steps of varying length). A sweep checks its points with it.
+
+    Raises:
+        PinstabError (SolverError for the solver's refusals).
+    """
+    carried = [c.name for c in scene.constraints if getattr(c, "plane_frame", None) is not None]
+    if carried:
+        raise PinstabError(
+            f"scene {scene.name}: contact {carried[0]} touches a plane carried by a body (frame_b), which only "
+            "event-driven contacts model; run it with contacts='event'"
+        )
+    system = build_system(scene, method, solver, solver_options, **method_options)
+    stepper = INTEGRATORS.build(integrator, system)
+    if control is not None and system.stabilizer.step_dependent:
+        raise PinstabError(
+            f"method {method} places its automatic gains for one fixed step; with rtol (error control, steps of "
+            "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
+        )
+    return system, stepper
 
 
 def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:
