@@ -142,6 +142,18 @@ NB_MODULE(_compiled, m) {
       "(max |phi| [m], max |G v| [m/s], energy [J]) per sample (rows of qs, vs; NaN where not finite) of point "
       "closures: each side's joint and point in its frame, each row's direction (rows, 3) and closure; computed in "
       "data (a pin.Data of the model, overwritten).");
+  m.def(
+      "servo_realizability",
+      [](const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
+         double rank_tolerance) {
+        Realizability judged = realizability(decoupling, rows, moved, rank_tolerance);
+        return std::make_tuple(std::move(judged.unit), judged.rank, judged.sign);
+      },
+      "decoupling"_a, "rows"_a, "moved"_a, "rank_tolerance"_a,
+      "(D_ij / (|S_i| |N b_j|) (p x k), its rank: singular values above rank_tolerance max(1, the largest), the sign of "
+      "its determinant when square, else 0) of the decoupling matrix D = S N B (p x k), S (p x nv), N B (nv x k).");
+  m.def("least_norm", &least_norm, "decoupling"_a, "demand"_a,
+        "The least-norm u with D u = demand for D (p x k) of full row rank, from a Householder QR of D^T (no cutoff).");
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",

@@ -1,5 +1,6 @@
 #include "servo_kernel.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/QR>
@@ -8,6 +9,40 @@
 #include <pinocchio/algorithm/rnea.hpp>
 
 namespace pinstab {
+
+Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
+                            double rank_tolerance) {
+  const Eigen::Index p = decoupling.rows(), k = decoupling.cols();
+  Realizability judged;
+  judged.unit.resize(p, k);
+  const VectorXd columns = moved.colwise().norm().transpose();
+  for (Eigen::Index i = 0; i < p; ++i) {
+    const double size = rows.row(i).norm();
+    for (Eigen::Index j = 0; j < k; ++j) {
+      // divided in two steps: |S_i| |N b_j| may overflow where the cosine does not
+      judged.unit(i, j) = size > 0.0 && columns(j) > 0.0 ? decoupling(i, j) / size / columns(j) : 0.0;
+    }
+  }
+  if (p == 0) return judged;
+  const VectorXd singular = p == 1 ? VectorXd::Constant(1, judged.unit.row(0).norm())
+                                   : VectorXd(judged.unit.jacobiSvd().singularValues());
+  const double floor = rank_tolerance * std::max(singular(0), 1.0);
+  judged.rank = static_cast<int>((singular.array() > floor).count());
+  if (p == k) {
+    const double det = p == 1 ? judged.unit(0, 0) : judged.unit.determinant();
+    judged.sign = det > 0.0 ? 1.0 : (det < 0.0 ? -1.0 : 0.0);
+  }
+  return judged;
+}
+
+VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand) {
+  // D^T = Q [R; 0]: u = Q [R^-T demand; 0]
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(decoupling.transpose());
+  const Eigen::Index p = decoupling.rows();
+  VectorXd reduced = VectorXd::Zero(decoupling.cols());
+  reduced.head(p) = qr.matrixQR().topLeftCorner(p, p).triangularView<Eigen::Upper>().transpose().solve(demand);
+  return qr.householderQ() * reduced;
+}
 
 ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Eigen::MatrixXd position_rows,
                          Eigen::MatrixXd actuation, VectorXd lower, VectorXd upper, std::vector<Target> targets, double kp, double kd,
@@ -42,25 +77,13 @@ bool ServoKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, c
     demand_(i) = curvature - kd_ * (rows_.row(i).dot(v) - rate) - kp_ * (position_rows_.row(i).dot(q) - value);
   }
   demand_.noalias() -= rows_ * free_;
-  double sign = 0.0;
-  if (p == 1) {  // (k >= 1: an actuation has a control)
-    const double norm = decoupling_.row(0).norm();
-    if (!(norm > rank_tolerance_ * std::max(norm, 1.0))) return false;
-    controls_ = decoupling_.row(0).transpose() * (demand_(0) / decoupling_.row(0).squaredNorm());
-    sign = decoupling_(0, 0) > 0.0 ? 1.0 : (decoupling_(0, 0) < 0.0 ? -1.0 : 0.0);
-  } else {
-    if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
-    const VectorXd singular = decoupling_.jacobiSvd().singularValues();
-    if (!(singular(p - 1) > rank_tolerance_ * std::max(singular(0), 1.0))) return false;
-    controls_ = decoupling_.completeOrthogonalDecomposition().solve(demand_);
-    if (p == k) {
-      const double det = decoupling_.determinant();
-      sign = det > 0.0 ? 1.0 : (det < 0.0 ? -1.0 : 0.0);
-    }
-  }
+  if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
+  const Realizability judged = realizability(decoupling_, rows_, moved_, rank_tolerance_);
+  if (judged.rank < p) return false;
+  controls_ = least_norm(decoupling_, demand_);
   if (p == k) {
-    if (last_sign_ && last_sign_->second != sign) return false;
-    last_sign_ = std::make_pair(t, sign);
+    if (last_sign_ && last_sign_->second != judged.sign) return false;
+    last_sign_ = std::make_pair(t, judged.sign);
   }
   if (limited_ && ((controls_.array() < lower_.array()).any() || (controls_.array() > upper_.array()).any())) {
     return false;

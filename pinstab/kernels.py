@@ -22,6 +22,8 @@ try:
         contact_point_drift,
         contact_point_jacobian,
         contact_point_residual,
+        least_norm,
+        servo_realizability,
     )
 except ImportError as error:  # pragma: no cover - a broken install
     try:
@@ -44,4 +46,6 @@ __all__ = [
     "contact_point_drift",
     "contact_point_jacobian",
     "contact_point_residual",
+    "least_norm",
+    "servo_realizability",
 ]

@@ -19,7 +19,6 @@ loses rank, changes sign or a control meets its bound.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,8 +26,11 @@ import proxsuite
 
 from .actuation import Actuation
 from .errors import ServoInfeasibleError
+from .kernels import least_norm, servo_realizability
 
-RANK_TOLERANCE = 1e-9  # singular values of D below this times its largest (or 1) count as zero
+# singular values of D with each entry over its row's and its control's sizes (D_ij / (|S_i| |N b_j|), cosines)
+# below this times the largest (or 1) count as zero: the rank of S N B whatever the units of each row and control
+RANK_TOLERANCE = 1e-9
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 
@@ -39,16 +41,6 @@ class ServoSolution:
     acceleration: np.ndarray
     multipliers: np.ndarray
     controls: np.ndarray
-
-
-def singular_values(matrix: np.ndarray) -> np.ndarray:
-    """The singular values of ``matrix``, largest first: of one row its norm (what the SVD gives, at a
-    fraction of its cost in a solve at every evaluation)."""
-    if not matrix.size:
-        return np.zeros(0)
-    if matrix.shape[0] == 1:
-        return np.array([math.sqrt(float(matrix[0] @ matrix[0]))])
-    return np.linalg.svd(matrix, compute_uv=False)
 
 
 class ServoSolver:
@@ -107,8 +99,7 @@ class ServoSolver:
         base_multipliers = delassus @ (rhs[self.real] - real @ inverse_mass_force)
         base = inverse_mass_force + spread @ base_multipliers
         demand = rhs[self.prescribed] - jacobian[self.prescribed] @ base
-        singular = singular_values(decoupling)
-        self._check_rank(decoupling, singular, state)
+        self._check_rank(decoupling, jacobian[self.prescribed], moved, state)
         controls = self._controls(decoupling, demand, state)
         acceleration = base + moved @ controls
         multipliers = np.zeros(len(rhs))
@@ -116,30 +107,31 @@ class ServoSolver:
         multipliers[self.real] = base_multipliers - delassus @ (spread.T @ (self.actuation.matrix @ controls))
         return ServoSolution(acceleration, multipliers, controls)
 
-    def _check_rank(self, decoupling: np.ndarray, singular: np.ndarray, state: tuple) -> None:
-        """Raise when D has rank below p here, or (square D) when its determinant changed sign since the last
-        solve: D was singular in between, where a step may have passed it by."""
-        rows = decoupling.shape[0]
-        largest = max(float(singular[0]) if singular.size else 0.0, 1.0)
-        rank = int(np.count_nonzero(singular > RANK_TOLERANCE * largest))
+    def _check_rank(self, decoupling: np.ndarray, rows: np.ndarray, moved: np.ndarray, state: tuple) -> None:
+        """Raise when D = S N B (``rows`` S, ``moved`` N B) has rank below p here, free of the units of each row and
+        control (:func:`pinstab.kernels.servo_realizability`, the compiled servo path's rule), or (square D) when its
+        determinant changed sign since the last solve: D was singular in between, where a step may have passed it by."""
+        count = decoupling.shape[0]
+        unit, rank, sign = servo_realizability(decoupling, rows, moved, RANK_TOLERANCE)
         crossed = ""
-        if rank == rows and decoupling.shape[1] == rows:
-            sign = float(np.sign(decoupling[0, 0] if rows == 1 else np.linalg.det(decoupling)))
+        if rank == count and decoupling.shape[1] == count:
             last, self._last_sign = self._last_sign, (state[0], sign)
             if last is not None and last[1] != sign:
                 crossed = f"; its determinant changed sign since t = {last[0]:.6g} s: it was singular in between"
-                rank = rows - 1
-        if rank == rows:
+                rank = count - 1
+        if rank == count:
             return
-        left, _, _ = np.linalg.svd(decoupling)
-        direction = left[:, -1] if rows else left
+        # the least reached combination y of the unit rows S_i / |S_i|, as a unit combination of the rows S_i
+        sizes = np.linalg.norm(rows, axis=1)
+        direction = np.linalg.svd(unit)[0][:, -1] / np.where(sizes > 0.0, sizes, 1.0)
+        direction /= np.linalg.norm(direction)
         names = [n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep]
         involved = sorted({names[i] for i in np.flatnonzero(np.abs(direction) > 1e-6)})
         along = " + ".join(f"{direction[i]:+.3g} * {names[i]}[{i}]" for i in np.flatnonzero(np.abs(direction) > 1e-6))
         t, q, v = state
         raise ServoInfeasibleError(
             f"servo {', '.join(repr(n) for n in involved)} cannot be realized at t = {t:.6g} s: no control reaches "
-            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {rows}{crossed}; "
+            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {count}{crossed}; "
             f"controls: {', '.join(self.actuation.names)}); state q = {np.round(q, 6).tolist()}, "
             f"v = {np.round(v, 6).tolist()}",
             involved,
@@ -151,11 +143,7 @@ class ServoSolver:
 
     def _controls(self, decoupling: np.ndarray, demand: np.ndarray, state: tuple) -> np.ndarray:
         """The least-effort controls with D u = demand, within the limits (D of full row rank here)."""
-        if decoupling.shape[0] == 1:  # one prescribed row: u = D^T demand / |D|^2, the pseudo-inverse's answer
-            row = decoupling[0]
-            least = row * (float(demand[0]) / float(row @ row))
-        else:
-            least = np.linalg.pinv(decoupling, rcond=1e-12) @ demand
+        least = least_norm(decoupling, demand)  # the compiled path's: no cutoff drops a control of small columns
         actuation = self.actuation
         if not actuation.limited or np.all((least >= actuation.lower) & (least <= actuation.upper)):
             return least

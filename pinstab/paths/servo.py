@@ -49,8 +49,8 @@ class ServoDynamics:
     Args:
         model: the Pinocchio model. relations: the prescribed joint relations, one row each.
         actuation: B, the controls' names and bounds. kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
-        rank_tolerance: singular values of D below this times max(1, its largest) count as zero (the general
-            solve's rule, :data:`pinstab.servo.RANK_TOLERANCE`).
+        rank_tolerance: :data:`pinstab.servo.RANK_TOLERANCE`, for the rank of D free of the units of each row and
+            control (:func:`pinstab.kernels.servo_realizability`, the general solve's rule).
 
     Attributes:
         kernel: the compiled evaluation (``cpp/servo_kernel.cpp``).
