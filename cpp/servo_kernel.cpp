@@ -36,6 +36,9 @@ Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::Matr
 }
 
 VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand) {
+  if (decoupling.rows() == 1) {  // D^T d / |D|^2, what the QR gives, without its work
+    return decoupling.row(0).transpose() * (demand(0) / decoupling.row(0).squaredNorm());
+  }
   // D^T = Q [R; 0]: u = Q [R^-T demand; 0]
   const Eigen::HouseholderQR<Eigen::MatrixXd> qr(decoupling.transpose());
   const Eigen::Index p = decoupling.rows();
