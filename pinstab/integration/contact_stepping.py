@@ -120,12 +120,10 @@ class ContactStepper(Integrator):
     def _unsolved(self, active: tuple[int, ...], t: float) -> ContactSolveError:
         """The error of a step from t [s] whose contact problem (the contacts ``active``) no solver met."""
         names = [self.dynamics.contacts[i].name for i in active]
-        solver = self.solver
         return ContactSolveError(
-            f"at t = {t:.9g} s the impulses of contacts {', '.join(names)} were not found: neither ADMM nor PGS "
-            f"(NCP mode, {solver.settings.max_iterations} iterations) met the contact law (residual "
-            f"{solver.residual:.3g} m/s, accepted {solver.tolerance:.3g} m/s); the run is kept up to t; event-driven "
-            "contacts (contacts='event', --contacts event) or another dt pose other problems",
+            f"at t = {t:.9g} s the impulses of contacts {', '.join(names)} were not found: {self.solver.failure()} "
+            "m/s; the run is kept up to t; event-driven contacts (contacts='event', --contacts event) or another dt "
+            "pose other problems",
             names,
             t,
         )

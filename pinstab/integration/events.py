@@ -318,13 +318,11 @@ class EventLoop(AdaptiveLoop):
             restitutions[i] = self._restitution(solution, i)
         result = impact(dynamics, self.impacts, v, solution, restitutions)
         self.impacts.record(self.system.solver.statistics)
-        status = self.impacts.status()
-        if not status.converged:
+        if not self.impacts.status().converged:
             names = [dynamics.contacts[i].name for i in sorted(restitutions)]
             error = ContactInfeasibleError(
-                f"at t = {t:.9g} s the impact of contacts {', '.join(names)} was not solved: ADMM did not "
-                f"converge in {status.iterations} iterations (primal residual {status.primal_feasibility:.3g} "
-                f"m/s, dual {status.dual_feasibility:.3g} m/s, tolerance {IMPACT_TOLERANCE:g})",
+                f"at t = {t:.9g} s the impact of contacts {', '.join(names)} was not solved: "
+                f"{self.impacts.failure()} m/s",
                 names,
                 t,
             )

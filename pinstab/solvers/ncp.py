@@ -188,6 +188,14 @@ class NcpSolver:
         """How the last solve ended."""
         return self._status
 
+    def failure(self) -> str:
+        """Why the last :meth:`solve_contacts` returned an answer that misses the contact law (for an error's
+        message): the solvers tried, their iteration limit, the residual and the tolerance [m/s or N s units of g]."""
+        return (
+            f"neither ADMM nor PGS (NCP mode, {self.settings.max_iterations} iterations) met the contact law "
+            f"(residual {self.residual:.3g}, accepted {self.tolerance:.3g})"
+        )
+
 
 def _status_of(result) -> NcpStatus:
     """The status of an ADMM or PGS ``result``."""
