@@ -5,6 +5,7 @@ table that is not one (binary, malformed, corrupt Parquet) a named error."""
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import signal
 import subprocess
@@ -22,6 +23,8 @@ from pinstab.bench.cluster import dask_client
 from pinstab.bench.sweep import KEY_BYTES, KEY_VALUE_BYTES, WORKER_BYTES, columns, run_point, run_sweep
 from pinstab.bench.sweep_grid import MAX_POINTS, check_sweep
 from pinstab.bench.sweep_table import SweepTable, read_rows, table_rows
+from pinstab.cli import main
+from pinstab.constraints.joint_limits import joint_limits
 from pinstab.errors import MemoryBudgetError, PinstabError
 from pinstab.integration import TimeGrid
 from pinstab.memory import format_size, memory_limit
@@ -338,3 +341,252 @@ def test_kill9_leaves_a_parquet_journal_that_loads_and_resumes(tmp_path):
     assert len(set(keys)) == len(keys) >= 8 and len(list(read_rows(journal))) == len(rows)
     assert all(row["error"] is None and row["t_end"] == pytest.approx(0.2) for row in rows)
     assert SweepTable(out, columns(["drift_limit"]), 1).done == {(repr(float(key)),) for key in keys}
+
+
+# -- what a run refuses once its system is built, checked before any point runs ------------------------------------
+LIMITED = """\
+[robot]
+urdf_text = \"\"\"<robot name="pendulum"><link name="base"/>
+  <link name="rod"><inertial><origin xyz="0 0 -0.5"/><mass value="2"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="rod"/><axis xyz="0 1 0"/>
+    <limit lower="1.3" upper="3.0" effort="100" velocity="100"/></joint>
+</robot>\"\"\"
+
+[initial]
+q = { hinge = 1.2 }
+"""
+APART = (("offset_b = [0.5, 0.0, 0.0]", "offset_b = [5.0, 0.0, 0.0]"),)  # the four-bar's rocker too far to close
+
+
+def setup(name: str, arguments: str, **scene) -> Case:
+    """The case of ``pinstab sweep ARGUMENTS -o {tmp}/t.csv --quiet`` (``scene``: Case's changes or files)."""
+    return Case(name, f"sweep {arguments} -o {{tmp}}/t.csv --quiet", "", "", **scene)
+
+
+# (case, the point's words in the message, the simulate() keywords that make the same point)
+SETUP_REFUSALS = [
+    (
+        setup("method on another solver", "fourbar --grid method=pinocchio,baumgarte --param solver=dense"),
+        "method=pinocchio",
+        {"method": "pinocchio", "solver": "dense"},
+    ),
+    (
+        setup("corrector", "fourbar --grid solver=proxsuite,pinocchio --param method=mukharlyamov"),
+        "solver=pinocchio",
+        {"method": "mukharlyamov", "solver": "pinocchio"},
+    ),
+    (
+        setup("row kinds", "painleve-rod --grid solver=proxsuite,dense --param contacts=held"),
+        "solver=dense",
+        {"solver": "dense"},
+    ),
+    (
+        setup("automatic gains, rtol", "fourbar --grid method=baumgarte,mukharlyamov --param rtol=1e-6"),
+        "method=mukharlyamov",
+        {"method": "mukharlyamov", "rtol": 1e-6},
+    ),
+    (setup("carried plane, held", "pinch --grid contacts=event,held"), "contacts=held", {}),
+    (
+        setup("closures, stepping", "fourbar --grid contacts=held,stepping"),
+        "contacts=stepping",
+        {"contacts": "stepping"},
+    ),
+    (setup("assembly", "{scene} --grid kp=1,2", changes=APART), "", {"kp": 1}),
+    (
+        setup("limits", "{tmp}/limited.toml --grid dt=1e-3,2e-4", files=(("limited.toml", LIMITED),)),
+        "",
+        {},
+    ),
+]
+
+
+@pytest.mark.parametrize("case,point,values", SETUP_REFUSALS, ids=[c[0].name for c in SETUP_REFUSALS])
+def test_what_a_run_refuses_once_its_system_is_built_is_refused_before_any_point(case, point, values, tmp_path, capsys):
+    """A method on a solver it does not run on, a solver that does not take the scene's rows or corrector, automatic
+    gains under error control, contacts the scene cannot take, closures that cannot assemble, a start outside the
+    joint limits: each used to end as error rows (exit 6) once the cluster ran them; now exit 2 before any work (no
+    table, no cluster: in-process, fast), with the message simulate() gives for the same point, of the same class."""
+    started = time.perf_counter()
+    code, error, err = run_case(case, tmp_path, capsys)
+    assert time.perf_counter() - started < 5
+    if case.changes:
+        scene = str(tmp_path / f"{case.base}-changed.toml")
+    else:
+        scene = str(tmp_path / case.files[0][0]) if case.files else case.argv.split()[1]
+    with pytest.raises(PinstabError) as refused:
+        simulate(scene, duration=1e-3, **values)
+    assert code == 2 and "Traceback" not in err, err
+    assert error == type(refused.value).__name__
+    words = f"sweep point {point}: " if point else ""
+    assert f"pinstab sweep: error: {words}{refused.value}\n" in err
+    assert not list(tmp_path.glob("*.csv"))
+
+
+def test_the_system_checks_pass_what_runs():
+    """The combinations these checks refuse have neighbours that run: pinocchio on its solver, mukharlyamov with
+    its gains under rtol, dense on held closures, the pendulum started inside its limits."""
+    grids = {"method": ["pinocchio"], "solver": ["pinocchio"]}
+    assert check_sweep("fourbar", grids, {}).points == 1
+    fixed = {"method": "mukharlyamov", "kp": 100.0, "kd": 20.0, "rtol": 1e-6}
+    assert check_sweep("fourbar", {"solver": ["proxsuite", "dense"]}, fixed).points == 2
+    row = run_point("fourbar", {"solver": "dense"}, {**fixed, "duration": 0.01}, ())
+    assert row["error"] == "" and row["t_end"] == pytest.approx(0.01)
+
+
+def test_the_start_is_checked_for_each_scene_combination_and_contact_treatment(monkeypatch):
+    """The contacts' system (run's contact_system, after held_limits) is checked once for each combination of the
+    swept scene parameters and contact treatment, 3 mu x 2 squeeze x 2 contacts, each with the point's scene, and
+    with the closures that the joint limits need on event-driven contacts only."""
+    seen = []
+    original = sweep_grid.contact_system
+
+    def counted(scene, q0, v0, closures=False):
+        seen.append((scene.parameters["mu"], scene.parameters["squeeze"], closures))
+        return original(scene, q0, v0, closures)
+
+    monkeypatch.setattr(sweep_grid, "contact_system", counted)
+    grids = {"mu": [0.1, 0.2, 0.3], "squeeze": [1, 2], "contacts": ["event", "stepping"]}
+    assert check_sweep("pinch", grids, {}).points == 12
+    assert joint_limits(load_scene("pinch").model).limits  # held by event-driven contacts: their closures assembled
+    expected = [(mu, squeeze, contacts == "event") for mu, squeeze, contacts in itertools.product(*grids.values())]
+    assert sorted(seen) == sorted(expected)
+
+
+# -- the checks' progress, and a signal during them -----------------------------------------------------------------
+def test_the_checks_show_their_progress(monkeypatch, capsys):
+    """With a progress bar (the command line without --quiet): the checks made of how many, on stderr; 6 scene
+    combinations, each loaded and checked by every check of RUN_CHECKS once (no run option swept)."""
+    monkeypatch.setattr(sweep_grid, "CHECK_BAR_DELAY", 0.0)
+    check_sweep("pinch", {"mu": [0.1, 0.2, 0.3], "squeeze": [1, 2]}, {}, show_progress=True)
+    total = 6 * (1 + len(sweep_grid.RUN_CHECKS))
+    err = capsys.readouterr().err
+    assert "checking the points" in err and f"{total}/{total}" in err
+    check_sweep("pinch", {"mu": [0.1, 0.2, 0.3], "squeeze": [1, 2]}, {})
+    assert capsys.readouterr().err == ""
+
+
+def start_check(tmp_path: Path) -> tuple[subprocess.Popen, list[bytes]]:
+    """A sweep of pinch over 100 mu x 100 squeeze (10^4 scene combinations, 20 s or more of checks) in a child of
+    its own group, its progress bar on; returns it and the list its stderr is read into (a thread)."""
+    import threading
+
+    values = ",".join(str(0.01 * i) for i in range(1, 101))
+    command = [sys.executable, "-m", "pinstab.cli", "sweep", "pinch", "--grid", f"mu={values}"]
+    command += ["--grid", f"squeeze={values}", "-o", str(tmp_path / "t.csv")]
+    process = subprocess.Popen(
+        command, env=env(), start_new_session=True, stderr=subprocess.PIPE, preexec_fn=interruptible
+    )
+    chunks: list[bytes] = []
+    threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read1(256), b"")), daemon=True).start()
+    return process, chunks
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_stops_the_checks_and_nothing_is_written(signum, tmp_path):
+    """10^4 scene combinations take seconds to check (about 1.5 ms a load and its checks): the bar shows after
+    CHECK_BAR_DELAY, and SIGTERM or Ctrl-C (SIGINT to the group) ends the sweep there, exit 143 / 130 in well
+    under a second, saying how far the checks went, no traceback, no file written."""
+    process, chunks = start_check(tmp_path)
+    deadline = time.monotonic() + 20
+    while b"checking the points" not in b"".join(chunks):
+        assert process.poll() is None and time.monotonic() < deadline, b"".join(chunks).decode()
+        time.sleep(0.05)
+    if signum == signal.SIGINT:
+        os.killpg(process.pid, signum)
+    else:
+        process.send_signal(signum)
+    started = time.monotonic()
+    try:
+        code = process.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        raise
+    taken = time.monotonic() - started
+    time.sleep(0.1)  # the reader thread's last chunk
+    err = b"".join(chunks).decode()
+    assert code == 128 + signum and taken < 3, err
+    cause = "interrupted" if signum == signal.SIGINT else "stopped by SIGTERM"
+    total = 10_000 * (1 + len(sweep_grid.RUN_CHECKS))
+    assert f"pinstab sweep: {cause}; the sweep was still checking its points (" in err
+    assert f" of {total:,} checks made): nothing was written" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+# -- a point that kills its worker; the scheduler lost -------------------------------------------------------------
+def test_a_point_that_kills_its_worker_is_a_named_error_row(tmp_path, capsys, monkeypatch):
+    """A point whose run ends its worker process (os._exit, as a crash in compiled code or the kernel's OOM killer
+    would) used to end the sweep in a raw KilledWorker traceback: now it is a row naming the failure, the other
+    points' rows kept, exit 6. Dask gives a task up at the first death of its worker here (allowed-failures 0; 3
+    by default: four workers die first), and every task on that worker with it: the point is the last and waits for
+    the others' rows, so that it is alone in flight when it dies."""
+    pytest.importorskip("distributed")  # its config defaults in place before the set below (restored after it)
+    import dask
+
+    from pinstab.bench import sweep
+
+    out = tmp_path / "t.csv"
+
+    def run_or_die(scene_name, point, fixed, parameters):  # sent to the workers by value (cloudpickle)
+        if point["drift_limit"] == 6:
+            deadline = time.monotonic() + 20  # the other points' rows written: none in flight with this one
+            while rows_in(out) < 5 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            os._exit(70)
+        return run_point(scene_name, point, fixed, parameters)
+
+    monkeypatch.setattr(sweep, "run_point", run_or_die)
+    grid = ["sweep", "fourbar", "--grid", "drift_limit=1,2,3,4,5,6", "--param", "duration=0.05", "-o", str(out)]
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):  # the local cluster's scheduler: here
+        code = main([*grid, "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 6 and "Traceback" not in err, err
+    assert f"1 of 6 points failed; their rows in {out} name the errors" in err
+    rows = {row["drift_limit"]: row for row in table_rows(out)}
+    assert sorted(rows) == [1, 2, 3, 4, 5, 6]
+    assert all(rows[key]["error"] is None and rows[key]["t_end"] == pytest.approx(0.05) for key in range(1, 6))
+    assert rows[6]["t_end"] is None and rows[6]["error"].startswith(
+        "KilledWorker: every Dask worker that ran this point died (1 of them: a crash in compiled code"
+    )
+
+
+def test_a_lost_scheduler_is_a_named_error_and_the_table_kept(tmp_path, capsys, monkeypatch):
+    """The scheduler killed while points are in flight (by the fourth point's run, on the worker): the sweep ends
+    with a PinstabError naming the scheduler and the rows kept (exit 2, no traceback: Dask's client logs its failed
+    reconnection with one), the rows written before it in the table, loadable."""
+    from pinstab.bench import sweep
+
+    dask = Path(sys.executable).with_name("dask")
+    file = tmp_path / "scheduler.json"
+    quiet = {"env": env(), "stderr": subprocess.DEVNULL, "start_new_session": True}
+    command = [dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--scheduler-file", file, "--no-dashboard"]
+    scheduler = subprocess.Popen(command, **quiet)
+    command = [dask, "worker", "--scheduler-file", file, "--nworkers", "1", "--nthreads", "1", "--no-dashboard"]
+    worker = subprocess.Popen(command, cwd=tmp_path, **quiet)
+    try:
+        deadline = time.monotonic() + 30
+        while not file.exists():
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        address, pid = json.loads(file.read_text())["address"], scheduler.pid
+
+        def run_or_kill(scene_name, point, fixed, parameters):  # sent to the worker by value (cloudpickle)
+            if point["drift_limit"] == 4:
+                os.kill(pid, signal.SIGKILL)
+            return run_point(scene_name, point, fixed, parameters)
+
+        monkeypatch.setattr(sweep, "run_point", run_or_kill)
+        out = tmp_path / "t.csv"
+        grid = ["sweep", "fourbar", "--grid", "drift_limit=1,2,3,4,5,6", "--param", "duration=0.05", "-o", str(out)]
+        code = main([*grid, "--scheduler", address, "--quiet"])
+    finally:
+        for process in (worker, scheduler):
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    rows = table_rows(out)
+    assert f"pinstab sweep: error: sweep: the Dask scheduler {address} was lost (" in err
+    assert f"); {len(rows)} new rows in {out}, resumed by a re-run\n" in err
+    assert [row["drift_limit"] for row in rows] == [1, 2, 3][: len(rows)]
+    assert all(row["error"] is None for row in rows)

@@ -21,7 +21,8 @@ LOCAL_WORKERS = 2  # processes of the embedded LocalCluster, one thread each
 def dask_client(scheduler: str | None, command: str, install: str) -> Iterator[Any]:
     """A ``distributed.Client`` on an embedded LocalCluster (:data:`LOCAL_WORKERS` processes on 127.0.0.1 ignoring
     SIGINT, its HTTP server on a free port, its workers' logs silenced) or on the scheduler at ``scheduler``
-    (``tcp://host:port``); closed (the cluster too) on every exit path, Ctrl-C included.
+    (``tcp://host:port``); closed (the cluster too) on every exit path, Ctrl-C included; Dask's logs in this process
+    silenced meanwhile (its errors are the caller's to name).
 
     Args:
         scheduler: the scheduler's address, or None for the embedded cluster.
@@ -33,13 +34,31 @@ def dask_client(scheduler: str | None, command: str, install: str) -> Iterator[A
     """
     try:
         from distributed import Client, LocalCluster
+        from distributed.utils import silence_logging_cmgr
     except ImportError:
         raise PinstabError(f"{command} runs on Dask: {install}") from None
+    # the client's own logs too: a scheduler lost logs its reconnection's traceback (the sweep names the loss)
+    with silence_logging_cmgr(logging.CRITICAL):
+        client, cluster = _connect(Client, LocalCluster, scheduler, command)
+        try:
+            yield client
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def _connect(client_type: Any, cluster_type: Any, scheduler: str | None, command: str) -> tuple[Any, Any]:
+    """(a client, the embedded LocalCluster or None) of :func:`dask_client`.
+
+    Raises:
+        PinstabError: the scheduler cannot be reached.
+    """
     cluster = None
     try:
         if scheduler is None:
             with _interrupt_ignored():  # by the workers it starts
-                cluster = LocalCluster(
+                cluster = cluster_type(
                     n_workers=LOCAL_WORKERS,
                     threads_per_worker=1,
                     processes=True,
@@ -47,21 +66,14 @@ def dask_client(scheduler: str | None, command: str, install: str) -> Iterator[A
                     host="127.0.0.1",
                     silence_logs=logging.CRITICAL,  # a Ctrl-C or SIGTERM: no worker tracebacks on stderr
                 )
-            client = Client(cluster)
-        else:
-            client = Client(scheduler, timeout=30)
+            return client_type(cluster), cluster
+        return client_type(scheduler, timeout=30), None
     except (OSError, ValueError) as exc:  # ValueError: an address Dask cannot parse
         if cluster is not None:
             cluster.close()
         raise PinstabError(
             f"{command}: cannot reach the Dask scheduler {scheduler!r}: {exc} (give tcp://host:port)"
         ) from None
-    try:
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 @contextmanager
@@ -80,13 +92,24 @@ def _interrupt_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def progress(iterable: Iterable, enabled: bool, desc: str, total: int | None = None, initial: int = 0) -> Iterable:
-    """``iterable`` behind a tqdm bar on stderr (runs finished of ``total``, from ``initial``) when ``enabled``."""
+def progress(
+    iterable: Iterable,
+    enabled: bool,
+    desc: str,
+    total: int | None = None,
+    initial: int = 0,
+    unit: str = "run",
+    delay: float = 0.0,
+) -> Iterable:
+    """``iterable`` behind a tqdm bar on stderr when ``enabled``: its items done (each a ``unit``) of ``total``, from
+    ``initial``; shown once it has lasted ``delay`` [s]."""
     if not enabled:
         return iterable
     from tqdm import tqdm
 
-    return tqdm(iterable, total=total, initial=initial, desc=desc, unit="run", file=sys.stderr, mininterval=0.5)
+    return tqdm(
+        iterable, total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr, mininterval=0.5, delay=delay
+    )
 
 
 class Stopped(KeyboardInterrupt):

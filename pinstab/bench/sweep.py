@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterable, Iterator
+from concurrent.futures import CancelledError
 from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
 from ..contact.modes import Mode
+from ..errors import PinstabError
 from ..memory import require
 from ..scene import load_scene
 from ..simulate import default_contacts, simulate
@@ -73,9 +75,13 @@ def run_point(
         row.update(run_figures(trajectory.summary()), path=trajectory.info.path)
         row["error"] = ""
     except Exception as exc:  # noqa: BLE001 - a failed point is a row (see the docstring)
-        row.update(dict.fromkeys((*FIGURES, *RUN_FIGURES)))
-        row["error"] = f"{type(exc).__name__}: {exc}"
+        return failed_row(point, f"{type(exc).__name__}: {exc}")
     return row
+
+
+def failed_row(point: dict[str, Any], error: str) -> dict[str, Any]:
+    """The row of a point whose run failed: its values, the figures empty, ``error`` (the failure named)."""
+    return {**point, **dict.fromkeys((*FIGURES, *RUN_FIGURES)), "error": error}
 
 
 def run_figures(summary: dict[str, Any]) -> dict[str, Any]:
@@ -146,7 +152,7 @@ def run_sweep(
             (a Parquet table converted) and kept.
     """
     fixed = dict(fixed or {})
-    checked = check_sweep(scene_name, grids, fixed, max_points)
+    checked = check_sweep(scene_name, grids, fixed, max_points, show_progress)
     scene = checked.scene
     path = check_table(out)
     require(
@@ -167,10 +173,16 @@ def run_sweep(
     written = failed = 0
     with StopAfterFlight() as stop, running as client, table:  # the client first: no table for a scheduler away
         rows = _rows(client, (source, fixed, names), pending, stop) if ran else iter(())
-        for row in progress(rows, show_progress, "sweep", total=checked.points, initial=skipped):
-            failed += bool(row["error"])
-            table.append(row)
-            written += 1
+        try:
+            for row in progress(rows, show_progress, "sweep", total=checked.points, initial=skipped):
+                failed += bool(row["error"])
+                table.append(row)
+                written += 1
+        except ClusterLost as lost:
+            where = scheduler or "of the local cluster"
+            raise PinstabError(
+                f"sweep: the Dask scheduler {where} was lost ({lost}); {written} new rows in {out}, resumed by a re-run"
+            ) from None
     stop.deliver(f"the sweep stopped after its points in flight; {written} new rows in {out}, resumed by a re-run")
     return {
         "scene": scene.name,
@@ -204,18 +216,46 @@ def sweep_memory(checked: CheckedSweep, rows: int, grids: list[str], parquet: bo
 def _rows(client: Any, sweep: tuple[str, dict[str, Any], tuple[str, ...]], pending: Iterator[dict], stop):
     """The rows of the ``pending`` points as they finish (:func:`run_point` of each with the ``sweep``'s scene,
     fixed values and scene parameters), :data:`IN_FLIGHT` per worker thread submitted at a time (each finished
-    one replaced by the next), none submitted once ``stop`` (:class:`~.cluster.StopAfterFlight`) has a signal."""
+    one replaced by the next), none submitted once ``stop`` (:class:`~.cluster.StopAfterFlight`) has a signal.
+
+    A point whose run killed the workers that took it (Dask gave it up: ``KilledWorker``) is a failed row naming
+    it (:func:`killed_worker`); the scheduler lost (the whole cluster) raises :class:`ClusterLost`."""
     from distributed import as_completed
+    from distributed.scheduler import KilledWorker
 
     source, fixed, names = sweep
+    points: dict[Any, dict[str, Any]] = {}  # future's key -> its point
 
     def submit(point: dict[str, Any]) -> Any:
-        return client.submit(run_point, source, point, fixed, names, pure=False)
+        future = client.submit(run_point, source, point, fixed, names, pure=False)
+        points[future.key] = point
+        return future
 
-    window = IN_FLIGHT * max(1, sum(client.nthreads().values()))
-    flight = as_completed([submit(point) for point in itertools.islice(pending, window)])
-    for future in flight:
-        if stop.signum is None:
-            for point in itertools.islice(pending, 1):
-                flight.add(submit(point))
-        yield future.result()
+    try:
+        window = IN_FLIGHT * max(1, sum(client.nthreads().values()))
+        flight = as_completed([submit(point) for point in itertools.islice(pending, window)])
+        for future in flight:
+            if stop.signum is None:
+                for point in itertools.islice(pending, 1):
+                    flight.add(submit(point))
+            point = points.pop(future.key)
+            try:
+                row = future.result()
+            except KilledWorker as exc:
+                row = failed_row(point, killed_worker(exc))
+            yield row
+    except (CancelledError, OSError) as exc:  # futures cancelled, a connection closed: the scheduler is gone
+        raise ClusterLost(" ".join(f"{type(exc).__name__}: {exc}".split())) from None  # Dask's lines as one
+
+
+def killed_worker(exc: Exception) -> str:
+    """The error of a point Dask gave up (``distributed.scheduler.KilledWorker``): the workers that ran it died."""
+    tries = getattr(exc, "allowed_failures", 0) + 1
+    return (
+        f"KilledWorker: every Dask worker that ran this point died ({tries} of them: a crash in compiled code, an exit "
+        "of the process, or memory beyond the worker's limit) and Dask gave the point up; its run never finished"
+    )
+
+
+class ClusterLost(Exception):
+    """The Dask scheduler of a sweep was lost while points were in flight (the message: Dask's error)."""

@@ -1,5 +1,7 @@
 """A sweep's grids: what they may name, their points, and every point checked before any runs, by the checks a
-run makes before its first step (the same functions, the same messages), the number of points bounded."""
+run makes before its first step (the same functions, the same messages: the values, the system built, the start
+inside the joint limits and assembled), the number of points bounded; the check shows its progress and stops on
+SIGINT or SIGTERM."""
 
 from __future__ import annotations
 
@@ -10,16 +12,22 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from ..assembly import assemble
 from ..errors import PinstabError, choices
 from ..generators import GENERATOR_PARAMETERS
 from ..integration import INTEGRATORS, TimeGrid
+from ..model import ConstrainedModel
 from ..registry import option_fields
 from ..scene import Scene, load_scene
 from ..simulate import DEFAULT_DT, HELD_ONLY, default_contacts, default_integrator, error_control, simulate
-from ..simulate.loop import check_drift_limit, run_memory
+from ..simulate.contacts import contact_system
+from ..simulate.held import held_system
+from ..simulate.limits import held_limits
+from ..simulate.loop import check_drift_limit, run_memory, start_state
 from ..solvers import SOLVERS
 from ..stabilizers import STABILIZERS
 from ..tables import toml_scalar
+from .cluster import Stopped, progress
 from .sweep_table import point_key
 
 CONTACT_TREATMENTS = ("event", "stepping", "held")  # held: simulate(contacts=None)
@@ -41,10 +49,12 @@ RUN_OPTIONS = {**SIMULATE_OPTIONS, **METHOD_OPTIONS}  # kp, kd [1/s^2], [1/s]...
 # simulate()'s defaults: duration [s], record_every, drift_limit [m or rad], method...
 DEFAULTS = {name: parameter.default for name, parameter in inspect.signature(simulate).parameters.items()}
 # Each point is checked before any runs, the scene loaded for each combination of its swept parameters (1 to 7 ms
-# a load for the bundled scenes: 11 s for 10,000 of pinch's), and each is a whole run (from 10 ms to seconds: 10,000
+# a load for the bundled scenes: 11 s for 10,000 of pinch's; its system built and its start assembled, 0.1 to 6 ms
+# each), and each is a whole run (from 10 ms to seconds: 10,000
 # points keep the two local workers busy from a minute to hours). A grid beyond it is more often long value lists
 # multiplied by mistake than a plan: --max-points asks for it.
 MAX_POINTS = 10_000
+CHECK_BAR_DELAY = 2.0  # [s] the checks' progress bar shows once they last this long (most take well under it)
 
 
 @dataclass(frozen=True)
@@ -103,21 +113,28 @@ def point_count(grids: dict[str, list[Any]]) -> int:
 
 
 def check_sweep(
-    scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], max_points: int = MAX_POINTS
+    scene_name: str,
+    grids: dict[str, list[Any]],
+    fixed: dict[str, Any],
+    max_points: int = MAX_POINTS,
+    show_progress: bool = False,
 ) -> CheckedSweep:
     """Refuse a sweep before any work: the names and values, then (:func:`check_points`) every point.
 
     Refused: no grid, a name that is neither a generator parameter of the scene nor a run option (the error
     lists the valid ones), a name both swept and fixed, a run option's value of the wrong type or not among its
     choices, the held contacts' options (``method``, ``kp``...) on a scene whose contacts are event-driven, more
-    points than ``max_points``, a point the scene or a run refuses.
+    points than ``max_points``, a point the scene or a run refuses before its first step (:data:`RUN_CHECKS`: its
+    values, the system it builds, its start).
 
     Args:
         scene_name: a bundled scene's name or a scene file. grids: name -> values. fixed: name -> the value
             every point takes. max_points: the most points the sweep may have (:data:`MAX_POINTS`).
+            show_progress: the checks' progress bar on stderr (:func:`check_points`).
 
     Raises:
         PinstabError (SceneError for the scene's own refusals; the point named in the message).
+        Stopped: SIGINT or SIGTERM during the checks (:func:`check_points`).
     """
     if not grids:
         raise PinstabError("sweep: give at least one --grid NAME=V1,V2,...")
@@ -149,7 +166,7 @@ def check_sweep(
             f"sweep: {count:,} points ({sizes}) exceed the limit of {max_points:,}; sweep fewer values, or give "
             f"--max-points {count} (max_points) to run them all"
         )
-    return CheckedSweep(scene, count, check_points(scene_name, grids, fixed, tuple(names)))
+    return CheckedSweep(scene, count, check_points(scene_name, grids, fixed, tuple(names), show_progress))
 
 
 def _contacts(fixed: dict[str, Any], scene_name: str, names: list[str]) -> str:
@@ -176,12 +193,21 @@ def _check_option(name: str, value: Any) -> None:
 
 
 def check_points(
-    scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], parameters: tuple[str, ...]
+    scene_name: str,
+    grids: dict[str, list[Any]],
+    fixed: dict[str, Any],
+    parameters: tuple[str, ...],
+    show_progress: bool = False,
 ) -> dict[str, int]:
     """Refuse before any work a point whose scene or run would be refused: each combination of the swept scene
     parameters loaded (over the fixed ones), and for each such scene each check of :data:`RUN_CHECKS` made on every
     combination of the values it reads (and ``contacts``, which decides whether it applies). A point passes the
-    checks iff its values pass each: the checks of 10^6 points of 1000 kp x 1000 drift_limit cost 2000.
+    checks iff its values pass each: 10^6 points of 1000 kp x 1000 drift_limit cost 3002 checks (a scene load,
+    1000 drift limits, 1000 kp options and 1000 systems built with them, a start).
+
+    Args:
+        show_progress: a progress bar on stderr (the checks made of how many), shown once they have lasted
+            :data:`CHECK_BAR_DELAY`.
 
     Returns:
         The estimated memory [bytes] by item of the run that takes the most (``simulate.loop.run_memory``).
@@ -189,22 +215,50 @@ def check_points(
     Raises:
         PinstabError: the first refusal (its class: SceneError from the scene...), its message the run's, prefixed
             by the values that make it (``sweep point dt=0: dt must be a positive number, got 0``).
+        Stopped: SIGINT or SIGTERM (a KeyboardInterrupt) during the checks: nothing was written.
     """
+    scene_grids = {name: values for name, values in grids.items() if name in parameters}
+    checks = sum(point_count(_read(grids, names)) for names, _ in RUN_CHECKS)
+    total = point_count(scene_grids) * (1 + checks)  # a scene load and its checks
+    made = progress(
+        _checks(scene_name, grids, fixed, parameters), show_progress, "checking the points", total, 0, "check",
+        CHECK_BAR_DELAY,
+    )  # fmt: skip
+    largest: dict[str, int] = {}
+    done = 0
+    try:
+        for memory in made:
+            done += 1
+            if memory is not None and sum(memory.values()) > sum(largest.values()):
+                largest = memory
+    except KeyboardInterrupt:
+        made = f"{done:,} of {total:,} checks made"
+        raise Stopped(f"the sweep was still checking its points ({made}): nothing was written") from None
+    return largest
+
+
+def _checks(
+    scene_name: str, grids: dict[str, list[Any]], fixed: dict[str, Any], parameters: tuple[str, ...]
+) -> Iterator[dict[str, int] | None]:
+    """The checks of :func:`check_points` made one at a time: each combination of the swept scene parameters loaded
+    (yields None), then each check of :data:`RUN_CHECKS` on each combination of the values it reads (yields what it
+    returns: the run's memory by item [bytes], or None)."""
     scene_grids = {name: values for name, values in grids.items() if name in parameters}
     fixed_parameters = {name: value for name, value in fixed.items() if name in parameters}
     fixed_options = {name: value for name, value in fixed.items() if name not in parameters}
-    largest: dict[str, int] = {}
     for scene_point in sweep_points(scene_grids):
         scene = _at_point(scene_point, load_scene, scene_name, **fixed_parameters, **scene_point)
+        yield None
         for names, check in RUN_CHECKS:
-            read = {name: values for name, values in grids.items() if name in names or name == "contacts"}
-            for point in sweep_points(read):
+            for point in sweep_points(_read(grids, names)):
                 options = {**fixed_options, **point}
                 contacts = options.get("contacts") or default_contacts(scene) or "held"
-                memory = _at_point({**scene_point, **point}, check, scene, contacts, options)
-                if memory is not None and sum(memory.values()) > sum(largest.values()):
-                    largest = memory
-    return largest
+                yield _at_point({**scene_point, **point}, check, scene, contacts, options)
+
+
+def _read(grids: dict[str, list[Any]], names: tuple[str, ...]) -> dict[str, list[Any]]:
+    """The grids a check of :data:`RUN_CHECKS` reads: those of ``names``, and ``contacts``."""
+    return {name: values for name, values in grids.items() if name in names or name == "contacts"}
 
 
 def _at_point(point: dict[str, Any], check: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
@@ -250,9 +304,35 @@ def _method_options(scene: Scene, contacts: str, options: dict[str, Any]) -> Non
         STABILIZERS.make_options(options.get("method", DEFAULTS["method"]), given)
 
 
+def _held_system(scene: Scene, contacts: str, options: dict[str, Any]) -> None:
+    """The system of held contacts: the ``method`` (and its options) on the ``solver`` (which must take the scene's
+    rows), the ``integrator``, automatic gains under error control (``rtol``, ``atol``): ``held_system``."""
+    if contacts == "held":
+        rtol, atol = options.get("rtol"), options.get("atol")
+        integrator = default_integrator(options.get("integrator"), rtol, atol)
+        control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
+        given = {name: value for name, value in options.items() if name in METHOD_OPTIONS}
+        method = options.get("method", DEFAULTS["method"])
+        held_system(scene, method, integrator, options.get("solver"), None, control, given)
+
+
+def _start(scene: Scene, contacts: str, options: dict[str, Any]) -> None:
+    """The start [rad, m; rad/s, m/s] (``start_state``) inside the joint limits (``held_limits``), and assembled:
+    the closures of held contacts (``assemble``), or the scene's fit to event-driven (with the limits, its closures
+    assembled) or time-stepping contacts (``contact_system``)."""
+    q0, v0 = start_state(scene, None, None)
+    limits = held_limits(scene, q0)
+    if contacts == "held":
+        assemble(ConstrainedModel(scene), q0, v0)
+    else:
+        contact_system(scene, q0, v0, closures=contacts == "event" and bool(limits))
+
+
 RUN_CHECKS: tuple[tuple[tuple[str, ...], Callable[[Scene, str, dict[str, Any]], dict[str, int] | None]], ...] = (
     (("dt", "duration", "record_every"), _time_grid),
     (("rtol", "atol", "integrator"), _tolerances),
     (("drift_limit",), _drift_limit),
     (("method", *METHOD_OPTIONS), _method_options),
+    (("method", "solver", "integrator", "rtol", "atol", *METHOD_OPTIONS), _held_system),
+    ((), _start),
 )  # (the options a check reads, the check)
