@@ -7,7 +7,8 @@ and SIGTERM stop the sweep once the points in flight are written.
 
 A point's row holds its grid values, the run's scalar figures (:data:`FIGURES`, :data:`RUN_FIGURES`) and
 ``error``: the message of a point whose run failed (its figures empty), so that one failure does not end the
-sweep.
+sweep; a point whose run kills the worker processes that take it is such a row too (``KilledWorker``). The
+scheduler lost ends the sweep with a named error, the rows so far kept.
 """
 
 from __future__ import annotations
@@ -146,10 +147,10 @@ def run_sweep(
 
     Raises:
         PinstabError: refused before any work (:func:`~.sweep_grid.check_sweep`: a name, a value, a point, their
-            number; the output: :class:`SweepTable`), MemoryBudgetError (:func:`sweep_memory`), or a scheduler
-            that cannot be reached.
+            number; the output: :class:`SweepTable`), MemoryBudgetError (:func:`sweep_memory`), a scheduler
+            that cannot be reached, or one lost during the sweep (the rows so far kept).
         Stopped: SIGINT or SIGTERM (a KeyboardInterrupt): the points in flight were written, the table closed
-            (a Parquet table converted) and kept.
+            (a Parquet table converted) and kept; during the checks before any work, nothing written.
     """
     fixed = dict(fixed or {})
     checked = check_sweep(scene_name, grids, fixed, max_points, show_progress)
@@ -178,7 +179,7 @@ def run_sweep(
                 failed += bool(row["error"])
                 table.append(row)
                 written += 1
-        except ClusterLost as lost:
+        except _ClusterLost as lost:
             where = scheduler or "of the local cluster"
             raise PinstabError(
                 f"sweep: the Dask scheduler {where} was lost ({lost}); {written} new rows in {out}, resumed by a re-run"
@@ -219,7 +220,7 @@ def _rows(client: Any, sweep: tuple[str, dict[str, Any], tuple[str, ...]], pendi
     one replaced by the next), none submitted once ``stop`` (:class:`~.cluster.StopAfterFlight`) has a signal.
 
     A point whose run killed the workers that took it (Dask gave it up: ``KilledWorker``) is a failed row naming
-    it (:func:`killed_worker`); the scheduler lost (the whole cluster) raises :class:`ClusterLost`."""
+    it (:func:`_killed_worker`); the scheduler lost (the whole cluster) raises :class:`_ClusterLost`."""
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
@@ -242,13 +243,13 @@ def _rows(client: Any, sweep: tuple[str, dict[str, Any], tuple[str, ...]], pendi
             try:
                 row = future.result()
             except KilledWorker as exc:
-                row = failed_row(point, killed_worker(exc))
+                row = failed_row(point, _killed_worker(exc))
             yield row
     except (CancelledError, OSError) as exc:  # futures cancelled, a connection closed: the scheduler is gone
-        raise ClusterLost(" ".join(f"{type(exc).__name__}: {exc}".split())) from None  # Dask's lines as one
+        raise _ClusterLost(" ".join(f"{type(exc).__name__}: {exc}".split())) from None  # Dask's lines as one
 
 
-def killed_worker(exc: Exception) -> str:
+def _killed_worker(exc: Exception) -> str:
     """The error of a point Dask gave up (``distributed.scheduler.KilledWorker``): the workers that ran it died."""
     tries = getattr(exc, "allowed_failures", 0) + 1
     return (
@@ -257,5 +258,5 @@ def killed_worker(exc: Exception) -> str:
     )
 
 
-class ClusterLost(Exception):
+class _ClusterLost(Exception):
     """The Dask scheduler of a sweep was lost while points were in flight (the message: Dask's error)."""
