@@ -31,11 +31,12 @@ from __future__ import annotations
 import ctypes
 import functools
 import json
+import mmap
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -254,6 +255,7 @@ def _reading(path: str | Path, what: str) -> Iterator[None]:
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+GLOBAL_HEAP = b"GCOL\x01\x00\x00\x00"  # a global heap collection's signature, version 1 and reserved bytes
 BEING_WRITTEN = 0x01 | 0x04  # the superblock's file consistency flags: open for writing, for SWMR writing
 SWMR_READ_ATTEMPTS = 20  # a SWMR reader retries a metadata read whose checksum fails (the writer may be amid a
 # flush), its back-off doubling from 1 ns up to 1 s: HDF5's default of 100 attempts waits some 70 s on each damaged
@@ -288,30 +290,72 @@ def open_run_file(path: str | Path) -> Iterator[Any]:
 def _superblock_check(path: str | Path) -> bool:
     """Whether the HDF5 file ``path`` is being written (or its writer was killed), by its superblock's consistency
     flags (version 2 and later, as a stream's; False for earlier ones and a file without the signature at its start,
-    left to HDF5's own checks).
+    left to HDF5's own checks); its global heaps checked (:func:`_check_global_heaps`).
 
     Raises:
-        PinstabError: the file is shorter than the end of file its superblock declares.
+        PinstabError: the file is shorter than the end of file its superblock declares, or a global heap is damaged.
     """
     try:
         with open(path, "rb") as handle:
             header = handle.read(64)
             size = os.fstat(handle.fileno()).st_size
+            if not header.startswith(HDF5_SIGNATURE) or len(header) < 16:
+                return False
+            version, flags = header[8], header[11]
+            widths = (header[9], header[10]) if version >= 2 else (header[13], header[14])  # addresses, lengths
+            if widths[0] not in (2, 4, 8) or widths[1] not in (2, 4, 8):  # a damaged superblock: HDF5 names it
+                return False
+            if version >= 2:
+                _check_size(path, header, size, widths[0])
+            _check_global_heaps(path, handle, widths[1])
     except OSError as exc:
         raise PinstabError(f"{path}: cannot be read ({exc.strerror})") from None
-    if not header.startswith(HDF5_SIGNATURE) or len(header) < 12 or header[8] < 2:
-        return False
-    width = header[9]  # bytes of an address: base address, extension address, end of file address
-    fields = header[12 : 12 + 3 * width]
-    if width not in (2, 4, 8) or len(fields) < 3 * width:
+    return version >= 2 and bool(flags & BEING_WRITTEN)
+
+
+def _check_size(path: str | Path, header: bytes, size: int, width: int) -> None:
+    """Refuse a file of ``size`` bytes shorter than the end its superblock (version 2 or later, ``header``, addresses
+    of ``width`` bytes) declares."""
+    fields = header[12 : 12 + 3 * width]  # base address, superblock extension address, end of file address
+    if len(fields) < 3 * width:
         raise PinstabError(f"{path}: a truncated HDF5 file ({size} bytes, its superblock cut short)")
     base, _, end = (int.from_bytes(fields[k * width : (k + 1) * width], "little") for k in range(3))
     if size < base + end:
         raise PinstabError(
-            f"{path}: a truncated HDF5 file: {size} bytes where its superblock declares {base + end} (a copy or a "
-            "download cut short, or a full disk)"
+            f"{path}: a truncated or damaged HDF5 file: {size} bytes where its superblock declares {base + end} (a "
+            "copy or a download cut short, or a full disk)"
         )
-    return bool(header[11] & BEING_WRITTEN)
+
+
+def _check_global_heaps(path: str | Path, handle: BinaryIO, width: int) -> None:
+    """Walk the file's global heap collections (where HDF5 keeps variable-length strings: the attributes) object by
+    object as HDF5 reads them, lengths of ``width`` bytes: the one structure of a file without a checksum, and a
+    damaged object size can make HDF5 2.0's walk loop forever (found by damaging a stream's bytes: a free-space
+    object of size 0). A collection is found by its signature; an object that would make no progress or run past
+    its collection's end is refused.
+
+    Raises:
+        PinstabError: naming the byte at which the damaged collection starts.
+    """
+    header, entry = len(GLOBAL_HEAP) + width, 8 + width  # a collection's header, an object's header
+    with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        start = data.find(GLOBAL_HEAP)
+        while start >= 0:
+            end = start + int.from_bytes(data[start + len(GLOBAL_HEAP) : start + header], "little")
+            damaged = f"{path}: a damaged HDF5 file: the global heap collection at byte {start} (attributes' strings)"
+            if end > len(data):
+                raise PinstabError(f"{damaged} runs past the file's end ({end} > {len(data)} bytes)")
+            at = start + header
+            while at + entry <= end:
+                index = int.from_bytes(data[at : at + 2], "little")
+                length = int.from_bytes(data[at + 8 : at + entry], "little")
+                need = length if index == 0 else entry + -(-length // 8) * 8  # object 0: the free space, whole
+                if need == 0:
+                    raise PinstabError(f"{damaged} holds an empty free space at byte {at}")
+                if at + need > end:
+                    raise PinstabError(f"{damaged} holds an object of {length} bytes at byte {at}, past its end")
+                at += need
+            start = data.find(GLOBAL_HEAP, start + 1)
 
 
 def _swmr_access(h5py) -> Any:

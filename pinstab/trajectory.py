@@ -15,7 +15,7 @@ from typing import Any, Protocol
 import numpy as np
 import pinocchio as pin
 
-from .errors import CutShortWarning, PinstabError
+from .errors import CutShortWarning, PinstabError, PinstabWarning
 from .files import atomic_output
 from .runinfo import RunInfo
 from .stream import BLOCK, StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
@@ -263,10 +263,13 @@ class Trajectory:
             raise
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
             raise PinstabError(f"{path}: not a readable pinstab trajectory file ({exc})") from None
-        _check_arrays(path, arrays)
         if comparison is not None and comparison.error.shape != (arrays["t"].size, len(comparison.names)):
             raise PinstabError(f"{path}: the trajectory error's shape {comparison.error.shape} does not fit the run")
+        n = _checked_samples(path, arrays)
         wall_time = float(arrays.pop("wall_time"))
+        arrays = {name: array[:n] for name, array in arrays.items()}
+        if comparison is not None:
+            comparison.error = comparison.error[:n]
         trajectory = cls(info=info, wall_time=wall_time, **arrays)
         trajectory.comparison = comparison
         return trajectory
@@ -282,10 +285,10 @@ class Trajectory:
                 f"{path}: the streamed run holds no sample yet (its rows are written {BLOCK} at a time: a run "
                 "killed before its first block leaves none)"
             )
-        _check_arrays(path, {"wall_time": np.asarray(wall_time), "step": steps, **arrays})
+        n = _checked_samples(path, {"wall_time": np.asarray(wall_time), "step": steps, **arrays})
         if not complete:
             _mark_cut_short(path, info, float(arrays["t"][-1]), int(steps[-1]), wall_time)
-        return cls(info=info, wall_time=wall_time, **arrays)
+        return cls(info=info, wall_time=wall_time, **{name: array[:n] for name, array in arrays.items()})
 
 
 def _mark_cut_short(path: str | Path, info: RunInfo, t: float, step: int, wall_time: float) -> None:
@@ -498,12 +501,13 @@ SAVED_ARRAYS = (  # what save() writes and load() requires: the attributes of th
 )
 
 
-def _check_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+def _checked_samples(path: str | Path, arrays: dict[str, np.ndarray]) -> int:
     """Refuse a file whose arrays do not describe one run: n >= 1 finite increasing sample times [s], every series
-    with n rows of numbers, and finite states (but the last, which is a diverged run's failed step)."""
+    with n rows of numbers, finite states. Returns the samples to read: n, or n - 1 when the last state alone is not
+    finite, a diverged run's failed step (a stream keeps it, ``--save`` leaves it out), left out with a warning."""
     t = arrays["t"]
     if t.ndim != 1 or t.size == 0 or t.dtype.kind not in "fi":
-        raise PinstabError(f"{path}: 't' must be a non-empty list of sample times, got shape {t.shape}")
+        raise PinstabError(f"{path}: 't' must be a non-empty list of sample times, got shape {t.shape} of {t.dtype}")
     for name, array in arrays.items():
         if name == "wall_time":
             ok = array.shape == () and array.dtype.kind in "fi"
@@ -514,15 +518,16 @@ def _check_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
             raise PinstabError(
                 f"{path}: array {name!r} (shape {array.shape}, {array.dtype}) does not fit {t.size} samples"
             )
+    failed = t.size > 1 and not (np.isfinite(arrays["q"][-1]).all() and np.isfinite(arrays["v"][-1]).all())
+    n = t.size - failed
     for name in ("t", "q", "v"):
-        finite = np.isfinite(arrays[name])
+        finite = np.isfinite(arrays[name][: t.size if name == "t" else n])
         bad = ~(finite if finite.ndim == 1 else finite.all(axis=1))
-        bad[-1] &= name == "t"
         if bad.any():
             first = int(np.argmax(bad))
+            when = "" if name == "t" else f" (t = {t[first]:.9g} s)"
             raise PinstabError(
-                f"{path}: array {name!r} is not finite at sample {first} of {t.size} (t = {t[first]:.9g} s): a damaged "
-                "file (only the last sample's state may be, the failed step of a diverged run)"
+                f"{path}: array {name!r} is not finite at sample {first} of {t.size}{when}: a damaged file"
             )
     backwards = np.diff(t) < 0
     if backwards.any():
@@ -531,6 +536,15 @@ def _check_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
             f"{path}: the sample times 't' must increase; sample {first} (t = {t[first]:.9g} s) is before the one "
             f"before it (t = {t[first - 1]:.9g} s)"
         )
+    if failed:
+        warnings.warn(
+            PinstabWarning(
+                f"{path}: the state of the last sample (t = {t[-1]:.9g} s) is not finite, the failed step of a run "
+                f"that diverged: read up to the sample before (t = {t[-2]:.9g} s), as --save keeps a diverged run"
+            ),
+            stacklevel=4,
+        )
+    return n
 
 
 def _finite_max(values: np.ndarray) -> float | None:
