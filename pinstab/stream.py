@@ -172,11 +172,9 @@ class StreamFile:
             dataset.resize(max(len(dataset), start + len(rows)), axis=0)
             dataset[start : start + len(rows)] = rows
 
-    def finish(self, info: RunInfo, wall_time: float, summary: dict[str, Any] | None) -> None:
-        """Write the final info, the wall time [s] and the summary figures (None: a run cut off); close."""
-        write_info(self.file, info)
-        self.file.attrs["wall_time"] = wall_time
-        self.file.attrs["complete"] = summary is not None
+    def finish(self, summary: dict[str, Any] | None) -> None:
+        """Write the summary figures (None: a run cut short) and close; the final info follows
+        (:func:`rewrite_info`, which marks the file complete)."""
         if summary is not None:
             self.file.attrs["summary"] = json.dumps(summary)
         self.file.close()
@@ -191,11 +189,13 @@ def write_info(file, info: RunInfo) -> None:
     file.attrs["scene_parameters"] = json.dumps(info.scene_parameters)
 
 
-def rewrite_info(path: str | Path, info: RunInfo, wall_time: float) -> None:
-    """Replace the run info (:func:`write_info`) and the wall time [s] of a finished run file."""
+def rewrite_info(path: str | Path, info: RunInfo, wall_time: float, complete: bool) -> None:
+    """Replace the run info (:func:`write_info`) and the wall time [s] of a finished run file, and say whether it is
+    ``complete`` (its derived series written) in the same write: a kill before it leaves the file marked cut short."""
     with h5py_module().File(path, "r+") as file:
         write_info(file, info)
         file.attrs["wall_time"] = wall_time
+        file.attrs["complete"] = complete
 
 
 def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:

@@ -243,7 +243,10 @@ class Trajectory:
         if is_stream_file(path):
             return cls._load_stream(path)
         if not zipfile.is_zipfile(path):
-            raise PinstabError(f"{path}: not a pinstab trajectory file (not an NPZ archive, or a truncated one)")
+            raise PinstabError(
+                f"{path}: not a pinstab trajectory file (not an NPZ archive, or a truncated one; a run is read from "
+                "the .npz of --save or the .h5 of --stream)"
+            )
         try:
             with np.load(path) as data:
                 missing = [name for name in SAVED_ARRAYS if name not in data.files]
@@ -445,7 +448,8 @@ class StreamedTrajectory:
         cls, path: str | Path, info: RunInfo, wall_time: float, series: SeriesSource | None
     ) -> StreamedTrajectory:
         """Finish a streamed file: its derived series computed block by block from its samples with ``series``
-        (None: a run cut off, left without them), the final info and summary written."""
+        (None: a run cut short, left without them) and its summary written; :meth:`write_info` then writes the final
+        info and marks the file complete (the info is written once at the end, not once more here)."""
         file = StreamFile(path)
         figures = None
         if series is not None:
@@ -458,7 +462,7 @@ class StreamedTrajectory:
                 accumulated.add(t, derived["position_drift"], derived["velocity_drift"], derived["energy"],
                                 derived["spectral_radius"])  # fmt: skip
             figures = accumulated.result()
-        file.finish(info, wall_time, figures)
+        file.finish(figures)
         return cls(Path(path), info, wall_time, figures)
 
     @property
@@ -473,9 +477,9 @@ class StreamedTrajectory:
         return {**run_figures(self.info, self.wall_time, self.info.t_end, figures), "stream": str(self.path)}
 
     def write_info(self) -> None:
-        """Write :attr:`info` and :attr:`wall_time` to the file again (after the run's end completed them: limits,
-        stop, timings)."""
-        rewrite_info(self.path, self.info, self.wall_time)
+        """Write :attr:`info` and :attr:`wall_time` to the file (after the run's end completed them: limits, stop,
+        timings), marking it complete when its derived series are written."""
+        rewrite_info(self.path, self.info, self.wall_time, self.figures is not None)
 
     def blocks(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """(t [s], q) of the file's samples, a block at a time."""
