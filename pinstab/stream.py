@@ -258,9 +258,9 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 GLOBAL_HEAP = b"GCOL\x01\x00\x00\x00"  # a global heap collection's signature, version 1 and reserved bytes
 BEING_WRITTEN = 0x01 | 0x04  # the superblock's file consistency flags: open for writing, for SWMR writing
 SWMR_READ_ATTEMPTS = 20  # a SWMR reader retries a metadata read whose checksum fails (the writer may be amid a
-# flush), its back-off doubling from 1 ns up to 1 s: HDF5's default of 100 attempts waits some 70 s on each damaged
-# block (a damaged file seemed to hang: over 100 s measured on a killed run's file cut to 150 bytes), 20 wait about
-# 1 ms in all (13 ms measured on the same file), beyond any flush of a BLOCK of rows (HDF5's own example uses 20)
+# flush), backing off longer each time: HDF5's default of 100 attempts spent over 10 minutes on a killed stream whose
+# root object header is damaged (over 100 s on one cut to 150 bytes), 20 fail on both in 10 to 13 ms (measured); a
+# live reader that meets a block amid its flush fails and reads again (HDF5's own SWMR example uses 20)
 
 
 @contextmanager
@@ -331,8 +331,9 @@ def _check_global_heaps(path: str | Path, handle: BinaryIO, width: int) -> None:
     """Walk the file's global heap collections (where HDF5 keeps variable-length strings: the attributes) object by
     object as HDF5 reads them, lengths of ``width`` bytes: the one structure of a file without a checksum, and a
     damaged object size can make HDF5 2.0's walk loop forever (found by damaging a stream's bytes: a free-space
-    object of size 0). A collection is found by its signature; an object that would make no progress or run past
-    its collection's end is refused.
+    object of size 0). A collection is found by its 8-byte signature (numbers that spell it, the step 5 575 263 047
+    or a float's bytes, would be taken for one); an object that would make no progress or run past its collection's
+    end is refused.
 
     Raises:
         PinstabError: naming the byte at which the damaged collection starts.
@@ -358,7 +359,7 @@ def _check_global_heaps(path: str | Path, handle: BinaryIO, width: int) -> None:
             start = data.find(GLOBAL_HEAP, start + 1)
 
 
-def _swmr_access(h5py) -> Any:
+def _swmr_access(h5py: Any) -> Any:
     """A file access property list for a SWMR reader: no file locking (the writer holds the lock), no chunk cache,
     :data:`SWMR_READ_ATTEMPTS` attempts at a metadata read (set through the HDF5 library h5py loaded, found in the
     process's memory map; HDF5's default where it cannot be found)."""
