@@ -331,7 +331,7 @@ def _check_global_heaps(path: str | Path, handle: BinaryIO, width: int) -> None:
     """Walk the file's global heap collections (where HDF5 keeps variable-length strings: the attributes) object by
     object as HDF5 reads them, lengths of ``width`` bytes: the one structure of a file without a checksum, and a
     damaged object size can make HDF5 2.0's walk loop forever (found by damaging a stream's bytes: a free-space
-    object of size 0). A collection is found by its 8-byte signature (numbers that spell it, the step 5 575 263 047
+    object of size 0). A collection is found by its 8-byte signature (numbers that spell it, the step 5 575 230 279
     or a float's bytes, would be taken for one); an object that would make no progress or run past its collection's
     end is refused.
 
