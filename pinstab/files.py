@@ -3,7 +3,9 @@
 
 A temporary file is named ``.<target name>.pinstab-<pid>-<random><suffix>``; it goes on every exit path of
 the writing process, and one left by a process that was killed (``kill -9``, a power cut) is removed by
-the next write to the same target.
+the next write to the same target. A writer that renames its temporary file itself, when it chooses (a stream,
+renamed onto its target before its first row: :mod:`pinstab.stream`), takes it from :func:`temporary_output` and
+renames it with :func:`publish`.
 """
 
 from __future__ import annotations
