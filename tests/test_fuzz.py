@@ -654,14 +654,22 @@ def test_scene_values_that_crashed_are_refused(name: str, path: tuple, value: An
             SceneError,
             "mass matrix is singular at the assembled configuration (smallest eigenvalue",
         ),
-        # was: LinAlgError "SVD did not converge" projecting the initial velocity
-        (_changed("fourbar", ("closures", 0, "offset_a"), [1e308, 0, 0]), AssemblyError, "is not finite"),
-        # was: a NaN velocity residual, printed as null by ``pinstab check --json``
-        (_changed("fourbar", ("initial", "v", "crank"), 1e308), AssemblyError, "constraint 'coupler-rocker'"),
+        # was: LinAlgError "SVD did not converge" projecting the initial velocity; now refused at load (beyond the
+        # scene's reach)
+        (_changed("fourbar", ("closures", 0, "offset_a"), [1e308, 0, 0]), SceneError, "lies 1e+308 m from its frame"),
+        # was: a NaN velocity residual, printed as null by ``pinstab check --json``; now refused at load
+        (_changed("fourbar", ("initial", "v", "crank"), 1e308), SceneError, "initial.v.crank: 1e+308 is outside"),
     ],
 )
 def test_assembly_failures_that_crashed_are_pinstab_errors(data: dict[str, Any], error: type, phrase: str) -> None:
-    scene = scene_from_dict(data, name="fuzz", base_dir=ROBOTS)
     with pytest.raises(error) as caught:
+        scene = scene_from_dict(data, name="fuzz", base_dir=ROBOTS)
         assemble(ConstrainedModel(scene), scene.q0, scene.v0)
     assert phrase in str(caught.value)
+
+
+def test_assembly_of_a_non_finite_velocity_is_an_assembly_error() -> None:
+    """The guard behind the scene's ranges: a velocity no scene can give (the API's assemble takes any)."""
+    scene = scene_from_dict(_changed("fourbar", ("initial", "v", "crank"), 1.0), name="fuzz", base_dir=ROBOTS)
+    with pytest.raises(AssemblyError, match="constraint 'coupler-rocker'"):
+        assemble(ConstrainedModel(scene), scene.q0, np.full_like(scene.v0, 1e308))
