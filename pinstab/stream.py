@@ -1,10 +1,11 @@
 """Runs streamed to an HDF5 file as they proceed (``simulate(..., stream="run.h5")``, ``pinstab run --stream``).
 
 The file holds plain datasets, one row per kept sample, readable by any HDF5 tool (h5py, h5dump, MATLAB,
-pandas): :data:`SAMPLES` while the run proceeds, appended and flushed every :data:`BLOCK` samples in HDF5's
-single-writer / multiple-reader mode (open it with ``h5py.File(path, "r", swmr=True)`` while it runs;
-``dataset.refresh()`` shows the rows flushed since), and :data:`DERIVED` once the run has ended (computed
-from the samples in blocks, as a run kept in memory computes them when first read). The run's
+pandas): :data:`SAMPLES` while the run proceeds, appended and flushed every :data:`BLOCK` samples or
+:data:`FLUSH_PERIOD` seconds, whichever comes first, in HDF5's single-writer / multiple-reader mode (open it
+with ``h5py.File(path, "r", swmr=True)`` while it runs; ``dataset.refresh()`` shows the rows flushed since),
+and :data:`DERIVED` once the run has ended (computed from the samples in blocks, as a run kept in memory
+computes them when first read). The run's
 :class:`~pinstab.runinfo.RunInfo` is the root attribute ``info`` (JSON), its main fields also plain
 attributes; ``complete`` says whether the run ended normally (finished, diverged or stopped, with its
 derived series) or was cut short (interrupted, killed: the rows flushed so far, derived series empty).
@@ -15,7 +16,7 @@ followed: the file is created as a temporary file in the target's folder (``.run
 mkstemp's: never through a link) and renamed onto the target once its datasets and attributes exist and it is in
 SWMR mode, before the first sample. It is renamed then rather than when the run ends because a stream is for runs
 that may not end as planned: from its first row on, the target is the run's own file, readable while the run
-proceeds and holding every block flushed whatever ends the run, Ctrl-C, SIGTERM or ``kill -9`` included (a run
+proceeds and holding every row flushed whatever ends the run, Ctrl-C, SIGTERM or ``kill -9`` included (a run
 killed before the rename leaves a temporary file without rows, removed by the next write to the target). An earlier
 file at the target is thus replaced when the run starts stepping, not when it ends. Its end (the derived series,
 the final info) is written to the file at the target.
@@ -46,7 +47,11 @@ from .runinfo import RunInfo
 
 FORMAT = "pinstab-stream"  # the root attribute ``format``
 VERSION = 1
-BLOCK = 4096  # samples per HDF5 chunk, per write and per flush
+BLOCK = 4096  # samples per HDF5 chunk, and per write and flush at most
+FLUSH_PERIOD = 1.0  # [s] of wall time at most between two writes and flushes of a run's checked samples: a block
+# takes 0.5 s on nfourbar N=40 but half a minute on the four-bar keeping a sample every 1000 steps, and a run killed
+# (kill -9) keeps only the rows flushed; a write of part of a block and its flush cost 0.5 ms (5 ms at worst, measured
+# over 60 writes), under 1% of the second between two
 SAMPLES = {  # written while the run proceeds: name -> units
     "t": "s",
     "step": "-",
@@ -61,8 +66,8 @@ DERIVED = {  # written when the run has ended: name -> units
     "energy": "J",
     "spectral_radius": "-",
 }
-CHUNK_CACHE = 0  # bytes of HDF5's chunk cache: off, writes are whole blocks (with h5py's default the resident
-# memory grew by about a chunk per chunk written: 47 MiB over 10^6 rows of 9 columns, measured)
+CHUNK_CACHE = 0  # bytes of HDF5's chunk cache: off, writes are blocks or, once a second, part of one (with h5py's
+# default the resident memory grew by about a chunk per chunk written: 47 MiB over 10^6 rows of 9 columns, measured)
 INFO_ATTRIBUTES = ("scene", "method", "integrator", "solver", "dt", "record_every", "path")
 
 
@@ -208,7 +213,7 @@ def sample_blocks(path: str | Path) -> Iterator[tuple[np.ndarray, np.ndarray]]:
 
 def read_stream(path: str | Path) -> tuple[dict[str, np.ndarray], RunInfo, float, bool]:
     """(arrays by name, info, wall time [s], complete) of a run file; a run cut off before its derived series
-    were written has them NaN. A file whose run still proceeds, or was killed, reads up to the last flushed block
+    were written has them NaN. A file whose run still proceeds, or was killed, reads up to the last flushed row
     (:func:`open_run_file`).
 
     Raises:
@@ -267,7 +272,7 @@ SWMR_READ_ATTEMPTS = 20  # a SWMR reader retries a metadata read whose checksum 
 def open_run_file(path: str | Path) -> Iterator[Any]:
     """The HDF5 file ``path`` opened read-only (an ``h5py.File``): a file closed by its writer as usual, a file
     still being written or whose writer was killed (its superblock says so) in SWMR mode, which reads up to the
-    last flushed block, with :data:`SWMR_READ_ATTEMPTS` attempts at each metadata read.
+    last flushed row, with :data:`SWMR_READ_ATTEMPTS` attempts at each metadata read.
 
     Raises:
         PinstabError: the file is not HDF5, is shorter than its superblock declares (truncated), or HDF5 cannot

@@ -18,7 +18,7 @@ import pinocchio as pin
 from .errors import CutShortWarning, PinstabError, PinstabWarning
 from .files import atomic_output
 from .runinfo import RunInfo
-from .stream import BLOCK, StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
+from .stream import BLOCK, FLUSH_PERIOD, StreamFile, is_stream_file, read_stream, rewrite_info, sample_blocks
 
 
 class SeriesSource(Protocol):
@@ -273,6 +273,8 @@ class Trajectory:
         arrays = {name: array[:n] for name, array in arrays.items()}
         if comparison is not None:
             comparison.error = comparison.error[:n]
+        if info.cut_short is not None:  # a run interrupted with --save, or a stream cut short saved again
+            _warn_cut_short(path, info.cut_short, "the file holds its samples up to there", stacklevel=3)
         trajectory = cls(info=info, wall_time=wall_time, **arrays)
         trajectory.comparison = comparison
         return trajectory
@@ -285,8 +287,8 @@ class Trajectory:
         steps = arrays.pop("step")
         if not len(arrays["t"]):
             raise PinstabError(
-                f"{path}: the streamed run holds no sample yet (its rows are written {BLOCK} at a time: a run "
-                "killed before its first block leaves none)"
+                f"{path}: the streamed run holds no sample yet (its rows are written every {BLOCK} samples or "
+                f"{FLUSH_PERIOD:g} s: a run killed before its first write leaves none)"
             )
         n = _checked_samples(path, {"wall_time": np.asarray(wall_time), "step": steps, **arrays})
         if not complete:
@@ -301,18 +303,23 @@ def _mark_cut_short(path: str | Path, info: RunInfo, t: float, step: int, wall_t
     interrupted = math.isfinite(wall_time)
     info.cut_short = {"t": t, "step": step, "cause": "interrupted" if interrupted else "killed"}
     info.t_end, info.steps = t, step
+    derived = ", ".join(Trajectory.DERIVED)
+    held = f"its samples up to there are read, its derived series ({derived}) were not written: NaN"
+    _warn_cut_short(path, info.cut_short, held, stacklevel=5)
+
+
+def _warn_cut_short(path: str | Path, cut_short: dict[str, Any], held: str, stacklevel: int) -> None:
+    """Warn (CutShortWarning, ``stacklevel`` as :func:`warnings.warn`'s, counted from here) that the run of file
+    ``path`` was cut short (``info.cut_short``: t [s], step, cause), then what the file ``held``."""
     how = (
         "interrupted (Ctrl-C or SIGTERM)"
-        if interrupted
+        if cut_short.get("cause") == "interrupted"
         else "killed (kill -9, a crash or a power cut; the rows flushed before, its info as at its start)"
     )
-    warnings.warn(
-        CutShortWarning(
-            f"{path}: the run was cut short at t = {t:.9g} s (step {step}): {how}; its samples up to there are "
-            f"read, its derived series ({', '.join(Trajectory.DERIVED)}) were not written: NaN"
-        ),
-        stacklevel=4,
-    )
+    t = cut_short.get("t")
+    when = f"{t:.9g}" if isinstance(t, int | float) else repr(t)  # a number, unless the file was edited
+    where = f"t = {when} s (step {cut_short.get('step')})"
+    warnings.warn(CutShortWarning(f"{path}: the run was cut short at {where}: {how}; {held}"), stacklevel=stacklevel)
 
 
 class SeriesFigures:

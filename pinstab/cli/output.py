@@ -60,12 +60,17 @@ def _descriptor(stream: TextIO) -> int | None:
 
 
 def stopped_text(stopped: dict[str, Any]) -> str:
-    """``info.stopped`` in words: what, when [s], which contact and how its mode changed."""
+    """``info.stopped`` in words: what, when [s], which contact and how its mode changed, or the error's class; the
+    fields it lacks left out (a file may hold an older one: ``{"reason": "stream cut off", "t": ...}`` before
+    ``info.cut_short``)."""
+    t = stopped.get("t")
+    text = str(stopped.get("reason", "stopped"))
+    text += f" at t = {t:.9g} s" if isinstance(t, int | float) else ""
     event = stopped.get("event")
-    if event is None:
-        return f"{stopped['reason']} at t = {stopped['t']:.9g} s ({stopped['error']})"
-    change = f"{event['from']} -> {event['to']} ({event['cause']})"
-    return f"{stopped['reason']} at t = {stopped['t']:.9g} s: contact {event['contact']} {change}"
+    if isinstance(event, dict):
+        change = f"{event.get('from')} -> {event.get('to')} ({event.get('cause')})"
+        return f"{text}: contact {event.get('contact')} {change}"
+    return text if stopped.get("error") is None else f"{text} ({stopped['error']})"
 
 
 def write(text: str) -> None:

@@ -3,6 +3,7 @@ the run proceeds (:class:`StreamedRecords`: memory bounded whatever the run's le
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Protocol
 
@@ -109,22 +110,32 @@ class Records:
 
 
 class StreamedRecords(Records):
-    """Records that hold a window of samples and write them to ``sink`` once checked, ``block`` at a time.
+    """Records that hold a window of samples and write them to ``sink`` once checked: a block at a time (up to the
+    next multiple of ``block``: the file's chunks), or those checked so far once ``period`` of wall time passed since
+    the last write.
 
     Args:
         grid, every, nq, nv: as :class:`Records`. sink: where the samples go. block: samples per write.
-        spare: samples a chunk of the loop keeps at most beyond a block.
+        spare: samples a chunk of the loop keeps at most beyond a block. period: the longest wall time between two
+            writes [s] (:data:`pinstab.stream.FLUSH_PERIOD`).
     """
 
-    def __init__(self, grid: Grid, every: int, nq: int, nv: int, sink: SampleSink, block: int, spare: int) -> None:
+    def __init__(
+        self, grid: Grid, every: int, nq: int, nv: int, sink: SampleSink, block: int, spare: int, period: float
+    ) -> None:
         super().__init__(grid, every, nq, nv, block + spare)
-        self.sink, self.block = sink, block
+        self.sink, self.block, self.period = sink, block, period
+        self.written = time.monotonic()  # when samples were last written [s]
 
     def checked(self, k: int) -> None:
-        """Write a block of checked samples when there is one."""
+        """Write the checked samples up to the block's end when there is one, or all of them when the last write
+        is ``period`` old."""
         final = self.count if k == self.grid.steps else k // self.every + 1
-        if final - self.offset >= self.block:
-            self.write(self.offset + self.block)
+        end = (self.offset // self.block + 1) * self.block
+        if final >= end:
+            self.write(end)
+        elif final > self.offset and time.monotonic() - self.written >= self.period:
+            self.write(final)
 
     def write(self, stop: int) -> None:
         """Write samples offset .. stop - 1 and make room for those after."""
@@ -133,6 +144,7 @@ class StreamedRecords(Records):
         for array in (self.t, self.steps, self.q, self.v, self.corrections):
             array[: len(array) - n] = array[n:].copy()
         self.offset = stop
+        self.written = time.monotonic()
 
     def slot(self, index: int) -> int:
         """A sample before the window (already written) moves the window back to it: its rows are rewritten."""

@@ -22,7 +22,7 @@ from ..memory import RUN_DATA_COPIES, data_bytes, exhausted, require, samples_by
 from ..runinfo import RunInfo
 from ..scene import Scene
 from ..series import StateSeries
-from ..stream import BLOCK, StreamWriter
+from ..stream import BLOCK, FLUSH_PERIOD, StreamWriter
 from ..system import ConstrainedSystem
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import check_velocity
@@ -86,9 +86,11 @@ class RunClock:
 @contextmanager
 def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, clock: RunClock) -> Iterator[None]:
     """Around a run's stepping, timed by ``clock``: a run that stops early carries the samples it kept: a
-    DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C an :class:`Interrupted`, a
-    ContactInfeasibleError its ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a
-    MemoryBudgetError with its ``trajectory``."""
+    DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C (or SIGTERM under ``pinstab``) an
+    :class:`Interrupted` (``info.cut_short`` saying where, cause ``interrupted``), a ContactInfeasibleError its
+    ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a MemoryBudgetError with its
+    ``trajectory``. A streamed run's file gets the completed info here, once (a run that ends normally gets it from
+    :func:`~pinstab.simulate`)."""
     try:
         with clock.stepping_loop():
             yield
@@ -99,17 +101,27 @@ def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, 
         exc.finite_trajectory = (
             exc.trajectory if _streamed(loop) else trajectory_of(loop, system, finite_info, clock, finite)
         )
+        _write_info(exc.trajectory)
         raise
     except KeyboardInterrupt:
-        raise Interrupted(trajectory_of(loop, system, info, clock, cut_off=True)) from None
+        trajectory = trajectory_of(loop, system, info, clock, cut_off=True)
+        info.cut_short = {"t": info.t_end, "step": info.steps, "cause": "interrupted"}
+        raise Interrupted(_write_info(trajectory)) from None
     except ContactInfeasibleError as exc:
         exc.trajectory = trajectory_of(loop, system, info, clock)
         info.stopped = failure_stop(exc, info.t_end)
-        if _streamed(loop):
-            exc.trajectory.write_info()
+        _write_info(exc.trajectory)
         raise
     except MemoryError as error:
-        raise exhausted(f"the run of scene {info.scene}", error, trajectory_of(loop, system, info, clock)) from None
+        trajectory = _write_info(trajectory_of(loop, system, info, clock))
+        raise exhausted(f"the run of scene {info.scene}", error, trajectory) from None
+
+
+def _write_info(trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
+    """``trajectory``, its info written to its file when it was streamed."""
+    if isinstance(trajectory, StreamedTrajectory):
+        trajectory.write_info()
+    return trajectory
 
 
 def error_control(rtol: float | None, atol: float | None, integrator: str) -> ErrorControl:
@@ -175,7 +187,8 @@ def stream_records(loop: StepLoop, stream: str | Path | None, info: RunInfo) -> 
         return
     model, rows = loop.system.model, loop.system.model.constraints.rows
     writer = StreamWriter(stream, info, model.nq, model.nv, rows)
-    loop.records = StreamedRecords(loop.grid, loop.every, model.nq, model.nv, writer, BLOCK, STREAM_WINDOW - BLOCK)
+    spare = STREAM_WINDOW - BLOCK
+    loop.records = StreamedRecords(loop.grid, loop.every, model.nq, model.nv, writer, BLOCK, spare, FLUSH_PERIOD)
 
 
 def _streamed(loop: StepLoop) -> bool:
@@ -193,7 +206,8 @@ def trajectory_of(
 ) -> Trajectory | StreamedTrajectory:
     """The trajectory of the first ``samples`` samples kept (default: all kept so far), with the run info
     completed and its timings so far (``clock``). A streamed run's file is finished: its last samples written and,
-    unless the run was ``cut_off`` (interrupted), its derived series."""
+    unless the run was ``cut_off`` (interrupted), its derived series; its info is written by the caller once
+    complete (:func:`kept_when_stopped`, :func:`~pinstab.simulate`)."""
     records = loop.records
     n = records.count if samples is None else samples
     slot = records.slot(n - 1)
@@ -214,7 +228,6 @@ def trajectory_of(
         series = None if cut_off else StateSeries(system)
         streamed = StreamedTrajectory.complete(records.sink.path, info, math.nan, series)
         clock.stamp(streamed)
-        streamed.write_info()  # with the wall time and timings that include the series
         return streamed
     trajectory = Trajectory(  # views of the samples: no second copy of a long run
         records.t[:n],
