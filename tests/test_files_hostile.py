@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_stream import interrupt_at_check
 
 from conftest import interruptible
 from pinstab.cli import main
@@ -91,7 +92,10 @@ def test_the_target_is_the_run_file_from_its_first_row_and_an_error_before_leave
         writer.close()
     arrays, read_info, _, complete = read_stream(tmp_path / "now.h5")
     assert len(arrays["t"]) == 0 and not complete and read_info.scene == "fourbar"
-    with pytest.raises(PinstabError, match=r"holds no sample yet \(its rows are written every 4096 samples or 1 s: a run killed before its first"):
+    with pytest.raises(
+        PinstabError,
+        match=r"holds no sample yet \(its rows are written every 4096 samples or 1 s: a run killed before its first",
+    ):
         Trajectory.load(tmp_path / "now.h5")
 
 
@@ -132,8 +136,8 @@ def test_a_stream_cut_short_is_read_by_plot_record_and_load(tmp_path, capsys, si
     kept = simulate("fourbar", duration=(n - 1) / 1000)
     assert np.abs(loaded.q - kept.q).max() < 1e-12 and np.isnan(loaded.energy).all()
     assert loaded.info.t_end == t_end and loaded.info.steps == n - 1
-    if signum == signal.SIGKILL:  # the blocks flushed before the kill; the info is the run's start's
-        assert process.returncode == -signal.SIGKILL and n % BLOCK == 0
+    if signum == signal.SIGKILL:  # the rows flushed before the kill; the info is the run's start's
+        assert process.returncode == -signal.SIGKILL and n >= BLOCK
         assert loaded.info.cut_short == {"t": t_end, "step": n - 1, "cause": "killed"}
     else:  # the samples to the last checked state and the final info written
         assert process.returncode == 128 + signum and str(path) in stderr
@@ -155,13 +159,14 @@ def rows_written(path: Path) -> bool:
 
 
 def test_a_saved_copy_of_a_stream_cut_short_keeps_saying_so(tmp_path):
-    """``info.cut_short`` travels with the run: a loaded stream cut short saved as NPZ loads cut short."""
+    """``info.cut_short`` travels with the run: a loaded stream cut short saved as NPZ loads cut short, and says so."""
     path = killed_stream(tmp_path)
     with pytest.warns(CutShortWarning):
         trajectory = Trajectory.load(path)
     trajectory.save(tmp_path / "copy.npz")
-    assert Trajectory.load(tmp_path / "copy.npz").info.cut_short == {"t": 0.001 * BLOCK - 0.001, "step": BLOCK - 1,
-                                                                      "cause": "killed"}  # fmt: skip
+    with pytest.warns(CutShortWarning, match=r"copy.npz: the run was cut short at t = 4.095 s \(step 4095\): killed"):
+        copy = Trajectory.load(tmp_path / "copy.npz")
+    assert copy.info.cut_short == {"t": 0.001 * BLOCK - 0.001, "step": BLOCK - 1, "cause": "killed"}
 
 
 def killed_stream(folder: Path) -> Path:
@@ -178,6 +183,131 @@ def killed_stream(folder: Path) -> Path:
         writer.close()
     path.unlink()
     return copy
+
+
+def test_a_stream_killed_before_its_first_block_keeps_its_rows_but_the_last_seconds(tmp_path):
+    """Rows are flushed every FLUSH_PERIOD (1 s) of wall time as well as every block: the four-bar keeping a sample
+    every 1000 steps fills a block in about half a minute (140 samples a second measured), yet a reader sees its rows
+    grow second by second, and kill -9 leaves every row the reader saw (the samples of the same run kept in memory);
+    before, the file held no row until its first block."""
+    path = tmp_path / "run.h5"
+    argv = [sys.executable, "-m", "pinstab.cli", "run", "fourbar", "--duration", "100000", "--record-every", "1000",
+            "--quiet", "--stream", str(path)]  # fmt: skip
+    process = subprocess.Popen(argv, env=ENV, stderr=subprocess.PIPE, text=True)
+    seen: list[tuple[float, int]] = []  # (wall time [s], rows) each time the reader saw the rows grow
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and len(seen) < 3:
+            rows = row_count(path)
+            if rows and (not seen or rows > seen[-1][1]):
+                seen.append((time.monotonic(), rows))
+            time.sleep(0.05)
+        process.send_signal(signal.SIGKILL)
+        process.communicate(timeout=30)
+    finally:
+        process.kill()
+    assert len(seen) == 3 and seen[-1][1] < BLOCK, seen  # three flushes before the first block
+    assert np.diff([when for when, _ in seen]).max() < 2.0, seen  # a second apart (a reader polling, a busy machine)
+    with pytest.warns(CutShortWarning, match="killed"):
+        loaded = Trajectory.load(path)
+    assert seen[-1][1] <= len(loaded.t) < BLOCK
+    kept = simulate("fourbar", duration=9.0, record_every=1000)  # its first 10 samples, t = 0, 1, ..., 9 s
+    assert np.array_equal(loaded.t[:10], kept.t) and np.abs(loaded.q[:10] - kept.q).max() < 1e-12
+
+
+def row_count(path: Path) -> int:
+    """The rows of the stream ``path`` a reader sees now (0 before the file exists or while it cannot be read)."""
+    try:
+        return len(read_stream(path)[0]["t"])
+    except (PinstabError, FileNotFoundError):
+        return 0
+
+
+def test_a_run_interrupted_in_memory_is_cut_short(tmp_path, monkeypatch):
+    """Ctrl-C during a run kept in memory, at its third check of 100 steps: the Interrupted's trajectory says it was
+    cut short at its last checked state (step 200), and so does its saved file when loaded."""
+    from pinstab.integration import Records
+    from pinstab.simulate import Interrupted
+
+    interrupt_at_check(monkeypatch, Records, 3)
+    with pytest.raises(Interrupted) as stopped:
+        simulate("fourbar", duration=1.0)
+    trajectory = stopped.value.trajectory
+    assert trajectory.info.cut_short == {"t": pytest.approx(0.2, abs=1e-12), "step": 200, "cause": "interrupted"}
+    assert len(trajectory.t) == 201 and trajectory.info.t_end == trajectory.t[-1]
+    trajectory.save(tmp_path / "run.npz")
+    with pytest.warns(CutShortWarning, match=r"run.npz: the run was cut short at t = 0.2 s \(step 200\): interrupted"):
+        assert Trajectory.load(tmp_path / "run.npz").info.cut_short == trajectory.info.cut_short
+
+
+def test_a_run_stopped_by_sigterm_with_save_is_saved_cut_short(tmp_path, capsys):
+    """``pinstab run --save`` stopped by SIGTERM once stepping (its progress bar shown): exit 143, the partial run
+    saved, and loaded (and plotted) it says it was cut short at its last time (it loaded as a finished run)."""
+    path = tmp_path / "run.npz"
+    argv = [sys.executable, "-m", "pinstab.cli", "run", "fourbar", "--duration", "10000", "--record-every", "100",
+            "--save", str(path)]  # fmt: skip
+    process = subprocess.Popen(argv, env=ENV, stderr=subprocess.PIPE)
+    try:
+        shown = read_until(process, b"fourbar:", timeout=60)  # the bar appears after 2 s of stepping
+        process.send_signal(signal.SIGTERM)
+        _, rest = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    stderr = (shown + rest).decode()
+    assert process.returncode == 143 and f"the partial trajectory is saved to {path}" in stderr, stderr
+    with pytest.warns(CutShortWarning, match=r"run.npz: the run was cut short at t = [0-9.]+ s \(step [0-9]+\): inter"):
+        loaded = Trajectory.load(path)
+    t_end, n = float(loaded.t[-1]), len(loaded.t)
+    assert loaded.info.cut_short == {"t": t_end, "step": round(t_end * 1000), "cause": "interrupted"}
+    assert loaded.info.t_end == t_end and t_end > 1.0 and n == round(t_end * 10) + 1
+    assert f"stopped by SIGTERM at t = {t_end:.6g} s" in stderr
+    code, err = plot(path, capsys)
+    assert code == 0 and f"cut short at t = {t_end:.9g} s" in err and "Traceback" not in err
+
+
+def read_until(process: subprocess.Popen, marker: bytes, timeout: float) -> bytes:
+    """What the process wrote on stderr until ``marker`` appeared (or it ended, or ``timeout`` [s] passed)."""
+    import select
+
+    text, deadline = b"", time.monotonic() + timeout
+    descriptor = process.stderr.fileno()
+    while marker not in text and time.monotonic() < deadline:
+        if select.select([descriptor], [], [], 0.1)[0]:
+            chunk = os.read(descriptor, 4096)
+            if not chunk:
+                break
+            text += chunk
+    return text
+
+
+def test_an_older_info_stopped_is_shown_without_error(tmp_path, capsys):
+    """A file saved from a stream cut short before ``info.cut_short`` holds ``info.stopped = {"reason": "stream cut
+    off", "t": ...}`` (no error class): ``pinstab plot`` shows it (it ended in ``KeyError: 'error'``)."""
+    arrays = saved(tmp_path)
+    info = RunInfo.from_json(str(arrays["info"]), "good.npz")
+    info.stopped = {"reason": "stream cut off", "t": 0.02}
+    (tmp_path / "old.npz").write_bytes(npz_bytes({**arrays, "info": np.array(json.dumps(info.to_dict()))}))
+    capsys.readouterr()
+    code = main(["plot", str(tmp_path / "old.npz"), "-o", str(tmp_path / "chart.png")])
+    out, err = capsys.readouterr()
+    assert code == 0 and "stopped    stream cut off at t = 0.02 s\n" in out and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("stopped", "text"),
+    [
+        ({"reason": "stream cut off"}, "stream cut off"),
+        (
+            {"reason": "contact failure", "t": 0.5, "error": "PainleveError"},
+            "contact failure at t = 0.5 s (PainleveError)",
+        ),
+        ({}, "stopped"),
+    ],
+)
+def test_stopped_text_leaves_out_what_it_lacks(stopped, text):
+    from pinstab.cli import stopped_text
+
+    assert stopped_text(stopped) == text
 
 
 # --- damaged files --------------------------------------------------------------------------------------------

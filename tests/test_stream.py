@@ -147,8 +147,8 @@ def test_a_killed_run_leaves_its_samples(tmp_path, signum):
     if signum == signal.SIGTERM:  # the samples to the last checked state written, and the final info
         assert process.returncode == 143 and str(path) in stderr
         assert loaded.info.steps == n - 1
-    else:  # the whole blocks flushed before the kill
-        assert process.returncode == -signal.SIGKILL and n % BLOCK == 0
+    else:  # the rows flushed before the kill
+        assert process.returncode == -signal.SIGKILL
 
 
 def test_cli_plot_and_record_read_a_streamed_run(tmp_path, capsys):
@@ -180,3 +180,61 @@ def test_not_a_run_file(tmp_path):
     (tmp_path / "text.h5").write_text("hello")
     with pytest.raises(PinstabError, match="not a readable HDF5 run file"):
         Trajectory.load(tmp_path / "text.h5")
+
+
+def info_writes(monkeypatch) -> list[dict]:
+    """The run info each write of a stream's final info writes (``pinstab.stream.rewrite_info``, counted)."""
+    import pinstab.trajectory
+
+    writes: list[dict] = []
+    write = pinstab.trajectory.rewrite_info
+
+    def counted(path, info, wall_time, complete):
+        writes.append({"info": info.to_dict(), "wall_time": wall_time, "complete": complete})
+        write(path, info, wall_time, complete)
+
+    monkeypatch.setattr(pinstab.trajectory, "rewrite_info", counted)
+    return writes
+
+
+def interrupt_at_check(monkeypatch, records: type, check: int) -> None:
+    """Ctrl-C (a KeyboardInterrupt) at the loop's ``check``-th check of its samples (``records.checked``)."""
+    calls = []
+    checked = records.checked
+
+    def interrupted(self, k):
+        calls.append(k)
+        if len(calls) == check:
+            raise KeyboardInterrupt
+        checked(self, k)
+
+    monkeypatch.setattr(records, "checked", interrupted)
+
+
+def test_a_streamed_runs_info_is_written_once(tmp_path, monkeypatch):
+    """The final info of a stream is written once, whatever ends the run: once at its end (complete, with the
+    wall time the run reports), once when it is interrupted (with ``cut_short``), once when it diverges."""
+    from pinstab.errors import DivergenceError
+    from pinstab.integration import StreamedRecords
+    from pinstab.simulate import Interrupted
+
+    writes = info_writes(monkeypatch)
+    run = simulate("fourbar", duration=0.5, stream=tmp_path / "run.h5")
+    assert len(writes) == 1 and writes[0]["complete"] and writes[0]["wall_time"] == run.wall_time
+    assert writes[0]["info"]["steps"] == 500 and writes[0]["info"]["timings"] == run.info.timings
+
+    writes.clear()
+    with pytest.raises(DivergenceError):
+        simulate("fourbar", method="none", drift_limit=1e-12, duration=1, stream=tmp_path / "diverged.h5")
+    assert len(writes) == 1 and writes[0]["complete"]
+
+    writes.clear()
+    interrupt_at_check(monkeypatch, StreamedRecords, 3)  # after 2 checks of 100 steps each
+    with pytest.raises(Interrupted) as stopped:
+        simulate("fourbar", duration=1.0, stream=tmp_path / "cut.h5")
+    assert len(writes) == 1 and not writes[0]["complete"]
+    cut_short = {"t": pytest.approx(0.2, abs=1e-12), "step": 200, "cause": "interrupted"}
+    assert writes[0]["info"]["cut_short"] == cut_short == stopped.value.trajectory.info.cut_short
+    with pytest.warns(CutShortWarning, match=r"cut.h5: the run was cut short at t = 0.2 s \(step 200\): interrupted"):
+        loaded = Trajectory.load(tmp_path / "cut.h5")
+    assert loaded.info.cut_short == cut_short and len(loaded.t) == 201
