@@ -55,6 +55,11 @@ def test_stop_on_separation_ends_at_the_first_rebound_and_keeps_every_output(cap
     code, plotted, err = run_json(capsys, "plot", str(saved), "-o", str(tmp_path / "again.png"), "--json")
     assert code == 0, err
     assert plotted["contact_events"] == result["contact_events"] and plotted["t_end"] == run.t[-1]
+    # recording the saved run reads it: exit 0, not the --stop-on of a run made now (it was exit 4)
+    argv = ("record", "bouncing-ball", "--from", str(saved), "-o", str(tmp_path / "ball.html"), "--json")
+    code, recorded, err = run_json(capsys, *argv)
+    assert code == 0 and "--stop-on" not in err, err
+    assert recorded["stopped"] == result["stopped"] and recorded["t_end"] == run.t[-1]
 
 
 def test_stop_on_writes_the_recording_up_to_the_event(capsys, tmp_path):

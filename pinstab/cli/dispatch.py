@@ -128,7 +128,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     command = COMMANDS[args.command]
     emit(result, args.json, command.text)
     stopped = result.get("stopped")
-    if stopped is not None and args.command in SIMULATING:
+    if stopped is not None and args.command in SIMULATING and not getattr(args, "run_file", None):  # --from: read
         print(f"pinstab {args.command}: stopped (--stop-on): {stopped_text(stopped)}", file=sys.stderr)
         return EXIT_STOPPED
     failed = None if command.failures is None else command.failures(result)
