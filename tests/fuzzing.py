@@ -9,13 +9,16 @@ never another exception or a traceback, never a hang, never a file lost, never a
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import datetime
 import faulthandler
 import io
 import json
 import math
+import os
 import signal
-from collections.abc import Iterator
+import tempfile
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -89,17 +92,49 @@ class Outcome:
 
 def cli(argv: list[str]) -> Outcome:
     """``pinstab ARGV`` in process: its exit code, never an exception or a traceback; a failure (exit 2-5) says
-    why after ``error:``, and ``--json`` puts one JSON object (or nothing) on stdout."""
+    why after ``error:``; with ``--json``, stdout holds one JSON object (or nothing) and nothing reaches the
+    process's standard output below Python (a C or Fortran library's complaint, e.g. LAPACK's)."""
     out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with native_stdout() as native, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = main(argv)
     outcome = Outcome(code, out.getvalue(), err.getvalue())
     assert "Traceback" not in outcome.err, outcome.err
     if code in FAILURE_CODES:
         assert outcome.message, f"exit {code} without a message: {outcome.err!r}"
-    if "--json" in argv and outcome.out.strip():
-        json.loads(outcome.out)  # nothing but the JSON object on stdout
+    if "--json" in argv:
+        assert not native.read(), f"written to stdout below Python: {native.read()!r}"
+        if outcome.out.strip():
+            json.loads(outcome.out)  # nothing but the JSON object on stdout
     return outcome
+
+
+class Captured:
+    """What was written to file descriptor 1 while it was captured."""
+
+    def __init__(self) -> None:
+        self.data = b""
+
+    def read(self) -> bytes:
+        return self.data
+
+
+@contextlib.contextmanager
+def native_stdout() -> Iterator[Captured]:
+    """File descriptor 1 redirected to a temporary file (C's buffers flushed on both ends)."""
+    libc = ctypes.CDLL(None)
+    captured = Captured()
+    with tempfile.TemporaryFile() as raw:
+        libc.fflush(None)
+        saved = os.dup(1)
+        os.dup2(raw.fileno(), 1)
+        try:
+            yield captured
+        finally:
+            libc.fflush(None)
+            os.dup2(saved, 1)
+            os.close(saved)
+            raw.seek(0)
+            captured.data = raw.read()
 
 
 def check_file(path: Path) -> Outcome:
@@ -155,14 +190,16 @@ def prepare_output(path: Path, state: str) -> Path | None:
     return precious
 
 
-def assert_not_lost(path: Path, precious: Path | None, state: str) -> None:
-    """A link's target keeps its content whatever the command did (the link replaced or left); a file is either
-    left as it was or replaced by a complete output (never a half-written one: the caller loads it)."""
-    if precious is None:
-        return
-    if state == "link":
+def assert_not_lost(path: Path, precious: Path | None, state: str, load: Callable[[Path], Any]) -> None:
+    """Whatever the command did, nothing is lost or half-written: a link's target keeps its content (the link left
+    as it was or replaced by a file); the output path holds its old content or a complete output (``load`` reads
+    it)."""
+    if precious is not None and state == "link":
         assert precious.read_text() == PRECIOUS, f"the target of the link {path} was overwritten"
-        assert path.is_symlink() or not path.exists() or path.resolve() != precious.resolve()
+    if path.is_symlink() or not path.exists():
+        return
+    if path.read_bytes() != PRECIOUS.encode():
+        load(path)
 
 
 # -- what a contact scene guarantees ---------------------------------------------------------------------
@@ -171,20 +208,27 @@ def plane_contacts(scene: Scene) -> list[PointContact]:
     return [constraint for constraint in scene.constraints if isinstance(constraint, PointContact)]
 
 
-def contact_gaps(scene: Scene, q: np.ndarray) -> np.ndarray:
-    """Signed distances (samples, contacts) [m] of each plane contact's point (less its sphere's radius) from its
-    plane at the configurations ``q`` (samples, nq), by Pinocchio's frame placements: negative inside the plane."""
+def contact_geometry(scene: Scene, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each plane contact's signed distance from its plane (samples, contacts) [m], negative inside, and its point
+    (samples, contacts, 3) [m, world], at the configurations ``q`` (samples, nq), by Pinocchio's frame placements:
+    the point of a contact with a radius is its sphere's lowest, the centre less the radius along the normal."""
     data = scene.model.createData()
     contacts = plane_contacts(scene)
-    gaps = np.zeros((len(q), len(contacts)))
+    gaps, points = np.zeros((len(q), len(contacts))), np.zeros((len(q), len(contacts), 3))
     for k, configuration in enumerate(q):
         pin.framesForwardKinematics(scene.model, data, configuration)
         for i, contact in enumerate(contacts):
             point = data.oMf[contact.frame_a].translation
-            if contact.plane_frame is not None:
-                point = data.oMf[contact.plane_frame].actInv(point)
-            gaps[k, i] = contact.selection[0] @ (point - contact.plane_point) - contact.radius
-    return gaps
+            plane = pin.SE3.Identity() if contact.plane_frame is None else data.oMf[contact.plane_frame]
+            normal = contact.selection[0]
+            gaps[k, i] = normal @ (plane.actInv(point) - contact.plane_point) - contact.radius
+            points[k, i] = point - contact.radius * (plane.rotation @ normal)
+    return gaps, points
+
+
+def contact_gaps(scene: Scene, q: np.ndarray) -> np.ndarray:
+    """The signed distances of :func:`contact_geometry` (samples, contacts) [m]."""
+    return contact_geometry(scene, q)[0]
 
 
 def mechanical_energy(scene: Scene, q: np.ndarray, v: np.ndarray) -> np.ndarray:
