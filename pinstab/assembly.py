@@ -150,7 +150,9 @@ def assemble(
         )
     inverse_mass = _inverse_mass(model, q)
     try:
-        v = project_velocities(model, q, v, t, inverse_mass, model.scratch_kinematics)
+        # the iteration closes unilateral rows too (held contacts touch at the start): one it left a rounding
+        # open still holds, else a start velocity into it would be kept and sink the body
+        v = project_velocities(model, q, v, t, inverse_mass, model.scratch_kinematics, accepted)
     except ProjectionError:
         v = np.full(model.nv, np.nan)  # the rows or the velocity overflow: refused below
     rates = model.constraint_values(q, v, t, model.scratch_kinematics).velocity_residual

@@ -123,9 +123,11 @@ def project_velocities(
     t: float,
     inverse_mass: np.ndarray,
     kin: Kinematics | None = None,
+    touching: float = 0.0,
 ) -> np.ndarray:
     """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric
-    (open or separating unilateral rows left out); ``kin``: as in :meth:`ConstrainedModel.constraint_values`."""
+    (open or separating unilateral rows left out; open: a gap above ``touching`` [m or rad]); ``kin``: as in
+    :meth:`ConstrainedModel.constraint_values`."""
     values = model.constraint_values(q, v, t, kin)
-    rows = model.constraints.enforced_velocities(values)
+    rows = model.constraints.enforced_velocities(values, touching)
     return v + weighted_correction(inverse_mass, values.jacobian[rows], values.velocity_residual[rows])

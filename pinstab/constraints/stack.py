@@ -186,13 +186,14 @@ class ConstraintSet:
             return self.holonomic_mask
         return self.holonomic_mask & ~(self.layout.unilateral & (phi > 0.0))
 
-    def enforced_velocities(self, values: ConstraintValues) -> np.ndarray:
+    def enforced_velocities(self, values: ConstraintValues, touching: float = 0.0) -> np.ndarray:
         """The rows whose velocity residual a projection drives to zero: every row, but not a
-        unilateral row that is open (phi > 0) or separating (g >= 0)."""
+        unilateral row that is open (phi > ``touching`` [m or rad], the gap a position solve leaves as rounding)
+        or separating (g >= 0)."""
         if not self._has_unilateral:
             return self._every_row
         unilateral = self.layout.unilateral
-        return ~(unilateral & ((values.phi > 0.0) | (values.velocity_residual >= 0.0)))
+        return ~(unilateral & ((values.phi > touching) | (values.velocity_residual >= 0.0)))
 
     def violation(self, values: ConstraintValues) -> Violation:
         """The violation at ``values``: max ``|phi|``, ``|g|`` over the rows, where a unilateral row counts
