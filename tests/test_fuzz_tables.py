@@ -40,7 +40,6 @@ from fuzzing import (
     contact_geometry,
     examples,
     mechanical_energy,
-    plane_contacts,
     prepare_output,
     time_limit,
     toml_document,
@@ -300,8 +299,6 @@ def excused(scene: Scene, contacts: str, trajectory: Trajectory) -> set[str]:
     """The checks of a run that a failure found here and left to another change makes fail ('gap', 'energy'),
     each with its own xfail test below, which passes once the failure is fixed."""
     skipped = set()
-    if contacts == "held" and any(contact.radius for contact in plane_contacts(scene)):
-        skipped.add("gap")  # test_held_contacts_keep_a_ball_out_of_its_plane
     if contacts == "stepping" and spin_error(scene, trajectory) > 1e-4:
         skipped.add("energy")  # test_time_stepping_keeps_a_spinning_ball_energy
     return skipped
@@ -371,10 +368,10 @@ HELD_SINK = {  # a cylinder on three frictionless rim points, one 1 mm higher, t
 }
 
 
-@pytest.mark.xfail(strict=True, reason="held contacts ignore 'radius' (H1: contacts)")
 def test_held_contacts_keep_a_ball_out_of_its_plane(files: RunFiles) -> None:
-    """``pinstab run bouncing-ball --contacts held --save r.npz``: held rows hold the ball's centre on the plane,
-    half the ball below it (gap -0.05 m, its radius), exit 0."""
+    """``pinstab run bouncing-ball --contacts held --save r.npz``: held rows held the ball's centre on the plane,
+    half the ball below it (gap -0.05 m, its radius), exit 0; they hold its touching point (centre minus radius
+    along the normal), as event-driven and time-stepping contacts do."""
     case = ContactCase("bouncing-ball")
     outcome, source = run_contact_case(case, "held", "absent", files)
     assert_physics(case, "held", outcome, source, files, excuse=False)

@@ -6,7 +6,9 @@ multiplier (the normal force [N]) can only push. With ``mu`` it is a sticking co
 friction: three ``cone`` rows in the contact frame (normal, then two tangents) that hold the point at
 its anchor, the force kept inside ``|f_t| <= mu f_n``. The anchor is the point's projection on the
 plane at the scene's declared initial configuration. Contacts that open, close or slide over a run are
-not modelled here.
+not modelled here. With ``radius`` r the point is a sphere's centre and its touching point, ``p_a - r n``, is
+the contact point (one rule for every treatment: held rows hold the centre at r above the anchor, event-driven
+and time-stepping contacts take the touching point's gap and velocity, pinstab/solvers/contact_modes.py).
 """
 
 from __future__ import annotations
@@ -58,8 +60,9 @@ class PointContact(FrameClosure):
         normal: the plane's normal (world axes; into body a, i.e. the direction it is pushed).
         friction: the Coulomb cone, or None for a frictionless contact.
         restitution: Newton's coefficient e [-] of its impacts (event-driven contacts).
-        radius: for event-driven contacts, a sphere of this radius [m] centred at the point touches the
-            plane (its gap is the centre's height minus the radius); 0: the point itself (a vertex).
+        radius: a sphere of this radius [m] centred at the point touches the plane (its gap is the centre's
+            height minus the radius; held rows hold the centre at ``anchor + radius * normal``); 0: the point
+            itself (a vertex).
         plane_frame: for event-driven contacts, the operational frame of body b carrying the plane (None: the
             plane is fixed in the world); ``anchor`` and ``normal`` are then in its axes.
 
@@ -77,8 +80,9 @@ class PointContact(FrameClosure):
         radius: float = 0.0,
         plane_frame: int | None = None,
     ) -> None:
-        super().__init__(name, "point", frame_a, None, pin.SE3(np.eye(3), np.asarray(anchor, dtype=float)))
         basis = contact_basis(normal)
+        anchor = np.asarray(anchor, dtype=float)
+        super().__init__(name, "point", frame_a, None, pin.SE3(np.eye(3), anchor + radius * basis[0]))
         self.kind = "contact"
         self.friction = friction
         self.row_kind = RowKind.UNILATERAL if friction is None else RowKind.CONE
@@ -88,7 +92,7 @@ class PointContact(FrameClosure):
         self.restitution = restitution
         self.radius = radius
         self.plane_frame = plane_frame
-        self.plane_point = self.world_placement_b.translation.copy()
+        self.plane_point = anchor.copy()  # [m] on the plane (the held centre's foot)
 
     def slip(self, kin: Kinematics) -> float | None:
         """A sticking contact's distance from its anchor [m]; None when frictionless (it may slide)."""

@@ -110,7 +110,7 @@ def held_system(
     """The system and the integrator of the held path (:func:`simulate_held`), refused before any step: a contact on
     a plane carried by a body, a method and a solver that do not go together or a solver that does not take the
     scene's rows (:func:`~pinstab.system.build_system`), a method whose automatic gains are placed for one step under
-    error ``control`` (steps of varying length). A sweep checks its points with it.
+    error ``control`` (steps of varying length), a sphere contact (``radius``) with friction (it rolls). A sweep checks its points with it.
 
     Raises:
         PinstabError (SolverError for the solver's refusals).
@@ -120,6 +120,15 @@ def held_system(
         raise PinstabError(
             f"scene {scene.name}: contact {carried[0]} touches a plane carried by a body (frame_b), which only "
             "event-driven contacts model; run it with contacts='event'"
+        )
+    rolling = [c for c in scene.constraints if getattr(c, "radius", 0.0) and getattr(c, "friction", None)]
+    if rolling:
+        contact = rolling[0]
+        raise PinstabError(
+            f"scene {scene.name}: contact {contact.name} is a sphere (radius {contact.radius:g} m) with friction "
+            f"(mu {contact.friction.mu:g}): sticking, it rolls, its touching point moving over the plane, which held "
+            "rows (a point held at a fixed anchor) do not model; run it with contacts='event' or 'stepping' "
+            "(--contacts event|stepping), or drop its mu"
         )
     system = build_system(scene, method, solver, solver_options, **method_options)
     stepper = INTEGRATORS.build(integrator, system)
