@@ -372,15 +372,6 @@ def mutated_bundled(draw: st.DrawFn) -> Document:
 
 
 # -- the property ---------------------------------------------------------------------------------------
-# Pinocchio's own messages, which name no item of the file, on inputs the readers do not check first: each has its
-# test below (an xfail until the reader names the item), and the property lets them pass unnamed meanwhile
-UNNAMED = {
-    "Cannot get inertia from geom and no inertia was found": "test_mjcf_body_without_inertia_is_named",
-    "no body found in parsed tree": "test_mjcf_empty_worldbody_is_named",
-    "No such node (body)": "test_mjcf_empty_worldbody_is_named",
-}
-
-
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("fuzz-readers")
@@ -418,7 +409,7 @@ def check_document(document: Document, folder: Path) -> None:
     assert (checked.code == 2) == (ran.code == 2), f"check: {checked}\nrun: {ran}"
     if document.defects:
         assert checked.code == 2, f"a document with defects {document.defects} was taken: {checked}"
-    if checked.code == 2 and not any(known in checked.message for known in UNNAMED):
+    if checked.code == 2:
         items = [*document.defects, tuple(document.names), ("degree of freedom", "root_joint")]
         assert names_one(checked, items), f"names none of {items}: {checked.message}"
 
@@ -441,7 +432,7 @@ def test_mutated_bundled_documents_run_or_are_refused(document: Document, folder
     check_document(document, folder)
 
 
-# -- failures found here, left to the readers' change (H2): each passes once the reader names the item -------------
+# -- failures found here (Pinocchio's MJCF parser failing or naming no item), refused by name by the reader ------
 def refusal(fmt: str, content: str, folder: Path, free_flyer: bool | None = None) -> Outcome:
     """``pinstab check`` of a scene whose robot is the document ``content``."""
     name = "robot.xml" if fmt == "mjcf" else "robot.sdf"
@@ -458,7 +449,6 @@ SIMPLE_MJCF = (
 )
 
 
-@pytest.mark.xfail(strict=True, reason="H2: Pinocchio's 'Cannot get inertia from geom' names no body")
 def test_mjcf_body_without_inertia_is_named(folder: Path) -> None:
     """robots/mjcf/fourbar.xml without the rocker's <inertial> (inertiafromgeom false): the refusal names the body."""
     content = re.sub(r'(<body name="rocker".*?)<inertial[^>]*/>', r"\1", FOURBAR_XML, flags=re.S)
@@ -466,26 +456,22 @@ def test_mjcf_body_without_inertia_is_named(folder: Path) -> None:
     assert outcome.code == 2 and "rocker" in outcome.message, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="H2: Pinocchio's 'no body found in parsed tree' names nothing")
 def test_mjcf_empty_worldbody_is_named(folder: Path) -> None:
     outcome = refusal("mjcf", "<mujoco><worldbody/></mujoco>", folder)
     assert outcome.code == 2 and "worldbody" in outcome.message, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="H2: childclass 'main' ends in Pinocchio's unordered_map::at")
 def test_mjcf_main_class(folder: Path) -> None:
     """``childclass="main"``, MuJoCo's name of the top <default>: read like any class."""
     outcome = refusal("mjcf", SIMPLE_MJCF.format(extra='childclass="main"', joint="", second=""), folder)
     assert outcome.code == 0, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="H2: type='' ends in Pinocchio's 'Unknown joint type', naming no joint")
 def test_mjcf_empty_joint_type_is_refused(folder: Path) -> None:
     outcome = refusal("mjcf", SIMPLE_MJCF.format(extra="", joint='type=""', second=""), folder)
     assert outcome.code == 2 and "j1" in outcome.message, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="H2: Pinocchio's 'Joint Composite trying to be created with a freeFlyer'")
 def test_mjcf_free_joint_beside_another_is_named(folder: Path) -> None:
     second = '<joint name="j2" type="free"/>'
     outcome = refusal("mjcf", SIMPLE_MJCF.format(extra="", joint="", second=second), folder)

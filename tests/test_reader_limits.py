@@ -223,7 +223,7 @@ CASES = [
         "mjcf",
         mjcf_body(INERTIAL).replace('type="slide"', 'type="slide" class="nowhere"'),
         "SceneError",
-        "joint 'j': class='nowhere' is not a default class; classes: none",
+        "joint 'j': class='nowhere' is not a default class; classes: main",
     ),
     # the same mass refused by every reader, in the same words
     robot_case(

@@ -43,6 +43,7 @@ from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
 NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out
+FIRST_SECTIONS = ("compiler", "default")  # read by MuJoCo before the bodies wherever they stand
 UNIT_AXIS_TOLERANCE = 1e-9
 SCALAR_JOINTS = {"hinge": 1, "slide": 1, "ball": 4, "free": 7}  # MJCF joint type -> configuration size
 
@@ -66,7 +67,7 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
             else:
                 model = pin.buildModelFromMJCF(str(parsed))
     except (ValueError, RuntimeError, IndexError) as exc:  # IndexError: its std::out_of_range
-        raise SceneError(f"robot.mjcf: Pinocchio cannot read {path}: {exc}") from None
+        raise SceneError(f"robot.mjcf: Pinocchio's MJCF parser cannot read {path}: {_parser_message(exc)}") from None
     _check_bodies(document, model)
     check_compiled(document, model)
     _check_axis_angles(document)
@@ -83,6 +84,12 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     return RobotSource(
         model, "mjcf", path, package_dirs=[str(path.parent)], tables=equalities.tables, notes=notes, geometry=geometry
     )
+
+
+def _parser_message(exc: Exception) -> str:
+    """Pinocchio's own message in ``exc``, without the source file, function and line it prefixes."""
+    text = str(exc)
+    return text.split("message:", 1)[-1].strip() or text
 
 
 def _check_bodies(document: MjcfDocument, model: pin.Model) -> None:
@@ -184,19 +191,32 @@ def _q_index(model: pin.Model, name: str, first: str, offset: int) -> int | None
 
 @contextmanager
 def parser_file(document: MjcfDocument) -> Iterator[Path]:
-    """The file Pinocchio's MJCF parser is given: the model's own, or, when it includes others (which the parser
-    ignores), a temporary copy with the includes inlined and the mesh and texture folders made absolute (as MuJoCo
-    reads them: relative to the model's folder), removed on leaving."""
-    if not document.origins:
+    """The file Pinocchio's MJCF parser is given: the model's own, or a temporary copy (removed on leaving), with
+    the mesh and texture folders made absolute (as MuJoCo reads them: relative to the model's folder), when the
+    parser would read the model's own otherwise than MuJoCo:
+
+    - it includes others (which the parser ignores): the includes inlined;
+    - a ``<compiler>`` or ``<default>`` comes after the bodies (the parser reads the bodies with only what came
+      before them: angles in degrees where the compiler says radians): those put first;
+    - an element names the class ``main`` (MuJoCo's name of the top ``<default>``, which the parser calls
+      otherwise, failing to find it): the top ``<default>`` named ``main``.
+    """
+    children = list(document.root)
+    ordered = sorted(children, key=lambda child: child.tag not in FIRST_SECTIONS)  # stable: the rest in order
+    main = any("main" in (element.get("class"), element.get("childclass")) for element in document.root.iter())
+    if not document.origins and not main and ordered == children:
         yield document.path
         return
-    root = ET.Element(document.root.tag, document.root.attrib)  # the same elements, the compilers rewritten
+    top = document.root.find("default")
+    root = ET.Element(document.root.tag, document.root.attrib)  # the same elements, compilers and top default rewritten
     if document.root.find("compiler") is None:
         root.append(ET.Element("compiler", _absolute_folders({}, document.path.parent)))
-    for child in document.root:
+    for child in ordered:
         if child.tag == "compiler":
             compiler = ET.SubElement(root, "compiler", _absolute_folders(child.attrib, document.path.parent))
             compiler.extend(child)
+        elif child is top:
+            ET.SubElement(root, "default", {**child.attrib, "class": "main"}).extend(child)
         else:
             root.append(child)
     with tempfile.TemporaryDirectory(prefix="pinstab-mjcf-") as temporary:

@@ -40,7 +40,8 @@ def joint_kind(document: MjcfDocument, joint: ET.Element, where: str) -> str:
     Raises:
         SceneError: an unknown type, naming the joint and the types.
     """
-    kind = "free" if joint.tag == "freejoint" else document.attribute(joint, "type") or "hinge"
+    given = "free" if joint.tag == "freejoint" else document.attribute(joint, "type")
+    kind = "hinge" if given is None else given  # type="" is no type: MuJoCo refuses it, as pinstab does
     if kind not in JOINT_DOFS:
         raise SceneError(f"{where}: unknown type {kind!r}; MJCF joint types: {', '.join(JOINT_DOFS)}")
     return kind
@@ -55,7 +56,12 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
     """
     where = f"robot.mjcf {document.path}"
     worldbody = document.root.find("worldbody")
-    bodies = [] if worldbody is None else list(worldbody.iter("body"))
+    if worldbody is None or worldbody.find("body") is None:
+        raise SceneError(
+            f"{where}: <worldbody> holds no <body> (Pinocchio's MJCF parser builds the robot from the first <body> "
+            "of <worldbody> and its subtree): put the robot's bodies in a <body> of <worldbody>"
+        )
+    bodies = list(worldbody.iter("body"))
     joints = [] if worldbody is None else [j for j in worldbody.iter() if j.tag in ("joint", "freejoint")]
     check_count(len(bodies), "bodies", where)
     check_count(len(joints), "joints", where)
@@ -72,14 +78,35 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
             if element.get(key) is not None and element.tag != "default" and element.get(key) not in document.classes:
                 raise SceneError(
                     f"{_name(document, element)}: {key}={element.get(key)!r} is not a default class; classes: "
-                    f"{', '.join(document.classes) or 'none'}"
+                    f"{', '.join(document.classes)}"
                 )
     for body in bodies:
+        _check_joints(document, body)
         inertial = body.find("inertial")
         if inertial is not None:
             _check_inertial(document, inertial, _name(document, body))
+        elif document.inertiafromgeom == "false":
+            raise SceneError(
+                f'{_name(document, body)}: no <inertial>, and <compiler inertiafromgeom="false"> does not compute '
+                "its inertia from its geoms: give the body an <inertial> (mass, diaginertia or fullinertia), or set "
+                'inertiafromgeom to "auto" or "true"'
+            )
     for geom in [] if worldbody is None else worldbody.iter("geom"):
         _check_geom(document, geom, _name(document, geom))
+
+
+def _check_joints(document: MjcfDocument, body: ET.Element) -> None:
+    """A free joint is the only joint of its body, as MuJoCo requires (Pinocchio's MJCF parser makes one
+    composite joint of a body's joints and holds no free joint in it)."""
+    joints = [joint for joint in body if joint.tag in ("joint", "freejoint")]
+    for joint in joints:
+        where = _name(document, joint)
+        if len(joints) > 1 and joint_kind(document, joint, where) == "free":
+            raise SceneError(
+                f"{where}: a free joint must be the only joint of its body {body.get('name')!r} (it has "
+                f"{len(joints)}), as MuJoCo requires: remove the other joints, or replace this one by a hinge, slide "
+                "or ball joint"
+            )
 
 
 def check_compiled(document: MjcfDocument, model: pin.Model) -> None:

@@ -31,11 +31,14 @@ class MjcfDocument:
     """An MJCF model read as XML.
 
     Attributes:
-        root: the ``<mujoco>`` element, ``<include>`` elements replaced by the included files' children.
+        root: the ``<mujoco>`` element, ``<include>`` elements replaced by the included files' children, an empty
+            top ``<default>`` (MuJoCo's class ``main``) added when it has none.
         path: the file read.
         degrees: angles in the file are in degrees (``<compiler angle>``, MuJoCo's default).
         autolimits: a joint with a ``range`` and no ``limited`` is limited (``<compiler autolimits>``).
         eulerseq: the axes of ``euler`` angles (``<compiler eulerseq>``).
+        inertiafromgeom: ``true``, ``false`` or ``auto``: whether a body's inertia is computed from its geoms
+            (``<compiler inertiafromgeom>``; ``auto``: when it has no ``<inertial>``).
         origins: the elements read from an included file (the top ones of each), with that file.
     """
 
@@ -44,19 +47,32 @@ class MjcfDocument:
     degrees: bool = True
     autolimits: bool = True
     eulerseq: str = "xyz"
+    inertiafromgeom: str = "auto"
     origins: dict[ET.Element, Path] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        top = self.root.find("default")
+        if top is None:  # MuJoCo's class main exists in every model: an empty one
+            top = ET.Element("default")
+            self.root.insert(0, top)
+        if top.get("class", "main") != "main":
+            raise SceneError(
+                f"robot.mjcf {self.path}: the top <default> is class 'main' in MuJoCo, not {top.get('class')!r}"
+            )
         self.parents = {child: parent for parent in self.root.iter() for child in parent}
         self.classes: dict[str, ET.Element] = {}
-        top = self.root.find("default")
-        if top is not None:
-            self._collect(top, "main")
+        self._collect(top, "main")
         compiler = self.root.find("compiler")
         if compiler is not None:
             self.degrees = compiler.get("angle", "degree") != "radian"
             self.autolimits = compiler.get("autolimits", "true") == "true"
             self.eulerseq = compiler.get("eulerseq", "xyz")
+            self.inertiafromgeom = compiler.get("inertiafromgeom", "auto")
+        if self.inertiafromgeom not in ("true", "false", "auto"):
+            raise SceneError(
+                f"robot.mjcf {self.path}: <compiler inertiafromgeom={self.inertiafromgeom!r}> is not one of true, "
+                "false, auto"
+            )
         if len(self.eulerseq) != 3 or any(axis not in "xyzXYZ" for axis in self.eulerseq):
             raise SceneError(f"robot.mjcf: <compiler eulerseq={self.eulerseq!r}> is not 3 of x, y, z, X, Y, Z")
 
