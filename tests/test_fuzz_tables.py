@@ -36,7 +36,6 @@ from fuzzing import (
     assert_not_lost,
     check_file,
     cli,
-    contact_gaps,
     contact_geometry,
     examples,
     mechanical_energy,
@@ -49,7 +48,7 @@ from hypothesis import event, given, note
 from hypothesis import strategies as st
 
 from conftest import ROBOTS
-from pinstab.scene import Scene, load_scene
+from pinstab.scene import load_scene
 from pinstab.trajectory import Trajectory
 
 CONTACT_TREATMENTS = ("event", "stepping", "held")
@@ -283,32 +282,8 @@ def assert_named(outcome: Outcome, items: list[tuple[str, ...]]) -> None:
     )
 
 
-def spin_error(scene: Scene, trajectory: Trajectory) -> float:
-    """Sum over the steps of (|omega| dt)^2 of the free bodies [-]: time-stepping's explicit update of a body-frame
-    velocity under a turn omega dt scales it by sqrt(1 + (omega dt)^2), which this much relative energy is."""
-    model, dt = scene.model, np.diff(trajectory.t)
-    error = 0.0
-    for joint in model.joints[1:]:
-        if joint.nv == 6:
-            omega = np.linalg.norm(trajectory.v[:-1, joint.idx_v + 3 : joint.idx_v + 6], axis=1)
-            error += float(np.sum((omega * dt) ** 2))
-    return error
-
-
-def excused(scene: Scene, contacts: str, trajectory: Trajectory) -> set[str]:
-    """The checks of a run that a failure found here and left to another change makes fail ('gap', 'energy'),
-    each with its own xfail test below, which passes once the failure is fixed."""
-    skipped = set()
-    if contacts == "stepping" and spin_error(scene, trajectory) > 1e-4:
-        skipped.add("energy")  # test_time_stepping_keeps_a_spinning_ball_energy
-    return skipped
-
-
-def assert_physics(
-    case: ContactCase, contacts: str, outcome: Outcome, source: str, files: RunFiles, excuse: bool = True
-) -> None:
-    """The saved run: finite, no point through its plane, no energy created, no Painleve error at rest (without the
-    checks :func:`excused` unless ``excuse`` is false)."""
+def assert_physics(case: ContactCase, contacts: str, outcome: Outcome, source: str, files: RunFiles) -> None:
+    """The saved run: finite, no point through its plane, no energy created, no Painleve error at rest."""
     if case.resting_stick and (contacts != "held" or case.parameters.get("theta", 0.5) < math.pi / 4 - 1e-6):
         assert outcome.code != 5, f"a cube at rest with mu >= tan(theta) has a consistent mode: {outcome.message}"
     if outcome.code not in (0, 4, 5):
@@ -316,16 +291,15 @@ def assert_physics(
     trajectory = Trajectory.load(files.saved)
     assert np.isfinite(trajectory.q).all() and np.isfinite(trajectory.v).all()
     scene = load_scene(source, **case.parameters)
-    skipped = excused(scene, contacts, trajectory) if excuse else set()
     gaps, points = contact_geometry(scene, trajectory.q)
-    if gaps.size and "gap" not in skipped:
+    if gaps.size:
         k, i = np.unravel_index(np.argmin(gaps), gaps.shape)
         travel = float(np.max(np.linalg.norm(np.diff(points, axis=0), axis=2), initial=0.0))
         tolerance = GAP_TOLERANCE + (travel if contacts == "stepping" else 0.0)
         assert gaps[k, i] >= -tolerance, (
             f"contact {i} is {-gaps[k, i]:.3g} m inside its plane at t = {trajectory.t[k]:.6g} s ({contacts})"
         )
-    if case.conserves_energy and "energy" not in skipped:
+    if case.conserves_energy:
         energy = mechanical_energy(scene, trajectory.q, trajectory.v)
         rise = float(np.max(energy - energy[0]))
         assert rise <= ENERGY_TOLERANCE[contacts] * (1.0 + abs(energy[0])), (
@@ -374,7 +348,7 @@ def test_held_contacts_keep_a_ball_out_of_its_plane(files: RunFiles) -> None:
     along the normal), as event-driven and time-stepping contacts do."""
     case = ContactCase("bouncing-ball")
     outcome, source = run_contact_case(case, "held", "absent", files)
-    assert_physics(case, "held", outcome, source, files, excuse=False)
+    assert_physics(case, "held", outcome, source, files)
 
 
 def test_held_contacts_keep_a_tilted_start_out_of_its_plane(files: RunFiles) -> None:
@@ -383,10 +357,9 @@ def test_held_contacts_keep_a_tilted_start_out_of_its_plane(files: RunFiles) -> 
     back with 43 J more (294.7 J to 337.6 J). Rows the assembly closed count as touching: no sinking, energy kept."""
     case = ContactCase(HELD_SINK)
     outcome, source = run_contact_case(case, "held", "absent", files)
-    assert_physics(case, "held", outcome, source, files, excuse=False)
+    assert_physics(case, "held", outcome, source, files)
 
 
-@pytest.mark.xfail(strict=True, reason="time-stepping's explicit body-frame velocity gains energy under spin")
 def test_time_stepping_keeps_a_spinning_ball_energy(files: RunFiles) -> None:
     """``pinstab run sphere-spin --param mu=0.0 --param omega0=-30.0 --param v0=2.0 --contacts stepping``: a
     frictionless ball gains energy every step (4.78 J to 5.01 J in 0.12 s, to 32.5 J in 3 s; event-driven:
@@ -394,7 +367,7 @@ def test_time_stepping_keeps_a_spinning_ball_energy(files: RunFiles) -> None:
     (pinstab/integration/contact_stepping.py)."""
     case = ContactCase("sphere-spin", {"mu": 0.0, "omega0": -30.0, "v0": 2.0})
     outcome, source = run_contact_case(case, "stepping", "absent", files)
-    assert_physics(case, "stepping", outcome, source, files, excuse=False)
+    assert_physics(case, "stepping", outcome, source, files)
 
 
 # -- closures, servo targets, joint limits: one or two values changed, every command alike --------------------
