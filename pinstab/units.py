@@ -34,6 +34,16 @@ MAGNITUDE_REASON = (
     "products overflow"
 )
 
+# [kg]: the lightest body a scene may give (an object, a generated link): a microgram, a MEMS part's mass. Measured
+# (a 1 m box on one plane-contact corner): event-driven contacts stay right at 1e-9 kg and find a false Painleve
+# paradox from 1e-10 kg, their force slacks being absolute (MARGIN_SLACK (1 + |f|) [N]: a weight under 1e-9 N
+# drowns in it); at 5e-324 kg the mass matrix is singular
+MIN_MASS = 1e-9
+MIN_MASS_REASON = (
+    "lighter than a microgram (a MEMS part) a body's weight drowns in the contact solvers' force tolerances "
+    "(1e-9 N) and its mass matrix in rounding"
+)
+
 MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate (or a target's value) beyond it is a mistake
 COORDINATE_REASON = "where sines, cosines and positions lose their digits"
 # [rad/s or m/s]: a joint rate (or a body's twist) beyond it is a mistake: the fastest rotors (ultracentrifuges,

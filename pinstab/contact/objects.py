@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from ..errors import SceneError, choices
 from ..tables import check_keys, coordinates, list_of_tables, placement, vector
-from ..units import MAX_MAGNITUDE, quantity, within_ceiling
+from ..units import MAX_MAGNITUDE, MIN_MASS, MIN_MASS_REASON, quantity, within_ceiling
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}
@@ -122,9 +122,20 @@ def _shape_inertia(entry: dict[str, Any], volume: float, unit_inertia: np.ndarra
     return _inertia(mass, matrix, where)
 
 
+def _check_mass(mass: float, where: str) -> None:
+    """Refuse an object's mass [kg] below :data:`~pinstab.units.MIN_MASS` (given, or a density times a volume)."""
+    if not mass >= MIN_MASS:
+        raise SceneError(
+            f"{where}.mass = {mass:.3g} kg is outside the allowed range [{MIN_MASS:g}, {MAX_MAGNITUDE:.0e}] kg "
+            f"(given, or its density times its volume): {MIN_MASS_REASON}"
+        )
+
+
 def _inertia(mass: float, matrix: np.ndarray, where: str) -> pin.Inertia:
-    """The body inertia about the object's centre; refused when the mass [kg] or the inertia [kg m^2] is
-    beyond :data:`~pinstab.units.MAX_MAGNITUDE` (a size, mass or density too large)."""
+    """The body inertia about the object's centre; refused when the mass [kg] is below
+    :data:`~pinstab.units.MIN_MASS` or the mass or the inertia [kg m^2] is beyond
+    :data:`~pinstab.units.MAX_MAGNITUDE` (a size, mass or density too large)."""
+    _check_mass(mass, where)
     if not (mass <= MAX_MAGNITUDE and np.all(np.abs(matrix) <= MAX_MAGNITUDE)):
         raise SceneError(
             f"{where}: its mass ({mass:.3g} kg) or inertia (largest moment {np.abs(matrix).max():.3g} kg m^2) is "
@@ -152,6 +163,7 @@ def _urdf_body(entry: dict[str, Any], read_urdf: UrdfReader, where: str):
         )
     if body.inertias[0].mass <= 0:
         raise SceneError(f"{where}.urdf: the links of {entry['urdf']} have no mass")
+    _check_mass(body.inertias[0].mass, where)
     shapes = [(g.geometry, g.placement) for g in collision.geometryObjects]
     return body.inertias[0], shapes, list(visual.geometryObjects)
 

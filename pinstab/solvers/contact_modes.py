@@ -38,7 +38,7 @@ import pinocchio as pin
 
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
-from ..errors import ConstraintError, ContactInfeasibleError
+from ..errors import ConstraintError, ContactInfeasibleError, SolverError
 from ..model import ConstrainedModel
 from ..runinfo import SolverStatistics
 
@@ -248,11 +248,11 @@ class ModeDynamics:
             contacts = self.kinematics_from_kin(v)
             columns = [terms.tau - terms.bias, contacts.jacobian.T]
             if not self.model.constraints.rows and not any(self.active):
-                solved = np.linalg.solve(terms.mass_matrix, np.column_stack(columns))
+                solved = self._mass_solve(terms.mass_matrix, np.column_stack(columns), t)
                 self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts, None)
                 return self._unforced_terms
             jacobian, _, target = self.bilateral_rows(terms, q, v)
-            solved = np.linalg.solve(terms.mass_matrix, np.column_stack([*columns, jacobian.T]))
+            solved = self._mass_solve(terms.mass_matrix, np.column_stack([*columns, jacobian.T]), t)
             size = 1 + contacts.jacobian.shape[0]
             unheld, held = solved[:, :size], solved[:, size:]
             # B (unheld + held lambda) = (beta, 0): the reactions without contact forces and per unit force
@@ -262,6 +262,21 @@ class ModeDynamics:
             bilateral = Bilateral(reactions[:, 0], reactions[:, 1:])
             self._state, self._unforced_terms = key, (response[:, 0], response[:, 1:], contacts, bilateral)
         return self._unforced_terms
+
+    def _mass_solve(self, mass_matrix: np.ndarray, rhs: np.ndarray, t: float) -> np.ndarray:
+        """``M^-1 rhs`` at time ``t`` [s].
+
+        Raises:
+            SolverError: a singular mass matrix, naming the contacts and the time (not numpy's LinAlgError).
+        """
+        try:
+            return np.linalg.solve(mass_matrix, rhs)
+        except np.linalg.LinAlgError as exc:
+            names = ", ".join(contact.name for contact in self.contacts)
+            raise SolverError(
+                f"contacts {names} at t = {t:.6g} s: the mass matrix is singular ({exc}); a body of the scene has "
+                "no mass or inertia in some direction"
+            ) from None
 
     def kinematics_from_kin(self, v: np.ndarray) -> ContactKinematics:
         """:meth:`kinematics` from the pass :meth:`ConstrainedModel.dynamics_terms` just made."""
