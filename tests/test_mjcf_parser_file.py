@@ -15,6 +15,7 @@ from pinstab.readers.base import ReaderOptions
 from pinstab.readers.mjcf import read_mjcf
 
 INERTIAL = '<inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>'
+ONE_BODY = '<mujoco><worldbody><body name="a"><joint name="j"/>{}</body></worldbody></mujoco>'
 
 
 def read(tmp_path: Path, content: str) -> pin.Model:
@@ -91,3 +92,34 @@ def test_boundaries_of_the_rules_are_read(tmp_path: Path) -> None:
         f"{INERTIAL}</body></worldbody></mujoco>",
     )
     assert model.nq == 7 and model.inertias[model.getJointId("f")].mass == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(
+    ("geom", "phrase"),
+    [
+        ('type="sdf" size="0.1"', "type 'sdf' is not a geom type Pinocchio's MJCF parser reads"),
+        ('type="" size="0.1"', "type '' is not a geom type"),
+        ('type="box" size="0.1 0.2"', "a box needs 3 numbers in size, size='0.1 0.2' gives 2"),
+        ('type="capsule" size="0.1"', "a capsule needs 2 numbers in size"),
+        ('type="sphere"', "a sphere needs 1 numbers in size, size='' gives 0"),
+        ('type="sphere" size="0.1" fromto="0 0 0 0 0 1"', "a fromto places a capsule, cylinder, box, ellipsoid"),
+        ('type="capsule" size="0.1" pos="0 0 0" fromto="0 0 0 0 0 1"', "both pos and fromto given"),
+        ('size="0.1" shellinertia="true"', "shellinertia is not read"),
+    ],
+)
+def test_geom_the_parser_cannot_weigh_is_named(tmp_path: Path, geom: str, phrase: str) -> None:
+    with pytest.raises(SceneError, match="geom 'g'") as refused:
+        read(tmp_path, ONE_BODY.format(f'<geom name="g" {geom}/>'))
+    assert phrase in str(refused.value)
+
+
+@pytest.mark.parametrize(
+    ("geom", "mass"),
+    [
+        ('type="box" size="0.1 0.2 0.3"', 1000.0 * 0.2 * 0.4 * 0.6),  # MuJoCo's density 1000 kg/m^3, half sizes
+        ('type="capsule" size="0.1" fromto="0 0 0 0 0 0.4"', 1000.0 * np.pi * 0.1**2 * (0.4 + 4 / 3 * 0.1)),
+    ],
+)
+def test_geom_with_the_sizes_it_needs_is_weighed(tmp_path: Path, geom: str, mass: float) -> None:
+    model = read(tmp_path, ONE_BODY.format(f"<geom {geom}/>"))
+    assert model.inertias[model.getJointId("j")].mass == pytest.approx(mass, rel=1e-12)

@@ -31,6 +31,10 @@ NUMBERS = {"pos": 3, "quat": 4, "axisangle": 4, "euler": 3, "xyaxes": 6, "zaxis"
 NUMBERS |= {key: 1 for key in ("ref", "springref", "stiffness", "damping", "armature", "frictionloss")}
 NUMBERS |= {"actuatorfrcrange": 2}  # a joint's effort bounds (Pinocchio read "nan nan" as 7e-310)
 NUMBERS |= {"mass": 1, "density": 1, "diaginertia": 3, "fullinertia": 6, "fromto": 6, "rgba": 4}
+# MJCF geom type -> the sizes Pinocchio's MJCF parser reads of it (as MuJoCo requires them; the parser reads
+# missing ones as memory it never wrote: a box of size="0.1 0.2" weighed 1.5e-320 kg); a mesh's size is not read
+GEOM_SIZES = {"sphere": 1, "capsule": 2, "cylinder": 2, "ellipsoid": 3, "box": 3, "plane": 3, "mesh": 0}
+FROMTO_TYPES = ("capsule", "cylinder", "box", "ellipsoid")  # the types a fromto places; it then gives their length
 NUMBERED = ("body", "inertial", "joint", "freejoint", "geom", "site")  # elements of the tree, or their defaults
 
 
@@ -62,7 +66,7 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
             "of <worldbody> and its subtree): put the robot's bodies in a <body> of <worldbody>"
         )
     bodies = list(worldbody.iter("body"))
-    joints = [] if worldbody is None else [j for j in worldbody.iter() if j.tag in ("joint", "freejoint")]
+    joints = [j for j in worldbody.iter() if j.tag in ("joint", "freejoint")]
     check_count(len(bodies), "bodies", where)
     check_count(len(joints), "joints", where)
     nv = 6 * free_flyer + sum(JOINT_DOFS[joint_kind(document, j, _name(document, j))] for j in joints)
@@ -91,7 +95,9 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
                 "its inertia from its geoms: give the body an <inertial> (mass, diaginertia or fullinertia), or set "
                 'inertiafromgeom to "auto" or "true"'
             )
-    for geom in [] if worldbody is None else worldbody.iter("geom"):
+        for geom in body.findall("geom"):
+            _check_shape(document, geom, _name(document, geom))
+    for geom in worldbody.iter("geom"):
         _check_geom(document, geom, _name(document, geom))
 
 
@@ -151,6 +157,33 @@ def _check_numbers(document: MjcfDocument, element: ET.Element, where: str) -> N
             raise SceneError(f"{where}: size={text!r} is not 1 to 3 numbers")
         for value in document.numbers(element, "size", count, where):
             check_nonnegative(float(value), f"{where}: size", "m")
+
+
+def _check_shape(document: MjcfDocument, geom: ET.Element, where: str) -> None:
+    """A body's geom as Pinocchio's MJCF parser reads it to compute the body's inertia (through the defaults): a
+    type of :data:`GEOM_SIZES`, its sizes given (the radius only with a ``fromto``), a ``fromto`` only on the types
+    of :data:`FROMTO_TYPES` and not beside a ``pos`` of the geom, no ``shellinertia``."""
+    kind = document.attribute(geom, "type")
+    kind = "sphere" if kind is None else kind  # MuJoCo's default type
+    if kind not in GEOM_SIZES:
+        raise SceneError(
+            f"{where}: type {kind!r} is not a geom type Pinocchio's MJCF parser reads (hfield and sdf not among "
+            f"them); types: {', '.join(GEOM_SIZES)}"
+        )
+    fromto = document.attribute(geom, "fromto") is not None
+    if fromto and kind not in FROMTO_TYPES:
+        raise SceneError(f"{where}: a fromto places a {', '.join(FROMTO_TYPES)}, not a {kind}: give it pos")
+    if "fromto" in geom.attrib and "pos" in geom.attrib:  # the parser's test: on the element, not its defaults
+        raise SceneError(f"{where}: both pos and fromto given (Pinocchio's MJCF parser refuses them): give one")
+    if document.attribute(geom, "shellinertia") is not None:
+        raise SceneError(f"{where}: shellinertia is not read by Pinocchio's MJCF parser: remove it")
+    needed = 1 if fromto else GEOM_SIZES[kind]
+    given = (document.attribute(geom, "size") or "").split()
+    if len(given) < needed:
+        raise SceneError(
+            f"{where}: a {kind} {'with a fromto ' if fromto else ''}needs {needed} numbers in size, "
+            f"size={' '.join(given)!r} gives {len(given)}"
+        )
 
 
 def _check_inertial(document: MjcfDocument, inertial: ET.Element, where: str) -> None:
