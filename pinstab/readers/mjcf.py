@@ -15,7 +15,10 @@ that parser is wrong or silent:
 - the file within the bounds on size, depth and memory, its masses and inertias physical, checked before the
   parser reads it, and the inertias it compiled after (:mod:`.mjcf_bodies`);
 - ``<include>``: the parser ignores it (the included bodies, defaults and assets left out); when the file
-  includes others, the parser is given a temporary copy with the includes inlined (:func:`parser_file`).
+  includes others, the parser is given a temporary copy with the includes inlined (:func:`parser_file`), as when
+  a ``<compiler>`` or ``<default>`` comes after the bodies (which the parser reads without it) or an element names
+  the class ``main`` (which the parser does not know by that name);
+- Pinocchio's remaining refusals quoted, naming the file (a SceneError).
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
 it), actuators, tendons, sensors, contact pairs, a ball joint's cone limit, the soft-constraint parameters.

@@ -1,6 +1,9 @@
 """The bodies of an MJCF file checked before Pinocchio's MJCF parser reads them, and the inertias it compiled.
 
-Before (the bodies' nesting is bounded as the document is read, :mod:`.mjcf_xml`): the bodies and joints within
+Before (the bodies' nesting is bounded as the document is read, :mod:`.mjcf_xml`): a ``<body>`` in
+``<worldbody>``, a free joint alone in its body, an ``<inertial>`` in every body when ``<compiler
+inertiafromgeom="false">``, every body's geom of a type and sizes the parser weighs (it fails on the others, naming
+none, or reads missing sizes as unwritten memory); the bodies and joints within
 :data:`~.bounds.MAX_BODIES`, the one Pinocchio ``Data`` the parser
 builds within the memory budget (its resident size grows with nv^3: 0.9 GB at nv = 300, 33 GB at nv = 1000),
 every ``<inertial>``'s mass and inertia physical (the parser runs a mass of -0.5 kg as 0 and an inertia diagonal
