@@ -110,7 +110,8 @@ def held_system(
     """The system and the integrator of the held path (:func:`simulate_held`), refused before any step: a contact on
     a plane carried by a body, a method and a solver that do not go together or a solver that does not take the
     scene's rows (:func:`~pinstab.system.build_system`), a method whose automatic gains are placed for one step under
-    error ``control`` (steps of varying length), a sphere contact (``radius``) with friction (it rolls). A sweep checks its points with it.
+    error ``control`` (steps of varying length), a sphere contact (``radius``) with friction (it rolls). A sweep
+    checks its points with it.
 
     Raises:
         PinstabError (SolverError for the solver's refusals).
