@@ -441,7 +441,9 @@ class EventLoop(AdaptiveLoop):
 
     def _limit_events(self, q: np.ndarray, t: float, cause: str, before: list[str], solution: ModeSolution) -> None:
         """Record the joint limits whose mode changed (from ``before``) in ``solution``'s, keep their times held
-        and where a released one counts as reached again."""
+        and where a released one counts as reached again: a held one let go, or one that touches and is not held
+        (stopped or turned back by an impact: it may lie a rounding beyond where it counted as reached, which it
+        would reach again at once, over and over)."""
         dynamics = self.dynamics
         reactions = dynamics.limit_reactions(solution)
         for i, (old, held) in enumerate(zip(before, dynamics.active, strict=True)):
@@ -449,9 +451,10 @@ class EventLoop(AdaptiveLoop):
             limit = dynamics.limits[i]
             if held and i not in self._since:
                 self._since[i] = t
-            elif not held and i in self._since:
-                self.active_time[limit.name] += t - self._since.pop(i)
-                self._floors[i] = _floor(limit, q)
+            elif not held and (i in self._since or self._touches(i, q)):
+                if i in self._since:
+                    self.active_time[limit.name] += t - self._since.pop(i)
+                self._floors[i] = _floor(limit, q)  # released here: by an impact too, never held (a rounding beyond)
             if old != new and not (cause == START and not held):
                 event_cause = "impact" if old == CLOSING else cause
                 self.events.append(ContactEvent(t, limit.name, old, new, event_cause, (float(reactions[i]), 0.0, 0.0)))

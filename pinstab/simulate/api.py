@@ -165,7 +165,7 @@ def simulate(
     table = held_limits(scene, q0, limits)  # every path refuses a start outside the limits
     if contacts == "stepping":
         stepped = simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock)
-        left = limit_left(stepped, table) if table else None
+        left = limit_left(stepped, table, v0) if table else None
         if left is not None:
             warnings.warn(
                 JointLimitsWarning(
@@ -187,7 +187,7 @@ def simulate(
     )  # fmt: skip
     if not table:
         return _checked(scene, trajectory, clock)
-    left = limit_left(trajectory, table)
+    left = limit_left(trajectory, table, v0)
     if left is None:
         trajectory.info.limits_active_s = {}
         return _checked(scene, trajectory, clock)

@@ -1,5 +1,5 @@
 """Joint limits on the held path: the limits a run holds (its start inside them), the first limit a run's samples
-leave, and the constraints the event path (which holds the limits) cannot take."""
+leave (or its start moves into), and the constraints the event path (which holds the limits) cannot take."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from ..constraints.joint_limits import JointLimit, check_start_inside, joint_lim
 from ..integration.events import LIMIT_SLACK
 from ..scene import Scene
 from ..solvers.contact_modes import plane_geometries
+from ..solvers.mode_choice import TOUCH_GAP, TOUCH_SPEED
 from ..trajectory import StreamedTrajectory, Trajectory
 
 
@@ -41,21 +42,27 @@ def not_event_driven(scene: Scene) -> list[str]:
 
 
 def limit_left(
-    trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit]
+    trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit], v0: np.ndarray
 ) -> tuple[JointLimit, float] | None:
     """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None (a
-    streamed run's file read a block at a time)."""
+    streamed run's file read a block at a time). A limit the start ``v0`` [rad/s, m/s] moves into from on it (within
+    ``TOUCH_GAP``, faster than ``TOUCH_SPEED``) is left at the first sample: the joint passes it at once, though the
+    samples may not show it (a force turning it back within a step: the held path would miss the impact)."""
     if isinstance(trajectory, StreamedTrajectory):
         with closing(trajectory.blocks()) as blocks:  # the file closed before the event path writes it again
-            return _first_left(blocks, limits)
-    return _first_left([(trajectory.t, trajectory.q)], limits)
+            return _first_left(blocks, limits, v0)
+    return _first_left([(trajectory.t, trajectory.q)], limits, v0)
 
 
 def _first_left(
-    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit]
+    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit], v0: np.ndarray
 ) -> tuple[JointLimit, float] | None:
     """:func:`limit_left` over consecutive blocks of samples (t [s], q)."""
-    for t, q in blocks:
+    for k, (t, q) in enumerate(blocks):
+        if k == 0 and len(t):
+            for limit in limits:
+                if limit.gap(q[0]) <= TOUCH_GAP and limit.speed(v0) < -TOUCH_SPEED:
+                    return limit, float(t[0])
         first = None
         for limit in limits:
             outside = np.flatnonzero(limit.gaps(q) < -LIMIT_SLACK)
