@@ -13,9 +13,20 @@ from typing import Any
 
 from .contact.coefficients import friction_coefficient, restitution_coefficient
 from .errors import SceneError, choices
+from .units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, MAX_RATE, RATE_REASON
 from .urdf_text import Joint, Rod, UrdfDocument
 
 MAX_LOOPS = 1000  # nfourbar's N: 2001 links (a larger N only makes the scene wait on its URDF)
+# [m] nfourbar's shortest link: a thin rod's inertia (m L^2 / 12 across, m r^2 / 2 along, r its drawn radius) keeps
+# the triangle inequality of principal moments down to L = sqrt(3) r
+MIN_LINK_LENGTH = math.sqrt(3.0) * Rod.radius
+LINK_LENGTH_REASON = f"a rod shorter than {MIN_LINK_LENGTH:.3g} m breaks its inertia's triangle inequality; " + (
+    f"the N+1 cranks' pins span N link lengths, a position within {MAX_COORDINATE:g} m, {COORDINATE_REASON}"
+)
+# [kg] the lightest body a generator makes: a microgram, a MEMS part's mass; below, next to bodies of order 1 kg,
+# the mass matrix spans more than MAX_MAGNITUDE
+MIN_MASS = 1e-9
+MASS_REASON = f"from a microgram (a MEMS part) to {MAX_MAGNITUDE:.0e} kg: {MAGNITUDE_REASON}"
 
 
 def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> dict[str, Any]:
@@ -35,11 +46,10 @@ def nfourbar(n: int = 10, link_length: float = 1.0, link_mass: float = 1.0) -> d
         raise SceneError(f"generator nfourbar: parameter N must be an integer >= 1, got {n!r}")
     if n > MAX_LOOPS:
         raise SceneError(f"generator nfourbar: parameter N must be at most {MAX_LOOPS}, got {n!r}")
-    for name, value, unit in (("link_length", link_length, "m"), ("link_mass", link_mass, "kg")):
-        if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
-            raise SceneError(
-                f"generator nfourbar: parameter {name} must be a positive finite number [{unit}], got {value!r}"
-            )
+    link_length = _number(
+        "nfourbar", "link_length", link_length, MIN_LINK_LENGTH, MAX_COORDINATE / n, "m", LINK_LENGTH_REASON
+    )
+    link_mass = _number("nfourbar", "link_mass", link_mass, MIN_MASS, MAX_MAGNITUDE, "kg", MASS_REASON)
     doc = UrdfDocument(name=f"nfourbar{n}")
     quarter = math.pi / 2.0
     closures = []
@@ -106,11 +116,23 @@ def _rigid_body(name: str, shape: str, mass: float, inertia: tuple[float, float,
     return f'<?xml version="1.0"?>\n<robot name="{name}">{_link(name, shape, mass, inertia)}</robot>\n'
 
 
-def _number(generator: str, name: str, value: Any, low: float, high: float = math.inf, unit: str = "") -> float:
+def _number(generator: str, name: str, value: Any, low: float, high: float, unit: str, reason: str) -> float:
+    """Parameter ``name`` of ``generator`` as a float [``unit``] when a number in [``low``, ``high``].
+
+    Raises:
+        SceneError: naming the generator and the parameter, the value, the range and its ``reason``.
+    """
     if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high:
-        bounds = f"in [{low:g}, {high:g}]" if math.isfinite(high) else f">= {low:g}"
-        raise SceneError(f"generator {generator}: parameter {name} must be a number {bounds}{unit}, got {value!r}")
+        raise SceneError(
+            f"generator {generator}: parameter {name} must be a number in [{low:.6g}, {high:.6g}] {unit}, "
+            f"got {value!r}: {reason}"
+        )
     return float(value)
+
+
+def _rate(generator: str, name: str, value: Any, unit: str) -> float:
+    """A start velocity [``unit``: m/s or rad/s] within :data:`~pinstab.units.MAX_RATE`, as ``initial.v``."""
+    return _number(generator, name, value, -MAX_RATE, MAX_RATE, unit, RATE_REASON)
 
 
 def _ball(radius: float) -> dict[str, Any]:
@@ -125,10 +147,10 @@ def incline(theta: float = 0.5, mu: float = 0.3, v_down: float = 0.0, v_across: 
     corners, released with ``v_down``, ``v_across`` [m/s] along and across the slope. The plane is z = 0 and
     gravity is tilted (down the slope is +x): from rest the cube sticks for mu >= tan(theta), else slides
     with x(t) = g (sin theta - mu cos theta) t^2 / 2."""
-    theta = _number("incline", "theta", theta, 0.0, math.pi / 2, " [rad]")
+    theta = _number("incline", "theta", theta, 0.0, math.pi / 2, "rad", "from a level plane to a vertical wall")
     mu = friction_coefficient(mu, "generator incline: parameter mu")
-    v_down = _number("incline", "v_down", v_down, -math.inf, unit=" [m/s]")
-    v_across = _number("incline", "v_across", v_across, -math.inf, unit=" [m/s]")
+    v_down = _rate("incline", "v_down", v_down, "m/s")
+    v_across = _rate("incline", "v_across", v_across, "m/s")
     half, inertia = BOX_SIDE / 2, BOX_SIDE**2 / 6
     corners = [(sx * half, sy * half) for sx in (1, -1) for sy in (1, -1)]
     return {
@@ -148,14 +170,21 @@ def incline(theta: float = 0.5, mu: float = 0.3, v_down: float = 0.0, v_across: 
     }
 
 
+MIN_RADIUS = 1e-6  # [m] sphere-spin's smallest ball: a micrometre grain, its inertia 0.4 r^2 = 4e-13 kg m^2
+RADIUS_REASON = (
+    f"from a micrometre grain (its inertia 0.4 r^2 kg m^2 then 1e-12 of its mass's scale) to {MAX_COORDINATE:g} m, "
+    f"where its centre starts, a coordinate of its free joint: {COORDINATE_REASON}"
+)
+
+
 def sphere_spin(v0: float = 2.0, omega0: float = 5.0, mu: float = 0.3, radius: float = 0.1) -> dict[str, Any]:
     """A solid 1 kg sphere of ``radius`` [m] thrown along +x at ``v0`` [m/s] with backspin ``omega0`` [rad/s]
     on the plane z = 0 with friction ``mu``: it slides until t* = 2 (v0 + r omega0) / (7 mu g), then rolls at
     v* = (5 v0 - 2 r omega0) / 7."""
-    v0 = _number("sphere-spin", "v0", v0, -math.inf, unit=" [m/s]")
-    omega0 = _number("sphere-spin", "omega0", omega0, -math.inf, unit=" [rad/s]")
+    v0 = _rate("sphere-spin", "v0", v0, "m/s")
+    omega0 = _rate("sphere-spin", "omega0", omega0, "rad/s")
     mu = friction_coefficient(mu, "generator sphere-spin: parameter mu")
-    radius = _number("sphere-spin", "radius", radius, 1e-6, unit=" [m]")
+    radius = _number("sphere-spin", "radius", radius, MIN_RADIUS, MAX_COORDINATE, "m", RADIUS_REASON)
     return {
         **_ball(radius),
         "contacts": [{"name": "ground", "kind": "plane-contact", "frame_a": "ball", "radius": radius, "mu": mu}],
@@ -166,12 +195,24 @@ def sphere_spin(v0: float = 2.0, omega0: float = 5.0, mu: float = 0.3, radius: f
     }
 
 
+BALL_RADIUS = 0.05  # [m] the bouncing ball
+
+
 def bouncing_ball(height: float = 1.0, restitution: float = 0.5) -> dict[str, Any]:
     """A 1 kg ball (radius 0.05 m) dropped from a gap ``height`` [m] above the plane z = 0 with Newton's
     ``restitution`` e: apex gaps e^(2k) h, at rest at t0 (1 + e) / (1 - e), t0 = sqrt(2 h / g)."""
-    height = _number("bouncing-ball", "height", height, 0.0, unit=" [m]")
+    height = _number(
+        "bouncing-ball",
+        "height",
+        height,
+        0.0,
+        MAX_COORDINATE - BALL_RADIUS,
+        "m",
+        f"its centre, {BALL_RADIUS} m higher, "
+        f"starts at a coordinate of its free joint, within {MAX_COORDINATE:g} m, {COORDINATE_REASON}",
+    )
     restitution = restitution_coefficient(restitution, "generator bouncing-ball: parameter restitution")
-    radius = 0.05
+    radius = BALL_RADIUS
     return {
         **_ball(radius),
         "contacts": [
@@ -197,8 +238,8 @@ def pinch(mu: float = 0.5, squeeze: float = 1.0, mass: float = 0.1) -> dict[str,
     point on the face's plane, carried by the cube), gravity along -z. The cube holds iff
     2 mu F >= m g, else slides down with acceleration g - 2 mu F / m."""
     mu = friction_coefficient(mu, "generator pinch: parameter mu")
-    squeeze = _number("pinch", "squeeze", squeeze, 0.0, unit=" [N]")
-    mass = _number("pinch", "mass", mass, 1e-9, unit=" [kg]")
+    squeeze = _number("pinch", "squeeze", squeeze, 0.0, MAX_MAGNITUDE, "N", MAGNITUDE_REASON)
+    mass = _number("pinch", "mass", mass, MIN_MASS, MAX_MAGNITUDE, "kg", MASS_REASON)
     half, inertia = PINCH_SIDE / 2, mass * PINCH_SIDE**2 / 6
     finger_inertia = FINGER_MASS * 1e-4
     links = [_link("block", f'<box size="{PINCH_SIDE} {PINCH_SIDE} {PINCH_SIDE}"/>', mass, (inertia,) * 3)]
