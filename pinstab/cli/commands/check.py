@@ -1,18 +1,52 @@
 """``pinstab check``: assemble a scene and report its constraint structure and its joint limits (each limited
 joint's [lower, upper], and why the others are unlimited); a start that ``run`` refuses (outside the joint limits) is
 refused here too, and only what ``run`` refuses: like a run with its default contacts, a scene of plane contacts only
-(event-driven contacts) starts as given, its contacts not assembled (a corner a hair inside its plane is no error)."""
+(event-driven contacts) starts as given, its contacts not assembled (a corner a hair inside its plane is no error);
+a scene with servos is evaluated at its assembled start as ``run`` and ``servo --check`` evaluate it
+(:func:`servo_at_start`): a servo the controls cannot realize at t = 0 is refused here too."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..options import assembly_argument, assembly_tolerance, limits_argument, parameters, scene_arguments
+from ..options import (
+    DEFAULT_METHOD,
+    assembly_argument,
+    assembly_tolerance,
+    limits_argument,
+    parameters,
+    scene_arguments,
+)
 from .base import Command, register
+
+if TYPE_CHECKING:
+    from ...scene import Scene
+
+
+def servo_at_start(scene: Scene, method: str, tolerance: float | None) -> dict[str, Any]:
+    """The servos of ``scene`` at its assembled start (t = 0 s), solved by the dynamics a run of ``method`` starts
+    with: the singular values of the decoupling matrix S N B (each row and control's units) and the controls at the
+    start [N or N m].
+
+    Raises:
+        ServoInfeasibleError: the controls cannot realize the servos at t = 0 s (the run's refusal, its message).
+    """
+    from ...assembly import assemble
+    from ...system import build_system
+
+    system = build_system(scene, method)
+    start = assemble(system.model, scene.q0, scene.v0, tolerance=tolerance)
+    evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
+    decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
+    return {
+        "realizable": True,
+        "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
+        "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
+    }
 
 
 def check(args: argparse.Namespace) -> dict[str, Any]:
@@ -25,6 +59,11 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
 
     scene = load_scene(args.scene, **parameters(args.param))
     held_limits(scene, scene.q0, not args.ignore_limits)
+    servos = (
+        servo_at_start(scene, DEFAULT_METHOD, assembly_tolerance(args))
+        if any(c.prescribed for c in scene.constraints)
+        else None
+    )
     model = ConstrainedModel(scene)
     assembled = (
         model if default_contacts(scene) is None else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
@@ -70,6 +109,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         ],
         "joint_limits": limits.ranges(),
         "unlimited_joints": limits.unlimited,
+        **({} if servos is None else {"servo_at_start": servos}),
     }
 
 

@@ -11,6 +11,7 @@ from ...errors import SceneError
 from ..exits import EXIT_CODES
 from ..options import DEFAULT_METHOD, assembly_tolerance, parameters, run_options, scene_arguments
 from .base import Command, register
+from .check import servo_at_start
 from .run import run
 
 
@@ -32,26 +33,15 @@ def arguments(servo: argparse.ArgumentParser) -> None:
 
 
 def servo(args: argparse.Namespace) -> dict[str, Any]:
-    from ...assembly import assemble
     from ...scene import load_scene
     from ...simulate.limits import held_limits
-    from ...system import build_system
 
     scene = load_scene(args.scene, **parameters(args.param))
     if not any(c.prescribed for c in scene.constraints):
         raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
     if args.check:
         held_limits(scene, scene.q0, not args.ignore_limits)  # the start that the run would refuse
-        system = build_system(scene, args.method or DEFAULT_METHOD)
-        start = assemble(system.model, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
-        evaluation = system.dynamics(start.q, start.v, 0.0)  # raises ServoInfeasibleError when it cannot
-        decoupling = system.servo.decoupling(system.model.kin.mass_matrix, evaluation.values.jacobian)[0]
-        return {
-            "scene": scene.name,
-            "realizable": True,
-            "decoupling_singular_values": np.linalg.svd(decoupling, compute_uv=False).tolist(),
-            "controls_at_start": dict(zip(scene.actuation.names, evaluation.controls.tolist(), strict=True)),
-        }
+        return {"scene": scene.name, **servo_at_start(scene, args.method or DEFAULT_METHOD, assembly_tolerance(args))}
     return run(args, _add_reactions, scene)
 
 
