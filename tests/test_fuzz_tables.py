@@ -583,15 +583,15 @@ def test_start_on_a_limit_moving_into_it_runs(files: RunFiles) -> None:
     assert outcome.code == 0, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="urdfdom refuses 'inf', 'nan' and the reader names nothing")
 @pytest.mark.parametrize("bound", ["nan", "-inf"])
 def test_urdf_non_finite_limit_is_named(bound: str, files: RunFiles) -> None:
-    """A URDF joint limit ``lower="nan"`` or ``"-inf"``: "robot: the URDF cannot be read: The XML stream does not
-    contain a valid URDF model." (urdfdom's own lines on stderr); the refusal should name the joint."""
+    """A URDF joint limit ``lower="nan"`` or ``"-inf"`` was refused as "robot: the URDF cannot be read: The XML
+    stream does not contain a valid URDF model." (urdfdom's own lines on stderr); now by the joint and the
+    attribute."""
     scene = {"gravity": [0.0, -9.81, 0.0], "robot": {"urdf_text": limited_chain_urdf([(bound, 1.0)])}}
     files.scene.write_text(toml_document(scene), encoding="utf-8")
     outcome = cli(["check", str(files.scene)])
-    assert outcome.code == 2 and "j0" in outcome.message, outcome
+    assert outcome.code == 2 and "joint 'j0': limit lower" in outcome.message, outcome
 
 
 def test_object_of_denormal_mass_is_refused(files: RunFiles) -> None:

@@ -1,6 +1,6 @@
 """Checks of a URDF document that urdfdom would only refuse, or not see: its size, nesting and depth
-(:mod:`.bounds`), its encoding, names, joints between links that exist, moving joints with an axis, finite masses
-and physical inertias (:mod:`.inertia`).
+(:mod:`.bounds`), its encoding, names, joints between links that exist, moving joints with an axis, joint limits of
+finite numbers, finite masses and physical inertias (:mod:`.inertia`).
 
 The robots of example-robot-data (``robot.name``) are taken as published, except for the triangle
 inequality of their inertias: the Allegro hand's fingertip links violate it by 25 % (a physically
@@ -23,6 +23,7 @@ from .inertia import check_body
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 MOVING_JOINTS = ("revolute", "continuous", "prismatic")
 AXIS_MIN = 1e-9  # a shorter joint axis is no direction
+LIMIT_KEYS = ("lower", "upper", "effort", "velocity")  # a joint's <limit> attributes (urdfdom: unreadable ones unnamed)
 
 
 def check_links(urdf_text: str | None, urdf_path: Path | None, triangle: bool, owner: str) -> None:
@@ -70,8 +71,8 @@ def _utf8(data: bytes, where: str) -> bytes:
 
 
 def _check_tree(root: ElementTree.Element, owner: str) -> None:
-    """Names defined once, joints between links that exist, moving joints with a non-zero axis (urdfdom
-    would refuse the first two without naming them)."""
+    """Names defined once, joints between links that exist, moving joints with a non-zero axis, the attributes a
+    joint's ``<limit>`` gives finite numbers (urdfdom would refuse all but the axis without naming them)."""
     links = [link.get("name") for link in root.findall("link")]
     known = set(links)
     joints = root.findall("joint")
@@ -95,6 +96,10 @@ def _check_tree(root: ElementTree.Element, owner: str) -> None:
                 direction = np.zeros(0)
             if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < AXIS_MIN:
                 raise SceneError(f"{where}: axis xyz={text!r} is not a non-zero direction of 3 numbers")
+        limit = joint.find("limit")
+        for key in LIMIT_KEYS:
+            if limit is not None and key in limit.attrib:
+                _number(limit, key, f"limit {key}", where)
 
 
 def _number(element: ElementTree.Element | None, key: str, what: str, where: str) -> float:
