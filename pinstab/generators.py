@@ -23,8 +23,8 @@ MIN_LINK_LENGTH = math.sqrt(3.0) * Rod.radius
 LINK_LENGTH_REASON = f"a rod shorter than {MIN_LINK_LENGTH:.3g} m breaks its inertia's triangle inequality; " + (
     f"the N+1 cranks' pins span N link lengths, a position within {MAX_COORDINATE:g} m, {COORDINATE_REASON}"
 )
-# [kg] the lightest body a generator makes: a microgram, a MEMS part's mass; below, next to bodies of order 1 kg,
-# the mass matrix spans more than MAX_MAGNITUDE
+# [kg] the lightest body a generator makes: a microgram, a MEMS part's mass (the lightest a mechanism is built of);
+# pinch's cube of 1e-9 kg between its 0.1 kg fingers already spreads the mass matrix's diagonal over 1e8
 MIN_MASS = 1e-9
 MASS_REASON = f"from a microgram (a MEMS part) to {MAX_MAGNITUDE:.0e} kg: {MAGNITUDE_REASON}"
 
@@ -124,7 +124,7 @@ def _number(generator: str, name: str, value: Any, low: float, high: float, unit
     """
     if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high:
         raise SceneError(
-            f"generator {generator}: parameter {name} must be a number in [{low:.6g}, {high:.6g}] {unit}, "
+            f"generator {generator}: parameter {name} must be a number in [{low:.10g}, {high:.10g}] {unit}, "
             f"got {value!r}: {reason}"
         )
     return float(value)
@@ -196,21 +196,16 @@ def sphere_spin(v0: float = 2.0, omega0: float = 5.0, mu: float = 0.3, radius: f
 
 
 BALL_RADIUS = 0.05  # [m] the bouncing ball
+HEIGHT_REASON = (
+    f"the ball's centre, {BALL_RADIUS} m higher, is a coordinate of its free joint, within {MAX_COORDINATE:g} m, "
+    f"{COORDINATE_REASON}"
+)
 
 
 def bouncing_ball(height: float = 1.0, restitution: float = 0.5) -> dict[str, Any]:
     """A 1 kg ball (radius 0.05 m) dropped from a gap ``height`` [m] above the plane z = 0 with Newton's
     ``restitution`` e: apex gaps e^(2k) h, at rest at t0 (1 + e) / (1 - e), t0 = sqrt(2 h / g)."""
-    height = _number(
-        "bouncing-ball",
-        "height",
-        height,
-        0.0,
-        MAX_COORDINATE - BALL_RADIUS,
-        "m",
-        f"its centre, {BALL_RADIUS} m higher, "
-        f"starts at a coordinate of its free joint, within {MAX_COORDINATE:g} m, {COORDINATE_REASON}",
-    )
+    height = _number("bouncing-ball", "height", height, 0.0, MAX_COORDINATE - BALL_RADIUS, "m", HEIGHT_REASON)
     restitution = restitution_coefficient(restitution, "generator bouncing-ball: parameter restitution")
     radius = BALL_RADIUS
     return {
