@@ -31,7 +31,6 @@ import numpy as np
 import pytest
 from fuzzing import (
     OUTPUT_STATES,
-    Hang,
     Outcome,
     assert_not_lost,
     check_file,
@@ -48,6 +47,7 @@ from hypothesis import event, given, note
 from hypothesis import strategies as st
 
 from conftest import ROBOTS
+from pinstab.generators import generate
 from pinstab.scene import load_scene
 from pinstab.trajectory import Trajectory
 
@@ -95,8 +95,9 @@ class ContactCase:
     @property
     def names(self) -> list[tuple[str, ...]]:
         """The names a message may give the scene's items: its parameters', its entries'."""
-        if isinstance(self.scene, str):
-            return [tuple(self.parameters)]
+        if isinstance(self.scene, str):  # the parameters, or with none hostile the entries generated from them
+            made = [] if self.hostile else generate(self.scene, self.parameters).get("contacts", [])
+            return [tuple(self.parameters), tuple(entry["name"] for entry in made)]
         tables = [self.scene.get(key, []) for key in ("contacts", "objects", "forces")]
         return [tuple(entry["name"] for table in tables for entry in table)]
 
