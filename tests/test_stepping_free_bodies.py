@@ -10,9 +10,13 @@ within 2.5e-3 of the event-driven run's (first order: |omega| dt t = 0.02).
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pinocchio as pin
+import pytest
 
+from pinstab.errors import StepTooLargeError
 from pinstab.model import ConstrainedModel
 from pinstab.scene import Scene, load_scene, scene_from_dict
 from pinstab.simulate import simulate
@@ -62,3 +66,12 @@ def test_tumbling_brick_keeps_its_energy() -> None:
     event = simulate(scene, dt=DT, duration=1.0, contacts="event")
     assert np.abs(stepped.q[:, :3] - event.q[:, :3]).max() <= 1e-6  # the centre: a straight line, stepped exactly
     assert np.abs(stepped.q[:, 3:] - event.q[:, 3:]).max() <= 20.0 * DT * 1.0  # orientation: |omega| dt t
+
+
+def test_a_step_turning_a_body_by_radians_is_named_too_large() -> None:
+    """At 1500 rad/s a step of 1 ms turns the brick by 1.5 rad: the midpoint's fixed point does not settle and the
+    run stops naming dt and a step that goes on, never with a state off the scheme."""
+    data = copy.deepcopy(BRICK)
+    data["initial"]["v"]["brick"] = [0.5, -0.3, 0.0, 100.0, 1500.0, 300.0]
+    with pytest.raises(StepTooLargeError, match=r"did not settle in 50 passes.*use --dt 0\.0005"):
+        simulate(scene_from_dict(data), dt=DT, duration=0.05, contacts="stepping")

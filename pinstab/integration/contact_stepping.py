@@ -62,13 +62,14 @@ from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
 from .free_flyers import FreeFlyers
 from .schemes import Integrator
+from .stepping import Failure
 
 SPEED_FLOOR = 1e-9  # [m/s] a slip, or a normal velocity change by an impulse, below this is none
 # The midpoint velocity terms by fixed point: each pass shrinks the error by about |omega| dt / 2 (omega the fastest
 # turn, in rad/s), 0.015 for 30 rad/s at dt = 1 ms; passes stop when v_free changes by less than MIDPOINT_TOLERANCE
 # of its size (rounding of the terms is ~1e-16 of it). Fifty passes reach it while |omega| dt < 1 (half of 1e-13 at
-# 0.5^45); a step turning a body by more than a radian misses it and gives a non-finite state, which the stepping
-# loop reports as a divergence and, when a smaller step goes on, as dt too large for the motion.
+# 0.5^45); a step turning a body by more than a radian misses it: a failed step, which the stepping loop reports as
+# a divergence and, when a smaller step goes on, as dt too large for the motion (StepTooLargeError).
 MIDPOINT_TOLERANCE = 1e-13
 MIDPOINT_PASSES = 50
 
@@ -135,7 +136,7 @@ class ContactStepper(Integrator):
         """v_free [m/s, rad/s] of a step of ``dt`` [s] from (q, v): ``force`` = tau - h(q, v) [N, N m] with the
         velocity terms c(v) of h taken back and c(w) put in, and the free flyers' ``turn(w)`` taken out, at the
         midpoint w = (v + v_free) / 2, by fixed point (``factor``: M's Cholesky factor); non-finite when the passes
-        do not settle (a step too large)."""
+        do not settle (a step too large: :class:`~.stepping.Failure`, which the stepping loop locates and names)."""
         model, data = self.system.model.model, self.system.model.scratch
         turn = self.free_flyers.turn
         v_free = v + dt * (cho_solve(factor, force) - turn(v))
@@ -148,7 +149,7 @@ class ContactStepper(Integrator):
             v_free = v_next
             if change <= MIDPOINT_TOLERANCE * float(np.max(np.abs(v_free), initial=0.0)):
                 return v_free
-        return np.full_like(v, np.nan)
+        raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
 
     def _rewind(self, t: float) -> None:
         """Forget the events after t [s] and take back the modes before them: the loop replays steps it took
