@@ -6,7 +6,8 @@ Measured (these tests): incline slide at 2 s relative error 1.0e-3, 5.0e-4, 2.5e
 3.1e-12 m over 10 s at dt = 1 ms; bouncing-ball apex gaps within 7.6e-4 m (k = 1..5, at most 1.08 v_k dt,
 v_k the impact speed) and at rest 0.016 s after the closed-form rest time; sphere-spin v* 9.3e-14, 4.6e-14 relative at
 dt = 1, 0.5 ms (exact but for rounding: the free flyer's translation stepped in world axes, no longer on the SE(3)
-exponential's screw, which erred by 5.3e-2, 2.5e-2); painleve-rod below the bound within 9.1e-4 (dt = 1 ms) of the event-driven run.
+exponential's screw, which erred by 5.3e-2, 2.5e-2); painleve-rod below the bound within 9.1e-4 (dt = 1 ms) of the
+event-driven run.
 """
 
 from __future__ import annotations
