@@ -101,7 +101,7 @@ def plane_contact(model: pin.Model, contact: PointContact, frictionless: bool = 
     if contact.friction is None and not frictionless:
         raise PinstabError(f"ADMM peer: plane contact {contact.name!r} is frictionless; give it a mu (a cone)")
     normal, first, second = contact_basis(contact.selection[0])
-    anchor = pin.SE3(np.column_stack([first, second, normal]), contact.world_placement_b.translation)
+    anchor = pin.SE3(np.column_stack([first, second, normal]), contact.plane_point)  # on the plane, whatever the radius
     frame = model.frames[contact.frame_a]
     link = pin.PointContactConstraintModel(model, 0, anchor, frame.parentJoint, frame.placement)
     link.setFriction(0.0 if contact.friction is None else contact.friction.mu)
