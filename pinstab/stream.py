@@ -128,7 +128,7 @@ class StreamWriter:
             dataset = self.file.create_dataset(
                 name,
                 shape=shape,
-                maxshape=(None, *shape[1:]),
+                maxshape=(None, None) if width == 0 else (None, *shape[1:]),  # HDF5 chunks no fixed width of 0
                 chunks=chunks,
                 dtype=np.int64 if name in integers else np.float64,
             )

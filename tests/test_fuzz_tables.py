@@ -689,13 +689,11 @@ def test_check_refuses_a_servo_run_refuses_at_the_start(files: RunFiles) -> None
     assert SERVO_AT_START in checked.message and checked.message == ran.message, (checked, ran)
 
 
-@pytest.mark.xfail(
-    strict=True, raises=ValueError, reason="H3: --stream of event-driven contacts ends in h5py's ValueError"
-)
 @pytest.mark.parametrize("contacts", ["event", "stepping"])
 def test_stream_of_a_contact_run(contacts: str, files: RunFiles) -> None:
-    """``pinstab run incline --contacts event --stream r.h5``: h5py's "Chunk shape must not be greater than data shape
-    in any dimension. (4096, 1) is not compatible with (0, 0)", a traceback (exit 1); held contacts stream."""
+    """``pinstab run incline --contacts event --stream r.h5`` (no multiplier rows: a dataset of width 0) streams and
+    reads back; it ended in h5py's "Chunk shape must not be greater than data shape in any dimension. (4096, 1) is
+    not compatible with (0, 0)", a traceback (exit 1)."""
     case = ContactCase("incline")
     outcome, source = run_contact_case(case, contacts, "absent", RunFiles(files.folder, "--stream"))
     assert_physics(case, contacts, outcome, source, RunFiles(files.folder, "--stream"))
