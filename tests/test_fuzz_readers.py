@@ -269,8 +269,8 @@ def sdf_documents(draw: st.DrawFn) -> Document:
                 limit = _sdf_element(axis, "limit")
                 lower = draw(physical(-2.0, 0.0))
                 bounds = [lower, lower + draw(physical(0.0, 2.0))]
-                if d.defect(name, "limit", "lower", "upper"):
-                    bounds = [1.0, -1.0]
+                if kind in ("revolute", "prismatic") and d.defect(name, "limit", "lower", "upper"):
+                    bounds = [1.0, -1.0]  # (SDF reads no limit of a continuous, ball or fixed joint)
                 _sdf_element(limit, "lower", text([bounds[0]]))
                 _sdf_element(limit, "upper", text([bounds[1]]))
             if draw(st.booleans()):
