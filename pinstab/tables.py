@@ -4,6 +4,7 @@ valid alternatives. Constraint and force kinds read their own tables through :cl
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -11,7 +12,7 @@ import pinocchio as pin
 
 from .errors import SceneError, choices
 from .memory import new_data
-from .units import COORDINATE_REASON, MAX_COORDINATE, quantity
+from .units import COORDINATE_REASON, MAX_COORDINATE, as_float, quantity
 
 WORLD = "world"
 FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
@@ -228,7 +229,7 @@ class SceneTables:
         value = entry.get(key, default)
         if value is None:
             raise SceneError(f"{where}: {key!r} is required")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(as_float(value)):
             raise SceneError(f"{where}.{key} must be a finite number, got {value!r}")
         return float(value)
 

@@ -76,7 +76,7 @@ def quantity(value: object, dimension: str, where: str) -> float:
     if isinstance(value, bool):
         raise SceneError(f"{where}: expected a number or a '<number> <unit>' string, got {value!r}")
     if isinstance(value, (int, float)):
-        result = float(value)
+        result = as_float(value)
     elif isinstance(value, str):
         parts = value.split()
         if len(parts) != 2:
@@ -96,6 +96,15 @@ def quantity(value: object, dimension: str, where: str) -> float:
     if not math.isfinite(result):
         raise SceneError(f"{where}: value {value!r} is not finite")
     return result
+
+
+def as_float(value: int | float) -> float:
+    """``float(value)``, or infinity for an integer beyond float64's range (TOML integers have no bound: 10**400
+    made float() raise OverflowError); callers refuse it as not finite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
 
 
 def within_ceiling(value: float, where: str, unit: str, lower: str = "[0") -> float:

@@ -763,3 +763,37 @@ def test_start_inside_far_from_the_origin_is_refused(files: RunFiles) -> None:
     7.1 MJ (349 J at the start), event-driven contacts keep it 0.4 m inside, held ones move it onto the plane."""
     outcome, _ = run_contact_case(ContactCase(FAR_FROM_THE_ORIGIN), "stepping", "absent", files)
     assert outcome.code == 2 and "c0" in outcome.message, outcome
+
+
+HUGE = 10**400  # a TOML integer has no bound; float64's largest is 1.8e308
+
+
+@pytest.mark.parametrize(
+    ("change", "phrase"),
+    [
+        # was: TypeError from np.isfinite on an integer beyond int64 (tables.number)
+        (("servos", 0, "joints", "joint1", HUGE), "servo 'shape'.joints.joint1 must be a finite number, got 1000"),
+        # was: OverflowError from float() (units.quantity)
+        (("initial", "q", "joint1", HUGE), "initial.q.joint1: value 1000"),
+    ],
+)
+def test_integers_beyond_float64_are_refused_by_name(change: tuple, phrase: str, files: RunFiles) -> None:
+    scene = _bundled("double-pendulum-servo")
+    *path, key, value = change
+    table = scene
+    for part in path:
+        table = table[part]
+    table[key] = value
+    files.scene.write_text(toml_document(scene), encoding="utf-8")
+    for command in ("check", "run"):
+        outcome = cli([command, str(files.scene)])
+        assert outcome.code == 2 and phrase in outcome.message, outcome
+
+
+def test_integer_beyond_int64_is_read_as_a_number(files: RunFiles) -> None:
+    """A coefficient of 2**64 (past int64, within float64): read, not numpy's TypeError."""
+    scene = _bundled("double-pendulum-servo")
+    scene["servos"][0]["joints"]["joint1"] = 2**64
+    files.scene.write_text(toml_document(scene), encoding="utf-8")
+    outcome = check_file(files.scene)
+    assert outcome.code in (0, 2), outcome
