@@ -48,7 +48,8 @@ FIGURES = (
     "max_servo_error",
 )  # the scalar figures of Trajectory.summary() a row keeps (empty where a run has none)
 RUN_FIGURES = ("path", "contact_events", "sliding_s", "held", "stopped")  # from the run's info and contact events
-WORKER_BYTES = 200_000_000  # [bytes] a local worker process: the interpreter, pinstab, Pinocchio, Dask (170-185 MB)
+WORKER_BYTES = 256_000_000  # [bytes] a local worker process: the interpreter, pinstab, Pinocchio, Dask (170-185 MB in
+# the development venv, 211 MB in a fresh one on the newest releases: tests/test_sweep_control.py measures it)
 KEY_BYTES, KEY_VALUE_BYTES = 150, 80  # [bytes] a row's key held for resuming: the tuple and its set slot; a value
 # [bytes] a cell converting the journal to Parquet: pyarrow's table takes ~6 (docs/sweeps/pinch.csv), the rest for
 # the writer's pages and long error messages
