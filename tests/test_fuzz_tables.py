@@ -300,12 +300,14 @@ def assert_physics(case: ContactCase, contacts: str, outcome: Outcome, source: s
     assert np.isfinite(trajectory.q).all() and np.isfinite(trajectory.v).all()
     scene = load_scene(source, **case.parameters)
     gaps, points = contact_geometry(scene, trajectory.q)
-    if gaps.size:
-        k, i = np.unravel_index(np.argmin(gaps), gaps.shape)
+    if gaps.size:  # never deeper than a start the scene accepted as touching (its depth checked at load)
         travel = float(np.max(np.linalg.norm(np.diff(points, axis=0), axis=2), initial=0.0))
         tolerance = GAP_TOLERANCE + (travel if contacts == "stepping" else 0.0)
-        assert gaps[k, i] >= -tolerance, (
-            f"contact {i} is {-gaps[k, i]:.3g} m inside its plane at t = {trajectory.t[k]:.6g} s ({contacts})"
+        sunk = gaps - np.minimum(gaps[0], 0.0)
+        k, i = np.unravel_index(np.argmin(sunk), sunk.shape)
+        assert sunk[k, i] >= -tolerance, (
+            f"contact {i} is {-gaps[k, i]:.3g} m inside its plane at t = {trajectory.t[k]:.6g} s, "
+            f"{-gaps[0, i]:.3g} m at the start ({contacts})"
         )
     if case.conserves_energy:
         energy = mechanical_energy(scene, trajectory.q, trajectory.v)
@@ -843,3 +845,39 @@ def test_event_steps_do_not_collapse(files: RunFiles) -> None:
     with time_limit(5):
         outcome, _ = run_contact_case(ContactCase(SLOW_EVENTS), "event", "absent", files)
     assert outcome.code in (0, 4, 5), outcome
+
+
+SPINNING_ON_A_POINT = {  # a 0.056 kg ball, one frictionless contact at a point of its equator, spinning as it slides
+    "gravity": [0.0, 0.0, -9.81],
+    "robot": {"urdf_text": "<robot name='stand'><link name='stand'/></robot>"},
+    "objects": [{"name": "crate", "shape": "sphere", "radius": 0.01, "density": 13428.0, "position": [-1, 0, 0.0105]}],
+    "contacts": [{"name": "c0", "kind": "plane-contact", "frame_a": "crate", "offset_a": [0.000885, -0.0002, 0.0]}],
+    "initial": {"v": {"crate": [-1.0, 1.0, 0.0, -0.2081233807319005, -1.0, 0.3333333333333333]}},
+}
+
+
+@pytest.mark.xfail(strict=True, reason="held unilateral rows: energy +3e-4 of the start, whatever the step")
+def test_held_point_contact_of_a_spinning_ball_keeps_its_energy(files: RunFiles) -> None:
+    """:data:`SPINNING_ON_A_POINT` with ``--contacts held``: the energy rises by 1.87e-5 J (3.3e-4 of 0.0562 J) and
+    comes back, the same at dt = 1e-3 s and 1e-4 s (max_velocity_drift 5.7e-5 m/s): work of the held row on a
+    point whose height turns with the ball (found by the long profile)."""
+    case = ContactCase(SPINNING_ON_A_POINT)
+    outcome, source = run_contact_case(case, "held", "absent", files)
+    assert_physics(case, "held", outcome, source, files)
+
+
+@pytest.mark.xfail(strict=True, reason="H3: a run refused at t = 0 leaves its --stream file, holding no sample")
+def test_stream_of_a_run_refused_at_its_start_is_not_left(files: RunFiles) -> None:
+    """A sphere object of radius 5e-324 m: ``pinstab run --contacts event --stream run.h5`` exits 2 at t = 0 ("the
+    mass matrix is singular"), and run.h5 is left holding no sample (Trajectory.load: "the streamed run holds no
+    sample yet"); ``--save`` writes nothing."""
+    scene = {
+        "gravity": [0.0, 0.0, -9.81],
+        "robot": {"urdf_text": "<robot name='stand'><link name='stand'/></robot>"},
+        "objects": [{"name": "crate", "shape": "sphere", "radius": 5e-324, "mass": 100.0, "position": [0, 1, 0.5]}],
+        "contacts": [{"name": "c0", "kind": "plane-contact", "frame_a": "crate", "offset_a": [-0.001, 0.001, 0.0]}],
+        "initial": {"v": {"crate": [0.635, 1.0, -0.04, -0.389, 0.901, -1.0]}},
+    }
+    streamed = RunFiles(files.folder, "--stream")
+    outcome, _ = run_contact_case(ContactCase(scene), "event", "absent", streamed)
+    assert outcome.code == 2 and not streamed.saved.exists(), outcome
