@@ -330,7 +330,7 @@ def check_contact_case(case: ContactCase, contacts: str, output: str, files: Run
         assert_physics(case, contacts, outcome, source, files)
 
 
-@examples(ci=400)
+@examples(ci=250)
 @given(
     case=contact_cases,
     contacts=st.sampled_from(CONTACT_TREATMENTS),
@@ -588,7 +588,7 @@ def test_start_on_a_limit_moving_into_it_runs(files: RunFiles) -> None:
     """:data:`LIMIT_HANG`: ``pinstab run`` never leaves t = 0 (the event loop locates an event at t = 0 over and
     over: pinstab/integration/events.py)."""
     files.scene.write_text(toml_document(LIMIT_HANG), encoding="utf-8")
-    with time_limit(5):
+    with time_limit(3):
         outcome = cli(["run", str(files.scene), "--duration", "0.1", "--quiet"])
     assert outcome.code == 0, outcome
 
@@ -679,7 +679,7 @@ def test_tilted_plane_runs_in_time(files: RunFiles) -> None:
     """:data:`TILTED_PLANE` with ``--contacts event --duration 0.12``: 145 s of wall time (its offsets rounded to
     three digits: 1 s and 85 contact events); the run keeps its physics."""
     case = ContactCase(TILTED_PLANE)
-    with time_limit(5):
+    with time_limit(3):
         outcome, source = run_contact_case(case, "event", "absent", files)
     assert outcome.code == 0, outcome
     assert_physics(case, "event", outcome, source, files)
@@ -745,7 +745,7 @@ FLIPPED_PLANE = {  # box-push, its front-right corner on a plane facing down, 0.
 def test_held_contacts_under_a_flipped_plane_end_in_time(files: RunFiles) -> None:
     """:data:`FLIPPED_PLANE` with ``--contacts held --duration 0.12``: 32 s of wall time before the run stops at
     t = 0.0025 s (exit 5, front-right would need to pull)."""
-    with time_limit(5):
+    with time_limit(3):
         outcome, _ = run_contact_case(ContactCase(FLIPPED_PLANE), "held", "absent", files)
     assert outcome.code in (0, 5), outcome
 
@@ -842,7 +842,7 @@ SLOW_EVENTS = {  # box-push on corners moved out to x = -0.45 m and -1.0 m, push
 def test_event_steps_do_not_collapse(files: RunFiles) -> None:
     """:data:`SLOW_EVENTS` with ``--contacts event --duration 0.12``: 4 min 25 s of wall time, 149,058 accepted
     dop853 steps down to 6.8e-13 s, for 8 contact events (found by the long profile)."""
-    with time_limit(5):
+    with time_limit(3):
         outcome, _ = run_contact_case(ContactCase(SLOW_EVENTS), "event", "absent", files)
     assert outcome.code in (0, 4, 5), outcome
 
