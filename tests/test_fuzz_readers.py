@@ -16,6 +16,8 @@ from __future__ import annotations
 import copy
 import math
 import re
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -158,11 +160,14 @@ def mjcf_documents(draw: st.DrawFn) -> Document:
             if kind in SCALAR and draw(st.booleans()):
                 lower = draw(physical(-2.0, 0.0))
                 bounds = [lower, lower + draw(physical(0.0, 2.0))]
-                if d.defect(joint_name, "range"):
+                limited = draw(st.sampled_from([None, "true", "false", "auto"]))
+                if limited is not None:
+                    attributes["limited"] = limited
+                # a range is read, and lower > upper refused, only on a limited joint (MuJoCo's rule)
+                autolimits = compiler.get("autolimits", "true") == "true"
+                if (limited == "true" or (limited != "false" and autolimits)) and d.defect(joint_name, "range"):
                     bounds = [1.0, -1.0]
                 attributes["range"] = d.numbers(bounds, joint_name, "range")
-                if draw(st.booleans()):
-                    attributes["limited"] = draw(st.sampled_from(["true", "false", "auto"]))
             ET.SubElement(body, "joint", attributes)
             if kind in SCALAR and count == 1:
                 joints.append(joint_name)
@@ -498,8 +503,31 @@ REDUNDANT_SDF = (  # a floating link l0 and a link l1 on two prismatic joints of
 def test_redundant_sdf_closure_fails_as_a_run_failure(folder: Path) -> None:
     """:data:`REDUNDANT_SDF`: ``pinstab check`` exits 0; ``pinstab run --duration 0.003`` exits 2 at t = 0.001 s,
     "proxsuite: ProxQP did not solve the constrained dynamics at t = 0.001 s (PROXQP_PRIMAL_INFEASIBLE ...)": a
-    failure during the run reported as bad input (exit 2: before any work), where a divergence is exit 3."""
+    failure during the run reported as bad input (exit 2: before any work), where a divergence is exit 3. Run in a
+    process of its own: repeated in one process, the same run alternates between that SolverError and a
+    DivergenceError (exit 3)."""
     scene = write(Document({"robot.sdf": REDUNDANT_SDF}, "sdf"), folder)
     checked = check_file(scene)
-    ran = cli(["run", str(scene), "--duration", "0.003", "--quiet"])
-    assert ran.code in (0, 3, 5) or checked.code == 2, (checked, ran)
+    ran = subprocess.run(
+        [sys.executable, "-m", "pinstab.cli", "run", str(scene), "--duration", "0.003", "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert ran.returncode in (0, 3, 5) or checked.code == 2, (checked, ran.returncode, ran.stderr)
+
+
+@pytest.mark.xfail(
+    strict=True, raises=RuntimeError, reason="H2: an inertia a rounding below PSD passes, Pinocchio refuses"
+)
+def test_sdf_inertia_a_rounding_below_positive_is_named(folder: Path) -> None:
+    """Cassie's cassie_v2.sdf with link 'left-plantar-rod' <ixx> set to 0 (its ixy = -2.34e-8, ixz = -8.1e-9 give an
+    eigenvalue of -3.5e-13 kg m^2, within check_inertia's relative tolerance of 1e-9): Pinocchio's RuntimeError "The
+    3d inertia should be positive." ends ``pinstab check`` with a traceback (found by the long profile)."""
+    if BUNDLED["sdf"] is None or not BUNDLED["sdf"].is_file():
+        pytest.skip("example-robot-data's Cassie is not installed")
+    root = ET.fromstring(BUNDLED["sdf"].read_text())
+    link = next(link for link in root.iter("link") if link.get("name") == "left-plantar-rod")
+    link.find("inertial/inertia/ixx").text = "0"
+    outcome = refusal("sdf", ET.tostring(root, encoding="unicode"), folder, free_flyer=False)
+    assert outcome.code == 2 and "left-plantar-rod" in outcome.message, outcome
