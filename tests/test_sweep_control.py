@@ -359,7 +359,7 @@ q = { hinge = 1.2 }
 APART = (("offset_b = [0.5, 0.0, 0.0]", "offset_b = [5.0, 0.0, 0.0]"),)  # the four-bar's rocker too far to close
 
 
-def setup(name: str, arguments: str, **scene) -> Case:
+def system_case(name: str, arguments: str, **scene) -> Case:
     """The case of ``pinstab sweep ARGUMENTS -o {tmp}/t.csv --quiet`` (``scene``: Case's changes or files)."""
     return Case(name, f"sweep {arguments} -o {{tmp}}/t.csv --quiet", "", "", **scene)
 
@@ -367,34 +367,34 @@ def setup(name: str, arguments: str, **scene) -> Case:
 # (case, the point's words in the message, the simulate() keywords that make the same point)
 SETUP_REFUSALS = [
     (
-        setup("method on another solver", "fourbar --grid method=pinocchio,baumgarte --param solver=dense"),
+        system_case("method on another solver", "fourbar --grid method=pinocchio,baumgarte --param solver=dense"),
         "method=pinocchio",
         {"method": "pinocchio", "solver": "dense"},
     ),
     (
-        setup("corrector", "fourbar --grid solver=proxsuite,pinocchio --param method=mukharlyamov"),
+        system_case("corrector", "fourbar --grid solver=proxsuite,pinocchio --param method=mukharlyamov"),
         "solver=pinocchio",
         {"method": "mukharlyamov", "solver": "pinocchio"},
     ),
     (
-        setup("row kinds", "painleve-rod --grid solver=proxsuite,dense --param contacts=held"),
+        system_case("row kinds", "painleve-rod --grid solver=proxsuite,dense --param contacts=held"),
         "solver=dense",
         {"solver": "dense"},
     ),
     (
-        setup("automatic gains, rtol", "fourbar --grid method=baumgarte,mukharlyamov --param rtol=1e-6"),
+        system_case("automatic gains, rtol", "fourbar --grid method=baumgarte,mukharlyamov --param rtol=1e-6"),
         "method=mukharlyamov",
         {"method": "mukharlyamov", "rtol": 1e-6},
     ),
-    (setup("carried plane, held", "pinch --grid contacts=event,held"), "contacts=held", {}),
+    (system_case("carried plane, held", "pinch --grid contacts=event,held"), "contacts=held", {}),
     (
-        setup("closures, stepping", "fourbar --grid contacts=held,stepping"),
+        system_case("closures, stepping", "fourbar --grid contacts=held,stepping"),
         "contacts=stepping",
         {"contacts": "stepping"},
     ),
-    (setup("assembly", "{scene} --grid kp=1,2", changes=APART), "", {"kp": 1}),
+    (system_case("assembly", "{scene} --grid kp=1,2", changes=APART), "", {"kp": 1}),
     (
-        setup("limits", "{tmp}/limited.toml --grid dt=1e-3,2e-4", files=(("limited.toml", LIMITED),)),
+        system_case("limits", "{tmp}/limited.toml --grid dt=1e-3,2e-4", files=(("limited.toml", LIMITED),)),
         "",
         {},
     ),
