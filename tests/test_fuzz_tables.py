@@ -881,3 +881,42 @@ def test_stream_of_a_run_refused_at_its_start_is_not_left(files: RunFiles) -> No
     streamed = RunFiles(files.folder, "--stream")
     outcome, _ = run_contact_case(ContactCase(scene), "event", "absent", streamed)
     assert outcome.code == 2 and not streamed.saved.exists(), outcome
+
+
+@pytest.mark.xfail(strict=True, reason="an object's size has no floor: a cylinder of radius 1e-300 m is taken")
+def test_object_of_vanishing_radius_is_refused(files: RunFiles) -> None:
+    """A 100 kg cylinder of radius 1e-300 m (length 0.02 m) on three plane contacts: taken; time-stepping ends in
+    numpy's LinAlgError "6-th leading minor of the array is not positive definite" (cho_factor of its mass matrix in
+    integration/contact_stepping.py), a traceback (found by the long profile)."""
+    scene = {
+        "gravity": [0.0, 0.0, -9.81],
+        "robot": {"urdf_text": "<robot name='stand'><link name='stand'/></robot>"},
+        "objects": [
+            {
+                "name": "crate",
+                "shape": "cylinder",
+                "radius": 1e-300,
+                "length": 0.02,
+                "mass": 100.0,
+                "position": [0, 0, 0.01],
+            }
+        ],
+        "contacts": [
+            {"name": "c0", "kind": "plane-contact", "frame_a": "crate", "offset_a": [0.1, 0.001, -0.01]},
+            {"name": "c1", "kind": "plane-contact", "frame_a": "crate", "offset_a": [-0.05, -0.95, -0.01], "mu": 1.1},
+            {"name": "c2", "kind": "plane-contact", "frame_a": "crate", "offset_a": [-0.05, -0.09, -0.01]},
+        ],
+        "initial": {"v": {"crate": [-0.24, -1.0, 1.0, 1.0, -0.0175, -1.0]}},
+    }
+    outcome, _ = run_contact_case(ContactCase(scene), "stepping", "absent", files)
+    assert outcome.code == 2 and "radius" in outcome.message, outcome
+
+
+@pytest.mark.xfail(strict=True, reason="an external force has no range: 1e200 N ends in a ZeroDivisionError")
+def test_external_force_out_of_range_is_refused(files: RunFiles) -> None:
+    """box-push pushed with [11, 1e200, -3.1] N: taken; event-driven contacts end in ``ZeroDivisionError: float
+    division by zero`` (integration/adaptive.py, initial_step), a traceback (found by the long profile)."""
+    scene = copy.deepcopy(BOX_PUSH)
+    scene["forces"][0]["force"] = [11.0, 1e200, -3.1]
+    outcome, _ = run_contact_case(ContactCase(scene), "event", "absent", files)
+    assert outcome.code == 2 and "force" in outcome.message, outcome
