@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from hypothesis import settings
+from hypothesis import event, note, settings
+from hypothesis.control import currently_in_test_context
 
 from conftest import HYPOTHESIS_PROFILE
 from pinstab.cli import main
@@ -41,6 +42,14 @@ def examples(ci: int) -> settings:
     """The examples of a property: ``ci`` under the default profile (CI: the fuzzers together within about two
     minutes), the profile's own number under the others (``long``: 10,000)."""
     return settings(max_examples=ci) if HYPOTHESIS_PROFILE == "default" else settings()
+
+
+def report(message: str, label: str) -> None:
+    """``message`` shown with a failing example and ``label`` counted in the statistics, inside a Hypothesis test
+    (the checks also run outside one, in the reproducers' tests)."""
+    if currently_in_test_context():
+        note(message)
+        event(label)
 
 
 # -- TOML writing --------------------------------------------------------------------------------------

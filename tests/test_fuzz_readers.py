@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from fuzzing import Outcome, check_file, cli, examples, time_limit, toml_document
-from hypothesis import event, given, note
+from fuzzing import Outcome, check_file, cli, examples, report, time_limit, toml_document
+from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import ROBOTS
@@ -412,8 +412,10 @@ def check_document(document: Document, folder: Path) -> None:
     with time_limit():
         checked = check_file(scene)
         ran = cli(["run", str(scene), "--duration", "0.003", "--dt", "1e-3", "--json", "--quiet"])
-    note(f"check: exit {checked.code} {checked.message}\nrun: exit {ran.code} {ran.message}")
-    event(f"{document.fmt}: check {checked.code}, run {ran.code}")
+    report(
+        f"check: exit {checked.code} {checked.message}\nrun: exit {ran.code} {ran.message}",
+        f"{document.fmt}: check {checked.code}, run {ran.code}",
+    )
     assert ran.code in (0, 2, 3, 4, 5), ran
     if not AFTER_THE_START.search(ran.message):  # test_redundant_sdf_closure_fails_as_a_run_failure
         assert (checked.code == 2) == (ran.code == 2), f"check: {checked}\nrun: {ran}"

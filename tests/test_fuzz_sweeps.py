@@ -33,10 +33,11 @@ from fuzzing import (
     cli,
     examples,
     prepare_output,
+    report,
     time_limit,
     toml_value,
 )
-from hypothesis import event, given, note
+from hypothesis import given
 from hypothesis import strategies as st
 
 from pinstab.bench.sweep_grid import RUN_OPTIONS
@@ -171,8 +172,7 @@ def check_sweep(
     argv += [] if most is None else ["--max-points", str(most)]
     with restarted_on_hang(scheduler):
         outcome = cli(argv)
-    note(f"exit {outcome.code}: {outcome.message or outcome.err[-300:]}")
-    event(f"exit {outcome.code}")
+    report(f"exit {outcome.code}: {outcome.message or outcome.err[-300:]}", f"exit {outcome.code}")
     assert outcome.code in (0, 2, 6), outcome
     assert_not_lost(table, precious, output, rows_of)
     if outcome.code == 2:
