@@ -4,7 +4,6 @@ valid alternatives. Constraint and force kinds read their own tables through :cl
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -12,7 +11,7 @@ import pinocchio as pin
 
 from .errors import SceneError, choices
 from .memory import new_data
-from .units import COORDINATE_REASON, MAX_COORDINATE, as_float, quantity
+from .units import COORDINATE_REASON, MAX_COORDINATE, finite_number, quantity
 
 WORLD = "world"
 FRAME_PREFERENCE = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT)
@@ -229,9 +228,7 @@ class SceneTables:
         value = entry.get(key, default)
         if value is None:
             raise SceneError(f"{where}: {key!r} is required")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(as_float(value)):
-            raise SceneError(f"{where}.{key} must be a finite number, got {value!r}")
-        return float(value)
+        return finite_number(value, f"{where}.{key}")
 
     def name(self, entry: dict[str, Any], default: str, where: str) -> str:
         """The entry's ``name`` (a string) or ``default``."""

@@ -107,6 +107,18 @@ def as_float(value: int | float) -> float:
         return math.inf if value > 0 else -math.inf
 
 
+def finite_number(value: object, where: str) -> float:
+    """``value`` as a float when it is a plain finite number (an int or a float, not a bool; an integer beyond
+    float64's range counts as infinite).
+
+    Raises:
+        SceneError: ``"{where} must be a finite number, got {value!r}"``.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(as_float(value)):
+        raise SceneError(f"{where} must be a finite number, got {value!r}")
+    return float(value)
+
+
 def within_ceiling(value: float, where: str, unit: str, lower: str = "[0") -> float:
     """``value`` [SI] when at most :data:`MAX_MAGNITUDE`; ``lower`` opens the allowed range in the message
     (``"[0"``, ``"(0"``: the caller checks the lower end).

@@ -36,7 +36,7 @@ from scipy.interpolate import CubicSpline
 from ..errors import SceneError, WaypointError, choices
 from ..registry import Registry
 from ..tables import check_keys, vector
-from ..units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, quantity
+from ..units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, finite_number, quantity
 
 MIN_SPAN = 1e-6  # [s] the shortest feature of a target in time: a move's duration, a spline's interval, a
 # sinusoid's half period. Drives' current loops run at 10-100 kHz (10 us and slower); a move of 1 mm in 1 us already
@@ -200,7 +200,7 @@ def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynom
     unit = entry.get("unit")
     scale = 1.0 if unit is None else quantity(f"1 {unit}", context.dimension, f"{where}.unit")
     if context.size == 1:
-        rows = [[_number(c, f"{where}.coefficients[{k}]")] for k, c in enumerate(raw)]
+        rows = [[finite_number(c, f"{where}.coefficients[{k}]")] for k, c in enumerate(raw)]
     else:
         rows = [vector(c, context.size, f"{where}.coefficients[{k}]", None) for k, c in enumerate(raw)]
     coefficients = scale * np.array(rows, dtype=float)
@@ -211,13 +211,6 @@ def parse_polynomial(entry: dict, context: TargetContext, where: str) -> Polynom
         rate = f"{per}/s" if k == 1 else f"{per}/s^{k}"
         within(row, MAX_MAGNITUDE, f"{where}.coefficients[{k}]", rate, MAGNITUDE_REASON)
     return Polynomial(coefficients)
-
-
-def _number(value: Any, where: str) -> float:
-    """A plain finite number (SI)."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
-        raise SceneError(f"{where} must be a finite number, got {value!r}")
-    return float(value)
 
 
 class Sinusoid(TargetTrajectory):
