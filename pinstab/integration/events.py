@@ -129,8 +129,9 @@ class EventLoop(AdaptiveLoop):
                 a_new = system.acceleration(step.q, step.v, t_new, 0)
                 segment = Segment(system.model, t, q, v, a, t_new, step.q, step.v, a_new)
                 values = self.event_values(step.q, step.v, t_new)
-                if np.any(values < 0.0):
-                    t_event = self._locate(segment, t, t_new)
+                dip = self._limit_dip(segment)
+                if np.any(values < 0.0) or dip is not None:
+                    t_event = self._locate(segment, t, t_new if dip is None else dip)
                     q_new, v_new = self.pair.attempt(q, v, t, t_event - t, a)[:2]
                     segment = Segment(
                         system.model, t, q, v, a, t_event, q_new, v_new, system.acceleration(q_new, v_new, t_event, 0)
@@ -175,6 +176,31 @@ class EventLoop(AdaptiveLoop):
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
         return np.concatenate([values, limits])
+
+    def _limit_dip(self, segment: Segment) -> float | None:
+        """The earliest time [s] inside the step ``segment`` at which a released joint limit's gap on the dense
+        output has a minimum beyond where the limit counts as reached, or None: a joint that passes its bound and
+        turns back within one step (the gap positive at both ends, which the step's end values miss; a start on the
+        bound moving into it, a second link thrown by the first one's impact). A limit's coordinate on the dense
+        output is ``q0_i + p_i(u)``, ``p_i`` the increment's polynomial (its 1-DOF joint's increment is additive), so
+        that its minima are the roots of ``p_i'``."""
+        released = [i for i, held in enumerate(self.dynamics.active) if not held]
+        if not released:
+            return None
+        limits = [self.dynamics.limits[i] for i in released]
+        signs = np.array([limit.sign for limit in limits])
+        columns = [limit.index_v for limit in limits]
+        gaps = np.array([limit.gap(segment.q0) - self._floors[i] for i, limit in zip(released, limits, strict=True)])
+        terms = signs * segment.coefficients[1:, columns]  # (degree, limits): the gap's polynomial in u but its start
+        dips = []
+        for k in np.flatnonzero(gaps < np.abs(terms).sum(axis=0)):  # else the gap stays above its floor on [0, 1]
+            polynomial = np.concatenate(([gaps[k]], terms[:, k]))
+            turns = np.polynomial.polynomial.polyroots(np.polynomial.polynomial.polyder(polynomial))
+            turns = np.sort(turns[np.isreal(turns)].real)
+            below = [u for u in turns if 0.0 < u < 1.0 and np.polynomial.polynomial.polyval(u, polynomial) < 0.0]
+            if below:
+                dips.append(segment.t0 + below[0] * segment.h)
+        return min(dips, default=None)
 
     def _limit_values(self, q: np.ndarray, solution: ModeSolution) -> np.ndarray:
         """Each joint limit's event function: an active one's reaction (beyond the event slack) [N m or N], an
