@@ -44,6 +44,17 @@ MIN_MASS_REASON = (
     "(1e-9 N) and its mass matrix in rounding"
 )
 
+# [m]: the smallest dimension of a body a scene may give (an object's radius, length or side, a generated ball's
+# radius): a micrometre, a MEMS feature's. A body of mass m that thin has a principal moment of order m r^2, 1e-12 of
+# its mass's scale at r = 1e-6 m: its mass matrix's condition number reaches 1e12 (a 100 kg cylinder of radius 1e-6 m
+# still runs with every contact treatment); at r = 1e-300 m the moment is 0 next to the mass and the mass matrix's
+# Cholesky factorization fails
+MIN_LENGTH = 1e-6
+MIN_LENGTH_REASON = (
+    "thinner than a micrometre (a MEMS feature) a body's rotational inertia (of order its mass times its size "
+    "squared) falls below 1e-12 of its mass and its mass matrix is singular in floating point"
+)
+
 MAX_COORDINATE = 1e6  # [m or rad]: a joint coordinate (or a target's value) beyond it is a mistake
 COORDINATE_REASON = "where sines, cosines and positions lose their digits"
 # [rad/s or m/s]: a joint rate (or a body's twist) beyond it is a mistake: the fastest rotors (ultracentrifuges,

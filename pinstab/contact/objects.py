@@ -24,7 +24,15 @@ import pinocchio as pin
 
 from ..errors import SceneError, choices
 from ..tables import check_keys, coordinates, list_of_tables, placement, vector
-from ..units import MAX_MAGNITUDE, MIN_MASS, MIN_MASS_REASON, quantity, within_ceiling
+from ..units import (
+    MAX_MAGNITUDE,
+    MIN_LENGTH,
+    MIN_LENGTH_REASON,
+    MIN_MASS,
+    MIN_MASS_REASON,
+    quantity,
+    within_ceiling,
+)
 
 SHAPES = ("box", "sphere", "cylinder", "urdf")
 OBJECT_KEYS = {"name", "shape", "size", "radius", "length", "density", "mass", "inertia", "position", "rpy", "color"}
@@ -70,6 +78,20 @@ def _positive(entry: dict[str, Any], key: str, dimension: str, where: str) -> fl
     return within_ceiling(value, f"{where}.{key}", SI_UNITS[dimension], "(0")
 
 
+def _dimension(value: float, where: str) -> float:
+    """An object's dimension (a radius, length or side) [m] when at least :data:`~pinstab.units.MIN_LENGTH`.
+
+    Raises:
+        SceneError: naming ``where``, the value and the allowed range.
+    """
+    if not value >= MIN_LENGTH:
+        raise SceneError(
+            f"{where} = {value:.3g} m is outside the allowed range [{MIN_LENGTH:g}, {MAX_MAGNITUDE:.0e}] m: "
+            f"{MIN_LENGTH_REASON}"
+        )
+    return value
+
+
 @np.errstate(over="ignore")  # sizes too large give an infinite inertia, refused by the caller
 def _shape(entry: dict[str, Any], where: str) -> tuple[coal.CollisionGeometry, float, np.ndarray]:
     """(coal shape, volume [m^3], unit-mass inertia diagonal [m^2]) of a box, sphere or cylinder."""
@@ -86,12 +108,14 @@ def _shape(entry: dict[str, Any], where: str) -> tuple[coal.CollisionGeometry, f
         if not np.all(size > 0):
             raise SceneError(f"{where}.size must be three lengths > 0, got {entry['size']!r}")
         within_ceiling(float(size.max()), f"{where}.size", "m", "(0")
+        for axis, side in enumerate(size):
+            _dimension(float(side), f"{where}.size[{axis}]")
         x, y, z = size**2
         return coal.Box(*size), float(np.prod(size)), np.array([y + z, x + z, x + y]) / 12.0
-    radius = _positive(entry, "radius", "length", where)
+    radius = _dimension(_positive(entry, "radius", "length", where), f"{where}.radius")
     if shape == "sphere":
         return coal.Sphere(radius), 4.0 / 3.0 * math.pi * radius**3, np.full(3, 0.4 * radius**2)
-    length = _positive(entry, "length", "length", where)
+    length = _dimension(_positive(entry, "length", "length", where), f"{where}.length")
     transverse = (3.0 * radius**2 + length**2) / 12.0
     return (
         coal.Cylinder(radius, length),
@@ -118,6 +142,12 @@ def _shape_inertia(entry: dict[str, Any], volume: float, unit_inertia: np.ndarra
         raise SceneError(
             f"{where}.inertia is not a rigid body's: principal moments {np.round(eigenvalues, 12).tolist()} must be "
             "positive and each at most the sum of the other two"
+        )
+    floor = mass * MIN_LENGTH**2 / 6.0  # [kg m^2] a cube of side MIN_LENGTH's moments
+    if eigenvalues[0] < floor:
+        raise SceneError(
+            f"{where}.inertia: its smallest principal moment {eigenvalues[0]:.3g} kg m^2 is below {floor:.3g} kg m^2, "
+            f"the moment of a cube of its mass ({mass:.3g} kg) and side {MIN_LENGTH:g} m: {MIN_LENGTH_REASON}"
         )
     return _inertia(mass, matrix, where)
 
