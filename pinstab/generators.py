@@ -13,7 +13,16 @@ from typing import Any
 
 from .contact.coefficients import friction_coefficient, restitution_coefficient
 from .errors import SceneError, choices
-from .units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, MAX_RATE, RATE_REASON
+from .units import (
+    COORDINATE_REASON,
+    MAGNITUDE_REASON,
+    MAX_COORDINATE,
+    MAX_MAGNITUDE,
+    MAX_RATE,
+    MIN_LENGTH,
+    MIN_MASS,
+    RATE_REASON,
+)
 from .urdf_text import Joint, Rod, UrdfDocument
 
 MAX_LOOPS = 1000  # nfourbar's N: 2001 links (a larger N only makes the scene wait on its URDF)
@@ -23,9 +32,8 @@ MIN_LINK_LENGTH = math.sqrt(3.0) * Rod.radius
 LINK_LENGTH_REASON = f"a rod shorter than {MIN_LINK_LENGTH:.3g} m breaks its inertia's triangle inequality; " + (
     f"the N+1 cranks' pins span N link lengths, a position within {MAX_COORDINATE:g} m, {COORDINATE_REASON}"
 )
-# [kg] the lightest body a generator makes: a microgram, a MEMS part's mass (the lightest a mechanism is built of);
-# pinch's cube of 1e-9 kg between its 0.1 kg fingers already spreads the mass matrix's diagonal over 1e8
-MIN_MASS = 1e-9
+# the lightest body a generator makes is units.MIN_MASS (a microgram); pinch's cube of 1e-9 kg between its 0.1 kg
+# fingers already spreads the mass matrix's diagonal over 1e8
 MASS_REASON = f"from a microgram (a MEMS part) to {MAX_MAGNITUDE:.0e} kg: {MAGNITUDE_REASON}"
 
 
@@ -170,7 +178,7 @@ def incline(theta: float = 0.5, mu: float = 0.3, v_down: float = 0.0, v_across: 
     }
 
 
-MIN_RADIUS = 1e-6  # [m] sphere-spin's smallest ball: a micrometre grain, its inertia 0.4 r^2 = 4e-13 kg m^2
+MIN_RADIUS = MIN_LENGTH  # [m] sphere-spin's smallest ball: a micrometre grain, its inertia 0.4 r^2 = 4e-13 kg m^2
 RADIUS_REASON = (
     f"from a micrometre grain (its inertia 0.4 r^2 kg m^2 then 1e-12 of its mass's scale) to {MAX_COORDINATE:g} m, "
     f"where its centre starts, a coordinate of its free joint: {COORDINATE_REASON}"
