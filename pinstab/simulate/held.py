@@ -12,9 +12,11 @@ from typing import Any
 import numpy as np
 
 from ..assembly import AssemblyReport, assemble
+from ..constraints.base import RowKind
 from ..errors import PinstabError, UnstableGainsError, UnstableGainsWarning
 from ..integration import INTEGRATORS, AdaptiveLoop, ErrorControl, Integrator, StepLoop, TimeGrid
 from ..scene import Scene
+from ..solvers.impacts import REST_SPEED
 from ..stability import largest_stable_step
 from ..system import ConstrainedSystem, build_system
 from ..trajectory import StreamedTrajectory, Trajectory
@@ -73,6 +75,7 @@ def simulate_held(
     if assemble_initial:
         report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
+    refuse_separating_contacts(system, q, v, scene.name)
     system.bind(grid.dt, integrator, q)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
     start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
@@ -139,6 +142,33 @@ def held_system(
             "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
         )
     return system, stepper
+
+
+def refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, scene: str) -> None:
+    """Refuse a start at which a held contact (a unilateral or cone block: its first row the normal) separates
+    from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a spin about a point off the
+    contact's centre lifts it. Held rows keep a contact touching: the row would push while the point rises (the
+    force doing work, energy created) instead of letting it fly; event-driven contacts let it open.
+
+    Raises:
+        PinstabError: naming the contact, its separating speed [m/s] and the alternatives.
+    """
+    model = system.model
+    stack = model.constraints
+    contacts = [c for c in stack.constraints if c.row_kind in (RowKind.UNILATERAL, RowKind.CONE)]
+    if not contacts:
+        return
+    rates = model.constraint_values(q, v, 0.0, model.scratch_kinematics).velocity_residual
+    for contact in contacts:
+        rate = float(rates[stack.slices[contact.name].start])
+        if rate > REST_SPEED:
+            raise PinstabError(
+                f"scene {scene}: contact {contact.name} starts separating from its plane at {rate:.6g} m/s (its "
+                f"point's velocity along the normal; at most {REST_SPEED:g} m/s is at rest), which held rows (a "
+                "contact kept touching) do not model: they would push the rising point back, creating energy; run "
+                "it with contacts='event' (--contacts event), which lets it open, or start it at rest along the "
+                "normal (initial.v)"
+            )
 
 
 def _refuse_unstable_gains(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, strict: bool) -> float | None:
