@@ -11,7 +11,12 @@ import numpy as np
 from ..errors import SceneError
 from ..units import within_ceiling
 
-INERTIA_TOLERANCE = 1e-9  # relative to the largest principal moment
+# How far below 0 the smallest principal moment (or below the sum of the other two, the largest) may be, relative to
+# the largest: the rounding of the file's decimals to doubles and of the eigenvalue solve (a few machine epsilons,
+# 2.2e-16, each; the bundled robots' PSD-but-singular inertias reach 2.6e-16). Beyond it the matrix is not an inertia:
+# Cassie's 'left-plantar-rod' with ixx = 0 beside ixy = -2.34e-8 has a moment of -3.5e-13 (2e-10 of the largest),
+# which Pinocchio's Inertia refuses ("The 3d inertia should be positive.") once rotated into its joint's frame.
+INERTIA_TOLERANCE = 1e-14
 
 
 def check_body(mass: float, inertia: np.ndarray, where: str, triangle: bool) -> None:
@@ -49,7 +54,10 @@ def check_inertia(inertia: np.ndarray, where: str, triangle: bool) -> None:
     moments = np.linalg.eigvalsh(inertia)
     tolerance = INERTIA_TOLERANCE * max(abs(moments[0]), abs(moments[2]))
     if moments[0] < -tolerance:
-        raise SceneError(f"{where}: inertia is not positive semidefinite: {_moments(moments)}")
+        raise SceneError(
+            f"{where}: inertia is not positive semidefinite: {_moments(moments)} (the smallest may be below 0 by at "
+            f"most {INERTIA_TOLERANCE:g} x the largest, a rounding); the inertia [kg m^2]: {_matrix(inertia)}"
+        )
     within_ceiling(float(moments[2]), f"{where}: inertia's largest principal moment", "kg m^2")
     if triangle and moments[2] > moments[0] + moments[1] + tolerance:
         raise SceneError(
@@ -58,5 +66,26 @@ def check_inertia(inertia: np.ndarray, where: str, triangle: bool) -> None:
         )
 
 
+def rotated(inertia: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """``rotation @ inertia @ rotation.T`` [kg m^2] of an inertia :func:`check_inertia` took, its principal moments
+    below 0 (a rounding) set to 0: positive semidefinite as computed, each diagonal entry a sum of terms >= 0, so
+    that Pinocchio's ``Inertia`` (which refuses a diagonal entry below 0) takes it whatever the rotation."""
+    moments, axes = np.linalg.eigh(inertia)
+    turned = rotation @ axes
+    matrix = (turned * np.maximum(moments, 0.0)) @ turned.T
+    return (matrix + matrix.T) / 2
+
+
 def _moments(moments: np.ndarray) -> str:
-    return f"principal moments {np.round(moments, 12).tolist()} kg m^2"
+    return f"principal moments {_six_digits(moments)} kg m^2"
+
+
+def _matrix(inertia: np.ndarray) -> str:
+    """The entries ixx, iyy, izz, ixy, ixz, iyz."""
+    entries = {"ixx": (0, 0), "iyy": (1, 1), "izz": (2, 2), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
+    return ", ".join(f"{name} {_six_digits([inertia[index]])[0]}" for name, index in entries.items())
+
+
+def _six_digits(values) -> list[float]:
+    """The values to 6 significant digits (a moment of -3.5e-13 beside one of 1.8e-3 kept)."""
+    return [float(f"{value:.6g}") for value in values]

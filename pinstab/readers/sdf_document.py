@@ -126,9 +126,9 @@ def _visuals(link: ET.Element, tag: str, where: str) -> list[SdfVisual]:
     return items
 
 
-def _link(element: ET.Element) -> SdfLink:
+def _link(element: ET.Element, path: Path) -> SdfLink:
     name = element.get("name", "")
-    where = f"sdf link {name!r}"
+    where = f"robot.sdf {path}: sdf link {name!r}"
     link = SdfLink(name, _pose(element, where))
     inertial = element.find("inertial")
     if inertial is not None:
@@ -245,7 +245,7 @@ def read_document(path: Path) -> SdfModel:
         twice = repeated(item.get("name") for item in element.findall(tag))
         if twice:
             raise SceneError(f"robot.sdf {path}: {tag} {twice[0]!r} is defined twice")
-    links = {link.name: link for link in map(_link, element.findall("link"))}
+    links = {link.name: link for link in (_link(item, path) for item in element.findall("link"))}
     if not links:
         raise SceneError(f"robot.sdf {path}: model {element.get('name')!r} has no <link>")
     if WORLD_LINK in links:

@@ -18,6 +18,7 @@ import pinocchio as pin
 
 from ..errors import SceneError
 from .bounds import tree_depth
+from .inertia import rotated
 from .sdf_document import WORLD_LINK, SdfJoint, SdfModel
 
 ROOT_JOINT = "root_joint"  # the free flyer's name, as Pinocchio's URDF reader calls it
@@ -116,7 +117,7 @@ class _Builder:
         """The link's inertia on ``joint_id`` and its BODY frame at the link's SDF pose."""
         link = self.sdf.links[name]
         com = joint_frame.actInv(link.pose * link.inertial_pose)
-        inertia = pin.Inertia(link.mass, com.translation, com.rotation @ link.inertia @ com.rotation.T)
+        inertia = pin.Inertia(link.mass, com.translation, rotated(link.inertia, com.rotation))
         self.model.appendBodyToJoint(joint_id, inertia, pin.SE3.Identity())
         in_joint = joint_frame.actInv(link.pose)
         body = self.model.addFrame(pin.Frame(name, joint_id, parent_frame, in_joint, pin.FrameType.BODY))

@@ -1,0 +1,99 @@
+"""Reader and KKT-solver failures the reader fuzzer found (issue 34): an SDF inertia a rounding below positive
+semidefinite that Pinocchio refused with a raw RuntimeError, and a redundant SDF closure whose run failed mid-way
+with exit 2 (bad input) and, repeated in one process, alternated between two outcomes."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from fuzzing import cli
+
+import pinstab
+from pinstab.errors import SceneError
+from pinstab.readers import example_robot_data_dir
+from pinstab.readers.inertia import INERTIA_TOLERANCE, rotated
+from pinstab.scene import scene_from_dict
+
+CASSIE = (
+    None if example_robot_data_dir() is None else example_robot_data_dir() / "cassie_description/robots/cassie_v2.sdf"
+)
+
+
+def _scene(folder: Path, sdf: str, free_flyer: bool = False) -> Path:
+    (folder / "robot.sdf").write_text(sdf, encoding="utf-8")
+    scene = folder / "scene.toml"
+    scene.write_text(
+        f'gravity = [0.0, 0.0, -9.81]\n[robot]\nsdf = "robot.sdf"\nfree_flyer = {str(free_flyer).lower()}\n',
+        encoding="utf-8",
+    )
+    return scene
+
+
+# -- an inertia a rounding below positive semidefinite -------------------------------------------------------------
+@pytest.mark.skipif(CASSIE is None or not CASSIE.is_file(), reason="example-robot-data's Cassie is not installed")
+@pytest.mark.parametrize("ixx", ["0", "1e-300"])
+def test_cassie_rod_with_no_ixx_is_named(tmp_path: Path, ixx: str) -> None:
+    """Cassie's 'left-plantar-rod' with ixx = 0 beside ixy = -2.34e-8, ixz = -8.1e-9, iyy = 1.774e-3: its smallest
+    principal moment is about -ixy^2 / iyy - ixz^2 / izz = -3.46e-13 kg m^2 (2e-10 of the largest, beyond a
+    rounding): refused by name, where Pinocchio ended ``pinstab check`` with "The 3d inertia should be positive."."""
+    root = ET.parse(CASSIE).getroot()
+    link = next(link for link in root.iter("link") if link.get("name") == "left-plantar-rod")
+    link.find("inertial/inertia/ixx").text = ixx
+    outcome = cli(["check", str(_scene(tmp_path, ET.tostring(root, encoding="unicode")))])
+    expected = -(2.34e-8**2) / 1.774e-3 - 8.1e-9**2 / 1.775e-3  # second-order perturbation of the zero moment
+    assert outcome.code == 2, outcome
+    assert "robot.sdf" in outcome.message and "sdf link 'left-plantar-rod'" in outcome.message, outcome
+    assert "not positive semidefinite" in outcome.message and "ixy -2.34e-08" in outcome.message, outcome
+    smallest = float(outcome.message.split("principal moments [")[1].split(",")[0])
+    assert smallest == pytest.approx(expected, rel=1e-4)
+
+
+def _pendulum(smallest: float) -> str:
+    """A link on a revolute joint (axis y, 0.5 m from its centre of mass) whose inertia has principal moments
+    (smallest, 1, 1) kg m^2 about turned axes."""
+    return (
+        "<sdf version='1.6'><model name='m'><link name='base'><inertial><mass>1</mass></inertial></link>"
+        "<link name='rod'><inertial><pose>0.5 0 0 0.3 -0.7 1.1</pose><mass>1</mass>"
+        f"<inertia><ixx>{smallest!r}</ixx><iyy>1</iyy><izz>1</izz></inertia></inertial></link>"
+        "<joint name='j' type='revolute'><parent>base</parent><child>rod</child><axis><xyz>0 1 0</xyz></axis></joint>"
+        "</model></sdf>"
+    )
+
+
+def test_the_inertia_tolerance_boundary(tmp_path: Path) -> None:
+    """A smallest moment of -INERTIA_TOLERANCE x the largest (a rounding) loads as the nearest inertia (moments
+    0, 1, 1 in the turned frame Pinocchio gets) and runs; a little below it is refused by name."""
+    robot = {"sdf": str(tmp_path / "m.sdf"), "free_flyer": False}
+    (tmp_path / "m.sdf").write_text(_pendulum(-INERTIA_TOLERANCE), encoding="utf-8")
+    scene = scene_from_dict({"gravity": [0.0, 0.0, -9.81], "robot": robot}, name="edge")
+    body = scene.model.inertias[1]
+    assert np.linalg.eigvalsh(body.inertia) == pytest.approx([0.0, 1.0, 1.0], abs=1e-15)
+    assert body.mass == 1.0 and body.lever == pytest.approx([0.5, 0.0, 0.0])
+    result = pinstab.simulate(scene, duration=0.01)
+    assert np.isfinite(result.q).all() and result.q[-1, 0] != 0.0  # it swings under gravity
+    (tmp_path / "m.sdf").write_text(_pendulum(-1.5 * INERTIA_TOLERANCE), encoding="utf-8")
+    with pytest.raises(SceneError, match=r"sdf link 'rod': inertia is not positive semidefinite: .*\[-1.5e-14, "):
+        scene_from_dict({"gravity": [0.0, 0.0, -9.81], "robot": robot}, name="edge")
+
+
+def test_rotated_inertia_is_taken_by_pinocchio() -> None:
+    """A rod's inertia (moments 0, 1e-3, 1e-3) turned back to the rod's axes: R I R^T computed as is has a
+    diagonal entry a rounding below 0 about half the time (Pinocchio's Inertia refuses it); :func:`rotated` never,
+    and equals R I R^T to a rounding."""
+    rng = np.random.default_rng(0)
+    refused = 0
+    for _ in range(200):
+        turn = pin.rpy.rpyToMatrix(*rng.uniform(-3.0, 3.0, 3))
+        rod = turn @ np.diag([0.0, 1e-3, 1e-3]) @ turn.T
+        rod = (rod + rod.T) / 2
+        direct = turn.T @ rod @ turn
+        refused += direct[0, 0] < 0
+        matrix = rotated(rod, turn.T)
+        assert np.diag(matrix).min() >= 0 and np.array_equal(matrix, matrix.T)
+        assert np.abs(matrix - direct).max() < 1e-17
+        pin.Inertia(1.0, np.zeros(3), matrix)  # raises RuntimeError on a diagonal entry below 0
+    assert refused > 50  # the case is real: the direct product would have been refused
