@@ -145,10 +145,10 @@ def held_system(
 
 
 def refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, scene: str) -> None:
-    """Refuse a start at which a held contact (a unilateral or cone block: its first row the normal) separates
-    from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a spin about a point off the
-    contact's centre lifts it. Held rows keep a contact touching: the row would push while the point rises (the
-    force doing work, energy created) instead of letting it fly; event-driven contacts let it open.
+    """Refuse a start at which a held contact (a block of unilateral rows, or of cone rows: its first row the
+    normal) separates from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a spin about a
+    point off the contact's centre lifts it. Held rows keep a contact touching: the row would push while the point
+    rises (the force doing work, energy created) instead of letting it fly; event-driven contacts let it open.
 
     Raises:
         PinstabError: naming the contact, its separating speed [m/s] and the alternatives.
@@ -160,7 +160,8 @@ def refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.n
         return
     rates = model.constraint_values(q, v, 0.0, model.scratch_kinematics).velocity_residual
     for contact in contacts:
-        rate = float(rates[stack.slices[contact.name].start])
+        rows = stack.slices[contact.name]
+        rate = float(np.max(rates[rows]) if contact.row_kind == RowKind.UNILATERAL else rates[rows.start])
         if rate > REST_SPEED:
             raise PinstabError(
                 f"scene {scene}: contact {contact.name} starts separating from its plane at {rate:.6g} m/s (its "
