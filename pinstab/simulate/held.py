@@ -75,7 +75,7 @@ def simulate_held(
     if assemble_initial:
         report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
-    refuse_separating_contacts(system, q, v, scene.name)
+    _refuse_separating_contacts(system, q, v, scene.name)
     system.bind(grid.dt, integrator, q)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
     start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
@@ -144,7 +144,7 @@ def held_system(
     return system, stepper
 
 
-def refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, scene: str) -> None:
+def _refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, scene: str) -> None:
     """Refuse a start at which a held contact (a block of unilateral rows, or of cone rows: its first row the
     normal) separates from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a spin about a
     point off the contact's centre lifts it. Held rows keep a contact touching: the row would push while the point
