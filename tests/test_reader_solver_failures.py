@@ -97,3 +97,53 @@ def test_rotated_inertia_is_taken_by_pinocchio() -> None:
         assert np.abs(matrix - direct).max() < 1e-17
         pin.Inertia(1.0, np.zeros(3), matrix)  # raises RuntimeError on a diagonal entry below 0
     assert refused > 50  # the case is real: the direct product would have been refused
+
+
+# -- a redundant SDF closure: rows that are rounding of zero rows --------------------------------------------------
+REDUNDANT_SDF = (  # a floating link l0 and a link l1 on two prismatic joints of different axes (a loop: a closure)
+    '<sdf version="1.6"><model name="m">'
+    '<link name="l0"><inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz></inertia>'
+    '</inertial></link><link name="l1"><pose>0.3 0 0 0 0 0</pose><inertial><mass>1</mass><inertia><ixx>0.01</ixx>'
+    "<iyy>0.01</iyy><izz>0.01</izz></inertia></inertial></link>"
+    '<joint name="a" type="prismatic"><parent>l0</parent><child>l1</child><axis><xyz>1 1 1</xyz></axis></joint>'
+    '<joint name="b" type="prismatic"><parent>l0</parent><child>l1</child><axis><xyz>1 0.84 1</xyz></axis></joint>'
+    "</model></sdf>"
+)
+FALL = 0.5 * 9.81 * 0.003**2  # [m] a free body's fall in 3 ms from rest (RK4 is exact for a constant acceleration)
+
+
+def _redundant(folder: Path):
+    return scene_from_dict(
+        {"gravity": [0.0, 0.0, -9.81], "robot": {"sdf": str(_scene(folder, REDUNDANT_SDF, True).parent / "robot.sdf")}},
+        name="redundant",
+    )
+
+
+def test_redundant_closure_runs_as_a_free_body(tmp_path: Path) -> None:
+    """The closure 'b' locks joint 'a' (its slide's rows leave only a's motion across b: rank 1 of 5, the other rows
+    zero but for rounding): the pair falls as one free body, z = -g t^2 / 2, joint 'a' at 0 (it ended in ProxQP's
+    PRIMAL_INFEASIBLE at t = 0.001 s, exit 2: the rounding rows scaled to unit rows of noise)."""
+    scene_file = _scene(tmp_path, REDUNDANT_SDF, True)
+    checked = cli(["check", str(scene_file), "--json"])
+    assert checked.code == 0 and '"rank": 1' in checked.out and '"redundant": 4' in checked.out, checked
+    ran = cli(["run", str(scene_file), "--duration", "0.003", "--quiet", "--json"])
+    assert ran.code == 0, ran
+    run = pinstab.simulate(_redundant(tmp_path), duration=0.003)
+    assert run.q[-1, 2] == pytest.approx(-FALL, rel=1e-12) and abs(run.q[-1, 7]) < 1e-15
+    assert set(run.info.solver_statistics.status_counts) == {"cholesky"}  # the rounding rows left out
+
+
+def test_proxqp_scaling_keeps_rounding_rows_small(tmp_path: Path) -> None:
+    """ProxQP itself (direct off) on the same scene: the rounding rows keep the largest row's scale (not their own,
+    1e-17), so ProxQP solves every step; the fall is the free body's."""
+    run = pinstab.simulate(_redundant(tmp_path), duration=0.003, solver_options={"direct": False})
+    assert set(run.info.solver_statistics.status_counts) == {"PROXQP_SOLVED"}
+    assert run.q[-1, 2] == pytest.approx(-FALL, rel=1e-12)
+
+
+def test_repeated_runs_in_one_process_are_identical(tmp_path: Path) -> None:
+    """Three runs of the scene in one process: bitwise the same trajectory (they alternated between a SolverError
+    and a DivergenceError: ProxQP's answers on the rows of noise vary by rounding with the alignment of its memory,
+    and the noise rows made those roundings decide feasibility)."""
+    runs = [pinstab.simulate(_redundant(tmp_path), duration=0.003) for _ in range(3)]
+    assert all(np.array_equal(run.q, runs[0].q) and np.array_equal(run.v, runs[0].v) for run in runs)

@@ -245,13 +245,20 @@ def test_proxsuite_direct_solve_equals_proxqp_and_dense():
 
 
 def test_proxsuite_direct_solve_declines_redundant_rows():
-    """fivebar's point closure on a planar mechanism (3 rows, rank 2): the Cholesky pivot of the Delassus matrix
-    falls below DIRECT_PIVOT, the direct solve declines and ProxQP solves (the dense backend refuses it)."""
+    """fivebar's point closure on a planar mechanism (3 rows, rank 2): its out-of-plane row is zero, left out of the
+    Cholesky solve (multiplier 0), which gives ProxQP's accelerations; with a row repeated (rows dependent) the
+    Delassus pivot falls below DIRECT_PIVOT, the direct solve declines and ProxQP solves (the dense backend refuses
+    it)."""
     scene = load_scene("fivebar")
     system = build_system(scene, "baumgarte", "proxsuite")
-    system.dynamics(scene.q0, scene.v0, 0.0)
-    assert set(system.solver.statistics.status_counts) <= {"PROXQP_SOLVED", "PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE"}
+    proxqp = build_system(scene, "baumgarte", "proxsuite", solver_options={"direct": False})
+    direct, by_qp = system.dynamics(scene.q0, scene.v0, 0.0), proxqp.dynamics(scene.q0, scene.v0, 0.0)
+    assert set(system.solver.statistics.status_counts) == {"cholesky"} and direct.multipliers[2] == 0.0
+    np.testing.assert_allclose(direct.acceleration, by_qp.acceleration, rtol=0, atol=1e-9)
     terms = system.model.dynamics_terms(scene.q0, scene.v0, 0.0)
+    jacobian, rhs = terms.values.jacobian, -terms.values.drift
+    assert np.abs(jacobian[2]).max() == 0.0 and np.abs(jacobian[:2]).max(axis=1).min() > 0.4
+    repeated = [0, 1, 0]  # the third row the first one again: dependent rows
     problem = KKTProblem(
         scene.q0,
         scene.v0,
@@ -259,8 +266,8 @@ def test_proxsuite_direct_solve_declines_redundant_rows():
         terms.tau,
         terms.mass_matrix,
         terms.tau - terms.bias,
-        terms.values.jacobian,
-        -terms.values.drift,
+        jacobian[repeated],
+        rhs[repeated],
         system.model.constraints.layout,
     )
     assert direct_solve(problem) is None

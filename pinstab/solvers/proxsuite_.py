@@ -44,6 +44,13 @@ RESCALE_EVERY = 64  # solves between refreshes of the scaling (it follows the co
 CONE_TOLERANCE = 1e-8  # a facet or sign may be missed by this much relative to the forces in play
 DIRECT_PIVOT = 1e-8  # the Delassus matrix's smallest Cholesky pivot over its largest diagonal entry, at least
 DIRECT_STATUS = "cholesky"  # the status of a direct solve (equality rows independent by a margin)
+# a row whose largest (column-scaled) entry is below this fraction of the largest row's is rounding of a row that is
+# zero at this configuration (a redundant closure's rotation rows, or its translation row across both slides, come out
+# at 1e-16 of the others): scaled by its own size it would become a unit row of noise, with a right-hand side of
+# rounding over rounding (-2.3e-15 / 1.5e-16 = -16), and ProxQP finds the rows inconsistent (PRIMAL_INFEASIBLE) or
+# not, by the rounding of each solve; it keeps the largest row's scale instead. A genuine row that small would need
+# lever arms 1e-12 of the mechanism's size.
+ROUNDING_ROW = 1e-12
 
 
 @dataclass(frozen=True)
@@ -94,8 +101,8 @@ class _Scaling:
         if not (inertia > 0 and float(diagonal.min()) > 0):
             raise SolverError("proxsuite: the joint-space inertia matrix has a non-positive diagonal")
         column = np.sqrt(diagonal / inertia)
-        norms = np.max(np.abs(problem.jacobian / column), axis=1, initial=0.0)
-        row = np.where(norms > 0, norms, 1.0)
+        norms, significant = _row_sizes(problem.jacobian / column)
+        row = np.where(significant, norms, float(np.max(norms, initial=0.0)) or 1.0)
         inverse = 1.0 / column
         return cls(
             column, inertia, row, np.outer(inverse, inverse) / inertia, inverse / inertia, np.outer(1.0 / row, inverse)
@@ -106,28 +113,38 @@ class _Scaling:
         return self.rows_factor.shape == problem.jacobian.shape
 
 
+def _row_sizes(jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's largest entry (of G with its columns scaled) and whether it is above :data:`ROUNDING_ROW` of the
+    largest row's (False: rounding of a row that is zero here)."""
+    norms = np.max(np.abs(jacobian), axis=1, initial=0.0)
+    return norms, norms > ROUNDING_ROW * float(np.max(norms, initial=0.0))
+
+
 def direct_solve(problem: KKTProblem) -> tuple[np.ndarray, np.ndarray] | None:
     """(a, lambda) of the equality KKT system through Cholesky factors (LAPACK) of M and of the Delassus matrix
-    D = G M^-1 G^T: ``lambda = D^-1 (rhs - G M^-1 f)``, ``a = M^-1 (f + G^T lambda)``; None when M is not positive
-    definite or D's smallest pivot (squared diagonal of its factor) is below :data:`DIRECT_PIVOT` of its largest
-    diagonal entry (rows dependent or nearly so: ProxQP's proximal solve takes those)."""
-    jacobian = problem.jacobian
+    D = G M^-1 G^T: ``lambda = D^-1 (rhs - G M^-1 f)``, ``a = M^-1 (f + G^T lambda)``, over the rows that are not
+    rounding of zero rows (:data:`ROUNDING_ROW`; their multipliers 0); None when M is not positive definite or D's
+    smallest pivot (squared diagonal of its factor) is below :data:`DIRECT_PIVOT` of its largest diagonal entry (rows
+    dependent or nearly so: ProxQP's proximal solve takes those)."""
     factor, failed = dpotrf(problem.mass_matrix, lower=1)
     if failed:
         return None
+    kept = _row_sizes(problem.jacobian / np.sqrt(np.diagonal(problem.mass_matrix)))[1]  # _Scaling's columns
+    jacobian = problem.jacobian[kept]
     solved, failed = dpotrs(factor, np.column_stack([problem.free_force, jacobian.T]), lower=1)
     if failed:
         return None
     free, spread = solved[:, 0], solved[:, 1:]  # M^-1 f, M^-1 G^T
-    if not len(jacobian):  # no rows: the free motion
-        return free, np.zeros(0)
+    multipliers = np.zeros(len(kept))
+    if not len(jacobian):  # no rows (or only rounding ones): the free motion
+        return free, multipliers
     delassus = jacobian @ spread
     inner, failed = dpotrf(delassus, lower=1)
     largest = float(np.max(np.diagonal(delassus), initial=0.0))
     if failed or not float(np.min(np.diagonal(inner), initial=math.inf)) ** 2 >= DIRECT_PIVOT * largest:
         return None
-    multipliers = dpotrs(inner, problem.rhs - jacobian @ free, lower=1)[0]
-    return free + spread @ multipliers, multipliers
+    multipliers[kept] = dpotrs(inner, problem.rhs[kept] - jacobian @ free, lower=1)[0]
+    return free + spread @ multipliers[kept], multipliers
 
 
 class ProxsuiteSolver(KKTSolver):
