@@ -13,13 +13,14 @@ Needs ``h5py`` (the ``stream`` extra: ``pip install pinstab[stream]``).
 
 Written as :func:`pinstab.files.atomic_output` writes ``--save``'s files, a link at the target replaced, never
 followed: the file is created as a temporary file in the target's folder (``.run.h5.pinstab-<pid>-<random>.h5``,
-mkstemp's: never through a link) and renamed onto the target once its datasets and attributes exist and it is in
-SWMR mode, before the first sample. It is renamed then rather than when the run ends because a stream is for runs
-that may not end as planned: from its first row on, the target is the run's own file, readable while the run
-proceeds and holding every row flushed whatever ends the run, Ctrl-C, SIGTERM or ``kill -9`` included (a run
-killed before the rename leaves a temporary file without rows, removed by the next write to the target). An earlier
-file at the target is thus replaced when the run starts stepping, not when it ends. Its end (the derived series,
-the final info) is written to the file at the target.
+mkstemp's: never through a link), its datasets and attributes written and put in SWMR mode, and renamed onto the
+target once its first rows are written and flushed. It is renamed then rather than when the run ends because a
+stream is for runs that may not end as planned: from its first row on, the target is the run's own file, readable
+while the run proceeds and holding every row flushed whatever ends the run, Ctrl-C, SIGTERM or ``kill -9`` included.
+A run that fails before its first row is written (refused at its start) removes its temporary file and leaves the
+target as it was, an earlier file there included (a run killed then leaves a temporary file, removed by the next
+write to the target). An earlier file at the target is thus replaced once the run has rows, not when it ends. Its
+end (the derived series, the final info) is written to the file at the target.
 
 Read back (:func:`read_stream`, :func:`open_run_file`), a file its writer closed is opened as any HDF5 file; one
 still being written or whose writer was killed (its superblock says so) in SWMR mode, with few attempts at a
@@ -100,22 +101,20 @@ class StreamWriter:
 
     def __init__(self, path: str | Path, info: RunInfo, nq: int, nv: int, rows: int) -> None:
         h5py = h5py_module()
-        self.path, temp = temporary_output(path, ".h5", "streamed run")
+        self.path, self.temp = temporary_output(path, ".h5", "streamed run")
         self.file = None
+        self.published = False  # renamed onto the target (by the first write of rows)
+        self.size = 0
         try:  # the temporary file goes unless renamed: an error, Ctrl-C or SIGTERM while the layout is written
             try:
-                self.file = h5py.File(temp, "w", libver="latest", rdcc_nbytes=CHUNK_CACHE)
+                self.file = h5py.File(self.temp, "w", libver="latest", rdcc_nbytes=CHUNK_CACHE)
             except OSError as exc:
                 raise PinstabError(f"cannot write {path}: {exc}") from None
             self._create_layout(info, nq, nv, rows)
             self.file.swmr_mode = True  # no new datasets or attributes from here: readers may open it
-            publish(temp, self.path)
         except BaseException:
-            if self.file is not None:
-                self.file.close()
-            Path(temp).unlink(missing_ok=True)
+            self.close()
             raise
-        self.size = 0
 
     def _create_layout(self, info: RunInfo, nq: int, nv: int, rows: int) -> None:
         """The empty datasets of :data:`SAMPLES` and :data:`DERIVED` (``q``, ``v`` and ``multipliers`` of widths
@@ -147,10 +146,18 @@ class StreamWriter:
             dataset[start:end] = rows
         self.size = end
         self.file.flush()
+        if end and not self.published:  # the target is the run's file from its first row on
+            publish(self.temp, self.path)
+            self.published = True
 
     def close(self) -> None:
-        """Close the file (what was written stays; :func:`complete` adds the derived series)."""
-        self.file.close()
+        """Close the file (what was written stays; :class:`StreamFile` adds the derived series); a file without
+        rows, never renamed onto the target (a run that failed at its start), is removed, the target left as it
+        was. Closing again does nothing."""
+        if self.file is not None:
+            self.file.close()
+        if not self.published:
+            Path(self.temp).unlink(missing_ok=True)
 
 
 class StreamFile:

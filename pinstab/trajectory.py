@@ -288,7 +288,8 @@ class Trajectory:
         if not len(arrays["t"]):
             raise PinstabError(
                 f"{path}: the streamed run holds no sample yet (its rows are written every {BLOCK} samples or "
-                f"{FLUSH_PERIOD:g} s: a run killed before its first write leaves none)"
+                f"{FLUSH_PERIOD:g} s: a run's file before its first write, a temporary file renamed onto its target "
+                "with its first rows)"
             )
         n = _checked_samples(path, {"wall_time": np.asarray(wall_time), "step": steps, **arrays})
         if not complete:

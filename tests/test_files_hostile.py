@@ -75,9 +75,9 @@ def current_umask() -> int:
 
 
 def test_the_target_is_the_run_file_from_its_first_row_and_an_error_before_leaves_the_old_one(tmp_path):
-    """The stream's file is renamed onto the target once its layout exists: from then on the target is a run file
-    (SWMR, no rows yet); a writer that fails before (here: h5py refusing the layout) leaves the old file and no
-    temporary."""
+    """The stream's file is renamed onto the target with its first rows: before, it is a temporary file beside the
+    target (SWMR, no rows yet), which a writer closed without rows removes, as one that fails (here: h5py refusing
+    the layout): the old file stays, no temporary is left (tests/test_stream_start.py: the first rows)."""
     path = tmp_path / "run.h5"
     path.write_bytes(b"the previous run")
     info = RunInfo("fourbar", "baumgarte", "rk4", "pinocchio", 1e-3)
@@ -86,15 +86,17 @@ def test_the_target_is_the_run_file_from_its_first_row_and_an_error_before_leave
     assert path.read_bytes() == b"the previous run" and [p.name for p in tmp_path.iterdir()] == ["run.h5"]
     writer = StreamWriter(path, info, nq=3, nv=3, rows=2)
     try:
-        assert [p.name for p in tmp_path.iterdir()] == ["run.h5"]
-        shutil.copyfile(path, tmp_path / "now.h5")  # as a reader in another process sees it (or a kill leaves it)
+        assert path.read_bytes() == b"the previous run" and len(list(tmp_path.iterdir())) == 2
+        shutil.copyfile(writer.temp, tmp_path / "now.h5")  # as a reader in another process sees it
     finally:
         writer.close()
+    assert path.read_bytes() == b"the previous run"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["now.h5", "run.h5"]
     arrays, read_info, _, complete = read_stream(tmp_path / "now.h5")
     assert len(arrays["t"]) == 0 and not complete and read_info.scene == "fourbar"
     with pytest.raises(
         PinstabError,
-        match=r"holds no sample yet \(its rows are written every 4096 samples or 1 s: a run killed before its first",
+        match=r"holds no sample yet \(its rows are written every 4096 samples or 1 s: a run's file before its first",
     ):
         Trajectory.load(tmp_path / "now.h5")
 

@@ -108,6 +108,10 @@ class Records:
         """The array slot of sample ``index`` (for :meth:`end_with`)."""
         return index
 
+    def kept(self, index: int) -> tuple[int, float]:
+        """(grid step, t [s]) of the kept sample ``index``."""
+        return int(self.steps[index - self.offset]), float(self.t[index - self.offset])
+
 
 class StreamedRecords(Records):
     """Records that hold a window of samples and write them to ``sink`` once checked: a block at a time (up to the
@@ -126,6 +130,7 @@ class StreamedRecords(Records):
         super().__init__(grid, every, nq, nv, block + spare)
         self.sink, self.block, self.period = sink, block, period
         self.written = time.monotonic()  # when samples were last written [s]
+        self.last_written = (0, 0.0)  # (grid step, t [s]) of the last sample written, before the window
 
     def checked(self, k: int) -> None:
         """Write the checked samples up to the block's end when there is one, or all of them when the last write
@@ -141,6 +146,8 @@ class StreamedRecords(Records):
         """Write samples offset .. stop - 1 and make room for those after."""
         n = stop - self.offset
         self.sink.write(self.offset, self.t[:n], self.steps[:n], self.q[:n], self.v[:n], self.corrections[:n])
+        if n:
+            self.last_written = (int(self.steps[n - 1]), float(self.t[n - 1]))
         for array in (self.t, self.steps, self.q, self.v, self.corrections):
             array[: len(array) - n] = array[n:].copy()
         self.offset = stop
@@ -150,6 +157,13 @@ class StreamedRecords(Records):
         """A sample before the window (already written) moves the window back to it: its rows are rewritten."""
         self.offset = min(self.offset, index)
         return index - self.offset
+
+    def kept(self, index: int) -> tuple[int, float]:
+        """(grid step, t [s]) of the kept sample ``index``: in the window, or the last one written (the samples
+        before it are in the file only). Reading it leaves the window where it is (:meth:`slot` would move it back
+        over rows the window no longer holds, and :meth:`finish` would write them again from stale slots: the last
+        row of a run whose final write came before its end read t = 0)."""
+        return self.last_written if index == self.offset - 1 else super().kept(index)
 
     def finish(self) -> None:
         """Write the samples kept and not yet written (up to :attr:`count`)."""

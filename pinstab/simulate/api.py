@@ -3,6 +3,7 @@ event-driven or time-stepping contacts, joint limits) chosen from the scene and 
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -202,10 +203,16 @@ def simulate(
             stacklevel=2,
         )
         return _checked(scene, trajectory, clock)
-    events = simulate_events(
-        scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason, stream,
-        assembly_tol, clock,
-    )  # fmt: skip
+    held = os.stat(trajectory.path).st_ino if isinstance(trajectory, StreamedTrajectory) else None
+    try:
+        events = simulate_events(
+            scene, "event", dt, duration, rtol, atol, record_every, q0, v0, progress, frozenset(), table, reason,
+            stream, assembly_tol, clock,
+        )  # fmt: skip
+    except BaseException:  # failed before its first row: the held run's file, which left the limits, goes too
+        if held is not None and os.path.exists(trajectory.path) and os.stat(trajectory.path).st_ino == held:
+            os.remove(trajectory.path)
+        raise
     return _checked(scene, events, clock)
 
 

@@ -90,7 +90,8 @@ def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, 
     :class:`Interrupted` (``info.cut_short`` saying where, cause ``interrupted``), a ContactInfeasibleError its
     ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a MemoryBudgetError with its
     ``trajectory``. A streamed run's file gets the completed info here, once (a run that ends normally gets it from
-    :func:`~pinstab.simulate`)."""
+    :func:`~pinstab.simulate`); any other failure closes it, removed when it holds no row (the target left as it
+    was: :class:`~pinstab.stream.StreamWriter`)."""
     try:
         with clock.stepping_loop():
             yield
@@ -115,6 +116,10 @@ def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, 
     except MemoryError as error:
         trajectory = _write_info(trajectory_of(loop, system, info, clock))
         raise exhausted(f"the run of scene {info.scene}", error, trajectory) from None
+    except BaseException:  # any other failure: a stream keeps the rows flushed, or goes when it has none
+        if _streamed(loop):
+            loop.records.sink.close()
+        raise
 
 
 def _write_info(trajectory: Trajectory | StreamedTrajectory) -> Trajectory | StreamedTrajectory:
@@ -210,8 +215,7 @@ def trajectory_of(
     complete (:func:`kept_when_stopped`, :func:`~pinstab.simulate`)."""
     records = loop.records
     n = records.count if samples is None else samples
-    slot = records.slot(n - 1)
-    info.steps, info.t_end = int(records.steps[slot]), float(records.t[slot])
+    info.steps, info.t_end = records.kept(n - 1)
     info.solver_statistics = system.statistics
     info.correction_iterations_total, info.correction_iterations_max = loop.correction_total, loop.correction_max
     info.compiled_steps = 0 if loop.compiled is None else loop.compiled.steps
