@@ -34,6 +34,11 @@ RANK_TOLERANCE = 1e-9
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 
+def _when(t: float) -> str:
+    """When a servo failed, in its message: t = 0 s is the scene's initial state (the table ``initial``)."""
+    return "at t = 0 s (the scene's initial state)" if t == 0.0 else f"at t = {t:.6g} s"
+
+
 @dataclass
 class ServoSolution:
     """(a [m/s^2, rad/s^2], multipliers with zeros on the prescribed rows [N, N m], controls u [N m or N])."""
@@ -130,7 +135,7 @@ class ServoSolver:
         along = " + ".join(f"{direction[i]:+.3g} * {names[i]}[{i}]" for i in np.flatnonzero(np.abs(direction) > 1e-6))
         t, q, v = state
         raise ServoInfeasibleError(
-            f"servo {', '.join(repr(n) for n in involved)} cannot be realized at t = {t:.6g} s: no control reaches "
+            f"servo {', '.join(repr(n) for n in involved)} cannot be realized {_when(t)}: no control reaches "
             f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {count}{crossed}; "
             f"controls: {', '.join(self.actuation.names)}); state q = {np.round(q, 6).tolist()}, "
             f"v = {np.round(v, 6).tolist()}",
@@ -166,7 +171,7 @@ class ServoSolver:
         ]
         names = sorted({n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep})
         raise ServoInfeasibleError(
-            f"servo {', '.join(repr(n) for n in names)} cannot be realized at t = {t:.6g} s within the control "
+            f"servo {', '.join(repr(n) for n in names)} cannot be realized {_when(t)} within the control "
             f"limits: it needs {'; '.join(over)}; state q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()}",
             names,
             t,

@@ -124,7 +124,8 @@ def test_prescribing_car2_directly_is_refused_naming_it():
     scene = scene_from_dict(data, base_dir=ROBOTS)
     with pytest.raises(
         ServoInfeasibleError,
-        match=r"servo 'follow' cannot be realized at t = 0 s: no control reaches the direction [+-]1 \* follow\[0\]",
+        match=r"servo 'follow' cannot be realized at t = 0 s \(the scene's initial state\): "
+        r"no control reaches the direction [+-]1 \* follow\[0\]",
     ) as info:
         simulate(scene, duration=0.1, progress=False)
     assert info.value.constraints == ["follow"] and info.value.time == 0.0
@@ -147,7 +148,10 @@ def test_rank_loss_at_a_configuration_is_detected_with_the_state(capsys, tmp_pat
         f"[initial]\nq = {{ joint2 = {q2!r} }}\n"
     )
     assert main(["servo", str(path), "--check"]) == 2
-    assert "servo 'coupling' cannot be realized at t = 0 s: no control reaches the direction" in capsys.readouterr().err
+    assert (
+        "servo 'coupling' cannot be realized at t = 0 s (the scene's initial state): no control reaches the direction"
+        in capsys.readouterr().err
+    )
     path.write_text(path.read_text().replace(f"joint2 = {q2!r}", f"joint2 = {q2 - 0.2!r}"))
     assert main(["servo", str(path), "--check", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["realizable"] is True
