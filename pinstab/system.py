@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from .constraints import ConstraintValues, FrameClosure, Violation
+from .constraints import ConstraintSet, ConstraintValues, FrameClosure, Violation
 from .constraints.grasp_contacts import FingertipContact
-from .errors import DivergenceError, PinstabError
+from .errors import ContactInfeasibleError, DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
@@ -24,8 +24,9 @@ from .projection import GeneralProjector, Projector
 from .runinfo import SolverStatistics
 from .scene import Scene
 from .servo import RANK_TOLERANCE, ServoSolver
-from .solvers import SOLVERS, KKTProblem, KKTSolver
+from .solvers import SOLVERS, KKTProblem, KKTSolution, KKTSolver
 from .solvers.base import ACCEPTED_RESIDUAL
+from .solvers.impacts import REST_SPEED
 from .solvers.proxsuite_ import DIRECT_PIVOT
 from .stabilizers import STABILIZERS, Stabilizer
 
@@ -47,6 +48,86 @@ class Evaluation:
     multipliers: np.ndarray
     values: ConstraintValues | None
     controls: np.ndarray | None = None
+
+
+class OpenRows:
+    """The unilateral rows of held constraints (a frictionless contact, a user's unilateral row) that have opened: left
+    out of the dynamics while open (no force). Their acceleration-level row ``G a >= rhs`` would otherwise hold
+    a point flying over its plane back, and the stabilization's terms (``-Kd g - Kp phi`` of a gap closing) push
+    it across the gap, doing work: a spinning ball's body-fixed contact point, lifted by the spin and pushed back
+    on its way down, gained 0.0085 J on its 0.0083 J.
+
+    Decided at each step's start (stage 0, an accepted state): a held row opens where the solve leaves it slack
+    (``G a`` above ``rhs`` by more than the solve's accuracy, :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`
+    relative, so its multiplier is 0); an open row whose gap is back at 0 is held again when its point arrives
+    slower than :data:`~pinstab.solvers.impacts.REST_SPEED`, and faster it is an impact, which held rows do not
+    model (their stabilization would catch the point as a spring and damper across the plane): the run stops with
+    :class:`~pinstab.errors.ContactInfeasibleError`. The decisions are kept by time, so a step taken again from an
+    earlier state (a replayed or shorter step) starts from the rows open then.
+
+    Attributes:
+        rows: the rows open now (mask over the stack's rows).
+    """
+
+    def __init__(self, stack: ConstraintSet) -> None:
+        self.stack = stack
+        self.rows = np.zeros(stack.rows, dtype=bool)
+        self._decided: list[tuple[float, np.ndarray]] = []  # (t [s], the rows open from t on), on each change
+
+    def begin(self, values: ConstraintValues, t: float) -> np.ndarray:
+        """The rows open at a step's start, at time t [s] with the constraint ``values``: those open before t
+        that have not come back to their plane (gap <= 0).
+
+        Raises:
+            ContactInfeasibleError: an open row back at its plane approaching faster than REST_SPEED (an impact).
+        """
+        while self._decided and self._decided[-1][0] >= t:
+            self._decided.pop()
+        before = self._decided[-1][1] if self._decided else np.zeros_like(self.rows)
+        back = before & (values.phi <= 0.0)
+        impacts = back & (values.velocity_residual < -REST_SPEED)
+        if impacts.any():
+            self._refuse(impacts, values, t)
+        self._decide(t, before & ~back)
+        return self.rows
+
+    def release(self, problem: KKTProblem, solution: KKTSolution, t: float) -> None:
+        """Open the held unilateral rows that the solve of a step's start (at t [s]) left without force and slack:
+        the multiplier within ACCEPTED_RESIDUAL of the forces in play (the largest multiplier and applied force) and
+        ``G a - rhs`` above ACCEPTED_RESIDUAL of the row's accelerations (its free one ``G M^-1 f``, ``G a`` and
+        ``rhs``). A row that holds carries a force, or is slack by rounding (ProxQP leaves 1e-8 of them)."""
+        jacobian, forces = problem.jacobian, solution.multipliers
+        reached = jacobian @ solution.acceleration
+        free = jacobian @ np.linalg.solve(problem.mass_matrix, problem.free_force)
+        size = np.abs(free) + np.abs(reached) + np.abs(problem.rhs)
+        scale = float(np.max(np.abs(forces), initial=0.0)) + float(np.max(np.abs(problem.free_force), initial=0.0))
+        released = (
+            self.stack.layout.unilateral
+            & ~self.rows
+            & (forces <= ACCEPTED_RESIDUAL * scale)
+            & (reached - problem.rhs > ACCEPTED_RESIDUAL * size)
+        )
+        if released.any():
+            self._decide(t, self.rows | released)
+
+    def _decide(self, t: float, rows: np.ndarray) -> None:
+        if not np.array_equal(rows, self.rows if self._decided else np.zeros_like(rows)):
+            self._decided.append((t, rows))
+        self.rows = rows
+
+    def _refuse(self, impacts: np.ndarray, values: ConstraintValues, t: float) -> None:
+        stack = self.stack
+        names = list(dict.fromkeys(stack.layout.names[row] for row in np.flatnonzero(impacts)))
+        speeds = [-float(np.min(values.velocity_residual[stack.slices[name]])) for name in names]
+        described = ", ".join(f"{name} at {speed:.6g} m/s" for name, speed in zip(names, speeds, strict=True))
+        raise ContactInfeasibleError(
+            f"held contacts close again at t = {t:.6g} s: {described} (the speed along the normal; at most "
+            f"{REST_SPEED:g} m/s is at rest). A contact that opened and closes again has an impact, which held rows "
+            "(no impacts) do not model; run it with --contacts event (simulate(contacts='event')), whose impacts "
+            "follow Newton's law",
+            names,
+            t,
+        )
 
 
 class ConstrainedSystem:
@@ -102,6 +183,7 @@ class ConstrainedSystem:
         self._native_solves = 0
         self._audit = SolverStatistics()
         constraints = model.constraints
+        self.opened = OpenRows(constraints) if constraints.layout.unilateral.any() else None
         self.servo = (
             ServoSolver(constraints.prescribed_mask, constraints.layout.names, model.scene.actuation)
             if constraints.prescribed_mask.any()
@@ -392,20 +474,16 @@ class ConstrainedSystem:
         gamma = self.stabilizer.stabilization_term(model, q, v, t, values, stage)
         if gamma is not None:
             rhs = rhs + gamma
-        problem = KKTProblem(
-            q,
-            v,
-            t,
-            terms.tau,
-            terms.mass_matrix,
-            terms.tau - terms.bias,
-            values.jacobian,
-            rhs,
-            model.constraints.layout,
-        )
+        jacobian, layout, opened = values.jacobian, model.constraints.layout, self.opened
+        open_rows = None if opened is None else (opened.begin(values, t) if stage == 0 else opened.rows)
+        if open_rows is not None and open_rows.any():  # zero rows, 0 >= 0: their multipliers are 0
+            jacobian, rhs = np.where(open_rows[:, None], 0.0, jacobian), np.where(open_rows, 0.0, rhs)
+        problem = KKTProblem(q, v, t, terms.tau, terms.mass_matrix, terms.tau - terms.bias, jacobian, rhs, layout)
         if self.servo is not None:
             return self._servo_dynamics(problem, values)
         solution = self.solver.solve(problem)
+        if opened is not None and stage == 0:
+            opened.release(problem, solution, t)
         if not np.isfinite(solution.acceleration).all():
             raise DivergenceError(f"non-finite acceleration from solver {self.solver.name} at t = {t:.6g} s", t, q, v)
         if model.constraints.force_limited:
