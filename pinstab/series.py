@@ -11,7 +11,7 @@ import numpy as np
 from scipy.integrate import cumulative_simpson
 
 from .constraints import RowKind
-from .errors import ContactInfeasibleError, DivergenceError, ServoInfeasibleError
+from .errors import DivergenceError, ServoInfeasibleError, SolverError
 from .forces.base import Sample
 from .kernels import closure_series
 from .model import ConstrainedModel
@@ -21,8 +21,9 @@ from .system import ConstrainedSystem
 from .zero_dynamics import zero_dynamics_report
 
 # what ConstrainedSystem.dynamics raises at a finite state where the dynamics cannot be had: non-finite (a diverged
-# run's last finite state, whose next step failed), controls that do not exist there, contacts that cannot hold
-NO_DYNAMICS = (DivergenceError, ServoInfeasibleError, ContactInfeasibleError)
+# run's last finite state, whose next step failed), controls that do not exist there, contacts that cannot hold, a
+# KKT solve that fails there (a run that diverged when its solves failed at a state it reached)
+NO_DYNAMICS = (DivergenceError, ServoInfeasibleError, SolverError)
 
 
 class ClosureSeries:

@@ -7,7 +7,7 @@ import argparse
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ContactInfeasibleError, PinstabError
+from ..errors import ContactInfeasibleError, PinstabError, ServoInfeasibleError
 from ..simulate import HELD_ONLY
 from .exits import Kept
 from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, parameters
@@ -16,7 +16,7 @@ from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tole
 def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | None = None, scene: Any = None):
     """Load the scene (unless ``scene`` is the one already loaded), check it with ``before(scene)`` when given, and
     simulate it with the run options; returns (scene, trajectory, failure): a run that failed once started
-    (ContactInfeasibleError) returns its partial trajectory and the error."""
+    (ContactInfeasibleError, ServoInfeasibleError after t = 0 s) returns its partial trajectory and the error."""
     from ..scene import load_scene
     from ..simulate import simulate
 
@@ -47,7 +47,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
             stream=getattr(args, "stream", None),
             **given_options(args, METHOD_OPTION),
         )
-    except ContactInfeasibleError as exc:
+    except (ContactInfeasibleError, ServoInfeasibleError) as exc:
         if getattr(exc, "trajectory", None) is None:  # before the run started: the scene, not the run
             raise
         return scene, exc.trajectory, exc

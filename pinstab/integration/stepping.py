@@ -22,6 +22,7 @@ from ..errors import (
     DivergenceError,
     PinstabError,
     ProjectionError,
+    ServoInfeasibleError,
     SolverError,
     StepTooLargeError,
     UnstableGainsWarning,
@@ -144,8 +145,8 @@ class StepLoop:
             DivergenceError: a check failed, or a solve failed on a state reached inside a step; at the
                 step where it first fails, with the last good state, :attr:`records` ending with it.
             KeyboardInterrupt: Ctrl-C; :attr:`records` end with the last checked state.
-            ContactInfeasibleError: contacts that cannot hold; :attr:`records` end with the last state that
-                passed its checks.
+            ContactInfeasibleError, ServoInfeasibleError: contacts that cannot hold, servos the controls cannot
+                realize; :attr:`records` end with the last state that passed its checks.
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.put(0, q, v)
@@ -162,7 +163,7 @@ class StepLoop:
             self.system.audit(q, v, 0.0)
             while k < self.grid.steps:
                 q, v, k = self.chunk(q, v, k, progress)
-        except (KeyboardInterrupt, ContactInfeasibleError, MemoryError):
+        except (KeyboardInterrupt, ContactInfeasibleError, ServoInfeasibleError, MemoryError):
             if not self.records.ended:  # a replay that located the failure ended them at its step
                 self.records.end_with((k, self.grid.time(k), q, v))
             raise
@@ -421,15 +422,18 @@ class StepLoop:
     def solve_failure(self, exc: SolverError, q: np.ndarray, v: np.ndarray, t: float) -> str:
         """Why a solve that failed during the step from the good state (q, v) at t [s] is a blow-up: the
         gains were reported unstable, or the solver still solves (q, v) itself, so it failed on a state
-        the step reached (a non-finite or exploding stage). Re-raises ``exc`` when it is not: a contact
-        that cannot hold, or a solver that fails on (q, v) too (the scene or the solver, not the step)."""
+        the step reached (a non-finite or exploding stage), or it fails on (q, v) too, a state the run reached
+        after its start. Re-raises ``exc`` when it is neither: a contact that cannot hold, or a solver that fails
+        on the start (the scene or the solver, not the run)."""
         if not self.warned:
             if isinstance(exc, ContactInfeasibleError):
                 raise exc
             try:
                 self.system.dynamics(q, v, t)
             except SolverError:
-                raise exc from None
+                if t == self.grid.time(0):  # the start state: the scene, not the run (bad input)
+                    raise exc from None
+                return f"the KKT solve failed at a state the run reached ({exc})"
         return f"a non-finite or exploding state (the KKT solve failed: {exc})"
 
     def diverged(

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..assembly import AssemblyReport
-from ..errors import ContactInfeasibleError, DivergenceError, PinstabError
+from ..errors import ContactInfeasibleError, DivergenceError, PinstabError, ServoInfeasibleError
 from ..integration import CHECK_STEPS, AdaptiveLoop, ErrorControl, StepLoop, StreamedRecords, TimeGrid, embedded_pairs
 from ..integration.events import EventLoop
 from ..memory import RUN_DATA_COPIES, data_bytes, exhausted, require, samples_bytes
@@ -46,8 +46,10 @@ class Interrupted(KeyboardInterrupt):
 
 
 def failure_stop(error: PinstabError, t: float) -> dict[str, Any]:
-    """``info.stopped`` of a run ended by ``error`` with its last state at t [s]."""
-    return {"reason": "contact failure", "t": t, "error": type(error).__name__, "message": str(error)}
+    """``info.stopped`` of a run ended by ``error`` (contacts or servos with no solution) with its last state at
+    t [s]."""
+    reason = "servo failure" if isinstance(error, ServoInfeasibleError) else "contact failure"
+    return {"reason": reason, "t": t, "error": type(error).__name__, "message": str(error)}
 
 
 class RunClock:
@@ -87,11 +89,11 @@ class RunClock:
 def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, clock: RunClock) -> Iterator[None]:
     """Around a run's stepping, timed by ``clock``: a run that stops early carries the samples it kept: a
     DivergenceError its ``trajectory`` and ``finite_trajectory``, Ctrl-C (or SIGTERM under ``pinstab``) an
-    :class:`Interrupted` (``info.cut_short`` saying where, cause ``interrupted``), a ContactInfeasibleError its
-    ``trajectory`` (``info.stopped`` naming the failure), a MemoryError becomes a MemoryBudgetError with its
-    ``trajectory``. A streamed run's file gets the completed info here, once (a run that ends normally gets it from
-    :func:`~pinstab.simulate`); any other failure closes it, removed when it holds no row (the target left as it
-    was: :class:`~pinstab.stream.StreamWriter`)."""
+    :class:`Interrupted` (``info.cut_short`` saying where, cause ``interrupted``), a ContactInfeasibleError or a
+    ServoInfeasibleError after t = 0 s its ``trajectory`` (``info.stopped`` naming the failure), a MemoryError
+    becomes a MemoryBudgetError with its ``trajectory``. A streamed run's file gets the completed info here, once (a
+    run that ends normally gets it from :func:`~pinstab.simulate`); any other failure closes it, removed when it
+    holds no row (the target left as it was: :class:`~pinstab.stream.StreamWriter`)."""
     try:
         with clock.stepping_loop():
             yield
@@ -108,7 +110,9 @@ def kept_when_stopped(loop: StepLoop, system: ConstrainedSystem, info: RunInfo, 
         trajectory = trajectory_of(loop, system, info, clock, cut_off=True)
         info.cut_short = {"t": info.t_end, "step": info.steps, "cause": "interrupted"}
         raise Interrupted(_write_info(trajectory)) from None
-    except ContactInfeasibleError as exc:
+    except (ContactInfeasibleError, ServoInfeasibleError) as exc:
+        if isinstance(exc, ServoInfeasibleError) and exc.time == 0.0:  # the start: refused like `check` does
+            raise
         exc.trajectory = trajectory_of(loop, system, info, clock)
         info.stopped = failure_stop(exc, info.t_end)
         _write_info(exc.trajectory)
