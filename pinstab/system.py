@@ -73,22 +73,42 @@ class OpenRows:
         self.stack = stack
         self.rows = np.zeros(stack.rows, dtype=bool)
         self._decided: list[tuple[float, np.ndarray]] = []  # (t [s], the rows open from t on), on each change
+        self._starts: list[tuple[float, np.ndarray]] = []  # the last two step starts' (t [s], velocity residuals)
 
     def begin(self, values: ConstraintValues, t: float) -> np.ndarray:
         """The rows open at a step's start, at time t [s] with the constraint ``values``: those open before t
         that have not come back to their plane (gap <= 0).
 
         Raises:
-            ContactInfeasibleError: an open row back at its plane approaching faster than REST_SPEED (an impact).
+            ContactInfeasibleError: an open row back at its plane whose point arrives faster than REST_SPEED, at
+                this state or at the previous step's start (a post-step projection, ``projection`` and ``post``,
+                puts the point back on its plane at rest: the impact without its law).
         """
         while self._decided and self._decided[-1][0] >= t:
             self._decided.pop()
         before = self._decided[-1][1] if self._decided else np.zeros_like(self.rows)
+        arriving = values.velocity_residual
+        self._starts = [start for start in self._starts if start[0] < t]
+        if self._starts:
+            arriving = np.minimum(arriving, self._starts[-1][1])
+        self._starts = [*self._starts[-1:], (t, arriving.copy())]
         back = before & (values.phi <= 0.0)
-        impacts = back & (values.velocity_residual < -REST_SPEED)
+        impacts = back & (arriving < -REST_SPEED)
         if impacts.any():
-            self._refuse(impacts, values, t)
+            self._refuse(impacts, arriving, t)
         self._decide(t, before & ~back)
+        return self.rows
+
+    def within(self, values: ConstraintValues, t: float) -> np.ndarray:
+        """The rows open at a stage of a step (at time t [s] with the constraint ``values``): those open at its start.
+
+        Raises:
+            ContactInfeasibleError: an open row's point across its plane (gap <= 0) and arriving faster than
+                REST_SPEED at the stage: the step crosses the plane, an impact inside it.
+        """
+        impacts = self.rows & (values.phi <= 0.0) & (values.velocity_residual < -REST_SPEED)
+        if impacts.any():
+            self._refuse(impacts, values.velocity_residual, t)
         return self.rows
 
     def release(self, problem: KKTProblem, solution: KKTSolution, t: float) -> None:
@@ -115,10 +135,10 @@ class OpenRows:
             self._decided.append((t, rows))
         self.rows = rows
 
-    def _refuse(self, impacts: np.ndarray, values: ConstraintValues, t: float) -> None:
+    def _refuse(self, impacts: np.ndarray, arriving: np.ndarray, t: float) -> None:
         stack = self.stack
         names = list(dict.fromkeys(stack.layout.names[row] for row in np.flatnonzero(impacts)))
-        speeds = [-float(np.min(values.velocity_residual[stack.slices[name]])) for name in names]
+        speeds = [-float(np.min(arriving[stack.slices[name]])) for name in names]
         described = ", ".join(f"{name} at {speed:.6g} m/s" for name, speed in zip(names, speeds, strict=True))
         raise ContactInfeasibleError(
             f"held contacts close again at t = {t:.6g} s: {described} (the speed along the normal; at most "
@@ -475,7 +495,7 @@ class ConstrainedSystem:
         if gamma is not None:
             rhs = rhs + gamma
         jacobian, layout, opened = values.jacobian, model.constraints.layout, self.opened
-        open_rows = None if opened is None else (opened.begin(values, t) if stage == 0 else opened.rows)
+        open_rows = None if opened is None else (opened.begin(values, t) if stage == 0 else opened.within(values, t))
         if open_rows is not None and open_rows.any():  # zero rows, 0 >= 0: their multipliers are 0
             jacobian, rhs = np.where(open_rows[:, None], 0.0, jacobian), np.where(open_rows, 0.0, rhs)
         problem = KKTProblem(q, v, t, terms.tau, terms.mass_matrix, terms.tau - terms.bias, jacobian, rhs, layout)
