@@ -58,6 +58,28 @@ def test_spinning_point_contact_separating_is_refused_at_its_speed(tmp_path: Pat
     assert not outcome.out.strip()
 
 
+def test_check_refuses_the_separating_start_its_held_run_refuses(tmp_path: Path) -> None:
+    """Nine contacts (more than MAX_EVENT_CONTACTS: held by default) on an arc of the spinning ball's points around
+    OFFSET: ``check`` refuses the start as ``run`` does (it exited 0), with the run's message, naming the contact
+    separating at the closed-form speed of c0."""
+    scene = ball(OFFSET, [-1.0, 1.0, 0.0, *SPIN])
+    radius, heading = float(np.hypot(*OFFSET)), float(np.arctan2(OFFSET[1], OFFSET[0]))
+    points = [(radius * np.cos(heading + a), radius * np.sin(heading + a)) for a in np.linspace(0.0, 0.4, 9)]
+    scene["contacts"] = [
+        {"name": f"c{k}", "kind": "plane-contact", "frame_a": "crate", "offset_a": [float(x), float(y), 0.0]}
+        for k, (x, y) in enumerate(points)
+    ]
+    path = tmp_path / "scene.toml"
+    path.write_text(toml_document(scene), encoding="utf-8")
+    checked = cli(["check", str(path)])
+    ran = cli(["run", str(path), "--duration", "0.01", "--quiet"])
+    rate = SPIN[0] * OFFSET[1] - SPIN[1] * OFFSET[0]
+    assert checked.code == ran.code == 2, (checked, ran)
+    assert (
+        checked.message == ran.message and f"contact c0 starts separating from its plane at {rate:.6g}" in ran.message
+    )
+
+
 def test_sphere_contact_off_its_centre_spinning_is_refused(tmp_path: Path) -> None:
     """The CI job's case (contacts='held'): a sphere contact of radius 0.5 m centred 1 mm off a 0.5 m ball's centre,
     spun at w = (-1, 0, -1) rad/s: energy rose by 0.00189 J from 26.2061 J. Its centre rises at w_x r_y = 0.001

@@ -15,6 +15,7 @@ from ..assembly import AssemblyReport, assemble
 from ..constraints.base import RowKind
 from ..errors import PinstabError, UnstableGainsError, UnstableGainsWarning
 from ..integration import INTEGRATORS, AdaptiveLoop, ErrorControl, Integrator, StepLoop, TimeGrid
+from ..model import ConstrainedModel
 from ..scene import Scene
 from ..solvers.impacts import REST_SPEED
 from ..stability import largest_stable_step
@@ -75,7 +76,7 @@ def simulate_held(
     if assemble_initial:
         report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
-    _refuse_separating_contacts(system, q, v, scene.name)
+    refuse_separating_contacts(system.model, q, v, scene.name)
     system.bind(grid.dt, integrator, q)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
     start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
@@ -144,16 +145,16 @@ def held_system(
     return system, stepper
 
 
-def _refuse_separating_contacts(system: ConstrainedSystem, q: np.ndarray, v: np.ndarray, scene: str) -> None:
-    """Refuse a start at which a held contact (a block of unilateral rows, or of cone rows: its first row the
-    normal) separates from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a spin about a
-    point off the contact's centre lifts it. Held rows keep a contact touching: the row would push while the point
-    rises (the force doing work, energy created) instead of letting it fly; event-driven contacts let it open.
+def refuse_separating_contacts(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, scene: str) -> None:
+    """Refuse a start (q, v) of ``model`` at which a held contact (a block of unilateral rows, or of cone rows: its
+    first row the normal) separates from its plane faster than :data:`~pinstab.solvers.impacts.REST_SPEED` [m/s]: a
+    spin about a point off the contact's centre lifts it. Held rows keep a contact touching: the row would push
+    while the point rises (the force doing work, energy created) instead of letting it fly; event-driven contacts
+    let it open.
 
     Raises:
         PinstabError: naming the contact, its separating speed [m/s] and the alternatives.
     """
-    model = system.model
     stack = model.constraints
     contacts = [c for c in stack.constraints if c.row_kind in (RowKind.UNILATERAL, RowKind.CONE)]
     if not contacts:

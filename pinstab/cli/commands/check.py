@@ -55,6 +55,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...model import ConstrainedModel
     from ...scene import load_scene
     from ...simulate.contacts import default_contacts
+    from ...simulate.held import refuse_separating_contacts
     from ...simulate.limits import held_limits
 
     scene = load_scene(args.scene, **parameters(args.param))
@@ -69,6 +70,8 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         model if default_contacts(scene) is None else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
     )
     report = assemble(assembled, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
+    if assembled is model:  # contacts held as rows (the scene's default): a start they cannot hold, as run refuses
+        refuse_separating_contacts(model, report.q, report.v, scene.name)
     values = model.constraint_values(report.q, report.v, 0.0)
     limits = joint_limits(scene.model)
     rows = model.constraints.rows
