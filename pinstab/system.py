@@ -57,9 +57,9 @@ class OpenRows:
     it across the gap, doing work: a spinning ball's body-fixed contact point, lifted by the spin and pushed back
     on its way down, gained 0.0085 J on its 0.0083 J.
 
-    Decided at each step's start (stage 0, an accepted state): a held row opens where the solve leaves it slack
-    (``G a`` above ``rhs`` by more than the solve's accuracy, :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`
-    relative, so its multiplier is 0); an open row whose gap is back at 0 is held again when its point arrives
+    Decided at each step's start (stage 0, an accepted state): a held row opens where the solve leaves it without
+    force and slack (both beyond the solve's accuracy, :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL` relative:
+    :meth:`release`); an open row whose gap is back at 0 is held again when its point arrives
     slower than :data:`~pinstab.solvers.impacts.REST_SPEED`, and faster it is an impact, which held rows do not
     model (their stabilization would catch the point as a spring and damper across the plane): the run stops with
     :class:`~pinstab.errors.ContactInfeasibleError`. The decisions are kept by time, so a step taken again from an
@@ -131,7 +131,8 @@ class OpenRows:
             self._decide(t, self.rows | released)
 
     def _decide(self, t: float, rows: np.ndarray) -> None:
-        if not np.array_equal(rows, self.rows if self._decided else np.zeros_like(rows)):
+        """Make ``rows`` the open ones from t [s] on (kept when they differ from those in effect before)."""
+        if not np.array_equal(rows, self._decided[-1][1] if self._decided else np.zeros_like(rows)):
             self._decided.append((t, rows))
         self.rows = rows
 
@@ -175,6 +176,7 @@ class ConstrainedSystem:
         compiled_path: the compiled servo solve on the servo path, the compiled grasp evaluation on the grasp path, else
             None.
         projector: the projections of post-step corrections on the chosen path.
+        opened: the unilateral rows that opened (:class:`OpenRows`), None without unilateral rows.
     """
 
     def __init__(
