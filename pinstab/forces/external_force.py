@@ -9,7 +9,7 @@ import numpy as np
 
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
+from .base import FORCE_KINDS, ForceElement, bounded_load
 
 EXTERNAL_KEYS = {"name", "kind", "frame", "offset", "force", "moment"}
 
@@ -35,9 +35,12 @@ class ExternalForce(ForceElement):
 
 @FORCE_KINDS.register("external-force", summary="a constant world-axes force [N] and moment [N m] at a body point")
 def parse_external_force(entry: dict, tables: SceneTables, name: str, where: str) -> ExternalForce:
-    """Scene table: ``frame`` + ``offset`` [m], ``force`` [N] and ``moment`` [N m] in world axes."""
+    """Scene table: ``frame`` + ``offset`` [m], ``force`` [N] and ``moment`` [N m] in world axes, each of length
+    at most 1e12 (:func:`~pinstab.forces.base.bounded_load`)."""
     tables.check_keys(entry, EXTERNAL_KEYS, where)
     frame = tables.attached_frame(entry, "frame", "offset", "rpy", f"{name}/point", where)
     force = tables.vector(entry.get("force", [0.0, 0.0, 0.0]), 3, f"{where}.force", "force")
     moment = tables.vector(entry.get("moment", [0.0, 0.0, 0.0]), 3, f"{where}.moment", "torque")
+    bounded_load(force, f"{where}.force", "N")
+    bounded_load(moment, f"{where}.moment", "N m")
     return ExternalForce(name, frame, force, moment)

@@ -7,7 +7,7 @@ import numpy as np
 from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
-from .base import FORCE_KINDS, ForceElement
+from .base import FORCE_KINDS, ForceElement, bounded_load
 
 TORQUE_KEYS = {"name", "kind", "joint", "torque", "table"}
 
@@ -41,7 +41,8 @@ class JointTorque(ForceElement):
 
 @FORCE_KINDS.register("joint-torque", summary="a torque on a 1-DOF joint: constant ('torque') or a time table")
 def parse_joint_torque(entry: dict, tables: SceneTables, name: str, where: str) -> JointTorque:
-    """Scene table: ``joint`` and either ``torque`` [N m] or ``table`` ([[t, torque], ...])."""
+    """Scene table: ``joint`` and either ``torque`` [N m] or ``table`` ([[t, torque], ...]), each torque's
+    magnitude at most 1e12 (:func:`~pinstab.forces.base.bounded_load`)."""
     tables.check_keys(entry, TORQUE_KEYS, where)
     model = tables.model
     joint = model.joints[tables.joint_id(entry.get("joint"), f"{where}.joint")]
@@ -59,4 +60,6 @@ def parse_joint_torque(entry: dict, tables: SceneTables, name: str, where: str) 
         values = np.array([tables.quantity(r[1], "torque", f"{where}.table torque") for r in rows])
         if np.any(np.diff(times) <= 0):
             raise SceneError(f"{where}.table: times must be strictly increasing")
+    for k, value in enumerate(values):
+        bounded_load(value, f"{where}.torque" if "torque" in entry else f"{where}.table[{k}] torque", "N m or N")
     return JointTorque(name, joint.idx_v, model.nv, times, values)
