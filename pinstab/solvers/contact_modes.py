@@ -286,8 +286,8 @@ class ModeDynamics:
         jacobian, drift = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k)
         for i, contact in enumerate(self.contacts):
             rows = slice(3 * i, 3 * i + 3)
-            plane = pin.SE3.Identity() if contact.plane_frame is None else kin.placement(contact.plane_frame)
-            basis = contact.basis @ plane.rotation.T  # rows (n, t1, t2) in world axes
+            plane = None if contact.plane_frame is None else kin.placement(contact.plane_frame)
+            basis = contact.basis if plane is None else contact.basis @ plane.rotation.T  # (n, t1, t2), world axes
             normal, frame = basis[0], contact.frame
             frame_jacobian, frame_drift = kin.jacobian(frame), kin.drift_acceleration(frame)
             positions[i] = kin.placement(frame).translation - contact.radius * normal
@@ -300,7 +300,7 @@ class ModeDynamics:
                 point_jacobian, point_drift = _relative(
                     kin, contact.plane_frame, positions[i], v, point_jacobian, point_drift
                 )
-            local[i] = plane.actInv(positions[i])
+            local[i] = positions[i] if plane is None else plane.actInv(positions[i])
             jacobian[rows] = basis @ point_jacobian
             velocities[i] = jacobian[rows] @ v
             drift[rows] = basis @ point_drift
