@@ -129,18 +129,40 @@ def joint_placements(model: pin.Model, q: np.ndarray) -> list[pin.SE3]:
     return placements
 
 
+def body_groups(model: pin.Model) -> list[int]:
+    """Each joint's group: the index of the free-flyer joint at the root of its tree (an object, a floating robot),
+    else 0 (the world and the trees mounted on it: a fixed robot)."""
+    groups = [0]
+    for joint in range(1, model.njoints):
+        parent = model.parents[joint]
+        floating = parent == 0 and model.joints[joint].shortname() == "JointModelFreeFlyer"
+        groups.append(joint if floating else groups[parent])
+    return groups
+
+
+def group_points(model: pin.Model, q: np.ndarray) -> list[np.ndarray]:
+    """For each group of :func:`body_groups`, the world points [m] (k, 3) at configuration ``q`` of its joints' and
+    frames' origins and its bodies' centres of mass (the world's group holds the world's origin)."""
+    joints = joint_placements(model, q)
+    groups = body_groups(model)
+    points: dict[int, list[np.ndarray]] = {}
+    for joint, inertia in enumerate(model.inertias):
+        points.setdefault(groups[joint], []).extend((joints[joint].translation, joints[joint].act(inertia.lever)))
+    for frame in model.frames:
+        points[groups[frame.parentJoint]].append((joints[frame.parentJoint] * frame.placement).translation)
+    return [np.array(group) for group in points.values()]
+
+
 @np.errstate(over="ignore", invalid="ignore")  # a model too large for floating point: an infinite size
 def scene_size(model: pin.Model, q: np.ndarray) -> float:
-    """The scene's size [m]: the diagonal of the box holding, at configuration ``q``, the world origin and the
-    origins of every joint and frame and every body's centre of mass, or the largest body's gyration diameter
-    ``2 sqrt(tr(I_c) / m)`` (a box of side s: 1.41 s) if larger, at least :data:`MIN_SCENE_SIZE`."""
-    joints = joint_placements(model, q)
-    frames = [joints[frame.parentJoint] * frame.placement for frame in model.frames]
-    centres = [joints[joint].act(inertia.lever) for joint, inertia in enumerate(model.inertias)]
-    points = np.array([np.zeros(3), *(m.translation for m in (*joints, *frames)), *centres])
-    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    """The scene's size [m]: its largest group of bodies' extent at configuration ``q`` (:func:`body_groups`: the
+    diagonal of the box holding the origins of the group's joints and frames and its bodies' centres of mass), or
+    the largest body's gyration diameter ``2 sqrt(tr(I_c) / m)`` (a box of side s: 1.41 s) if larger, at least
+    :data:`MIN_SCENE_SIZE`. The distances between groups do not count: a ball a million metres from the world's
+    origin (or from the robot) is as large as at the origin, and moving a scene leaves its size as it was."""
+    extents = [float(np.linalg.norm(np.ptp(group, axis=0))) for group in group_points(model, q)]
     gyration = [2.0 * np.sqrt(np.trace(i.inertia) / i.mass) for i in model.inertias if i.mass > 0]
-    return max(MIN_SCENE_SIZE, diagonal, *gyration)
+    return max(MIN_SCENE_SIZE, *extents, *gyration)
 
 
 class SceneTables:
@@ -159,6 +181,8 @@ class SceneTables:
         constraints: the scene's constraint blocks by name, once they are read (force kinds see them).
         size: the scene's size [m] at ``q0`` (:func:`scene_size`), before any kind adds a frame; the points the
             kinds read are checked against it (:meth:`within_reach`).
+        bounds: the lowest and highest corners [m] of the box holding the scene's joints, frames and centres of
+            mass at ``q0`` (:func:`group_points`), from which points on the world are measured.
     """
 
     def __init__(self, model: pin.Model, q0: np.ndarray, objects: dict[str, Any] | None = None) -> None:
@@ -168,6 +192,8 @@ class SceneTables:
         self.claimed_joints: dict[int, str] = {}
         self.constraints: dict[str, Any] = {}
         self.size = scene_size(model, q0)
+        every = np.vstack(group_points(model, q0))
+        self.bounds = (every.min(axis=0), every.max(axis=0))  # [m] the box holding every group's points
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)
@@ -183,18 +209,23 @@ class SceneTables:
         """A frame's index by name."""
         return frame_id(self.model, name, where)
 
-    def within_reach(self, point: np.ndarray | float, where: str) -> None:
-        """Refuse a point [m] (a 3-vector: on a body in its frame's axes, or on the world) or a length on a body
-        farther than :data:`MAX_REACH` times :attr:`size` from its frame's origin."""
-        scale = float(np.abs(point).max(initial=0.0))
-        with np.errstate(over="ignore"):  # a norm beyond floating point is infinite: refused
-            distance = scale * float(np.linalg.norm(np.asarray(point) / scale)) if scale else 0.0
+    def within_reach(self, point: np.ndarray | float, where: str, on_world: bool = False) -> None:
+        """Refuse a point [m] (a 3-vector on a body, in its frame's axes) or a length on a body farther than
+        :data:`MAX_REACH` times :attr:`size` from its frame's origin; ``on_world``: a point on the world, measured
+        from the box of the scene's bodies (:attr:`bounds`), wherever the scene lies."""
+        offset = np.asarray(point, dtype=float)
+        with np.errstate(over="ignore", invalid="ignore"):  # a distance beyond floating point: infinite, refused
+            if on_world:
+                offset = offset - np.clip(offset, *self.bounds)
+            scale = float(np.abs(offset).max(initial=0.0))
+            distance = scale * float(np.linalg.norm(offset / scale)) if scale else 0.0
         limit = MAX_REACH * self.size
         if not distance <= limit:
             shown = f"[{', '.join(f'{x:.6g}' for x in point)}]" if np.ndim(point) else f"{point:.6g}"
+            origin = "the scene's bodies" if on_world else "its frame's origin"
             raise SceneError(
-                f"{where} = {shown} m lies {distance:.3g} m from its frame's origin, beyond {MAX_REACH:g} times the "
-                f"scene's size ({self.size:.3g} m: its frames and bodies at the start), the allowed range [0, "
+                f"{where} = {shown} m lies {distance:.3g} m from {origin}, beyond {MAX_REACH:g} times the scene's "
+                f"size ({self.size:.3g} m: its largest group of bodies at the start), the allowed range [0, "
                 f"{limit:.3g}] m: a point that far is on no body of the scene (check its value and unit)"
             )
 
@@ -243,7 +274,8 @@ def closure_frames(entry: dict, tables: SceneTables, name: str, where: str) -> t
     side b's frame (None for the world) or, on the world, its placement (``offset_b`` [m], ``rpy_b`` [rad])."""
     frame_a = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     offset_b = tables.placement(entry, "offset_b", "rpy_b", where)
-    tables.within_reach(offset_b.translation, f"{where}.offset_b")
-    if entry.get("frame_b", WORLD) == WORLD:
+    on_world = entry.get("frame_b", WORLD) == WORLD
+    tables.within_reach(offset_b.translation, f"{where}.offset_b", on_world)
+    if on_world:
         return frame_a, None, offset_b
     return frame_a, tables.point_frame(entry["frame_b"], offset_b, f"{name}/b", f"{where}.frame_b"), None
