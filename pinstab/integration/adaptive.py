@@ -237,8 +237,18 @@ class AdaptiveLoop(StepLoop):
         state = np.concatenate((model.magnitude(q), np.abs(v)))
         scale = control.atol + control.rtol * state
         derivative = np.concatenate((v, a))
-        size, rate = _rms(state / scale), _rms(derivative / scale)
+        with np.errstate(over="ignore"):  # rates beyond floating point: an infinite rate, refused below
+            size, rate = _rms(state / scale), _rms(derivative / scale)
         first = 1e-6 if size < 1e-5 or rate < 1e-5 else 0.01 * size / rate
+        if not first > 0.0:  # rates beyond floating point (an infinite acceleration): no step can follow them
+            raise DivergenceError(
+                f"the velocities and accelerations at t = {t:.6g} s are too large for a first step (their size "
+                f"{rate:.3g} times rtol, atol): check the scene's forces and initial velocities",
+                t,
+                q,
+                v,
+                diverged_at=t,
+            )
         q1, v1 = model.integrate(q, first * v), v + first * a
         a1 = self.system.acceleration(q1, v1, t + first, 0)
         curvature = _rms((np.concatenate((v1, a1)) - derivative) / scale) / first
