@@ -30,8 +30,9 @@ def bounded_load(values: np.ndarray, where: str, unit: str) -> np.ndarray:
     Raises:
         SceneError: naming ``where`` (``|forces 'push'.force|``), the magnitude and the allowed range.
     """
+    scale = float(np.abs(values).max(initial=0.0))  # scaled first: the length of [1, 1e200, 1] is 1e200, not inf
     with np.errstate(over="ignore"):  # a length beyond floating point is infinite: refused
-        magnitude = float(np.linalg.norm(values))
+        magnitude = scale * float(np.linalg.norm(np.asarray(values) / scale)) if scale else 0.0
     if not magnitude <= MAX_LOAD:
         raise SceneError(
             f"|{where}| = {magnitude:.6g} {unit} is outside the allowed range [0, {MAX_LOAD:.0e}] {unit}: {LOAD_REASON}"
