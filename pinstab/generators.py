@@ -13,6 +13,7 @@ from typing import Any
 
 from .contact.coefficients import friction_coefficient, restitution_coefficient
 from .errors import SceneError, choices
+from .forces.base import LOAD_REASON, MAX_LOAD
 from .units import (
     COORDINATE_REASON,
     MAGNITUDE_REASON,
@@ -241,7 +242,7 @@ def pinch(mu: float = 0.5, squeeze: float = 1.0, mass: float = 0.1) -> dict[str,
     point on the face's plane, carried by the cube), gravity along -z. The cube holds iff
     2 mu F >= m g, else slides down with acceleration g - 2 mu F / m."""
     mu = friction_coefficient(mu, "generator pinch: parameter mu")
-    squeeze = _number("pinch", "squeeze", squeeze, 0.0, MAX_MAGNITUDE, "N", MAGNITUDE_REASON)
+    squeeze = _number("pinch", "squeeze", squeeze, 0.0, MAX_LOAD, "N", LOAD_REASON)  # a joint-torque's range
     mass = _number("pinch", "mass", mass, MIN_MASS, MAX_MAGNITUDE, "kg", MASS_REASON)
     half, inertia = PINCH_SIDE / 2, mass * PINCH_SIDE**2 / 6
     finger_inertia = FINGER_MASS * 1e-4

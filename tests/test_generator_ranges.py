@@ -29,7 +29,7 @@ RANGES: dict[tuple[str, str], tuple[float, list[float]]] = {
     ("bouncing-ball", "height"): (1e6, [0.0, MAX_COORDINATE - 0.05]),  # its centre 0.05 m higher
     ("bouncing-ball", "restitution"): (1.5, [0.0, 1.0]),
     ("pinch", "mu"): (20.0, [0.0, 10.0]),
-    ("pinch", "squeeze"): (1e13, [0.0, MAX_MAGNITUDE]),
+    ("pinch", "squeeze"): (2e6, [0.0, 1e6]),  # a joint-torque's range (forces.base.MAX_LOAD)
     ("pinch", "mass"): (1e-12, [MIN_MASS, MAX_MAGNITUDE]),
     ("painleve-rod", "mu"): (math.inf, [0.0, 10.0]),
 }
