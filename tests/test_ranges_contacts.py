@@ -96,7 +96,7 @@ RANGE_CASES = [
         "plane point far away",
         "{command} {scene}",
         "SceneError",
-        "contact 'front-left'.point = [0, 0, -100] m lies 100 m from its frame's origin",
+        "contact 'front-left'.point = [0, 0, -100] m lies 100 m from the scene's bodies",
         base="box-push",
         changes=(("\nmu = 0.5", "\nmu = 0.5\npoint = [0.0, 0.0, -100.0]"),),
     ),

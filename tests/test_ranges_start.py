@@ -59,12 +59,14 @@ def test_start_inside_its_plane_is_refused_wherever_the_scene_lies(y: float, tmp
 
 @pytest.mark.parametrize("contacts", ["stepping", "event"])
 def test_ball_on_its_plane_far_from_the_origin_runs_as_at_the_origin(contacts: str, tmp_path: Path) -> None:
-    """The ball touching its plane (centre 0.4 m above the plane z = 0, as a vertex 0.4 m below it): taken at y = 0
-    and at y = 1e6 m, with the same size (1 m) and the same motion."""
+    """The ball touching its plane (centre 0.4 m above the plane z = 0, as a vertex 0.4 m below it; the plane's
+    point under the ball): taken at y = 0 and at y = 1e6 m, with the same size (1 m) and the same motion (the plane's
+    point on the world is measured from the bodies: at 1e6 m it was refused as 1e6 m from the origin)."""
     ends = []
     for y in (0.0, FAR):
         scene = ball_scene(y, 0.4, [0.0, 0.0, 1.0])
         scene["contacts"][0]["offset_a"] = [0.0, 0.0, -0.4]
+        scene["contacts"][0]["point"] = [-1.0, y, 0.0]
         path = write(scene, tmp_path, f"ball{y:g}")
         loaded = load_scene(path)
         assert scene_size(loaded.model, loaded.q0) == 1.0

@@ -116,7 +116,7 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
         raise SceneError(f"{where}: 'offset_b' and 'rpy_b' place the plane on body 'frame_b'; give 'frame_b' too")
     normal = tables.direction(entry.get("normal", [0.0, 0.0, 1.0]), f"{where}.normal")
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
-    tables.within_reach(point, f"{where}.point")
+    tables.within_reach(point, f"{where}.point", plane_frame is None)  # a world plane: from the bodies
     friction = None
     if "mu" in entry:
         try:
