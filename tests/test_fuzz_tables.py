@@ -757,11 +757,11 @@ FAR_FROM_THE_ORIGIN = {  # a ball 0.4 m inside a plane facing down, a million me
 }
 
 
-@pytest.mark.xfail(strict=True, reason="H1: a start inside its plane is measured against a size that counts the origin")
 def test_start_inside_far_from_the_origin_is_refused(files: RunFiles) -> None:
     """:data:`FAR_FROM_THE_ORIGIN`: refused at y = 0 ("starts 0.4 m inside its plane, deeper than 0.0001 times the
     scene's size (1.08 m)"), taken at y = 1e6 m, the scene's size then 1e6 m: time-stepping throws the ball out with
-    7.1 MJ (349 J at the start), event-driven contacts keep it 0.4 m inside, held ones move it onto the plane."""
+    7.1 MJ (349 J at the start), event-driven contacts keep it 0.4 m inside, held ones move it onto the plane. Now
+    the size is the largest group of bodies' extent, wherever they lie (tests/test_ranges_start.py)."""
     outcome, _ = run_contact_case(ContactCase(FAR_FROM_THE_ORIGIN), "stepping", "absent", files)
     assert outcome.code == 2 and "c0" in outcome.message, outcome
 
@@ -883,11 +883,11 @@ def test_stream_of_a_run_refused_at_its_start_is_not_left(files: RunFiles) -> No
     assert outcome.code == 2 and not streamed.saved.exists(), outcome
 
 
-@pytest.mark.xfail(strict=True, reason="an object's size has no floor: a cylinder of radius 1e-300 m is taken")
 def test_object_of_vanishing_radius_is_refused(files: RunFiles) -> None:
     """A 100 kg cylinder of radius 1e-300 m (length 0.02 m) on three plane contacts: taken; time-stepping ends in
     numpy's LinAlgError "6-th leading minor of the array is not positive definite" (cho_factor of its mass matrix in
-    integration/contact_stepping.py), a traceback (found by the long profile)."""
+    integration/contact_stepping.py), a traceback (found by the long profile). Now objects' sizes are at least
+    units.MIN_LENGTH (1 um)."""
     scene = {
         "gravity": [0.0, 0.0, -9.81],
         "robot": {"urdf_text": "<robot name='stand'><link name='stand'/></robot>"},
@@ -912,10 +912,10 @@ def test_object_of_vanishing_radius_is_refused(files: RunFiles) -> None:
     assert outcome.code == 2 and "radius" in outcome.message, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="an external force has no range: 1e200 N ends in a ZeroDivisionError")
 def test_external_force_out_of_range_is_refused(files: RunFiles) -> None:
     """box-push pushed with [11, 1e200, -3.1] N: taken; event-driven contacts end in ``ZeroDivisionError: float
-    division by zero`` (integration/adaptive.py, initial_step), a traceback (found by the long profile)."""
+    division by zero`` (integration/adaptive.py, initial_step), a traceback (found by the long profile). Now loads
+    are within forces.base.MAX_LOAD (1e6 N)."""
     scene = copy.deepcopy(BOX_PUSH)
     scene["forces"][0]["force"] = [11.0, 1e200, -3.1]
     outcome, _ = run_contact_case(ContactCase(scene), "event", "absent", files)
