@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import proxsuite
 from scipy.linalg.lapack import dpotrf, dpotrs
+from scipy.optimize import linprog
 
 from ..constraints import ConeRows, RowKind
 from ..errors import ContactInfeasibleError, SolverError
@@ -51,6 +52,11 @@ DIRECT_STATUS = "cholesky"  # the status of a direct solve (equality rows indepe
 # not, by the rounding of each solve; it keeps the largest row's scale instead. A genuine row that small would need
 # lever arms 1e-12 of the mechanism's size.
 ROUNDING_ROW = 1e-12
+# inner iterations per outer iteration of ProxQP (its default 1500): a contact problem whose forces are statically
+# indeterminate and pinned against a cone (a corner clamped between a ceiling and the floor) never meets eps_abs, and
+# each outer iteration's inner solve then ran to ~700 (a cold solve: 700,000 inner iterations, 3.5 s); the answer is
+# judged by its residuals either way, so the work per solve is bounded by max_iter times this
+MAX_ITER_IN = 50
 
 
 @dataclass(frozen=True)
@@ -120,6 +126,25 @@ def _row_sizes(jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return norms, norms > ROUNDING_ROW * float(np.max(norms, initial=0.0))
 
 
+def _force_rows(problem: KKTProblem, scaling: _Scaling, with_cones: bool = True) -> list[tuple[str, int, np.ndarray]]:
+    """The sign and cone rows on the scaled forces z = lambda * row / inertia, ``block @ z <= 0``, with the contact
+    each belongs to and its (first) row: a unilateral row's ``-z <= 0``, and ``with_cones`` a cone's inscribed
+    pyramid (facets of unit norm) and ``-f_n <= 0``."""
+    s = problem.jacobian.shape[0]
+    rows = []
+    for index in np.flatnonzero(problem.layout.unilateral):
+        sign = np.zeros((1, s))
+        sign[0, index] = -1.0  # lambda >= 0
+        rows.append((problem.layout.names[index], int(index), sign))
+    for cone in problem.layout.cones if with_cones else ():
+        facets = cone.cone.facet_matrix / scaling.row[list(cone.rows)]
+        block = np.zeros((facets.shape[0] + 1, s))
+        block[:-1, list(cone.rows)] = facets / np.linalg.norm(facets, axis=1, keepdims=True)
+        block[-1, cone.rows[0]] = -1.0  # f_n >= 0
+        rows.append((cone.name, cone.rows[0], block))
+    return rows
+
+
 def direct_solve(problem: KKTProblem) -> tuple[np.ndarray, np.ndarray] | None:
     """(a, lambda) of the equality KKT system through Cholesky factors (LAPACK) of M and of the Delassus matrix
     D = G M^-1 G^T: ``lambda = D^-1 (rhs - G M^-1 f)``, ``a = M^-1 (f + G^T lambda)``, over the rows that are not
@@ -178,6 +203,7 @@ class ProxsuiteSolver(KKTSolver):
         qp.settings.eps_rel = self.options.eps_abs
         qp.settings.verbose = False
         qp.settings.max_iter = self.options.max_iter
+        qp.settings.max_iter_in = MAX_ITER_IN
         # at a singular configuration -gamma0 can leave range(G) by rounding: take the closest
         # feasible accelerations (least-squares constraint rows) instead of declaring infeasibility
         qp.settings.primal_infeasibility_solving = closest_feasible
@@ -242,18 +268,41 @@ class ProxsuiteSolver(KKTSolver):
 
     # -- unilateral and cone rows: accelerations and forces together ----------------------------------
     def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
-        x = self._run(*self._inequality_qp(problem, scaling, with_cones=True), closest_feasible=False)[0]
+        x = self._run(*self._inequality_qp(problem, scaling), closest_feasible=False)[0]
         acceleration, forces = self._unscale(x, problem, scaling)
-        # the tiny regularization leaves the forces' null-space part (an internal force of a statically
-        # indeterminate contact set) converged only loosely: take the smallest forces with the same
-        # resultant G^T lambda (least squares, minimum norm) when they keep every cone and sign
-        smallest = np.linalg.lstsq(problem.jacobian.T, problem.jacobian.T @ forces, rcond=None)[0]
+        return acceleration, self._smallest_forces(problem, scaling, forces)
+
+    def _smallest_forces(self, problem: KKTProblem, scaling: _Scaling, forces: np.ndarray) -> np.ndarray:
+        """The smallest forces with the resultant ``G^T forces`` that keep every cone and sign [N, N m], else
+        ``forces``.
+
+        The tiny regularization leaves the forces' null-space part (an internal force of a statically indeterminate
+        contact set) converged only loosely, by however far ProxQP got. The least-squares (minimum-norm) forces are
+        taken when they keep every cone and sign; otherwise (a clamp whose minimum-norm forces would pull) the
+        smallest forces inside the cones, a QP on the scaled forces alone (identity Hessian: well-conditioned,
+        unique), when ProxQP solves it.
+        """
+        resultant = problem.jacobian.T @ forces
+        smallest = np.linalg.lstsq(problem.jacobian.T, resultant, rcond=None)[0]
         if self._inside_cones(problem, smallest):
-            forces = smallest
-        return acceleration, forces
+            return smallest
+        owned = _force_rows(problem, scaling)
+        if not owned:
+            return forces
+        rows = problem.jacobian * scaling.rows_factor
+        scaled = forces * scaling.row / scaling.inertia
+        c_in = np.vstack([block for _, _, block in owned])
+        n, n_eq, n_in = len(forces), rows.shape[1], c_in.shape[0]
+        qp = self._fresh(n, n_eq, n_in, closest_feasible=False)
+        qp.init(np.eye(n), np.zeros(n), rows.T, rows.T @ scaled, c_in, np.full(n_in, -1e30), np.zeros(n_in))
+        qp.solve()
+        if qp.results.info.status not in _SOLVED:
+            return forces
+        polished = scaling.inertia * np.array(qp.results.x) / scaling.row
+        return polished if self._inside_cones(problem, polished) else forces
 
     @staticmethod
-    def _inequality_qp(problem: KKTProblem, scaling: _Scaling, with_cones: bool) -> tuple[tuple, int]:
+    def _inequality_qp(problem: KKTProblem, scaling: _Scaling, with_cones: bool = True) -> tuple[tuple, int]:
         """The scaled (a, lambda) QP: its matrices and its number of inequalities."""
         nv, s = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
         row = scaling.row
@@ -273,18 +322,9 @@ class ProxsuiteSolver(KKTSolver):
         if picked.size:
             blocks.append(np.hstack([-rows[picked], np.zeros((picked.size, s))]))  # G a >= rhs
             bounds.append(-(problem.rhs / row)[picked])
-            sign = np.zeros((picked.size, nv + s))
-            sign[np.arange(picked.size), nv + picked] = -1.0  # lambda >= 0
-            blocks.append(sign)
-            bounds.append(np.zeros(picked.size))
-        if with_cones:
-            for cone in problem.layout.cones:
-                facets = cone.cone.facet_matrix / row[list(cone.rows)]  # on z = lambda * row / inertia
-                block = np.zeros((facets.shape[0] + 1, nv + s))
-                block[:-1, nv + np.array(cone.rows)] = facets / np.linalg.norm(facets, axis=1, keepdims=True)
-                block[-1, nv + cone.rows[0]] = -1.0  # f_n >= 0
-                blocks.append(block)
-                bounds.append(np.zeros(block.shape[0]))
+        for _, _, block in _force_rows(problem, scaling, with_cones):
+            blocks.append(np.hstack([np.zeros((block.shape[0], nv)), block]))
+            bounds.append(np.zeros(block.shape[0]))
         c_in = np.vstack(blocks) if blocks else None
         upper = np.concatenate(bounds) if bounds else None
         n_in = 0 if c_in is None else c_in.shape[0]
@@ -310,8 +350,8 @@ class ProxsuiteSolver(KKTSolver):
         return True
 
     def _refuse(self, problem: KKTProblem, solution: KKTSolution) -> None:
-        if problem.layout.cones:
-            self._explain_cones(problem)
+        if not problem.layout.equality_only:
+            self._explain_forces(problem)
         raise SolverError(
             f"proxsuite: ProxQP did not solve the constrained dynamics at t = {problem.t:.6g} s ({solution.status}, "
             f"relative residuals: constraint rows {solution.primal_residual:.3g}, equations of motion "
@@ -319,36 +359,91 @@ class ProxsuiteSolver(KKTSolver):
             "(conflicting closures, not merely redundant) or the run is blowing up (reduce dt or the gains)"
         )
 
-    def _explain_cones(self, problem: KKTProblem) -> None:
-        """Solve without the cones (the smallest forces that hold every contact) and name the contacts
-        whose force would leave its cone.
+    def _explain_forces(self, problem: KKTProblem) -> None:
+        """Name the contacts that cannot hold, whatever ProxQP made of the problem.
+
+        Whether they can is decided by a linear program (HiGHS: exact and deterministic, :meth:`_cannot_hold`);
+        when they cannot, the contacts named are those whose force leaves its cone (or pulls) in the smallest
+        forces that hold every contact without the cones (the Gauss solve without them), or when that solve names
+        none, those the linear program found.
 
         Raises:
-            ContactInfeasibleError: when some contact needs a force outside its cone.
+            ContactInfeasibleError: when some contact needs a force outside its cone or of the wrong sign.
         """
         scaling = self._scaling_for(problem)
+        found = self._cannot_hold(problem, scaling)
+        if not found:
+            return
         x = self._run(*self._inequality_qp(problem, scaling, with_cones=False), closest_feasible=False)[0]
         self._qp, self._shape = None, None  # the next solve has cones again
         _, forces = self._unscale(x, problem, scaling)
-        failing = [(_needed(cone, forces), cone) for cone in problem.layout.cones]
-        failing = sorted(
-            ((need, cone) for need, cone in failing if need[0] > cone.cone.inscribed_mu or need[1]), key=_worst
-        )
-        if not failing:
-            return
-        described = "; ".join(_describe(cone, need) for need, cone in failing)
+        owned = _force_rows(problem, scaling)
+        failing = _failing(problem, [(name, row) for name, row, _ in owned], forces) or found
+        ranked = sorted(failing, key=_worst)
+        described = "; ".join(_describe(name, cone, need) for need, name, cone in ranked)
         raise ContactInfeasibleError(
             f"sticking contacts cannot hold at t = {problem.t:.6g} s: {described}. The applied forces are outside "
             "the friction cone, so the contact would slide or open (held contacts cannot: plane contacts switch with "
             "--contacts event, simulate(contacts='event')); "
             "reduce the push or raise mu",
-            [cone.name for _, cone in failing],
+            [name for _, name, _ in ranked],
             problem.t,
         )
 
+    def _cannot_hold(
+        self, problem: KKTProblem, scaling: _Scaling
+    ) -> list[tuple[tuple[float, bool], str, ConeRows | None]]:
+        """The contacts that cannot hold (empty when all can, or when the program is not solved): a linear program
+        on the scaled (a, lambda) rows with one slack per contact on its sign and cone rows, their sum minimized;
+        a contact whose slack stays above :data:`CONE_TOLERANCE` of the forces in play needs a force outside its
+        cone (or to pull), given with what it needs there."""
+        (_, _, a_eq, b_eq, c_in, _), _ = self._inequality_qp(problem, scaling)
+        owned = _force_rows(problem, scaling)
+        nv, n, contacts = problem.mass_matrix.shape[0], a_eq.shape[1], len(owned)
+        held = np.flatnonzero(problem.layout.unilateral)  # G a >= rhs, the first rows of c_in, kept exact
+        slacks = [
+            np.hstack([np.zeros((len(block), nv)), block, -np.eye(contacts)[[k] * len(block)]])
+            for k, (_, _, block) in enumerate(owned)
+        ]
+        result = linprog(
+            np.concatenate([np.zeros(n), np.ones(contacts)]),
+            A_ub=np.vstack([np.hstack([c_in[: held.size], np.zeros((held.size, contacts))]), *slacks]),
+            b_ub=np.concatenate([-(problem.rhs / scaling.row)[held], np.zeros(sum(len(b) for b in slacks))]),
+            A_eq=np.hstack([a_eq, np.zeros((len(a_eq), contacts))]),
+            b_eq=b_eq,
+            bounds=[(None, None)] * n + [(0.0, None)] * contacts,
+            method="highs",
+        )
+        if result.status != 0:
+            return []
+        x, excess = result.x[:n], result.x[n:]
+        scale = float(np.max(np.abs(x[nv:]), initial=0.0)) + float(np.max(np.abs(b_eq[:nv]), initial=0.0))
+        beyond = [
+            (name, row) for (name, row, _), extra in zip(owned, excess, strict=True) if extra > CONE_TOLERANCE * scale
+        ]
+        return _failing(problem, beyond, self._unscale(x, problem, scaling)[1], strict=False)
 
-def _needed(cone: ConeRows, forces: np.ndarray) -> tuple[float, bool]:
-    """(|f_t| / f_n the contact needs, whether it needs to pull)."""
+
+def _failing(
+    problem: KKTProblem, contacts: list[tuple[str, int]], forces: np.ndarray, strict: bool = True
+) -> list[tuple[tuple[float, bool], str, ConeRows | None]]:
+    """(what it needs, name, cone or None) of each contact in ``contacts`` (name, first row) once, kept when its
+    force [N] leaves its linearized cone or pulls (all of them unless ``strict``)."""
+    cones = {cone.name: cone for cone in problem.layout.cones}
+    failing = {}
+    for name, row in contacts:
+        cone = cones.get(name)
+        need = _needed(cone, row, forces)
+        if not strict or need[1] or (cone is not None and need[0] > cone.cone.inscribed_mu):
+            failing[name] = (need, name, cone)
+    return list(failing.values())
+
+
+def _needed(cone: ConeRows | None, row: int, forces: np.ndarray) -> tuple[float, bool]:
+    """(|f_t| / f_n the contact needs, whether it needs to pull) of a cone, or of the unilateral ``row`` (no
+    friction: 0) when ``cone`` is None."""
+    if cone is None:
+        return 0.0, bool(forces[row] < 0)
     normal, first, second = forces[list(cone.rows)]
     tangential = math.hypot(first, second)
     if normal <= 0:
@@ -356,15 +451,15 @@ def _needed(cone: ConeRows, forces: np.ndarray) -> tuple[float, bool]:
     return tangential / normal, False
 
 
-def _worst(item: tuple[tuple[float, bool], ConeRows]) -> float:
-    return -item[0][0]
+def _worst(item: tuple[tuple[float, bool], str, ConeRows | None]) -> tuple[float, str]:
+    return -item[0][0], item[1]
 
 
-def _describe(cone: ConeRows, need: tuple[float, bool]) -> str:
-    if need[1]:
-        return f"contact {cone.name!r} would need to pull (negative normal force)"
+def _describe(name: str, cone: ConeRows | None, need: tuple[float, bool]) -> str:
+    if need[1] or cone is None:
+        return f"contact {name!r} would need to pull (negative normal force)"
     return (
-        f"contact {cone.name!r} needs |f_t|/f_n = {need[0]:.4g} > mu = {cone.cone.mu:g} "
+        f"contact {name!r} needs |f_t|/f_n = {need[0]:.4g} > mu = {cone.cone.mu:g} "
         f"(linearized {cone.cone.inscribed_mu:.4g} with {cone.cone.facets} facets)"
     )
 
