@@ -41,6 +41,12 @@ if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 FORCE_REGULARIZATION = 1e-9  # eps of the (a, lambda) form, in scaled units
+# eps of the retry when ProxQP failed with FORCE_REGULARIZATION on contacts that can hold (a linear program says so):
+# forces pinned against a cone make the problem nearly a linear program, which the proximal method then does not
+# finish (1,000 outer iterations) or even declares infeasible. The retry trades accelerations for smaller forces by
+# at most this relative to the scaled terms (of order one): 1e-6, below the integrators' step errors at the steps
+# held contacts take, and enough to solve the clamped box (box-push with a corner under a ceiling) in ~20 iterations
+RETRY_REGULARIZATION = 1e-6
 RESCALE_EVERY = 64  # solves between refreshes of the scaling (it follows the configuration slowly)
 CONE_TOLERANCE = 1e-8  # a facet or sign may be missed by this much relative to the forces in play
 DIRECT_PIVOT = 1e-8  # the Delassus matrix's smallest Cholesky pivot over its largest diagonal entry, at least
@@ -197,7 +203,9 @@ class ProxsuiteSolver(KKTSolver):
         self._scaled_solves += 1
         return self._scaling
 
-    def _fresh(self, n: int, n_eq: int, n_in: int, closest_feasible: bool) -> proxsuite.proxqp.dense.QP:
+    def _fresh(
+        self, n: int, n_eq: int, n_in: int, closest_feasible: bool, proven: bool = False
+    ) -> proxsuite.proxqp.dense.QP:
         qp = proxsuite.proxqp.dense.QP(n, n_eq, n_in)
         qp.settings.eps_abs = self.options.eps_abs
         qp.settings.eps_rel = self.options.eps_abs
@@ -207,16 +215,21 @@ class ProxsuiteSolver(KKTSolver):
         # at a singular configuration -gamma0 can leave range(G) by rounding: take the closest
         # feasible accelerations (least-squares constraint rows) instead of declaring infeasibility
         qp.settings.primal_infeasibility_solving = closest_feasible
+        if proven:  # a linear program found the rows feasible: ProxQP's certificate of the contrary is rounding
+            qp.settings.eps_primal_inf = 0.0
         return qp
 
-    def _run(self, matrices: tuple, n_in: int, closest_feasible: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Solve (warm start when the shape is unchanged, one cold retry); returns (x, y, z)."""
+    def _run(
+        self, matrices: tuple, n_in: int, closest_feasible: bool, proven: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Solve (warm start when the shape is unchanged, one cold retry; ``proven``: the rows are known feasible);
+        returns (x, y, z)."""
         hessian, gradient, a_eq, b_eq, c_in, upper = matrices
         n, n_eq = hessian.shape[0], a_eq.shape[0]
         shape = (n, n_eq, n_in)
         lower = None if c_in is None else np.full(n_in, -1e30)
         if self._qp is None or self._shape != shape:
-            self._qp, self._shape = self._fresh(n, n_eq, n_in, closest_feasible), shape
+            self._qp, self._shape = self._fresh(n, n_eq, n_in, closest_feasible, proven), shape
             self._qp.init(hessian, gradient, a_eq, b_eq, c_in, lower, upper)
         else:
             self._qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
@@ -224,7 +237,7 @@ class ProxsuiteSolver(KKTSolver):
         self._qp.solve()
         if self._qp.results.info.status not in _SOLVED:
             # a warm start far from the answer (a state changing fast) can stall: retry cold
-            self._qp = self._fresh(n, n_eq, n_in, closest_feasible)
+            self._qp = self._fresh(n, n_eq, n_in, closest_feasible, proven)
             self._qp.init(hessian, gradient, a_eq, b_eq, c_in, lower, upper)
             self._qp.solve()
         results = self._qp.results
@@ -240,23 +253,35 @@ class ProxsuiteSolver(KKTSolver):
                     return self.record(KKTSolution(acceleration, multipliers, DIRECT_STATUS, 0, primal, math.nan))
         scaling = self._scaling_for(problem)
         if problem.layout.equality_only:
-            acceleration, multipliers = self._solve_equalities(problem, scaling)
+            solution, accepted = self._judged(problem, *self._solve_equalities(problem, scaling))
         else:
-            acceleration, multipliers = self._solve_with_inequalities(problem, scaling)
+            solution, accepted = self._judged(problem, *self._solve_with_inequalities(problem, scaling))
+            if not accepted:
+                self._explain_forces(problem)  # the contacts cannot hold: ContactInfeasibleError, naming them
+                # they can: ProxQP failed on forces pinned against a cone (a corner clamped between a ceiling and
+                # the floor), which the tiny regularization leaves nearly a linear program; retry cold, better posed
+                self._qp = None
+                solution, accepted = self._judged(problem, *self._solve_with_inequalities(problem, scaling, retry=True))
+        if not accepted:
+            self._refuse(problem, solution)
+        return self.record(solution)
+
+    def _judged(
+        self, problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray
+    ) -> tuple[KKTSolution, bool]:
+        """The last ProxQP solve's answer and whether it is accepted: solved, or its residuals (recomputed on the
+        unscaled problem) below :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL` with every cone and sign kept."""
         info = self._qp.results.info
         if info.status in _SOLVED:
             # ProxQP met eps_abs + eps_rel on the scaled problem, whose terms are of order one: its own
             # residuals are relative ones, and computing them again would cost more than the solve
-            solution = KKTSolution(
+            return KKTSolution(
                 acceleration, multipliers, info.status.name, int(info.iter), info.pri_res, info.dua_res
-            )
-            return self.record(solution)
+            ), True
         primal, dual = residuals(problem, acceleration, multipliers)
         solution = KKTSolution(acceleration, multipliers, info.status.name, int(info.iter), primal, dual)
         inside = problem.layout.equality_only or self._inside_cones(problem, multipliers)
-        if not (primal <= ACCEPTED_RESIDUAL and dual <= ACCEPTED_RESIDUAL and inside):
-            self._refuse(problem, solution)
-        return self.record(solution)
+        return solution, primal <= ACCEPTED_RESIDUAL and dual <= ACCEPTED_RESIDUAL and inside
 
     # -- equality rows: Gauss in the accelerations -------------------------------------------------
     def _solve_equalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
@@ -267,8 +292,14 @@ class ProxsuiteSolver(KKTSolver):
         return x / scaling.column, -scaling.inertia * y / scaling.row
 
     # -- unilateral and cone rows: accelerations and forces together ----------------------------------
-    def _solve_with_inequalities(self, problem: KKTProblem, scaling: _Scaling) -> tuple[np.ndarray, np.ndarray]:
-        x = self._run(*self._inequality_qp(problem, scaling), closest_feasible=False)[0]
+    def _solve_with_inequalities(
+        self, problem: KKTProblem, scaling: _Scaling, retry: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(a, lambda) [m/s^2, rad/s^2; N, N m]; ``retry``: the contacts proven to hold, with
+        :data:`RETRY_REGULARIZATION`."""
+        regularization = RETRY_REGULARIZATION if retry else FORCE_REGULARIZATION
+        matrices = self._inequality_qp(problem, scaling, regularization=regularization)
+        x = self._run(*matrices, closest_feasible=False, proven=retry)[0]
         acceleration, forces = self._unscale(x, problem, scaling)
         return acceleration, self._smallest_forces(problem, scaling, forces)
 
@@ -302,14 +333,20 @@ class ProxsuiteSolver(KKTSolver):
         return polished if self._inside_cones(problem, polished) else forces
 
     @staticmethod
-    def _inequality_qp(problem: KKTProblem, scaling: _Scaling, with_cones: bool = True) -> tuple[tuple, int]:
-        """The scaled (a, lambda) QP: its matrices and its number of inequalities."""
+    def _inequality_qp(
+        problem: KKTProblem,
+        scaling: _Scaling,
+        with_cones: bool = True,
+        regularization: float = FORCE_REGULARIZATION,
+    ) -> tuple[tuple, int]:
+        """The scaled (a, lambda) QP (``regularization``: eps on the scaled forces): its matrices and its number of
+        inequalities."""
         nv, s = problem.mass_matrix.shape[0], problem.jacobian.shape[0]
         row = scaling.row
         rows = problem.jacobian * scaling.rows_factor  # A = R G C^-1, lambda = inertia * z / row
         hessian = np.zeros((nv + s, nv + s))
         hessian[:nv, :nv] = problem.mass_matrix * scaling.hessian_factor
-        hessian[nv:, nv:] = FORCE_REGULARIZATION * np.eye(s)
+        hessian[nv:, nv:] = regularization * np.eye(s)
         gradient = np.concatenate([-problem.free_force * scaling.gradient_factor, np.zeros(s)])
         unilateral = problem.layout.unilateral
         equal = ~unilateral
@@ -349,9 +386,8 @@ class ProxsuiteSolver(KKTSolver):
                 return False
         return True
 
-    def _refuse(self, problem: KKTProblem, solution: KKTSolution) -> None:
-        if not problem.layout.equality_only:
-            self._explain_forces(problem)
+    @staticmethod
+    def _refuse(problem: KKTProblem, solution: KKTSolution) -> None:
         raise SolverError(
             f"proxsuite: ProxQP did not solve the constrained dynamics at t = {problem.t:.6g} s ({solution.status}, "
             f"relative residuals: constraint rows {solution.primal_residual:.3g}, equations of motion "
