@@ -7,11 +7,14 @@ singular rows): the accelerations stay unique, the multipliers are the minimum-n
 With unilateral or cone rows the variables are the accelerations and the multipliers together,
 ``x = (a, lambda)``: the same objective plus a tiny ``eps/2 |lambda|^2`` that picks the smallest of
 equivalent force distributions (a statically indeterminate grasp; polished afterwards to the exact
-minimum-norm forces when those keep every cone), subject to ``M a - G^T lambda = f``,
-``G a = rhs`` on equality and cone rows, ``G a >= rhs`` and ``lambda >= 0`` on unilateral rows, and
-the inscribed pyramid of each friction cone (``facets`` sides, so every answer is inside the exact
-cone). A sticking contact that would need a force outside its cone is reported as
-:class:`~pinstab.errors.ContactInfeasibleError`, naming the contact.
+minimum-norm forces when those keep every cone, else to the smallest inside the cones), subject to
+``M a - G^T lambda = f``, ``G a = rhs`` on equality and cone rows, ``G a >= rhs`` and ``lambda >= 0`` on
+unilateral rows, and the inscribed pyramid of each friction cone (``facets`` sides, so every answer is inside the exact
+cone). When ProxQP's answer is not accepted, a linear program (HiGHS, exact and deterministic) decides whether the
+contacts can hold: a sticking contact that would need a force outside its cone is reported as
+:class:`~pinstab.errors.ContactInfeasibleError`, naming the contact; contacts that can hold (forces pinned against a
+cone, which ProxQP may not finish) are solved again with a larger regularization (:data:`RETRY_REGULARIZATION`).
+ProxQP's work per solve is bounded (``max_iter`` outer iterations of at most :data:`MAX_ITER_IN` inner ones).
 
 Scaling: ProxQP's tolerances and infeasibility thresholds are absolute, so the problem is scaled
 before it is handed over: accelerations by the square root of M's diagonal (relative to its mean),
@@ -317,12 +320,9 @@ class ProxsuiteSolver(KKTSolver):
         smallest = np.linalg.lstsq(problem.jacobian.T, resultant, rcond=None)[0]
         if self._inside_cones(problem, smallest):
             return smallest
-        owned = _force_rows(problem, scaling)
-        if not owned:
-            return forces
         rows = problem.jacobian * scaling.rows_factor
         scaled = forces * scaling.row / scaling.inertia
-        c_in = np.vstack([block for _, _, block in owned])
+        c_in = np.vstack([block for _, _, block in _force_rows(problem, scaling)])
         n, n_eq, n_in = len(forces), rows.shape[1], c_in.shape[0]
         qp = self._fresh(n, n_eq, n_in, closest_feasible=False)
         qp.init(np.eye(n), np.zeros(n), rows.T, rows.T @ scaled, c_in, np.full(n_in, -1e30), np.zeros(n_in))
