@@ -31,7 +31,6 @@ import numpy as np
 import pytest
 from fuzzing import (
     OUTPUT_STATES,
-    Hang,
     Outcome,
     assert_not_lost,
     check_file,
@@ -740,10 +739,11 @@ FLIPPED_PLANE = {  # box-push, its front-right corner on a plane facing down, 0.
 }
 
 
-@pytest.mark.xfail(strict=True, raises=Hang, reason="held contacts: 32 s of wall time to stop at t = 0.0025 s")
 def test_held_contacts_under_a_flipped_plane_end_in_time(files: RunFiles) -> None:
     """:data:`FLIPPED_PLANE` with ``--contacts held --duration 0.12``: 32 s of wall time before the run stops at
-    t = 0.0025 s (exit 5, front-right would need to pull)."""
+    t = 0.0025 s (exit 5, front-right would need to pull). The box can hold (the ceiling and the floor clamp its
+    right edge within the cones): ProxQP's work is bounded and a linear program decides whether held contacts can
+    hold; it now rests to 0.12 s, exit 0, in about 1 s (tests/test_held_cannot_hold.py)."""
     with time_limit(3):
         outcome, _ = run_contact_case(ContactCase(FLIPPED_PLANE), "held", "absent", files)
     assert outcome.code in (0, 5), outcome
@@ -866,11 +866,12 @@ def test_held_point_contact_of_a_spinning_ball_keeps_its_energy(files: RunFiles)
     assert_physics(case, "held", outcome, source, files)
 
 
-@pytest.mark.xfail(strict=True, reason="H3: a run refused at t = 0 leaves its --stream file, holding no sample")
 def test_stream_of_a_run_refused_at_its_start_is_not_left(files: RunFiles) -> None:
     """A sphere object of radius 5e-324 m: ``pinstab run --contacts event --stream run.h5`` exits 2 at t = 0 ("the
     mass matrix is singular"), and run.h5 is left holding no sample (Trajectory.load: "the streamed run holds no
-    sample yet"); ``--save`` writes nothing."""
+    sample yet"); ``--save`` writes nothing. The sphere is now refused at load (objects' sizes have a floor); a
+    stream reaches its target with its first rows, and a run failing before them leaves the target as it was
+    (tests/test_stream_start.py forces such failures)."""
     scene = {
         "gravity": [0.0, 0.0, -9.81],
         "robot": {"urdf_text": "<robot name='stand'><link name='stand'/></robot>"},
@@ -922,7 +923,6 @@ def test_external_force_out_of_range_is_refused(files: RunFiles) -> None:
     assert outcome.code == 2 and "force" in outcome.message, outcome
 
 
-@pytest.mark.xfail(strict=True, reason="a joint started on its limit moving into it passes it by 7.6e-4 rad")
 @pytest.mark.parametrize(
     ("limits", "start", "speed"),
     [
@@ -933,7 +933,8 @@ def test_external_force_out_of_range_is_refused(files: RunFiles) -> None:
 def test_joint_started_on_its_limit_stays_within(limits: list, start: list, speed: list, files: RunFiles) -> None:
     """One link on limits [0, 0.99994] rad started on its upper limit at 0.2 rad/s into it reaches 1.00069 rad
     (7.6e-4 past it); two links, the first started on its upper limit at 5 rad/s: the second passes its upper limit
-    by 8.3e-4 rad; exit 0 (found by the long profile)."""
+    by 8.3e-4 rad; exit 0 (found by the long profile). Event-driven limits are now checked along each step's dense
+    output (tests/test_limits_start.py)."""
     names = [f"j{k}" for k in range(len(limits))]
     case = TableCase(
         {
