@@ -11,6 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from fuzzing import cli
+from test_fuzz_readers import REDUNDANT_SDF
 
 import pinstab
 from pinstab.errors import SceneError
@@ -115,15 +116,6 @@ def test_rotated_inertia_is_taken_by_pinocchio() -> None:
 
 
 # -- a redundant SDF closure: rows that are rounding of zero rows --------------------------------------------------
-REDUNDANT_SDF = (  # a floating link l0 and a link l1 on two prismatic joints of different axes (a loop: a closure)
-    '<sdf version="1.6"><model name="m">'
-    '<link name="l0"><inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz></inertia>'
-    '</inertial></link><link name="l1"><pose>0.3 0 0 0 0 0</pose><inertial><mass>1</mass><inertia><ixx>0.01</ixx>'
-    "<iyy>0.01</iyy><izz>0.01</izz></inertia></inertial></link>"
-    '<joint name="a" type="prismatic"><parent>l0</parent><child>l1</child><axis><xyz>1 1 1</xyz></axis></joint>'
-    '<joint name="b" type="prismatic"><parent>l0</parent><child>l1</child><axis><xyz>1 0.84 1</xyz></axis></joint>'
-    "</model></sdf>"
-)
 FALL = 0.5 * 9.81 * 0.003**2  # [m] a free body's fall in 3 ms from rest (RK4 is exact for a constant acceleration)
 
 
