@@ -24,8 +24,12 @@ way: an inactive limit's event function is its gap, an active one's its reaction
 approaching joint is an impact (:func:`~pinstab.solvers.impacts.limit_impact`, restitution 0 by default, the
 closures kept), after which every limit that touches (gap and rate at zero) is held or released as the
 assignment allows whose held limits push and whose released ones do not accelerate into their bound (held
-ones first), the contacts' modes chosen for it. A released limit's gap counts from where it was released
-(:data:`LIMIT_SLACK` below it), so that a joint held a rounding beyond its bound does not reach it at once.
+ones first), the contacts' modes chosen for it. A limit released at rest counts as reached :data:`LIMIT_SLACK` below
+where it was released, so that a joint held a rounding beyond its bound does not reach it at once; one released
+moving away (turned back by its impact, thrown off by another limit's) where it was reached before, so that the
+impacts of two coupled limits, each throwing the other off its bound, settle (their speeds shrink by a fixed
+factor from one impact to the next, until both are below TOUCH_SPEED and held) instead of each return falling a
+slack further, its load's work over it keeping the chatter going for ever.
 """
 
 from __future__ import annotations
@@ -423,7 +427,7 @@ class EventLoop(AdaptiveLoop):
             choice = self._choose(q, v, t, slack)
         except ContactInfeasibleError as exc:  # no replay: the modes up to here are the run's
             raise RunEnd(t, q, v, error=exc) from None
-        self._limit_events(q, t, cause, limits_before or [], choice.solution)
+        self._limit_events(q, v, t, cause, limits_before or [], choice.solution)
         first = len(self.events)
         contacts = choice.solution.contacts
         for i, direction in choice.directions.items():
@@ -499,11 +503,12 @@ class EventLoop(AdaptiveLoop):
                 return False
         return True
 
-    def _limit_events(self, q: np.ndarray, t: float, cause: str, before: list[str], solution: ModeSolution) -> None:
+    def _limit_events(
+        self, q: np.ndarray, v: np.ndarray, t: float, cause: str, before: list[str], solution: ModeSolution
+    ) -> None:
         """Record the joint limits whose mode changed (from ``before``) in ``solution``'s, keep their times held
-        and where a released one counts as reached again: a held one let go, or one that touches and is not held
-        (stopped or turned back by an impact: it may lie a rounding beyond where it counted as reached, which it
-        would reach again at once, over and over)."""
+        and where a released one counts as reached again (:meth:`_release_floor`): a held one let go, or one that
+        touches and is not held (stopped or turned back by an impact)."""
         dynamics = self.dynamics
         reactions = dynamics.limit_reactions(solution)
         for i, (old, held) in enumerate(zip(before, dynamics.active, strict=True)):
@@ -514,10 +519,24 @@ class EventLoop(AdaptiveLoop):
             elif not held and (i in self._since or self._touches(i, q)):
                 if i in self._since:
                     self.active_time[limit.name] += t - self._since.pop(i)
-                self._floors[i] = _floor(limit, q)  # released here: by an impact too, never held (a rounding beyond)
+                self._floors[i] = self._release_floor(i, q, v)
             if old != new and not (cause == START and not held):
                 event_cause = "impact" if old == CLOSING else cause
                 self.events.append(ContactEvent(t, limit.name, old, new, event_cause, (float(reactions[i]), 0.0, 0.0)))
+
+    def _release_floor(self, i: int, q: np.ndarray, v: np.ndarray) -> float:
+        """Where limit i, released at (q, v), counts as reached again [rad, m]. Released at rest (its rate within
+        TOUCH_SPEED: a held one let go, one an impact stopped) it may lie a rounding beyond its bound, which it would
+        reach again at once, over and over: :func:`_floor`. Released moving away (an impact turned it back, or
+        another limit's impulse threw it off) its gap grows from here, and it is reached again where it was reached
+        before (or here, if lower): a floor :data:`LIMIT_SLACK` lower at each release would let each return fall
+        that much further, the work of the joint's load over it feeding a chatter between two coupled limits that
+        never settles (a link between its bounds 1e-4 rad apart: 10 um/s after every impact, one impact every
+        7e-7 s)."""
+        limit = self.dynamics.limits[i]
+        if limit.speed(v) <= TOUCH_SPEED:
+            return _floor(limit, q)
+        return min(self._floors[i], limit.gap(q))
 
 
 def _floor(limit: JointLimit, q: np.ndarray) -> float:
