@@ -12,6 +12,7 @@ one coordinate (continuous joints, spherical, free flyers) are unlimited.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -138,3 +139,39 @@ def check_start_inside(limits: list[JointLimit], q: np.ndarray, scene: str) -> N
 
 def _listed(values: np.ndarray) -> str:
     return ", ".join(f"{x:g}" for x in values)
+
+
+class LimitWatch:
+    """The first joint limit a run's steps leave: fed every step's state by the stepping loop, whatever samples it
+    keeps (a run keeping one sample in 50 can pass a limit and come back between two of them).
+
+    Args:
+        limits: the limits watched. slack: how far beyond a bound [rad or m] a state counts as leaving it.
+
+    Attributes:
+        left: the first limit left and when [s] (the first grid step beyond it), or None.
+        time: the time [s] of a grid step (the loop's grid's, set by the loop that feeds the watch).
+    """
+
+    def __init__(self, limits: list[JointLimit], slack: float) -> None:
+        self.limits = limits
+        self.left: tuple[JointLimit, float] | None = None
+        self.time: Callable[[int], float] = float
+        self._index = np.array([limit.index_q for limit in limits], dtype=int)
+        self._signs = np.array([limit.sign for limit in limits])
+        self._floors = self._signs * np.array([limit.bound for limit in limits]) - slack  # sign q >= these
+
+    def see(self, k: int, q: np.ndarray) -> None:
+        """The state q of grid step k."""
+        if self.left is None and np.any(self._signs * q[self._index] < self._floors):
+            self._leave(k, q[None, :])
+
+    def see_span(self, first: int, q: np.ndarray) -> None:
+        """The states (rows of q) of grid steps first, first + 1, ..."""
+        if self.left is None and np.any(self._signs * q[:, self._index] < self._floors):
+            self._leave(first, q)
+
+    def _leave(self, first: int, q: np.ndarray) -> None:
+        outside = self._signs * q[:, self._index] < self._floors  # (steps, limits)
+        row = int(np.flatnonzero(outside.any(axis=1))[0])
+        self.left = (self.limits[int(np.flatnonzero(outside[row])[0])], self.time(first + row))

@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..constraints.joint_limits import LimitWatch
 from ..errors import (
     ContactInfeasibleError,
     DivergenceError,
@@ -114,6 +115,8 @@ class StepLoop:
         records: the kept samples. correction_total, correction_max: post-step correction iterations.
         corrects: the method corrects the state after each step.
         compiled: the compiled loop taking runs of steps (:mod:`pinstab.integration.compiled`), or None.
+        limit_watch: fed every grid step's state (kept or not), or None: the joint limits a run that does not hold
+            them watches (:class:`~pinstab.constraints.joint_limits.LimitWatch`).
     """
 
     def __init__(
@@ -137,6 +140,12 @@ class StepLoop:
         self.correction_max = 0
         self.corrects = system.stabilizer.corrects
         self.compiled = CompiledSteps.of(system, stepper)
+        self.limit_watch: LimitWatch | None = None
+
+    def watch_limits(self, watch: LimitWatch) -> None:
+        """Feed ``watch`` every grid step's state from the start (times on this loop's grid)."""
+        watch.time = self.grid.time
+        self.limit_watch = watch
 
     def run(self, q: np.ndarray, v: np.ndarray, progress=None) -> tuple[np.ndarray, np.ndarray]:
         """Step from (q, v) at t = 0 to the end of the grid; returns the end state.
@@ -150,6 +159,8 @@ class StepLoop:
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.put(0, q, v)
+        if self.limit_watch is not None:
+            self.limit_watch.see(0, q)
         self.watch = PassageWatch(
             self.system.model,
             q,
@@ -223,6 +234,8 @@ class StepLoop:
                     qs, vs, done = run
                     if done:
                         self.records.put_span(k + 1, qs[:done], vs[:done])
+                        if self.limit_watch is not None:
+                            self.limit_watch.see_span(k + 1, qs[:done])
                         q, v, k = qs[done - 1], vs[done - 1], k + done
                     if done == span:
                         continue
@@ -252,7 +265,9 @@ class StepLoop:
         return q, v
 
     def keep(self, k: int, q: np.ndarray, v: np.ndarray, iterations: int = 0) -> None:
-        """Store the sample of grid step k when it is a recorded one."""
+        """Store the sample of grid step k when it is a recorded one (the limit watch sees every one)."""
+        if self.limit_watch is not None:
+            self.limit_watch.see(k, q)
         if k % self.every == 0 or k == self.grid.steps:
             records = self.records
             records.put(records.index(k), q, v, iterations)

@@ -20,7 +20,7 @@ from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
-from .limits import held_limits, limit_left, not_event_driven
+from .limits import held_limits, limit_left, limit_watch, not_event_driven
 from .loop import DEFAULT_DRIFT_LIMIT, RunClock, start_state
 from .threads import single_blas_thread
 
@@ -164,9 +164,10 @@ def simulate(
         relative_tolerance(assembly_tol, "assembly_tol")
     q0, v0 = start_state(scene, q0, v0)
     table = held_limits(scene, q0, limits)  # every path refuses a start outside the limits
+    watch = limit_watch(table) if table else None  # sees every step of a path that does not hold them
     if contacts == "stepping":
-        stepped = simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock)
-        left = limit_left(stepped, table, v0) if table else None
+        stepped = simulate_stepping(scene, dt, duration, record_every, q0, v0, progress, stream, clock, watch)
+        left = limit_left(stepped, watch, v0) if watch else None
         if left is not None:
             warnings.warn(
                 JointLimitsWarning(
@@ -184,11 +185,11 @@ def simulate(
         return _checked(scene, events, clock)
     trajectory = simulate_held(
         scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
-        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream, clock,
+        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream, clock, watch,
     )  # fmt: skip
-    if not table:
+    if watch is None:
         return _checked(scene, trajectory, clock)
-    left = limit_left(trajectory, table, v0)
+    left = limit_left(trajectory, watch, v0)
     if left is None:
         trajectory.info.limits_active_s = {}
         return _checked(scene, trajectory, clock)

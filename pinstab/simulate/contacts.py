@@ -13,7 +13,7 @@ import numpy as np
 
 from ..assembly import AssemblyReport, assemble
 from ..constraints import PointContact
-from ..constraints.joint_limits import JointLimit
+from ..constraints.joint_limits import JointLimit, LimitWatch
 from ..contact.modes import STOP_KINDS, stop_kind
 from ..errors import PinstabError
 from ..integration import INTEGRATORS, StepLoop, TimeGrid
@@ -145,8 +145,10 @@ def simulate_stepping(
     progress: bool,
     stream: str | Path | None,
     clock: RunClock,
+    limit_watch: LimitWatch | None = None,
 ) -> Trajectory | StreamedTrajectory:
-    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), timed by the call's ``clock``."""
+    """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), which do not hold joint limits
+    (``limit_watch`` fed every step's state), timed by the call's ``clock``."""
     geometries, system, q, v, _ = contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
@@ -156,6 +158,8 @@ def simulate_stepping(
     info = run_info(scene, system, stepper.name, grid, None, "none", None, record_every)
     info.solver = "pinocchio-admm"
     loop = StepLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False)
+    if limit_watch is not None:
+        loop.watch_limits(limit_watch)
     stream_records(loop, stream, info)
     bar = progress_bar(grid.steps, scene.name, progress)
     with kept_when_stopped(loop, system, info, clock), nullcontext() if bar is None else closing(bar):

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..assembly import AssemblyReport, assemble
 from ..constraints.base import RowKind
+from ..constraints.joint_limits import LimitWatch
 from ..errors import PinstabError, UnstableGainsError, UnstableGainsWarning
 from ..integration import INTEGRATORS, AdaptiveLoop, ErrorControl, Integrator, StepLoop, TimeGrid
 from ..model import ConstrainedModel
@@ -62,9 +63,10 @@ def simulate_held(
     method_options: Mapping[str, Any],
     stream: str | Path | None,
     clock: RunClock,
+    limit_watch: LimitWatch | None = None,
 ) -> Trajectory | StreamedTrajectory:
-    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored; timed
-    by the call's ``clock``."""
+    """:func:`simulate` with the scene's constraints held as rows by a stabilization method, limits ignored
+    (``limit_watch`` fed every step's state); timed by the call's ``clock``."""
     grid = TimeGrid.of(dt, duration, record_every)
     check_drift_limit(drift_limit)
     control = None if rtol is None and atol is None else error_control(rtol, atol, integrator)
@@ -87,6 +89,8 @@ def simulate_held(
         loop = StepLoop(system, stepper, grid, record_every, drift_limit, warned)
     else:
         loop = AdaptiveLoop(system, stepper, grid, record_every, drift_limit, warned, control)
+    if limit_watch is not None:
+        loop.watch_limits(limit_watch)
     stream_records(loop, stream, info)
     bar = progress_bar(grid.steps, scene.name, progress)
     # a diverging run overflows before it is caught and reported; numpy's warnings would only add noise

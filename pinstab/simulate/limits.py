@@ -1,15 +1,14 @@
-"""Joint limits on the held path: the limits a run holds (its start inside them), the first limit a run's samples
+"""Joint limits on the held path: the limits a run holds (its start inside them), the first limit a run's steps
 leave (or its start moves into), and the constraints the event path (which holds the limits) cannot take."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from contextlib import closing
 
 import numpy as np
 
 from ..constraints import RowKind
-from ..constraints.joint_limits import JointLimit, check_start_inside, joint_limits
+from ..constraints.joint_limits import JointLimit, LimitWatch, check_start_inside, joint_limits
 from ..integration.events import LIMIT_SLACK
 from ..scene import Scene
 from ..solvers.contact_modes import plane_geometries
@@ -41,33 +40,31 @@ def not_event_driven(scene: Scene) -> list[str]:
     ]
 
 
+def limit_watch(limits: list[JointLimit]) -> LimitWatch:
+    """The watch a run that does not hold ``limits`` is stepped with: every step beyond :data:`LIMIT_SLACK` of a
+    bound counts as leaving it."""
+    return LimitWatch(limits, LIMIT_SLACK)
+
+
 def limit_left(
-    trajectory: Trajectory | StreamedTrajectory, limits: list[JointLimit], v0: np.ndarray
+    trajectory: Trajectory | StreamedTrajectory, watch: LimitWatch, v0: np.ndarray
 ) -> tuple[JointLimit, float] | None:
-    """The first joint limit a trajectory's samples leave (beyond :data:`LIMIT_SLACK`) and when [s], or None (a
-    streamed run's file read a block at a time). A limit the start ``v0`` [rad/s, m/s] moves into from on it (within
-    ``TOUCH_GAP``, faster than ``TOUCH_SPEED``) is left at the first sample: the joint passes it at once, though the
-    samples may not show it (a force turning it back within a step: the held path would miss the impact)."""
+    """The first joint limit a run's steps leave (``watch``, fed every step, kept or not) and when [s], or None. A
+    limit the start ``v0`` [rad/s, m/s] moves into from on it (the trajectory's first sample within ``TOUCH_GAP``,
+    faster than ``TOUCH_SPEED``) is left at the start: the joint passes it at once, though the steps may not show it
+    (a force turning it back within a step: the held path would miss the impact)."""
+    t0, q0 = _first_sample(trajectory)
+    for limit in watch.limits:
+        if limit.gap(q0) <= TOUCH_GAP and limit.speed(v0) < -TOUCH_SPEED:
+            return limit, t0
+    return watch.left
+
+
+def _first_sample(trajectory: Trajectory | StreamedTrajectory) -> tuple[float, np.ndarray]:
+    """The time [s] and q of a trajectory's first sample (a streamed run's from its file's first block)."""
     if isinstance(trajectory, StreamedTrajectory):
         with closing(trajectory.blocks()) as blocks:  # the file closed before the event path writes it again
-            return _first_left(blocks, limits, v0)
-    return _first_left([(trajectory.t, trajectory.q)], limits, v0)
-
-
-def _first_left(
-    blocks: Iterable[tuple[np.ndarray, np.ndarray]], limits: list[JointLimit], v0: np.ndarray
-) -> tuple[JointLimit, float] | None:
-    """:func:`limit_left` over consecutive blocks of samples (t [s], q)."""
-    for k, (t, q) in enumerate(blocks):
-        if k == 0 and len(t):
-            for limit in limits:
-                if limit.gap(q[0]) <= TOUCH_GAP and limit.speed(v0) < -TOUCH_SPEED:
-                    return limit, float(t[0])
-        first = None
-        for limit in limits:
-            outside = np.flatnonzero(limit.gaps(q) < -LIMIT_SLACK)
-            if outside.size and (first is None or t[outside[0]] < first[1]):
-                first = (limit, float(t[outside[0]]))
-        if first is not None:
-            return first
-    return None
+            t, q = next(blocks)
+    else:
+        t, q = trajectory.t, trajectory.q
+    return float(t[0]), q[0]
