@@ -71,6 +71,12 @@ LIMIT_REACHED, REACTION_ZERO = "limit reached", "reaction reached zero"
 # whose direction turns within |v| / (mu f_n / m), about 1e-11 s: 149,058 steps of 1e-11 s, 4.5 min of wall time,
 # for 2.5e-6 s of simulated time); after an event the steps grow from a first one of 1e-11 s tenfold per step.
 CRAWL_STEP, CRAWL_STEPS = 1e-9, 500
+# A run whose joint limits are reached CHATTER_IMPACTS times in a row, each impact within CHATTER_GAP [s] of the last,
+# ends with ContactInfeasibleError: inelastic impacts of coupled limits settle, their speeds shrinking by a fixed factor
+# from one to the next (a link between bounds 1e-4 rad apart: 14 impacts over 3.2 ms, from 0.18 rad/s to below
+# TOUCH_SPEED); a thousand a microsecond apart is a chatter that does not (its flights fed by the joints' loads), some
+# 10 ms of wall time per impact for ever (a thousand: 10 s).
+CHATTER_GAP, CHATTER_IMPACTS = 1e-6, 1000
 
 
 class RunEnd(Exception):
@@ -111,6 +117,7 @@ class EventLoop(AdaptiveLoop):
         self._gap_floors = [0.0] * len(dynamics.contacts)  # where each separated gap closes [m]
         self._since: dict[int, float] = {}  # the active limits: since when [s]
         self._crawl = 0  # accepted steps shorter than CRAWL_STEP in a row since the last event
+        self._chatter: list[tuple[float, list[int]]] = []  # the limit impacts in a row CHATTER_GAP apart: t [s], limits
         self.active_time = {limit.name: 0.0 for limit in dynamics.limits}
 
     def _touches(self, i: int, q: np.ndarray) -> bool:
@@ -288,6 +295,7 @@ class EventLoop(AdaptiveLoop):
         ]
         cause = LIMIT_REACHED if reached else self._reaction_zero(q, v, t)
         if reached:
+            self._count_chatter(q, v, t, reached)
             v = self._limit_impact(q, v, t, reached, limits_before)
         contacts = dynamics.kinematics(q, v)
         closing = [
@@ -338,6 +346,29 @@ class EventLoop(AdaptiveLoop):
             return None
         i = min(held, key=lambda j: reactions[j])
         return f"{REACTION_ZERO} at {dynamics.limits[i].name}" if reactions[i] <= _force_slack(reactions) else None
+
+    def _count_chatter(self, q: np.ndarray, v: np.ndarray, t: float, reached: list[int]) -> None:
+        """Count the impact of the limits ``reached`` at (q, v, t) in the chatter (see :data:`CHATTER_IMPACTS`).
+
+        Raises:
+            RunEnd: with ContactInfeasibleError, the chatter's limits named, from when and how often.
+        """
+        if self._chatter and t - self._chatter[-1][0] > CHATTER_GAP:
+            self._chatter = []
+        self._chatter.append((t, reached))
+        if len(self._chatter) < CHATTER_IMPACTS:
+            return
+        limits = sorted({i for _, impact in self._chatter for i in impact})
+        names = [self.dynamics.limits[i].name for i in limits]
+        error = ContactInfeasibleError(
+            f"at t = {t:.9g} s the joint limits {', '.join(names)} were reached {len(self._chatter)} times in a row "
+            f"since t = {self._chatter[0][0]:.9g} s, each impact within {CHATTER_GAP:g} s of the last: a chatter "
+            "that does not settle; give the joints a wider range or set the limits aside (robot.ignore_limits, "
+            "--ignore-limits)",
+            names,
+            t,
+        )
+        raise RunEnd(t, q, v, error=error)
 
     def _limit_impact(
         self, q: np.ndarray, v: np.ndarray, t: float, reached: list[int], before: list[str]
