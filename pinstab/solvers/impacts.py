@@ -19,6 +19,17 @@ is scaled by the largest common factor s in [0, 1] at which it adds none (found 
 impact, only takes energy): an impact never creates energy, and one that creates none is Newton's exactly (a single
 frictionless contact's always: it loses ``(1 - e^2) u_n-^2 / (2 D)``, D its Delassus number).
 
+The solver's answer meets the law only to :data:`~pinstab.solvers.ncp.CHECK_RTOL` of the problem's velocity scale,
+which a contact far from its body's centre (a long lever: Delassus numbers of 1e7 m/s per N s beside ones of 1e2)
+may leave approaching at some 1e-8 m/s after an impact with e = 0: faster than
+:data:`~pinstab.solvers.mode_choice.TOUCH_SPEED`, so that it is not touching, its gap closes again at once and
+the next impact leaves it the same, for ever (0.01 kg cylinder, a contact 1 m out: 1300 impacts in 1e-8 s). The
+answer is therefore polished (:func:`_polished`): on the set it identifies (the contacts that push, and those left
+approaching faster than their target; sliding ones on their cone's edge, their friction turning with their normal
+impulse, sticking ones' tangential impulses kept), one linear solve of the normal rows puts each normal velocity
+after the impact on its target ``-e u_n-``; the polished impulses are kept when they push and meet the law at
+least as well as the solver's.
+
 A joint limit's impact is frictionless and one row: :func:`limit_impact` (equality rows, closures kept).
 """
 
@@ -30,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .contact_modes import ModeDynamics, ModeSolution
-from .ncp import NcpSolver
+from .ncp import CONE_ROWS, NcpSolver, ncp_residual
 
 IMPULSE_SLACK = 1e-12  # relative: a joint limit's impulse below -this (of the largest) would pull
 IMPACT_SPEED = 1e-9  # [rad/s, m/s] a joint limit left approaching slower than this after an impact is at rest
@@ -38,6 +49,8 @@ REST_SPEED = 1e-6  # [rad/s, m/s] a touching joint limit an impact leaves slower
 ENERGY_SLACK = 1e-9  # [-] of the energy an impact's impulses exchange (P . D P / 2): the work it may add as rounding
 # (the NCP is solved to 1e-12 m/s on the contact velocities); more is energy created, and the restitutions are scaled
 ENERGY_BISECTIONS = 40  # halvings of the restitutions' common factor: to 2^-40 ~ 1e-12 of it
+CONE_EDGE = 1e-7  # relative: a tangential impulse within this of mu P_n is on the cone's edge (the solver's answer
+# meets the law to CHECK_RTOL = 1e-6 of the velocity scale; an interior impulse this close to the edge moves little)
 
 
 class Impact(NamedTuple):
@@ -85,7 +98,46 @@ def _scaled_impact(
     mus = [dynamics.contacts[i].mu for i in active]
     impulses = np.zeros((len(dynamics.contacts), 3))
     impulses[active] = solver.solve_contacts(contacts.jacobian, solution.mobility, offset, active, mus)
+    impulses = _polished(solution, offset, impulses, active, mus)
     return Impact(v + solution.mobility @ impulses.ravel(), impulses)
+
+
+def _polished(
+    solution: ModeSolution, offset: np.ndarray, impulses: np.ndarray, active: list[int], mus: list[float]
+) -> np.ndarray:
+    """The impulses (k, 3) [N s] of an impact after one exact solve on the active set the solver's ``impulses``
+    identify (see the module): each normal velocity after it of the contacts that push or approach faster than
+    their target is put on its target (``offset``: u- with ``e u_n-`` added on the normal rows, so that the target
+    is ``D P + offset = 0`` there). Returns ``impulses`` unchanged when the polished ones would pull or meet the
+    law worse."""
+    delassus = solution.contacts.jacobian @ solution.mobility
+    after = offset + delassus @ impulses.ravel()  # each normal row: u_n+ + e u_n- (0 on target)
+    friction = dict(zip(active, mus, strict=True))
+    chosen = [i for i in active if impulses[i, 0] > 0.0 or after[3 * i] < 0.0]
+    if not chosen:
+        return impulses
+    columns, slips = [], {}
+    for i in chosen:
+        column = delassus[:, 3 * i].copy()
+        tangential, mu = impulses[i, 1:], friction[i]
+        norm = float(np.hypot(*tangential))
+        if mu > 0.0 and norm > 0.0 and norm >= mu * impulses[i, 0] * (1.0 - CONE_EDGE):  # sliding: on the edge
+            slips[i] = mu * tangential / norm
+            column += delassus[:, 3 * i + 1 : 3 * i + 3] @ slips[i]
+        columns.append(column)
+    normals = [3 * i for i in chosen]
+    step = np.linalg.lstsq(np.column_stack(columns)[normals], -after[normals], rcond=1e-12)[0]
+    polished = impulses.copy()
+    for i, change in zip(chosen, step, strict=True):
+        polished[i, 0] += change
+        if i in slips:
+            polished[i, 1:] += change * slips[i]
+    if np.any(polished[chosen, 0] < 0.0):
+        return impulses
+    rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
+    block, g = delassus[np.ix_(rows, rows)], offset[rows]
+    worse = ncp_residual(block, g, polished.ravel()[rows], mus) > ncp_residual(block, g, impulses.ravel()[rows], mus)
+    return impulses if worse else polished
 
 
 def _added_energy(solution: ModeSolution, result: Impact) -> float:
