@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import proxsuite
 
 from .actuation import Actuation
 from .errors import ServoInfeasibleError
 from .kernels import least_norm, servo_realizability
+from .proxqp import proxsuite
 
 # singular values of D with each entry over its row's and its control's sizes (D_ij / (|S_i| |N b_j|), cosines)
 # below this times the largest (or 1) count as zero: the rank of S N B whatever the units of each row and control

@@ -24,10 +24,10 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-import proxsuite
 
 from ..contact.cones import FrictionCone
 from ..contact.models import WRENCH_BASES
+from ..proxqp import proxsuite
 from .analysis import RANK_TOLERANCE
 
 START_FACETS = 16  # sides of the pyramids whose linear program starts the exact solve

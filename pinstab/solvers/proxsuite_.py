@@ -32,12 +32,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import proxsuite
 from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import linprog
 
 from ..constraints import ConeRows, RowKind
 from ..errors import ContactInfeasibleError, SolverError
+from ..proxqp import proxsuite
 from .base import ACCEPTED_RESIDUAL, SOLVERS, KKTProblem, KKTSolution, KKTSolver, primal_residual, residuals
 
 if TYPE_CHECKING:
