@@ -35,7 +35,8 @@ class AssemblyReport:
     Attributes:
         q, v: consistent configuration and velocity.
         iterations: Levenberg-Marquardt iterations.
-        residual: final max ``|phi|`` [m or rad].
+        residual: final max ``|phi|`` in each row's own units [m or rad] (a joint relation's residual over its
+            largest coefficient).
         velocity_residual: final max ``|G v + g_t|`` [m/s or rad/s].
         displacement: norm of the configuration change from the given q (tangent space).
         tolerance: the largest residual accepted [m or rad] (the relative tolerance times the size).
@@ -96,6 +97,12 @@ def assemble(
     """Levenberg-Marquardt on phi(q) = 0 with minimum-norm steps (redundancy-safe), then the
     kinetic-metric projection of v onto ``G v + g_t = 0``.
 
+    Each row's residual is taken in its block's own units (:attr:`Constraint.residual_units`: a joint relation's
+    over its largest coefficient for the tolerance, over its smallest for the aim at rounding), and each block's
+    rows are scaled by their largest Jacobian row at the start for the step: the assembled q is the same whatever
+    factor a relation's coefficients are written with (z2 + 1e9 z1 = 0 next to y2 - y1 = 0 no longer drowns the
+    second).
+
     The iteration aims at rounding (:data:`TARGET`), or stops when it no longer progresses (a loop that cannot
     close exactly, e.g. offsets off by 2e-11 m out of the plane of a planar loop); the configuration is accepted
     when its largest residual is at most ``tolerance`` times the mechanism's size L (:func:`mechanism_size` at
@@ -114,21 +121,24 @@ def assemble(
     relative, size, accepted = accepted_residual(model, q, tolerance)
     threshold = min(model.position_tolerance(TARGET), accepted)
     mask = model.constraints.holonomic_mask
-    phi, jac = _residual(model, q, t, mask)
-    # Levenberg-Marquardt damping relative to J J^T, so the path (and the point of the manifold it
-    # reaches) does not depend on the units
-    unit = max(float(np.max(np.sum(jac * jac, axis=1), initial=0.0)), np.finfo(float).tiny)
+    units = model.constraints.residual_units[mask, 0]
+    gearing = units / model.constraints.residual_units[mask, 1]  # phi * gearing: the residual the iteration aims at
+    phi, jac = _residual(model, q, t, mask, units)
+    # each block's rows scaled by their largest Jacobian row at the start, and the damping relative to that: the
+    # step, and the point of the manifold it reaches, depend neither on the units nor on the scale of a block's rows
+    scales = _block_scales(jac, _blocks(model, mask))
     damping = 1e-6
     cost = float(phi @ phi)
     iterations = 0
-    while iterations < max_iterations and np.max(np.abs(phi), initial=0.0) > threshold:
+    while iterations < max_iterations and np.max(np.abs(phi * gearing), initial=0.0) > threshold:
         iterations += 1
+        scaled = jac / scales[:, None]
         try:
-            step = -jac.T @ np.linalg.solve(jac @ jac.T + damping * unit * np.eye(len(phi)), phi)
+            step = -scaled.T @ np.linalg.solve(scaled @ scaled.T + damping * np.eye(len(phi)), phi / scales)
         except np.linalg.LinAlgError:  # rows that overflow: the residual check below names the closure
             break
         trial = model.integrate(q, step)
-        trial_phi, trial_jac = _residual(model, trial, t, mask)
+        trial_phi, trial_jac = _residual(model, trial, t, mask, units)
         trial_cost = float(trial_phi @ trial_phi)
         if np.isfinite(trial_cost) and trial_cost < cost:
             q, phi, jac, cost = trial, trial_phi, trial_jac, trial_cost
@@ -178,9 +188,34 @@ def _inverse_mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:
         raise singular_mass_error(model.scene.model, mass, "the assembled configuration") from None
 
 
-def _residual(model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _residual(
+    model: ConstrainedModel, q: np.ndarray, t: float, mask: np.ndarray, units: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(phi, G) on the rows of ``mask``, both divided by the rows' ``units``: phi in each block's own units [m or
+    rad] (a joint relation's residual over its largest coefficient)."""
     values = model.constraint_values(q, np.zeros(model.nv), t, model.scratch_kinematics)
-    return values.phi[mask], values.jacobian[mask]
+    return values.phi[mask] / units, values.jacobian[mask] / units[:, None]
+
+
+def _blocks(model: ConstrainedModel, mask: np.ndarray) -> list[slice]:
+    """Each holonomic block's rows among the rows of ``mask``."""
+    position = np.cumsum(mask) - mask  # index of each row among the masked ones
+    return [
+        slice(int(position[rows.start]), int(position[rows.start]) + rows.stop - rows.start)
+        for rows in model.constraints.slices.values()
+        if rows.stop > rows.start and mask[rows.start]
+    ]
+
+
+def _block_scales(jac: np.ndarray, blocks: list[slice]) -> np.ndarray:
+    """Per row, the largest Jacobian row norm of its block (1 for a block whose rows are all zero, or overflow)."""
+    norms = np.linalg.norm(jac, axis=1)
+    scales = np.ones(len(norms))
+    for rows in blocks:
+        largest = float(np.max(norms[rows]))
+        if 0.0 < largest < np.inf:
+            scales[rows] = largest
+    return scales
 
 
 def _worst_constraint(model: ConstrainedModel, phi: np.ndarray, mask: np.ndarray) -> str:

@@ -61,6 +61,9 @@ class Constraint(ABC):
         nv: the velocity dimension the block was written for (a user block declares it), or None: the model's.
         touch: a fingertip contact's finger and object frames, for the collision checks
             (:mod:`pinstab.contact.collisions`), or None.
+        residual_units: (accepted, aimed) [-]: the residual over the first is what the assembly's tolerance accepts,
+            over the second what its iteration drives to rounding, both in m or rad (1 and 1 for geometric rows; a
+            joint relation's largest and smallest nonzero |coefficient|).
     """
 
     name: str
@@ -74,6 +77,7 @@ class Constraint(ABC):
     prescribed: bool = False
     nv: int | None = None
     touch: Touch | None = None
+    residual_units: tuple[float, float] = (1.0, 1.0)
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
         """Position-level residual phi [m or rad]; needs placements updated at q."""

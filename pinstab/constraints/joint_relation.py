@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..tables import SceneTables
+from ..units import within_ceiling
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid
 
@@ -24,6 +25,12 @@ SINE_KEYS = {"amplitude", "omega", "phase"}
 
 class JointRelation(Constraint):
     """One holonomic row ``coefficients . q - c(t)`` [m or rad] on 1-DOF joints.
+
+    Its ``residual_units`` are its largest and smallest nonzero |coefficient|: the residual over the largest is the
+    displacement of the most geared joint that meets the relation [m or rad] (the least of one joint's, at least the
+    configuration's distance from the relation): what the assembly accepts; over the smallest, that of the least
+    geared joint (z2 in z2 + 1e9 z1 = 0): what it aims to bring to rounding. Both are the same for the relation
+    written with its coefficients times any factor (``{a = 1, b = -1}`` and ``{a = 1e9, b = -1e9}`` are one relation).
 
     Args:
         name: unique name. coefficients: (nv,) row over the velocity coordinates (1-DOF joints only, so
@@ -45,6 +52,8 @@ class JointRelation(Constraint):
         self.name, self.kind = name, "joint-relation"
         self.row, self.q_indices, self.v_indices = row, q_indices, v_indices
         self.trajectory = trajectory
+        sizes = np.abs(row[row != 0.0])
+        self.residual_units = (float(np.max(sizes)), float(np.min(sizes)))
         self.force_frame = "generalized force along the relation's row [N m or N]"
         self._target: tuple[float, tuple[float, float, float]] | None = None  # (t, target(t)) of the last call
 
@@ -79,7 +88,11 @@ def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str
         joint = tables.model.joints[tables.joint_id(joint_name, f"{where}.joints")]
         if joint.nv != 1 or joint.nq != 1:
             raise SceneError(f"{where}.joints: joint {joint_name!r} is not a 1-DOF joint with one coordinate")
-        row.append(tables.number(joints, joint_name, f"{where}.joints"))
+        coefficient = tables.number(joints, joint_name, f"{where}.joints")
+        # a gear or lever ratio, as actuation.matrix's entries: at most MAX_MAGNITUDE (its rows' squares, in the
+        # velocity projection and the dynamics, overflow from about 1e154)
+        within_ceiling(abs(coefficient), f"|{where}.joints.{joint_name}|", "[-] or m/rad")
+        row.append(coefficient)
         q_indices.append(joint.idx_q)
         v_indices.append(joint.idx_v)
     if not any(row):

@@ -117,6 +117,9 @@ class ConstraintSet:
                 cones.append(ConeRows(c.name, (rows.start, rows.start + 1, rows.start + 2), c.friction))
         names = tuple(c.name for c in self.constraints for _ in range(c.rows))
         self.layout = RowLayout(names, unilateral, tuple(cones))
+        # per row, Constraint.residual_units (accepted, aimed): phi over either is in m or rad
+        units = [c.residual_units for c in self.constraints for _ in range(c.rows)]
+        self.residual_units = np.array(units).reshape(-1, 2)
         self._has_unilateral = bool(unilateral.any())
         self.force_limited = [(c, self._force_rows(c)) for c in self.constraints if c.limits_force]
         self._every_row = np.ones(self.rows, dtype=bool)
