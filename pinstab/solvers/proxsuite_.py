@@ -12,8 +12,9 @@ minimum-norm forces when those keep every cone, else to the smallest inside the 
 unilateral rows, and the inscribed pyramid of each friction cone (``facets`` sides, so every answer is inside the exact
 cone). When ProxQP's answer is not accepted, a linear program (HiGHS, exact and deterministic) decides whether the
 contacts can hold: a sticking contact that would need a force outside its cone is reported as
-:class:`~pinstab.errors.ContactInfeasibleError`, naming the contact; contacts that can hold (forces pinned against a
-cone, which ProxQP may not finish) are solved again with a larger regularization (:data:`RETRY_REGULARIZATION`).
+:class:`~pinstab.errors.ContactInfeasibleError`, naming the contact. Contacts that can hold, and any answer ProxQP did
+not finish (forces pinned against a cone), are solved again with a larger regularization
+(:data:`RETRY_REGULARIZATION`); the unfinished answer is kept only when the retry's is not accepted.
 ProxQP's work per solve is bounded (``max_iter`` outer iterations of at most :data:`MAX_ITER_IN` inner ones).
 
 Scaling: ProxQP's tolerances and infeasibility thresholds are absolute, so the problem is scaled
@@ -44,7 +45,8 @@ if TYPE_CHECKING:
     from ..model import ConstrainedModel
 
 FORCE_REGULARIZATION = 1e-9  # eps of the (a, lambda) form, in scaled units
-# eps of the retry when ProxQP failed with FORCE_REGULARIZATION on contacts that can hold (a linear program says so):
+# eps of the retry when ProxQP did not finish with FORCE_REGULARIZATION on contacts that can hold (a linear program says
+# so when the answer is not accepted):
 # forces pinned against a cone make the problem nearly a linear program, which the proximal method then does not
 # finish (1,000 outer iterations) or even declares infeasible. The retry trades accelerations for smaller forces by
 # at most this relative to the scaled terms (of order one): 1e-6, below the integrators' step errors at the steps
@@ -259,12 +261,18 @@ class ProxsuiteSolver(KKTSolver):
             solution, accepted = self._judged(problem, *self._solve_equalities(problem, scaling))
         else:
             solution, accepted = self._judged(problem, *self._solve_with_inequalities(problem, scaling))
-            if not accepted:
-                self._explain_forces(problem)  # the contacts cannot hold: ContactInfeasibleError, naming them
-                # they can: ProxQP failed on forces pinned against a cone (a corner clamped between a ceiling and
-                # the floor), which the tiny regularization leaves nearly a linear program; retry cold, better posed
+            if solution.status not in _SOLVED_NAMES:
+                if not accepted:
+                    self._explain_forces(problem)  # the contacts cannot hold: ContactInfeasibleError, naming them
+                # they can: ProxQP did not finish forces pinned against a cone (a corner clamped between a ceiling and
+                # the floor), which the tiny regularization leaves nearly a linear program; retry cold, better posed.
+                # Even an answer accepted by its residuals is retried: whether ProxQP finishes such a problem turns
+                # on rounding, and its unfinished answers (dual residual ~1e-9) set a clamped box moving at 1e-12 m
+                unfinished = solution, accepted
                 self._qp = None
                 solution, accepted = self._judged(problem, *self._solve_with_inequalities(problem, scaling, retry=True))
+                if not accepted:
+                    solution, accepted = unfinished
         if not accepted:
             self._refuse(problem, solution)
         return self.record(solution)
@@ -504,6 +512,7 @@ _SOLVED = (
     proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,
     proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE,
 )
+_SOLVED_NAMES = frozenset(status.name for status in _SOLVED)
 
 
 @SOLVERS.register(
