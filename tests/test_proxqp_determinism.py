@@ -108,3 +108,22 @@ def test_two_processes_print_the_same_numbers():
         runs.append({key: value for key, value in record.items() if key not in ("wall_s", "timings")})
     assert runs[0] == runs[1]
     assert set(runs[0]["solver_status"]) == {"PROXQP_SOLVED"}
+
+
+def test_proxsuite_imported_before_pinstab_is_kept_with_a_warning():
+    """Only one ProxQP build can live in a process: when proxsuite came first with an AVX build (this machine's),
+    pinstab keeps it and says that its last bits may then differ between processes."""
+    script = "\n".join(
+        [
+            "import proxsuite, warnings",
+            "warnings.simplefilter('always')",
+            "import pinstab",
+            "print(proxsuite._submodule.__name__)",
+        ]
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
+    loaded = done.stdout.strip()
+    assert loaded.startswith("proxsuite.proxsuite_pywrap")
+    warned = "PinstabWarning: proxsuite was imported before pinstab and loaded " + loaded in done.stderr
+    assert warned == (loaded != BASELINE)
+    assert loaded == BASELINE or "may differ in the last bits between processes" in done.stderr
