@@ -36,12 +36,21 @@ if "proxsuite" not in sys.modules:
 else:
     import proxsuite
 
-if getattr(getattr(proxsuite, "_submodule", None), "__name__", BASELINE) != BASELINE:
+BUILDS = ("proxsuite.proxsuite_pywrap_avx512", "proxsuite.proxsuite_pywrap_avx2", BASELINE)
+
+
+def loaded_build() -> str:
+    """The module name of the proxsuite build this process loaded (one of :data:`BUILDS`; proxsuite 0.6 and 0.8
+    both import it as a submodule)."""
+    return next((name for name in BUILDS if name in sys.modules), BASELINE)
+
+
+if loaded_build() != BASELINE:
     warnings.warn(
-        f"proxsuite was imported before pinstab and loaded {proxsuite._submodule.__name__}: its solves may differ "
+        f"proxsuite was imported before pinstab and loaded {loaded_build()}: its solves may differ "
         "in the last bits between processes (import pinstab first for the same numbers in every run)",
         PinstabWarning,
         stacklevel=2,
     )
 
-__all__ = ["BASELINE", "proxsuite"]
+__all__ = ["BASELINE", "BUILDS", "loaded_build", "proxsuite"]
