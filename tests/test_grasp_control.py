@@ -9,7 +9,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
-import proxsuite
 import pytest
 
 from conftest import ROBOTS, assert_plan_solves_dynamics, bundled_with_force
@@ -17,6 +16,7 @@ from pinstab import assemble, load_scene, simulate
 from pinstab.errors import ContactInfeasibleError, GraspLostError, SceneError
 from pinstab.grasp import holding
 from pinstab.grasp.report import control_series
+from pinstab.proxqp import proxsuite
 from pinstab.system import build_system
 
 LIFT, TURN = 0.03, math.radians(20.0)
