@@ -63,7 +63,7 @@ class Constraint(ABC):
             (:mod:`pinstab.contact.collisions`), or None.
         residual_units: (accepted, aimed) [-]: the residual over the first is what the assembly's tolerance accepts,
             over the second what its iteration drives to rounding, both in m or rad (1 and 1 for geometric rows; a
-            joint relation's largest and smallest nonzero |coefficient|).
+            joint relation's largest and smallest nonzero coefficient in magnitude).
     """
 
     name: str
