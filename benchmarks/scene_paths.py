@@ -1,0 +1,90 @@
+"""Every bundled scene at its defaults (issue 35's table, "before"): the path ``pinstab.simulate()`` takes
+(``"path"`` in the JSON: native, banded, servo, grasp, or the general path in Python), its reason, and the CPU
+seconds per simulated second of the whole call (set-up included) at the scene's own step and contact treatment.
+
+Each scene first runs PROBE s of simulated time; its measured duration is then the one that costs about BUDGET CPU
+s (between PROBE and MAX_DURATION), run ROUNDS times interleaved with the others; the median is reported. A scene
+that stops before its duration (a lost grasp, a refusal: ``ring-on-rod``, ``pinch``) is reported with its error
+and the time it reached.
+
+    python benchmarks/scene_paths.py    # prints the table, writes benchmarks/results/scene_paths.json (minutes)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import pinstab
+from pinstab.bench import save_results
+from pinstab.errors import PinstabError
+from pinstab.readers.sources import bundled_scenes
+
+PROBE = 0.01  # [s] simulated in the first run of each scene
+BUDGET = 2.0  # [CPU s] aimed at per measured run
+MAX_DURATION = 1.0  # [s] simulated at most per run
+ROUNDS = 3
+OUT = Path(__file__).parent / "results" / "scene_paths.json"
+
+
+def timed(scene: pinstab.Scene, duration: float) -> dict[str, Any]:
+    """One default ``simulate()`` of ``scene`` over ``duration`` [s]: CPU s, the simulated time reached [s], the path
+    and its reason, or the error that stopped it."""
+    began = time.process_time()
+    try:
+        trajectory = pinstab.simulate(scene, duration=duration, progress=False)
+    except PinstabError as exc:
+        reached = getattr(getattr(exc, "trajectory", None), "info", None)
+        return {
+            "cpu_s": time.process_time() - began,
+            "reached_s": reached.t_end if reached is not None else 0.0,
+            "path": reached.path if reached is not None else None,
+            "path_reason": reached.path_reason if reached is not None else None,
+            "error": f"{type(exc).__name__}: {str(exc)[:160]}",
+        }
+    info = trajectory.info
+    return {
+        "cpu_s": time.process_time() - began,
+        "reached_s": info.t_end,
+        "path": info.path,
+        "path_reason": info.path_reason,
+        "error": None,
+    }
+
+
+def main() -> None:
+    scenes = {name: pinstab.load_scene(name) for name in bundled_scenes()}
+    durations: dict[str, float] = {}
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in scenes}
+    for name, scene in scenes.items():
+        probe = timed(scene, PROBE)
+        per_second = probe["cpu_s"] / max(probe["reached_s"], PROBE)
+        durations[name] = float(np.clip(BUDGET / per_second, PROBE, MAX_DURATION)) if probe["error"] is None else 0
+        if probe["error"] is not None:
+            runs[name].append(probe)
+    for _ in range(ROUNDS):
+        for name, scene in scenes.items():
+            if durations[name]:
+                runs[name].append(timed(scene, durations[name]))
+    rows = {}
+    for name, measured in runs.items():
+        last = measured[-1]
+        reached = last["reached_s"]
+        cost = float(np.median([run["cpu_s"] for run in measured])) / reached if reached > 0 else math.nan
+        rows[name] = {**last, "duration_s": durations[name] or PROBE, "cpu_s_per_s": cost}
+    width = max(map(len, rows))
+    print(f"{'scene':<{width}}  {'path':<8}  {'CPU s/s':>9}  {'over':>6}  reason or error")
+    for name, row in rows.items():
+        note = row["error"] or row["path_reason"] or ""
+        print(f"{name:<{width}}  {row['path'] or '-':<8}  {row['cpu_s_per_s']:9.3g}  {row['reached_s']:6.3g}  {note}")
+    general = sorted(name for name, row in rows.items() if row["path"] == "general")
+    print(f"general path: {len(general)} of {len(rows)}: {', '.join(general)}")
+    save_results(OUT, {"probe_s": PROBE, "budget_cpu_s": BUDGET, "rounds": ROUNDS, "scenes": rows})
+
+
+if __name__ == "__main__":
+    main()
