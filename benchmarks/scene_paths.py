@@ -1,6 +1,7 @@
 """Every bundled scene at its defaults (issue 35's table, "before"): the path ``pinstab.simulate()`` takes
 (``"path"`` in the JSON: native, banded, servo, grasp, or the general path in Python), its reason, and the CPU
-seconds per simulated second of the whole call (set-up included) at the scene's own step and contact treatment.
+seconds per simulated second of the whole call (set-up included) at the scene's own step and the contact treatment
+``pinstab run`` gives it by default (``default_contacts``: event-driven for scenes of plane contacts only).
 
 Each scene first runs PROBE s of simulated time; its measured duration is then the one that costs about BUDGET CPU
 s (between PROBE and MAX_DURATION), run ROUNDS times interleaved with the others; the median is reported. A scene
@@ -23,6 +24,7 @@ import pinstab
 from pinstab.bench import save_results
 from pinstab.errors import PinstabError
 from pinstab.readers.sources import bundled_scenes
+from pinstab.simulate import default_contacts
 
 PROBE = 0.01  # [s] simulated in the first run of each scene
 BUDGET = 2.0  # [CPU s] aimed at per measured run
@@ -36,7 +38,7 @@ def timed(scene: pinstab.Scene, duration: float) -> dict[str, Any]:
     and its reason, or the error that stopped it."""
     began = time.process_time()
     try:
-        trajectory = pinstab.simulate(scene, duration=duration, progress=False)
+        trajectory = pinstab.simulate(scene, duration=duration, progress=False, contacts=default_contacts(scene))
     except PinstabError as exc:
         reached = getattr(getattr(exc, "trajectory", None), "info", None)
         return {
