@@ -77,6 +77,15 @@ def unit(vector: np.ndarray) -> np.ndarray:
     return scaled / np.linalg.norm(scaled)
 
 
+def length(vector: np.ndarray | float) -> float:
+    """The Euclidean length of ``vector`` at any scale, scaled first to its largest entry (the length of [1, 1e200,
+    1] is 1e200, not infinity); infinite beyond float64's range, NaN with a NaN entry."""
+    values = np.asarray(vector, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = float(np.abs(values).max(initial=0.0))
+        return scale * float(np.linalg.norm(values / scale)) if scale else 0.0
+
+
 def direction(value: Any, where: str) -> np.ndarray:
     """A direction: a list of 3 numbers, not all zero (any scale), as a unit vector."""
     raw = vector(value, 3, where, None)
@@ -214,11 +223,10 @@ class SceneTables:
         :data:`MAX_REACH` times :attr:`size` from its frame's origin; ``on_world``: a point on the world, measured
         from the box of the scene's bodies (:attr:`bounds`), wherever the scene lies."""
         offset = np.asarray(point, dtype=float)
-        with np.errstate(over="ignore", invalid="ignore"):  # a distance beyond floating point: infinite, refused
-            if on_world:
+        if on_world:
+            with np.errstate(invalid="ignore"):  # an infinite point: a NaN distance, refused
                 offset = offset - np.clip(offset, *self.bounds)
-            scale = float(np.abs(offset).max(initial=0.0))
-            distance = scale * float(np.linalg.norm(offset / scale)) if scale else 0.0
+        distance = length(offset)  # beyond floating point: infinite, refused
         limit = MAX_REACH * self.size
         if not distance <= limit:
             shown = f"[{', '.join(f'{x:.6g}' for x in point)}]" if np.ndim(point) else f"{point:.6g}"

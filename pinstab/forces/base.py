@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import SceneError
 from ..kinematics import Kinematics
 from ..registry import Registry
+from ..tables import length
 
 # [N or N m]: the largest applied force or torque a scene may give: a meganewton, a heavy press's force or a large
 # rocket engine's thrust (a ship engine's torque, 1e6 N m), 1e5 times a 1 kg body's weight. Measured on box-push
@@ -30,9 +31,7 @@ def bounded_load(values: np.ndarray, where: str, unit: str) -> np.ndarray:
     Raises:
         SceneError: naming ``where`` (``|forces 'push'.force|``), the magnitude and the allowed range.
     """
-    scale = float(np.abs(values).max(initial=0.0))  # scaled first: the length of [1, 1e200, 1] is 1e200, not inf
-    with np.errstate(over="ignore"):  # a length beyond floating point is infinite: refused
-        magnitude = scale * float(np.linalg.norm(np.asarray(values) / scale)) if scale else 0.0
+    magnitude = length(values)  # beyond floating point: infinite, refused
     if not magnitude <= MAX_LOAD:
         raise SceneError(
             f"|{where}| = {magnitude:.6g} {unit} is outside the allowed range [0, {MAX_LOAD:.0e}] {unit}: {LOAD_REASON}"
