@@ -52,21 +52,19 @@ def test_bundled_scenes_assemble(name):
     assert report.velocity_residual < 1e-10
 
 
+TOO_LONG = {  # the bundled four-bar's closure with its coupler 2 m long: no configuration closes it
+    "name": "too-long",
+    "kind": "planar-point",
+    "plane": "xy",
+    "frame_a": "coupler",
+    "offset_a": [2.0, 0, 0],
+    "frame_b": "rocker",
+    "offset_b": [0.5, 0, 0],
+}
+
+
 def test_lengths_that_cannot_close_raise_with_the_residual():
-    data = {
-        "robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")},
-        "closures": [
-            {
-                "name": "too-long",
-                "kind": "planar-point",
-                "plane": "xy",
-                "frame_a": "coupler",
-                "offset_a": [2.0, 0, 0],
-                "frame_b": "rocker",
-                "offset_b": [0.5, 0, 0],
-            }
-        ],
-    }
+    data = {"robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")}, "closures": [TOO_LONG]}
     scene = scene_from_dict(data)
     with pytest.raises(AssemblyError, match="too-long") as info:
         assemble(ConstrainedModel(scene), scene.q0, scene.v0)

@@ -9,6 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 from fuzzing import toml_document
+from test_assembly import TOO_LONG
 
 from conftest import ROBOTS
 from pinstab import AssemblyError, ConstrainedModel, SceneError, assemble
@@ -98,15 +99,7 @@ def test_a_loop_that_cannot_close_is_named_beside_a_scaled_relation():
     data = {
         "robot": {"urdf": str(ROBOTS / "urdf" / "fourbar.urdf")},
         "closures": [
-            {
-                "name": "too-long",
-                "kind": "planar-point",
-                "plane": "xy",
-                "frame_a": "coupler",
-                "offset_a": [2.0, 0, 0],
-                "frame_b": "rocker",
-                "offset_b": [0.5, 0, 0],
-            },
+            TOO_LONG,
             {"name": "gear", "kind": "joint-relation", "joints": {"crank": 1e9, "rocker": -1e9}, "value": 0.0},
         ],
     }
