@@ -117,16 +117,14 @@ class OpenRows:
         ``G a - rhs`` above ACCEPTED_RESIDUAL of the row's accelerations (its free one ``G M^-1 f``, ``G a`` and
         ``rhs``). A row that holds carries a force, or is slack by rounding (ProxQP leaves 1e-8 of them)."""
         jacobian, forces = problem.jacobian, solution.multipliers
+        scale = float(np.max(np.abs(forces), initial=0.0)) + float(np.max(np.abs(problem.free_force), initial=0.0))
+        unloaded = self.stack.layout.unilateral & ~self.rows & (forces <= ACCEPTED_RESIDUAL * scale)
+        if not unloaded.any():  # every held row carries a force: no mass-matrix solve for the slack test
+            return
         reached = jacobian @ solution.acceleration
         free = jacobian @ np.linalg.solve(problem.mass_matrix, problem.free_force)
         size = np.abs(free) + np.abs(reached) + np.abs(problem.rhs)
-        scale = float(np.max(np.abs(forces), initial=0.0)) + float(np.max(np.abs(problem.free_force), initial=0.0))
-        released = (
-            self.stack.layout.unilateral
-            & ~self.rows
-            & (forces <= ACCEPTED_RESIDUAL * scale)
-            & (reached - problem.rhs > ACCEPTED_RESIDUAL * size)
-        )
+        released = unloaded & (reached - problem.rhs > ACCEPTED_RESIDUAL * size)
         if released.any():
             self._decide(t, self.rows | released)
 
