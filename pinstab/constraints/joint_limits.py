@@ -163,8 +163,7 @@ class LimitWatch:
 
     def see(self, k: int, q: np.ndarray) -> None:
         """The state q of grid step k."""
-        if self.left is None and np.any(self._signs * q[self._index] < self._floors):
-            self._leave(k, q[None, :])
+        self.see_span(k, q[None, :])
 
     def see_span(self, first: int, q: np.ndarray) -> None:
         """The states (rows of q) of grid steps first, first + 1, ..."""
