@@ -77,17 +77,8 @@ bool GraspKernel::acceleration(double, const VectorXd& q, const VectorXd& v, con
   a = free_;
   a.noalias() += spread_ * multipliers_;
   if (!a.allFinite() || !inside_cones()) return false;
-  worst_residual_ = std::max(worst_residual_, primal_residual(a, rhs));
+  worst_residual_ = std::max(worst_residual_, primal_residual(jacobian_, a, rhs, force_, data_.M));
   return true;
-}
-
-// pinstab.solvers.base.primal_residual: |G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M))
-double GraspKernel::primal_residual(const VectorXd& a, const VectorXd& rhs) const {
-  const double miss = (jacobian_ * a - rhs).norm();
-  if (miss == 0.0) return 0.0;
-  const double natural = force_.norm() / data_.M.diagonal().minCoeff();
-  const double scale = rhs.norm() + jacobian_.norm() * (a.norm() + natural);
-  return scale > 0.0 ? miss / scale : std::numeric_limits<double>::infinity();
 }
 
 bool GraspKernel::hold_torques(const HoldSpec& hold, const VectorXd& q, const VectorXd& v, VectorXd& force) {

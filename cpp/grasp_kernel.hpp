@@ -65,7 +65,6 @@ class GraspKernel : public Kernel {
   static bool closest_solution(const HoldSpec& hold, const Eigen::MatrixXd& matrix, const VectorXd& rhs, VectorXd& x);
   static bool holds(const HoldSpec& hold, const VectorXd& forces);
   bool inside_cones() const;
-  double primal_residual(const VectorXd& a, const VectorXd& rhs) const;
 
   pinocchio::Model model_;
   pinocchio::Data data_;

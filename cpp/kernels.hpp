@@ -29,7 +29,15 @@ class Kernel {
   virtual ~Kernel() = default;
   virtual bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
   virtual int nv() const = 0;
+  // The model whose configuration group the step loop integrates on (pinocchio::integrate, and stage velocities
+  // carried to the step's start with dDifference), or nullptr where q (+) dq = q + dq (every joint one coordinate).
+  virtual const pinocchio::Model* group() const { return nullptr; }
 };
+
+// pinstab.solvers.base.primal_residual on equality rows: |G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-],
+// f the free force; infinite where the scale is zero and the miss is not.
+double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
+                       const Eigen::MatrixXd& mass);
 
 // A sparse matrix in compressed rows (as scipy's CSR arrays).
 struct Csr {
@@ -51,7 +59,7 @@ void banded_substitute(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, co
 void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const VectorXd& x, const VectorXd& b,
                      VectorXd& residual);
 
-// Explicit schemes of pinstab.integration.schemes on a model whose joints all have one coordinate.
+// Explicit schemes of pinstab.integration.schemes.
 enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };
 
 // Steps of dt from (q, v) at grid step `start` (time start dt): fills rows of qs, vs; returns the steps done (fewer

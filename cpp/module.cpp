@@ -1,6 +1,7 @@
 // pinstab._compiled: the compiled step loop (see pinstab/integration/compiled.py).
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
@@ -9,6 +10,7 @@
 
 #include "banded_kernel.hpp"
 #include "contact_terms.hpp"
+#include "core_kernel.hpp"
 #include "grasp_kernel.hpp"
 #include "native_kernel.hpp"
 #include "series.hpp"
@@ -77,6 +79,26 @@ HoldSpec hold(nb::dict form) {
   hold.rank = nb::cast<double>(form["rank"]);
   hold.condition = nb::cast<double>(form["condition"]);
   return hold;
+}
+
+// The Model and Data of a Python pin.Model and one of its pin.Data (cpp/python_data.cpp).
+std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb::handle data) {
+  const pinocchio::Model& loaded = python_model(model.ptr());
+  return {&loaded, &python_data(data.ptr(), loaded)};
+}
+
+RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b, const Eigen::MatrixXd& selection,
+                   const VectorXd& coefficients, const VectorXi& q_indices, const VectorXi& v_indices,
+                   std::optional<nb::dict> relation_target) {
+  if (kind < 0 || kind > static_cast<int>(RowKind::relation)) throw std::invalid_argument("RowBlock: unknown kind");
+  RowBlock block;
+  block.kind = static_cast<RowKind>(kind);
+  block.frame_a = frame_a, block.frame_b = frame_b;
+  block.world_b = pinocchio::SE3(world_b);
+  block.selection = selection;
+  block.coefficients = coefficients, block.q_indices = q_indices, block.v_indices = v_indices;
+  if (relation_target) block.target = target(*relation_target);
+  return block;
 }
 
 }  // namespace
@@ -201,6 +223,79 @@ NB_MODULE(_compiled, m) {
       .def("multipliers", &GraspKernel::multipliers, "The last evaluation's contact forces [N] (rows of G).")
       .def_prop_ro("worst_residual", &GraspKernel::worst_residual,
                    "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).");
+  nb::class_<RowBlock>(m, "RowBlock")
+      .def(
+          "__init__",
+          [](RowBlock* self, int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b,
+             const Eigen::MatrixXd& selection, const VectorXd& coefficients, const VectorXi& q_indices,
+             const VectorXi& v_indices, std::optional<nb::dict> relation_target) {
+            new (self) RowBlock(row_block(kind, frame_a, frame_b, world_b, selection, coefficients, q_indices,
+                                          v_indices, relation_target));
+          },
+          "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a, "q_indices"_a,
+          "v_indices"_a, "target"_a = nb::none(),
+          "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation; "
+          "frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, prismatic: the "
+          "2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled target dict).")
+      .def_prop_ro("rows", &RowBlock::rows);
+  m.def(
+      "block_residual",
+      [](nb::handle model, nb::handle data, const RowBlock& block, const VectorXd& q, double t) {
+        const auto [loaded, shared] = native(model, data);
+        VectorXd phi(block.rows());
+        block_residual(*loaded, *shared, block, q, t, phi);
+        return phi;
+      },
+      "model"_a, "data"_a, "block"_a, "q"_a, "t"_a, "phi [m or rad] of a block from a pin.Data after a placements pass.");
+  m.def(
+      "block_jacobian",
+      [](nb::handle model, nb::handle data, const RowBlock& block, double t) {
+        const auto [loaded, shared] = native(model, data);
+        Eigen::MatrixXd jacobian(block.rows(), loaded->nv);
+        VectorXd time_term(block.rows());
+        block_jacobian(*loaded, *shared, block, t, jacobian, time_term);
+        return std::make_pair(jacobian, time_term);
+      },
+      "model"_a, "data"_a, "block"_a, "t"_a,
+      "(G (rows x nv), g_t) of a block from a pin.Data after a Jacobians and placements pass.");
+  m.def(
+      "block_drift",
+      [](nb::handle model, nb::handle data, const RowBlock& block, double t) {
+        const auto [loaded, shared] = native(model, data);
+        VectorXd drift(block.rows());
+        block_drift(*loaded, *shared, block, t, drift);
+        return drift;
+      },
+      "model"_a, "data"_a, "block"_a, "t"_a, "gamma0 of a block from a pin.Data after a full pass and placements.");
+  m.def("rotation_drift", &rotation_drift, "rotation_a"_a, "rotation_b"_a, "omega_a"_a, "omega_b"_a,
+        "relative_angular_drift"_a,
+        "gamma0 of the rows log3(R_b^T R_a) [rad/s^2] from the rotations, the angular velocities [rad/s] and "
+        "alpha_a - alpha_b at zero joint acceleration [rad/s^2], world axes.");
+  nb::class_<CoreKernel, Kernel>(m, "CoreKernel")
+      .def(
+          "__init__",
+          [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& springs,
+             double kp, double kd, nb::dict settings) {
+            std::vector<JointSpringSpec> compiled;
+            for (const nb::dict& form : springs) {
+              compiled.push_back({nb::cast<VectorXi>(form["dofs"]), nb::cast<int>(form["q_index"]),
+                                  nb::cast<double>(form["stiffness"]), nb::cast<double>(form["reference"]),
+                                  nb::cast<double>(form["damping"])});
+            }
+            CoreSolve solve;
+            solve.direct_pivot = nb::cast<double>(settings["direct_pivot"]);
+            solve.cutoff = nb::cast<double>(settings["cutoff"]);
+            solve.accepted = nb::cast<double>(settings["accepted"]);
+            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(compiled), kp, kd, solve);
+          },
+          "model"_a, "blocks"_a, "springs"_a, "kp"_a, "kd"_a, "settings"_a,
+          "The core evaluation: row blocks, joint springs (dicts: dofs, q_index (-1: damping only), stiffness, "
+          "reference, damping), Baumgarte gains and the solve's settings (dict: direct_pivot, cutoff, accepted).")
+      .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
+      .def_prop_ro("worst_residual", &CoreKernel::worst_residual,
+                   "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).")
+      .def_prop_ro("status_counts", &CoreKernel::status_counts,
+                   "Evaluations by how they were solved: cholesky, pseudo-inverse, pseudo-inverse, not accepted (not used).");
   nb::class_<BandedKernel, Kernel>(m, "BandedKernel")
       .def(
           "__init__",

@@ -1,5 +1,6 @@
-"""The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): Pinocchio's constrained dynamics, the
-banded solve, the servo solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
+"""The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
+row functions pinstab's constraint classes call too), Pinocchio's constrained dynamics, the banded solve, the servo
+solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
 (:mod:`pinstab.integration.compiled`), a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`)
 and the drift and energy series of a run of point closures (:mod:`pinstab.series`).
 
@@ -14,15 +15,21 @@ from importlib.metadata import PackageNotFoundError, version
 try:
     from ._compiled import (
         BandedKernel,
+        CoreKernel,
         GraspKernel,
         Kernel,
         NativeKernel,
+        RowBlock,
         ServoKernel,
+        block_drift,
+        block_jacobian,
+        block_residual,
         closure_series,
         contact_point_drift,
         contact_point_jacobian,
         contact_point_residual,
         least_norm,
+        rotation_drift,
         servo_realizability,
     )
 except ImportError as error:  # pragma: no cover - a broken install
@@ -38,14 +45,20 @@ except ImportError as error:  # pragma: no cover - a broken install
 
 __all__ = [
     "BandedKernel",
+    "CoreKernel",
     "GraspKernel",
     "Kernel",
     "NativeKernel",
+    "RowBlock",
     "ServoKernel",
+    "block_drift",
+    "block_jacobian",
+    "block_residual",
     "closure_series",
     "contact_point_drift",
     "contact_point_jacobian",
     "contact_point_residual",
     "least_norm",
+    "rotation_drift",
     "servo_realizability",
 ]

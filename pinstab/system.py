@@ -17,6 +17,7 @@ from .errors import ContactInfeasibleError, DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
+from .paths.core import CoreDynamics, core_obstacle
 from .paths.grasp import GraspDynamics, grasp_obstacle
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
@@ -190,7 +191,7 @@ class ConstrainedSystem:
         self.solver = solver
         self.native: NativeDynamics | None = None
         self.banded: BandedDynamics | None = None
-        self.compiled_path: ServoDynamics | GraspDynamics | None = None
+        self.compiled_path: ServoDynamics | GraspDynamics | CoreDynamics | None = None
         self._banded_allowed = banded
         self._banded_solves = 0
         self._compiled_solves = 0
@@ -225,6 +226,8 @@ class ConstrainedSystem:
                 self._bind_servo()
             elif self._named_solver is None:
                 self._bind_grasp()
+            if self._named_solver is None and self.path == "general" and self.path_reason == reason:
+                self._bind_core()
             return
         gains = self.stabilizer.baumgarte_gains()
         native = self.solver.native
@@ -289,6 +292,28 @@ class ConstrainedSystem:
             f"{len(constraints.constraints)} sticking fingertip contact(s): kinematics, contact rows, hold forces and "
             "the KKT solve compiled (the general solve where a hold needs its QP, a pivot is small or a force leaves "
             "its cone)"
+        )
+
+    def _bind_core(self) -> None:
+        """Take the core path when every constraint has compiled rows, every force element a compiled form the core
+        takes, and the method's term is Baumgarte's; else say why in :attr:`path_reason`."""
+        model = self.model
+        constraints = model.constraints
+        reason = core_obstacle(constraints.constraints, model.forces, constraints.slices)
+        if reason is None:
+            reason = self._compiled_form_obstacle("the core evaluation")
+        if reason is not None:
+            self.path_reason = reason
+            return
+        gains = self.stabilizer.baumgarte_gains()
+        blocks = constraints.constraints
+        solve = (DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+        self.compiled_path = CoreDynamics(model.model, blocks, model.forces, constraints.slices, *gains, *solve)
+        self.path, self.acceleration = "core", self._compiled_acceleration
+        self.path_reason = (
+            f"{len(blocks)} constraint block(s) of {constraints.rows} rows and {len(model.forces)} joint spring(s): "
+            "kinematics, rows, springs and the KKT solve compiled (Cholesky factors; a pseudo-inverse where rows are "
+            "redundant or nearly so; the general solve where it misses the rows)"
         )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
@@ -442,7 +467,13 @@ class ConstrainedSystem:
 
     def multipliers(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The constraint multipliers at (q, v, t) [N, N m]: Pinocchio's on the native path when its solve
-        passes the check (the banded solve's on the banded path), else the general path's."""
+        passes the check (the banded solve's on the banded path, the core kernel's on the core path: the least-norm
+        ones of redundant rows), else the general path's."""
+        path = self.compiled_path
+        if isinstance(path, CoreDynamics):
+            path.acceleration(q, v, path.force(self.model, q, v, t), t)
+            if not path.unusable:
+                return path.kernel.multipliers()
         if self.banded is not None:
             self._banded_acceleration(q, v, t)
             if not self.banded.singular:
@@ -461,7 +492,11 @@ class ConstrainedSystem:
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
         if self.compiled_path is not None:
             merged.solves += self._compiled_solves
-            merged.status_counts[self.compiled_path.status] = self._compiled_solves
+            path = self.compiled_path
+            if isinstance(path, CoreDynamics):  # by how its kernel solved them
+                merged.status_counts.update(path.status_counts())
+            else:
+                merged.status_counts[path.status] = self._compiled_solves
             merged.worst_primal_residual = max(merged.worst_primal_residual, self.compiled_path.worst_residual)
             merged.fallbacks += self._audit.fallbacks
         if self.native is None:

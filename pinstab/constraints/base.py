@@ -11,6 +11,7 @@ import numpy as np
 
 from ..contact.collisions import Touch
 from ..contact.cones import FrictionCone
+from ..kernels import RowBlock
 from ..kinematics import Kinematics
 from ..registry import Registry
 
@@ -90,6 +91,12 @@ class Constraint(ABC):
     @abstractmethod
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """gamma0 = dG/dt v + d g_t/dt; needs a full :meth:`Kinematics.update` at (q, v)."""
+
+    def compiled_rows(self) -> RowBlock | None:
+        """The block as the compiled core evaluates it (``cpp/core_rows.hpp``: point, weld, revolute, prismatic and
+        joint-relation rows), or None (the default): its rows are computed in Python, and a scene with it runs on
+        the general path."""
+        return None
 
     def margins(self, force: np.ndarray) -> dict[str, float]:
         """How far this block's multipliers are inside their limits, by name [N or N m] (>= 0: held);

@@ -21,10 +21,11 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from ..kernels import rotation_drift
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .loops import FrameClosure, rotation_drift
+from .loops import FrameClosure
 from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid
 
 SINE_PATH_KEYS = {"centre", "amplitude", "omega", "phase"}

@@ -16,9 +16,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
-from ..kinematics import Kinematics, relative_offset
 from ..tables import SceneTables, closure_frames
-from .base import CONSTRAINT_KINDS, VelocityTerms
+from .base import CONSTRAINT_KINDS
 from .loops import CLOSURE_KEYS, FrameClosure, plane_basis
 
 JOINT_CLOSURE_KEYS = CLOSURE_KEYS | {"axis"}
@@ -38,42 +37,12 @@ class JointClosure(FrameClosure):
         self.kind, self.rows = kind, 5
         self.across = plane_basis(np.asarray(axis, float))  # 2 x 3, orthonormal, normal to the axis
         if kind == "revolute":
-            self.selection_rows = np.zeros((5, 6))
-            self.selection_rows[:3, :3] = np.eye(3)
-            self.selection_rows[3:, 3:] = self.across
             self.force_frame = "world axes (force on a) + the two log3(R_b^T R_a) axes across the hinge (moment on a)"
         else:
             self.force_frame = "frame b axes across the slide (force on a) + log3(R_b^T R_a) axes (moment on a)"
 
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        weld = super().residual(kin, q, t)
-        if self.kind == "revolute":
-            return self.selection_rows @ weld
-        return np.concatenate([self.across @ self._placement_b(kin).rotation.T @ weld[:3], weld[3:]])
-
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        weld = super().velocity_terms(kin, q, t).jacobian
-        if self.kind == "revolute":
-            return VelocityTerms(self.selection_rows @ weld, np.zeros(5))
-        _, slide = relative_offset(kin, self.frame_a, self.frame_b, self.world_placement_b)
-        linear = self.across @ slide
-        return VelocityTerms(np.vstack([linear, weld[3:]]), np.zeros(5))
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        weld = super().drift(kin, q, v, t)
-        if self.kind == "revolute":
-            return self.selection_rows @ weld
-        rotation_b = self._placement_b(kin).rotation
-        gap = kin.placement(self.frame_a).translation - self._placement_b(kin).translation
-        gap_rate = kin.velocity(self.frame_a).linear.copy()
-        omega_b, alpha_b = np.zeros(3), np.zeros(3)
-        if self.frame_b is not None:
-            gap_rate -= kin.velocity(self.frame_b).linear
-            omega_b = kin.velocity(self.frame_b).angular
-            alpha_b = kin.drift_acceleration(self.frame_b).angular
-        second = weld[:3] - np.cross(alpha_b, gap) - 2.0 * np.cross(omega_b, gap_rate)
-        second += np.cross(omega_b, np.cross(omega_b, gap))
-        return np.concatenate([self.across @ rotation_b.T @ second, weld[3:]])
+    def _block_form(self) -> tuple[int, np.ndarray]:
+        return (2 if self.kind == "revolute" else 3), self.across
 
 
 def parse_joint_closure(kind: str):

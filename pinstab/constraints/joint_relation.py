@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SceneError
+from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
@@ -56,6 +57,8 @@ class JointRelation(Constraint):
         self.residual_units = (float(np.max(sizes)), float(np.min(sizes)))
         self.force_frame = "generalized force along the relation's row [N m or N]"
         self._target: tuple[float, tuple[float, float, float]] | None = None  # (t, target(t)) of the last call
+        self._indices = (np.asarray(row, float), np.asarray(q_indices, np.int32), np.asarray(v_indices, np.int32))
+        self._block: RowBlock | bool | None = None  # built at first use; False: the target has no compiled form
 
     def target(self, t: float) -> tuple[float, float, float]:
         """(c, dc/dt, d2c/dt2) at time t [s] (the residual, the row and the drift read it at the same t)."""
@@ -64,15 +67,33 @@ class JointRelation(Constraint):
             self._target = (t, (float(value[0]), float(rate[0]), float(curvature[0])))
         return self._target[1]
 
+    def compiled_rows(self) -> RowBlock | None:
+        """The relation in the compiled core (``cpp/core_rows.cpp``), which computes it for Python too; None for a
+        target without a compiled form (:meth:`~pinstab.constraints.targets.TargetTrajectory.compiled`)."""
+        if self._block is None:
+            form = self.trajectory.compiled(0)
+            no_frames = (-1, -1, np.eye(4), np.zeros((0, 3)))
+            self._block = False if form is None else RowBlock(4, *no_frames, *self._indices, form)
+        return self._block or None
+
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
+        block = self.compiled_rows()
+        if block is not None:
+            return block_residual(kin.model, kin.data, block, q, t)
         return np.array([float(self.row @ q[self.q_indices]) - self.target(t)[0]])
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        block = self.compiled_rows()
+        if block is not None:
+            return VelocityTerms(*block_jacobian(kin.model, kin.data, block, t))
         jacobian = np.zeros((1, kin.model.nv))
         jacobian[0, self.v_indices] = self.row
         return VelocityTerms(jacobian, np.array([-self.target(t)[1]]))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        block = self.compiled_rows()
+        if block is not None:
+            return block_drift(kin.model, kin.data, block, t)
         return np.array([-self.target(t)[2]])
 
 

@@ -11,11 +11,13 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError, choices
+from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
 from ..kinematics import Kinematics
 from ..tables import SceneTables, closure_frames, unit
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
+NO_RELATION = (np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))  # a frame block's relation part
 CLOSURE_KEYS = {"name", "kind", "frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b"}
 PLANES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -72,6 +74,7 @@ class FrameClosure(Constraint):
             if kind == "weld"
             else ("world axes, force on a" if kind == "point" else "plane axes, force on a")
         )
+        self._block: RowBlock | None = None
 
     def sides(self, model: pin.Model) -> tuple[tuple[int, pin.SE3], tuple[int, pin.SE3]]:
         """Where the closure's two points sit in ``model``: (joint, placement in the joint's frame) of side a and
@@ -82,98 +85,29 @@ class FrameClosure(Constraint):
         frame_b = model.frames[self.frame_b]
         return (frame_a.parentJoint, frame_a.placement), (frame_b.parentJoint, frame_b.placement)
 
-    # -- helpers -----------------------------------------------------------------------------
-    def _placement_b(self, kin: Kinematics) -> pin.SE3:
-        return self.world_placement_b if self.frame_b is None else kin.placement(self.frame_b)
+    def compiled_rows(self) -> RowBlock:
+        """The closure's rows in the compiled core (``cpp/core_rows.cpp``), which computes them for Python too: built
+        at first use (a subclass sets its kind, selection and world placement in its own constructor)."""
+        if self._block is None:
+            kind, selection = self._block_form()
+            frame_b = -1 if self.frame_b is None else self.frame_b
+            placement_b = self.world_placement_b.homogeneous
+            self._block = RowBlock(kind, self.frame_a, frame_b, placement_b, selection, *NO_RELATION)
+        return self._block
 
-    def _relative_jacobian(self, kin: Kinematics) -> np.ndarray:
-        jac = kin.jacobian(self.frame_a)
-        if self.frame_b is not None:
-            jac = jac - kin.jacobian(self.frame_b)
-        return jac
+    def _block_form(self) -> tuple[int, np.ndarray]:
+        """The compiled row kind (``cpp/core_rows.hpp``: 0 point, 1 weld) and its selection (rows x 3)."""
+        return (1, np.eye(3)) if self.locks_rotation else (0, self.selection)
 
     # -- Constraint ------------------------------------------------------------------------------
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
-        linear = self.selection @ (oma.translation - omb.translation)
-        if not self.locks_rotation:
-            return linear
-        return np.concatenate([linear, pin.log3(omb.rotation.T @ oma.rotation)])
+        return block_residual(kin.model, kin.data, self.compiled_rows(), q, t)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        jac = self._relative_jacobian(kin)
-        linear = self.selection @ jac[:3]
-        if not self.locks_rotation:
-            return VelocityTerms(linear, np.zeros(self.rows))
-        oma, omb = kin.placement(self.frame_a), self._placement_b(kin)
-        rel = omb.rotation.T @ oma.rotation
-        angular = pin.Jlog3(rel) @ oma.rotation.T @ jac[3:]
-        return VelocityTerms(np.vstack([linear, angular]), np.zeros(self.rows))
+        return VelocityTerms(*block_jacobian(kin.model, kin.data, self.compiled_rows(), t))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        acc_a = kin.drift_acceleration(self.frame_a)
-        lin, ang = acc_a.linear.copy(), acc_a.angular.copy()
-        if self.frame_b is not None:
-            acc_b = kin.drift_acceleration(self.frame_b)
-            lin -= acc_b.linear
-            ang -= acc_b.angular
-        linear = self.selection @ lin
-        if not self.locks_rotation:
-            return linear
-        return np.concatenate([linear, self._rotation_drift(kin, ang)])
-
-    def _rotation_drift(self, kin: Kinematics, relative_angular_drift: np.ndarray) -> np.ndarray:
-        """The rotation rows' drift (:func:`rotation_drift`) at the current kinematics."""
-        omega_b = kin.velocity(self.frame_b).angular if self.frame_b is not None else np.zeros(3)
-        return rotation_drift(
-            kin.placement(self.frame_a).rotation,
-            self._placement_b(kin).rotation,
-            kin.velocity(self.frame_a).angular,
-            omega_b,
-            relative_angular_drift,
-        )
-
-
-def rotation_drift(
-    rotation_a: np.ndarray,
-    rotation_b: np.ndarray,
-    omega_a: np.ndarray,
-    omega_b: np.ndarray,
-    relative_angular_drift: np.ndarray,
-) -> np.ndarray:
-    """gamma0 of the rows ``log3(R_b^T R_a)`` [rad/s^2]: d/dt [Jlog3(R) R_a^T] (w_a - w_b) + Jlog3(R) R_a^T
-    (alpha_a - alpha_b) at zero joint acceleration; omegas [rad/s] and ``relative_angular_drift`` (alpha_a -
-    alpha_b) [rad/s^2] in world axes."""
-    rel = rotation_b.T @ rotation_a
-    relative_omega = omega_a - omega_b
-    body_rate = rotation_a.T @ relative_omega  # R = R_b^T R_a moves as dR/dt = R [body_rate]
-    jlog = pin.Jlog3(rel)
-    theta = pin.log3(rel)
-    theta_rate = jlog @ body_rate
-    rotating_frame = -rotation_a.T @ np.cross(omega_a, relative_omega)
-    return (
-        jlog_rate(theta, theta_rate) @ body_rate + jlog @ rotating_frame + jlog @ rotation_a.T @ relative_angular_drift
-    )
-
-
-def jlog_rate(theta: np.ndarray, theta_rate: np.ndarray) -> np.ndarray:
-    """Time derivative of ``Jlog3`` along ``theta(t)`` (the right Jacobian inverse of SO(3)).
-
-    ``Jlog3(theta) = E + [theta]/2 + c(|theta|) [theta]^2`` with
-    ``c(x) = 1/x^2 - (1 + cos x) / (2 x sin x)``.
-    """
-    angle = float(np.linalg.norm(theta))
-    hat, hat_rate = pin.skew(theta), pin.skew(theta_rate)
-    if angle < 1e-4:
-        coeff = 1.0 / 12.0 + angle**2 / 720.0
-        coeff_rate = float(theta @ theta_rate) / 360.0
-    else:
-        coeff = 1.0 / angle**2 - (1.0 + np.cos(angle)) / (2.0 * angle * np.sin(angle))
-        dcoeff = -2.0 / angle**3 + (
-            np.sin(angle) * angle * np.sin(angle) + (1.0 + np.cos(angle)) * (np.sin(angle) + angle * np.cos(angle))
-        ) / (2.0 * (angle * np.sin(angle)) ** 2)
-        coeff_rate = dcoeff * float(theta @ theta_rate) / angle
-    return 0.5 * hat_rate + coeff_rate * hat @ hat + coeff * (hat_rate @ hat + hat @ hat_rate)
+        return block_drift(kin.model, kin.data, self.compiled_rows(), t)
 
 
 def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, float]:

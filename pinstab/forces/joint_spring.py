@@ -10,6 +10,9 @@ Stored energy ``k (s - s_ref)^2 / 2`` [J].
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
@@ -58,6 +61,20 @@ class JointSpring(ForceElement):
         relative = relative_offset if motion == "prismatic" else relative_rotation
         value, jacobian = relative(kin, frame_a, frame_b, placement_b)
         return float(axis @ value), axis @ jacobian
+
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
+        """The joint form as the core kernel takes it (``cpp/core_kernel.hpp`` JointSpringSpec); None for the frame
+        form."""
+        if self.frames is not None:
+            return None
+        return {
+            "kind": "joint-spring",
+            "dofs": np.asarray(self.dofs, dtype=np.int32),
+            "q_index": -1 if self.q_index is None else int(self.q_index),
+            "stiffness": float(self.stiffness),
+            "reference": float(self.reference),
+            "damping": float(self.damping),
+        }
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         if self.q_index is None and self.frames is None:  # a multi-DOF joint: damping only

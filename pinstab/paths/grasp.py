@@ -27,6 +27,8 @@ from ..kernels import GraspKernel
 from ..model import ConstrainedModel
 
 POINT_MODELS = ("frictionless", "point-friction")  # contact models whose rows are the point's (no rotation rows)
+GRASP_FORCE_KINDS = ("hold", "wrench")
+"""Compiled force forms the grasp kernel takes."""
 
 
 def grasp_obstacle(constraints: ConstraintSet, forces: list[ForceElement]) -> str | None:
@@ -40,7 +42,10 @@ def grasp_obstacle(constraints: ConstraintSet, forces: list[ForceElement]) -> st
             models = ", ".join(POINT_MODELS)
             return f"contact {constraint.name!r} is {constraint.model!r}, not a point contact ({models})"
     for element in forces:
-        if element.needs_kinematics and element.compiled_form(constraints.slices) is None:
+        form = element.compiled_form(constraints.slices)
+        if form is not None and form["kind"] not in GRASP_FORCE_KINDS:
+            form = None
+        if element.needs_kinematics and form is None:
             return f"force {element.name!r} ({type(element).__name__}) has no compiled form and reads the kinematics"
     return None
 
@@ -72,6 +77,7 @@ class GraspDynamics:
         direct_pivot: float,
     ) -> None:
         forms = [element.compiled_form(constraints.slices) for element in forces]
+        forms = [form if form is not None and form["kind"] in GRASP_FORCE_KINDS else None for form in forms]
         self.kernel = GraspKernel(
             model,
             [_contact_form(contact) for contact in constraints.constraints],

@@ -1,0 +1,122 @@
+#include "core_kernel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <pinocchio/algorithm/compute-all-terms.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+
+namespace pinstab {
+
+void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
+                       Eigen::Ref<VectorXd> force) {
+  for (const JointSpringSpec& spring : springs) {
+    if (spring.q_index < 0) {
+      for (int k = 0; k < spring.dofs.size(); ++k) force(spring.dofs(k)) += -spring.damping * v(spring.dofs(k));
+      continue;
+    }
+    const int dof = spring.dofs(0);
+    force(dof) += -(spring.stiffness * (q(spring.q_index) - spring.reference) + spring.damping * v(dof));
+  }
+}
+
+CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks,
+                       std::vector<JointSpringSpec> springs, double kp, double kd, CoreSolve solve)
+    : model_(model),
+      data_(model_),
+      blocks_(std::move(blocks)),
+      springs_(std::move(springs)),
+      kp_(kp),
+      kd_(kd),
+      settings_(solve),
+      euclidean_(model_.nq == model_.nv),
+      rows_(0) {
+  for (int j = 1; j < model_.njoints; ++j) euclidean_ = euclidean_ && model_.joints[j].nq() == 1;
+  for (const RowBlock& block : blocks_) {
+    offsets_.push_back(rows_);
+    rows_ += block.rows();
+  }
+  jacobian_.setZero(rows_, model_.nv);
+  phi_.setZero(rows_);
+  time_term_.setZero(rows_);
+  drift_.setZero(rows_);
+  multipliers_.setZero(rows_);
+}
+
+bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+  // one pass: placements, Jacobians, velocities and accelerations at zero joint acceleration, M, h
+  pinocchio::computeAllTerms(model_, data_, q, v);
+  pinocchio::updateFramePlacements(model_, data_);
+  data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose().triangularView<Eigen::StrictlyLower>();
+  for (size_t k = 0; k < blocks_.size(); ++k) {
+    const RowBlock& block = blocks_[k];
+    const int offset = offsets_[k], rows = block.rows();
+    block_residual(model_, data_, block, q, t, phi_.segment(offset, rows));
+    block_jacobian(model_, data_, block, t, jacobian_.middleRows(offset, rows), time_term_.segment(offset, rows));
+    block_drift(model_, data_, block, t, drift_.segment(offset, rows));
+  }
+  force_ = tau;
+  add_joint_springs(springs_, q, v, force_);
+  force_ -= data_.nle;
+  const VectorXd rhs = -drift_ - kd_ * (jacobian_ * v + time_term_) - kp_ * phi_;
+  if (!solve(rhs)) return false;
+  a = acceleration_;
+  return true;
+}
+
+bool CoreKernel::solve(const VectorXd& rhs) {
+  mass_.compute(data_.M);
+  if (mass_.info() != Eigen::Success) return false;
+  free_ = mass_.solve(force_);
+  acceleration_ = free_;
+  if (rows_ == 0) {
+    ++status_counts_["cholesky"];
+    return acceleration_.allFinite();
+  }
+  spread_ = mass_.solve(jacobian_.transpose());
+  delassus_.noalias() = jacobian_ * spread_;
+  const VectorXd demand = rhs - jacobian_ * free_;
+  const double largest = delassus_.diagonal().maxCoeff();
+  inner_.compute(delassus_);
+  const double smallest = inner_.info() == Eigen::Success ? inner_.matrixLLT().diagonal().minCoeff() : 0.0;
+  if (smallest * smallest >= settings_.direct_pivot * largest) {  // independent rows: the direct solve
+    multipliers_ = inner_.solve(demand);
+    acceleration_.noalias() += spread_ * multipliers_;
+    ++status_counts_["cholesky"];
+    if (!acceleration_.allFinite()) return false;
+    worst_residual_ = std::max(worst_residual_, primal_residual(jacobian_, acceleration_, rhs, force_, data_.M));
+    return true;
+  }
+  // redundant or nearly dependent rows: the pseudo-inverse of D, eigenvalues below cutoff times the largest left out
+  spectrum_.compute(delassus_);
+  if (spectrum_.info() != Eigen::Success) return false;
+  const VectorXd& values = spectrum_.eigenvalues();  // ascending
+  const double floor = settings_.cutoff * values(values.size() - 1);
+  const VectorXd projected = spectrum_.eigenvectors().transpose() * demand;
+  VectorXd scaled = VectorXd::Zero(values.size());
+  for (int k = 0; k < values.size(); ++k) {
+    if (values(k) > floor) scaled(k) = projected(k) / values(k);
+  }
+  multipliers_ = spectrum_.eigenvectors() * scaled;
+  acceleration_.noalias() += spread_ * multipliers_;
+  const double residual = primal_residual(jacobian_, acceleration_, rhs, force_, data_.M);
+  if (!(residual <= settings_.accepted) || !acceleration_.allFinite()) {
+    ++status_counts_["pseudo-inverse, not accepted"];
+    return false;
+  }
+  ++status_counts_["pseudo-inverse"];
+  worst_residual_ = std::max(worst_residual_, residual);
+  return true;
+}
+
+double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
+                       const Eigen::MatrixXd& mass) {
+  const double miss = (jacobian * a - rhs).norm();
+  if (miss == 0.0) return 0.0;
+  const double natural = force.norm() / mass.diagonal().minCoeff();
+  const double scale = rhs.norm() + jacobian.norm() * (a.norm() + natural);
+  return scale > 0.0 ? miss / scale : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace pinstab

@@ -1,0 +1,74 @@
+// The core evaluation: any stack of the standard rows (cpp/core_rows.hpp) with joint springs and dampers, the
+// Baumgarte corrector and a KKT solve that survives rank loss (docs/mathematics.md eq. 3), on any joint types
+// (free flyers and balls: the step loop integrates on the configuration group).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "core_rows.hpp"
+#include "kernels.hpp"
+
+namespace pinstab {
+
+// pinstab.forces.joint_spring.JointSpring in joint form: tau[dofs] = -k (q[q_index] - reference) - c v[dofs] on a
+// 1-DOF joint; -c v[dofs] (damping only) on a multi-DOF one (q_index < 0).
+struct JointSpringSpec {
+  VectorXi dofs;
+  int q_index = -1;
+  double stiffness = 0.0, reference = 0.0, damping = 0.0;
+};
+
+// Adds the springs' generalized forces [N, N m] at (q, v) to force.
+void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
+                       Eigen::Ref<VectorXd> force);
+
+// The solve's settings: Cholesky of the Delassus matrix D = G M^-1 G^T where its smallest pivot^2 is at least
+// direct_pivot times its largest diagonal entry (pinstab.solvers.proxsuite_.DIRECT_PIVOT); else (redundant or nearly
+// dependent rows) its pseudo-inverse, eigenvalues at most cutoff times the largest left out: the least-norm
+// multipliers and the least-squares accelerations of rows the mechanism can hardly tell apart. An evaluation whose
+// relative primal residual (pinstab.solvers.base.primal_residual) is above accepted is not to be used.
+struct CoreSolve {
+  double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8;
+};
+
+// M a + h = tau + springs + G^T lambda, G a = -gamma0 - Kd (G v + g_t) - Kp phi.
+class CoreKernel : public Kernel {
+ public:
+  CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, std::vector<JointSpringSpec> springs,
+             double kp, double kd, CoreSolve solve);
+  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  int nv() const override { return model_.nv; }
+  const pinocchio::Model* group() const override { return euclidean_ ? nullptr : &model_; }
+  // the last evaluation's multipliers [N, N m] (the rows' order)
+  const VectorXd& multipliers() const { return multipliers_; }
+  // the largest relative primal residual of the evaluations used
+  double worst_residual() const { return worst_residual_; }
+  // evaluations by how they were solved: "cholesky", "pseudo-inverse", "pseudo-inverse, not accepted" (not used)
+  const std::map<std::string, long>& status_counts() const { return status_counts_; }
+
+ private:
+  bool solve(const VectorXd& rhs);
+
+  pinocchio::Model model_;
+  pinocchio::Data data_;
+  std::vector<RowBlock> blocks_;
+  std::vector<int> offsets_;
+  std::vector<JointSpringSpec> springs_;
+  double kp_, kd_;
+  CoreSolve settings_;
+  bool euclidean_;
+  int rows_;
+  double worst_residual_ = 0.0;
+  std::map<std::string, long> status_counts_;
+  Eigen::MatrixXd jacobian_, spread_, delassus_;
+  VectorXd phi_, time_term_, drift_, force_, free_, multipliers_, acceleration_;
+  Eigen::LLT<Eigen::MatrixXd> mass_, inner_;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
+};
+
+}  // namespace pinstab

@@ -1,0 +1,238 @@
+#include "core_rows.hpp"
+
+#include <cmath>
+
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/spatial/explog.hpp>
+#include <pinocchio/spatial/skew.hpp>
+
+namespace pinstab {
+namespace {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+using Matrix6x = Eigen::Matrix<double, 6, Eigen::Dynamic>;
+constexpr auto LWA = pinocchio::LOCAL_WORLD_ALIGNED;
+
+// The two sides of a frame block: placements, and (on demand) Jacobians, velocities and drift accelerations in
+// LOCAL_WORLD_ALIGNED; side b is the fixed world placement when frame_b < 0 (zero Jacobian, velocity, acceleration).
+struct Sides {
+  const pinocchio::Model& model;
+  pinocchio::Data& data;
+  const RowBlock& block;
+
+  const pinocchio::SE3& a() const { return data.oMf[block.frame_a]; }
+  const pinocchio::SE3& b() const { return block.frame_b < 0 ? block.world_b : data.oMf[block.frame_b]; }
+  bool moving_b() const { return block.frame_b >= 0; }
+  Matrix6x jacobian(int frame) const {
+    Matrix6x jacobian = Matrix6x::Zero(6, model.nv);
+    pinocchio::getFrameJacobian(model, data, frame, LWA, jacobian);
+    return jacobian;
+  }
+  pinocchio::Motion velocity(int frame) const { return pinocchio::getFrameVelocity(model, data, frame, LWA); }
+  pinocchio::Motion drift(int frame) const {
+    return pinocchio::getFrameClassicalAcceleration(model, data, frame, LWA);
+  }
+};
+
+Matrix3d jlog(const Matrix3d& rotation) {
+  Matrix3d jacobian;
+  pinocchio::Jlog3(rotation, jacobian);
+  return jacobian;
+}
+
+// The weld's six rows (points in world axes, then log3(R_b^T R_a)), from which the other frame kinds select.
+Eigen::Matrix<double, 6, 1> weld_residual(const Sides& sides) {
+  Eigen::Matrix<double, 6, 1> weld;
+  weld.head<3>() = sides.a().translation() - sides.b().translation();
+  weld.tail<3>() = pinocchio::log3(Matrix3d(sides.b().rotation().transpose() * sides.a().rotation()));
+  return weld;
+}
+
+Matrix6x weld_jacobian(const Sides& sides) {
+  Matrix6x relative = sides.jacobian(sides.block.frame_a);
+  if (sides.moving_b()) relative -= sides.jacobian(sides.block.frame_b);
+  const Matrix3d& rotation_a = sides.a().rotation();
+  const Matrix3d rel = sides.b().rotation().transpose() * rotation_a;
+  Matrix6x weld(6, sides.model.nv);
+  weld.topRows<3>() = relative.topRows<3>();
+  weld.bottomRows<3>() = jlog(rel) * rotation_a.transpose() * relative.bottomRows<3>();
+  return weld;
+}
+
+Eigen::Matrix<double, 6, 1> weld_drift(const Sides& sides) {
+  const pinocchio::Motion drift_a = sides.drift(sides.block.frame_a);
+  Vector3d linear = drift_a.linear(), angular = drift_a.angular(), omega_b = Vector3d::Zero();
+  if (sides.moving_b()) {
+    const pinocchio::Motion drift_b = sides.drift(sides.block.frame_b);
+    linear -= drift_b.linear();
+    angular -= drift_b.angular();
+    omega_b = sides.velocity(sides.block.frame_b).angular();
+  }
+  Eigen::Matrix<double, 6, 1> weld;
+  weld.head<3>() = linear;
+  weld.tail<3>() = rotation_drift(sides.a().rotation(), sides.b().rotation(),
+                                  sides.velocity(sides.block.frame_a).angular(), omega_b, angular);
+  return weld;
+}
+
+}  // namespace
+
+int RowBlock::rows() const {
+  switch (kind) {
+    case RowKind::point:
+      return static_cast<int>(selection.rows());
+    case RowKind::weld:
+      return 6;
+    case RowKind::revolute:
+    case RowKind::prismatic:
+      return 5;
+    case RowKind::relation:
+      return 1;
+  }
+  return 0;
+}
+
+Matrix3d jlog_rate(const Vector3d& theta, const Vector3d& theta_rate) {
+  const double angle = theta.norm();
+  const Matrix3d hat = pinocchio::skew(theta), hat_rate = pinocchio::skew(theta_rate);
+  double coeff, coeff_rate;
+  if (angle < 1e-4) {
+    coeff = 1.0 / 12.0 + angle * angle / 720.0;
+    coeff_rate = theta.dot(theta_rate) / 360.0;
+  } else {
+    const double sine = std::sin(angle), cosine = std::cos(angle);
+    coeff = 1.0 / (angle * angle) - (1.0 + cosine) / (2.0 * angle * sine);
+    const double dcoeff = -2.0 / (angle * angle * angle) +
+                          (sine * angle * sine + (1.0 + cosine) * (sine + angle * cosine)) /
+                              (2.0 * (angle * sine) * (angle * sine));
+    coeff_rate = dcoeff * theta.dot(theta_rate) / angle;
+  }
+  return 0.5 * hat_rate + coeff_rate * hat * hat + coeff * (hat_rate * hat + hat * hat_rate);
+}
+
+Vector3d rotation_drift(const Matrix3d& rotation_a, const Matrix3d& rotation_b, const Vector3d& omega_a,
+                        const Vector3d& omega_b, const Vector3d& relative_angular_drift) {
+  const Matrix3d rel = rotation_b.transpose() * rotation_a;
+  const Vector3d relative_omega = omega_a - omega_b;
+  const Vector3d body_rate = rotation_a.transpose() * relative_omega;  // R = R_b^T R_a moves as dR/dt = R [body_rate]
+  const Matrix3d jacobian = jlog(rel);
+  const Vector3d theta = pinocchio::log3(rel);
+  const Vector3d theta_rate = jacobian * body_rate;
+  const Vector3d rotating_frame = -rotation_a.transpose() * omega_a.cross(relative_omega);
+  return jlog_rate(theta, theta_rate) * body_rate + jacobian * rotating_frame +
+         jacobian * (rotation_a.transpose() * relative_angular_drift);
+}
+
+void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& q,
+                    double t, Eigen::Ref<VectorXd> phi) {
+  if (block.kind == RowKind::relation) {
+    double value, rate, curvature;
+    block.target.evaluate(t, value, rate, curvature);
+    double sum = 0.0;
+    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * q(block.q_indices(k));
+    phi(0) = sum - value;
+    return;
+  }
+  const Sides sides{model, data, block};
+  if (block.kind == RowKind::point) {
+    phi = block.selection * (sides.a().translation() - sides.b().translation());
+    return;
+  }
+  const Eigen::Matrix<double, 6, 1> weld = weld_residual(sides);
+  switch (block.kind) {
+    case RowKind::weld:
+      phi = weld;
+      break;
+    case RowKind::revolute:
+      phi.head<3>() = weld.head<3>();
+      phi.tail<2>() = block.selection * weld.tail<3>();
+      break;
+    default:  // prismatic
+      phi.head<2>() = block.selection * (sides.b().rotation().transpose() * weld.head<3>());
+      phi.tail<3>() = weld.tail<3>();
+  }
+}
+
+void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
+                    Eigen::Ref<Eigen::MatrixXd> jacobian, Eigen::Ref<VectorXd> time_term) {
+  jacobian.setZero();
+  time_term.setZero();
+  if (block.kind == RowKind::relation) {
+    double value, rate, curvature;
+    block.target.evaluate(t, value, rate, curvature);
+    for (int k = 0; k < block.coefficients.size(); ++k) jacobian(0, block.v_indices(k)) = block.coefficients(k);
+    time_term(0) = -rate;
+    return;
+  }
+  const Sides sides{model, data, block};
+  if (block.kind == RowKind::point) {
+    Matrix6x relative = sides.jacobian(block.frame_a);
+    if (sides.moving_b()) relative -= sides.jacobian(block.frame_b);
+    jacobian = block.selection * relative.topRows<3>();
+    return;
+  }
+  const Matrix6x weld = weld_jacobian(sides);
+  switch (block.kind) {
+    case RowKind::weld:
+      jacobian = weld;
+      break;
+    case RowKind::revolute:
+      jacobian.topRows<3>() = weld.topRows<3>();
+      jacobian.bottomRows<2>() = block.selection * weld.bottomRows<3>();
+      break;
+    default: {  // prismatic: d/dq of R_b^T (p_a - p_b) = R_b^T (J_a - J_b + [p_a - p_b]x W_b)
+      Eigen::MatrixXd slide = sides.jacobian(block.frame_a).topRows<3>();
+      if (sides.moving_b()) {
+        const Matrix6x jacobian_b = sides.jacobian(block.frame_b);
+        const Vector3d gap = sides.a().translation() - sides.b().translation();
+        slide += pinocchio::skew(gap) * jacobian_b.bottomRows<3>() - jacobian_b.topRows<3>();
+      }
+      jacobian.topRows<2>() = block.selection * (sides.b().rotation().transpose() * slide);
+      jacobian.bottomRows<3>() = weld.bottomRows<3>();
+    }
+  }
+}
+
+void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
+                 Eigen::Ref<VectorXd> drift) {
+  if (block.kind == RowKind::relation) {
+    double value, rate, curvature;
+    block.target.evaluate(t, value, rate, curvature);
+    drift(0) = -curvature;
+    return;
+  }
+  const Sides sides{model, data, block};
+  if (block.kind == RowKind::point) {
+    Vector3d linear = sides.drift(block.frame_a).linear();
+    if (sides.moving_b()) linear -= sides.drift(block.frame_b).linear();
+    drift = block.selection * linear;
+    return;
+  }
+  const Eigen::Matrix<double, 6, 1> weld = weld_drift(sides);
+  switch (block.kind) {
+    case RowKind::weld:
+      drift = weld;
+      break;
+    case RowKind::revolute:
+      drift.head<3>() = weld.head<3>();
+      drift.tail<2>() = block.selection * weld.tail<3>();
+      break;
+    default: {  // prismatic: d2/dt2 of R_b^T (p_a - p_b) at zero joint acceleration, in frame b's axes
+      const Vector3d gap = sides.a().translation() - sides.b().translation();
+      Vector3d gap_rate = sides.velocity(block.frame_a).linear();
+      Vector3d omega_b = Vector3d::Zero(), alpha_b = Vector3d::Zero();
+      if (sides.moving_b()) {
+        gap_rate -= sides.velocity(block.frame_b).linear();
+        omega_b = sides.velocity(block.frame_b).angular();
+        alpha_b = sides.drift(block.frame_b).angular();
+      }
+      Vector3d second = weld.head<3>() - alpha_b.cross(gap) - 2.0 * omega_b.cross(gap_rate);
+      second += omega_b.cross(omega_b.cross(gap));
+      drift.head<2>() = block.selection * (sides.b().rotation().transpose() * second);
+      drift.tail<3>() = weld.tail<3>();
+    }
+  }
+}
+
+}  // namespace pinstab

@@ -1,0 +1,57 @@
+// The standard constraint rows, compiled once: each block's residual phi, Jacobian G (with its explicit time term
+// g_t of g = G v + g_t) and drift gamma0 of G a + gamma0 = 0 (docs/mathematics.md section 1). pinstab's Python
+// constraint classes of these kinds (pinstab.constraints.loops, joint_closures, joint_relation) call these same
+// functions (pinstab.kernels), and the core kernel (cpp/core_kernel.hpp) evaluates its rows with them.
+#pragma once
+
+#include <vector>
+
+#include <pinocchio/spatial/se3.hpp>
+
+#include "kernels.hpp"
+#include "targets.hpp"
+
+namespace pinstab {
+
+// point: S (p_a - p_b), S the rows x 3 selection (the identity; planar-point: the plane's two axes), world axes.
+// weld: the points (3 rows, world axes), then log3(R_b^T R_a) (3 rows).
+// revolute: the points, then `across` (2 x 3) times log3(R_b^T R_a): a turn about the axis is free.
+// prismatic: across R_b^T (p_a - p_b) (2 rows), then log3(R_b^T R_a): a slide along the axis is free.
+// relation: c . q[q_indices] - c(t) on 1-DOF joints (one row).
+enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4 };
+
+struct RowBlock {
+  RowKind kind = RowKind::point;
+  int frame_a = -1, frame_b = -1;                            // frame ids; frame_b < 0: the fixed world_b
+  pinocchio::SE3 world_b = pinocchio::SE3::Identity();       // side b's world placement when it is the world
+  Eigen::MatrixXd selection;                                 // point: rows x 3; revolute, prismatic: across (2 x 3)
+  VectorXd coefficients;                                     // relation: c
+  VectorXi q_indices, v_indices;                             // relation: its joints' coordinates
+  Target target;                                             // relation: c(t)
+  int rows() const;
+};
+
+// Each function reads a Data of `model` after the pass it names; `jacobian` and `time_term` are written on the
+// block's rows only (jacobian: rows x nv, every entry written).
+// phi [m or rad]: after placements (forwardKinematics, updateFramePlacements).
+void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block,
+                    const VectorXd& q, double t, Eigen::Ref<VectorXd> phi);
+// G [m/rad or 1] and g_t [m/s or rad/s]: after joint Jacobians and placements (computeJointJacobians,
+// updateFramePlacements).
+void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
+                    Eigen::Ref<Eigen::MatrixXd> jacobian, Eigen::Ref<VectorXd> time_term);
+// gamma0 [m/s^2 or rad/s^2]: after a full pass (computeAllTerms: velocities, accelerations at zero joint acceleration,
+// Jacobians) and placements.
+void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
+                 Eigen::Ref<VectorXd> drift);
+
+// d/dt Jlog3(theta(t)) for theta' = theta_rate: Jlog3(theta) = E + [theta]/2 + c(|theta|) [theta]^2,
+// c(x) = 1/x^2 - (1 + cos x) / (2 x sin x) (a series below 1e-4 rad).
+Eigen::Matrix3d jlog_rate(const Eigen::Vector3d& theta, const Eigen::Vector3d& theta_rate);
+// gamma0 of the rows log3(R_b^T R_a) [rad/s^2]: omegas [rad/s] and alpha_a - alpha_b at zero joint acceleration
+// [rad/s^2] in world axes.
+Eigen::Vector3d rotation_drift(const Eigen::Matrix3d& rotation_a, const Eigen::Matrix3d& rotation_b,
+                               const Eigen::Vector3d& omega_a, const Eigen::Vector3d& omega_b,
+                               const Eigen::Vector3d& relative_angular_drift);
+
+}  // namespace pinstab
