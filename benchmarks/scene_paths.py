@@ -1,5 +1,5 @@
-"""Every bundled scene at its defaults (issue 35's table, "before"): the path ``pinstab.simulate()`` takes
-(``"path"`` in the JSON: native, banded, servo, grasp, or the general path in Python), its reason, and the CPU
+"""Every bundled scene at its defaults (issue 35's table): the path ``pinstab.simulate()`` takes (``"path"`` in the
+JSON: native, banded, servo, grasp, core, or the general path in Python), its reason, and the CPU
 seconds per simulated second of the whole call (set-up included) at the scene's own step and the contact treatment
 ``pinstab run`` gives it by default (``default_contacts``: event-driven for scenes of plane contacts only).
 
@@ -9,10 +9,15 @@ that stops before its duration (a lost grasp, a refusal: ``ring-on-rod``, ``pinc
 and the time it reached.
 
     python benchmarks/scene_paths.py    # prints the table, writes benchmarks/results/scene_paths.json (minutes)
+
+The table beside it is the one before the core path (``results/scene_paths_before.json``, commit d561c68: the
+general path in Python for every scene with a weld, a joint relation, a rolling or soft-finger contact or grasp
+control); the printout gives both and the ratio, after over before.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from pathlib import Path
@@ -31,6 +36,7 @@ BUDGET = 2.0  # [CPU s] aimed at per measured run
 MAX_DURATION = 1.0  # [s] simulated at most per run
 ROUNDS = 3
 OUT = Path(__file__).parent / "results" / "scene_paths.json"
+BEFORE = Path(__file__).parent / "results" / "scene_paths_before.json"
 
 
 def timed(scene: pinstab.Scene, duration: float) -> dict[str, Any]:
@@ -78,11 +84,17 @@ def main() -> None:
         reached = last["reached_s"]
         cost = float(np.median([run["cpu_s"] for run in measured])) / reached if reached > 0 else math.nan
         rows[name] = {**last, "duration_s": durations[name] or PROBE, "cpu_s_per_s": cost}
+    before = json.loads(BEFORE.read_text())["scenes"]
     width = max(map(len, rows))
-    print(f"{'scene':<{width}}  {'path':<8}  {'CPU s/s':>9}  {'over':>6}  reason or error")
+    print(f"| {'scene':<{width}} | path before | CPU s/s before | path | CPU s/s | after/before | reason or error |")
     for name, row in rows.items():
         note = row["error"] or row["path_reason"] or ""
-        print(f"{name:<{width}}  {row['path'] or '-':<8}  {row['cpu_s_per_s']:9.3g}  {row['reached_s']:6.3g}  {note}")
+        old = before.get(name, {"path": None, "cpu_s_per_s": math.nan})
+        ratio = row["cpu_s_per_s"] / old["cpu_s_per_s"]
+        print(
+            f"| {name:<{width}} | {old['path'] or '-'} | {old['cpu_s_per_s']:.3g} | {row['path'] or '-'} | "
+            f"{row['cpu_s_per_s']:.3g} | {ratio:.2g} | {note[:90]} |"
+        )
     general = sorted(name for name, row in rows.items() if row["path"] == "general")
     print(f"general path: {len(general)} of {len(rows)}: {', '.join(general)}")
     save_results(OUT, {"probe_s": PROBE, "budget_cpu_s": BUDGET, "rounds": ROUNDS, "scenes": rows})
