@@ -1,9 +1,9 @@
 """What a Pinocchio ``Data`` costs to create (pin 4.1) on the N-four-bar, N = 10, 40, 80 (21, 81, 161 velocities),
-by ``model.createData()`` (its binding returns the Data by value: a copy that writes every page) and by the
-constructor ``pin.Data(model)`` (what pinstab calls: pin 4.1's nv^3 derivative tensors stay unwritten until used):
-the smallest and largest wall milliseconds of 6 calls each, interleaved, the resident memory each adds, and the
-milliseconds of ``model.saveToString()`` (how a model crosses into pinstab's compiled kernels). A run on the
-banded path creates two, the model's (its compiled kernel computes in the model's scratch ``Data``).
+by ``model.createData()`` (its binding returns the Data by value: a copy that writes every page), by the constructor
+``pin.Data(model)`` (it allocates and zeroes pin 4.1's nv^3 second-order derivative tensors) and by pinstab's
+``new_data`` (``cpp/light_data.cpp``: the same Data without those tensors, what pinstab calls): the smallest and
+largest wall milliseconds of 6 calls each, interleaved, the resident memory each adds, and the milliseconds of
+``model.saveToString()`` (how a model crosses into pinstab's compiled kernels).
 
 python benchmarks/data_creation.py
 """
@@ -16,6 +16,7 @@ import time
 import pinocchio as pin
 
 from pinstab import load_scene
+from pinstab.memory import new_data
 
 SIZES = (10, 40, 80)
 REPEATS = 6
@@ -39,22 +40,19 @@ def _added_mib(create) -> float:
 
 
 def main() -> None:
-    print(
-        "  N  velocities  createData [ms] min-max  pin.Data [ms] min-max"
-        "  MiB each: createData  pin.Data  saveToString [ms]"
-    )
+    builders = {"createData": lambda m: m.createData(), "pin.Data": pin.Data, "new_data": new_data}
+    print("  N  velocities" + "".join(f"  {name + ' [ms]':>15s} min-max" for name in builders), end="")
+    print("  MiB each:" + "".join(f"  {name:>10s}" for name in builders) + "  saveToString [ms]")
     for n in SIZES:
         model = load_scene("nfourbar", N=n).model
-        copied, built = [], []
+        times: dict[str, list[float]] = {name: [] for name in builders}
         for _ in range(REPEATS):
-            copied.append(_milliseconds(model.createData))
-            built.append(_milliseconds(lambda m=model: pin.Data(m)))
+            for name, build in builders.items():
+                times[name].append(_milliseconds(lambda m=model, b=build: b(m)))
         text = min(_milliseconds(model.saveToString) for _ in range(REPEATS))
-        sizes = _added_mib(model.createData), _added_mib(lambda m=model: pin.Data(m))
-        print(
-            f"{n:3d}  {model.nv:10d}  {min(copied):8.2f} - {max(copied):7.2f}  {min(built):8.2f} - {max(built):7.2f}"
-            f"  {sizes[0]:20.1f}  {sizes[1]:8.1f}  {text:17.2f}"
-        )
+        sizes = [_added_mib(lambda m=model, b=build: b(m)) for build in builders.values()]
+        print(f"{n:3d}  {model.nv:10d}" + "".join(f"  {min(t):10.2f} - {max(t):7.2f}" for t in times.values()), end="")
+        print("          " + "".join(f"  {size:10.1f}" for size in sizes) + f"  {text:17.2f}")
 
 
 if __name__ == "__main__":

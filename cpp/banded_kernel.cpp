@@ -30,7 +30,7 @@ void multiply_add(const Csr& matrix, const double* x, double* y) {
 BandedKernel::BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram,
                            double kp, double kd, double pivot_tolerance, pinocchio::Data* data)
     : model_(model),
-      own_data_(data == nullptr ? std::make_unique<pinocchio::Data>(model_) : nullptr),
+      own_data_(data == nullptr ? std::make_unique<pinocchio::Data>(light_data(model_)) : nullptr),
       data_(data == nullptr ? *own_data_ : *data),
       world_bias_(model_), world_(WorldBias::applies(model_)),
       pattern_(std::move(pattern)), spectrum_(std::move(gram)), kp_(kp), kd_(kd), pivot_tolerance_(pivot_tolerance) {

@@ -17,7 +17,7 @@ GraspKernel::GraspKernel(const pinocchio::Model& model, std::vector<FingertipSpe
                          std::vector<HoldSpec> holds, std::vector<WrenchSpec> wrenches, double kp, double kd,
                          double direct_pivot, double margin_slack)
     : model_(model),
-      data_(model_),
+      data_(light_data(model_)),
       contacts_(std::move(contacts)),
       holds_(std::move(holds)),
       wrenches_(std::move(wrenches)),

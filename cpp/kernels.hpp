@@ -21,6 +21,11 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model);
 // The pinocchio::Model wrapped by a Python pin.Model (throws std::invalid_argument for another object).
 const pinocchio::Model& python_model(PyObject* object);
+// A Data of the model with every member Pinocchio's constructor sets except the second-order derivative tensors, which
+// stay empty (cpp/light_data.cpp): what every pass pinstab runs reads, at O(nv^2) memory instead of O(nv^3).
+pinocchio::Data light_data(const pinocchio::Model& model);
+// The same as a new Python pin.Data of a Python pin.Model (a new reference).
+PyObject* new_python_data(PyObject* model);
 
 // One evaluation a(t, q, v) under applied forces tau (t [s]: prescribed targets read it); false when its result is
 // not to be used (a small pivot, a servo that loses rank or its bounds).

@@ -142,6 +142,9 @@ NB_MODULE(_compiled, m) {
           "qs"_a, "vs"_a, "tau"_a, "rows"_a,
           "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples (rows "
           "of qs, vs) under tau; NaN where not finite.");
+  m.def(
+      "light_data", [](nb::handle model) { return nb::steal(new_python_data(model.ptr())); }, "model"_a,
+      "A pin.Data of the model without Pinocchio's second-order derivative tensors (cpp/light_data.cpp).");
   m.def("contact_point_residual", on_python_data(contact_point_residual), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "R_o^T (p_o - p_f) (3,) from a pin.Data after a placements pass.");
   m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,

@@ -51,7 +51,7 @@ ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Ei
                          Eigen::MatrixXd actuation, VectorXd lower, VectorXd upper, std::vector<Target> targets, double kp, double kd,
                          double rank_tolerance)
     : model_(model),
-      data_(model_),
+      data_(light_data(model_)),
       rows_(std::move(rows)),
       position_rows_(std::move(position_rows)),
       actuation_(std::move(actuation)),

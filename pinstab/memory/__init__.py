@@ -3,11 +3,12 @@ estimate exceeds the limit.
 
 The limit is :data:`DEFAULT_FRACTION` of the memory the tightest of the process's limits leaves at each
 check (:mod:`pinstab.memory.limits`: ``MemAvailable``, the memory cgroup v1/v2, ``RLIMIT_AS``), or the one
-set with :func:`memory_limit` (the command line's ``--memory-limit``). The big items are Pinocchio's
-``Data`` (its derivative tensors grow with nv^3: about 52 nv^3 bytes, 1.4 GB for nv = 301) and the samples a
-run keeps. A ``MemoryError`` that happens anyway (an estimate exceeded, another process taking the memory)
-becomes a :class:`~pinstab.errors.MemoryBudgetError` naming what needed the memory and the tightest limit
-(:func:`named_when_exhausted`).
+set with :func:`memory_limit` (the command line's ``--memory-limit``). The big items are the samples a run keeps
+and Pinocchio's ``Data``: pinstab builds its own without the second-order derivative tensors (:func:`new_data`, about
+300 nv^2 bytes, 7 MB for nv = 161), but Pinocchio's constructor, which its parsers call, allocates them (about
+52 nv^3 bytes, 1.4 GB for nv = 301). A ``MemoryError`` that happens anyway (an estimate exceeded, another process
+taking the memory) becomes a :class:`~pinstab.errors.MemoryBudgetError` naming what needed the memory and the
+tightest limit (:func:`named_when_exhausted`).
 """
 
 from __future__ import annotations
@@ -19,13 +20,16 @@ from contextvars import ContextVar
 
 import pinocchio as pin
 
+from .._compiled import light_data
 from ..errors import MemoryBudgetError, PinstabError
 from .limits import MemorySource, format_size, tightest
 
 DEFAULT_FRACTION = 0.8  # of the memory available when checked (before the allocations, at the start)
-DATA_CUBIC, DATA_SQUARE, DATA_FIXED = 6.5, 100, 3000  # doubles per nv^3, nv^2 and joint of a Pinocchio Data
-# Pinocchio Data a run holds at most: the model's scratch, its kinematics' (built at first use: never on the banded
-# path, whose kernel computes in the scratch) and a compiled kernel's own (the native, servo or grasp kernel's)
+# doubles per nv^2 and per joint of a Data without the derivative tensors (new_data, the compiled kernels' own)
+DATA_SQUARE, DATA_FIXED = 40, 1500
+DATA_CUBIC = 6.5  # doubles per nv^3 more in a Data of Pinocchio's constructor (its four nv^3 derivative tensors)
+# Data a run holds at most: the model's scratch, its kinematics' (built at first use: never on the banded path, whose
+# kernel computes in the scratch) and a compiled kernel's own (the native, servo or grasp kernel's)
 RUN_DATA_COPIES = 3
 SAMPLE_SERIES = 16  # doubles a kept sample adds besides q, v, multipliers: time, drifts, energy, copies written
 UNITS = {"": 1, "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}
@@ -85,11 +89,13 @@ def _positive(value: float, text: str) -> int:
     return int(value)
 
 
-def data_bytes(nv: int, njoints: int) -> int:
+def data_bytes(nv: int, njoints: int, tensors: bool = False) -> int:
     """An upper estimate of one Pinocchio ``Data`` [bytes] for a model of ``nv`` velocities and ``njoints``
-    joints (calibrated on Pinocchio 4.1: within a factor 2 above the measured resident size from nv = 10 to
-    300)."""
-    return 8 * (round(DATA_CUBIC * nv**3) + DATA_SQUARE * nv**2 + DATA_FIXED * njoints)
+    joints: one of :func:`new_data` (calibrated on Pinocchio 4.1: within a factor 2.5 above the measured resident
+    size from nv = 41 to 301), or with ``tensors`` one of Pinocchio's constructor, which adds its four nv^3
+    derivative tensors (``pin.Data(model)``, the one its parsers build)."""
+    cubic = round(DATA_CUBIC * nv**3) if tensors else 0
+    return 8 * (cubic + DATA_SQUARE * nv**2 + DATA_FIXED * njoints)
 
 
 def samples_bytes(samples: int, nq: int, nv: int, rows: int) -> int:
@@ -148,11 +154,13 @@ def named_when_exhausted(what: str) -> Iterator[None]:
 
 
 def new_data(model: pin.Model) -> pin.Data:
-    """``pin.Data(model)`` after checking that one ``Data`` of this model fits the budget.
+    """A ``pin.Data`` of ``model`` without Pinocchio's second-order derivative tensors, after checking that it fits
+    the budget.
 
-    Not ``model.createData()``: its binding returns the ``Data`` by value and copies it, writing every page of
-    pin 4.1's nv^3 derivative tensors (23 against 1 ms at N-four-bar N = 40, 140 against 8 ms at N = 80:
-    ``python benchmarks/data_creation.py``); the constructor leaves them untouched until used.
+    Built by ``cpp/light_data.cpp``: every member Pinocchio 4.1's constructor sets, but the kinematic Hessians and
+    the four nv^3 second-order RNEA derivatives (``pin.Data(model)`` allocates and zeroes them: 135 MiB and ~50 ms at
+    the N-four-bar N = 80, ``python benchmarks/data_creation.py``), which no pass pinstab runs reads (do not hand it
+    to ``computeJointKinematicHessians`` or ``computeRNEASecondOrderDerivatives``).
 
     Raises:
         MemoryBudgetError: naming the model's size, the estimate and the limit.
@@ -160,7 +168,7 @@ def new_data(model: pin.Model) -> pin.Data:
     what = model_size(model)
     require({"one Pinocchio Data": data_bytes(model.nv, model.njoints)}, what)
     with named_when_exhausted(f"the Pinocchio Data of {what}"):
-        return pin.Data(model)
+        return light_data(model)
 
 
 def model_size(model: pin.Model) -> str:

@@ -74,7 +74,7 @@ def check_before_parser(document: MjcfDocument, free_flyer: bool) -> None:
     check_count(len(joints), "joints", where)
     nv = 6 * free_flyer + sum(JOINT_DOFS[joint_kind(document, j, _name(document, j))] for j in joints)
     require(
-        {"the Pinocchio Data its MJCF parser builds": data_bytes(nv, len(joints) + 1)},
+        {"the Pinocchio Data its MJCF parser builds": data_bytes(nv, len(joints) + 1, tensors=True)},
         f"Pinocchio's MJCF parser on {document.path} ({nv} velocities)",
         remedy="give a model of fewer joints",
     )
