@@ -21,12 +21,17 @@ void add_joint_springs(const std::vector<JointSpringSpec>& springs, const Vector
   }
 }
 
-CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks,
-                       std::vector<JointSpringSpec> springs, double kp, double kd, CoreSolve solve)
+Eigen::Vector3d GravityTilt::gravity(double t) const {
+  return Eigen::AngleAxisd(-start - rate * t, axis).toRotationMatrix() * gravity0;
+}
+
+CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp,
+                       double kd, CoreSolve solve, std::optional<GravityTilt> tilt)
     : model_(model),
-      data_(model_),
+      data_(light_data(model_)),
       blocks_(std::move(blocks)),
-      springs_(std::move(springs)),
+      forces_(std::move(forces)),
+      tilt_(std::move(tilt)),
       kp_(kp),
       kd_(kd),
       settings_(solve),
@@ -37,6 +42,10 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
     offsets_.push_back(rows_);
     rows_ += block.rows();
   }
+  velocity_gain_.resize(rows_);
+  for (size_t k = 0; k < blocks_.size(); ++k) {  // Baumgarte's Kd on holonomic rows, Kd / 2 on nonholonomic ones
+    velocity_gain_.segment(offsets_[k], blocks_[k].rows()).setConstant(blocks_[k].holonomic ? kd_ : 0.5 * kd_);
+  }
   jacobian_.setZero(rows_, model_.nv);
   phi_.setZero(rows_);
   time_term_.setZero(rows_);
@@ -45,6 +54,7 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
 }
 
 bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+  if (tilt_) model_.gravity.linear() = tilt_->gravity(t);
   // one pass: placements, Jacobians, velocities and accelerations at zero joint acceleration, M, h
   pinocchio::computeAllTerms(model_, data_, q, v);
   pinocchio::updateFramePlacements(model_, data_);
@@ -57,11 +67,34 @@ bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, co
     block_drift(model_, data_, block, t, drift_.segment(offset, rows));
   }
   force_ = tau;
-  add_joint_springs(springs_, q, v, force_);
+  add_joint_springs(forces_.springs, q, v, force_);
+  for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
+  for (const HoldSpec& hold : forces_.holds) {
+    if (!add_hold_torques(model_, data_, hold, jacobian_, q, v, force_)) {
+      ++status_counts_["hold outside its cones"];
+      return false;
+    }
+  }
   force_ -= data_.nle;
-  const VectorXd rhs = -drift_ - kd_ * (jacobian_ * v + time_term_) - kp_ * phi_;
+  const VectorXd rhs = -drift_ - (velocity_gain_.array() * (jacobian_ * v + time_term_).array()).matrix() - kp_ * phi_;
   if (!solve(rhs)) return false;
+  if (!inside_limits()) {
+    ++status_counts_["outside a contact's limits"];
+    return false;
+  }
   a = acceleration_;
+  return true;
+}
+
+// pinstab.contact.models.ContactLimits.check on every fingertip block's multipliers (components of the wrench in C)
+bool CoreKernel::inside_limits() const {
+  for (size_t k = 0; k < blocks_.size(); ++k) {
+    const RowBlock& block = blocks_[k];
+    if (block.kind != RowKind::fingertip) continue;
+    Eigen::Matrix<double, 6, 1> wrench = Eigen::Matrix<double, 6, 1>::Zero();
+    for (int c = 0; c < block.components.size(); ++c) wrench(block.components(c)) = multipliers_(offsets_[k] + c);
+    if (!contact_holds(block.contact_model, block.mu, block.torsion, wrench, settings_.margin_slack)) return false;
+  }
   return true;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core_rows.hpp"
+#include "grasp_forces.hpp"
 #include "kernels.hpp"
 
 namespace pinstab {
@@ -27,20 +29,37 @@ struct JointSpringSpec {
 void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
                        Eigen::Ref<VectorXd> force);
 
+// The force elements the core computes: joint springs, grasp holds, constant wrenches.
+struct CoreForces {
+  std::vector<JointSpringSpec> springs;
+  std::vector<HoldSpec> holds;
+  std::vector<WrenchSpec> wrenches;
+};
+
+// pinstab.scene.GravityTilt: gravity g(t) = R(axis, -(start + rate t)) g0 [m/s^2] (rate [rad/s], start [rad]).
+struct GravityTilt {
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ(), gravity0 = Eigen::Vector3d::Zero();
+  double rate = 0.0, start = 0.0;
+  Eigen::Vector3d gravity(double t) const;
+};
+
 // The solve's settings: Cholesky of the Delassus matrix D = G M^-1 G^T where its smallest pivot^2 is at least
 // direct_pivot times its largest diagonal entry (pinstab.solvers.proxsuite_.DIRECT_PIVOT); else (redundant or nearly
 // dependent rows) its pseudo-inverse, eigenvalues at most cutoff times the largest left out: the least-norm
 // multipliers and the least-squares accelerations of rows the mechanism can hardly tell apart. An evaluation whose
 // relative primal residual (pinstab.solvers.base.primal_residual) is above accepted is not to be used.
+// margin_slack: the fingertip contacts' limits hold above -margin_slack (1 + the largest |component|)
+// (pinstab.contact.models.MARGIN_SLACK); an evaluation whose multipliers leave them is not to be used.
 struct CoreSolve {
-  double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8;
+  double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8, margin_slack = 1e-9;
 };
 
-// M a + h = tau + springs + G^T lambda, G a = -gamma0 - Kd (G v + g_t) - Kp phi.
+// M a + h = tau + forces + G^T lambda, G a = -gamma0 - Kd (G v + g_t) - Kp phi (Kd / 2 on nonholonomic rows), under
+// gravity that tilts in time when `tilt` is given.
 class CoreKernel : public Kernel {
  public:
-  CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, std::vector<JointSpringSpec> springs,
-             double kp, double kd, CoreSolve solve);
+  CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp, double kd,
+             CoreSolve solve, std::optional<GravityTilt> tilt);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   const pinocchio::Model* group() const override { return euclidean_ ? nullptr : &model_; }
@@ -48,17 +67,20 @@ class CoreKernel : public Kernel {
   const VectorXd& multipliers() const { return multipliers_; }
   // the largest relative primal residual of the evaluations used
   double worst_residual() const { return worst_residual_; }
-  // evaluations by how they were solved: "cholesky", "pseudo-inverse", "pseudo-inverse, not accepted" (not used)
+  // evaluations by how they were solved: "cholesky", "pseudo-inverse"; not used: "... not accepted", "... outside
+  // a contact's limits", "hold outside its cones"
   const std::map<std::string, long>& status_counts() const { return status_counts_; }
 
  private:
   bool solve(const VectorXd& rhs);
+  bool inside_limits() const;
 
   pinocchio::Model model_;
   pinocchio::Data data_;
   std::vector<RowBlock> blocks_;
   std::vector<int> offsets_;
-  std::vector<JointSpringSpec> springs_;
+  CoreForces forces_;
+  std::optional<GravityTilt> tilt_;
   double kp_, kd_;
   CoreSolve settings_;
   bool euclidean_;
@@ -66,7 +88,7 @@ class CoreKernel : public Kernel {
   double worst_residual_ = 0.0;
   std::map<std::string, long> status_counts_;
   Eigen::MatrixXd jacobian_, spread_, delassus_;
-  VectorXd phi_, time_term_, drift_, force_, free_, multipliers_, acceleration_;
+  VectorXd phi_, time_term_, drift_, force_, free_, multipliers_, acceleration_, velocity_gain_;
   Eigen::LLT<Eigen::MatrixXd> mass_, inner_;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
 };

@@ -1,5 +1,7 @@
 #include "core_rows.hpp"
 
+#include "contact_terms.hpp"
+
 #include <cmath>
 
 #include <pinocchio/algorithm/frames.hpp>
@@ -76,6 +78,11 @@ Eigen::Matrix<double, 6, 1> weld_drift(const Sides& sides) {
   return weld;
 }
 
+// A fingertip block with rotation rows (soft-finger, rigid): the last component is a moment's.
+bool rotates(const RowBlock& block) {
+  return block.components.size() > 0 && block.components(block.components.size() - 1) >= 3;
+}
+
 }  // namespace
 
 int RowBlock::rows() const {
@@ -89,6 +96,8 @@ int RowBlock::rows() const {
       return 5;
     case RowKind::relation:
       return 1;
+    case RowKind::fingertip:
+      return static_cast<int>(components.size());
   }
   return 0;
 }
@@ -139,6 +148,13 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
     phi = block.selection * (sides.a().translation() - sides.b().translation());
     return;
   }
+  if (block.kind == RowKind::fingertip) {
+    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
+    full.head<3>() = contact_point_residual(model, data, block.frame_a, block.frame_b);
+    if (rotates(block)) full.tail<3>() = weld_residual(sides).tail<3>();
+    for (int k = 0; k < block.components.size(); ++k) phi(k) = full(block.components(k));
+    return;
+  }
   const Eigen::Matrix<double, 6, 1> weld = weld_residual(sides);
   switch (block.kind) {
     case RowKind::weld:
@@ -170,6 +186,13 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
     Matrix6x relative = sides.jacobian(block.frame_a);
     if (sides.moving_b()) relative -= sides.jacobian(block.frame_b);
     jacobian = block.selection * relative.topRows<3>();
+    return;
+  }
+  if (block.kind == RowKind::fingertip) {
+    Matrix6x full = Matrix6x::Zero(6, model.nv);
+    full.topRows<3>() = contact_point_jacobian(model, data, block.frame_a, block.frame_b);
+    if (rotates(block)) full.bottomRows<3>() = weld_jacobian(sides).bottomRows<3>();
+    for (int k = 0; k < block.components.size(); ++k) jacobian.row(k) = full.row(block.components(k));
     return;
   }
   const Matrix6x weld = weld_jacobian(sides);
@@ -207,6 +230,13 @@ void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const Row
     Vector3d linear = sides.drift(block.frame_a).linear();
     if (sides.moving_b()) linear -= sides.drift(block.frame_b).linear();
     drift = block.selection * linear;
+    return;
+  }
+  if (block.kind == RowKind::fingertip) {
+    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
+    full.head<3>() = contact_point_drift(model, data, block.frame_a, block.frame_b);
+    if (rotates(block)) full.tail<3>() = weld_drift(sides).tail<3>();
+    for (int k = 0; k < block.components.size(); ++k) drift(k) = full(block.components(k));
     return;
   }
   const Eigen::Matrix<double, 6, 1> weld = weld_drift(sides);

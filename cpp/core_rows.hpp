@@ -8,6 +8,7 @@
 
 #include <pinocchio/spatial/se3.hpp>
 
+#include "grasp_forces.hpp"
 #include "kernels.hpp"
 #include "targets.hpp"
 
@@ -18,7 +19,9 @@ namespace pinstab {
 // revolute: the points, then `across` (2 x 3) times log3(R_b^T R_a): a turn about the axis is free.
 // prismatic: across R_b^T (p_a - p_b) (2 rows), then log3(R_b^T R_a): a slide along the axis is free.
 // relation: c . q[q_indices] - c(t) on 1-DOF joints (one row).
-enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4 };
+// fingertip: the contact frame C on the object (frame_a) and its copy on the fingertip (frame_b): the components of
+// (R_C^T (p_a - p_b), log3(R_b^T R_a)) its contact model transmits (pinstab.constraints.grasp_contacts).
+enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4, fingertip = 5 };
 
 struct RowBlock {
   RowKind kind = RowKind::point;
@@ -28,6 +31,10 @@ struct RowBlock {
   VectorXd coefficients;                                     // relation: c
   VectorXi q_indices, v_indices;                             // relation: its joints' coordinates
   Target target;                                             // relation: c(t)
+  VectorXi components;                                       // fingertip: of (fx, fy, fz, mx, my, mz) in C
+  ContactModel contact_model = ContactModel::rigid;          // fingertip: what it carries (limits)
+  double mu = 0.0, torsion = 0.0;                            // fingertip: friction [-], torsion [m]
+  bool holonomic = true;                                     // false: velocity-level rows (Baumgarte's Kd / 2)
   int rows() const;
 };
 

@@ -11,7 +11,7 @@
 #include "banded_kernel.hpp"
 #include "contact_terms.hpp"
 #include "core_kernel.hpp"
-#include "grasp_kernel.hpp"
+#include "grasp_forces.hpp"
 #include "native_kernel.hpp"
 #include "series.hpp"
 #include "servo_kernel.hpp"
@@ -61,6 +61,13 @@ Target target(nb::dict spec) {
   return target;
 }
 
+// Cones from their columns (rows: normal, tangent, tangent; -1: none) and friction coefficients.
+std::vector<ConeSpec> cones(const Eigen::MatrixXi& columns, const VectorXd& mu) {
+  std::vector<ConeSpec> cones;
+  for (int k = 0; k < columns.rows(); ++k) cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), mu(k)});
+  return cones;
+}
+
 // pinstab.grasp.hold.GraspHold.compiled_form: arrays by name, the cones as rows (normal, tangent1, tangent2; -1: none).
 HoldSpec hold(nb::dict form) {
   HoldSpec hold;
@@ -68,9 +75,7 @@ HoldSpec hold(nb::dict form) {
   hold.object_columns = nb::cast<VectorXi>(form["object_columns"]);
   hold.hand_columns = nb::cast<VectorXi>(form["hand_columns"]);
   hold.pressing = nb::cast<VectorXd>(form["pressing"]);
-  const Eigen::MatrixXi columns = nb::cast<Eigen::MatrixXi>(form["cone_columns"]);
-  const VectorXd mu = nb::cast<VectorXd>(form["cone_mu"]);
-  for (int k = 0; k < columns.rows(); ++k) hold.cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), mu(k)});
+  hold.cones = cones(nb::cast<Eigen::MatrixXi>(form["cone_columns"]), nb::cast<VectorXd>(form["cone_mu"]));
   hold.q_start = nb::cast<VectorXd>(form["q_start"]);
   hold.stiffness = nb::cast<double>(form["stiffness"]);
   hold.damping = nb::cast<double>(form["damping"]);
@@ -90,7 +95,7 @@ std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb
 RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b, const Eigen::MatrixXd& selection,
                    const VectorXd& coefficients, const VectorXi& q_indices, const VectorXi& v_indices,
                    std::optional<nb::dict> relation_target) {
-  if (kind < 0 || kind > static_cast<int>(RowKind::relation)) throw std::invalid_argument("RowBlock: unknown kind");
+  if (kind < 0 || kind > static_cast<int>(RowKind::fingertip)) throw std::invalid_argument("RowBlock: unknown kind");
   RowBlock block;
   block.kind = static_cast<RowKind>(kind);
   block.frame_a = frame_a, block.frame_b = frame_b;
@@ -194,38 +199,6 @@ NB_MODULE(_compiled, m) {
           "model"_a, "rows"_a, "position_rows"_a, "actuation"_a, "lower"_a, "upper"_a, "targets"_a, "kp"_a, "kd"_a, "rank_tolerance"_a,
           "The servo path's evaluation: prescribed rows S (p x nv; position_rows p x nq), actuation B (nv x k) and bounds, targets (dicts).")
       .def_prop_ro("last_sign", &ServoKernel::last_sign);
-  nb::class_<GraspKernel, Kernel>(m, "GraspKernel")
-      .def(
-          "__init__",
-          [](GraspKernel* self, nb::handle model, const std::vector<nb::dict>& contacts,
-             const std::vector<nb::dict>& forces, double kp, double kd, double direct_pivot, double margin_slack) {
-            std::vector<FingertipSpec> fingertips;
-            for (const nb::dict& form : contacts) {
-              fingertips.push_back({nb::cast<int>(form["object_frame"]), nb::cast<int>(form["finger_frame"]),
-                                    nb::cast<std::vector<int>>(form["components"]), nb::cast<double>(form["mu"])});
-            }
-            std::vector<HoldSpec> holds;
-            std::vector<WrenchSpec> wrenches;
-            for (const nb::dict& form : forces) {
-              const std::string kind = nb::cast<std::string>(form["kind"]);
-              if (kind == "hold") {
-                holds.push_back(hold(form));
-              } else if (kind == "wrench") {
-                wrenches.push_back({nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
-              } else {
-                throw std::invalid_argument("GraspKernel: no compiled force of kind " + kind);
-              }
-            }
-            new (self) GraspKernel(python_model(model.ptr()), std::move(fingertips), std::move(holds),
-                                   std::move(wrenches), kp, kd, direct_pivot, margin_slack);
-          },
-          "model"_a, "contacts"_a, "forces"_a, "kp"_a, "kd"_a, "direct_pivot"_a, "margin_slack"_a,
-          "The grasp path's evaluation: fingertip contacts (dicts: object_frame, finger_frame, components, mu), the "
-          "force elements' compiled forms (ForceElement.compiled_form), Baumgarte gains, the direct solve's pivot "
-          "tolerance and the contact check's slack.")
-      .def("multipliers", &GraspKernel::multipliers, "The last evaluation's contact forces [N] (rows of G).")
-      .def_prop_ro("worst_residual", &GraspKernel::worst_residual,
-                   "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).");
   nb::class_<RowBlock>(m, "RowBlock")
       .def(
           "__init__",
@@ -237,10 +210,62 @@ NB_MODULE(_compiled, m) {
           },
           "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a, "q_indices"_a,
           "v_indices"_a, "target"_a = nb::none(),
-          "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation; "
-          "frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, prismatic: the "
-          "2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled target dict).")
+          "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation, "
+          "5 fingertip; frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
+          "prismatic: the 2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled "
+          "target dict). A fingertip's components and limits: set_contact.")
+      .def(
+          "set_contact",
+          [](RowBlock& self, const VectorXi& components, int model, double mu, double torsion) {
+            if (model < 0 || model > static_cast<int>(ContactModel::rigid)) {
+              throw std::invalid_argument("RowBlock.set_contact: unknown contact model");
+            }
+            self.components = components;
+            self.contact_model = static_cast<ContactModel>(model);
+            self.mu = mu, self.torsion = torsion;
+          },
+          "components"_a, "model"_a, "mu"_a, "torsion"_a,
+          "A fingertip block's components of (fx, fy, fz, mx, my, mz) in C and its contact model (0 frictionless, "
+          "1 point-friction, 2 soft-finger, 3 rigid), mu [-] and torsion [m].")
+      .def_rw("holonomic", &RowBlock::holonomic, "False: velocity-level rows (Baumgarte's Kd / 2).")
       .def_prop_ro("rows", &RowBlock::rows);
+  m.def(
+      "contact_margins",
+      [](int model, double mu, double torsion, const Eigen::Matrix<double, 6, 1>& wrench) {
+        return contact_margins(static_cast<ContactModel>(model), mu, torsion, wrench);
+      },
+      "model"_a, "mu"_a, "torsion"_a, "wrench"_a,
+      "(normal, friction, torsion) margins [N, N, N m] of a wrench in C (inf: no such limit).");
+  m.def(
+      "contact_holds",
+      [](int model, double mu, double torsion, const Eigen::Matrix<double, 6, 1>& wrench, double slack) {
+        return contact_holds(static_cast<ContactModel>(model), mu, torsion, wrench, slack);
+      },
+      "model"_a, "mu"_a, "torsion"_a, "wrench"_a, "slack"_a,
+      "Whether every margin is above -slack (1 + the largest |component|).");
+  m.def(
+      "closest_solution",
+      [](const Eigen::MatrixXd& matrix, const VectorXd& rhs, const VectorXd& target, double rank, double condition) {
+        VectorXd x;
+        const bool finite = closest_solution(matrix, rhs, target, rank, condition, x);
+        return std::make_pair(x, finite);
+      },
+      "matrix"_a, "rhs"_a, "target"_a, "rank"_a, "condition"_a,
+      "(target + A^+ (rhs - A target), finite): Cholesky of A A^T where its condition allows, else the SVD.");
+  m.def(
+      "cones_hold",
+      [](const Eigen::MatrixXi& columns, const VectorXd& mu, double cap, double feasibility, const VectorXd& forces) {
+        return cones_hold(cones(columns, mu), cap, feasibility, forces);
+      },
+      "columns"_a, "mu"_a, "cap"_a, "feasibility"_a, "forces"_a,
+      "Every contact (rows of columns: normal, tangent, tangent; -1: none) inside its cone and its normal within "
+      "the cap, beyond a slack of feasibility (1 + the largest |force|).");
+  m.def(
+      "tilted_gravity",
+      [](const Eigen::Vector3d& axis, double rate, double start, const Eigen::Vector3d& gravity0, double t) {
+        return GravityTilt{axis, gravity0, rate, start}.gravity(t);
+      },
+      "axis"_a, "rate"_a, "start"_a, "gravity0"_a, "t"_a, "R(axis, -(start + rate t)) g0 [m/s^2].");
   m.def(
       "block_residual",
       [](nb::handle model, nb::handle data, const RowBlock& block, const VectorXd& q, double t) {
@@ -277,23 +302,42 @@ NB_MODULE(_compiled, m) {
   nb::class_<CoreKernel, Kernel>(m, "CoreKernel")
       .def(
           "__init__",
-          [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& springs,
-             double kp, double kd, nb::dict settings) {
-            std::vector<JointSpringSpec> compiled;
-            for (const nb::dict& form : springs) {
-              compiled.push_back({nb::cast<VectorXi>(form["dofs"]), nb::cast<int>(form["q_index"]),
-                                  nb::cast<double>(form["stiffness"]), nb::cast<double>(form["reference"]),
-                                  nb::cast<double>(form["damping"])});
+          [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
+             double kp, double kd, nb::dict settings, std::optional<nb::dict> tilt) {
+            CoreForces forces;
+            for (const nb::dict& form : forms) {
+              const std::string kind = nb::cast<std::string>(form["kind"]);
+              if (kind == "joint-spring") {
+                forces.springs.push_back({nb::cast<VectorXi>(form["dofs"]), nb::cast<int>(form["q_index"]),
+                                          nb::cast<double>(form["stiffness"]), nb::cast<double>(form["reference"]),
+                                          nb::cast<double>(form["damping"])});
+              } else if (kind == "hold") {
+                forces.holds.push_back(hold(form));
+              } else if (kind == "wrench") {
+                forces.wrenches.push_back(
+                    {nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
+              } else {
+                throw std::invalid_argument("CoreKernel: no compiled force of kind " + kind);
+              }
             }
             CoreSolve solve;
             solve.direct_pivot = nb::cast<double>(settings["direct_pivot"]);
             solve.cutoff = nb::cast<double>(settings["cutoff"]);
             solve.accepted = nb::cast<double>(settings["accepted"]);
-            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(compiled), kp, kd, solve);
+            solve.margin_slack = nb::cast<double>(settings["margin_slack"]);
+            std::optional<GravityTilt> turning;
+            if (tilt) {
+              turning = GravityTilt{nb::cast<Eigen::Vector3d>((*tilt)["axis"]),
+                                    nb::cast<Eigen::Vector3d>((*tilt)["gravity0"]), nb::cast<double>((*tilt)["rate"]),
+                                    nb::cast<double>((*tilt)["start"])};
+            }
+            new (self)
+                CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), kp, kd, solve, turning);
           },
-          "model"_a, "blocks"_a, "springs"_a, "kp"_a, "kd"_a, "settings"_a,
-          "The core evaluation: row blocks, joint springs (dicts: dofs, q_index (-1: damping only), stiffness, "
-          "reference, damping), Baumgarte gains and the solve's settings (dict: direct_pivot, cutoff, accepted).")
+          "model"_a, "blocks"_a, "forces"_a, "kp"_a, "kd"_a, "settings"_a, "tilt"_a = nb::none(),
+          "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
+          "wrench), Baumgarte gains, the solve's settings (dict: direct_pivot, cutoff, accepted, margin_slack) and "
+          "a gravity tilt (dict: axis, gravity0, rate, start) or None.")
       .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
       .def_prop_ro("worst_residual", &CoreKernel::worst_residual,
                    "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).")

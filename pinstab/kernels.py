@@ -16,7 +16,6 @@ try:
     from ._compiled import (
         BandedKernel,
         CoreKernel,
-        GraspKernel,
         Kernel,
         NativeKernel,
         RowBlock,
@@ -24,13 +23,18 @@ try:
         block_drift,
         block_jacobian,
         block_residual,
+        closest_solution,
         closure_series,
+        cones_hold,
+        contact_holds,
+        contact_margins,
         contact_point_drift,
         contact_point_jacobian,
         contact_point_residual,
         least_norm,
         rotation_drift,
         servo_realizability,
+        tilted_gravity,
     )
 except ImportError as error:  # pragma: no cover - a broken install
     try:
@@ -46,7 +50,6 @@ except ImportError as error:  # pragma: no cover - a broken install
 __all__ = [
     "BandedKernel",
     "CoreKernel",
-    "GraspKernel",
     "Kernel",
     "NativeKernel",
     "RowBlock",
@@ -54,11 +57,16 @@ __all__ = [
     "block_drift",
     "block_jacobian",
     "block_residual",
+    "closest_solution",
     "closure_series",
+    "cones_hold",
+    "contact_holds",
+    "contact_margins",
     "contact_point_drift",
     "contact_point_jacobian",
     "contact_point_residual",
     "least_norm",
     "rotation_drift",
     "servo_realizability",
+    "tilted_gravity",
 ]

@@ -110,17 +110,25 @@ class ConstrainedModel:
     def dynamics_terms(self, q: np.ndarray, v: np.ndarray, t: float) -> DynamicsTerms:
         """One full kinematics pass at (q, v): M, h, applied forces and constraint values with drift (under the
         scene's gravity at t when it tilts)."""
+        tau = self.forces_at(q, v, t)
+        values = self.constraints.values(self.kin, q, v, t, with_drift=True)
+        return DynamicsTerms(self.kin.mass_matrix, self.kin.bias, tau, values)
+
+    def forces_at(self, q: np.ndarray, v: np.ndarray, t: float, elements: list | None = None) -> np.ndarray:
+        """The force elements' sum [N, N m] (``elements``, default all) after one full kinematics pass at (q, v) in
+        :attr:`kin` (M, h, placements, Jacobians, drifts: what an element may read), under the scene's gravity at t
+        when it tilts."""
         tilt = self.scene.tilt
         if tilt is not None:
             self.model.gravity = pin.Motion(tilt.gravity(t), np.zeros(3))
         try:
             self.kin.update(q, v)
-            tau = self.applied_force(v, t)
+            if elements is None:
+                return self.applied_force(v, t)
+            return sum((element.generalized_force(self.kin, v, t) for element in elements), np.zeros(len(v)))
         finally:
             if tilt is not None:
                 self.model.gravity = pin.Motion(tilt.gravity0, np.zeros(3))
-        values = self.constraints.values(self.kin, q, v, t, with_drift=True)
-        return DynamicsTerms(self.kin.mass_matrix, self.kin.bias, tau, values)
 
     def constraint_values(
         self, q: np.ndarray, v: np.ndarray, t: float, kin: Kinematics | None = None

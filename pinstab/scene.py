@@ -25,6 +25,7 @@ from .contact.objects import SceneObject, add_objects, place_objects
 from .errors import PinstabWarning, SceneError, choices, repeated
 from .forces import FORCE_KINDS, ForceElement
 from .generators import generate
+from .kernels import tilted_gravity
 from .memory import named_when_exhausted
 from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
 from .readers.base import robot_geometry
@@ -306,7 +307,11 @@ class GravityTilt:
 
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time t [s], in world axes [m/s^2]."""
-        return pin.AngleAxis(-self.start - self.rate * t, self.axis).matrix() @ self.gravity0
+        return tilted_gravity(self.axis, self.rate, self.start, self.gravity0, t)
+
+    def compiled_form(self) -> dict[str, Any]:
+        """The tilt as the core kernel takes it (``cpp/core_kernel.hpp`` GravityTilt)."""
+        return {"axis": self.axis, "gravity0": self.gravity0, "rate": float(self.rate), "start": float(self.start)}
 
 
 def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:

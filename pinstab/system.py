@@ -12,13 +12,11 @@ from typing import Any
 import numpy as np
 
 from .constraints import ConstraintSet, ConstraintValues, FrameClosure, Violation
-from .constraints.grasp_contacts import FingertipContact
 from .errors import ContactInfeasibleError, DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
 from .paths.core import CoreDynamics, core_obstacle
-from .paths.grasp import GraspDynamics, grasp_obstacle
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector
@@ -33,7 +31,7 @@ from .stabilizers import STABILIZERS, Stabilizer
 
 DEFAULT_SOLVER = "proxsuite"
 NATIVE_SOLVER = "pinocchio"  # the backend whose algorithm the native path runs
-GRASP_SOLVER = "proxsuite"  # the backend whose direct solve the grasp path repeats
+CORE_SOLVER = "proxsuite"  # the backend whose direct solve the core path repeats (and takes where rows are redundant)
 NATIVE_MU = 1e-12  # proximal regularization of the native solve (the pinocchio backend's own option when named)
 REDUNDANT_MU = 1e-8  # ... with redundant closure rows: relative to the largest eigenvalue of G M^-1 G^T
 REDUNDANT_RANK_TOLERANCE = 1e-9  # singular values of G below this fraction of the largest: redundant rows
@@ -167,13 +165,13 @@ class ConstrainedSystem:
             its corrector, :mod:`pinstab.paths.native`), ``banded`` (the same equations solved by a banded LU
             at a cost linear in the chain's length, :mod:`pinstab.paths.banded`; refined near a singular
             configuration, Pinocchio's solve at one), ``servo`` (prescribed joint relations realized by the controls,
-            solved compiled, :mod:`pinstab.paths.servo`) or ``general`` (pinstab's kinematics, the stabilizer's term
+            solved compiled, :mod:`pinstab.paths.servo`), ``core`` (the standard rows and compiled force elements,
+            solved compiled, :mod:`pinstab.paths.core`) or ``general`` (pinstab's kinematics, the stabilizer's term
             and the KKT backend); chosen by :meth:`bind`.
-        path_reason: why the general path was taken, or why the banded, servo or grasp one ("" on the native path).
+        path_reason: why the general path was taken, or why the banded, servo or core one ("" on the native path).
         acceleration: ``acceleration(q, v, t, stage) -> a`` on the chosen path [m/s^2, rad/s^2].
         native: Pinocchio's dynamics on the native path, else None.
-        compiled_path: the compiled servo solve on the servo path, the compiled grasp evaluation on the grasp path, else
-            None.
+        compiled_path: the compiled servo solve on the servo path, the core evaluation on the core path, else None.
         projector: the projections of post-step corrections on the chosen path.
         opened: the unilateral rows that opened (:class:`OpenRows`), None without unilateral rows.
     """
@@ -191,7 +189,7 @@ class ConstrainedSystem:
         self.solver = solver
         self.native: NativeDynamics | None = None
         self.banded: BandedDynamics | None = None
-        self.compiled_path: ServoDynamics | GraspDynamics | CoreDynamics | None = None
+        self.compiled_path: ServoDynamics | CoreDynamics | None = None
         self._banded_allowed = banded
         self._banded_solves = 0
         self._compiled_solves = 0
@@ -225,8 +223,6 @@ class ConstrainedSystem:
             if self._named_solver is None and self.servo is not None:
                 self._bind_servo()
             elif self._named_solver is None:
-                self._bind_grasp()
-            if self._named_solver is None and self.path == "general" and self.path_reason == reason:
                 self._bind_core()
             return
         gains = self.stabilizer.baumgarte_gains()
@@ -271,49 +267,32 @@ class ConstrainedSystem:
             "control meets its bound)"
         )
 
-    def _bind_grasp(self) -> None:
-        """Take the grasp path when the scene's contacts and forces, the method and the solver allow it; else, on a
-        scene with fingertip contacts, say why in :attr:`path_reason`."""
-        model = self.model
-        constraints = model.constraints
-        reason = grasp_obstacle(constraints, model.forces)
-        if reason is None:
-            reason = self._compiled_form_obstacle("the compiled grasp evaluation")
-        if reason is None and not (self.solver.name == GRASP_SOLVER and self.solver.options.direct):
-            reason = f"solver {self.solver.name} solves every evaluation by its own method (not Cholesky factors)"
-        if reason is not None:
-            if any(isinstance(c, FingertipContact) for c in constraints.constraints):
-                self.path_reason = reason
-            return
-        gains = self.stabilizer.baumgarte_gains()
-        self.compiled_path = GraspDynamics(model.model, constraints, model.forces, *gains, DIRECT_PIVOT)
-        self.path, self.acceleration = "grasp", self._compiled_acceleration
-        self.path_reason = (
-            f"{len(constraints.constraints)} sticking fingertip contact(s): kinematics, contact rows, hold forces and "
-            "the KKT solve compiled (the general solve where a hold needs its QP, a pivot is small or a force leaves "
-            "its cone)"
-        )
-
     def _bind_core(self) -> None:
         """Take the core path when every constraint has compiled rows, every force element a compiled form the core
-        takes, and the method's term is Baumgarte's; else say why in :attr:`path_reason`."""
+        takes or no kinematics to read, the method's term is Baumgarte's and the KKT backend's solve is the direct one
+        the core repeats; else say why in :attr:`path_reason`."""
         model = self.model
         constraints = model.constraints
         reason = core_obstacle(constraints.constraints, model.forces, constraints.slices)
         if reason is None:
-            reason = self._compiled_form_obstacle("the core evaluation")
+            reason = self._compiled_form_obstacle("the core evaluation", tilts=True)
+        if reason is None and not (self.solver.name == CORE_SOLVER and self.solver.options.direct):
+            reason = f"solver {self.solver.name} solves every evaluation by its own method (not Cholesky factors)"
         if reason is not None:
             self.path_reason = reason
             return
         gains = self.stabilizer.baumgarte_gains()
         blocks = constraints.constraints
-        solve = (DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+        solve = (DIRECT_PIVOT, ACCEPTED_RESIDUAL, model.scene.tilt)
         self.compiled_path = CoreDynamics(model.model, blocks, model.forces, constraints.slices, *gains, *solve)
         self.path, self.acceleration = "core", self._compiled_acceleration
+        python = self.compiled_path.python_forces
+        in_python = f"; force(s) {', '.join(python)} evaluated in Python" if python else ""
         self.path_reason = (
-            f"{len(blocks)} constraint block(s) of {constraints.rows} rows and {len(model.forces)} joint spring(s): "
-            "kinematics, rows, springs and the KKT solve compiled (Cholesky factors; a pseudo-inverse where rows are "
-            "redundant or nearly so; the general solve where it misses the rows)"
+            f"{len(blocks)} constraint block(s) of {constraints.rows} rows, {len(model.forces)} force element(s): "
+            "kinematics, rows, forces and the KKT solve compiled (Cholesky factors, a pseudo-inverse where rows are "
+            "redundant or nearly so; the general solve where it misses the rows, a contact's force leaves its limits "
+            f"or a hold's its cones){in_python}"
         )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:
@@ -340,10 +319,10 @@ class ConstrainedSystem:
         delassus = jacobian @ np.linalg.solve(self.model.mass_matrix(q), jacobian.T)
         return max(NATIVE_MU, REDUNDANT_MU * float(np.linalg.eigvalsh(delassus)[-1]))
 
-    def _compiled_form_obstacle(self, solve: str) -> str | None:
+    def _compiled_form_obstacle(self, solve: str, tilts: bool = False) -> str | None:
         """Why the scene's gravity or the method keeps a compiled ``solve`` (named in the reason) off: gravity that
-        tilts in time, a stabilization term not of Baumgarte's form; or None."""
-        if self.model.scene.tilt is not None:
+        tilts in time (unless the solve ``tilts`` it), a stabilization term not of Baumgarte's form; or None."""
+        if self.model.scene.tilt is not None and not tilts:
             return f"gravity tilts in time ([tilt]); {solve} takes the model's one gravity"
         if self.stabilizer.baumgarte_gains() is None:
             return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
@@ -487,8 +466,9 @@ class ConstrainedSystem:
         """The run's solves: the KKT backend's, and on the native path Pinocchio's solves (status
         ``native``), the checked ones and the fallbacks; on the banded path its solves (status ``banded``),
         those of them refined near a singular configuration (status ``banded refined``), a singular one solved by
-        Pinocchio counted as a fallback; on the servo and grasp paths their compiled solves (status ``servo``,
-        ``grasp``), those the general solve took counted as fallbacks."""
+        Pinocchio counted as a fallback; on the servo path its compiled solves (status ``servo``), on the core path its
+        kernel's by how it solved them (``core cholesky``, ``core pseudo-inverse``, and those not used), those the
+        general solve took counted as fallbacks."""
         merged = dataclasses.replace(self.solver.statistics, status_counts=dict(self.solver.statistics.status_counts))
         if self.compiled_path is not None:
             merged.solves += self._compiled_solves

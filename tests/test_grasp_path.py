@@ -1,5 +1,6 @@
-"""The grasp path (pinstab.paths.grasp, cpp/grasp_kernel.cpp): sticking fingertip contacts, hold torques and
-constant wrenches evaluated compiled, against the general path's Python evaluation and its direct KKT solve."""
+"""Grasps on the core path (pinstab.paths.core, cpp/core_kernel.cpp, cpp/grasp_forces.cpp): sticking fingertip contacts
+of every contact model, hold torques and constant wrenches evaluated compiled, against the general path's Python
+evaluation and its direct KKT solve."""
 
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ def test_grasp_evaluation_equals_the_general_path(name):
     a joint torque table (evaluated in Python, passed to the kernel)."""
     scene = sphere_scene(torque=0.02) if name == "nudged" else load_scene(name)
     system, q0, v0 = bound(scene)
-    assert system.path == "grasp", system.path_reason
+    assert system.path == "core", system.path_reason
     model = system.model
     rng = np.random.default_rng(7)
     for k in range(9):
@@ -64,18 +65,18 @@ def test_grasp_evaluation_equals_the_general_path(name):
         scale = float(np.max(np.abs(general.acceleration)))
         np.testing.assert_allclose(compiled, general.acceleration, rtol=0, atol=1e-11 * scale)
         np.testing.assert_allclose(system.compiled_path.kernel.multipliers(), general.multipliers, rtol=0, atol=1e-12)
-    assert system.statistics.status_counts["grasp"] == 9
+    assert system.statistics.status_counts["core cholesky"] == 9
 
 
 def test_grasp_run_equals_the_general_run():
-    """allegro-sphere over 0.5 s with RK4 at 1 ms: the grasp path's trajectory equals that of the general path (solver
+    """allegro-sphere over 0.5 s with RK4 at 1 ms: the core path's trajectory equals that of the general path (solver
     ``proxsuite`` named) to 1e-12 (rad, m; the ball moves by millimetres), every solve compiled, each solve's relative
     residual |G a - rhs| at rounding on both paths."""
     scene = load_scene("allegro-sphere")
     fast = simulate(scene, duration=0.5)
     general = simulate(scene, duration=0.5, solver="proxsuite")
-    assert (fast.info.path, general.info.path) == ("grasp", "general")
-    assert fast.info.solver_statistics.status_counts == {"grasp": 2000}
+    assert (fast.info.path, general.info.path) == ("core", "general")
+    assert fast.info.solver_statistics.status_counts == {"core cholesky": 2000}
     # the kernel's |G a - rhs| (relative) is measured as the general path's is: rounding on both
     assert fast.info.solver_statistics.worst_primal_residual <= 1e-15
     assert general.info.solver_statistics.worst_primal_residual <= 1e-15
@@ -88,13 +89,14 @@ def test_hold_forces_outside_their_cones_go_to_the_general_path():
     takes its QP, whose forces hold): the compiled evaluation is not used, the general path's acceleration is
     returned (to the QP's tolerance) and the evaluation counts as a fallback."""
     system, q, v = bound(sphere_scene(mu=0.2))
-    assert system.path == "grasp"
+    assert system.path == "core"
     acceleration = system.acceleration(q, v, 0.0, 0)
     assert system.compiled_path.unusable
     general = system.dynamics(q, v, 0.0).acceleration  # its QP warm-started now: the same to its tolerance
     np.testing.assert_allclose(acceleration, general, rtol=0, atol=1e-6 * np.max(np.abs(general)))
     assert system.statistics.fallbacks == 1
-    assert "grasp" not in system.statistics.status_counts or system.statistics.status_counts["grasp"] == 0
+    assert system.statistics.status_counts.get("core cholesky", 0) == 0
+    assert system.statistics.status_counts["core hold outside its cones"] == 1
 
 
 @pytest.mark.parametrize(("cap", "used"), [(3.0, True), (2.2, False)])
@@ -111,7 +113,7 @@ def test_a_capped_hold_is_compiled_while_its_forces_keep_the_cap(cap, used):
 
 
 def test_a_lost_grasp_is_named_as_on_the_general_path():
-    """A 3 N push slides the ball: the grasp path stops the run with the general path's GraspLostError, at the same
+    """A 3 N push slides the ball: the core path stops the run with the general path's GraspLostError, at the same
     time (to 1e-12 s) and naming the same contacts."""
     scene = sphere_scene(push=3.0)
     errors = []
@@ -125,22 +127,25 @@ def test_a_lost_grasp_is_named_as_on_the_general_path():
 
 
 @pytest.mark.parametrize(
-    ("scene", "options", "reason"),
+    ("scene", "options", "path", "reason"),
     [
-        ("allegro-lift", {}, "force 'lift' (GraspControl) has no compiled form"),
-        ("allegro-box", {}, "contact 'index' is 'soft-finger', not a point contact"),
-        ("allegro-sphere", {"solver_options": {"direct": False}}, "solver proxsuite solves every evaluation"),
-        ("allegro-sphere", {"method": "projection"}, None),
-        ("allegro-sphere", {"method": "mukharlyamov"}, "method mukharlyamov's term is not Baumgarte's"),
+        ("allegro-lift", {}, "core", "force(s) lift evaluated in Python"),
+        ("allegro-box", {}, "core", "3 constraint block(s) of 12 rows"),
+        ("allegro-tilt", {}, "core", "4 constraint block(s) of 12 rows"),
+        (
+            "allegro-sphere",
+            {"solver_options": {"direct": False}},
+            "general",
+            "solver proxsuite solves every evaluation",
+        ),
+        ("allegro-sphere", {"method": "projection"}, "core", "4 constraint block(s)"),
+        ("allegro-sphere", {"method": "mukharlyamov"}, "general", "method mukharlyamov's term is not Baumgarte's"),
     ],
 )
-def test_the_grasp_path_is_taken_where_it_repeats_the_general_one(scene, options, reason):
-    """The general path, with the reason named, for a force element the kernel does not have (an object-level
-    controller), a soft finger's rotation row, ProxQP asked for every solve and a stabilization term not of
-    Baumgarte's form; the grasp path under a projection method (its corrections run in Python on any path)."""
+def test_the_core_path_is_taken_where_it_repeats_the_general_one(scene, options, path, reason):
+    """The core path for an object-level controller (evaluated in Python, named), soft fingers' rotation rows and a
+    tilting gravity, and under a projection method (its corrections run in Python on any path); the general path,
+    with the reason named, where ProxQP is asked for every solve or the stabilization term is not Baumgarte's."""
     system, _, _ = bound(load_scene(scene), **options)
-    if reason is None:
-        assert system.path == "grasp"
-    else:
-        assert system.path == "general"
-        assert reason in system.path_reason
+    assert system.path == path
+    assert reason in system.path_reason

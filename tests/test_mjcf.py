@@ -15,6 +15,7 @@ from pinstab import simulate
 from pinstab.cli import main
 from pinstab.constraints.joint_limits import joint_limits
 from pinstab.errors import SceneError
+from pinstab.kinematics import Kinematics
 from pinstab.readers import read_robot
 from pinstab.scene import load_scene, scene_from_dict
 
@@ -204,6 +205,7 @@ def test_two_body_connect_reads_both_bodies(gaps):
 def test_joint_equalities_are_joint_relations_with_mujocos_residual(gaps):
     _, scene, model = gaps
     relations = {c.name: c for c in scene.constraints if c.kind == "joint-relation"}
+    kin = Kinematics(scene.model, scene.model.createData())  # a relation reads no kinematics, but takes them
     rng = np.random.default_rng(5)
     for _ in range(5):
         q = rng.uniform(-1.0, 1.0, scene.model.nq)
@@ -211,7 +213,7 @@ def test_joint_equalities_are_joint_relations_with_mujocos_residual(gaps):
         equality_rows = state.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
         residuals = dict(zip(state.efc_id[equality_rows], state.efc_pos[equality_rows], strict=False))
         for name, relation in relations.items():
-            assert abs(relation.residual(None, q, 0.0)[0] - residuals[NAMES.index(name)]) <= TOL, name
+            assert abs(relation.residual(kin, q, 0.0)[0] - residuals[NAMES.index(name)]) <= TOL, name
 
 
 def test_soft_parameters_are_reported_as_ignored_by_check(tmp_path, capsys):

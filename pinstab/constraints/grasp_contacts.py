@@ -28,15 +28,15 @@ import pinocchio as pin
 
 from ..contact.coefficients import friction_coefficient
 from ..contact.collisions import Touch
-from ..contact.models import FRICTION_MODELS, WRENCH_BASES, ContactLimits
+from ..contact.models import CONTACT_MODEL_CODES, FRICTION_MODELS, WRENCH_BASES, ContactLimits
 from ..contact.objects import Nearest, nearest_shape
 from ..errors import SceneError, choices
-from ..kernels import contact_point_drift, contact_point_jacobian, contact_point_residual
+from ..kernels import RowBlock, block_drift, block_jacobian, block_residual, contact_point_residual
 from ..kinematics import Kinematics, PerUpdate, frame_jacobian
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .loops import FrameClosure, plane_basis
+from .loops import NO_RELATION, plane_basis
 
 GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
 GAP_TOLERANCE = 1e-10  # [m] a fingertip this close to the surface touches it
@@ -84,8 +84,10 @@ class FingertipContact(Constraint):
         self.rows = len(self.components)
         self.limits_force = model != "rigid"
         self.angular = bool(self.components[-1] >= 3)
-        # the rotation rows are a weld's between the object's and the finger's copy of C
-        self._weld = FrameClosure(name, "weld", object_frame, finger_frame) if self.angular else None
+        # the rows in the compiled core (cpp/core_rows.cpp): the point's, then a weld's rotation rows between the
+        # object's and the finger's copy of C, the model's components of them
+        self.block = RowBlock(5, object_frame, finger_frame, np.eye(4), np.zeros((0, 3)), *NO_RELATION)
+        self.block.set_contact(self.components.astype(np.int32), CONTACT_MODEL_CODES[model], mu, torsion)
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
         # the constraint stack, a grasp force element and a grasp controller read them at the same state
         self._points = PerUpdate(self._compute_point_residual)
@@ -101,15 +103,11 @@ class FingertipContact(Constraint):
         # compiled: cpp/contact_terms.cpp
         return contact_point_residual(kin.model, kin.data, self.object_frame, self.finger_frame)
 
-    def _select(self, linear: np.ndarray, angular) -> np.ndarray:
-        if angular is None and self.rows == 3:  # point-friction: the point rows as they are
-            return linear
-        full = linear if angular is None else np.concatenate([linear, angular])
-        return full[self.components]
+    def compiled_rows(self) -> RowBlock:
+        return self.block
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        angular = self._weld.residual(kin, q, t)[3:] if self._weld else None
-        return self._select(self._point_residual(kin), angular)
+        return block_residual(kin.model, kin.data, self.block, q, t)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
         return self._velocity_terms(kin)
@@ -119,15 +117,12 @@ class FingertipContact(Constraint):
         return self._drift(kin)
 
     def _compute_velocity_terms(self, kin: Kinematics) -> VelocityTerms:
-        # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o (compiled: cpp/contact_terms.cpp)
-        linear = contact_point_jacobian(kin.model, kin.data, self.object_frame, self.finger_frame)
-        angular = self._weld.velocity_terms(kin, kin.q, 0.0)[0][3:] if self._weld else None
-        return VelocityTerms(self._select(linear, angular), np.zeros(self.rows))
+        # d/dt R^T d = R^T (v_o - v_f) + R^T [d]x omega_o, and the weld's rotation rows (cpp/core_rows.cpp)
+        return VelocityTerms(*block_jacobian(kin.model, kin.data, self.block, 0.0))
 
     def _compute_drift(self, kin: Kinematics) -> np.ndarray:
         # d2/dt2 R^T d at zero joint acceleration: R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d) (compiled)
-        linear = contact_point_drift(kin.model, kin.data, self.object_frame, self.finger_frame)
-        return self._select(linear, self._weld.drift(kin, kin.q, kin.v, 0.0)[3:] if self._weld else None)
+        return block_drift(kin.model, kin.data, self.block, 0.0)
 
     # -- forces --------------------------------------------------------------------------------------
     def wrench(self, force: np.ndarray) -> np.ndarray:

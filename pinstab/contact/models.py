@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import GraspLostError
+from ..kernels import contact_holds, contact_margins
 
 WRENCH_BASES = {
     "frictionless": np.array([[0, 0, 1, 0, 0, 0]], dtype=float).T,
@@ -18,6 +19,9 @@ WRENCH_BASES = {
     "rigid": np.eye(6),
 }
 """B_c per contact model: the wrench components (fx, fy, fz, mx, my, mz in C) the contact transmits."""
+
+CONTACT_MODEL_CODES = {"frictionless": 0, "point-friction": 1, "soft-finger": 2, "rigid": 3}
+"""Each contact model's code in the compiled core (``cpp/grasp_forces.hpp`` ContactModel)."""
 
 FRICTION_MODELS = ("point-friction", "soft-finger")
 MARGIN_SLACK = 1e-9  # relative: a margin above -slack (1 + |force|) holds (rounding in the solve)
@@ -42,26 +46,22 @@ class ContactLimits(NamedTuple):
         ``torsion`` ``torsion f_n - |m_z|`` [N m]. A rigid contact carries anything (no margins)."""
         if self.model == "rigid":
             return {}
-        margins = {"normal": float(wrench[2])}
+        normal, friction, torsion = contact_margins(CONTACT_MODEL_CODES[self.model], self.mu, self.torsion, wrench)
+        margins = {"normal": float(normal)}
         if self.model in FRICTION_MODELS:
-            margins["friction"] = float(self.mu * wrench[2] - math.hypot(wrench[0], wrench[1]))
+            margins["friction"] = float(friction)
         if self.model == "soft-finger":
-            margins["torsion"] = float(self.torsion * wrench[2] - abs(wrench[5]))
+            margins["torsion"] = float(torsion)
         return margins
 
     def check(self, wrench: np.ndarray, t: float) -> None:
         """Raise :class:`GraspLostError` at time ``t`` [s] when the contact would have to pull, slide or
         spin to carry ``wrench`` (in C)."""
-        if self.model == "rigid":
-            return
-        fx, fy, fn, mx, my, mz = wrench.tolist()  # floats: this test runs at every solve
-        slack = -MARGIN_SLACK * (1.0 + max(abs(fx), abs(fy), abs(fn), abs(mx), abs(my), abs(mz)))
-        if (
-            fn >= slack
-            and (self.model not in FRICTION_MODELS or self.mu * fn - math.hypot(fx, fy) >= slack)
-            and (self.model != "soft-finger" or self.torsion * fn - abs(mz) >= slack)
+        if self.model == "rigid" or contact_holds(
+            CONTACT_MODEL_CODES[self.model], self.mu, self.torsion, wrench, MARGIN_SLACK
         ):
             return
+        slack = -MARGIN_SLACK * (1.0 + float(np.max(np.abs(wrench))))
         margins = self.margins(wrench)
         violated = [key for key in ("normal", "friction", "torsion") if margins.get(key, 0.0) < slack]
         if not violated:

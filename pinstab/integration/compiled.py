@@ -29,13 +29,13 @@ SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
 
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator) -> str | None:
     """Why the compiled loop cannot take this run's steps (naming the first reason), or None."""
-    if system.path not in ("native", "banded", "servo", "grasp", "core"):
+    if system.path not in ("native", "banded", "servo", "core"):
         return f"the {system.path} path (pinstab's KKT backend) runs in Python"
     if stepper.name not in SCHEMES:
         return f"integrator {stepper.name} is not one of {', '.join(SCHEMES)}"
     if system.stabilizer.corrects:
         return f"method {system.stabilizer.name} corrects the state after each step (in Python)"
-    if system.path == "core":  # its kernel computes the forces and integrates on the configuration group
+    if system.path == "core" and system.compiled_path.takes_every_force:  # and integrates on the configuration group
         return None
     if system.model.forces:
         return "the scene has force elements (the compiled loop takes none)"
