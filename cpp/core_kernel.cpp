@@ -26,12 +26,14 @@ Eigen::Vector3d GravityTilt::gravity(double t) const {
 }
 
 CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp,
-                       double kd, CoreSolve solve, std::optional<GravityTilt> tilt)
+                       double kd, CoreSolve solve, std::optional<GravityTilt> tilt,
+                       std::shared_ptr<PythonPart> python)
     : model_(model),
       data_(light_data(model_)),
       blocks_(std::move(blocks)),
       forces_(std::move(forces)),
       tilt_(std::move(tilt)),
+      python_(std::move(python)),
       kp_(kp),
       kd_(kd),
       settings_(solve),
@@ -41,7 +43,12 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   for (const RowBlock& block : blocks_) {
     offsets_.push_back(rows_);
     rows_ += block.rows();
+    if (block.kind == RowKind::python) python_rows_ += block.rows();
   }
+  python_jacobian_.setZero(python_rows_, model_.nv);
+  python_phi_.setZero(python_rows_);
+  python_time_term_.setZero(python_rows_);
+  python_drift_.setZero(python_rows_);
   velocity_gain_.resize(rows_);
   for (size_t k = 0; k < blocks_.size(); ++k) {  // Baumgarte's Kd on holonomic rows, Kd / 2 on nonholonomic ones
     velocity_gain_.segment(offsets_[k], blocks_[k].rows()).setConstant(blocks_[k].holonomic ? kd_ : 0.5 * kd_);
@@ -59,14 +66,27 @@ bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, co
   pinocchio::computeAllTerms(model_, data_, q, v);
   pinocchio::updateFramePlacements(model_, data_);
   data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose().triangularView<Eigen::StrictlyLower>();
+  force_ = tau;
+  if (python_ && !python_->evaluate(t, q, v, python_jacobian_, python_phi_, python_time_term_, python_drift_, force_)) {
+    ++status_counts_["python part not usable"];
+    return false;
+  }
+  int python_row = 0;
   for (size_t k = 0; k < blocks_.size(); ++k) {
     const RowBlock& block = blocks_[k];
     const int offset = offsets_[k], rows = block.rows();
+    if (block.kind == RowKind::python) {  // the rows Python gave, in order
+      phi_.segment(offset, rows) = python_phi_.segment(python_row, rows);
+      jacobian_.middleRows(offset, rows) = python_jacobian_.middleRows(python_row, rows);
+      time_term_.segment(offset, rows) = python_time_term_.segment(python_row, rows);
+      drift_.segment(offset, rows) = python_drift_.segment(python_row, rows);
+      python_row += rows;
+      continue;
+    }
     block_residual(model_, data_, block, q, t, phi_.segment(offset, rows));
     block_jacobian(model_, data_, block, t, jacobian_.middleRows(offset, rows), time_term_.segment(offset, rows));
     block_drift(model_, data_, block, t, drift_.segment(offset, rows));
   }
-  force_ = tau;
   add_joint_springs(forces_.springs, q, v, force_);
   for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
   for (const HoldSpec& hold : forces_.holds) {
@@ -78,7 +98,7 @@ bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, co
   force_ -= data_.nle;
   const VectorXd rhs = -drift_ - (velocity_gain_.array() * (jacobian_ * v + time_term_).array()).matrix() - kp_ * phi_;
   if (!solve(rhs)) return false;
-  if (!inside_limits()) {
+  if (!inside_limits() || (python_ && !python_->holds(t, multipliers_))) {
     ++status_counts_["outside a contact's limits"];
     return false;
   }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -54,12 +55,25 @@ struct CoreSolve {
   double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8, margin_slack = 1e-9;
 };
 
+// What Python computes at each evaluation: the rows of the blocks without compiled rows and the forces of the elements
+// without a compiled form (pinstab.paths.core.PythonPart), and the limits of the blocks whose forces have them.
+class PythonPart {
+ public:
+  virtual ~PythonPart() = default;
+  // At (t, q, v): the Python blocks' stacked G, phi, g_t and gamma0 (rows in the kernel's order of those blocks)
+  // into the given arrays (sized), and the Python forces added to force; false: the evaluation is not to be used.
+  virtual bool evaluate(double t, const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& jacobian, VectorXd& phi,
+                        VectorXd& time_term, VectorXd& drift, VectorXd& force) = 0;
+  // Whether the multipliers (every row) keep the Python blocks' force limits at t.
+  virtual bool holds(double t, const VectorXd& multipliers) = 0;
+};
+
 // M a + h = tau + forces + G^T lambda, G a = -gamma0 - Kd (G v + g_t) - Kp phi (Kd / 2 on nonholonomic rows), under
 // gravity that tilts in time when `tilt` is given.
 class CoreKernel : public Kernel {
  public:
   CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp, double kd,
-             CoreSolve solve, std::optional<GravityTilt> tilt);
+             CoreSolve solve, std::optional<GravityTilt> tilt, std::shared_ptr<PythonPart> python);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   const pinocchio::Model* group() const override { return euclidean_ ? nullptr : &model_; }
@@ -81,6 +95,10 @@ class CoreKernel : public Kernel {
   std::vector<int> offsets_;
   CoreForces forces_;
   std::optional<GravityTilt> tilt_;
+  std::shared_ptr<PythonPart> python_;
+  int python_rows_ = 0;
+  Eigen::MatrixXd python_jacobian_;
+  VectorXd python_phi_, python_time_term_, python_drift_;
   double kp_, kd_;
   CoreSolve settings_;
   bool euclidean_;

@@ -98,6 +98,8 @@ int RowBlock::rows() const {
       return 1;
     case RowKind::fingertip:
       return static_cast<int>(components.size());
+    case RowKind::python:
+      return python_rows;
   }
   return 0;
 }

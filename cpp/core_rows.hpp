@@ -21,7 +21,8 @@ namespace pinstab {
 // relation: c . q[q_indices] - c(t) on 1-DOF joints (one row).
 // fingertip: the contact frame C on the object (frame_a) and its copy on the fingertip (frame_b): the components of
 // (R_C^T (p_a - p_b), log3(R_b^T R_a)) its contact model transmits (pinstab.constraints.grasp_contacts).
-enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4, fingertip = 5 };
+// python: rows a Python block gives at each evaluation (the core kernel's PythonPart), not computed here.
+enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4, fingertip = 5, python = 6 };
 
 struct RowBlock {
   RowKind kind = RowKind::point;
@@ -35,6 +36,7 @@ struct RowBlock {
   ContactModel contact_model = ContactModel::rigid;          // fingertip: what it carries (limits)
   double mu = 0.0, torsion = 0.0;                            // fingertip: friction [-], torsion [m]
   bool holonomic = true;                                     // false: velocity-level rows (Baumgarte's Kd / 2)
+  int python_rows = 0;                                       // python: its row count
   int rows() const;
 };
 

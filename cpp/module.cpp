@@ -1,4 +1,6 @@
 // pinstab._compiled: the compiled step loop (see pinstab/integration/compiled.py).
+#include <memory>
+
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
@@ -61,6 +63,36 @@ Target target(nb::dict spec) {
   return target;
 }
 
+// PythonPart over two Python callables: evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the Python blocks and
+// elements, holds(t, multipliers) -> bool; each call takes the GIL (the step loop runs without it).
+class CallbackPart : public PythonPart {
+ public:
+  CallbackPart(nb::callable evaluate, nb::callable holds) : evaluate_(std::move(evaluate)), holds_(std::move(holds)) {}
+  ~CallbackPart() override {
+    nb::gil_scoped_acquire held;
+    evaluate_.reset();
+    holds_.reset();
+  }
+  bool evaluate(double t, const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& jacobian, VectorXd& phi,
+                VectorXd& time_term, VectorXd& drift, VectorXd& force) override {
+    nb::gil_scoped_acquire held;
+    const nb::tuple terms = nb::cast<nb::tuple>(evaluate_(t, q, v));
+    jacobian = nb::cast<Eigen::MatrixXd>(terms[0]);
+    phi = nb::cast<VectorXd>(terms[1]);
+    time_term = nb::cast<VectorXd>(terms[2]);
+    drift = nb::cast<VectorXd>(terms[3]);
+    force += nb::cast<VectorXd>(terms[4]);
+    return jacobian.allFinite() && phi.allFinite() && time_term.allFinite() && drift.allFinite() && force.allFinite();
+  }
+  bool holds(double t, const VectorXd& multipliers) override {
+    nb::gil_scoped_acquire held;
+    return nb::cast<bool>(holds_(t, multipliers));
+  }
+
+ private:
+  nb::object evaluate_, holds_;
+};
+
 // Cones from their columns (rows: normal, tangent, tangent; -1: none) and friction coefficients.
 std::vector<ConeSpec> cones(const Eigen::MatrixXi& columns, const VectorXd& mu) {
   std::vector<ConeSpec> cones;
@@ -95,7 +127,7 @@ std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb
 RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b, const Eigen::MatrixXd& selection,
                    const VectorXd& coefficients, const VectorXi& q_indices, const VectorXi& v_indices,
                    std::optional<nb::dict> relation_target) {
-  if (kind < 0 || kind > static_cast<int>(RowKind::fingertip)) throw std::invalid_argument("RowBlock: unknown kind");
+  if (kind < 0 || kind > static_cast<int>(RowKind::python)) throw std::invalid_argument("RowBlock: unknown kind");
   RowBlock block;
   block.kind = static_cast<RowKind>(kind);
   block.frame_a = frame_a, block.frame_b = frame_b;
@@ -228,6 +260,7 @@ NB_MODULE(_compiled, m) {
           "A fingertip block's components of (fx, fy, fz, mx, my, mz) in C and its contact model (0 frictionless, "
           "1 point-friction, 2 soft-finger, 3 rigid), mu [-] and torsion [m].")
       .def_rw("holonomic", &RowBlock::holonomic, "False: velocity-level rows (Baumgarte's Kd / 2).")
+      .def_rw("python_rows", &RowBlock::python_rows, "Kind 6 (rows Python gives): their count.")
       .def_prop_ro("rows", &RowBlock::rows);
   m.def(
       "contact_margins",
@@ -303,7 +336,8 @@ NB_MODULE(_compiled, m) {
       .def(
           "__init__",
           [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
-             double kp, double kd, nb::dict settings, std::optional<nb::dict> tilt) {
+             double kp, double kd, nb::dict settings, std::optional<nb::dict> tilt,
+             std::optional<std::pair<nb::callable, nb::callable>> python) {
             CoreForces forces;
             for (const nb::dict& form : forms) {
               const std::string kind = nb::cast<std::string>(form["kind"]);
@@ -331,13 +365,18 @@ NB_MODULE(_compiled, m) {
                                     nb::cast<Eigen::Vector3d>((*tilt)["gravity0"]), nb::cast<double>((*tilt)["rate"]),
                                     nb::cast<double>((*tilt)["start"])};
             }
-            new (self)
-                CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), kp, kd, solve, turning);
+            std::shared_ptr<PythonPart> part;
+            if (python) part = std::make_shared<CallbackPart>(python->first, python->second);
+            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), kp, kd, solve,
+                                  turning, std::move(part));
           },
           "model"_a, "blocks"_a, "forces"_a, "kp"_a, "kd"_a, "settings"_a, "tilt"_a = nb::none(),
+          "python"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
           "wrench), Baumgarte gains, the solve's settings (dict: direct_pivot, cutoff, accepted, margin_slack) and "
-          "a gravity tilt (dict: axis, gravity0, rate, start) or None.")
+          "a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: (evaluate(t, q, v) "
+          "-> (G, phi, g_t, gamma0, forces) of the blocks of kind 6 and the elements without a compiled form, "
+          "holds(t, multipliers) -> bool).")
       .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
       .def_prop_ro("worst_residual", &CoreKernel::worst_residual,
                    "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).")

@@ -268,12 +268,13 @@ class ConstrainedSystem:
         )
 
     def _bind_core(self) -> None:
-        """Take the core path when every constraint has compiled rows, every force element a compiled form the core
-        takes or no kinematics to read, the method's term is Baumgarte's and the KKT backend's solve is the direct one
-        the core repeats; else say why in :attr:`path_reason`."""
+        """Take the core path when every constraint is an equality block and not prescribed, the method's term is
+        Baumgarte's and the KKT backend's solve is the direct one the core repeats; else say why in
+        :attr:`path_reason`. Blocks without compiled rows and force elements without a compiled form are evaluated
+        in Python at each evaluation (the reason names them)."""
         model = self.model
         constraints = model.constraints
-        reason = core_obstacle(constraints.constraints, model.forces, constraints.slices)
+        reason = core_obstacle(constraints.constraints)
         if reason is None:
             reason = self._compiled_form_obstacle("the core evaluation", tilts=True)
         if reason is None and not (self.solver.name == CORE_SOLVER and self.solver.options.direct):
@@ -282,17 +283,14 @@ class ConstrainedSystem:
             self.path_reason = reason
             return
         gains = self.stabilizer.baumgarte_gains()
-        blocks = constraints.constraints
-        solve = (DIRECT_PIVOT, ACCEPTED_RESIDUAL, model.scene.tilt)
-        self.compiled_path = CoreDynamics(model.model, blocks, model.forces, constraints.slices, *gains, *solve)
+        self.compiled_path = CoreDynamics(model, *gains, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
         self.path, self.acceleration = "core", self._compiled_acceleration
-        python = self.compiled_path.python_forces
-        in_python = f"; force(s) {', '.join(python)} evaluated in Python" if python else ""
+        in_python = self.compiled_path.in_python()
         self.path_reason = (
-            f"{len(blocks)} constraint block(s) of {constraints.rows} rows, {len(model.forces)} force element(s): "
-            "kinematics, rows, forces and the KKT solve compiled (Cholesky factors, a pseudo-inverse where rows are "
-            "redundant or nearly so; the general solve where it misses the rows, a contact's force leaves its limits "
-            f"or a hold's its cones){in_python}"
+            f"{len(constraints.constraints)} constraint block(s) of {constraints.rows} rows, {len(model.forces)} force "
+            "element(s): kinematics, rows, forces and the KKT solve compiled (Cholesky factors, a pseudo-inverse where "
+            "rows are redundant or nearly so; the general solve where it misses the rows, a contact's force leaves its "
+            f"limits or a hold's its cones){'; ' + in_python if in_python else ''}"
         )
 
     def _banded(self, native: NativeDynamics) -> BandedDynamics | None:

@@ -35,7 +35,7 @@ def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator) -> str | N
         return f"integrator {stepper.name} is not one of {', '.join(SCHEMES)}"
     if system.stabilizer.corrects:
         return f"method {system.stabilizer.name} corrects the state after each step (in Python)"
-    if system.path == "core" and system.compiled_path.takes_every_force:  # and integrates on the configuration group
+    if system.path == "core":  # its kernel takes every force (its Python part too) and integrates on the group
         return None
     if system.model.forces:
         return "the scene has force elements (the compiled loop takes none)"

@@ -22,14 +22,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..constraints import Constraint, RowKind
+from ..constraints.loops import NO_RELATION
 from ..contact.models import MARGIN_SLACK
+from ..errors import GraspLostError
 from ..forces.base import ForceElement
-from ..kernels import CoreKernel
+from ..kernels import CoreKernel, RowBlock
 from ..model import ConstrainedModel
-from ..scene import GravityTilt
 
 CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench")
 """Compiled force forms the core kernel takes."""
@@ -40,11 +40,10 @@ CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench")
 CUTOFF = 1e-12
 
 
-def core_obstacle(constraints: list[Constraint], forces: list[ForceElement], rows: dict[str, slice]) -> str | None:
-    """Why the core kernel cannot evaluate these constraints and forces (naming the first it cannot), or None."""
+def core_obstacle(constraints: list[Constraint]) -> str | None:
+    """Why the core kernel cannot evaluate these constraints (naming the first it cannot), or None: a prescribed block
+    (a servo) or one whose rows are not equalities (a unilateral contact, a cone)."""
     for constraint in constraints:
-        if constraint.compiled_rows() is None:
-            return f"constraint {constraint.name!r} ({type(constraint).__name__}) has no compiled rows"
         if constraint.prescribed:
             return f"constraint {constraint.name!r} is prescribed (a servo: the controls realize it)"
         if constraint.row_kind != RowKind.EQUALITY:
@@ -58,73 +57,114 @@ def _compiled(element: ForceElement, rows: dict[str, slice]) -> dict[str, Any] |
     return form if form is not None and form["kind"] in CORE_FORCE_KINDS else None
 
 
+def _python_rows(constraint: Constraint) -> RowBlock:
+    """The placeholder of a block whose rows Python gives at each evaluation (kind 6)."""
+    block = RowBlock(6, -1, -1, np.eye(4), np.zeros((0, 3)), *NO_RELATION)
+    block.python_rows, block.holonomic = constraint.rows, constraint.holonomic
+    return block
+
+
+class PythonPart:
+    """What Python computes at each evaluation of the core: the rows of the blocks without compiled rows and the forces
+    of the elements without a compiled form the core takes, after one kinematics pass of pinstab's at the state (under
+    the scene's gravity at t), and the force limits of those blocks (the kernel calls :meth:`evaluate` and
+    :meth:`holds`, ``cpp/core_kernel.hpp`` PythonPart).
+
+    Args:
+        model: the constrained model. blocks: the constraints evaluated here. elements: the force elements.
+    """
+
+    def __init__(self, model: ConstrainedModel, blocks: list[Constraint], elements: list[ForceElement]) -> None:
+        self.model, self.blocks, self.elements = model, blocks, elements
+        self._reads_kinematics = bool(blocks) or any(element.needs_kinematics for element in elements)
+        self._limited = any(block.limits_force for block in blocks)
+        self._rows = sum(block.rows for block in blocks)
+
+    def evaluate(
+        self, t: float, q: np.ndarray, v: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(G, phi, g_t, gamma0) of the blocks, stacked (phi zero on nonholonomic rows) [m or rad ...], and the
+        elements' forces [N, N m] at (t [s], q, v)."""
+        model, kin = self.model, self.model.kin
+        force = model.forces_at(q, v, t, self.elements) if self._reads_kinematics else np.zeros(len(v))
+        if not self._reads_kinematics and self.elements:
+            force = sum((element.generalized_force(kin, v, t) for element in self.elements), force)
+        jacobian, phi = np.zeros((self._rows, len(v))), np.zeros(self._rows)
+        time_term, drift = np.zeros(self._rows), np.zeros(self._rows)
+        row = 0
+        for block in self.blocks:
+            rows = slice(row, row + block.rows)
+            if block.holonomic:
+                phi[rows] = block.residual(kin, q, t)
+            jacobian[rows], time_term[rows] = block.velocity_terms(kin, q, t)
+            drift[rows] = block.drift(kin, q, v, t)
+            row = rows.stop
+        return jacobian, phi, time_term, drift, force
+
+    def holds(self, t: float, multipliers: np.ndarray) -> bool:
+        """Whether the multipliers (every row) keep the blocks' force limits at t [s] (what
+        :meth:`~pinstab.constraints.stack.ConstraintSet.check_forces` would not refuse)."""
+        if not self._limited:
+            return True
+        try:
+            self.model.constraints.check_forces(multipliers, t)
+        except GraspLostError:
+            return False
+        return True
+
+
 class CoreDynamics:
     """The compiled core evaluation (see :func:`core_obstacle`).
 
     Args:
-        model: the Pinocchio model. constraints: the scene's constraints. forces: its force elements (those without
-            a compiled form the core takes are evaluated in Python: :meth:`force`). tilt: the scene's gravity tilt, or
-            None.
-        rows: each constraint's rows in the stack by name. kp: corrector stiffness [1/s^2]. kd: corrector damping
-            [1/s]. direct_pivot: the Delassus matrix's smallest Cholesky pivot (squared) over its largest diagonal
-            entry below which the rows count as dependent. accepted: the relative primal residual an evaluation must
-            reach to be used.
+        model: the constrained model. kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s]. direct_pivot: the
+            Delassus matrix's smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows
+            count as dependent. accepted: the relative primal residual an evaluation must reach to be used.
 
     Attributes:
         kernel: the compiled evaluation (``cpp/core_kernel.cpp``).
+        python: the blocks and force elements evaluated in Python (:class:`PythonPart`), or None.
         unusable: the last :meth:`acceleration` is not to be used (the general path solves it).
         status: the solver status its solves count under.
     """
 
     status = "core"
 
-    def __init__(
-        self,
-        model: pin.Model,
-        constraints: list[Constraint],
-        forces: list[ForceElement],
-        rows: dict[str, slice],
-        kp: float,
-        kd: float,
-        direct_pivot: float,
-        accepted: float,
-        tilt: GravityTilt | None = None,
-    ) -> None:
+    def __init__(self, model: ConstrainedModel, kp: float, kd: float, direct_pivot: float, accepted: float) -> None:
         settings: dict[str, Any] = {
             "direct_pivot": direct_pivot,
             "cutoff": CUTOFF,
             "accepted": accepted,
             "margin_slack": MARGIN_SLACK,
         }
-        forms = [_compiled(element, rows) for element in forces]
-        blocks = [constraint.compiled_rows() for constraint in constraints]
-        turning = None if tilt is None else tilt.compiled_form()
-        compiled = [form for form in forms if form is not None]
-        self.kernel = CoreKernel(model, blocks, compiled, float(kp), float(kd), settings, turning)
-        self._python = [element for element, form in zip(forces, forms, strict=True) if form is None]
-        self._reads_kinematics = any(element.needs_kinematics for element in self._python)
+        constraints, rows = model.constraints.constraints, model.constraints.slices
+        forms = [_compiled(element, rows) for element in model.forces]
+        compiled = [constraint.compiled_rows() for constraint in constraints]
+        blocks = [
+            block if block is not None else _python_rows(c) for c, block in zip(constraints, compiled, strict=True)
+        ]
+        elements = [element for element, form in zip(model.forces, forms, strict=True) if form is None]
+        in_python = [c for c, block in zip(constraints, compiled, strict=True) if block is None]
+        self.python = PythonPart(model, in_python, elements) if in_python or elements else None
+        callbacks = None if self.python is None else (self.python.evaluate, self.python.holds)
+        tilt = None if model.scene.tilt is None else model.scene.tilt.compiled_form()
+        forms = [form for form in forms if form is not None]
+        self.kernel = CoreKernel(model.model, blocks, forms, float(kp), float(kd), settings, tilt, callbacks)
         self._zero = np.zeros(model.nv)
         self._zero.flags.writeable = False
         self.unusable = False
 
-    @property
-    def python_forces(self) -> list[str]:
-        """The force elements evaluated in Python (no compiled form the core takes), by name."""
-        return [element.name for element in self._python]
+    def in_python(self) -> str:
+        """What Python evaluates at each evaluation, named (the path's reason says it), or ""."""
+        if self.python is None:
+            return ""
+        parts = [f"constraint(s) {', '.join(b.name for b in self.python.blocks)}"] if self.python.blocks else []
+        parts += [f"force(s) {', '.join(e.name for e in self.python.elements)}"] if self.python.elements else []
+        return " and ".join(parts) + " evaluated in Python"
 
     def force(self, model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """The applied forces the kernel takes besides its own [N, N m]: those of the elements without a compiled form
-        the core takes, evaluated in Python (after a kinematics pass of pinstab's where one reads it)."""
-        if not self._python:
-            return self._zero
-        if self._reads_kinematics:
-            return model.forces_at(q, v, t, self._python)
-        return sum((element.generalized_force(model.kin, v, t) for element in self._python), np.zeros(len(v)))
-
-    @property
-    def takes_every_force(self) -> bool:
-        """Whether the kernel computes every force element itself (the compiled loop passes no forces)."""
-        return not self._python
+        """The applied forces the kernel takes besides its own and its Python part's [N, N m]: none."""
+        return self._zero
 
     def status_counts(self) -> dict[str, int]:
         """The kernel's evaluations by how they were solved (``core cholesky``, ``core pseudo-inverse``, ``core
