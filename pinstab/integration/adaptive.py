@@ -141,41 +141,49 @@ class AdaptiveLoop(StepLoop):
         a = self._acceleration_at(q, v, t)
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, a, t)
-        while t < t_stop - GRID_SLACK * grid.dt:
-            if t >= watch.next_due:
-                watch.sample(t, q, self.step_size)
-            if self.compiled is not None:
-                run = self._compiled_run(t, q, v, a, t_stop)
-                if run is not None and run.steps:
-                    t, q, v, a = run.t, run.q, run.v, run.a
-                    continue
-            proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
-            h, straddles = watch.limit(t, proposal)
-            if straddles and self.guarded:
-                q, v = self.project(q, v, t)
-                a = system.acceleration(q, v, t, 0)
-            step = self.attempt(q, v, a, t, h)
-            t_new = t + step.h
-            q_new, v_new = self.store(step.q, step.v, self.grid_index(t_new), t_new)
-            if step.end_slope is not None and q_new is step.q and v_new is step.v:
-                a_new = step.end_slope[system.model.nv :]  # first same as last
-            else:
-                a_new = system.acceleration(q_new, v_new, t_new, 0)
-            inside = self.grid_between(t, t_new)
-            if straddles or inside:
-                segment = Segment(system.model, t, q, v, a, t_new, q_new, v_new, a_new)
-                self._sample_grid(segment, inside, q_new, v_new)
-                if straddles:
-                    watch.locate(segment, q, q_new)
-            self.step_size = self._next_step(step)
-            t, q, v, a = t_new, q_new, v_new, a_new
+        runs: list[AdaptiveRun] = []  # compiled runs whose grid samples are still to be kept (kept at once)
+        try:
+            while t < t_stop - GRID_SLACK * grid.dt:
+                if t >= watch.next_due:
+                    watch.sample(t, q, self.step_size)
+                if self.compiled is not None:
+                    run = self._compiled_run(t, q, v, a, t_stop)
+                    if run is not None and run.steps:
+                        if len(run.qs):
+                            runs.append(run)
+                        t, q, v, a = run.t, run.q, run.v, run.a
+                        continue
+                self._keep_runs(runs)
+                proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
+                h, straddles = watch.limit(t, proposal)
+                if straddles and self.guarded:
+                    q, v = self.project(q, v, t)
+                    a = system.acceleration(q, v, t, 0)
+                step = self.attempt(q, v, a, t, h)
+                t_new = t + step.h
+                q_new, v_new = self.store(step.q, step.v, self.grid_index(t_new), t_new)
+                if step.end_slope is not None and q_new is step.q and v_new is step.v:
+                    a_new = step.end_slope[system.model.nv :]  # first same as last
+                else:
+                    a_new = system.acceleration(q_new, v_new, t_new, 0)
+                inside = self.grid_between(t, t_new)
+                if straddles or inside:
+                    segment = Segment(system.model, t, q, v, a, t_new, q_new, v_new, a_new)
+                    self._sample_grid(segment, inside, q_new, v_new)
+                    if straddles:
+                        watch.locate(segment, q, q_new)
+                self.step_size = self._next_step(step)
+                t, q, v, a = t_new, q_new, v_new, a_new
+        finally:
+            self._keep_runs(runs)
         self._start = (q, v, a)
         return q, v, stop
 
     def _compiled_run(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, t_stop: float) -> AdaptiveRun | None:
         """Accepted steps from (q, v, a) at t [s] taken by the compiled loop, until ``t_stop`` [s], the passage
-        watch's next sample, a step a predicted crossing may shorten, or an attempt left to the Python step; their
-        grid samples kept and the control's counts and state updated. None while the kernel is not to be used."""
+        watch's next sample, a step a predicted crossing may shorten, or an attempt left to the Python step (their
+        grid samples, of the grid steps after those of the run before, for :meth:`_keep_runs`); the control's counts
+        and state updated. None while the kernel is not to be used."""
         grid, watch, control = self.grid, self.watch, self.control
         crossing = watch.crossing()
         run = self.compiled.run(
@@ -201,11 +209,19 @@ class AdaptiveLoop(StepLoop):
         control.rejected += run.rejected
         control.smallest_step = min(control.smallest_step, run.smallest)
         control.largest_step = max(control.largest_step, run.largest)
-        if len(run.qs):
-            self.records.put_span(run.first, run.qs, run.vs)
-            if self.limit_watch is not None:
-                self.limit_watch.see_span(run.first, run.qs)
         return run
+
+    def _keep_runs(self, runs: list[AdaptiveRun]) -> None:
+        """Keep the grid samples of compiled runs that followed one another (consecutive grid steps) and empty
+        the list."""
+        if not runs:
+            return
+        qs = runs[0].qs if len(runs) == 1 else np.concatenate([run.qs for run in runs])
+        vs = runs[0].vs if len(runs) == 1 else np.concatenate([run.vs for run in runs])
+        self.records.put_span(runs[0].first, qs, vs)
+        if self.limit_watch is not None:
+            self.limit_watch.see_span(runs[0].first, qs)
+        runs.clear()
 
     def attempt(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float) -> Attempt:
         """Steps from (q, v, a) at t [s], shorter after each rejection, until one meets the tolerance; counts
