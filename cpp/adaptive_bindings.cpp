@@ -7,6 +7,7 @@
 #include <nanobind/stl/tuple.h>
 
 #include <optional>
+#include <stdexcept>
 
 #include "adaptive.hpp"
 
@@ -22,9 +23,17 @@ struct AdaptivePair {
   Control control;
 };
 
+// q, v and a of one size (q (+) dq = q + dq), that of the kernel when there is one.
+void check_state(const VectorXd& q, const VectorXd& v, const VectorXd& a, long nv) {
+  if (q.size() != nv || v.size() != nv || a.size() != nv) {
+    throw std::invalid_argument("AdaptivePair: q, v and a must have one entry per velocity coordinate");
+  }
+}
+
 nb::tuple run(const AdaptivePair& self, Kernel& kernel, const VectorXd& tau, double t, const VectorXd& q,
               const VectorXd& v, const VectorXd& a, double step_size, double previous_error, double dt,
               double duration, long steps, double slack, double t_stop, double due, double crossing, double horizon) {
+  check_state(q, v, a, kernel.nv());
   ControlState state{t, step_size, previous_error, q, v, a};
   const Grid grid{dt, duration, slack, steps};
   const Stops stops{t_stop, due, crossing, horizon};
@@ -43,10 +52,12 @@ nb::tuple run(const AdaptivePair& self, Kernel& kernel, const VectorXd& tau, dou
 
 nb::tuple trial(const AdaptivePair& self, nb::callable acceleration, const VectorXd& q, const VectorXd& v,
                 const VectorXd& a, double t, double h) {
+  check_state(q, v, a, v.size());
   Trial trial(self.pair, static_cast<int>(v.size()));
   const Evaluate evaluate = [&](int stage, double time, const VectorXd& q_stage, const VectorXd& v_stage,
                                 VectorXd& out) {
     out = nb::cast<VectorXd>(acceleration(q_stage, v_stage, time, stage));
+    if (out.size() != v_stage.size()) throw std::invalid_argument("AdaptivePair.trial: an acceleration of another size");
     return true;
   };
   trial.take(evaluate, q, v, a, t, h);

@@ -149,12 +149,17 @@ def test_hermite_output_is_the_quintic_through_the_ends():
 
 
 def test_bad_shapes_are_refused():
-    """An error norm given slopes of another pair, or a Hermite matrix of another degree, raises."""
+    """An error norm given slopes of another pair, Hermite values of another degree, a trial from a state of mixed
+    sizes or with accelerations of another size raise."""
     _, pair = _pair("dop853")
     with pytest.raises(ValueError):
         pair.error(np.ones(4), np.ones(4), np.zeros((7, 4)), None, 0.1)
     with pytest.raises(ValueError):
         hermite_coefficients(QUINTIC, np.zeros((4, 2)))
+    with pytest.raises(ValueError):
+        pair.trial(lambda q, v, t, stage: np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(2), 0.0, 0.1)
+    with pytest.raises(ValueError):
+        pair.trial(lambda q, v, t, stage: np.zeros(2), np.zeros(3), np.zeros(2), np.zeros(2), 0.0, 0.1)
 
 
 @pytest.mark.parametrize(
