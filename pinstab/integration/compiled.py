@@ -11,15 +11,14 @@ last bit. The loop's checks, the passage watch, the samples and the fallbacks (a
 servo that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose evaluation is
 not to be used and the Python step takes it.
 
-:class:`CompiledAdaptive` does the same for error-controlled runs (``--rtol``, :mod:`pinstab.integration.adaptive`):
-the embedded pair's stages, its error norm, the step-size control and the grid samples from the dense output in C++
-(``cpp/adaptive.cpp``), the coefficients passed from :mod:`pinstab.integration.tableaus`, the control's rules
-(the combined error, the next step, the step after a rejection) the ones the Python loop calls. It hands back to
-Python at the chunk's end, where the passage watch samples, before a step that a predicted singular crossing may
-shorten, and before an attempt it cannot finish (an evaluation not to be used, an error that is not finite, a
-step below the smallest). Its stage sums are plain loops where the Python step multiplies matrices (BLAS, with
-fused multiply-adds): the two loops agree to rounding, 1e-12 relative over the four-bar's 10 s
-(``tests/test_compiled_adaptive.py``), not to the last bit.
+:class:`CompiledAdaptive` does the same for error-controlled runs (``--rtol``, :mod:`pinstab.integration.adaptive`)
+on models whose joints all have one coordinate: the embedded pair's trial steps, its error norm, the step-size
+control and the grid samples from the dense output in C++ (``cpp/adaptive.cpp``; the coefficients passed from
+:mod:`pinstab.integration.tableaus` and :mod:`pinstab.integration.dense`), the same functions the Python adaptive
+loop calls with its own evaluation per stage: the results equal the Python loop's to the last bit
+(``tests/test_compiled_adaptive.py``). It hands back to Python at the chunk's end, where the passage watch samples,
+before a step that a predicted singular crossing may shorten, and before an attempt it cannot finish (an evaluation
+not to be used, an error that is not finite, a step below the smallest).
 """
 
 from __future__ import annotations
