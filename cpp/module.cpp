@@ -22,6 +22,10 @@ namespace nb = nanobind;
 using namespace nb::literals;
 
 namespace pinstab {
+void bind_adaptive(nb::module_& m);  // cpp/adaptive_bindings.cpp
+}  // namespace pinstab
+
+namespace pinstab {
 namespace {
 
 Csr csr(VectorXi indptr, VectorXi indices, VectorXd data) { return Csr{std::move(indptr), std::move(indices), std::move(data)}; }
@@ -144,6 +148,7 @@ RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& wo
 NB_MODULE(_compiled, m) {
   using namespace pinstab;
   m.doc() = "Compiled evaluations and explicit step loops of pinstab's native and banded paths.";
+  bind_adaptive(m);
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",

@@ -1,7 +1,8 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
 row functions pinstab's constraint classes call too), Pinocchio's constrained dynamics, the banded solve, the servo
 solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
-(:mod:`pinstab.integration.compiled`), a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`)
+(:mod:`pinstab.integration.compiled`), the error-controlled loop of an embedded pair and its control's rules
+(:mod:`pinstab.integration.adaptive`), a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`)
 and the drift and energy series of a run of point closures (:mod:`pinstab.series`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
@@ -14,6 +15,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 try:
     from ._compiled import (
+        AdaptivePair,
         BandedKernel,
         CoreKernel,
         Kernel,
@@ -31,6 +33,8 @@ try:
         contact_point_drift,
         contact_point_jacobian,
         contact_point_residual,
+        hermite_coefficients,
+        hermite_state,
         least_norm,
         rotation_drift,
         servo_realizability,
@@ -48,6 +52,7 @@ except ImportError as error:  # pragma: no cover - a broken install
     ) from error
 
 __all__ = [
+    "AdaptivePair",
     "BandedKernel",
     "CoreKernel",
     "Kernel",
@@ -65,6 +70,8 @@ __all__ = [
     "contact_point_drift",
     "contact_point_jacobian",
     "contact_point_residual",
+    "hermite_coefficients",
+    "hermite_state",
     "least_norm",
     "rotation_drift",
     "servo_realizability",

@@ -18,6 +18,13 @@ ODE (Baumgarte's term is part of it); a method that corrects the state (``projec
 the accepted solution, after the estimate, and the next step starts from the corrected state. Samples on
 the grid are taken from the quintic Hermite interpolant of each accepted step (:mod:`.dense`). Singular
 passages are planned as in fixed-step runs, by limiting the step (:meth:`PassageWatch.limit`).
+
+On a model whose joints all have one coordinate the trial step, the error norm, the control and the dense output
+are compiled (``cpp/adaptive.cpp``; the coefficients passed from :mod:`.tableaus` and :mod:`.dense`), the stages
+evaluated by the system in Python; on the compiled paths (:func:`~pinstab.integration.compiled.compiled_obstacle`)
+the runs of accepted steps between the passage watch's samples run in C++ altogether
+(:class:`~pinstab.integration.compiled.CompiledAdaptive`), with the compiled evaluation: the same operations in the
+same order, the same steps and samples to the last bit.
 """
 
 from __future__ import annotations
@@ -29,7 +36,10 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ContactInfeasibleError, DivergenceError
-from .dense import Segment
+from ..kernels import AdaptivePair
+from .compiled import AdaptiveRun, CompiledAdaptive
+from .dense import QUINTIC, Segment
+from .passages import HORIZON
 from .schemes import ExplicitRungeKutta
 from .stepping import GRID_SLACK, StepLoop
 
@@ -95,6 +105,22 @@ class AdaptiveLoop(StepLoop):
         self.pair = stepper
         self.needs_end = bool(np.any(stepper.estimators[:, -1]))  # the estimator weighs the new point's slope
         self.exponent = -1.0 / (stepper.tableau.estimator_order + 1)
+        constants = {
+            "rtol": control.rtol,
+            "atol": control.atol,
+            "safety": SAFETY,
+            "min_factor": MIN_FACTOR,
+            "max_factor": MAX_FACTOR,
+            "min_step": MIN_STEP,
+            "pi_alpha": PI_ALPHA,
+            "pi_beta": PI_BETA,
+            "estimator_mix": ESTIMATOR_MIX,
+            "exponent": self.exponent,
+        }
+        self.rules = AdaptivePair(
+            stepper.nodes, stepper.coupling, stepper.weights, stepper.estimators, QUINTIC, constants
+        )
+        self.compiled = CompiledAdaptive.of(system, stepper, self.rules)  # in place of the fixed-step loop
         self.step_size: float | None = None
         self.previous_error = 1.0  # the last accepted step's error, for the PI control
         self.rejected_last = False  # the last step was accepted after a rejection
@@ -115,31 +141,87 @@ class AdaptiveLoop(StepLoop):
         a = self._acceleration_at(q, v, t)
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, a, t)
-        while t < t_stop - GRID_SLACK * grid.dt:
-            if t >= watch.next_due:
-                watch.sample(t, q, self.step_size)
-            proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
-            h, straddles = watch.limit(t, proposal)
-            if straddles and self.guarded:
-                q, v = self.project(q, v, t)
-                a = system.acceleration(q, v, t, 0)
-            step = self.attempt(q, v, a, t, h)
-            t_new = t + step.h
-            q_new, v_new = self.store(step.q, step.v, self.grid_index(t_new), t_new)
-            if step.end_slope is not None and q_new is step.q and v_new is step.v:
-                a_new = step.end_slope[system.model.nv :]  # first same as last
-            else:
-                a_new = system.acceleration(q_new, v_new, t_new, 0)
-            inside = self.grid_between(t, t_new)
-            if straddles or inside:
-                segment = Segment(system.model, t, q, v, a, t_new, q_new, v_new, a_new)
-                self._sample_grid(segment, inside, q_new, v_new)
-                if straddles:
-                    watch.locate(segment, q, q_new)
-            self.step_size = self._next_step(step)
-            t, q, v, a = t_new, q_new, v_new, a_new
+        runs: list[AdaptiveRun] = []  # compiled runs whose grid samples are still to be kept (kept at once)
+        try:
+            while t < t_stop - GRID_SLACK * grid.dt:
+                if t >= watch.next_due:
+                    watch.sample(t, q, self.step_size)
+                if self.compiled is not None:
+                    run = self._compiled_run(t, q, v, a, t_stop)
+                    if run is not None and run.steps:
+                        if len(run.qs):
+                            runs.append(run)
+                        t, q, v, a = run.t, run.q, run.v, run.a
+                        continue
+                self._keep_runs(runs)
+                proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
+                h, straddles = watch.limit(t, proposal)
+                if straddles and self.guarded:
+                    q, v = self.project(q, v, t)
+                    a = system.acceleration(q, v, t, 0)
+                step = self.attempt(q, v, a, t, h)
+                t_new = t + step.h
+                q_new, v_new = self.store(step.q, step.v, self.grid_index(t_new), t_new)
+                if step.end_slope is not None and q_new is step.q and v_new is step.v:
+                    a_new = step.end_slope[system.model.nv :]  # first same as last
+                else:
+                    a_new = system.acceleration(q_new, v_new, t_new, 0)
+                inside = self.grid_between(t, t_new)
+                if straddles or inside:
+                    segment = Segment(system.model, t, q, v, a, t_new, q_new, v_new, a_new)
+                    self._sample_grid(segment, inside, q_new, v_new)
+                    if straddles:
+                        watch.locate(segment, q, q_new)
+                self.step_size = self._next_step(step)
+                t, q, v, a = t_new, q_new, v_new, a_new
+        finally:
+            self._keep_runs(runs)
         self._start = (q, v, a)
         return q, v, stop
+
+    def _compiled_run(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, t_stop: float) -> AdaptiveRun | None:
+        """Accepted steps from (q, v, a) at t [s] taken by the compiled loop, until ``t_stop`` [s], the passage
+        watch's next sample, a step a predicted crossing may shorten, or an attempt left to the Python step (their
+        grid samples, of the grid steps after those of the run before, for :meth:`_keep_runs`); the control's counts
+        and state updated. None while the kernel is not to be used."""
+        grid, watch, control = self.grid, self.watch, self.control
+        crossing = watch.crossing()
+        run = self.compiled.run(
+            t,
+            q,
+            v,
+            a,
+            self.step_size,
+            self.previous_error,
+            grid.dt,
+            grid.duration,
+            grid.steps,
+            GRID_SLACK,
+            t_stop,
+            watch.next_due,
+            math.nan if crossing is None else crossing,
+            HORIZON,
+        )
+        if run is None or not run.steps:
+            return run
+        self.step_size, self.previous_error = run.step_size, run.previous_error
+        control.accepted += run.accepted
+        control.rejected += run.rejected
+        control.smallest_step = min(control.smallest_step, run.smallest)
+        control.largest_step = max(control.largest_step, run.largest)
+        return run
+
+    def _keep_runs(self, runs: list[AdaptiveRun]) -> None:
+        """Keep the grid samples of compiled runs that followed one another (consecutive grid steps) and empty
+        the list."""
+        if not runs:
+            return
+        qs = runs[0].qs if len(runs) == 1 else np.concatenate([run.qs for run in runs])
+        vs = runs[0].vs if len(runs) == 1 else np.concatenate([run.vs for run in runs])
+        self.records.put_span(runs[0].first, qs, vs)
+        if self.limit_watch is not None:
+            self.limit_watch.see_span(runs[0].first, qs)
+        runs.clear()
 
     def attempt(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float) -> Attempt:
         """Steps from (q, v, a) at t [s], shorter after each rejection, until one meets the tolerance; counts
@@ -156,13 +238,12 @@ class AdaptiveLoop(StepLoop):
         self.rejected_last = False
         while True:
             try:
-                q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
+                q_new, v_new, slopes, end_slope = self._trial(q, v, a, t, h)
             except ContactInfeasibleError:
                 if MIN_FACTOR * h < MIN_STEP * max(1.0, t):
                     raise
                 error = math.inf
             else:
-                end_slope = self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
                 error = self.error_norm(size, self._size(q_new, v_new), slopes, end_slope, h)
             if error <= 1.0:
                 control.accepted += 1
@@ -170,7 +251,7 @@ class AdaptiveLoop(StepLoop):
                 control.largest_step = max(control.largest_step, h)
                 return Attempt(h, q_new, v_new, slopes, end_slope, error)
             control.rejected += 1
-            h *= MIN_FACTOR if not math.isfinite(error) else max(MIN_FACTOR, SAFETY * error**self.exponent)
+            h = self.rules.shrink(h, error)
             self.rejected_last = True
             if h < MIN_STEP * max(1.0, t):
                 raise DivergenceError(
@@ -187,21 +268,26 @@ class AdaptiveLoop(StepLoop):
         :data:`MAX_FACTOR` times longer (not longer at all right after a rejection), at least MIN_FACTOR times.
         A step shortened for a passage or a chunk's end still tells the right step: the error scales as
         h^(p+1)."""
-        h, error = step.h, step.error
-        limited = h < self.step_size * (1.0 - 1e-12)
-        optimal = math.inf
-        if error > 0.0:
-            optimal = h * SAFETY * error ** (PI_ALPHA * self.exponent)
-            optimal *= max(self.previous_error, 1e-4) ** (-PI_BETA * self.exponent)
-        self.previous_error = error
-        growth = 1.0 if self.rejected_last else MAX_FACTOR
-        return min(max(optimal, MIN_FACTOR * h), (self.step_size if limited else h) * growth)
+        following = self.rules.next_step(step.h, step.error, self.step_size, self.previous_error, self.rejected_last)
+        self.previous_error = step.error
+        return following
 
     def _acceleration_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The acceleration at the state the next step starts from (known when it ends the last step)."""
         if self._start is not None and self._start[0] is q and self._start[1] is v:
             return self._start[2]
         return self.system.acceleration(q, v, t, 0)
+
+    def _trial(
+        self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """The step of h [s] from (q, v) at t [s], a its acceleration: the end state, the stage slopes and the new
+        point's slope when the estimator weighs it (the compiled trial on models whose joints all have one
+        coordinate, the integrator's otherwise)."""
+        if self.system.model.euclidean:
+            return self.rules.trial(self.system.acceleration, q, v, a, t, h)
+        q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
+        return q_new, v_new, slopes, self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
 
     def _end_slope(self, q: np.ndarray, q_new: np.ndarray, v_new: np.ndarray, t: float) -> np.ndarray:
         """The derivative at the new point, in the start's tangent space: [velocity slope | acceleration]."""
@@ -215,7 +301,13 @@ class AdaptiveLoop(StepLoop):
         self, size: np.ndarray, size_new: np.ndarray, slopes: np.ndarray, end_slope: np.ndarray | None, h: float
     ) -> float:
         """The largest scaled error of a step over the coordinates [-] (accepted at <= 1): the estimators'
-        weights on the stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``."""
+        weights on the stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``.
+
+        The compiled norm on models whose joints all have one coordinate (the compiled loop's), NumPy's on others,
+        whose steps the integrator takes (the two agree to rounding: ``tests/test_compiled_adaptive.py``; at the
+        smallest tolerances the step sequence, and an event time located in it, follows that rounding)."""
+        if self.system.model.euclidean:
+            return self.rules.error(size, size_new, slopes, end_slope, h)
         control, estimators = self.control, self.pair.estimators
         stages = slopes.shape[0]
         estimates = estimators[:, :stages] @ slopes

@@ -6,7 +6,8 @@ derivative at both ends (quintic Hermite, error O(h^6) in q), and ``q(t) = q0 (+
 whose joints have one velocity coordinate each the rate of the increment is the velocity and its second
 derivative the acceleration; on others (free flyers, spherical joints) the end velocity is carried to
 q0's tangent space with ``pin.dDifference`` and the end acceleration is left out (quartic, O(h^5)),
-since its transport needs the derivative of that map.
+since its transport needs the derivative of that map. The coefficients and the polynomial's value are the compiled
+ones (``cpp/adaptive.cpp``), which the compiled error-controlled loop samples with.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
+
+from ..kernels import hermite_coefficients, hermite_state
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
@@ -66,23 +69,20 @@ class Segment:
         else:
             increment, rate = model.difference(q0, q1), model.to_start_tangent(q0, q1, v1)
         if a0 is None or a1 is None:
-            self.coefficients = CUBIC @ np.array([np.zeros_like(v0), h * v0, increment, h * rate])
+            self.coefficients = hermite_coefficients(CUBIC, np.array([np.zeros_like(v0), h * v0, increment, h * rate]))
             return
         ends = [np.zeros_like(v0), h * v0, h * h * a0, increment, h * rate]
         inverse = QUARTIC
         if model.flat:
             ends.append(h * h * a1)
             inverse = QUINTIC
-        self.coefficients = inverse @ np.array(ends)  # (degree + 1, nv): p(u) = sum_k c_k u^k, u = (t - t0) / h
+        self.coefficients = hermite_coefficients(
+            inverse, np.array(ends)
+        )  # (degree + 1, nv): p(u) = sum_k c_k u^k, u = (t - t0) / h
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) at time t [s] (t0 <= t <= t1)."""
-        u = (t - self.t0) / self.h if self.h else 0.0
-        degree = len(self.coefficients)
-        powers = u ** np.arange(degree)
-        slopes = np.arange(degree) * np.concatenate(([0.0], powers[:-1]))
-        increment = powers @ self.coefficients
-        rate = (slopes @ self.coefficients) / self.h if self.h else np.zeros(self.model.nv)
+        increment, rate = hermite_state(self.coefficients, (t - self.t0) / self.h if self.h else 0.0, self.h)
         model = self.model
         if model.euclidean:
             return self.q0 + increment, rate

@@ -1,0 +1,203 @@
+#include "adaptive.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pinstab {
+
+bool Pair::needs_end() const { return (estimators.col(stages()).array() != 0.0).any(); }
+
+double next_step(const Control& control, double h, double error, double proposed, double previous, bool rejected) {
+  const bool limited = h < proposed * (1.0 - 1e-12);  // shortened for a passage or a chunk's end
+  double optimal = INFINITY;
+  if (error > 0.0) {
+    optimal = h * control.safety * std::pow(error, control.pi_alpha * control.exponent);
+    optimal *= std::pow(std::max(previous, 1e-4), -control.pi_beta * control.exponent);
+  }
+  const double growth = rejected ? 1.0 : control.max_factor;
+  return std::min(std::max(optimal, control.min_factor * h), (limited ? proposed : h) * growth);
+}
+
+double shrink(const Control& control, double h, double error) {
+  if (!std::isfinite(error)) return h * control.min_factor;
+  return h * std::max(control.min_factor, control.safety * std::pow(error, control.exponent));
+}
+
+void hermite_coefficients(const Eigen::Ref<const Eigen::MatrixXd>& inverse, const Eigen::Ref<const RowMatrix>& ends,
+                          Eigen::Ref<RowMatrix> coefficients) {
+  for (Eigen::Index k = 0; k < inverse.rows(); ++k) {
+    coefficients.row(k).setZero();
+    for (Eigen::Index j = 0; j < inverse.cols(); ++j) coefficients.row(k) += inverse(k, j) * ends.row(j);
+  }
+}
+
+void hermite_state(const Eigen::Ref<const RowMatrix>& coefficients, double u, double h, Eigen::Ref<VectorXd> increment,
+                   Eigen::Ref<VectorXd> rate) {
+  increment.setZero();
+  rate.setZero();
+  double below = 0.0;  // u^(k-1)
+  for (Eigen::Index k = 0; k < coefficients.rows(); ++k) {
+    const double power = std::pow(u, static_cast<double>(k));
+    increment += power * coefficients.row(k).transpose();
+    rate += (static_cast<double>(k) * below) * coefficients.row(k).transpose();
+    below = power;
+  }
+  if (h != 0.0) rate /= h;
+}
+
+Trial::Trial(const Pair& pair, int nv)
+    : q_new(nv), v_new(nv), end(2 * nv), slopes(pair.stages(), 2 * nv), pair_(pair), nv_(nv), start_(2 * nv),
+      increment_(2 * nv), q_(nv), v_(nv), a_(nv) {}
+
+bool Trial::take(const Evaluate& evaluate, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t,
+                 double h) {
+  const int stages = pair_.stages();
+  start_ << q, v;
+  slopes.row(0) << v.transpose(), a.transpose();
+  for (int i = 1; i < stages; ++i) {
+    increment_.setZero();
+    for (int j = 0; j < i; ++j) increment_ += (h * pair_.coupling(i, j)) * slopes.row(j).transpose();
+    increment_ += start_;
+    q_ = increment_.head(nv_), v_ = increment_.tail(nv_);
+    ++evaluations;
+    if (!evaluate(i, t + pair_.nodes(i) * h, q_, v_, a_)) return false;
+    slopes.row(i) << v_.transpose(), a_.transpose();
+  }
+  increment_.setZero();
+  for (int j = 0; j < stages; ++j) increment_ += (h * pair_.weights(j)) * slopes.row(j).transpose();
+  q_new = q + increment_.head(nv_);
+  v_new = v + increment_.tail(nv_);
+  if (pair_.needs_end()) {
+    ++evaluations;
+    if (!evaluate(0, t + h, q_new, v_new, a_)) return false;
+    end << v_new, a_;
+  }
+  return true;
+}
+
+double Trial::error(const Control& control, const VectorXd& size, const VectorXd& size_new, double h) const {
+  const int stages = pair_.stages(), count = static_cast<int>(pair_.estimators.rows());
+  double largest[2] = {0.0, 0.0};
+  VectorXd estimate(2 * nv_);
+  for (int e = 0; e < count; ++e) {
+    estimate.setZero();
+    for (int j = 0; j < stages; ++j) estimate += pair_.estimators(e, j) * slopes.row(j).transpose();
+    if (pair_.needs_end()) estimate += pair_.estimators(e, stages) * end;
+    double worst = 0.0;
+    for (int i = 0; i < 2 * nv_; ++i) {
+      const double scaled = std::abs(estimate(i) / (control.atol + control.rtol * std::max(size(i), size_new(i))));
+      if (std::isnan(scaled) || std::isnan(worst)) {
+        worst = NAN;
+      } else {
+        worst = std::max(worst, scaled);
+      }
+    }
+    largest[e] = worst;
+  }
+  if (count == 1) return std::abs(h) * largest[0];
+  const double fifth = largest[0], third = largest[1];
+  if (fifth == 0.0 && third == 0.0) return 0.0;
+  return std::abs(h) * fifth * fifth / std::sqrt(fifth * fifth + control.estimator_mix * third * third);
+}
+
+namespace {
+
+long floor_index(double x) { return static_cast<long>(std::floor(x)); }
+
+}  // namespace
+
+int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
+                     const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs) {
+  const int nv = kernel.nv();
+  Trial trial(pair, nv);
+  const Evaluate evaluate = [&](int, double t, const VectorXd& q, const VectorXd& v, VectorXd& a) {
+    return kernel.acceleration(t, q, v, tau, a);
+  };
+  RowMatrix ends(6, nv), coefficients(6, nv);
+  VectorXd a_new(nv), increment(nv), rate(nv), size(2 * nv), size_new(2 * nv);
+  first = floor_index(state.t / grid.dt + grid.slack) + 1;
+  int count = 0;
+  while (state.t < stops.t_stop - grid.slack * grid.dt && !(state.t >= stops.due)) {
+    const double t = state.t;
+    const double proposal = stops.t_stop - t < state.step_size * (1 + grid.slack) ? stops.t_stop - t : state.step_size;
+    if (t < stops.crossing && stops.crossing < t + stops.horizon * proposal) break;  // the passage watch plans
+    // AdaptiveLoop.attempt: shorter after each rejection until the tolerance is met
+    size << state.q.cwiseAbs(), state.v.cwiseAbs();
+    double h = proposal, error = 0.0;
+    long rejected = 0;
+    trial.evaluations = 0;
+    bool finished = true;
+    while (true) {
+      finished = trial.take(evaluate, state.q, state.v, state.a, t, h);
+      if (!finished) break;
+      size_new << trial.q_new.cwiseAbs(), trial.v_new.cwiseAbs();
+      error = trial.error(control, size, size_new, h);
+      if (error <= 1.0) break;
+      if (!std::isfinite(error)) {  // the Python step rejects it (or names a contact that left its cone)
+        finished = false;
+        break;
+      }
+      ++rejected;
+      h = shrink(control, h, error);
+      if (h < control.min_step * std::max(1.0, t)) {  // the Python step raises the divergence
+        finished = false;
+        break;
+      }
+    }
+    if (!finished) break;
+    const double t_new = t + h;
+    if (pair.needs_end()) {
+      a_new = trial.end.tail(nv);
+    } else {
+      ++trial.evaluations;
+      if (!kernel.acceleration(t_new, trial.q_new, trial.v_new, tau, a_new)) break;
+    }
+    // the grid samples in (t, t_new] (StepLoop.grid_between): the end state on a grid time, else the dense output
+    const long low = floor_index(t / grid.dt + grid.slack) + 1;
+    const long high = t_new >= grid.duration - grid.slack * grid.dt
+                          ? grid.steps
+                          : std::min(floor_index(t_new / grid.dt + grid.slack), grid.steps);
+    if (high >= low) {
+      const double span = t_new - t;  // dense.Segment's h
+      ends.row(0).setZero();
+      ends.row(1) = (span * state.v).transpose();
+      ends.row(2) = ((span * span) * state.a).transpose();
+      ends.row(3) = (trial.q_new - state.q).transpose();
+      ends.row(4) = (span * trial.v_new).transpose();
+      ends.row(5) = ((span * span) * a_new).transpose();
+      hermite_coefficients(pair.hermite, ends, coefficients);
+      for (long k = low; k <= high; ++k) {
+        const double time = k == grid.steps ? grid.duration : static_cast<double>(k) * grid.dt;
+        const long row = k - first;
+        if (row >= qs.rows()) {
+          qs.conservativeResize(2 * row + 2, Eigen::NoChange);
+          vs.conservativeResize(2 * row + 2, Eigen::NoChange);
+        }
+        if (std::abs(time - t_new) <= grid.slack * grid.dt) {
+          qs.row(row) = trial.q_new.transpose();
+          vs.row(row) = trial.v_new.transpose();
+        } else {
+          hermite_state(coefficients, span != 0.0 ? (time - t) / span : 0.0, span, increment, rate);
+          qs.row(row) = (state.q + increment).transpose();
+          vs.row(row) = rate.transpose();
+        }
+        count = static_cast<int>(row + 1);
+      }
+    }
+    state.step_size = next_step(control, h, error, state.step_size, state.previous_error, rejected > 0);
+    state.previous_error = error;
+    state.accepted += 1;
+    state.rejected += rejected;
+    state.evaluations += trial.evaluations;
+    state.steps += 1;
+    state.smallest = std::min(state.smallest, h);
+    state.largest = std::max(state.largest, h);
+    state.t = t_new;
+    state.q = trial.q_new;
+    state.v = trial.v_new;
+    state.a = a_new;
+  }
+  return count;
+}
+
+}  // namespace pinstab
