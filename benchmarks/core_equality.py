@@ -38,7 +38,7 @@ def run(scene: pinstab.Scene, duration: float, **options: Any) -> tuple[pinstab.
 
 def on_core(scene: pinstab.Scene) -> bool:
     """Whether the scene's default run takes the core path."""
-    if default_contacts(scene) != "held":
+    if default_contacts(scene) not in (None, "held"):  # event-driven contacts take their own path
         return False
     system = build_system(scene)
     system.bind(scene.step or 1e-3, "rk4", scene.q0)
