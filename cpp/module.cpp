@@ -67,20 +67,23 @@ Target target(nb::dict spec) {
   return target;
 }
 
-// PythonPart over two Python callables: evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the Python blocks and
-// elements, holds(t, multipliers) -> bool; each call takes the GIL (the step loop runs without it).
+// PythonPart over a Python object's methods evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the Python blocks
+// and elements and holds(t, multipliers) -> bool (pinstab.paths.core.PythonPart), held by a weak reference: the
+// object's owner keeps it (and the kernel) alive, and no reference cycle runs through C++, where Python's garbage
+// collector cannot see it. Each call takes the GIL (the step loop runs without it); a part gone is not usable.
 class CallbackPart : public PythonPart {
  public:
-  CallbackPart(nb::callable evaluate, nb::callable holds) : evaluate_(std::move(evaluate)), holds_(std::move(holds)) {}
+  explicit CallbackPart(nb::handle part) : part_(part) {}
   ~CallbackPart() override {
     nb::gil_scoped_acquire held;
-    evaluate_.reset();
-    holds_.reset();
+    part_.reset();
   }
   bool evaluate(double t, const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& jacobian, VectorXd& phi,
                 VectorXd& time_term, VectorXd& drift, VectorXd& force) override {
     nb::gil_scoped_acquire held;
-    const nb::tuple terms = nb::cast<nb::tuple>(evaluate_(t, q, v));
+    const nb::object part = part_();
+    if (part.is_none()) return false;
+    const nb::tuple terms = nb::cast<nb::tuple>(part.attr("evaluate")(t, q, v));
     jacobian = nb::cast<Eigen::MatrixXd>(terms[0]);
     phi = nb::cast<VectorXd>(terms[1]);
     time_term = nb::cast<VectorXd>(terms[2]);
@@ -90,11 +93,12 @@ class CallbackPart : public PythonPart {
   }
   bool holds(double t, const VectorXd& multipliers) override {
     nb::gil_scoped_acquire held;
-    return nb::cast<bool>(holds_(t, multipliers));
+    const nb::object part = part_();
+    return !part.is_none() && nb::cast<bool>(part.attr("holds")(t, multipliers));
   }
 
  private:
-  nb::object evaluate_, holds_;
+  nb::weakref part_;
 };
 
 // Cones from their columns (rows: normal, tangent, tangent; -1: none) and friction coefficients.
@@ -342,7 +346,7 @@ NB_MODULE(_compiled, m) {
           "__init__",
           [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
              double kp, double kd, nb::dict settings, std::optional<nb::dict> tilt,
-             std::optional<std::pair<nb::callable, nb::callable>> python) {
+             nb::object python) {
             CoreForces forces;
             for (const nb::dict& form : forms) {
               const std::string kind = nb::cast<std::string>(form["kind"]);
@@ -371,7 +375,7 @@ NB_MODULE(_compiled, m) {
                                     nb::cast<double>((*tilt)["start"])};
             }
             std::shared_ptr<PythonPart> part;
-            if (python) part = std::make_shared<CallbackPart>(python->first, python->second);
+            if (!python.is_none()) part = std::make_shared<CallbackPart>(python);
             new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), kp, kd, solve,
                                   turning, std::move(part));
           },
@@ -379,9 +383,9 @@ NB_MODULE(_compiled, m) {
           "python"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
           "wrench), Baumgarte gains, the solve's settings (dict: direct_pivot, cutoff, accepted, margin_slack) and "
-          "a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: (evaluate(t, q, v) "
-          "-> (G, phi, g_t, gamma0, forces) of the blocks of kind 6 and the elements without a compiled form, "
-          "holds(t, multipliers) -> bool).")
+          "a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
+          "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "
+          "kind 6 and the elements without a compiled form, and holds(t, multipliers) -> bool.")
       .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
       .def_prop_ro("worst_residual", &CoreKernel::worst_residual,
                    "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).")

@@ -146,10 +146,10 @@ class CoreDynamics:
         elements = [element for element, form in zip(model.forces, forms, strict=True) if form is None]
         in_python = [c for c, block in zip(constraints, compiled, strict=True) if block is None]
         self.python = PythonPart(model, in_python, elements) if in_python or elements else None
-        callbacks = None if self.python is None else (self.python.evaluate, self.python.holds)
+
         tilt = None if model.scene.tilt is None else model.scene.tilt.compiled_form()
         forms = [form for form in forms if form is not None]
-        self.kernel = CoreKernel(model.model, blocks, forms, float(kp), float(kd), settings, tilt, callbacks)
+        self.kernel = CoreKernel(model.model, blocks, forms, float(kp), float(kd), settings, tilt, self.python)
         self._zero = np.zeros(model.nv)
         self._zero.flags.writeable = False
         self.unusable = False
