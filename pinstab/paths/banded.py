@@ -55,7 +55,7 @@ def _csr(rows: int, per_row: np.ndarray, indices: np.ndarray, data: np.ndarray) 
     return {"indptr": indptr, "indices": indices.astype(np.int32), "data": data}
 
 
-def _supports(model: pin.Model) -> np.ndarray:
+def joint_supports(model: pin.Model) -> np.ndarray:
     """(joints, nv) bool: per joint, the velocity indices that move its body (its own and its ancestors'), from its
     parent's (a Pinocchio model lists parents before children); none for the world."""
     supports = np.zeros((model.njoints, model.nv), dtype=bool)
@@ -120,7 +120,7 @@ class BandedDynamics:
         # G entries e = (row, column): s . ((w_a - w_b) J_lin + J_ang x lever), lever = w_a p_a - w_b p_b,
         # i.e. J[:, column] . c_e with c_e = [(w_a - w_b) s; lever x s], the second half linear in the points;
         # a row's entries: the dofs moving either of its points, in increasing order
-        supports = _supports(model)
+        supports = joint_supports(model)
         joints = np.array([joint for joint, _ in sides], dtype=int)
         moves_a, moves_b = supports[joints[row_closure]], supports[joints[count + row_closure]]
         self._g_row, self._g_col = np.nonzero(moves_a | moves_b)

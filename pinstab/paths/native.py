@@ -26,8 +26,9 @@ import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
 from ..kernels import NativeKernel
-from ..kinematics import LWA, frame_jacobian, with_columns
+from ..kinematics import LWA, with_columns
 from ..memory import new_data
+from .banded import joint_supports
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,
@@ -68,19 +69,29 @@ def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...]
 
 def non_planar_closure(model: pin.Model, data: pin.Data, closures: list[FrameClosure], q: np.ndarray) -> str | None:
     """The first ``planar-point`` closure whose out-of-plane motion the joints do not block at q (so
-    it has no 3-D contact equivalent), or None; ``data``: a ``Data`` of the model to compute in."""
+    it has no 3-D contact equivalent), or None; ``data``: a ``Data`` of the model to compute in.
+
+    The out-of-plane row n . (J_a - J_b) of every such closure at once from the joints' world Jacobian: a point p
+    carried by joint j moves by J_lin - p x J_ang over the columns that move j (Pinocchio's frame Jacobian in
+    LOCAL_WORLD_ALIGNED), i.e. n . J_lin - (n x p) . J_ang."""
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
-    for closure in closures:
-        if closure.kind != "planar-point":
-            continue
-        jac = frame_jacobian(model, data, closure.frame_a)[:3]
-        if closure.frame_b is not None:
-            jac = jac - frame_jacobian(model, data, closure.frame_b)[:3]
-        normal = np.cross(closure.selection[0], closure.selection[1])
-        if np.abs(normal @ jac).max() > PLANAR_TOLERANCE:
-            return closure.name
-    return None
+    planar = [closure for closure in closures if closure.kind == "planar-point"]
+    if not planar:
+        return None
+    in_plane = np.array([closure.selection for closure in planar])
+    normals = np.cross(in_plane[:, 0], in_plane[:, 1])
+    jacobian = with_columns(data.J, model.nv)
+    supports = joint_supports(model)
+    out_of_plane = np.zeros((len(planar), model.nv))
+    for sign, frames in ((1.0, [c.frame_a for c in planar]), (-1.0, [c.frame_b for c in planar])):
+        carried = [index for index, frame in enumerate(frames) if frame is not None]
+        joints = [model.frames[frames[index]].parentJoint for index in carried]
+        points = np.array([data.oMf[frames[index]].translation for index in carried]).reshape(-1, 3)
+        moved = normals[carried] @ jacobian[:3] - np.cross(normals[carried], points) @ jacobian[3:]
+        out_of_plane[carried] += sign * np.where(supports[joints], moved, 0.0)
+    moving = np.abs(out_of_plane).max(axis=1, initial=0.0) > PLANAR_TOLERANCE
+    return planar[int(np.argmax(moving))].name if moving.any() else None
 
 
 class _Constraints(NamedTuple):
