@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..constraints import FrameClosure, Violation
@@ -55,15 +55,26 @@ def _csr(rows: int, per_row: np.ndarray, indices: np.ndarray, data: np.ndarray) 
     return {"indptr": indptr, "indices": indices.astype(np.int32), "data": data}
 
 
+def _reverse_cuthill_mckee(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
+    """scipy's reverse Cuthill-McKee order of the symmetric pattern of ``size`` nodes with entries at (``rows``,
+    ``cols``), repeats allowed, given in its canonical CSR form (columns sorted in a row, no repeats)."""
+    keys = np.unique(rows * size + cols)
+    indptr = np.zeros(size + 1, dtype=np.int32)
+    np.cumsum(np.bincount(keys // size, minlength=size), out=indptr[1:])
+    pattern = csr_matrix((np.ones(len(keys)), (keys % size).astype(np.int32), indptr), shape=(size, size))
+    return np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=int)
+
+
 def joint_supports(model: pin.Model) -> np.ndarray:
     """(joints, nv) bool: per joint, the velocity indices that move its body (its own and its ancestors'), from its
-    parent's (a Pinocchio model lists parents before children); none for the world."""
-    supports = np.zeros((model.njoints, model.nv), dtype=bool)
-    for joint, (parent, start, width) in enumerate(zip(model.parents, model.idx_vs, model.nvs, strict=True)):
-        if joint:
-            supports[joint] = supports[parent]
-            supports[joint, start : start + width] = True
-    return supports
+    parent's (a Pinocchio model lists parents before children); none for the world. Built as one bit set per joint."""
+    parents, starts, widths = model.parents, model.idx_vs, model.nvs
+    masks = [0]
+    for joint in range(1, model.njoints):
+        masks.append(masks[parents[joint]] | ((1 << widths[joint]) - 1) << starts[joint])
+    width = (model.nv + 7) // 8
+    packed = np.frombuffer(b"".join(mask.to_bytes(width, "little") for mask in masks), dtype=np.uint8)
+    return np.unpackbits(packed.reshape(model.njoints, width), axis=1, count=model.nv, bitorder="little").view(bool)
 
 
 class BandedDynamics:
@@ -192,8 +203,7 @@ class BandedDynamics:
         within = np.arange(len(first)) - np.repeat(np.cumsum(repeats) - repeats, repeats)
         second = entries[np.repeat(starts[rank[group[entries]]], repeats) + within]
         rows = self._g_row
-        pattern = coo_matrix((np.ones(len(first)), (rows[first], rows[second])), shape=(self.rows, self.rows))
-        order = np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=int)
+        order = _reverse_cuthill_mckee(rows[first], rows[second], self.rows)
         position = np.empty(self.rows, dtype=int)
         position[order] = np.arange(self.rows)
         low, high = position[rows[first]], position[rows[second]]
@@ -214,8 +224,7 @@ class BandedDynamics:
         off = m_upper[:, 0] != m_upper[:, 1]
         rows = np.concatenate([m_upper[:, 0], m_upper[off, 1], nv + self._g_row, self._g_col])
         cols = np.concatenate([m_upper[:, 1], m_upper[off, 0], self._g_col, nv + self._g_row])
-        pattern = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(size, size)).tocsr()
-        order = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=int)
+        order = _reverse_cuthill_mckee(rows, cols, size)
         position = np.empty(size, dtype=int)
         position[order] = np.arange(size)
         prow, pcol = position[rows], position[cols]
