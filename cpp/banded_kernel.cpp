@@ -121,18 +121,23 @@ bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
   jacobian_values();
   const pinocchio::Motion gravity = model_.gravity;
   terms_ = kp_ * points_;  // points fixed in the world: no motion, the corrector's Kp p
-  for (int c = 0; c < p.carried.size(); ++c) {
-    const int point = p.carried(c);
-    const int joint = p.joints(c);
-    // spatial velocity and bias acceleration of the point's body at the world origin, world axes
-    const pinocchio::Motion velocity_0 = world_ ? world_bias_.velocity(joint) : data_.oMi[joint].act(data_.v[joint]);
-    const pinocchio::Motion bias_0 =
-        (world_ ? world_bias_.acceleration(joint) : data_.oMi[joint].act(data_.a_gf[joint])) + gravity;
+  // a point's terms from the spatial velocity and the bias acceleration (without gravity's) of its body at the world
+  // origin, world axes; taken by reference where WorldBias holds them (a copy read back as pairs of lanes stalled)
+  const auto point_terms = [&](int point, const pinocchio::Motion& velocity_0, const pinocchio::Motion& acceleration_0) {
+    const pinocchio::Motion bias_0 = acceleration_0 + gravity;
     const Eigen::Vector3d omega = velocity_0.angular();
     const Eigen::Vector3d position = points_.col(point);
     const Eigen::Vector3d velocity = velocity_0.linear() + omega.cross(position);
     terms_.col(point) = bias_0.linear() + bias_0.angular().cross(position) + omega.cross(velocity) +
                         (kp_ * position + kd_ * velocity);
+  };
+  for (int c = 0; c < p.carried.size(); ++c) {
+    const int joint = p.joints(c);
+    if (world_) {
+      point_terms(p.carried(c), world_bias_.velocity(joint), world_bias_.acceleration(joint));
+    } else {
+      point_terms(p.carried(c), data_.oMi[joint].act(data_.v[joint]), data_.oMi[joint].act(data_.a_gf[joint]));
+    }
   }
   // -gamma0 - Kp phi - Kd G v on the closure rows
   closure_rows(terms_, rows_);
