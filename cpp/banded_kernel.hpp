@@ -55,7 +55,7 @@ class BandedKernel : public Kernel {
   Outcome solve_assembled();
   void jacobian_values();
   void place_points();
-  void closure_rows(const Eigen::MatrixXd& per_point, VectorXd& rows) const;  // the rows' s . (T_b - T_a)
+  void closure_rows(const Eigen::MatrixXd& per_point, VectorXd& rows);  // the rows' s . (T_b - T_a)
   void scatter(Eigen::MatrixXd& band) const;  // the KKT entries (values_) into band storage
   bool refine();
 
@@ -73,7 +73,8 @@ class BandedKernel : public Kernel {
   BandedPattern pattern_;
   GramSpectrum spectrum_;
   double kp_, kd_, pivot_tolerance_;
-  Eigen::MatrixXd points_, terms_, coefficients_, ab_, kkt_;
+  Eigen::MatrixXd points_, terms_, ab_, kkt_;
+  Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> flat_points_, raveled_;  // (3, points) raveled by row
   VectorXd rows_, lever_, values_, rhs_, g_values_, right_, correction_;
   long refinements_ = 0;
   double pivot_ratio_ = 0.0;

@@ -229,7 +229,10 @@ class ConstrainedSystem:
         native = self.solver.native
         if native is None:
             closures = [c for c in self.model.constraints.constraints if isinstance(c, FrameClosure)]
-            native = NativeDynamics(self.model.model, closures, *gains, mu=self.native_mu(q), data=self.model.scratch)
+            start = q.copy()  # mu from the start, when Pinocchio's solve is first needed (the banded path: rarely)
+            native = NativeDynamics(
+                self.model.model, closures, *gains, mu=lambda: self.native_mu(start), data=self.model.scratch
+            )
         native.set_gains(*gains)
         self.native = native
         if self.stabilizer.corrects:

@@ -99,7 +99,9 @@ class Conditioning:
 
     Args:
         model: the constrained model.
-        q: the start configuration: the rank there is the generic rank r.
+        q: the start configuration: the rank there is the generic rank r (with ``relative``, all the rows when
+            sigma_rows / sigma_1 exceeds :data:`GENERIC_RANK_TOLERANCE` there, an SVD only otherwise; that value is
+            the first sample's when it is taken at q).
         relative: ``(q, r) -> sigma_r / sigma_1`` computed without a dense SVD (the banded path's), or None.
         jacobian: ``q -> G`` without the model's Python pass over its rows (the banded path's), or None.
     """
@@ -115,6 +117,13 @@ class Conditioning:
         self._relative = relative
         self._jacobian_of = jacobian
         self._zero = np.zeros(model.nv)
+        self._start: tuple[np.ndarray, float] | None = None  # (q, s) at the start, for the first sample there
+        rows = model.constraints.rows
+        if relative is not None and 0 < rows <= model.nv:  # independent rows at the start: no SVD to say so
+            start = relative(q, rows)
+            if start > GENERIC_RANK_TOLERANCE:
+                self.rank, self._start = rows, (q.copy(), start)
+                return
         values = self._singular_values(q, 0.0)
         largest = values[0] if values.size else 0.0
         self.rank = int(np.sum(values > GENERIC_RANK_TOLERANCE * largest)) if largest > 0 else 0
@@ -137,6 +146,9 @@ class Conditioning:
     def relative(self, q: np.ndarray, t: float) -> float:
         """sigma_r / sigma_1 of G at (q, t) [-] (r the generic rank)."""
         if self._relative is not None:
+            start, self._start = self._start, None
+            if start is not None and np.array_equal(start[0], q):  # the first sample, at the start: known
+                return start[1]
             return self._relative(q, self.rank)
         values = self._singular_values(q, t)
         return float(values[self.rank - 1] / values[0]) if values[0] > 0 else math.nan

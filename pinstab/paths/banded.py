@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..constraints import FrameClosure, Violation
@@ -47,27 +47,34 @@ _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
 _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 
 
-def _sparse(entries: list[tuple[int, int]], values: np.ndarray, shape: tuple[int, int]) -> csr_matrix:
-    """A CSR matrix of ``shape`` with ``values`` at ``entries`` (row, column)."""
-    rows, cols = (np.array(index, dtype=int) for index in zip(*entries, strict=True)) if entries else ([], [])
-    return csr_matrix((values, (rows, cols)), shape=shape)
+def _csr(rows: int, per_row: np.ndarray, indices: np.ndarray, data: np.ndarray) -> dict[str, np.ndarray]:
+    """A CSR matrix of ``rows`` rows as the kernel takes it (``indptr``, ``indices``, ``data``): ``per_row`` entries in
+    each row, ``indices`` and ``data`` row after row, columns increasing in each."""
+    indptr = np.zeros(rows + 1, dtype=np.int32)
+    np.cumsum(per_row, out=indptr[1:])
+    return {"indptr": indptr, "indices": indices.astype(np.int32), "data": data}
 
 
-def _dofs(model: pin.Model, joint: int) -> list[int]:
-    """The velocity indices of joint ``joint`` (none for the world)."""
-    if joint == 0:
-        return []
-    start = model.joints[joint].idx_v
-    return list(range(start, start + model.joints[joint].nv))
+def _reverse_cuthill_mckee(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
+    """scipy's reverse Cuthill-McKee order of the symmetric pattern of ``size`` nodes with entries at (``rows``,
+    ``cols``), repeats allowed, given in its canonical CSR form (columns sorted in a row, no repeats)."""
+    keys = np.unique(rows * size + cols)
+    indptr = np.zeros(size + 1, dtype=np.int32)
+    np.cumsum(np.bincount(keys // size, minlength=size), out=indptr[1:])
+    pattern = csr_matrix((np.ones(len(keys)), (keys % size).astype(np.int32), indptr), shape=(size, size))
+    return np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=int)
 
 
-def _supports(model: pin.Model) -> list[list[int]]:
-    """Per joint, the velocity indices that move its body (its own and its ancestors'), from its parent's (a
-    Pinocchio model lists parents before children)."""
-    supports: list[list[int]] = [[]]
+def joint_supports(model: pin.Model) -> np.ndarray:
+    """(joints, nv) bool: per joint, the velocity indices that move its body (its own and its ancestors'), from its
+    parent's (a Pinocchio model lists parents before children); none for the world. Built as one bit set per joint."""
+    parents, starts, widths = model.parents, model.idx_vs, model.nvs
+    masks = [0]
     for joint in range(1, model.njoints):
-        supports.append(supports[model.parents[joint]] + _dofs(model, joint))
-    return supports
+        masks.append(masks[parents[joint]] | ((1 << widths[joint]) - 1) << starts[joint])
+    width = (model.nv + 7) // 8
+    packed = np.frombuffer(b"".join(mask.to_bytes(width, "little") for mask in masks), dtype=np.uint8)
+    return np.unpackbits(packed.reshape(model.njoints, width), axis=1, count=model.nv, bitorder="little").view(bool)
 
 
 class BandedDynamics:
@@ -113,48 +120,41 @@ class BandedDynamics:
         self._points = (
             np.array([point if joint == 0 else np.zeros(3) for joint, point in sides]).reshape(-1, 3).T.copy()
         )
-        # closure rows: r = s_r . (T_b - T_a) over the per-point terms T (3, points), raveled by component
+        # closure rows: r = s_r . (T_b - T_a) over the per-point terms T (3, points), raveled by component: row r
+        # holds -s_k at column k points + closure and s_k at k points + count + closure, k = 0, 1, 2
         row_closure = np.repeat(np.arange(count), [closure.selection.shape[0] for closure in closures]).astype(int)
         selection = np.vstack([closure.selection for closure in closures]).reshape(-1, 3)
         self.rows = len(row_closure)
-        entries, values = [], []
-        for row, (closure, vector) in enumerate(zip(row_closure, selection, strict=True)):
-            for k in range(3):
-                entries += [(row, k * points + count + closure), (row, k * points + closure)]
-                values += [vector[k], -vector[k]]
-        self._row_map = _sparse(entries, np.array(values), (self.rows, 3 * points))
+        columns = np.arange(3)[None, :, None] * points + row_closure[:, None, None] + np.array([0, count])
+        signed = selection[:, :, None] * np.array([-1.0, 1.0])
+        self._row_map = _csr(self.rows, np.full(self.rows, 6), columns.ravel(), signed.ravel())
         # G entries e = (row, column): s . ((w_a - w_b) J_lin + J_ang x lever), lever = w_a p_a - w_b p_b,
-        # i.e. J[:, column] . c_e with c_e = [(w_a - w_b) s; lever x s], the second half linear in the points
-        g_entries, linear, entries, values = [], [], [], []
-        supports = _supports(model)
-        for row, closure in enumerate(row_closure):
-            side_a = set(supports[sides[closure][0]])
-            side_b = set(supports[sides[count + closure][0]])
-            skew = np.einsum("ijk,k->ij", _LEVI_CIVITA, selection[row])  # (lever x s)_i = skew[i, j] lever_j
-            for dof in sorted(side_a | side_b):
-                e = len(g_entries)
-                g_entries.append((row, dof))
-                weights = ((closure, float(dof in side_a)), (count + closure, -float(dof in side_b)))
-                linear.append((weights[0][1] + weights[1][1]) * selection[row])
-                for i in range(3):
-                    for j in range(3):
-                        for point, weight in weights:
-                            if weight and skew[i, j]:
-                                entries.append((i, e, j * points + point))
-                                values.append(weight * skew[i, j])
-        self._g_row, self._g_col = (np.array(index, dtype=int) for index in zip(*g_entries, strict=True))
-        size = len(g_entries)
-        self._g_linear = np.array(linear).T.reshape(3, -1)
-        entries = [(i * size + e, column) for i, e, column in entries]
-        self._g_map = _sparse(entries, np.array(values), (3 * size, 3 * points))
+        # i.e. J[:, column] . c_e with c_e = [(w_a - w_b) s; lever x s], the second half linear in the points;
+        # a row's entries: the dofs moving either of its points, in increasing order
+        supports = joint_supports(model)
+        joints = np.array([joint for joint, _ in sides], dtype=int)
+        moves_a, moves_b = supports[joints[row_closure]], supports[joints[count + row_closure]]
+        self._g_row, self._g_col = np.nonzero(moves_a | moves_b)
+        size = len(self._g_row)
+        # per entry, the weight of each point: w_a (1 or 0) for side a, -w_b (-1 or -0) for side b
+        weights = np.stack([moves_a[self._g_row, self._g_col], moves_b[self._g_row, self._g_col]], axis=1)
+        weights = weights * np.array([1.0, -1.0])
+        self._g_linear = ((weights[:, 0] + weights[:, 1])[:, None] * selection[self._g_row]).T
+        # the lever part: (lever x s)_i = skew[i, j] lever_j, at row i size + e and column j points + point, where
+        # neither the weight nor the skew entry is zero
+        skew = np.einsum("ijk,rk->rij", _LEVI_CIVITA, selection)[self._g_row]  # (entries, i, j)
+        terms = weights[:, None, None, :] * skew[:, :, :, None]  # (entries, i, j, point)
+        kept = (weights != 0)[:, None, None, :] & (skew != 0)[:, :, :, None]
+        point_columns = np.stack([row_closure[self._g_row], count + row_closure[self._g_row]], axis=1)
+        columns = np.arange(3)[None, :, None] * points + point_columns[:, None, :]  # (entries, j, point)
+        order = (1, 0, 2, 3)  # row-major by (i, e), columns increasing in a row
+        kept, terms = kept.transpose(order), terms.transpose(order)
+        columns = np.broadcast_to(columns[None], kept.shape)
+        self._g_map = _csr(3 * size, kept.reshape(3 * size, 6).sum(axis=1), columns[kept], terms[kept])
         # M entries (upper triangle read from crba): dofs on one branch
-        m_pairs = {
-            (min(i, k), max(i, k))
-            for joint in range(1, model.njoints)
-            for i in _dofs(model, joint)
-            for k in supports[joint]
-        }
-        m_upper = np.array(sorted(m_pairs), dtype=int).reshape(-1, 2)
+        dof_joint = np.repeat(np.arange(model.njoints), [0, *model.nvs[1:]])
+        branch = supports[dof_joint]
+        m_upper = np.column_stack(np.nonzero(np.triu(branch | branch.T)))
         self._m_off = m_upper[:, 0] != m_upper[:, 1]
         self._build_band(m_upper)
         try:
@@ -183,23 +183,27 @@ class BandedDynamics:
         }
         arrays.update(self._gram_pattern())
         for name, matrix in (("row_map", self._row_map), ("g_map", self._g_map)):
-            arrays.update(
-                {f"{name}_indptr": matrix.indptr, f"{name}_indices": matrix.indices, f"{name}_data": matrix.data}
-            )
+            arrays.update({f"{name}_{part}": array for part, array in matrix.items()})
         return {name: np.ascontiguousarray(array) for name, array in arrays.items()}
 
     def _gram_pattern(self) -> dict[str, np.ndarray]:
         """The banded Gram matrix G G^T of the closures' rows (reverse Cuthill-McKee order): its band, each G
         entry's row in that order and the products of entries that share a column with the slot each adds to
         (lower band storage, column-major: A[i, j] at [i - j, j], i >= j)."""
-        by_column: dict[int, list[int]] = {}
-        for entry, column in enumerate(self._g_col):
-            by_column.setdefault(int(column), []).append(entry)
-        pairs = [(e1, e2) for entries in by_column.values() for e1 in entries for e2 in entries]
-        first, second = (np.array(side, dtype=int) for side in zip(*pairs, strict=True))
+        # the entries column by column (columns in order of first appearance, entries in order), and every ordered
+        # pair of entries in one column, column by column, first entry by first entry
+        _, first_entry, group = np.unique(self._g_col, return_index=True, return_inverse=True)
+        rank = np.empty(len(first_entry), dtype=int)
+        rank[np.argsort(first_entry)] = np.arange(len(first_entry))
+        entries = np.argsort(rank[group], kind="stable")
+        widths = np.bincount(rank[group])
+        starts = np.cumsum(widths) - widths
+        repeats = widths[rank[group[entries]]]
+        first = np.repeat(entries, repeats)
+        within = np.arange(len(first)) - np.repeat(np.cumsum(repeats) - repeats, repeats)
+        second = entries[np.repeat(starts[rank[group[entries]]], repeats) + within]
         rows = self._g_row
-        pattern = coo_matrix((np.ones(len(first)), (rows[first], rows[second])), shape=(self.rows, self.rows))
-        order = np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=int)
+        order = _reverse_cuthill_mckee(rows[first], rows[second], self.rows)
         position = np.empty(self.rows, dtype=int)
         position[order] = np.arange(self.rows)
         low, high = position[rows[first]], position[rows[second]]
@@ -220,8 +224,7 @@ class BandedDynamics:
         off = m_upper[:, 0] != m_upper[:, 1]
         rows = np.concatenate([m_upper[:, 0], m_upper[off, 1], nv + self._g_row, self._g_col])
         cols = np.concatenate([m_upper[:, 1], m_upper[off, 0], self._g_col, nv + self._g_row])
-        pattern = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(size, size)).tocsr()
-        order = np.asarray(reverse_cuthill_mckee(pattern, symmetric_mode=True), dtype=int)
+        order = _reverse_cuthill_mckee(rows, cols, size)
         position = np.empty(size, dtype=int)
         position[order] = np.arange(size)
         prow, pcol = position[rows], position[cols]

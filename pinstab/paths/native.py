@@ -17,14 +17,18 @@ periodic checks, and on every evaluation while a check has failed recently (see
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
 from ..kernels import NativeKernel
-from ..kinematics import LWA, frame_jacobian, with_columns
+from ..kinematics import LWA, with_columns
 from ..memory import new_data
+from .banded import joint_supports
 
 CONTACT_TYPES = {
     "point": pin.ContactType.CONTACT_3D,
@@ -65,30 +69,55 @@ def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...]
 
 def non_planar_closure(model: pin.Model, data: pin.Data, closures: list[FrameClosure], q: np.ndarray) -> str | None:
     """The first ``planar-point`` closure whose out-of-plane motion the joints do not block at q (so
-    it has no 3-D contact equivalent), or None; ``data``: a ``Data`` of the model to compute in."""
+    it has no 3-D contact equivalent), or None; ``data``: a ``Data`` of the model to compute in.
+
+    The out-of-plane row n . (J_a - J_b) of every such closure at once from the joints' world Jacobian: a point p
+    carried by joint j moves by J_lin - p x J_ang over the columns that move j (Pinocchio's frame Jacobian in
+    LOCAL_WORLD_ALIGNED), i.e. n . J_lin - (n x p) . J_ang."""
     pin.computeJointJacobians(model, data, q)
     pin.updateFramePlacements(model, data)
-    for closure in closures:
-        if closure.kind != "planar-point":
-            continue
-        jac = frame_jacobian(model, data, closure.frame_a)[:3]
-        if closure.frame_b is not None:
-            jac = jac - frame_jacobian(model, data, closure.frame_b)[:3]
-        normal = np.cross(closure.selection[0], closure.selection[1])
-        if np.abs(normal @ jac).max() > PLANAR_TOLERANCE:
-            return closure.name
-    return None
+    planar = [closure for closure in closures if closure.kind == "planar-point"]
+    if not planar:
+        return None
+    in_plane = np.array([closure.selection for closure in planar])
+    normals = np.cross(in_plane[:, 0], in_plane[:, 1])
+    jacobian = with_columns(data.J, model.nv)
+    supports = joint_supports(model)
+    out_of_plane = np.zeros((len(planar), model.nv))
+    for sign, frames in ((1.0, [c.frame_a for c in planar]), (-1.0, [c.frame_b for c in planar])):
+        carried = [index for index, frame in enumerate(frames) if frame is not None]
+        joints = [model.frames[frames[index]].parentJoint for index in carried]
+        points = np.array([data.oMf[frames[index]].translation for index in carried]).reshape(-1, 3)
+        moved = normals[carried] @ jacobian[:3] - np.cross(normals[carried], points) @ jacobian[3:]
+        out_of_plane[carried] += sign * np.where(supports[joints], moved, 0.0)
+    moving = np.abs(out_of_plane).max(axis=1, initial=0.0) > PLANAR_TOLERANCE
+    return planar[int(np.argmax(moving))].name if moving.any() else None
+
+
+class _Constraints(NamedTuple):
+    """Pinocchio's side of a :class:`NativeDynamics`: its constraint models and data, the proximal settings and the
+    data as a list."""
+
+    models: pin.StdVec_RigidConstraintModel
+    datas: pin.StdVec_RigidConstraintData
+    settings: pin.ProximalSettings
+    data_list: list
 
 
 class NativeDynamics:
     """Pinocchio's ``constraintDynamics`` for frame closures with its Baumgarte corrector.
+
+    Pinocchio's constraint models of the closures (:attr:`models`, :attr:`datas`, :attr:`settings`) are built at
+    their first use, not here: the banded path keeps this solve for the evaluations its LU finds singular, which
+    most runs never meet.
 
     Args:
         model: the Pinocchio model.
         closures: frame closures (see :func:`unsupported_constraint`); :meth:`multipliers` and
             :meth:`residual` take point and planar-point closures only.
         kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s].
-        mu: proximal regularization of Pinocchio's solve.
+        mu: proximal regularization of Pinocchio's solve [-], or a function giving it, called once when the
+            constraint models are built.
         data: a ``Data`` of the model to solve in (shared with other computations: each solve recomputes all it
             reads, and :meth:`multipliers` / :meth:`residual` must follow their solve), or None for its own; a
             ``Data`` of a long chain is costly (``benchmarks/data_creation.py``).
@@ -103,21 +132,15 @@ class NativeDynamics:
         closures: list[FrameClosure],
         kp: float = 0.0,
         kd: float = 0.0,
-        mu: float = 1e-12,
+        mu: float | Callable[[], float] = 1e-12,
         data: pin.Data | None = None,
     ) -> None:
         self.model = model
         self.data = new_data(model) if data is None else data
         self.closures = closures
-        self.models = pin.StdVec_RigidConstraintModel()
-        self.datas = pin.StdVec_RigidConstraintData()
-        for closure in closures:
-            self.models.append(rigid_constraint(model, closure, kp, kd))
-        for rcm in self.models:
-            self.datas.append(rcm.createData())
-        pin.initConstraintDynamics(model, self.data, self.models, self.datas)
-        self.settings = pin.ProximalSettings(1e-14, 1e-12, mu, 50)
         self.kp, self.kd = float(kp), float(kd)
+        self._corrector = (self.kp, self.kd)  # the gains of Pinocchio's corrector (set_gains)
+        self._mu = mu
         widths = [6 if closure.kind == "weld" else 3 for closure in closures]
         self.rows = np.zeros((sum(c.rows for c in closures), sum(widths)))
         row = column = 0
@@ -126,8 +149,35 @@ class NativeDynamics:
             self.rows[row : row + closure.rows, column : column + width] = block
             row, column = row + closure.rows, column + width
         self._target = np.zeros(sum(widths))
-        self._data_list = list(self.datas)
         self._kernel: NativeKernel | None = None
+
+    @cached_property
+    def _pinocchio(self) -> _Constraints:
+        """Pinocchio's constraint models and data of the closures and the solve's settings, built (and the data
+        initialized for them) at first use."""
+        models, datas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+        for closure in self.closures:
+            models.append(rigid_constraint(self.model, closure, *self._corrector))
+        for rcm in models:
+            datas.append(rcm.createData())
+        pin.initConstraintDynamics(self.model, self.data, models, datas)
+        mu = self._mu() if callable(self._mu) else self._mu
+        return _Constraints(models, datas, pin.ProximalSettings(1e-14, 1e-12, mu, 50), list(datas))
+
+    @property
+    def models(self) -> pin.StdVec_RigidConstraintModel:
+        """Pinocchio's models of the closures (:func:`rigid_constraint`)."""
+        return self._pinocchio.models
+
+    @property
+    def datas(self) -> pin.StdVec_RigidConstraintData:
+        """Their data."""
+        return self._pinocchio.datas
+
+    @property
+    def settings(self) -> pin.ProximalSettings:
+        """The proximal solve's settings (accuracies 1e-14 absolute and 1e-12 relative, mu, 50 iterations)."""
+        return self._pinocchio.settings
 
     def kernel(self) -> NativeKernel:
         """The same solve compiled (``cpp/native_kernel.cpp``), for the compiled step loop; built on first use."""
@@ -148,13 +198,16 @@ class NativeDynamics:
     def set_gains(self, kp: float, kd: float) -> None:
         """Set the corrector's Kp [1/s^2] and Kd [1/s] on every closure."""
         self.kp, self.kd = float(kp), float(kd)
+        self._corrector = (self.kp, self.kd)
         self._kernel = None
-        for rcm in self.models:
-            rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(self.kp, self.kd))
+        if "_pinocchio" in self.__dict__:  # built
+            for rcm in self._pinocchio.models:
+                rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(self.kp, self.kd))
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (q, v) under the applied forces ``tau`` [N, N m]."""
-        return pin.constraintDynamics(self.model, self.data, q, v, tau, self.models, self.datas, self.settings)
+        built = self._pinocchio
+        return pin.constraintDynamics(self.model, self.data, q, v, tau, built.models, built.datas, built.settings)
 
     def multipliers(self) -> np.ndarray:
         """The closures' multipliers [N] of the last :meth:`acceleration`, in pinstab's rows (force on a)."""
@@ -164,12 +217,13 @@ class NativeDynamics:
         """How far the last :meth:`acceleration` misses ``G a + gamma0 = -Kp phi - Kd G v``, relative to
         the size of its terms (Euclidean norms): ``|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2)`` [-],
         from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts."""
-        if not self._data_list:  # no closures: nothing to miss
+        models, datas, _, data_list = self._pinocchio
+        if not data_list:  # no closures: nothing to miss
             return 0.0
         model, data = self.model, self.data
-        jac = with_columns(pin.getConstraintsJacobian(model, data, self.models, self.datas), model.nv)
+        jac = with_columns(pin.getConstraintsJacobian(model, data, models, datas), model.nv)
         target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
-        for index, contact in enumerate(self._data_list):
+        for index, contact in enumerate(data_list):
             rows = slice(3 * index, 3 * index + 3)
             target[rows] = contact.contact2_acceleration_drift.linear - contact.contact1_acceleration_drift.linear
             target[rows] -= self.kp * (contact.oMc1.translation - contact.oMc2.translation)
