@@ -229,6 +229,11 @@ class BranchChangeWarning(PinstabWarning):
     turned by a finite angle at once)."""
 
 
+class SolverLimitWarning(PinstabWarning):
+    """An iterative KKT backend (ProxQP) stopped at its iteration limit on some solves of a run: each was accepted by
+    its residual, but the limit, not the tolerance, ended it."""
+
+
 class CutShortWarning(PinstabWarning):
     """A run file read back holds a run cut short (interrupted, or killed) before its end: its samples up to the last
     one written, not its derived series."""

@@ -5,11 +5,14 @@ full Cassie at 1 ms against the same method at 0.1 ms and the general path (Prox
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from pinstab import build_system, load_scene, simulate
+from pinstab.errors import SolverLimitWarning
 from pinstab.integration.compiled import SCHEMES, CompiledSteps
 from pinstab.kinematics import Kinematics
 from pinstab.solvers.base import ACCEPTED_RESIDUAL, KKTProblem, primal_residual
@@ -147,3 +150,16 @@ def test_blocks_and_forces_without_compiled_forms_run_on_the_core_from_python(sc
     assert core.info.compiled_steps > 0 and core.info.solver_statistics.fallbacks == 0
     np.testing.assert_allclose(core.q, general.q, rtol=0, atol=1e-10)
     np.testing.assert_allclose(core.v, general.v, rtol=0, atol=1e-10)
+
+
+def test_proxqp_at_its_iteration_limit_is_a_warning():
+    """The full Cassie on the general path (solver proxsuite named): ProxQP stops at its iteration limit on every solve
+    (the near-singular shin-spring rows), each accepted by its residual; the run says so instead of staying silent,
+    and the core path, which takes those rows by a pseudo-inverse, gives no such warning."""
+    scene = load_scene("cassie")
+    with pytest.warns(SolverLimitWarning, match=r"iteration limit on 8 of 8 solves"):
+        general = simulate(scene, duration=0.002, solver="proxsuite", progress=False)
+    assert general.info.solver_statistics.status_counts == {"PROXQP_MAX_ITER_REACHED": 8}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SolverLimitWarning)
+        simulate(scene, duration=0.002, progress=False)

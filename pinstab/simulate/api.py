@@ -11,10 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import JointLimitsWarning
+from ..errors import JointLimitsWarning, SolverLimitWarning
 from ..files import check_output
 from ..memory import named_when_exhausted
+from ..runinfo import SolverStatistics
 from ..scene import Scene, load_scene
+from ..solvers.proxsuite_ import LIMIT_STATUS
 from ..stream import h5py_module
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
@@ -217,6 +219,21 @@ def simulate(
     return _checked(scene, events, clock)
 
 
+def _warn_of_solver_limits(scene: Scene, statistics: SolverStatistics) -> None:
+    """A :class:`~pinstab.errors.SolverLimitWarning` when ProxQP stopped at its iteration limit on some of the run's
+    solves (accepted by their residuals: the worst is named)."""
+    stopped = statistics.status_counts.get(LIMIT_STATUS, 0)
+    if stopped:
+        warnings.warn(
+            SolverLimitWarning(
+                f"scene {scene.name}: ProxQP stopped at its iteration limit on {stopped} of {statistics.solves} solves "
+                f"(each accepted by its residual; the worst {statistics.worst_primal_residual:.3g} relative); "
+                "--proxsuite-max-iter raises the limit"
+            ),
+            stacklevel=3,
+        )
+
+
 def _checked(
     scene: Scene, trajectory: Trajectory | StreamedTrajectory, clock: RunClock
 ) -> Trajectory | StreamedTrajectory:
@@ -230,6 +247,7 @@ def _checked(
         return trajectory
     if scene.collisions is not None:
         scene.collisions.warn_during(trajectory.t, trajectory.q, scene.name)
+    _warn_of_solver_limits(scene, trajectory.info.solver_statistics)
     trajectory.compute_series()  # within the call: its wall time covers them
     clock.stamp(trajectory)
     return trajectory

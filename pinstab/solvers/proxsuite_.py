@@ -513,6 +513,8 @@ _SOLVED = (
     proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE,
 )
 _SOLVED_NAMES = frozenset(status.name for status in _SOLVED)
+LIMIT_STATUS = proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED.name
+"""The status of a solve ProxQP ended at its iteration limit (accepted or not by its residual)."""
 
 
 @SOLVERS.register(
