@@ -63,6 +63,7 @@ bool closest_solution(const Eigen::MatrixXd& matrix, const VectorXd& rhs, const 
 }
 
 bool cones_hold(const std::vector<ConeSpec>& cones, double cap, double feasibility, const VectorXd& forces) {
+  if (!forces.allFinite()) return false;  // a force that is not a number holds nothing
   const double slack = -feasibility * (1.0 + (forces.size() ? forces.cwiseAbs().maxCoeff() : 0.0));
   for (const ConeSpec& cone : cones) {
     const double normal = forces(cone.normal);
@@ -70,6 +71,7 @@ bool cones_hold(const std::vector<ConeSpec>& cones, double cap, double feasibili
     if (cone.tangent1 >= 0 && cone.mu * normal - std::hypot(forces(cone.tangent1), forces(cone.tangent2)) < slack) {
       return false;
     }
+    if (cone.spin >= 0 && cone.torsion * normal - std::abs(forces(cone.spin)) < slack) return false;
     if (std::isfinite(cap) && normal > cap * (1.0 + 1e-9)) return false;
   }
   return true;

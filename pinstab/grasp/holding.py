@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .. import kernels
 from ..contact.cones import FrictionCone
 from ..contact.models import WRENCH_BASES
 from ..proxqp import proxsuite
@@ -144,30 +145,35 @@ def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str,
     return found
 
 
-class ConeTest:
-    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, on plain floats
-    (a test at every evaluation)."""
+NO_COLUMN = -1  # a frictionless contact's tangent columns, a contact's spin column but a soft finger's
 
-    def __init__(self, contacts: list[Any]) -> None:
-        self._columns, _ = cone_columns(contacts)
+
+def cone_arrays(columns: list[ConeColumns]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts' columns as the compiled cone test reads them: (rows (normal, tangent, tangent, spin; -1: none)
+    (k x 4, int32), mu (k,) [-], torsion (k,) [m])."""
+    rows = [
+        [c.normal, *(c.tangents or (NO_COLUMN, NO_COLUMN)), NO_COLUMN if c.spin is None else c.spin] for c in columns
+    ]
+    return (
+        np.array(rows, dtype=np.int32).reshape(-1, 4),
+        np.array([c.mu for c in columns], dtype=float),
+        np.array([c.torsion for c in columns], dtype=float),
+    )
+
+
+class ConeTest:
+    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, and every normal force
+    within a cap [N] (inf: none): the compiled test (``cpp/grasp_forces.cpp`` cones_hold, the core's too), at every
+    evaluation."""
+
+    def __init__(self, contacts: list[Any], cap: float = math.inf) -> None:
+        self._columns, self._mu, self._torsion = cone_arrays(cone_columns(contacts)[0])
+        self._cap = float(cap)
 
     def holds(self, forces: np.ndarray) -> bool:
-        """No contact leaves its limits (``not leaving(contacts, forces)``)."""
-        values = forces.tolist()
-        if not math.isfinite(sum(values)):  # a force that is not a number holds nothing
-            return False
-        slack = -FEASIBILITY * (1.0 + max(map(abs, values), default=0.0))
-        for contact in self._columns:
-            normal = values[contact.normal]
-            if normal < slack:
-                return False
-            if contact.tangents is not None:
-                t1, t2 = contact.tangents
-                if contact.mu * normal - math.hypot(values[t1], values[t2]) < slack:
-                    return False
-            if contact.spin is not None and contact.torsion * normal - abs(values[contact.spin]) < slack:
-                return False
-        return True
+        """No contact leaves its limits (``not leaving(contacts, forces)``) and no normal force exceeds the cap by
+        more than 1e-9 of it; False where a force is not a number."""
+        return kernels.cones_hold(self._columns, self._mu, self._torsion, self._cap, FEASIBILITY, forces)
 
 
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
