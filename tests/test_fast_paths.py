@@ -13,7 +13,8 @@ import pytest
 
 from pinstab import load_scene
 from pinstab.actuation import Actuation
-from pinstab.grasp.holding import ConeTest, WarmQP, leaving
+from pinstab.grasp.analysis import GraspContact
+from pinstab.grasp.holding import ConeTest, WarmQP, cone_columns, leaving
 from pinstab.grasp.linalg import closest_solution, pinv, svd
 from pinstab.kinematics import Kinematics
 from pinstab.model import ConstrainedModel
@@ -98,6 +99,36 @@ def test_float_cone_test_is_leaving(sphere):
     nan = inside.copy()
     nan[0] = np.nan
     assert not test.holds(nan)
+
+
+def test_cone_test_keeps_soft_fingers_torsion_and_the_cap():
+    """The compiled cone test (the core's hold's too) on a mix of contact models agrees with ``not leaving(...)`` on
+    forces inside, on and outside every limit, a soft finger's torsion |m_z| <= torsion f_n included, and with a
+    cap on the normal forces [N] (1e-9 relative over it refused); stacked forces of another size are refused."""
+    models = ["soft-finger", "point-friction", "frictionless", "rigid", "soft-finger"]
+    contacts = [
+        GraspContact(f"c{k}", model, np.zeros(3), np.eye(3), mu=0.5, torsion=0.02) for k, model in enumerate(models)
+    ]
+    count = cone_columns(contacts)[1]
+    test, capped = ConeTest(contacts), ConeTest(contacts, cap=1.5)
+    columns = cone_columns(contacts)[0]
+    normals, spins = [c.normal for c in columns], [c.spin for c in columns if c.spin is not None]
+    spin = spins[0]
+    inside, scales = np.zeros(count), np.full(count, 0.3)
+    inside[normals], scales[spins] = 1.0, 0.01  # moments [N m] on the scale of torsion f_n
+    samples = [inside] + [inside + scales * RNG.normal(size=count) for _ in range(300)]
+    for factor in (1.0, 1.0 + 1e-6):
+        twisted = inside.copy()
+        twisted[spin] = 0.02 * factor  # on the torsion limit, then beyond it
+        samples.append(twisted)
+    verdicts = [test.holds(forces) for forces in samples]
+    assert verdicts == [not leaving(contacts, forces) for forces in samples]
+    assert verdicts[-2] and not verdicts[-1] and any(verdicts[1:-2]) and not all(verdicts[1:-2])
+    within = [float(np.max(forces[normals])) <= 1.5 * (1.0 + 1e-9) for forces in samples]
+    assert [capped.holds(forces) for forces in samples] == [v and w for v, w in zip(verdicts, within, strict=True)]
+    assert not all(within)
+    with pytest.raises(ValueError, match="a column outside the forces"):
+        test.holds(inside[:-1])
 
 
 def test_warm_started_qp_is_the_cold_one():
