@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import kernels
 from ..contact.cones import FrictionCone
-from ..contact.models import WRENCH_BASES
+from ..contact.models import WRENCH_BASES, ContactLimits
 from ..proxqp import proxsuite
 from .analysis import RANK_TOLERANCE
 
@@ -44,7 +44,7 @@ class ConeColumns(NamedTuple):
 
     Attributes:
         name: the contact. mu: [-]. torsion: [m]. normal: column of f_n. tangents: columns of (f_t1, f_t2),
-        or None (frictionless). spin: column of m_z (soft finger), or None.
+        or None (frictionless). spin: column of m_z (soft finger), or None. model: the contact model.
     """
 
     name: str
@@ -53,6 +53,7 @@ class ConeColumns(NamedTuple):
     normal: int
     tangents: tuple[int, int] | None
     spin: int | None
+    model: str
 
 
 def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:
@@ -64,7 +65,8 @@ def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:
         offset += len(components)
         if contact.model != "rigid":
             tangents = (column[0], column[1]) if 0 in column else None
-            found.append(ConeColumns(contact.name, contact.mu, contact.torsion, column[2], tangents, column.get(5)))
+            limits = (contact.mu, contact.torsion, column[2], tangents, column.get(5), contact.model)
+            found.append(ConeColumns(contact.name, *limits))
     return found, offset
 
 
@@ -131,17 +133,19 @@ def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.nd
 
 def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
     """Each limited contact's margins for the stacked ``forces``: ``normal`` f_n [N], ``friction``
-    mu f_n - |f_t| [N] (friction contacts), ``torsion`` torsion f_n - |m_z| [N m] (soft fingers); >= 0 inside."""
+    mu f_n - |f_t| [N] (friction contacts), ``torsion`` torsion f_n - |m_z| [N m] (soft fingers); >= 0 inside
+    (:meth:`~pinstab.contact.models.ContactLimits.margins`, the compiled rule)."""
     columns, _ = cone_columns(contacts)
     found = {}
     for contact in columns:
-        normal = float(forces[contact.normal])
-        margins = {"normal": normal}
+        wrench = np.zeros(6)  # (f_t1, f_t2, f_n, 0, 0, m_z) in C
+        wrench[2] = forces[contact.normal]
         if contact.tangents is not None:
-            margins["friction"] = contact.mu * normal - math.hypot(*forces[list(contact.tangents)])
+            wrench[:2] = forces[list(contact.tangents)]
         if contact.spin is not None:
-            margins["torsion"] = contact.torsion * normal - abs(float(forces[contact.spin]))
-        found[contact.name] = margins
+            wrench[5] = forces[contact.spin]
+        limits = ContactLimits(contact.name, contact.model, contact.mu, contact.torsion, "", "")
+        found[contact.name] = limits.margins(wrench)
     return found
 
 
