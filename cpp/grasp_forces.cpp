@@ -26,13 +26,20 @@ bool add_hold_torques(const pinocchio::Model& model, const pinocchio::Data& data
   if (!cones_hold(hold.cones, hold.cap, hold.feasibility, forces)) return false;
   VectorXd deviation(model.nv);
   pinocchio::difference(model, hold.q_start, q, deviation);
-  for (int i = 0; i < hold.hand_columns.size(); ++i) {
-    const int column = hold.hand_columns(i);
-    double pushed = 0.0;
-    for (int k = 0; k < count; ++k) pushed += jacobian(hold.rows(k), column) * forces(k);
-    force(column) += data.g(column) - pushed - hold.stiffness * deviation(column) - hold.damping * v(column);
-  }
+  add_hold_balance(jacobian, hold.rows, hold.hand_columns, data.g, forces, deviation, v, hold.stiffness, hold.damping,
+                   force);
   return true;
+}
+
+void add_hold_balance(const Eigen::MatrixXd& jacobian, const VectorXi& rows, const VectorXi& hand_columns,
+                      const VectorXd& gravity, const VectorXd& forces, const VectorXd& deviation, const VectorXd& v,
+                      double stiffness, double damping, Eigen::Ref<VectorXd> force) {
+  for (int i = 0; i < hand_columns.size(); ++i) {
+    const int column = hand_columns(i);
+    double pushed = 0.0;
+    for (int k = 0; k < rows.size(); ++k) pushed += jacobian(rows(k), column) * forces(k);
+    force(column) += gravity(column) - pushed - stiffness * deviation(column) - damping * v(column);
+  }
 }
 
 void add_wrench(const pinocchio::Model& model, pinocchio::Data& data, const WrenchSpec& wrench,

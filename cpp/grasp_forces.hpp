@@ -40,6 +40,12 @@ struct WrenchSpec {
 // its least-squares forces leave a cone or the cap (the hold's QP takes them: the evaluation is not to be used).
 bool add_hold_torques(const pinocchio::Model& model, const pinocchio::Data& data, const HoldSpec& hold,
                       const Eigen::MatrixXd& jacobian, const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> force);
+// pinstab.grasp.hold.GraspHold.torques (which calls it): adds, on each hand column c, the torque that makes the held
+// forces an equilibrium of the hand, g[c] - sum_k G(rows_k, c) forces_k - stiffness deviation[c] - damping v[c]
+// [N m] (G: the stacked constraint Jacobian, rows: the hold's contacts' rows in it, deviation: q_start to q).
+void add_hold_balance(const Eigen::MatrixXd& jacobian, const VectorXi& rows, const VectorXi& hand_columns,
+                      const VectorXd& gravity, const VectorXd& forces, const VectorXd& deviation, const VectorXd& v,
+                      double stiffness, double damping, Eigen::Ref<VectorXd> force);
 // Adds J^T w of a constant world wrench at its frame (Jacobians current) to force.
 void add_wrench(const pinocchio::Model& model, pinocchio::Data& data, const WrenchSpec& wrench,
                 Eigen::Ref<VectorXd> force);

@@ -323,6 +323,24 @@ NB_MODULE(_compiled, m) {
       "cone (mu) and torsion limit (torsion [m]) with its normal force within the cap (inf: none), beyond a slack of "
       "feasibility (1 + the largest |force|).");
   m.def(
+      "hold_torques",
+      [](const Eigen::MatrixXd& rows, const VectorXi& hand_columns, const VectorXd& gravity, const VectorXd& forces,
+         const VectorXd& deviation, const VectorXd& v, double stiffness, double damping) {
+        const long nv = rows.cols();
+        if (forces.size() != rows.rows() || gravity.size() != nv || deviation.size() != nv || v.size() != nv ||
+            (hand_columns.size() && (hand_columns.minCoeff() < 0 || hand_columns.maxCoeff() >= nv))) {
+          throw std::invalid_argument("hold_torques: rows (s x nv), hand columns in nv, gravity, deviation, v (nv), "
+                                      "forces (s)");
+        }
+        VectorXd torques = VectorXd::Zero(nv);
+        const VectorXi all = VectorXi::LinSpaced(rows.rows(), 0, static_cast<int>(rows.rows()) - 1);
+        add_hold_balance(rows, all, hand_columns, gravity, forces, deviation, v, stiffness, damping, torques);
+        return torques;
+      },
+      "rows"_a, "hand_columns"_a, "gravity"_a, "forces"_a, "deviation"_a, "v"_a, "stiffness"_a, "damping"_a,
+      "The hand's torques [N m] (nv,; 0 off the hand columns) that make the held forces (s,) on the contact rows A "
+      "(s x nv) an equilibrium: g - A^T forces - stiffness deviation - damping v on the hand columns.");
+  m.def(
       "primal_residual",
       [](const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
          const VectorXd& mass_diagonal, const Mask& unilateral) {

@@ -32,6 +32,7 @@ import pinocchio as pin
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
 from ..forces.base import FORCE_KINDS, ForceElement
+from ..kernels import hold_torques
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
@@ -73,7 +74,8 @@ class GraspHold(ForceElement):
         self.object_name, self.max_squeeze = object_name, max_squeeze
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
-        self._object, self._hand = as_slice(object_columns), as_slice(self.hand_columns)  # views where contiguous
+        self._object = as_slice(object_columns)  # a view where contiguous
+        self._hand_int = np.asarray(self.hand_columns, dtype=np.int32)  # for the compiled balance (add_hold_balance)
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
@@ -115,13 +117,11 @@ class GraspHold(ForceElement):
 
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
-        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping."""
+        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping (the compiled
+        balance, ``cpp/grasp_forces.cpp``, the core's hold's too)."""
         forces = self.held_forces(rows, gravity)
-        tau = np.zeros(self.model.nv)
-        hand = self._hand
-        deviation = pin.difference(self.model, self.q_start, q)[hand]
-        tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
-        return tau
+        deviation = pin.difference(self.model, self.q_start, q)
+        return hold_torques(rows, self._hand_int, gravity, forces, deviation, v, self.stiffness, self.damping)
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
