@@ -8,10 +8,12 @@ contact's smallest force margin (normal force; ``mu f_n - |f_t|``, the best over
 not unique), a sliding contact's normal force and its slip velocity along the direction it had at the
 step's start; forces count as below their bound only beyond the relative
 :data:`~pinstab.solvers.mode_choice.EVENT_SLACK` the mode choice then allows, so that a contact on its bound
-does not switch back and forth. When one turns negative, its root is located by bisection on the step's dense output to
-:data:`EVENT_TIME` [s], the step is taken again to end there, and at that instant a gap that closed with
-an approaching velocity (within :data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every
-contact that touches there (:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing
+does not switch back and forth. Within a step a sliding mode is continued past its end (its friction keeps the
+slip's direction at the step's start once the slip turns against it), so that the step is smooth across the end.
+When an event function turns negative, its root is located by bisection on the step's dense output, then found again
+on the pair's steps from the step's start to :data:`EVENT_TIME` [s] (a joint limit's dip: on the dense output), the
+step is taken again to end there, and at that instant a gap that closed with an approaching velocity (within
+:data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every contact that touches there (:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing
 contacts' normal velocities, e = 0 on those already touching, Coulomb's law on the round cone for the
 tangential impulses; Pinocchio's ADMM in NCP mode to :data:`IMPACT_TOLERANCE`), and the touching contacts
 then take the modes of the contact complementarity problem
