@@ -13,13 +13,13 @@ slip's direction at the step's start once the slip turns against it), so that th
 When an event function turns negative, its root is located by bisection on the step's dense output, then found again
 on the pair's steps from the step's start to :data:`EVENT_TIME` [s] (a joint limit's dip: on the dense output), the
 step is taken again to end there, and at that instant a gap that closed with an approaching velocity (within
-:data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every contact that touches there (:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing
-contacts' normal velocities, e = 0 on those already touching, Coulomb's law on the round cone for the
-tangential impulses; Pinocchio's ADMM in NCP mode to :data:`IMPACT_TOLERANCE`), and the touching contacts
-then take the modes of the contact complementarity problem
+:data:`~pinstab.solvers.mode_choice.TOUCH_GAP`) is an impact of every contact that touches there
+(:func:`~pinstab.solvers.impacts.impact`: Newton's restitution e on the closing contacts' normal velocities, e = 0
+on those already touching, Coulomb's law on the round cone for the tangential impulses; Pinocchio's ADMM in NCP mode
+to :data:`IMPACT_TOLERANCE`), and the touching contacts then take the modes of the contact complementarity problem
 (:func:`~pinstab.solvers.mode_choice.choose_modes`). A closing contact whose rebound would fly shorter than
-:data:`ZENO_TIME` [s] takes e = 0: resting contact (a Zeno sequence cut where its remaining flights sum to
-less than that).
+:data:`ZENO_TIME` [s] takes e = 0: resting contact (a Zeno sequence cut where its remaining flights sum to less than
+that).
 
 Joint limits (:mod:`pinstab.constraints.joint_limits`) are frictionless one-row contacts handled the same
 way: an inactive limit's event function is its gap, an active one's its reaction; a limit reached with an
