@@ -188,14 +188,19 @@ NB_MODULE(_compiled, m) {
           "__init__",
           [](NativeKernel* self, nb::handle model, const std::vector<int>& joints1,
              const std::vector<Eigen::Matrix4d>& placements1, const std::vector<int>& joints2,
-             const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double mu) {
+             const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double absolute_accuracy,
+             double relative_accuracy, double mu, int max_iter) {
             std::vector<ClosureSpec> closures;
             for (size_t i = 0; i < joints1.size(); ++i) {
               closures.push_back({joints1[i], joints2[i], placements1[i], placements2[i]});
             }
-            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, mu);
+            const pinocchio::ProximalSettings settings(absolute_accuracy, relative_accuracy, mu, max_iter);
+            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, settings);
           },
-          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a)
+          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a,
+          "absolute_accuracy"_a, "relative_accuracy"_a, "mu"_a, "max_iter"_a,
+          "Pinocchio's constraintDynamics on point closures with the corrector (Kp, Kd) and the proximal solve's "
+          "settings (pinstab.paths.native.NativeDynamics.settings).")
       .def(
           "multipliers",
           [](NativeKernel& self, const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,

@@ -8,8 +8,8 @@
 namespace pinstab {
 
 NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp,
-                           double kd, double mu)
-    : model_(model), data_(light_data(model_)), settings_(1e-14, 1e-12, mu, 50), kp_(kp), kd_(kd) {
+                           double kd, const pinocchio::ProximalSettings& settings)
+    : model_(model), data_(light_data(model_)), settings_(settings), kp_(kp), kd_(kd) {
   for (const ClosureSpec& closure : closures) {
     pinocchio::RigidConstraintModel constraint(pinocchio::CONTACT_3D, model_, closure.joint1,
                                                pinocchio::SE3(closure.placement1), closure.joint2,

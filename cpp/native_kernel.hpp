@@ -31,8 +31,9 @@ double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
 // pinstab.paths.native.NativeDynamics compiled: Pinocchio's constraintDynamics with the Baumgarte corrector.
 class NativeKernel : public Kernel {
  public:
+  // settings: the proximal solve's (absolute and relative accuracy, mu, iterations), NativeDynamics.settings
   NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp, double kd,
-               double mu);
+               const pinocchio::ProximalSettings& settings);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // At each sample (rows of qs, vs) under tau: the multipliers rows * lambda_c [N] (rows: Pinocchio's contact rows to

@@ -187,7 +187,10 @@ class NativeDynamics:
                 [rcm.joint2_placement.homogeneous for rcm in models],
                 self.kp,
                 self.kd,
+                self.settings.absolute_accuracy,
+                self.settings.relative_accuracy,
                 self.settings.mu,
+                self.settings.max_iter,
             )
         return self._kernel
 
