@@ -132,13 +132,14 @@ bool CoreKernel::solve(const VectorXd& rhs) {
   const VectorXd demand = rhs - jacobian_ * free_;
   const double largest = delassus_.diagonal().maxCoeff();
   inner_.compute(delassus_);
-  const double smallest = inner_.info() == Eigen::Success ? inner_.matrixLLT().diagonal().minCoeff() : 0.0;
-  if (smallest * smallest >= settings_.direct_pivot * largest) {  // independent rows: the direct solve
+  if (inner_.info() == Eigen::Success &&
+      independent_by_margin(inner_.matrixLLT().diagonal(), largest, settings_.direct_pivot)) {  // the direct solve
     multipliers_ = inner_.solve(demand);
     acceleration_.noalias() += spread_ * multipliers_;
     ++status_counts_["cholesky"];
     if (!acceleration_.allFinite()) return false;
-    worst_residual_ = std::max(worst_residual_, primal_residual(jacobian_, acceleration_, rhs, force_, data_.M));
+    worst_residual_ =
+        std::max(worst_residual_, primal_residual(jacobian_, acceleration_, rhs, force_, data_.M.diagonal()));
     return true;
   }
   // redundant or nearly dependent rows: the pseudo-inverse of D, eigenvalues below cutoff times the largest left out
@@ -153,7 +154,7 @@ bool CoreKernel::solve(const VectorXd& rhs) {
   }
   multipliers_ = spectrum_.eigenvectors() * scaled;
   acceleration_.noalias() += spread_ * multipliers_;
-  const double residual = primal_residual(jacobian_, acceleration_, rhs, force_, data_.M);
+  const double residual = primal_residual(jacobian_, acceleration_, rhs, force_, data_.M.diagonal());
   if (!(residual <= settings_.accepted) || !acceleration_.allFinite()) {
     ++status_counts_["pseudo-inverse, not accepted"];
     return false;
@@ -164,12 +165,20 @@ bool CoreKernel::solve(const VectorXd& rhs) {
 }
 
 double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
-                       const Eigen::MatrixXd& mass) {
-  const double miss = (jacobian * a - rhs).norm();
-  if (miss == 0.0) return 0.0;
-  const double natural = force.norm() / mass.diagonal().minCoeff();
+                       const VectorXd& mass_diagonal, const Mask& unilateral) {
+  VectorXd miss = jacobian * a - rhs;
+  if (unilateral.size()) miss = unilateral.select(miss.cwiseMin(0.0), miss);
+  const double size = miss.norm();
+  if (size == 0.0) return 0.0;
+  const double natural = force.norm() / mass_diagonal.minCoeff();
   const double scale = rhs.norm() + jacobian.norm() * (a.norm() + natural);
-  return scale > 0.0 ? miss / scale : std::numeric_limits<double>::infinity();
+  return scale > 0.0 ? size / scale : std::numeric_limits<double>::infinity();
+}
+
+bool independent_by_margin(const VectorXd& factor_diagonal, double largest, double direct_pivot) {
+  if (factor_diagonal.size() == 0) return true;
+  const double smallest = factor_diagonal.minCoeff();
+  return smallest * smallest >= direct_pivot * largest;
 }
 
 }  // namespace pinstab

@@ -26,13 +26,20 @@ bool add_hold_torques(const pinocchio::Model& model, const pinocchio::Data& data
   if (!cones_hold(hold.cones, hold.cap, hold.feasibility, forces)) return false;
   VectorXd deviation(model.nv);
   pinocchio::difference(model, hold.q_start, q, deviation);
-  for (int i = 0; i < hold.hand_columns.size(); ++i) {
-    const int column = hold.hand_columns(i);
-    double pushed = 0.0;
-    for (int k = 0; k < count; ++k) pushed += jacobian(hold.rows(k), column) * forces(k);
-    force(column) += data.g(column) - pushed - hold.stiffness * deviation(column) - hold.damping * v(column);
-  }
+  add_hold_balance(jacobian, hold.rows, hold.hand_columns, data.g, forces, deviation, v, hold.stiffness, hold.damping,
+                   force);
   return true;
+}
+
+void add_hold_balance(const Eigen::MatrixXd& jacobian, const VectorXi& rows, const VectorXi& hand_columns,
+                      const VectorXd& gravity, const VectorXd& forces, const VectorXd& deviation, const VectorXd& v,
+                      double stiffness, double damping, Eigen::Ref<VectorXd> force) {
+  for (int i = 0; i < hand_columns.size(); ++i) {
+    const int column = hand_columns(i);
+    double pushed = 0.0;
+    for (int k = 0; k < rows.size(); ++k) pushed += jacobian(rows(k), column) * forces(k);
+    force(column) += gravity(column) - pushed - stiffness * deviation(column) - damping * v(column);
+  }
 }
 
 void add_wrench(const pinocchio::Model& model, pinocchio::Data& data, const WrenchSpec& wrench,
@@ -63,6 +70,7 @@ bool closest_solution(const Eigen::MatrixXd& matrix, const VectorXd& rhs, const 
 }
 
 bool cones_hold(const std::vector<ConeSpec>& cones, double cap, double feasibility, const VectorXd& forces) {
+  if (!forces.allFinite()) return false;  // a force that is not a number holds nothing
   const double slack = -feasibility * (1.0 + (forces.size() ? forces.cwiseAbs().maxCoeff() : 0.0));
   for (const ConeSpec& cone : cones) {
     const double normal = forces(cone.normal);
@@ -70,6 +78,7 @@ bool cones_hold(const std::vector<ConeSpec>& cones, double cap, double feasibili
     if (cone.tangent1 >= 0 && cone.mu * normal - std::hypot(forces(cone.tangent1), forces(cone.tangent2)) < slack) {
       return false;
     }
+    if (cone.spin >= 0 && cone.torsion * normal - std::abs(forces(cone.spin)) < slack) return false;
     if (std::isfinite(cap) && normal > cap * (1.0 + 1e-9)) return false;
   }
   return true;

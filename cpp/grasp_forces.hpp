@@ -8,10 +8,11 @@
 
 namespace pinstab {
 
-// A contact's columns in a hold's stacked forces: the normal's, the tangents' (-1: frictionless) and mu.
+// A contact's columns in stacked forces: the normal's, the tangents' (-1: frictionless), the spin moment's (-1: not a
+// soft finger), its friction coefficient mu [-] and torsion coefficient [m].
 struct ConeSpec {
-  int normal, tangent1, tangent2;
-  double mu;
+  int normal, tangent1, tangent2, spin;
+  double mu, torsion;
 };
 
 // pinstab.grasp.hold.GraspHold: the forces closest to the squeeze that carry the object's weight (least squares),
@@ -39,6 +40,12 @@ struct WrenchSpec {
 // its least-squares forces leave a cone or the cap (the hold's QP takes them: the evaluation is not to be used).
 bool add_hold_torques(const pinocchio::Model& model, const pinocchio::Data& data, const HoldSpec& hold,
                       const Eigen::MatrixXd& jacobian, const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> force);
+// pinstab.grasp.hold.GraspHold.torques (which calls it): adds, on each hand column c, the torque that makes the held
+// forces an equilibrium of the hand, g[c] - sum_k G(rows_k, c) forces_k - stiffness deviation[c] - damping v[c]
+// [N m] (G: the stacked constraint Jacobian, rows: the hold's contacts' rows in it, deviation: q_start to q).
+void add_hold_balance(const Eigen::MatrixXd& jacobian, const VectorXi& rows, const VectorXi& hand_columns,
+                      const VectorXd& gravity, const VectorXd& forces, const VectorXd& deviation, const VectorXd& v,
+                      double stiffness, double damping, Eigen::Ref<VectorXd> force);
 // Adds J^T w of a constant world wrench at its frame (Jacobians current) to force.
 void add_wrench(const pinocchio::Model& model, pinocchio::Data& data, const WrenchSpec& wrench,
                 Eigen::Ref<VectorXd> force);
@@ -46,8 +53,9 @@ void add_wrench(const pinocchio::Model& model, pinocchio::Data& data, const Wren
 // its condition allows (condition), else the SVD with singular values under rank max(1, the largest) dropped.
 bool closest_solution(const Eigen::MatrixXd& matrix, const VectorXd& rhs, const VectorXd& target, double rank,
                       double condition, VectorXd& x);
-// pinstab.grasp.holding.ConeTest.holds: every contact inside its cone and its normal force within the cap, beyond
-// a slack of feasibility (1 + the largest |force|).
+// pinstab.grasp.holding.ConeTest.holds (which calls it): every force finite, every contact's normal force >= 0,
+// inside its friction cone (|f_t| <= mu f_n) and torsion limit (|m_z| <= torsion f_n), beyond a slack of feasibility
+// (1 + the largest |force|), and its normal force at most cap (1 + 1e-9) (inf: no cap).
 bool cones_hold(const std::vector<ConeSpec>& cones, double cap, double feasibility, const VectorXd& forces);
 
 // A fingertip contact's contact model (pinstab.contact.models.WRENCH_BASES): what it can carry.

@@ -39,10 +39,19 @@ class Kernel {
   virtual const pinocchio::Model* group() const { return nullptr; }
 };
 
-// pinstab.solvers.base.primal_residual on equality rows: |G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-],
-// f the free force; infinite where the scale is zero and the miss is not.
+using Mask = Eigen::Array<bool, Eigen::Dynamic, 1>;
+
+// The relative primal residual of a KKT solve (pinstab.solvers.base.primal_residual calls it):
+// |G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-], f the free force, Euclidean norms; a unilateral row
+// (unilateral(i) true; an empty mask: none) counts only when violated (G a - rhs < 0). 0 where nothing is missed,
+// infinite where the scale is zero and the miss is not.
 double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
-                       const Eigen::MatrixXd& mass);
+                       const VectorXd& mass_diagonal, const Mask& unilateral = Mask());
+
+// The direct solve's test (pinstab.solvers.proxsuite_.direct_solve and CoreKernel call it): the Delassus matrix's
+// rows are independent by a margin when the smallest diagonal entry of its Cholesky factor, squared, is at least
+// direct_pivot times its largest diagonal entry (`largest`); true for no rows.
+bool independent_by_margin(const VectorXd& factor_diagonal, double largest, double direct_pivot);
 
 // A sparse matrix in compressed rows (as scipy's CSR arrays).
 struct Csr {

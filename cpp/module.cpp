@@ -101,21 +101,39 @@ class CallbackPart : public PythonPart {
   nb::weakref part_;
 };
 
-// Cones from their columns (rows: normal, tangent, tangent; -1: none) and friction coefficients.
-std::vector<ConeSpec> cones(const Eigen::MatrixXi& columns, const VectorXd& mu) {
+// Cones from their columns (rows: normal, tangent, tangent, spin; -1: none), friction coefficients [-] and torsion
+// coefficients [m]; the columns checked against the count of forces (count < 0: not checked).
+std::vector<ConeSpec> cones(const Eigen::MatrixXi& columns, const VectorXd& mu, const VectorXd& torsion,
+                            long count = -1) {
+  if (columns.cols() != 4 || mu.size() != columns.rows() || torsion.size() != columns.rows()) {
+    throw std::invalid_argument("cones: columns (k x 4: normal, tangent, tangent, spin), mu (k) and torsion (k)");
+  }
+  if (count >= 0 && columns.rows() && (columns.maxCoeff() >= count || columns.col(0).minCoeff() < 0)) {
+    throw std::invalid_argument("cones: a column outside the forces");
+  }
   std::vector<ConeSpec> cones;
-  for (int k = 0; k < columns.rows(); ++k) cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), mu(k)});
+  for (int k = 0; k < columns.rows(); ++k) {
+    cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), columns(k, 3), mu(k), torsion(k)});
+  }
   return cones;
 }
 
-// pinstab.grasp.hold.GraspHold.compiled_form: arrays by name, the cones as rows (normal, tangent1, tangent2; -1: none).
+// pinstab.forces.joint_spring.JointSpring.compiled_form: the dict by name.
+JointSpringSpec joint_spring(nb::dict form) {
+  return {nb::cast<VectorXi>(form["dofs"]), nb::cast<int>(form["q_index"]), nb::cast<double>(form["stiffness"]),
+          nb::cast<double>(form["reference"]), nb::cast<double>(form["damping"])};
+}
+
+// pinstab.grasp.hold.GraspHold.compiled_form: arrays by name, the cones as rows (normal, tangent1, tangent2, spin; -1:
+// none).
 HoldSpec hold(nb::dict form) {
   HoldSpec hold;
   hold.rows = nb::cast<VectorXi>(form["rows"]);
   hold.object_columns = nb::cast<VectorXi>(form["object_columns"]);
   hold.hand_columns = nb::cast<VectorXi>(form["hand_columns"]);
   hold.pressing = nb::cast<VectorXd>(form["pressing"]);
-  hold.cones = cones(nb::cast<Eigen::MatrixXi>(form["cone_columns"]), nb::cast<VectorXd>(form["cone_mu"]));
+  hold.cones = cones(nb::cast<Eigen::MatrixXi>(form["cone_columns"]), nb::cast<VectorXd>(form["cone_mu"]),
+                     nb::cast<VectorXd>(form["cone_torsion"]), hold.rows.size());
   hold.q_start = nb::cast<VectorXd>(form["q_start"]);
   hold.stiffness = nb::cast<double>(form["stiffness"]);
   hold.damping = nb::cast<double>(form["damping"]);
@@ -170,14 +188,19 @@ NB_MODULE(_compiled, m) {
           "__init__",
           [](NativeKernel* self, nb::handle model, const std::vector<int>& joints1,
              const std::vector<Eigen::Matrix4d>& placements1, const std::vector<int>& joints2,
-             const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double mu) {
+             const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double absolute_accuracy,
+             double relative_accuracy, double mu, int max_iter) {
             std::vector<ClosureSpec> closures;
             for (size_t i = 0; i < joints1.size(); ++i) {
               closures.push_back({joints1[i], joints2[i], placements1[i], placements2[i]});
             }
-            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, mu);
+            const pinocchio::ProximalSettings settings(absolute_accuracy, relative_accuracy, mu, max_iter);
+            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, settings);
           },
-          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a, "mu"_a)
+          "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a,
+          "absolute_accuracy"_a, "relative_accuracy"_a, "mu"_a, "max_iter"_a,
+          "Pinocchio's constraintDynamics on point closures with the corrector (Kp, Kd) and the proximal solve's "
+          "settings (pinstab.paths.native.NativeDynamics.settings).")
       .def(
           "multipliers",
           [](NativeKernel& self, const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
@@ -296,12 +319,77 @@ NB_MODULE(_compiled, m) {
       "(target + A^+ (rhs - A target), finite): Cholesky of A A^T where its condition allows, else the SVD.");
   m.def(
       "cones_hold",
-      [](const Eigen::MatrixXi& columns, const VectorXd& mu, double cap, double feasibility, const VectorXd& forces) {
-        return cones_hold(cones(columns, mu), cap, feasibility, forces);
+      [](const Eigen::MatrixXi& columns, const VectorXd& mu, const VectorXd& torsion, double cap, double feasibility,
+         const VectorXd& forces) {
+        return cones_hold(cones(columns, mu, torsion, forces.size()), cap, feasibility, forces);
       },
-      "columns"_a, "mu"_a, "cap"_a, "feasibility"_a, "forces"_a,
-      "Every contact (rows of columns: normal, tangent, tangent; -1: none) inside its cone and its normal within "
-      "the cap, beyond a slack of feasibility (1 + the largest |force|).");
+      "columns"_a, "mu"_a, "torsion"_a, "cap"_a, "feasibility"_a, "forces"_a,
+      "Every force finite and every contact (rows of columns: normal, tangent, tangent, spin; -1: none) inside its "
+      "cone (mu) and torsion limit (torsion [m]) with its normal force within the cap (inf: none), beyond a slack of "
+      "feasibility (1 + the largest |force|).");
+  m.def(
+      "hold_torques",
+      [](const Eigen::MatrixXd& rows, const VectorXi& hand_columns, const VectorXd& gravity, const VectorXd& forces,
+         const VectorXd& deviation, const VectorXd& v, double stiffness, double damping) {
+        const long nv = rows.cols();
+        if (forces.size() != rows.rows() || gravity.size() != nv || deviation.size() != nv || v.size() != nv ||
+            (hand_columns.size() && (hand_columns.minCoeff() < 0 || hand_columns.maxCoeff() >= nv))) {
+          throw std::invalid_argument("hold_torques: rows (s x nv), hand columns in nv, gravity, deviation, v (nv), "
+                                      "forces (s)");
+        }
+        VectorXd torques = VectorXd::Zero(nv);
+        const VectorXi all = VectorXi::LinSpaced(rows.rows(), 0, static_cast<int>(rows.rows()) - 1);
+        add_hold_balance(rows, all, hand_columns, gravity, forces, deviation, v, stiffness, damping, torques);
+        return torques;
+      },
+      "rows"_a, "hand_columns"_a, "gravity"_a, "forces"_a, "deviation"_a, "v"_a, "stiffness"_a, "damping"_a,
+      "The hand's torques [N m] (nv,; 0 off the hand columns) that make the held forces (s,) on the contact rows A "
+      "(s x nv) an equilibrium: g - A^T forces - stiffness deviation - damping v on the hand columns.");
+  m.def(
+      "primal_residual",
+      [](const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
+         const VectorXd& mass_diagonal, const Mask& unilateral) {
+        if (jacobian.rows() != rhs.size() || jacobian.cols() != a.size() || force.size() != a.size() ||
+            mass_diagonal.size() != a.size() || (unilateral.size() && unilateral.size() != rhs.size())) {
+          throw std::invalid_argument("primal_residual: G (s x nv), a (nv), rhs (s), f (nv), diag M (nv), mask (s)");
+        }
+        return primal_residual(jacobian, a, rhs, force, mass_diagonal, unilateral);
+      },
+      "jacobian"_a, "a"_a, "rhs"_a, "force"_a, "mass_diagonal"_a, "unilateral"_a,
+      "|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-], a unilateral row (mask) counted only when violated.");
+  m.def("independent_by_margin", &independent_by_margin, "factor_diagonal"_a, "largest"_a, "direct_pivot"_a,
+        "Whether the smallest diagonal entry of the Delassus matrix's Cholesky factor, squared, is at least "
+        "direct_pivot times its largest diagonal entry (true for no rows).");
+  m.def(
+      "joint_spring_force",
+      [](nb::dict form, const VectorXd& q, const VectorXd& v) {
+        const JointSpringSpec spring = joint_spring(form);
+        if (spring.dofs.size() == 0 || spring.dofs.maxCoeff() >= v.size() || spring.dofs.minCoeff() < 0 ||
+            spring.q_index >= q.size()) {
+          throw std::invalid_argument("joint_spring_force: the spring's indices are outside q, v");
+        }
+        VectorXd force = VectorXd::Zero(v.size());
+        add_joint_springs({spring}, q, v, force);
+        return force;
+      },
+      "form"_a, "q"_a, "v"_a,
+      "A joint spring's generalized force [N, N m] (nv,) at (q, v) from its compiled form (JointSpring.compiled_form).");
+  m.def(
+      "native_residual",
+      [](nb::handle model, nb::handle data, nb::handle models, nb::handle datas, const Eigen::MatrixXd& rows, double kp,
+         double kd, const VectorXd& v, const VectorXd& a) {
+        const auto [loaded, shared] = native(model, data);
+        pinocchio::RigidConstraintModelVector& closures = python_constraint_models(models.ptr());
+        pinocchio::RigidConstraintDataVector& contacts = python_constraint_datas(datas.ptr());
+        if (closures.size() != contacts.size() || rows.cols() != 3 * static_cast<long>(contacts.size()) ||
+            v.size() != loaded->nv || a.size() != loaded->nv) {
+          throw std::invalid_argument("native_residual: one data per closure, rows (s x 3 closures), v and a (nv)");
+        }
+        return native_residual(*loaded, *shared, closures, contacts, rows, kp, kd, v, a);
+      },
+      "model"_a, "data"_a, "models"_a, "datas"_a, "rows"_a, "kp"_a, "kd"_a, "v"_a, "a"_a,
+      "|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2) [-] of the last constraintDynamics solve in data, datas of point "
+      "closures (rhs = -gamma0 - Kp phi - Kd G v on the rows); NaN where not finite.");
   m.def(
       "tilted_gravity",
       [](const Eigen::Vector3d& axis, double rate, double start, const Eigen::Vector3d& gravity0, double t) {
@@ -351,9 +439,7 @@ NB_MODULE(_compiled, m) {
             for (const nb::dict& form : forms) {
               const std::string kind = nb::cast<std::string>(form["kind"]);
               if (kind == "joint-spring") {
-                forces.springs.push_back({nb::cast<VectorXi>(form["dofs"]), nb::cast<int>(form["q_index"]),
-                                          nb::cast<double>(form["stiffness"]), nb::cast<double>(form["reference"]),
-                                          nb::cast<double>(form["damping"])});
+                forces.springs.push_back(joint_spring(form));
               } else if (kind == "hold") {
                 forces.holds.push_back(hold(form));
               } else if (kind == "wrench") {

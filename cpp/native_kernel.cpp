@@ -8,8 +8,8 @@
 namespace pinstab {
 
 NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp,
-                           double kd, double mu)
-    : model_(model), data_(light_data(model_)), settings_(1e-14, 1e-12, mu, 50), kp_(kp), kd_(kd) {
+                           double kd, const pinocchio::ProximalSettings& settings)
+    : model_(model), data_(light_data(model_)), settings_(settings), kp_(kp), kd_(kd) {
   for (const ClosureSpec& closure : closures) {
     pinocchio::RigidConstraintModel constraint(pinocchio::CONTACT_3D, model_, closure.joint1,
                                                pinocchio::SE3(closure.placement1), closure.joint2,
@@ -26,32 +26,39 @@ bool NativeKernel::acceleration(double, const VectorXd& q, const VectorXd& v, co
   return true;
 }
 
+double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
+                       const pinocchio::RigidConstraintModelVector& models, pinocchio::RigidConstraintDataVector& datas,
+                       const Eigen::MatrixXd& rows, double kp, double kd, const VectorXd& v, const VectorXd& a) {
+  if (datas.empty()) return 0.0;  // no closures: nothing to miss
+  Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(rows.cols(), model.nv);
+  pinocchio::getConstraintsJacobian(model, data, models, datas, jacobian);
+  VectorXd target(rows.cols());
+  for (size_t c = 0; c < datas.size(); ++c) {  // -gamma0 - Kp phi, contact by contact, world axes
+    const pinocchio::RigidConstraintData& contact = datas[c];
+    target.segment<3>(3 * c) = contact.contact2_acceleration_drift.linear() -
+                               contact.contact1_acceleration_drift.linear() -
+                               kp * (contact.oMc1.translation() - contact.oMc2.translation());
+  }
+  const VectorXd rhs = rows * (target - kd * (jacobian * v));
+  const VectorXd residual = rows * (jacobian * a) - rhs;
+  const double scale = rhs.squaredNorm() + jacobian.squaredNorm() * a.squaredNorm();
+  if (!std::isfinite(scale)) return std::numeric_limits<double>::quiet_NaN();
+  return scale > 0.0 ? std::sqrt(residual.squaredNorm() / scale) : 0.0;
+}
+
 std::pair<RowMatrix, VectorXd> NativeKernel::multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
                                                         const Eigen::MatrixXd& rows) {
   const long n = qs.rows();
   const double nan = std::numeric_limits<double>::quiet_NaN();
   RowMatrix forces = RowMatrix::Constant(n, rows.rows(), nan);
   VectorXd residuals = VectorXd::Constant(n, nan);
-  Eigen::MatrixXd jacobian(rows.cols(), model_.nv);
-  VectorXd target(rows.cols());
   for (long k = 0; k < n; ++k) {
     if (!qs.row(k).allFinite() || !vs.row(k).allFinite()) continue;
     const VectorXd v = vs.row(k).transpose();
     const VectorXd a = pinocchio::constraintDynamics(model_, data_, qs.row(k).transpose(), v, tau, models_, datas_,
                                                      settings_);
     forces.row(k) = (rows * data_.lambda_c).transpose();
-    jacobian.setZero();
-    pinocchio::getConstraintsJacobian(model_, data_, models_, datas_, jacobian);
-    for (size_t c = 0; c < datas_.size(); ++c) {  // -gamma0 - Kp phi, contact by contact, world axes
-      const pinocchio::RigidConstraintData& contact = datas_[c];
-      target.segment<3>(3 * c) =
-          contact.contact2_acceleration_drift.linear() - contact.contact1_acceleration_drift.linear() -
-          kp_ * (contact.oMc1.translation() - contact.oMc2.translation());
-    }
-    const VectorXd rhs = rows * (target - kd_ * (jacobian * v));
-    const VectorXd residual = rows * (jacobian * a) - rhs;
-    const double scale = rhs.squaredNorm() + jacobian.squaredNorm() * a.squaredNorm();
-    residuals(k) = !std::isfinite(scale) ? nan : (scale > 0.0 ? std::sqrt(residual.squaredNorm() / scale) : 0.0);
+    residuals(k) = native_residual(model_, data_, models_, datas_, rows, kp_, kd_, v, a);
   }
   return {forces, residuals};
 }

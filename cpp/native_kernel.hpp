@@ -15,16 +15,29 @@ struct ClosureSpec {
   Eigen::Matrix4d placement1, placement2;  // homogeneous placements in the joints' frames
 };
 
+// The closures' models and datas wrapped by Python's pin.StdVec_RigidConstraintModel / StdVec_RigidConstraintData
+// (cpp/python_data.cpp); throws std::invalid_argument for another object. The caller keeps the object alive.
+pinocchio::RigidConstraintModelVector& python_constraint_models(PyObject* object);
+pinocchio::RigidConstraintDataVector& python_constraint_datas(PyObject* object);
+
+// How far the last constraintDynamics solve in data, datas (of the closures `models`, Kp [1/s^2], Kd [1/s]) misses
+// G a + gamma0 = -Kp phi - Kd G v, relative: |G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2) [-] on the closures' rows
+// (rows: Pinocchio's contact rows to them), from Pinocchio's constraint Jacobian, contact points and drifts; NaN where
+// the scale is not finite, 0 where it is zero (pinstab.paths.native.NativeDynamics.residual calls it).
+double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
+                       const pinocchio::RigidConstraintModelVector& models, pinocchio::RigidConstraintDataVector& datas,
+                       const Eigen::MatrixXd& rows, double kp, double kd, const VectorXd& v, const VectorXd& a);
+
 // pinstab.paths.native.NativeDynamics compiled: Pinocchio's constraintDynamics with the Baumgarte corrector.
 class NativeKernel : public Kernel {
  public:
+  // settings: the proximal solve's (absolute and relative accuracy, mu, iterations), NativeDynamics.settings
   NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp, double kd,
-               double mu);
+               const pinocchio::ProximalSettings& settings);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // At each sample (rows of qs, vs) under tau: the multipliers rows * lambda_c [N] (rows: Pinocchio's contact rows to
-  // the closures' rows) and the solve's relative residual |G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2), rhs =
-  // -gamma0 - Kp phi - Kd G v (pinstab.paths.native.NativeDynamics.residual); NaN where q or v is not finite.
+  // the closures' rows) and the solve's relative residual (native_residual); NaN where q or v is not finite.
   std::pair<RowMatrix, VectorXd> multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
                                              const Eigen::MatrixXd& rows);
 

@@ -6,14 +6,25 @@
 #include <stdexcept>
 
 #include "kernels.hpp"
+#include "native_kernel.hpp"
 
 namespace pinstab {
 
-pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model) {
+namespace {
+
+// The C++ object a boost.python object of Pinocchio's bindings wraps; std::invalid_argument(refusal) for another.
+template <class Wrapped>
+Wrapped& wrapped(PyObject* object, const char* refusal) {
   namespace converter = boost::python::converter;
-  void* address = converter::get_lvalue_from_python(object, converter::registered<pinocchio::Data>::converters);
-  if (address == nullptr) throw std::invalid_argument("data: not a pinocchio.Data");
-  auto& data = *static_cast<pinocchio::Data*>(address);
+  void* address = converter::get_lvalue_from_python(object, converter::registered<Wrapped>::converters);
+  if (address == nullptr) throw std::invalid_argument(refusal);
+  return *static_cast<Wrapped*>(address);
+}
+
+}  // namespace
+
+pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model) {
+  auto& data = wrapped<pinocchio::Data>(object, "data: not a pinocchio.Data");
   if (static_cast<int>(data.oMi.size()) != model.njoints || data.M.rows() != model.nv) {
     throw std::invalid_argument("data: a pinocchio.Data of another model");
   }
@@ -21,10 +32,15 @@ pinocchio::Data& python_data(PyObject* object, const pinocchio::Model& model) {
 }
 
 const pinocchio::Model& python_model(PyObject* object) {
-  namespace converter = boost::python::converter;
-  void* address = converter::get_lvalue_from_python(object, converter::registered<pinocchio::Model>::converters);
-  if (address == nullptr) throw std::invalid_argument("model: not a pinocchio.Model");
-  return *static_cast<const pinocchio::Model*>(address);
+  return wrapped<pinocchio::Model>(object, "model: not a pinocchio.Model");
+}
+
+pinocchio::RigidConstraintModelVector& python_constraint_models(PyObject* object) {
+  return wrapped<pinocchio::RigidConstraintModelVector>(object, "models: not a pinocchio.StdVec_RigidConstraintModel");
+}
+
+pinocchio::RigidConstraintDataVector& python_constraint_datas(PyObject* object) {
+  return wrapped<pinocchio::RigidConstraintDataVector>(object, "datas: not a pinocchio.StdVec_RigidConstraintData");
 }
 
 }  // namespace pinstab

@@ -1,9 +1,11 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
-row functions pinstab's constraint classes call too), Pinocchio's constrained dynamics, the banded solve, the servo
-solve and the grasp evaluation in C++ (:mod:`pinstab.paths`), the explicit step loop over them
-(:mod:`pinstab.integration.compiled`), the error-controlled loop of an embedded pair and its control's rules
-(:mod:`pinstab.integration.adaptive`), a fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`)
-and the drift and energy series of a run of point closures (:mod:`pinstab.series`).
+row functions pinstab's constraint classes call too, as the solvers call its residual and pivot test, the grasp hold
+its least squares and cone test, a joint spring its force and the native path its residual: a rule lives in C++
+once), Pinocchio's constrained dynamics, the banded solve, the servo solve and the grasp evaluation in C++
+(:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the error-controlled
+loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a fingertip contact's point
+rows (:mod:`pinstab.constraints.grasp_contacts`) and the drift and energy series of a run of point closures
+(:mod:`pinstab.series`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -35,7 +37,12 @@ try:
         contact_point_residual,
         hermite_coefficients,
         hermite_state,
+        hold_torques,
+        independent_by_margin,
+        joint_spring_force,
         least_norm,
+        native_residual,
+        primal_residual,
         rotation_drift,
         servo_realizability,
         tilted_gravity,
@@ -72,7 +79,12 @@ __all__ = [
     "contact_point_residual",
     "hermite_coefficients",
     "hermite_state",
+    "hold_torques",
+    "independent_by_margin",
+    "joint_spring_force",
     "least_norm",
+    "native_residual",
+    "primal_residual",
     "rotation_drift",
     "servo_realizability",
     "tilted_gravity",

@@ -46,6 +46,20 @@ def test_sphere_spin_rolls_at_the_closed_form_time_and_speed():
     assert abs(speed - rolling) <= 1e-8 * rolling
 
 
+@pytest.mark.parametrize("rtol", [None, 1e-9, 1e-11, 1e-12])
+def test_sphere_spin_slip_end_is_found_whatever_the_steps(rtol):
+    """The slip's end at the closed-form time to 1e-10 s at the default and tight tolerances, whatever steps the error
+    control takes (measured 9e-13, 1.3e-11, 5e-13, 4e-13 s): found on the pair's steps with the sliding mode
+    continued past it. Located on a step's dense output alone, with the friction flipping past the end, it came out
+    1.25e-8 s late at the default rtol and 1.6e-8 s at 1e-9 (the slip reversed there beyond SLIP_SPEED, the contact
+    sliding on backwards until an end found again)."""
+    v0, omega0, mu, radius = 2.0, 5.0, 0.3, 0.1
+    run = simulate(load_scene("sphere-spin"), dt=0.01, duration=1.0, contacts="event", rtol=rtol)
+    switches = [e for e in run.info.contact_events if e["to"] == "sticking"]
+    assert len(switches) == 1
+    assert abs(switches[0]["t"] - 2 * (v0 + radius * omega0) / (7 * mu * G)) <= 1e-10
+
+
 def test_bouncing_ball_impacts_and_rest_time():
     height, e = 1.0, 0.5
     run = simulate("bouncing-ball", dt=0.01, duration=2.0, contacts="event")

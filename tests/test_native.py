@@ -11,6 +11,8 @@ from pinstab import DivergenceError, PinstabError, build_system, load_scene, sim
 from pinstab.analysis.fourbar import fourbar_motion
 from pinstab.cli import main
 from pinstab.integration import stepping
+from pinstab.model import ConstrainedModel
+from pinstab.paths.native import NativeDynamics
 
 
 @pytest.mark.parametrize("method", ["projection", "post"])
@@ -99,3 +101,26 @@ def test_a_tilting_gravity_keeps_pinocchios_solve_off(tmp_path):
     assert tilted.info.compiled_steps > 0  # the compiled loop takes its steps, the tilt in the kernel
     assert np.abs(tilted.q - general.q).max() <= 1e-12
     assert np.abs(tilted.q[-1] - plain.q[-1]).max() > 1e-3
+
+
+@pytest.mark.parametrize("scene_name", ["fourbar", "slider-crank"])
+def test_native_residual_is_the_relative_miss_of_pinstabs_rows(scene_name):
+    """NativeDynamics.residual (the compiled rule the native kernel applies too) after a solve, for the solution and a
+    perturbed acceleration, equals |G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2) from pinstab's own rows (G, phi,
+    gamma0 at (q, v), rhs = -gamma0 - Kp phi - Kd G v) to 1e-9 relative; 0 for no closures."""
+    scene = load_scene(scene_name)
+    model = ConstrainedModel(scene)
+    kp, kd = 100.0, 20.0
+    native = NativeDynamics(scene.model, scene.constraints, kp, kd)
+    rng = np.random.default_rng(35)
+    q = scene.q0 + 0.05 * rng.normal(size=model.nv)
+    v = rng.normal(size=model.nv)
+    solved = native.acceleration(q, v, np.zeros(model.nv))
+    model.kin.update(q, v)
+    values = model.constraints.values(model.kin, q, v, 0.0, with_drift=True)
+    rhs = -values.drift - kp * values.phi - kd * values.jacobian @ v
+    for a in (solved, solved + 1e-3 * rng.normal(size=model.nv)):
+        native.acceleration(q, v, np.zeros(model.nv))  # the residual reads the last solve's data
+        expected = np.linalg.norm(values.jacobian @ a - rhs) / np.sqrt(rhs @ rhs + np.sum(values.jacobian**2) * (a @ a))
+        assert abs(native.residual(v, a) - expected) <= 1e-9 * max(expected, 1e-6)
+    assert NativeDynamics(scene.model, []).residual(v, solved) == 0.0

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
+from ..kernels import joint_spring_force
 from ..kinematics import Kinematics, relative_offset, relative_rotation
 from ..tables import SceneTables, closure_frames
 from ..units import within_ceiling
@@ -50,6 +51,7 @@ class JointSpring(ForceElement):
     ) -> None:
         self.name, self.stiffness, self.reference, self.damping = name, stiffness, reference, damping
         self.dofs, self.q_index, self.frames = dofs, q_index, frames  # reads kin.q: needs the kinematics pass
+        self._form = self.compiled_form({})  # the joint form's force is the core's (cpp/core_kernel.cpp)
 
     def coordinate(self, kin: Kinematics) -> tuple[float, np.ndarray]:
         """The 1-DOF coordinate s [rad or m] and its gradient ds/dq (nv,)."""
@@ -77,10 +79,8 @@ class JointSpring(ForceElement):
         }
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        if self.q_index is None and self.frames is None:  # a multi-DOF joint: damping only
-            tau = np.zeros(v.shape[0])
-            tau[self.dofs] = -self.damping * v[self.dofs]
-            return tau
+        if self._form is not None:  # the joint form: the core kernel's add_joint_springs
+            return joint_spring_force(self._form, kin.q, v)
         value, gradient = self.coordinate(kin)
         return -(self.stiffness * (value - self.reference) + self.damping * float(gradient @ v)) * gradient
 

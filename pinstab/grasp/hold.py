@@ -32,16 +32,16 @@ import pinocchio as pin
 from ..contact.cones import MAX_CONE_FACETS
 from ..errors import SceneError, choices
 from ..forces.base import FORCE_KINDS, ForceElement
+from ..kernels import hold_torques
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
-from .holding import FEASIBILITY, ConeTest, WarmQP, closest_holding, cone_columns, pyramid_rows
+from .holding import FEASIBILITY, ConeTest, WarmQP, closest_holding, cone_arrays, cone_columns, pyramid_rows
 from .linalg import NORMAL_EQUATIONS_CONDITION, RANK_TOLERANCE, closest_solution
 
 HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
 HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
 UNBOUNDED = 1e30  # ProxQP's infinite bound
-NO_TANGENT = -1  # a frictionless contact's tangent columns in the compiled form
 
 
 class GraspHold(ForceElement):
@@ -74,7 +74,8 @@ class GraspHold(ForceElement):
         self.object_name, self.max_squeeze = object_name, max_squeeze
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
-        self._object, self._hand = as_slice(object_columns), as_slice(self.hand_columns)  # views where contiguous
+        self._object = as_slice(object_columns)  # a view where contiguous
+        self._hand_int = np.asarray(self.hand_columns, dtype=np.int32)  # for the compiled balance (add_hold_balance)
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
@@ -86,7 +87,7 @@ class GraspHold(ForceElement):
         limit = UNBOUNDED if math.isinf(max_squeeze) else max_squeeze
         self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
-        self._cone_test = ConeTest(contacts)
+        self._cone_test = ConeTest(contacts, max_squeeze)
         self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
@@ -96,13 +97,13 @@ class GraspHold(ForceElement):
         load = gravity[self._object]
         # least squares: the forces closest to the squeeze among those that best carry the object's weight
         free = closest_solution(carrier, load, self.pressing)
-        if self._holds(free):
+        if self._cone_test.holds(free):
             return free
         count = len(free)
         solution, solved, _ = self._pyramid_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper
         )
-        if solved and self._holds(solution):
+        if solved and self._cone_test.holds(solution):
             return solution
         exact = closest_holding(carrier, load, self.contacts, self.pressing, self.max_squeeze)
         if exact.holds or math.isinf(self.max_squeeze):
@@ -114,23 +115,13 @@ class GraspHold(ForceElement):
         )
         return capped if solved else free
 
-    def _holds(self, forces: np.ndarray) -> bool:
-        """Every force inside its contact's limits and every normal force within the cap."""
-        if not self._cone_test.holds(forces):
-            return False
-        return math.isinf(self.max_squeeze) or float(np.max(forces[self._normals], initial=0.0)) <= self.max_squeeze * (
-            1.0 + 1e-9
-        )
-
     def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
-        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping."""
+        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping (the compiled
+        balance, ``cpp/grasp_forces.cpp``, the core's hold's too)."""
         forces = self.held_forces(rows, gravity)
-        tau = np.zeros(self.model.nv)
-        hand = self._hand
-        deviation = pin.difference(self.model, self.q_start, q)[hand]
-        tau[hand] = gravity[hand] - rows[:, hand].T @ forces - self.stiffness * deviation - self.damping * v[hand]
-        return tau
+        deviation = pin.difference(self.model, self.q_start, q)
+        return hold_torques(rows, self._hand_int, gravity, forces, deviation, v, self.stiffness, self.damping)
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
@@ -138,20 +129,20 @@ class GraspHold(ForceElement):
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
         """The hold for the compiled grasp evaluation: its contacts' rows in the stack, the columns, the squeeze, the
-        cones' columns (normal, tangents; -1: none) and the tolerances of its least squares and cone test. (The
-        kernel keeps the least-squares forces only: where they leave a cone or the cap, the evaluation is not used
-        and this element's QPs take them.)"""
-        columns, _ = cone_columns(self.contacts)
+        contacts' limits as :class:`~pinstab.grasp.holding.ConeTest` reads them (columns: normal, tangents, spin; -1:
+        none; friction and torsion coefficients) and the tolerances of its least squares and cone test. (The kernel
+        keeps the least-squares forces only: where they leave a limit or the cap, the evaluation is not used and this
+        element's QPs take them.)"""
+        columns, mu, torsion = cone_arrays(cone_columns(self.contacts)[0])
         return {
             "kind": "hold",
             "rows": np.r_[tuple(rows[c.name] for c in self.contacts)].astype(np.int32),
             "object_columns": np.asarray(self.object_columns, dtype=np.int32),
             "hand_columns": np.asarray(self.hand_columns, dtype=np.int32),
             "pressing": self.pressing,
-            "cone_columns": np.array(
-                [[c.normal, *(c.tangents or (NO_TANGENT, NO_TANGENT))] for c in columns], dtype=np.int32
-            ).reshape(-1, 3),
-            "cone_mu": np.array([c.mu for c in columns], dtype=float),
+            "cone_columns": columns,
+            "cone_mu": mu,
+            "cone_torsion": torsion,
             "q_start": self.q_start,
             "stiffness": float(self.stiffness),
             "damping": float(self.damping),

@@ -25,8 +25,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .. import kernels
 from ..contact.cones import FrictionCone
-from ..contact.models import WRENCH_BASES
+from ..contact.models import WRENCH_BASES, ContactLimits
 from ..proxqp import proxsuite
 from .analysis import RANK_TOLERANCE
 
@@ -43,7 +44,7 @@ class ConeColumns(NamedTuple):
 
     Attributes:
         name: the contact. mu: [-]. torsion: [m]. normal: column of f_n. tangents: columns of (f_t1, f_t2),
-        or None (frictionless). spin: column of m_z (soft finger), or None.
+        or None (frictionless). spin: column of m_z (soft finger), or None. model: the contact model.
     """
 
     name: str
@@ -52,6 +53,7 @@ class ConeColumns(NamedTuple):
     normal: int
     tangents: tuple[int, int] | None
     spin: int | None
+    model: str
 
 
 def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:
@@ -63,7 +65,8 @@ def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:
         offset += len(components)
         if contact.model != "rigid":
             tangents = (column[0], column[1]) if 0 in column else None
-            found.append(ConeColumns(contact.name, contact.mu, contact.torsion, column[2], tangents, column.get(5)))
+            limits = (contact.mu, contact.torsion, column[2], tangents, column.get(5), contact.model)
+            found.append(ConeColumns(contact.name, *limits))
     return found, offset
 
 
@@ -130,44 +133,51 @@ def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.nd
 
 def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
     """Each limited contact's margins for the stacked ``forces``: ``normal`` f_n [N], ``friction``
-    mu f_n - |f_t| [N] (friction contacts), ``torsion`` torsion f_n - |m_z| [N m] (soft fingers); >= 0 inside."""
+    mu f_n - |f_t| [N] (friction contacts), ``torsion`` torsion f_n - |m_z| [N m] (soft fingers); >= 0 inside
+    (:meth:`~pinstab.contact.models.ContactLimits.margins`, the compiled rule)."""
     columns, _ = cone_columns(contacts)
     found = {}
     for contact in columns:
-        normal = float(forces[contact.normal])
-        margins = {"normal": normal}
+        wrench = np.zeros(6)  # (f_t1, f_t2, f_n, 0, 0, m_z) in C
+        wrench[2] = forces[contact.normal]
         if contact.tangents is not None:
-            margins["friction"] = contact.mu * normal - math.hypot(*forces[list(contact.tangents)])
+            wrench[:2] = forces[list(contact.tangents)]
         if contact.spin is not None:
-            margins["torsion"] = contact.torsion * normal - abs(float(forces[contact.spin]))
-        found[contact.name] = margins
+            wrench[5] = forces[contact.spin]
+        limits = ContactLimits(contact.name, contact.model, contact.mu, contact.torsion, "", "")
+        found[contact.name] = limits.margins(wrench)
     return found
 
 
-class ConeTest:
-    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, on plain floats
-    (a test at every evaluation)."""
+NO_COLUMN = -1  # a frictionless contact's tangent columns, a contact's spin column but a soft finger's
 
-    def __init__(self, contacts: list[Any]) -> None:
-        self._columns, _ = cone_columns(contacts)
+
+def cone_arrays(columns: list[ConeColumns]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts' columns as the compiled cone test reads them: (rows (normal, tangent, tangent, spin; -1: none)
+    (k x 4, int32), mu (k,) [-], torsion (k,) [m])."""
+    rows = [
+        [c.normal, *(c.tangents or (NO_COLUMN, NO_COLUMN)), NO_COLUMN if c.spin is None else c.spin] for c in columns
+    ]
+    return (
+        np.array(rows, dtype=np.int32).reshape(-1, 4),
+        np.array([c.mu for c in columns], dtype=float),
+        np.array([c.torsion for c in columns], dtype=float),
+    )
+
+
+class ConeTest:
+    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, and every normal force
+    within a cap [N] (inf: none): the compiled test (``cpp/grasp_forces.cpp`` cones_hold, the core's too), at every
+    evaluation."""
+
+    def __init__(self, contacts: list[Any], cap: float = math.inf) -> None:
+        self._columns, self._mu, self._torsion = cone_arrays(cone_columns(contacts)[0])
+        self._cap = float(cap)
 
     def holds(self, forces: np.ndarray) -> bool:
-        """No contact leaves its limits (``not leaving(contacts, forces)``)."""
-        values = forces.tolist()
-        if not math.isfinite(sum(values)):  # a force that is not a number holds nothing
-            return False
-        slack = -FEASIBILITY * (1.0 + max(map(abs, values), default=0.0))
-        for contact in self._columns:
-            normal = values[contact.normal]
-            if normal < slack:
-                return False
-            if contact.tangents is not None:
-                t1, t2 = contact.tangents
-                if contact.mu * normal - math.hypot(values[t1], values[t2]) < slack:
-                    return False
-            if contact.spin is not None and contact.torsion * normal - abs(values[contact.spin]) < slack:
-                return False
-        return True
+        """No contact leaves its limits (``not leaving(contacts, forces)``) and no normal force exceeds the cap by
+        more than 1e-9 of it; False where a force is not a number."""
+        return kernels.cones_hold(self._columns, self._mu, self._torsion, self._cap, FEASIBILITY, forces)
 
 
 def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:

@@ -4,7 +4,9 @@ numpy's wrappers cost more than the factorization of a matrix of a few dozen ent
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg.lapack import dgesdd, dpocon, dpotrf, dpotrs
+from scipy.linalg.lapack import dgesdd
+
+from .. import kernels
 
 RANK_TOLERANCE = 1e-10  # singular values below this times the largest (or 1) count as zero
 NORMAL_EQUATIONS_CONDITION = 300.0  # condition of A at most this: the normal equations lose < 1e-11
@@ -31,18 +33,9 @@ def pinv(matrix: np.ndarray, rcond: float = 1e-15) -> np.ndarray:
 def closest_solution(matrix: np.ndarray, rhs: np.ndarray, target: np.ndarray) -> np.ndarray:
     """The x closest to ``target`` among the least-squares solutions of ``matrix x = rhs`` (k x m):
     ``target + A^+ (rhs - A target)``, singular values below :data:`RANK_TOLERANCE` times the largest (or 1)
-    dropped. A of full row rank whose A A^T has a condition number (LAPACK's estimate) at most
+    dropped. A of full row rank whose A A^T has a condition number (Eigen's estimate) at most
     :data:`NORMAL_EQUATIONS_CONDITION` squared: through the Cholesky factor of A A^T (the same x to 1e-12
-    relative, at a third of the cost of the SVD), else through the SVD."""
-    residual = rhs - matrix @ target
-    if matrix.shape[0] <= matrix.shape[1]:
-        gram = matrix @ matrix.T
-        factor, failed = dpotrf(gram, lower=1)
-        if not failed:
-            reciprocal, failed = dpocon(factor, float(np.abs(gram).sum(axis=0).max()), uplo="L")
-            if not failed and reciprocal * NORMAL_EQUATIONS_CONDITION**2 >= 1.0:
-                return target + matrix.T @ dpotrs(factor, residual, lower=1)[0]
-    left, singular, right = svd(matrix, full=False)
-    rank = int(np.count_nonzero(singular > RANK_TOLERANCE * max(float(np.max(singular, initial=0.0)), 1.0)))
-    right = right[:rank]
-    return target + right.T @ ((left[:, :rank].T @ residual) / singular[:rank])
+    relative, at a third of the cost of the SVD), else through the SVD. The compiled rule (``cpp/grasp_forces.cpp``,
+    the core's hold's too); entries that are not numbers where the terms are not."""
+    x, _ = kernels.closest_solution(matrix, rhs, target, RANK_TOLERANCE, NORMAL_EQUATIONS_CONDITION)
+    return x

@@ -301,26 +301,9 @@ class AdaptiveLoop(StepLoop):
         self, size: np.ndarray, size_new: np.ndarray, slopes: np.ndarray, end_slope: np.ndarray | None, h: float
     ) -> float:
         """The largest scaled error of a step over the coordinates [-] (accepted at <= 1): the estimators'
-        weights on the stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``.
-
-        The compiled norm on models whose joints all have one coordinate (the compiled loop's), NumPy's on others,
-        whose steps the integrator takes (the two agree to rounding: ``tests/test_compiled_adaptive.py``; at the
-        smallest tolerances the step sequence, and an event time located in it, follows that rounding)."""
-        if self.system.model.euclidean:
-            return self.rules.error(size, size_new, slopes, end_slope, h)
-        control, estimators = self.control, self.pair.estimators
-        stages = slopes.shape[0]
-        estimates = estimators[:, :stages] @ slopes
-        if end_slope is not None:
-            estimates += np.outer(estimators[:, stages], end_slope)
-        scaled = np.abs(estimates / (control.atol + control.rtol * np.maximum(size, size_new)))
-        largest = scaled.max(axis=1)
-        if len(largest) == 1:
-            return abs(h) * float(largest[0])
-        fifth, third = largest  # DOP853: Hairer's combination of the 5th- and 3rd-order estimates
-        if fifth == 0.0 and third == 0.0:
-            return 0.0
-        return abs(h) * fifth * fifth / math.sqrt(fifth * fifth + ESTIMATOR_MIX * third * third)
+        weights on the stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``;
+        the compiled norm (``cpp/adaptive.cpp``, the compiled loop's) on every model."""
+        return self.rules.error(size, size_new, slopes, end_slope, h)
 
     def initial_step(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float) -> float:
         """A first step [s] from the size of the state and of its derivatives (Hairer, Norsett and Wanner,

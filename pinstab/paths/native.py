@@ -16,7 +16,6 @@ periodic checks, and on every evaluation while a check has failed recently (see
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from functools import cached_property
 from typing import NamedTuple
@@ -25,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
-from ..kernels import NativeKernel
+from ..kernels import NativeKernel, native_residual
 from ..kinematics import LWA, with_columns
 from ..memory import new_data
 from .banded import joint_supports
@@ -95,13 +94,11 @@ def non_planar_closure(model: pin.Model, data: pin.Data, closures: list[FrameClo
 
 
 class _Constraints(NamedTuple):
-    """Pinocchio's side of a :class:`NativeDynamics`: its constraint models and data, the proximal settings and the
-    data as a list."""
+    """Pinocchio's side of a :class:`NativeDynamics`: its constraint models and data and the proximal settings."""
 
     models: pin.StdVec_RigidConstraintModel
     datas: pin.StdVec_RigidConstraintData
     settings: pin.ProximalSettings
-    data_list: list
 
 
 class NativeDynamics:
@@ -148,7 +145,6 @@ class NativeDynamics:
             block = np.eye(6) if width == 6 else closure.selection
             self.rows[row : row + closure.rows, column : column + width] = block
             row, column = row + closure.rows, column + width
-        self._target = np.zeros(sum(widths))
         self._kernel: NativeKernel | None = None
 
     @cached_property
@@ -162,7 +158,7 @@ class NativeDynamics:
             datas.append(rcm.createData())
         pin.initConstraintDynamics(self.model, self.data, models, datas)
         mu = self._mu() if callable(self._mu) else self._mu
-        return _Constraints(models, datas, pin.ProximalSettings(1e-14, 1e-12, mu, 50), list(datas))
+        return _Constraints(models, datas, pin.ProximalSettings(1e-14, 1e-12, mu, 50))
 
     @property
     def models(self) -> pin.StdVec_RigidConstraintModel:
@@ -191,7 +187,10 @@ class NativeDynamics:
                 [rcm.joint2_placement.homogeneous for rcm in models],
                 self.kp,
                 self.kd,
+                self.settings.absolute_accuracy,
+                self.settings.relative_accuracy,
                 self.settings.mu,
+                self.settings.max_iter,
             )
         return self._kernel
 
@@ -216,24 +215,12 @@ class NativeDynamics:
     def residual(self, v: np.ndarray, acceleration: np.ndarray) -> float:
         """How far the last :meth:`acceleration` misses ``G a + gamma0 = -Kp phi - Kd G v``, relative to
         the size of its terms (Euclidean norms): ``|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2)`` [-],
-        from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts."""
-        models, datas, _, data_list = self._pinocchio
-        if not data_list:  # no closures: nothing to miss
-            return 0.0
-        model, data = self.model, self.data
-        jac = with_columns(pin.getConstraintsJacobian(model, data, models, datas), model.nv)
-        target = self._target  # -gamma0 - Kp phi, contact by contact, in world axes
-        for index, contact in enumerate(data_list):
-            rows = slice(3 * index, 3 * index + 3)
-            target[rows] = contact.contact2_acceleration_drift.linear - contact.contact1_acceleration_drift.linear
-            target[rows] -= self.kp * (contact.oMc1.translation - contact.oMc2.translation)
-        rhs = self.rows @ (target - self.kd * (jac @ v))
-        residual = self.rows @ (jac @ acceleration) - rhs
-        flat = jac.ravel()
-        scale = rhs @ rhs + (flat @ flat) * (acceleration @ acceleration)
-        if not math.isfinite(scale):
-            return math.nan
-        return math.sqrt(residual @ residual / scale) if scale > 0 else 0.0
+        from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts (the compiled
+        rule, ``cpp/native_kernel.cpp``, the compiled kernel's too)."""
+        built = self._pinocchio
+        return native_residual(
+            self.model, self.data, built.models, built.datas, self.rows, self.kp, self.kd, v, acceleration
+        )
 
 
 class NativeProjector:

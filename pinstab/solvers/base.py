@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import kernels
 from ..constraints import RowKind, RowLayout
 from ..errors import SolverError, choices
 from ..registry import Registry
@@ -74,18 +75,16 @@ def primal_residual(problem: KKTProblem, acceleration: np.ndarray) -> float:
     """How far ``G a = rhs`` is missed, relative [-]: ``|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min
     diag M))`` in the Euclidean norm, on the rows that are equalities at the acceleration level (a
     unilateral row counts only when violated). The accelerations the forces alone would cause set the
-    scale too, so that a mechanism at rest (a ~ 0, rhs ~ 0) is not judged on rounding alone."""
-    jac, rhs = problem.jacobian, problem.rhs
-    flat = jac.ravel()
-    force = problem.free_force
-    natural = math.sqrt(float(force @ force)) / float(np.min(np.diagonal(problem.mass_matrix)))
-    miss = jac @ acceleration - rhs
-    if problem.layout.unilateral.any():
-        miss = np.where(problem.layout.unilateral, np.minimum(miss, 0.0), miss)
-    scale = math.sqrt(float(rhs @ rhs)) + math.sqrt(float(flat @ flat)) * (
-        math.sqrt(float(acceleration @ acceleration)) + natural
+    scale too, so that a mechanism at rest (a ~ 0, rhs ~ 0) is not judged on rounding alone. The compiled
+    rule (``cpp/core_kernel.cpp``), which the core evaluation applies too."""
+    return kernels.primal_residual(
+        problem.jacobian,
+        acceleration,
+        problem.rhs,
+        problem.free_force,
+        np.diagonal(problem.mass_matrix),
+        problem.layout.unilateral,
     )
-    return _ratio(miss, scale)
 
 
 def residuals(problem: KKTProblem, acceleration: np.ndarray, multipliers: np.ndarray) -> tuple[float, float]:

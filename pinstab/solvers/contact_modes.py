@@ -117,7 +117,11 @@ class ModeDynamics:
 
     Attributes:
         name: what a run reports as its method (``info.method``). modes: each contact's mode. directions: the slip
-            direction (t1, t2) each sliding contact started in. active: whether each limit is held. statistics:
+            direction (t1, t2) each sliding contact started in. continued: None, or each contact's slip direction at
+            the start of the step being taken (None: not continued), which a sliding contact's friction keeps once
+            its slip turns against it: the sliding mode continued smoothly past its end, where the event loop's
+            step and dense output locate that end (:meth:`~pinstab.integration.events.EventLoop._continue_slips`).
+            active: whether each limit is held. statistics:
             the dynamics evaluations so far (states: a state solved in several modes counts once; status
             ``contact modes``), the worst relative residual of the mode's force system [-].
     """
@@ -140,6 +144,7 @@ class ModeDynamics:
         self.active = [False] * len(self.limits)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
         self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
+        self.continued: list[np.ndarray | None] | None = None
         self.statistics = SolverStatistics() if statistics is None else statistics
         self._redundant: dict[tuple[Mode, ...], bool] = {}
         self._state: tuple | None = None
@@ -151,8 +156,12 @@ class ModeDynamics:
         return self.kinematics_from_kin(v)
 
     def slip_direction(self, i: int, velocity: np.ndarray) -> np.ndarray:
-        """The unit slip direction (t1, t2) of contact i at its basis velocity ``velocity``."""
+        """The unit slip direction (t1, t2) of contact i at its basis velocity ``velocity``; with :attr:`continued`
+        set, its direction there once the slip has turned against it (the mode continued past its end)."""
         slip = velocity[1:]
+        reference = None if self.continued is None else self.continued[i]
+        if reference is not None and float(slip @ reference) <= 0.0:
+            return reference
         speed = math.hypot(slip[0], slip[1])
         return slip / speed if speed > SLIP_FLOOR else self.directions[i]
 

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import linprog
 
+from .. import kernels
 from ..constraints import ConeRows, RowKind
 from ..errors import ContactInfeasibleError, SolverError
 from ..proxqp import proxsuite
@@ -177,7 +178,7 @@ def direct_solve(problem: KKTProblem) -> tuple[np.ndarray, np.ndarray] | None:
     delassus = jacobian @ spread
     inner, failed = dpotrf(delassus, lower=1)
     largest = float(np.max(np.diagonal(delassus), initial=0.0))
-    if failed or not float(np.min(np.diagonal(inner), initial=math.inf)) ** 2 >= DIRECT_PIVOT * largest:
+    if failed or not kernels.independent_by_margin(np.diagonal(inner), largest, DIRECT_PIVOT):  # the core's test
         return None
     multipliers[kept] = dpotrs(inner, problem.rhs[kept] - jacobian @ free, lower=1)[0]
     return free + spread @ multipliers[kept], multipliers
