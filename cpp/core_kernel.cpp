@@ -37,9 +37,7 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
       kp_(kp),
       kd_(kd),
       settings_(solve),
-      euclidean_(model_.nq == model_.nv),
       rows_(0) {
-  for (int j = 1; j < model_.njoints; ++j) euclidean_ = euclidean_ && model_.joints[j].nq() == 1;
   for (const RowBlock& block : blocks_) {
     offsets_.push_back(rows_);
     rows_ += block.rows();

@@ -76,7 +76,7 @@ class CoreKernel : public Kernel {
              CoreSolve solve, std::optional<GravityTilt> tilt, std::shared_ptr<PythonPart> python);
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
   int nv() const override { return model_.nv; }
-  const pinocchio::Model* group() const override { return euclidean_ ? nullptr : &model_; }
+  const pinocchio::Model* group() const override { return &model_; }
   // the last evaluation's multipliers [N, N m] (the rows' order)
   const VectorXd& multipliers() const { return multipliers_; }
   // the largest relative primal residual of the evaluations used
@@ -101,7 +101,6 @@ class CoreKernel : public Kernel {
   VectorXd python_phi_, python_time_term_, python_drift_;
   double kp_, kd_;
   CoreSolve settings_;
-  bool euclidean_;
   int rows_;
   double worst_residual_ = 0.0;
   std::map<std::string, long> status_counts_;

@@ -35,7 +35,8 @@ class Kernel {
   virtual bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
   virtual int nv() const = 0;
   // The model whose configuration group the step loop integrates on (pinocchio::integrate, and stage velocities
-  // carried to the step's start with dDifference), or nullptr where q (+) dq = q + dq (every joint one coordinate).
+  // carried to the step's start with dDifference, where its joints are not all of one coordinate), or nullptr: a
+  // kernel whose models' joints all are (q (+) dq = q + dq).
   virtual const pinocchio::Model* group() const { return nullptr; }
 };
 

@@ -5,20 +5,24 @@
 namespace pinstab {
 namespace {
 
-// q (+) dq and the stage slopes of pinstab.integration.schemes: np.add and the stage velocity itself where the
-// kernel has no group (the same sums as Python's), else pinocchio::integrate and dDifference (ARG1) applied to it.
+// q (+) dq and the stage slopes of pinstab.integration.schemes (pinstab.model.ConstrainedModel's flat and euclidean):
+// np.add where every joint has one coordinate (no model: the kernel's are so), else pinocchio::integrate; the stage
+// velocity itself where every joint has one velocity coordinate, else dDifference (ARG1) applied to it.
 struct Group {
   const pinocchio::Model* model;
-  bool flat;
+  bool flat = true, euclidean = true;
   Eigen::MatrixXd carry;
 
-  explicit Group(const pinocchio::Model* group) : model(group), flat(true) {
+  explicit Group(const pinocchio::Model* group) : model(group) {
     if (model == nullptr) return;
-    for (int j = 1; j < model->njoints; ++j) flat = flat && model->joints[j].nv() == 1;
+    for (int j = 1; j < model->njoints; ++j) {
+      flat = flat && model->joints[j].nv() == 1;
+      euclidean = euclidean && model->joints[j].nv() == 1 && model->joints[j].nq() == 1;
+    }
     carry.setZero(model->nv, model->nv);  // dDifference writes the joints' diagonal blocks only
   }
   VectorXd integrate(const VectorXd& q, const VectorXd& dq) const {
-    if (model == nullptr) return q + dq;
+    if (euclidean) return q + dq;
     VectorXd result(q.size());
     pinocchio::integrate(*model, q, dq, result);
     return result;

@@ -98,12 +98,14 @@ class ConstrainedModel:
             self.kin.update_jacobians(q)
         return self.applied_force(v, t)
 
-    def applied_force(self, v: np.ndarray, t: float) -> np.ndarray:
-        """Sum of the force elements [N, N m]; ``kin`` must be current where they need it."""
-        if not self.forces:
+    def applied_force(self, v: np.ndarray, t: float, elements: list | None = None) -> np.ndarray:
+        """Sum of the force elements [N, N m] (``elements``, default all); ``kin`` must be current where they need
+        it."""
+        elements = self.forces if elements is None else elements
+        if not elements:
             return self.no_force
         tau = np.zeros(self.model.nv)
-        for element in self.forces:
+        for element in elements:
             tau += element.generalized_force(self.kin, v, t)
         return tau
 
@@ -123,9 +125,7 @@ class ConstrainedModel:
             self.model.gravity = pin.Motion(tilt.gravity(t), np.zeros(3))
         try:
             self.kin.update(q, v)
-            if elements is None:
-                return self.applied_force(v, t)
-            return sum((element.generalized_force(self.kin, v, t) for element in elements), np.zeros(len(v)))
+            return self.applied_force(v, t, elements)
         finally:
             if tilt is not None:
                 self.model.gravity = pin.Motion(tilt.gravity0, np.zeros(3))

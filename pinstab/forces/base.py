@@ -71,9 +71,9 @@ class ForceElement(ABC):
         """Generalized force [N, N m] (nv,); needs placements and Jacobians current."""
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
-        """The element as the compiled grasp evaluation takes it (``cpp/grasp_kernel.cpp``: a dict with ``kind``
-        ``hold`` or ``wrench``), given each constraint's rows in the stack by name (``ConstraintSet.slices``); None
-        (the default): it has none, and an evaluation computes it in Python."""
+        """The element as the compiled core takes it (``cpp/core_kernel.hpp``, ``cpp/grasp_forces.hpp``: a dict with
+        ``kind`` ``joint-spring``, ``hold`` or ``wrench``), given each constraint's rows in the stack by name
+        (``ConstraintSet.slices``); None (the default): it has none, and an evaluation computes it in Python."""
         return None
 
     def potential_energy(self, kin: Kinematics) -> float:

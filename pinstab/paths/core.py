@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..constraints import Constraint, RowKind
+from ..constraints import Constraint, ConstraintSet, RowKind
 from ..constraints.loops import NO_RELATION
 from ..contact.models import MARGIN_SLACK
 from ..errors import GraspLostError
@@ -76,30 +76,19 @@ class PythonPart:
 
     def __init__(self, model: ConstrainedModel, blocks: list[Constraint], elements: list[ForceElement]) -> None:
         self.model, self.blocks, self.elements = model, blocks, elements
+        self._stack = ConstraintSet(blocks, model.nv)
         self._reads_kinematics = bool(blocks) or any(element.needs_kinematics for element in elements)
         self._limited = any(block.limits_force for block in blocks)
-        self._rows = sum(block.rows for block in blocks)
 
     def evaluate(
         self, t: float, q: np.ndarray, v: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(G, phi, g_t, gamma0) of the blocks, stacked (phi zero on nonholonomic rows) [m or rad ...], and the
         elements' forces [N, N m] at (t [s], q, v)."""
-        model, kin = self.model, self.model.kin
-        force = model.forces_at(q, v, t, self.elements) if self._reads_kinematics else np.zeros(len(v))
-        if not self._reads_kinematics and self.elements:
-            force = sum((element.generalized_force(kin, v, t) for element in self.elements), force)
-        jacobian, phi = np.zeros((self._rows, len(v))), np.zeros(self._rows)
-        time_term, drift = np.zeros(self._rows), np.zeros(self._rows)
-        row = 0
-        for block in self.blocks:
-            rows = slice(row, row + block.rows)
-            if block.holonomic:
-                phi[rows] = block.residual(kin, q, t)
-            jacobian[rows], time_term[rows] = block.velocity_terms(kin, q, t)
-            drift[rows] = block.drift(kin, q, v, t)
-            row = rows.stop
-        return jacobian, phi, time_term, drift, force
+        model, elements = self.model, self.elements
+        force = model.forces_at(q, v, t, elements) if self._reads_kinematics else model.applied_force(v, t, elements)
+        values = self._stack.values(model.kin, q, v, t, with_drift=True)  # no blocks: empty, nothing read
+        return values.jacobian, values.phi, values.time_term, values.drift, force
 
     def holds(self, t: float, multipliers: np.ndarray) -> bool:
         """Whether the multipliers (every row) keep the blocks' force limits at t [s] (what
@@ -146,7 +135,6 @@ class CoreDynamics:
         elements = [element for element, form in zip(model.forces, forms, strict=True) if form is None]
         in_python = [c for c, block in zip(constraints, compiled, strict=True) if block is None]
         self.python = PythonPart(model, in_python, elements) if in_python or elements else None
-
         tilt = None if model.scene.tilt is None else model.scene.tilt.compiled_form()
         forms = [form for form in forms if form is not None]
         self.kernel = CoreKernel(model.model, blocks, forms, float(kp), float(kd), settings, tilt, self.python)
