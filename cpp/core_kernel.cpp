@@ -21,6 +21,14 @@ void add_joint_springs(const std::vector<JointSpringSpec>& springs, const Vector
   }
 }
 
+Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic) {
+  return holonomic.select(Eigen::ArrayXd::Constant(holonomic.size(), kd), 0.5 * kd);
+}
+
+VectorXd baumgarte_term(double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate) {
+  return (-(baumgarte_velocity_gains(kd, holonomic) * rate.array()) - kp * phi.array()).matrix();
+}
+
 Eigen::Vector3d GravityTilt::gravity(double t) const {
   return Eigen::AngleAxisd(-start - rate * t, axis).toRotationMatrix() * gravity0;
 }
@@ -47,10 +55,8 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   python_phi_.setZero(python_rows_);
   python_time_term_.setZero(python_rows_);
   python_drift_.setZero(python_rows_);
-  velocity_gain_.resize(rows_);
-  for (size_t k = 0; k < blocks_.size(); ++k) {  // Baumgarte's Kd on holonomic rows, Kd / 2 on nonholonomic ones
-    velocity_gain_.segment(offsets_[k], blocks_[k].rows()).setConstant(blocks_[k].holonomic ? kd_ : 0.5 * kd_);
-  }
+  holonomic_.resize(rows_);
+  for (size_t k = 0; k < blocks_.size(); ++k) holonomic_.segment(offsets_[k], blocks_[k].rows()) = blocks_[k].holonomic;
   jacobian_.setZero(rows_, model_.nv);
   phi_.setZero(rows_);
   time_term_.setZero(rows_);
@@ -94,7 +100,7 @@ bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, co
     }
   }
   force_ -= data_.nle;
-  const VectorXd rhs = -drift_ - (velocity_gain_.array() * (jacobian_ * v + time_term_).array()).matrix() - kp_ * phi_;
+  const VectorXd rhs = -drift_ + baumgarte_term(kp_, kd_, holonomic_, phi_, jacobian_ * v + time_term_);
   if (!solve(rhs)) return false;
   if (!inside_limits() || (python_ && !python_->holds(t, multipliers_))) {
     ++status_counts_["outside a contact's limits"];
@@ -117,66 +123,23 @@ bool CoreKernel::inside_limits() const {
 }
 
 bool CoreKernel::solve(const VectorXd& rhs) {
-  mass_.compute(data_.M);
-  if (mass_.info() != Eigen::Success) return false;
-  free_ = mass_.solve(force_);
-  acceleration_ = free_;
-  if (rows_ == 0) {
-    ++status_counts_["cholesky"];
-    return acceleration_.allFinite();
+  switch (kkt_.solve(data_.M, force_, jacobian_, rhs, settings_, true)) {
+    case KktOutcome::direct:
+      ++status_counts_["cholesky"];
+      break;
+    case KktOutcome::pseudo_inverse:
+      ++status_counts_["pseudo-inverse"];
+      break;
+    case KktOutcome::not_accepted:
+      ++status_counts_["pseudo-inverse, not accepted"];
+      return false;
+    default:
+      return false;
   }
-  spread_ = mass_.solve(jacobian_.transpose());
-  delassus_.noalias() = jacobian_ * spread_;
-  const VectorXd demand = rhs - jacobian_ * free_;
-  const double largest = delassus_.diagonal().maxCoeff();
-  inner_.compute(delassus_);
-  if (inner_.info() == Eigen::Success &&
-      independent_by_margin(inner_.matrixLLT().diagonal(), largest, settings_.direct_pivot)) {  // the direct solve
-    multipliers_ = inner_.solve(demand);
-    acceleration_.noalias() += spread_ * multipliers_;
-    ++status_counts_["cholesky"];
-    if (!acceleration_.allFinite()) return false;
-    worst_residual_ =
-        std::max(worst_residual_, primal_residual(jacobian_, acceleration_, rhs, force_, data_.M.diagonal()));
-    return true;
-  }
-  // redundant or nearly dependent rows: the pseudo-inverse of D, eigenvalues below cutoff times the largest left out
-  spectrum_.compute(delassus_);
-  if (spectrum_.info() != Eigen::Success) return false;
-  const VectorXd& values = spectrum_.eigenvalues();  // ascending
-  const double floor = settings_.cutoff * values(values.size() - 1);
-  const VectorXd projected = spectrum_.eigenvectors().transpose() * demand;
-  VectorXd scaled = VectorXd::Zero(values.size());
-  for (int k = 0; k < values.size(); ++k) {
-    if (values(k) > floor) scaled(k) = projected(k) / values(k);
-  }
-  multipliers_ = spectrum_.eigenvectors() * scaled;
-  acceleration_.noalias() += spread_ * multipliers_;
-  const double residual = primal_residual(jacobian_, acceleration_, rhs, force_, data_.M.diagonal());
-  if (!(residual <= settings_.accepted) || !acceleration_.allFinite()) {
-    ++status_counts_["pseudo-inverse, not accepted"];
-    return false;
-  }
-  ++status_counts_["pseudo-inverse"];
-  worst_residual_ = std::max(worst_residual_, residual);
+  multipliers_ = kkt_.multipliers();
+  acceleration_ = kkt_.acceleration();
+  worst_residual_ = std::max(worst_residual_, kkt_.residual());
   return true;
-}
-
-double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
-                       const VectorXd& mass_diagonal, const Mask& unilateral) {
-  VectorXd miss = jacobian * a - rhs;
-  if (unilateral.size()) miss = unilateral.select(miss.cwiseMin(0.0), miss);
-  const double size = miss.norm();
-  if (size == 0.0) return 0.0;
-  const double natural = force.norm() / mass_diagonal.minCoeff();
-  const double scale = rhs.norm() + jacobian.norm() * (a.norm() + natural);
-  return scale > 0.0 ? size / scale : std::numeric_limits<double>::infinity();
-}
-
-bool independent_by_margin(const VectorXd& factor_diagonal, double largest, double direct_pivot) {
-  if (factor_diagonal.size() == 0) return true;
-  const double smallest = factor_diagonal.minCoeff();
-  return smallest * smallest >= direct_pivot * largest;
 }
 
 }  // namespace pinstab

@@ -9,12 +9,10 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-
 #include "core_rows.hpp"
 #include "grasp_forces.hpp"
 #include "kernels.hpp"
+#include "kkt_solve.hpp"
 
 namespace pinstab {
 
@@ -37,6 +35,12 @@ struct CoreForces {
   std::vector<WrenchSpec> wrenches;
 };
 
+// Baumgarte's term per row, -Kd rate - Kp phi with Kd on holonomic rows and Kd / 2 on nonholonomic ones
+// (pinstab.stabilizers.baumgarte calls it): phi [m or rad], rate = G v + g_t [m/s or rad/s], Kp [1/s^2], Kd [1/s].
+VectorXd baumgarte_term(double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate);
+// Its velocity gain per row [1/s]: Kd on holonomic rows, Kd / 2 on nonholonomic ones.
+Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic);
+
 // pinstab.scene.GravityTilt: gravity g(t) = R(axis, -(start + rate t)) g0 [m/s^2] (rate [rad/s], start [rad]).
 struct GravityTilt {
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ(), gravity0 = Eigen::Vector3d::Zero();
@@ -44,16 +48,6 @@ struct GravityTilt {
   Eigen::Vector3d gravity(double t) const;
 };
 
-// The solve's settings: Cholesky of the Delassus matrix D = G M^-1 G^T where its smallest pivot^2 is at least
-// direct_pivot times its largest diagonal entry (pinstab.solvers.proxsuite_.DIRECT_PIVOT); else (redundant or nearly
-// dependent rows) its pseudo-inverse, eigenvalues at most cutoff times the largest left out: the least-norm
-// multipliers and the least-squares accelerations of rows the mechanism can hardly tell apart. An evaluation whose
-// relative primal residual (pinstab.solvers.base.primal_residual) is above accepted is not to be used.
-// margin_slack: the fingertip contacts' limits hold above -margin_slack (1 + the largest |component|)
-// (pinstab.contact.models.MARGIN_SLACK); an evaluation whose multipliers leave them is not to be used.
-struct CoreSolve {
-  double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8, margin_slack = 1e-9;
-};
 
 // What Python computes at each evaluation: the rows of the blocks without compiled rows and the forces of the elements
 // without a compiled form (pinstab.paths.core.PythonPart), and the limits of the blocks whose forces have them.
@@ -104,10 +98,10 @@ class CoreKernel : public Kernel {
   int rows_;
   double worst_residual_ = 0.0;
   std::map<std::string, long> status_counts_;
-  Eigen::MatrixXd jacobian_, spread_, delassus_;
-  VectorXd phi_, time_term_, drift_, force_, free_, multipliers_, acceleration_, velocity_gain_;
-  Eigen::LLT<Eigen::MatrixXd> mass_, inner_;
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
+  Eigen::MatrixXd jacobian_;
+  VectorXd phi_, time_term_, drift_, force_, multipliers_, acceleration_;
+  Mask holonomic_;
+  KktSolve kkt_;
 };
 
 }  // namespace pinstab

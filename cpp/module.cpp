@@ -14,6 +14,7 @@
 #include "contact_terms.hpp"
 #include "core_kernel.hpp"
 #include "grasp_forces.hpp"
+#include "kkt_solve.hpp"
 #include "native_kernel.hpp"
 #include "series.hpp"
 #include "servo_kernel.hpp"
@@ -357,9 +358,39 @@ NB_MODULE(_compiled, m) {
       },
       "jacobian"_a, "a"_a, "rhs"_a, "force"_a, "mass_diagonal"_a, "unilateral"_a,
       "|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-], a unilateral row (mask) counted only when violated.");
-  m.def("independent_by_margin", &independent_by_margin, "factor_diagonal"_a, "largest"_a, "direct_pivot"_a,
-        "Whether the smallest diagonal entry of the Delassus matrix's Cholesky factor, squared, is at least "
-        "direct_pivot times its largest diagonal entry (true for no rows).");
+  m.def(
+      "baumgarte_term",
+      [](double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate) {
+        if (holonomic.size() != phi.size() || rate.size() != phi.size()) {
+          throw std::invalid_argument("baumgarte_term: holonomic, phi and rate need one entry per row");
+        }
+        return baumgarte_term(kp, kd, holonomic, phi, rate);
+      },
+      "kp"_a, "kd"_a, "holonomic"_a, "phi"_a, "rate"_a,
+      "Baumgarte's term per row, -Kd rate - Kp phi (Kd on holonomic rows, Kd / 2 on nonholonomic ones): phi [m or "
+      "rad], rate = G v + g_t [m/s or rad/s], Kp [1/s^2], Kd [1/s].");
+  m.def(
+      "baumgarte_velocity_gains",
+      [](double kd, const Mask& holonomic) -> VectorXd { return baumgarte_velocity_gains(kd, holonomic).matrix(); },
+      "kd"_a, "holonomic"_a, "Baumgarte's velocity gain per row [1/s]: Kd on holonomic rows, Kd / 2 on nonholonomic ones.");
+  m.def(
+      "direct_solve",
+      [](const Eigen::MatrixXd& mass, const VectorXd& force, const Eigen::MatrixXd& jacobian, const VectorXd& rhs,
+         double direct_pivot) -> std::optional<std::pair<VectorXd, VectorXd>> {
+        if (mass.rows() != mass.cols() || force.size() != mass.rows() || jacobian.cols() != mass.rows() ||
+            rhs.size() != jacobian.rows()) {
+          throw std::invalid_argument("direct_solve: M (nv x nv), f (nv), G (s x nv), rhs (s)");
+        }
+        CoreSolve settings;
+        settings.direct_pivot = direct_pivot;
+        KktSolve kkt;
+        if (kkt.solve(mass, force, jacobian, rhs, settings, false) != KktOutcome::direct) return std::nullopt;
+        return std::make_pair(kkt.acceleration(), kkt.multipliers());
+      },
+      "mass"_a, "force"_a, "jacobian"_a, "rhs"_a, "direct_pivot"_a,
+      "(a, lambda) of M a = f + G^T lambda, G a = rhs by Cholesky factors of M and of D = G M^-1 G^T (the core "
+      "kernel's direct solve); None when M is not positive definite, the result not finite, or D's smallest pivot "
+      "squared is below direct_pivot times its largest diagonal entry.");
   m.def(
       "joint_spring_force",
       [](nb::dict form, const VectorXd& q, const VectorXd& v) {

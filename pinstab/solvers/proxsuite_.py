@@ -33,7 +33,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import linprog
 
 from .. import kernels
@@ -158,30 +157,21 @@ def _force_rows(problem: KKTProblem, scaling: _Scaling, with_cones: bool = True)
 
 
 def direct_solve(problem: KKTProblem) -> tuple[np.ndarray, np.ndarray] | None:
-    """(a, lambda) of the equality KKT system through Cholesky factors (LAPACK) of M and of the Delassus matrix
+    """(a, lambda) of the equality KKT system through Cholesky factors of M and of the Delassus matrix
     D = G M^-1 G^T: ``lambda = D^-1 (rhs - G M^-1 f)``, ``a = M^-1 (f + G^T lambda)``, over the rows that are not
     rounding of zero rows (:data:`ROUNDING_ROW`; their multipliers 0); None when M is not positive definite or D's
     smallest pivot (squared diagonal of its factor) is below :data:`DIRECT_PIVOT` of its largest diagonal entry (rows
-    dependent or nearly so: ProxQP's proximal solve takes those)."""
-    factor, failed = dpotrf(problem.mass_matrix, lower=1)
-    if failed:
-        return None
+    dependent or nearly so: ProxQP's proximal solve takes those). The solve is the core kernel's
+    (:func:`pinstab.kernels.direct_solve`, ``cpp/kkt_solve.cpp``)."""
     kept = _row_sizes(problem.jacobian / np.sqrt(np.diagonal(problem.mass_matrix)))[1]  # _Scaling's columns
-    jacobian = problem.jacobian[kept]
-    solved, failed = dpotrs(factor, np.column_stack([problem.free_force, jacobian.T]), lower=1)
-    if failed:
+    solved = kernels.direct_solve(
+        problem.mass_matrix, problem.free_force, problem.jacobian[kept], problem.rhs[kept], DIRECT_PIVOT
+    )
+    if solved is None:
         return None
-    free, spread = solved[:, 0], solved[:, 1:]  # M^-1 f, M^-1 G^T
     multipliers = np.zeros(len(kept))
-    if not len(jacobian):  # no rows (or only rounding ones): the free motion
-        return free, multipliers
-    delassus = jacobian @ spread
-    inner, failed = dpotrf(delassus, lower=1)
-    largest = float(np.max(np.diagonal(delassus), initial=0.0))
-    if failed or not kernels.independent_by_margin(np.diagonal(inner), largest, DIRECT_PIVOT):  # the core's test
-        return None
-    multipliers[kept] = dpotrs(inner, problem.rhs[kept] - jacobian @ free, lower=1)[0]
-    return free + spread @ multipliers[kept], multipliers
+    multipliers[kept] = solved[1]
+    return solved[0], multipliers
 
 
 class ProxsuiteSolver(KKTSolver):

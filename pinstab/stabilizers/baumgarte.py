@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import kernels
 from ..constraints import ConstraintValues
 from .base import STABILIZERS, DeviationGains, Stabilizer
 
@@ -41,19 +42,16 @@ class BaumgarteStabilizer(Stabilizer):
     def __init__(self, options: BaumgarteOptions | None = None) -> None:
         options = options or BaumgarteOptions()
         self.kp, self.kd = float(options.kp), float(options.kd)
-        self._velocity_gain: tuple[np.ndarray, np.ndarray] | None = None  # (holonomic mask, Kd per row)
 
     def deviation_gains(self, model, q, v) -> DeviationGains:
         mask = model.constraints.holonomic_mask
         return DeviationGains(
-            self.kp * np.eye(len(mask))[:, mask], np.diag(np.where(mask, self.kd, 0.5 * self.kd)), mask
+            self.kp * np.eye(len(mask))[:, mask], np.diag(kernels.baumgarte_velocity_gains(self.kd, mask)), mask
         )
 
     def stabilization_term(self, model, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
         mask = model.constraints.holonomic_mask
-        if self._velocity_gain is None or self._velocity_gain[0] is not mask:  # once per constraint set
-            self._velocity_gain = (mask, np.where(mask, self.kd, 0.5 * self.kd))
-        return -self._velocity_gain[1] * values.velocity_residual - self.kp * values.phi
+        return kernels.baumgarte_term(self.kp, self.kd, mask, values.phi, values.velocity_residual)  # the core's
 
     def baumgarte_gains(self) -> tuple[float, float]:
         return (self.kp, self.kd)

@@ -1,0 +1,64 @@
+#include "kkt_solve.hpp"
+
+#include <limits>
+
+namespace pinstab {
+
+KktOutcome KktSolve::solve(const Eigen::MatrixXd& mass, const VectorXd& force, const Eigen::MatrixXd& jacobian,
+                           const VectorXd& rhs, const CoreSolve& settings, bool pseudo_inverse) {
+  residual_ = 0.0;
+  mass_.compute(mass);
+  if (mass_.info() != Eigen::Success) return KktOutcome::failed;
+  free_ = mass_.solve(force);
+  acceleration_ = free_;
+  multipliers_.setZero(jacobian.rows());
+  if (jacobian.rows() == 0) return acceleration_.allFinite() ? KktOutcome::direct : KktOutcome::failed;
+  spread_ = mass_.solve(jacobian.transpose());
+  delassus_.noalias() = jacobian * spread_;
+  const VectorXd demand = rhs - jacobian * free_;
+  const double largest = delassus_.diagonal().maxCoeff();
+  inner_.compute(delassus_);
+  if (inner_.info() == Eigen::Success &&
+      independent_by_margin(inner_.matrixLLT().diagonal(), largest, settings.direct_pivot)) {
+    multipliers_ = inner_.solve(demand);
+    acceleration_.noalias() += spread_ * multipliers_;
+    if (!acceleration_.allFinite()) return KktOutcome::failed;
+    residual_ = primal_residual(jacobian, acceleration_, rhs, force, mass.diagonal());
+    return KktOutcome::direct;
+  }
+  if (!pseudo_inverse) return KktOutcome::dependent;
+  // redundant or nearly dependent rows: the pseudo-inverse of D, eigenvalues below cutoff times the largest left out
+  spectrum_.compute(delassus_);
+  if (spectrum_.info() != Eigen::Success) return KktOutcome::failed;
+  const VectorXd& values = spectrum_.eigenvalues();  // ascending
+  const double floor = settings.cutoff * values(values.size() - 1);
+  const VectorXd projected = spectrum_.eigenvectors().transpose() * demand;
+  VectorXd scaled = VectorXd::Zero(values.size());
+  for (int k = 0; k < values.size(); ++k) {
+    if (values(k) > floor) scaled(k) = projected(k) / values(k);
+  }
+  multipliers_ = spectrum_.eigenvectors() * scaled;
+  acceleration_.noalias() += spread_ * multipliers_;
+  residual_ = primal_residual(jacobian, acceleration_, rhs, force, mass.diagonal());
+  if (!acceleration_.allFinite()) return KktOutcome::failed;
+  return residual_ <= settings.accepted ? KktOutcome::pseudo_inverse : KktOutcome::not_accepted;
+}
+
+double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,
+                       const VectorXd& mass_diagonal, const Mask& unilateral) {
+  VectorXd miss = jacobian * a - rhs;
+  if (unilateral.size()) miss = unilateral.select(miss.cwiseMin(0.0), miss);
+  const double size = miss.norm();
+  if (size == 0.0) return 0.0;
+  const double natural = force.norm() / mass_diagonal.minCoeff();
+  const double scale = rhs.norm() + jacobian.norm() * (a.norm() + natural);
+  return scale > 0.0 ? size / scale : std::numeric_limits<double>::infinity();
+}
+
+bool independent_by_margin(const VectorXd& factor_diagonal, double largest, double direct_pivot) {
+  if (factor_diagonal.size() == 0) return true;
+  const double smallest = factor_diagonal.minCoeff();
+  return smallest * smallest >= direct_pivot * largest;
+}
+
+}  // namespace pinstab
