@@ -6,6 +6,12 @@ rows are redundant); the largest difference of any coordinate of q [rad or m] an
 samples both runs reached (a run that stops, ``allegro-tilt``'s lost grasp, is compared up to its stop, and the stop
 times too).
 
+Where the two differ by more than rounding (``delta`` through its singular configurations, ``cassie`` with its redundant
+loop rows: ProxQP solves the general path's rank-deficient evaluations), both are also run against an independent
+reference: the general path with the KKT system [[M, -G^T], [G, 0]] [a; lambda] = [f; rhs] solved whole (no Delassus
+matrix) by least squares with iterative refinement whose residuals are summed in extended precision (``long double``):
+the solver ``extended`` (``pinstab/solvers/extended_.py``).
+
     python benchmarks/core_equality.py    # prints the table, writes benchmarks/results/core_equality.json (~3 min)
 """
 
@@ -26,6 +32,7 @@ from pinstab.system import build_system
 DURATION = 2.0  # [s]
 CASSIE_DURATION = 0.2  # [s]
 OUT = Path(__file__).parent / "results" / "core_equality.json"
+REFERENCE_SCENES = ("delta", "cassie")  # the scenes whose general path solves rank-deficient rows by ProxQP
 
 
 def run(scene: pinstab.Scene, duration: float, **options: Any) -> tuple[pinstab.Trajectory, str | None]:
@@ -63,10 +70,19 @@ def main() -> None:
             "max_dv": float(np.max(np.abs(core.v[:n] - general.v[:n]))),
             "general_status": general.info.solver_statistics.status_counts,
         }
+        if name in REFERENCE_SCENES:
+            reference, _ = run(scene, duration, solver="extended")
+            rows[name]["from_extended"] = {
+                path: {
+                    "max_dq": float(np.max(np.abs(traj.q[:n] - reference.q[:n]))),
+                    "max_dv": float(np.max(np.abs(traj.v[:n] - reference.v[:n]))),
+                }
+                for path, traj in (("core", core), ("general", general))
+            }
         row = rows[name]
         print(
             f"{name:<16} {row['max_dq']:9.2e} {row['max_dv']:9.2e}  t_end {row['t_end_s']}  stops {row['stops']}  "
-            f"general {row['general_status']}",
+            f"general {row['general_status']}  from extended {row.get('from_extended', '-')}",
             flush=True,
         )
     save_results(OUT, {"scenes": rows})

@@ -21,7 +21,7 @@ KktOutcome KktSolve::solve(const Eigen::MatrixXd& mass, const VectorXd& force, c
   if (inner_.info() == Eigen::Success &&
       independent_by_margin(inner_.matrixLLT().diagonal(), largest, settings.direct_pivot)) {
     multipliers_ = inner_.solve(demand);
-    acceleration_.noalias() += spread_ * multipliers_;
+    refine(jacobian, rhs, [this](const VectorXd& miss) -> VectorXd { return inner_.solve(miss); });
     if (!acceleration_.allFinite()) return KktOutcome::failed;
     residual_ = primal_residual(jacobian, acceleration_, rhs, force, mass.diagonal());
     return KktOutcome::direct;
@@ -32,16 +32,22 @@ KktOutcome KktSolve::solve(const Eigen::MatrixXd& mass, const VectorXd& force, c
   if (spectrum_.info() != Eigen::Success) return KktOutcome::failed;
   const VectorXd& values = spectrum_.eigenvalues();  // ascending
   const double floor = settings.cutoff * values(values.size() - 1);
-  const VectorXd projected = spectrum_.eigenvectors().transpose() * demand;
-  VectorXd scaled = VectorXd::Zero(values.size());
-  for (int k = 0; k < values.size(); ++k) {
-    if (values(k) > floor) scaled(k) = projected(k) / values(k);
-  }
-  multipliers_ = spectrum_.eigenvectors() * scaled;
-  acceleration_.noalias() += spread_ * multipliers_;
+  const Eigen::ArrayXd kept = (values.array() > floor).select(values.array().inverse(), 0.0);
+  const auto pseudo_inverse_of = [this, &kept](const VectorXd& x) -> VectorXd {
+    return spectrum_.eigenvectors() * (kept * (spectrum_.eigenvectors().transpose() * x).array()).matrix();
+  };
+  multipliers_ = pseudo_inverse_of(demand);
+  refine(jacobian, rhs, pseudo_inverse_of);
   residual_ = primal_residual(jacobian, acceleration_, rhs, force, mass.diagonal());
   if (!acceleration_.allFinite()) return KktOutcome::failed;
   return residual_ <= settings.accepted ? KktOutcome::pseudo_inverse : KktOutcome::not_accepted;
+}
+
+template <typename Inverse>
+void KktSolve::refine(const Eigen::MatrixXd& jacobian, const VectorXd& rhs, const Inverse& inverse) {
+  acceleration_ = free_ + spread_ * multipliers_;
+  multipliers_ += inverse(rhs - jacobian * acceleration_);
+  acceleration_ = free_ + spread_ * multipliers_;
 }
 
 double primal_residual(const Eigen::MatrixXd& jacobian, const VectorXd& a, const VectorXd& rhs, const VectorXd& force,

@@ -36,6 +36,14 @@ class KktSolve {
   double residual() const { return residual_; }
 
  private:
+  // From multipliers_ (lambda0 = D^-1 demand): a0 = M^-1 (f + G^T lambda0), then one step of iterative refinement,
+  // lambda = lambda0 + D^-1 (rhs - G a0) and a = M^-1 (f + G^T lambda), `inverse` applying D^-1 (or its
+  // pseudo-inverse). Forming D = G M^-1 G^T squares the rows' condition number; the step measures the miss with G
+  // itself, which near a singular configuration (D's eigenvalues 1e-9 of its largest) takes a from 1e-9 to 1e-12 of
+  // the exact solution of the KKT system (benchmarks/core_equality.py).
+  template <typename Inverse>
+  void refine(const Eigen::MatrixXd& jacobian, const VectorXd& rhs, const Inverse& inverse);
+
   Eigen::LLT<Eigen::MatrixXd> mass_, inner_;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
   Eigen::MatrixXd spread_, delassus_;
