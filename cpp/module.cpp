@@ -249,6 +249,73 @@ NB_MODULE(_compiled, m) {
       "its determinant when square, else 0) of the decoupling matrix D = S N B (p x k), S (p x nv), N B (nv x k).");
   m.def("least_norm", &least_norm, "decoupling"_a, "demand"_a,
         "The least-norm u with D u = demand for D (p x k) of full row rank, from a Householder QR of D^T (no cutoff).");
+  nb::class_<ServoParts>(m, "ServoParts")
+      .def_ro("base", &ServoParts::base, "a at u = 0 [m/s^2, rad/s^2] (nv).")
+      .def_ro("base_multipliers", &ServoParts::base_multipliers, "lambda at u = 0 on the real rows [N, N m] (r).")
+      .def_ro("demand", &ServoParts::demand, "rhs_S - S base (p).")
+      .def_ro("moved", &ServoParts::moved, "N B (nv x k).")
+      .def_ro("decoupling", &ServoParts::decoupling, "D = S N B (p x k).")
+      .def(
+          "finish",
+          [](const ServoParts& self, const VectorXd& controls) {
+            if (controls.size() != self.moved.cols()) throw std::invalid_argument("ServoParts.finish: controls (k)");
+            VectorXd a, multipliers;
+            self.finish(controls, a, multipliers);
+            return std::make_pair(a, multipliers);
+          },
+          "controls"_a, "(a = base + N B u (nv), lambda on the real rows (r)) for controls u (k).");
+  m.def(
+      "servo_parts",
+      [](const Eigen::MatrixXd& mass_matrix, const VectorXd& force, const Eigen::MatrixXd& real,
+         const Eigen::MatrixXd& prescribed, const Eigen::MatrixXd& actuation, const VectorXd& real_rhs,
+         const VectorXd& prescribed_rhs) {
+        const Eigen::Index nv = mass_matrix.rows();
+        if (mass_matrix.cols() != nv || force.size() != nv || real.cols() != nv || prescribed.cols() != nv ||
+            actuation.rows() != nv || real_rhs.size() != real.rows() || prescribed_rhs.size() != prescribed.rows()) {
+          throw std::invalid_argument("servo_parts: M (nv x nv), f (nv), G (r x nv), S (p x nv), B (nv x k), "
+                                      "rhs_G (r), rhs_S (p)");
+        }
+        const Eigen::LLT<Eigen::MatrixXd> mass(mass_matrix);
+        if (mass.info() != Eigen::Success) throw std::invalid_argument("servo_parts: M is not positive definite");
+        ServoParts parts;
+        parts.compute(mass, force, real, prescribed, actuation, real_rhs, prescribed_rhs);
+        return parts;
+      },
+      "mass_matrix"_a, "force"_a, "real"_a, "prescribed"_a, "actuation"_a, "real_rhs"_a, "prescribed_rhs"_a,
+      "The servo solve up to the controls (docs/mathematics.md section 5, cpp/servo_kernel.hpp): M a - G^T lambda - "
+      "B u = f, G a = rhs_G, S a = rhs_S with the real rows G (r x nv, r = 0: none) and the prescribed rows S.");
+  nb::class_<Targets>(m, "CompiledTarget")
+      .def(
+          "__init__",
+          [](Targets* self, const std::vector<nb::dict>& components) {
+            Targets compiled;
+            for (const nb::dict& spec : components) compiled.components.push_back(target(spec));
+            new (self) Targets(std::move(compiled));
+          },
+          "components"_a,
+          "A target of one compiled form (pinstab.constraints.targets.TargetTrajectory.compiled) per component.")
+      .def(
+          "evaluate",
+          [](const Targets& self, double t) {
+            VectorXd value, rate, curvature;
+            self.evaluate(t, value, rate, curvature);
+            return std::make_tuple(value, rate, curvature);
+          },
+          "t"_a, "(x, dx/dt, d2x/dt2) of every component at t [s].");
+  m.def(
+      "wrench_force",
+      [](nb::handle model, nb::handle data, int frame, const Eigen::Matrix<double, 6, 1>& wrench) {
+        const auto [loaded, shared] = native(model, data);
+        if (frame < 0 || frame >= static_cast<int>(loaded->nframes)) {
+          throw std::invalid_argument("wrench_force: no frame " + std::to_string(frame) + " in the model");
+        }
+        VectorXd force = VectorXd::Zero(loaded->nv);
+        add_wrench(*loaded, *shared, WrenchSpec{frame, wrench}, force);
+        return force;
+      },
+      "model"_a, "data"_a, "frame"_a, "wrench"_a,
+      "J^T w [N, N m] (nv,) of a constant wrench w (force, moment) [N, N m] in world axes at a frame, J its "
+      "LOCAL_WORLD_ALIGNED Jacobian from a pin.Data after a Jacobians pass.");
   nb::class_<ServoKernel, Kernel>(m, "ServoKernel")
       .def(
           "__init__",
@@ -292,6 +359,9 @@ NB_MODULE(_compiled, m) {
           "components"_a, "model"_a, "mu"_a, "torsion"_a,
           "A fingertip block's components of (fx, fy, fz, mx, my, mz) in C and its contact model (0 frictionless, "
           "1 point-friction, 2 soft-finger, 3 rigid), mu [-] and torsion [m].")
+      .def(
+          "set_target", [](RowBlock& self, nb::dict spec) { self.target = target(spec); }, "target"_a,
+          "A relation's target c(t) (a compiled target dict), replacing the one it was built with.")
       .def_rw("holonomic", &RowBlock::holonomic, "False: velocity-level rows (Baumgarte's Kd / 2).")
       .def_rw("python_rows", &RowBlock::python_rows, "Kind 6 (rows Python gives): their count.")
       .def_prop_ro("rows", &RowBlock::rows);

@@ -47,6 +47,41 @@ VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand) {
   return qr.householderQ() * reduced;
 }
 
+void ServoParts::compute(const Eigen::LLT<Eigen::MatrixXd>& mass, const VectorXd& force, const Eigen::MatrixXd& real,
+                         const Eigen::MatrixXd& prescribed, const Eigen::MatrixXd& actuation, const VectorXd& real_rhs,
+                         const VectorXd& prescribed_rhs) {
+  base = mass.solve(force);        // M^-1 f
+  moved = mass.solve(actuation);   // M^-1 B
+  const Eigen::Index r = real.rows(), nv = force.size();
+  spread.resize(nv, r);
+  delassus.resize(r, r);
+  reach.resize(r, actuation.cols());
+  base_multipliers.resize(r);
+  if (r > 0) {
+    spread = mass.solve(real.transpose());
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(real * spread, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const VectorXd& singular = svd.singularValues();
+    const double floor = 1e-12 * singular(0);  // numpy.linalg.pinv's rcond
+    VectorXd inverse = VectorXd::Zero(r);
+    for (Eigen::Index i = 0; i < r; ++i) inverse(i) = singular(i) > floor ? 1.0 / singular(i) : 0.0;
+    delassus.noalias() = svd.matrixV() * inverse.asDiagonal() * svd.matrixU().transpose();
+    reach.noalias() = spread.transpose() * actuation;
+    base_multipliers.noalias() = delassus * (real_rhs - real * base);
+    base.noalias() += spread * base_multipliers;
+    moved.noalias() -= spread * (delassus * reach);
+  }
+  decoupling.noalias() = prescribed * moved;
+  demand = prescribed_rhs;
+  demand.noalias() -= prescribed * base;
+}
+
+void ServoParts::finish(const VectorXd& controls, VectorXd& a, VectorXd& multipliers) const {
+  a = base;
+  a.noalias() += moved * controls;
+  multipliers = base_multipliers;
+  multipliers.noalias() -= delassus * (reach * controls);
+}
+
 ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Eigen::MatrixXd position_rows,
                          Eigen::MatrixXd actuation, VectorXd lower, VectorXd upper, std::vector<Target> targets, double kp, double kd,
                          double rank_tolerance)
@@ -55,6 +90,7 @@ ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Ei
       rows_(std::move(rows)),
       position_rows_(std::move(position_rows)),
       actuation_(std::move(actuation)),
+      no_rows_(0, model.nv),
       lower_(std::move(lower)),
       upper_(std::move(upper)),
       controls_(VectorXd::Zero(actuation_.cols())),
@@ -69,21 +105,18 @@ bool ServoKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, c
   data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose().triangularView<Eigen::StrictlyLower>();
   pinocchio::nonLinearEffects(model_, data_, q, v);
   mass_.compute(data_.M);
-  free_ = mass_.solve(tau - data_.nle);  // a0
-  moved_ = mass_.solve(actuation_);      // M^-1 B
-  decoupling_.noalias() = rows_ * moved_;
   const int p = static_cast<int>(rows_.rows()), k = static_cast<int>(actuation_.cols());
-  demand_.resize(p);
+  rhs_.resize(p);
   for (int i = 0; i < p; ++i) {
     double value, rate, curvature;
     targets_[i].evaluate(t, value, rate, curvature);
-    demand_(i) = curvature - kd_ * (rows_.row(i).dot(v) - rate) - kp_ * (position_rows_.row(i).dot(q) - value);
+    rhs_(i) = curvature - kd_ * (rows_.row(i).dot(v) - rate) - kp_ * (position_rows_.row(i).dot(q) - value);
   }
-  demand_.noalias() -= rows_ * free_;
+  parts_.compute(mass_, tau - data_.nle, no_rows_, rows_, actuation_, no_multipliers_, rhs_);
   if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
-  const Realizability judged = realizability(decoupling_, rows_, moved_, rank_tolerance_);
+  const Realizability judged = realizability(parts_.decoupling, rows_, parts_.moved, rank_tolerance_);
   if (judged.rank < p) return false;
-  controls_ = least_norm(decoupling_, demand_);
+  controls_ = least_norm(parts_.decoupling, parts_.demand);
   if (p == k) {
     if (last_sign_ && last_sign_->second != judged.sign) return false;
     last_sign_ = std::make_pair(t, judged.sign);
@@ -91,8 +124,7 @@ bool ServoKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, c
   if (limited_ && ((controls_.array() < lower_.array()).any() || (controls_.array() > upper_.array()).any())) {
     return false;
   }
-  a = free_;
-  a.noalias() += moved_ * controls_;
+  parts_.finish(controls_, a, no_multipliers_);
   return a.allFinite();
 }
 

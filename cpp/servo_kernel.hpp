@@ -29,8 +29,28 @@ Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::Matr
 // the direction of a control whose column of D is much smaller than another's.
 VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand);
 
+// The solve of docs/mathematics.md section 5 up to the controls (pinstab.servo.ServoSolver and ServoKernel alike):
+// with real rows G (reactions lambda; r of them, r = 0: none) and prescribed rows S (p) realized by the controls u of
+// M a - G^T lambda - B u = f, G a = rhs_G, S a = rhs_S, the real rows alone give a = base + moved u with
+// base = M^-1 (f + G^T lambda0), lambda0 = (G M^-1 G^T)^+ (rhs_G - G M^-1 f) and moved = N B,
+// N = M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1 (the pseudo-inverse drops singular values under 1e-12 times the
+// largest, numpy.linalg.pinv's rule); the prescribed rows then ask D u = demand of D = S N B, demand = rhs_S - S base.
+struct ServoParts {
+  VectorXd base, base_multipliers, demand;  // [m/s^2, rad/s^2] (nv), [N, N m] (r), S's units / s^2 (p)
+  Eigen::MatrixXd moved, decoupling;        // N B (nv x k), D (p x k)
+  Eigen::MatrixXd spread, delassus, reach;  // M^-1 G^T (nv x r), (G M^-1 G^T)^+ (r x r), G M^-1 B (r x k)
+
+  // From the factor of M (nv x nv), f [N, N m] (nv), G (r x nv), S (p x nv), B (nv x k), rhs_G (r), rhs_S (p).
+  void compute(const Eigen::LLT<Eigen::MatrixXd>& mass, const VectorXd& force, const Eigen::MatrixXd& real,
+               const Eigen::MatrixXd& prescribed, const Eigen::MatrixXd& actuation, const VectorXd& real_rhs,
+               const VectorXd& prescribed_rhs);
+  // a = base + moved u (nv) and, on the real rows, lambda = lambda0 - (G M^-1 G^T)^+ G M^-1 B u (r) for controls u (k)
+  void finish(const VectorXd& controls, VectorXd& a, VectorXd& multipliers) const;
+};
+
 // The rows S a = c'' - Kd (S v - c') - Kp (S q - c) realized by the controls u of M a + h = tau + B u: with
-// a0 = M^-1 (tau - h) and D = S M^-1 B, u is the least-norm solution of D u = rhs - S a0 and a = a0 + M^-1 B u.
+// a0 = M^-1 (tau - h) and D = S M^-1 B, u is the least-norm solution of D u = rhs - S a0 and a = a0 + M^-1 B u
+// (ServoParts without real rows).
 // An evaluation is not to be used (false) where D loses rank (realizability), where its determinant (square D) changed sign since the last evaluation, where a control
 // leaves its bounds or the result is not finite: the caller's general solve then says why or takes the limits.
 class ServoKernel : public Kernel {
@@ -47,8 +67,9 @@ class ServoKernel : public Kernel {
  private:
   pinocchio::Model model_;
   pinocchio::Data data_;
-  Eigen::MatrixXd rows_, position_rows_, actuation_, moved_, decoupling_;
-  VectorXd lower_, upper_, controls_, free_, demand_;
+  Eigen::MatrixXd rows_, position_rows_, actuation_, no_rows_;
+  VectorXd lower_, upper_, controls_, rhs_, no_multipliers_;
+  ServoParts parts_;
   std::vector<Target> targets_;
   double kp_, kd_, rank_tolerance_;
   bool limited_;

@@ -32,4 +32,10 @@ void Target::evaluate(double t, double& value, double& rate, double& curvature) 
   if (hold) rate = curvature = 0.0;
 }
 
+void Targets::evaluate(double t, Eigen::VectorXd& value, Eigen::VectorXd& rate, Eigen::VectorXd& curvature) const {
+  const Eigen::Index size = static_cast<Eigen::Index>(components.size());
+  value.resize(size), rate.resize(size), curvature.resize(size);
+  for (Eigen::Index i = 0; i < size; ++i) components[i].evaluate(t, value(i), rate(i), curvature(i));
+}
+
 }  // namespace pinstab

@@ -1,6 +1,8 @@
 // Targets c(t) of prescribed rows, compiled (pinstab.constraints.targets' trajectories, one component each).
 #pragma once
 
+#include <vector>
+
 #include <Eigen/Core>
 
 namespace pinstab {
@@ -17,6 +19,14 @@ struct Target {
 
   // (c, dc/dt, d2c/dt2) at t [s]
   void evaluate(double t, double& value, double& rate, double& curvature) const;
+};
+
+// A target of several components, one Target each (pinstab.constraints.targets.TargetTrajectory.evaluate calls it).
+struct Targets {
+  std::vector<Target> components;
+
+  // (c, dc/dt, d2c/dt2) of every component at t [s], each of components.size()
+  void evaluate(double t, Eigen::VectorXd& value, Eigen::VectorXd& rate, Eigen::VectorXd& curvature) const;
 };
 
 }  // namespace pinstab

@@ -1,6 +1,7 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
 row functions pinstab's constraint classes call too, as the solvers call its residual and pivot test, the grasp hold
-its least squares and cone test, a joint spring its force and the native path its residual: a rule lives in C++
+its least squares and cone test, a joint spring its force, an external force its J^T w, a target trajectory its
+evaluation, the general servo solve its part up to the controls and the native path its residual: a rule lives in C++
 once), Pinocchio's constrained dynamics, the banded solve, the servo solve and the grasp evaluation in C++
 (:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the error-controlled
 loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a fingertip contact's point
@@ -19,11 +20,13 @@ try:
     from ._compiled import (
         AdaptivePair,
         BandedKernel,
+        CompiledTarget,
         CoreKernel,
         Kernel,
         NativeKernel,
         RowBlock,
         ServoKernel,
+        ServoParts,
         baumgarte_term,
         baumgarte_velocity_gains,
         block_drift,
@@ -46,8 +49,10 @@ try:
         native_residual,
         primal_residual,
         rotation_drift,
+        servo_parts,
         servo_realizability,
         tilted_gravity,
+        wrench_force,
     )
 except ImportError as error:  # pragma: no cover - a broken install
     try:
@@ -63,11 +68,13 @@ except ImportError as error:  # pragma: no cover - a broken install
 __all__ = [
     "AdaptivePair",
     "BandedKernel",
+    "CompiledTarget",
     "CoreKernel",
     "Kernel",
     "NativeKernel",
     "RowBlock",
     "ServoKernel",
+    "ServoParts",
     "baumgarte_term",
     "baumgarte_velocity_gains",
     "block_drift",
@@ -90,6 +97,8 @@ __all__ = [
     "native_residual",
     "primal_residual",
     "rotation_drift",
+    "servo_parts",
     "servo_realizability",
     "tilted_gravity",
+    "wrench_force",
 ]

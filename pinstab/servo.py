@@ -12,9 +12,10 @@ below p means some direction of the prescribed rows no control reaches at this s
 more controls than prescribed rows the excess is resolved by the least effort (min |u|^2), and when the
 controls have limits by a ProxSuite QP that respects them (infeasible: the error says which limit).
 
-This is the general path's solve. Prescribed joint relations alone are solved by the compiled kernel of
-:mod:`pinstab.paths.servo` (the same equations without real constraints), which hands this solver the states where D
-loses rank, changes sign or a control meets its bound.
+This is the general path's solve. Its part up to the controls (a0 + N B u, D, the demand, the reactions) is the
+compiled :func:`pinstab.kernels.servo_parts` (``cpp/servo_kernel.cpp``), which the compiled servo kernel of
+:mod:`pinstab.paths.servo` runs too (with no real rows) on prescribed joint relations alone; that kernel hands this
+solver the states where D loses rank, changes sign or a control meets its bound.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from .actuation import Actuation
 from .errors import ServoInfeasibleError
-from .kernels import least_norm, servo_realizability
+from .kernels import ServoParts, least_norm, servo_parts, servo_realizability
 from .proxqp import proxsuite
 
 # singular values of D with each entry over its row's and its control's sizes (D_ij / (|S_i| |N b_j|), cosines)
@@ -67,22 +68,21 @@ class ServoSolver:
         if last_sign is not None:
             self._last_sign = last_sign
 
-    def decoupling(
-        self, mass_matrix: np.ndarray, jacobian: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(D = S N B, N B, M^-1 G^T, (G M^-1 G^T)^+) at a state."""
-        return self._parts(np.linalg.inv(mass_matrix), jacobian)
+    def decoupling(self, mass_matrix: np.ndarray, jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(D = S N B, N B) at a state (M [kg, kg m^2], the stacked rows' Jacobian)."""
+        parts = self._parts(mass_matrix, np.zeros(len(mass_matrix)), jacobian, np.zeros(len(jacobian)))
+        return parts.decoupling, parts.moved
 
     def _parts(
-        self, inverse_mass: np.ndarray, jacobian: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`decoupling` from M^-1."""
-        real = jacobian[self.real]
-        spread = inverse_mass @ real.T  # M^-1 G^T
-        delassus = np.linalg.pinv(real @ spread, rcond=1e-12) if real.size else np.zeros((0, 0))
-        allowed = inverse_mass - spread @ delassus @ spread.T  # N
-        moved = allowed @ self.actuation.matrix
-        return jacobian[self.prescribed] @ moved, moved, spread, delassus
+        self, mass_matrix: np.ndarray, free_force: np.ndarray, jacobian: np.ndarray, rhs: np.ndarray
+    ) -> ServoParts:
+        """The solve up to the controls (:func:`pinstab.kernels.servo_parts`) with this layout's real and prescribed
+        rows."""
+        real, prescribed = self.real, self.prescribed
+        matrix = self.actuation.matrix
+        return servo_parts(
+            mass_matrix, free_force, jacobian[real], jacobian[prescribed], matrix, rhs[real], rhs[prescribed]
+        )
 
     def solve(
         self,
@@ -97,19 +97,12 @@ class ServoSolver:
         Raises:
             ServoInfeasibleError: the decoupling matrix loses rank, or the limits leave no control.
         """
-        inverse_mass = np.linalg.inv(mass_matrix)
-        decoupling, moved, spread, delassus = self._parts(inverse_mass, jacobian)
-        inverse_mass_force = inverse_mass @ free_force
-        real = jacobian[self.real]
-        base_multipliers = delassus @ (rhs[self.real] - real @ inverse_mass_force)
-        base = inverse_mass_force + spread @ base_multipliers
-        demand = rhs[self.prescribed] - jacobian[self.prescribed] @ base
-        self._check_rank(decoupling, jacobian[self.prescribed], moved, state)
-        controls = self._controls(decoupling, demand, state)
-        acceleration = base + moved @ controls
+        parts = self._parts(mass_matrix, free_force, jacobian, rhs)
+        self._check_rank(parts.decoupling, jacobian[self.prescribed], parts.moved, state)
+        controls = self._controls(parts.decoupling, parts.demand, state)
+        acceleration, reactions = parts.finish(controls)
         multipliers = np.zeros(len(rhs))
-        # lambda = (G M^-1 G^T)^+ (rhs_G - G M^-1 (f + B u)); G M^-1 = spread^T (M symmetric)
-        multipliers[self.real] = base_multipliers - delassus @ (spread.T @ (self.actuation.matrix @ controls))
+        multipliers[self.real] = reactions
         return ServoSolution(acceleration, multipliers, controls)
 
     def _check_rank(self, decoupling: np.ndarray, rows: np.ndarray, moved: np.ndarray, state: tuple) -> None:

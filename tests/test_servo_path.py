@@ -1,5 +1,5 @@
 """The servo path (pinstab.paths.servo, cpp/servo_kernel.cpp): prescribed joint relations solved compiled, against
-the general path's NumPy solve, the two-car closed form, and each target kind's Python evaluation."""
+the general path's solve, the two-car closed form, and each target kind's evaluate (its compiled form bound alone)."""
 
 from __future__ import annotations
 
@@ -35,7 +35,8 @@ TIMES = [0.0, 0.3, 0.45, 0.99, 1.0, 1.2, 1.9, 2.0, 2.2, 2.5, 7.0]  # [s], before
 def test_compiled_targets_equal_their_python_evaluation(name):
     """The elbow of the double pendulum servoed alone (S = B = e2): the kernel's elbow acceleration is
     c'' - Kd (v2 - c') - Kp (q2 - c) exactly, so three evaluations read c, c', c'' back; each equals the
-    trajectory's own evaluate() to 1e-12 (absolute, values of order 1) at times inside, at and beyond the pieces."""
+    trajectory's own evaluate() (tests/test_target_evaluate.py checks it against closed forms) to 1e-12 (absolute,
+    values of order 1) at times inside, at and beyond the pieces."""
     model = load_scene("double-pendulum-servo").model
     trajectory = read_trajectory(TARGETS[name], TargetContext(1, "coordinate", np.array([0.2])), name)
     relation = JointRelation("elbow", np.array([1.0]), np.array([1]), np.array([1]), trajectory)

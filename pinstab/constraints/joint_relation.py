@@ -18,7 +18,7 @@ from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid
+from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid, values_at
 
 RELATION_KEYS = {"name", "kind", "joints", "value", "sine", "target"}
 SINE_KEYS = {"amplitude", "omega", "phase"}
@@ -56,45 +56,38 @@ class JointRelation(Constraint):
         sizes = np.abs(row[row != 0.0])
         self.residual_units = (float(np.max(sizes)), float(np.min(sizes)))
         self.force_frame = "generalized force along the relation's row [N m or N]"
-        self._target: tuple[float, tuple[float, float, float]] | None = None  # (t, target(t)) of the last call
         self._indices = (np.asarray(row, float), np.asarray(q_indices, np.int32), np.asarray(v_indices, np.int32))
-        self._block: RowBlock | bool | None = None  # built at first use; False: the target has no compiled form
-
-    def target(self, t: float) -> tuple[float, float, float]:
-        """(c, dc/dt, d2c/dt2) at time t [s] (the residual, the row and the drift read it at the same t)."""
-        if self._target is None or self._target[0] != t:
-            value, rate, curvature = self.trajectory.evaluate(t)
-            self._target = (t, (float(value[0]), float(rate[0]), float(curvature[0])))
-        return self._target[1]
+        self._block: RowBlock | None = None  # built at first use
+        self._compiled = False  # the block holds the target's compiled form
+        self._given_at: float | None = None  # else: the time its values (from Python) were last given
 
     def compiled_rows(self) -> RowBlock | None:
         """The relation in the compiled core (``cpp/core_rows.cpp``), which computes it for Python too; None for a
         target without a compiled form (:meth:`~pinstab.constraints.targets.TargetTrajectory.compiled`)."""
+        block = self._rows()
+        return block if self._compiled else None
+
+    def _rows(self, t: float | None = None) -> RowBlock:
+        """The compiled relation row: with the target's compiled form, or (a target without one) with its values at
+        ``t`` [s] from its Python evaluate (:func:`~pinstab.constraints.targets.values_at`), the same row arithmetic."""
         if self._block is None:
             form = self.trajectory.compiled(0)
-            no_frames = (-1, -1, np.eye(4), np.zeros((0, 3)))
-            self._block = False if form is None else RowBlock(4, *no_frames, *self._indices, form)
-        return self._block or None
+            self._compiled = form is not None
+            self._block = RowBlock(4, -1, -1, np.eye(4), np.zeros((0, 3)), *self._indices, form)
+        if not self._compiled and t is not None and t != self._given_at:
+            value, rate, curvature = (float(x[0]) for x in self.trajectory.evaluate(t))
+            self._block.set_target(values_at(t, value, rate, curvature))
+            self._given_at = t
+        return self._block
 
     def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        block = self.compiled_rows()
-        if block is not None:
-            return block_residual(kin.model, kin.data, block, q, t)
-        return np.array([float(self.row @ q[self.q_indices]) - self.target(t)[0]])
+        return block_residual(kin.model, kin.data, self._rows(t), q, t)
 
     def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        block = self.compiled_rows()
-        if block is not None:
-            return VelocityTerms(*block_jacobian(kin.model, kin.data, block, t))
-        jacobian = np.zeros((1, kin.model.nv))
-        jacobian[0, self.v_indices] = self.row
-        return VelocityTerms(jacobian, np.array([-self.target(t)[1]]))
+        return VelocityTerms(*block_jacobian(kin.model, kin.data, self._rows(t), t))
 
     def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        block = self.compiled_rows()
-        if block is not None:
-            return block_drift(kin.model, kin.data, block, t)
-        return np.array([-self.target(t)[2]])
+        return block_drift(kin.model, kin.data, self._rows(t), t)
 
 
 def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str) -> JointRelation:

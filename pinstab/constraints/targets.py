@@ -14,7 +14,10 @@ A trajectory is a table with a ``kind`` among :data:`TRAJECTORY_KINDS`; its valu
 * ``cubic-spline``: through ``times`` [s] (strictly increasing, at least 2) and ``values``; ``ends =
   "clamped"`` (zero end slopes, the default) or ``"natural"`` (zero end curvature); held outside the times.
 
-Each gives the value and its first and second time derivatives, exactly. Every value lies within
+Each gives the value and its first and second time derivatives, exactly, evaluated in C++ from its compiled form
+(:meth:`TargetTrajectory.compiled`, ``cpp/targets.cpp``: the servo kernel and the relation row read the same). A kind
+registered without a compiled form overrides :meth:`TargetTrajectory.evaluate` in Python (its servo then runs on the
+general path). Every value lies within
 :data:`~pinstab.units.MAX_COORDINATE` [m or rad] (a point's positions and amplitudes also within the scene's reach,
 :data:`~pinstab.tables.MAX_REACH` scene sizes), every time within :data:`MAX_TIME` [s], every feature in time (a
 move's duration, a spline's interval, a sinusoid's half period) lasts at least :data:`MIN_SPAN` [s], and a
@@ -25,15 +28,16 @@ polynomial's coefficients c_k (k >= 1) lie within :data:`~pinstab.units.MAX_MAGN
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..errors import SceneError, WaypointError, choices
+from ..kernels import CompiledTarget
 from ..registry import Registry
 from ..tables import check_keys, vector
 from ..units import COORDINATE_REASON, MAGNITUDE_REASON, MAX_COORDINATE, MAX_MAGNITUDE, finite_number, quantity
@@ -55,20 +59,42 @@ TIME_REASON = f"float64 resolves times up to {MAX_TIME:g} s to 1.2e-7 s, finer t
 UNIT_NAMES = {"length": "m", "angle": "rad", "coordinate": "m or rad"}  # SI units of a target's dimension
 
 
-class TargetTrajectory(ABC):
-    """A target x(t) of ``size`` components [m or rad], with exact time derivatives."""
+class TargetTrajectory:
+    """A target x(t) of ``size`` components [m or rad], with exact time derivatives.
+
+    A kind gives :meth:`compiled` (each component as a sinusoid or a piecewise polynomial) and :meth:`evaluate`
+    runs it in C++; a kind registered without one (a user's :data:`TRAJECTORY_KINDS` entry) overrides
+    :meth:`evaluate` instead, and its servo runs on the general path.
+    """
 
     size: int
 
-    @abstractmethod
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(x, dx/dt, d2x/dt2) at time t [s]: arrays of ``size`` [X, X/s, X/s^2]."""
+        """(x, dx/dt, d2x/dt2) at time t [s]: arrays of ``size`` [X, X/s, X/s^2], from the compiled form
+        (:attr:`compiled_target`).
+
+        Raises:
+            SceneError: the kind has no compiled form and does not override this method.
+        """
+        return self.compiled_target.evaluate(t)
+
+    @cached_property
+    def compiled_target(self) -> CompiledTarget:
+        """The compiled form of every component, bound once (``cpp/targets.hpp``'s ``Targets``)."""
+        forms = [self.compiled(component) for component in range(self.size)]
+        if any(form is None for form in forms):
+            raise SceneError(
+                f"trajectory {type(self).__name__} has no compiled form (compiled() gives None): a kind without one "
+                "overrides evaluate(t) -> (x, dx/dt, d2x/dt2)"
+            )
+        return CompiledTarget(forms)
 
     def compiled(self, component: int) -> dict[str, Any] | None:
-        """Component ``component`` of the trajectory in the form the compiled servo kernel evaluates
+        """Component ``component`` of the trajectory in the form the compiled core evaluates
         (``cpp/targets.hpp``): ``{"kind": "sinusoid", "wave": [offset, amplitude, omega, phase]}`` or
         ``{"kind": "piecewise", "breaks", "origins", "coefficients" (pieces x (degree + 1), ascending powers of
-        t - origin), "held"}``; None (the default) when it has none: its servo runs on the general path."""
+        t - origin), "held"}``; None (the default) when it has none: it overrides :meth:`evaluate`, and its servo
+        runs on the general path."""
         return None
 
 
@@ -81,6 +107,12 @@ def piecewise(breaks: list[float], origins: list[float], coefficients: np.ndarra
         "coefficients": np.atleast_2d(np.asarray(coefficients, dtype=float)),
         "held": held,
     }
+
+
+def values_at(t: float, value: float, rate: float, curvature: float) -> dict[str, Any]:
+    """The compiled form that gives (value, rate, curvature) [X, X/s, X/s^2] at time t [s] exactly (the quadratic
+    about t, evaluated at t - t = 0): a target's values from Python handed to a compiled row at t."""
+    return piecewise([-np.inf, np.inf], [t], np.array([value, rate, curvature / 2.0]), held=False)
 
 
 @dataclass(frozen=True)
@@ -172,14 +204,6 @@ class Polynomial(TargetTrajectory):
         self.coefficients = coefficients
         self.size = coefficients.shape[1]
 
-    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        c = self.coefficients
-        powers = np.arange(len(c))
-        value = np.power(t, powers) @ c
-        first = (powers[1:] * np.power(t, powers[1:] - 1)) @ c[1:]
-        second = (powers[2:] * (powers[2:] - 1) * np.power(t, powers[2:] - 2)) @ c[2:]
-        return value, first, second
-
     def compiled(self, component: int) -> dict[str, Any]:
         return piecewise([-np.inf, np.inf], [0.0], self.coefficients[:, component], held=False)
 
@@ -220,11 +244,6 @@ class Sinusoid(TargetTrajectory):
         self.offset, self.amplitude, self.omega, self.phase = offset, amplitude, omega, phase
         self.size = len(offset)
 
-    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        angle = self.omega * t + self.phase
-        wave = self.amplitude * np.sin(angle)
-        return self.offset + wave, self.amplitude * self.omega * np.cos(angle), -(self.omega**2) * wave
-
     def compiled(self, component: int) -> dict[str, Any]:
         wave = (self.offset, self.amplitude, self.omega, self.phase)
         return {"kind": "sinusoid", "wave": np.array([float(part[component]) for part in wave])}
@@ -261,13 +280,6 @@ class MinimumJerk(TargetTrajectory):
         self.origin, self.change, self.start, self.duration = origin, goal - origin, start, duration
         self.size = len(origin)
 
-    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        s = min(max((t - self.start) / self.duration, 0.0), 1.0)
-        shape = s**3 * (10.0 - 15.0 * s + 6.0 * s * s)
-        slope = 30.0 * s * s * (1.0 - s) ** 2 / self.duration
-        curvature = 60.0 * s * (1.0 - s) * (1.0 - 2.0 * s) / self.duration**2
-        return self.origin + shape * self.change, slope * self.change, curvature * self.change
-
     def compiled(self, component: int) -> dict[str, Any]:
         change, duration = float(self.change[component]), self.duration
         quintic = [0.0, 0.0, 0.0, 10.0 * change / duration**3, -15.0 * change / duration**4, 6.0 * change / duration**5]
@@ -295,14 +307,7 @@ class Spline(TargetTrajectory):
 
     def __init__(self, times: np.ndarray, values: np.ndarray, ends: str) -> None:
         self.spline = CubicSpline(times, values, axis=0, bc_type=ends)
-        self.first, self.last = float(times[0]), float(times[-1])
         self.size = values.shape[1]
-
-    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if t < self.first or t > self.last:
-            end = self.first if t < self.first else self.last
-            return self.spline(end), np.zeros(self.size), np.zeros(self.size)
-        return self.spline(t), self.spline(t, 1), self.spline(t, 2)
 
     def compiled(self, component: int) -> dict[str, Any]:
         spline = self.spline  # scipy's c: (4, pieces, size), descending powers of t - x_i

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ..kernels import wrench_force
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement, bounded_load
@@ -15,7 +16,8 @@ EXTERNAL_KEYS = {"name", "kind", "frame", "offset", "force", "moment"}
 
 
 class ExternalForce(ForceElement):
-    """A constant wrench on a body: ``tau = J_p^T f + J_w^T m`` with the frame's world-aligned Jacobian.
+    """A constant wrench on a body: ``tau = J_p^T f + J_w^T m`` with the frame's world-aligned Jacobian, computed by
+    the compiled core's rule (``cpp/grasp_forces.cpp`` ``add_wrench``, which its core kernel runs too).
 
     Args:
         name: element name. frame: the operational frame at the point of application.
@@ -27,7 +29,7 @@ class ExternalForce(ForceElement):
         self.wrench = np.concatenate([np.asarray(force, float), np.asarray(moment, float)])
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        return kin.jacobian(self.frame).T @ self.wrench
+        return wrench_force(kin.model, kin.data, self.frame, self.wrench)
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
         return {"kind": "wrench", "frame": self.frame, "wrench": self.wrench}

@@ -6,8 +6,9 @@ constraint rows):
 
     a0 = M^-1 (tau - h),    D = S M^-1 B,    D u = c'' - Kd (S v - c') - Kp (S q - c) - S a0,    a = a0 + M^-1 B u,
 
-u the least-norm solution. The general path forms the same through pinstab's kinematics and NumPy
-(:class:`~pinstab.servo.ServoSolver`), several times the cost of the dynamics on a small mechanism; the compiled
+u the least-norm solution. The general path forms the same through pinstab's kinematics
+(:class:`~pinstab.servo.ServoSolver`, which calls the same compiled solve up to the controls,
+:func:`pinstab.kernels.servo_parts`), several times the cost of the dynamics on a small mechanism; the compiled
 kernel (``cpp/servo_kernel.cpp``: Pinocchio's ``crba`` and ``nonLinearEffects``, a Cholesky factorization of M,
 the targets' compiled forms of :meth:`~pinstab.constraints.targets.TargetTrajectory.compiled`) evaluates it in
 microseconds, and the compiled step loop takes its steps. Where D loses rank (or its determinant changes sign)
