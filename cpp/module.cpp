@@ -52,7 +52,7 @@ auto on_python_data(Function function) {
 }
 
 // A target of pinstab.constraints.targets in compiled form: ("sinusoid", [offset, amplitude, omega, phase]) or
-// ("piecewise", breaks, origins, coefficients, held).
+// ("piecewise", breaks, origins, coefficients, held, optionally scale [s]: 1 when absent).
 Target target(nb::dict spec) {
   Target target;
   target.sinusoid = nb::cast<std::string>(spec["kind"]) == "sinusoid";
@@ -64,6 +64,7 @@ Target target(nb::dict spec) {
     target.origins = nb::cast<VectorXd>(spec["origins"]);
     target.coefficients = nb::cast<Eigen::MatrixXd>(spec["coefficients"]);
     target.held = nb::cast<bool>(spec["held"]);
+    if (spec.contains("scale")) target.scale = nb::cast<double>(spec["scale"]);
   }
   return target;
 }

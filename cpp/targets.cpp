@@ -22,14 +22,19 @@ void Target::evaluate(double t, double& value, double& rate, double& curvature) 
   const double* end = breaks.data() + last;
   const int piece = std::clamp(static_cast<int>(std::upper_bound(breaks.data() + 1, end, t) - breaks.data()) - 1, 0,
                                pieces - 1);
-  const double x = t - origins(piece);
+  const double x = (t - origins(piece)) / scale;
   value = rate = curvature = 0.0;
   for (int k = static_cast<int>(coefficients.cols()) - 1; k >= 0; --k) {  // Horner, with the two derivatives
     curvature = curvature * x + 2.0 * rate;
     rate = rate * x + value;
     value = value * x + coefficients(piece, k);
   }
-  if (hold) rate = curvature = 0.0;
+  if (hold) {
+    rate = curvature = 0.0;
+  } else {
+    rate /= scale;
+    curvature /= scale * scale;
+  }
 }
 
 void Targets::evaluate(double t, Eigen::VectorXd& value, Eigen::VectorXd& rate, Eigen::VectorXd& curvature) const {

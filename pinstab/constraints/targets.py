@@ -93,19 +93,23 @@ class TargetTrajectory:
         """Component ``component`` of the trajectory in the form the compiled core evaluates
         (``cpp/targets.hpp``): ``{"kind": "sinusoid", "wave": [offset, amplitude, omega, phase]}`` or
         ``{"kind": "piecewise", "breaks", "origins", "coefficients" (pieces x (degree + 1), ascending powers of
-        t - origin), "held"}``; None (the default) when it has none: it overrides :meth:`evaluate`, and its servo
-        runs on the general path."""
+        (t - origin) / scale), "held", "scale" [s]}``; None (the default) when it has none: it overrides
+        :meth:`evaluate`, and its servo runs on the general path."""
         return None
 
 
-def piecewise(breaks: list[float], origins: list[float], coefficients: np.ndarray, held: bool) -> dict[str, Any]:
-    """A compiled piecewise polynomial (see :meth:`TargetTrajectory.compiled`)."""
+def piecewise(
+    breaks: list[float], origins: list[float], coefficients: np.ndarray, held: bool, scale: float = 1.0
+) -> dict[str, Any]:
+    """A compiled piecewise polynomial (see :meth:`TargetTrajectory.compiled`); ``scale`` [s]: the coefficients'
+    unit of time (a move's duration, so that they are of order one)."""
     return {
         "kind": "piecewise",
         "breaks": np.asarray(breaks, dtype=float),
         "origins": np.asarray(origins, dtype=float),
         "coefficients": np.atleast_2d(np.asarray(coefficients, dtype=float)),
         "held": held,
+        "scale": float(scale),
     }
 
 
@@ -281,10 +285,9 @@ class MinimumJerk(TargetTrajectory):
         self.size = len(origin)
 
     def compiled(self, component: int) -> dict[str, Any]:
-        change, duration = float(self.change[component]), self.duration
-        quintic = [0.0, 0.0, 0.0, 10.0 * change / duration**3, -15.0 * change / duration**4, 6.0 * change / duration**5]
-        coefficients = np.array(quintic) + np.eye(6)[0] * float(self.origin[component])
-        return piecewise([self.start, self.start + duration], [self.start], coefficients, held=True)
+        change = float(self.change[component])  # in s = (t - start) / duration
+        quintic = [float(self.origin[component]), 0.0, 0.0, 10.0 * change, -15.0 * change, 6.0 * change]
+        return piecewise([self.start, self.start + self.duration], [self.start], quintic, True, self.duration)
 
 
 @TRAJECTORY_KINDS.register("minimum-jerk", summary="rest to rest from 'from' to 'to' (start, duration)")
