@@ -28,13 +28,12 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from .schemes import SCHEMES
+
 if TYPE_CHECKING:
     from ..kernels import AdaptivePair
     from ..system import ConstrainedSystem
     from .schemes import Integrator
-
-SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
-"""The explicit schemes the compiled loop takes, by name (the codes of ``cpp/kernels.hpp``)."""
 
 
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: bool = False) -> str | None:
