@@ -5,7 +5,9 @@
 
 namespace pinstab {
 
-bool Pair::needs_end() const { return (estimators.col(stages()).array() != 0.0).any(); }
+bool Pair::needs_end() const {
+  return estimators.cols() > stages() && (estimators.col(stages()).array() != 0.0).any();
+}
 
 double next_step(const Control& control, double h, double error, double proposed, double previous, bool rejected) {
   const bool limited = h < proposed * (1.0 - 1e-12);  // shortened for a passage or a chunk's end
@@ -45,32 +47,31 @@ void hermite_state(const Eigen::Ref<const RowMatrix>& coefficients, double u, do
   if (h != 0.0) rate /= h;
 }
 
-Trial::Trial(const Pair& pair, int nv)
-    : q_new(nv), v_new(nv), end(2 * nv), slopes(pair.stages(), 2 * nv), pair_(pair), nv_(nv), start_(2 * nv),
+Trial::Trial(const Pair& pair, int nv, const pinocchio::Model* group)
+    : q_new(nv), v_new(nv), end(2 * nv), slopes(pair.stages(), 2 * nv), pair_(pair), nv_(nv), group_(group),
       increment_(2 * nv), q_(nv), v_(nv), a_(nv) {}
 
-bool Trial::take(const Evaluate& evaluate, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t,
-                 double h) {
+bool Trial::take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a,
+                 double t, double h, bool with_end) {
   const int stages = pair_.stages();
-  start_ << q, v;
   slopes.row(0) << v.transpose(), a.transpose();
   for (int i = 1; i < stages; ++i) {
     increment_.setZero();
     for (int j = 0; j < i; ++j) increment_ += (h * pair_.coupling(i, j)) * slopes.row(j).transpose();
-    increment_ += start_;
-    q_ = increment_.head(nv_), v_ = increment_.tail(nv_);
+    q_ = group_.integrate(q, increment_.head(nv_));
+    v_ = v + increment_.tail(nv_);
     ++evaluations;
-    if (!evaluate(i, t + pair_.nodes(i) * h, q_, v_, a_)) return false;
-    slopes.row(i) << v_.transpose(), a_.transpose();
+    if (!kernel.acceleration(i, t + pair_.nodes(i) * h, q_, v_, tau, a_)) return false;
+    slopes.row(i) << group_.slope(q, q_, v_).transpose(), a_.transpose();
   }
   increment_.setZero();
   for (int j = 0; j < stages; ++j) increment_ += (h * pair_.weights(j)) * slopes.row(j).transpose();
-  q_new = q + increment_.head(nv_);
+  q_new = group_.integrate(q, increment_.head(nv_));
   v_new = v + increment_.tail(nv_);
-  if (pair_.needs_end()) {
+  if (with_end) {
     ++evaluations;
-    if (!evaluate(0, t + h, q_new, v_new, a_)) return false;
-    end << v_new, a_;
+    if (!kernel.acceleration(0, t + h, q_new, v_new, tau, a_)) return false;
+    end << group_.slope(q, q_new, v_new), a_;
   }
   return true;
 }
@@ -109,10 +110,7 @@ long floor_index(double x) { return static_cast<long>(std::floor(x)); }
 int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
                      const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs) {
   const int nv = kernel.nv();
-  Trial trial(pair, nv);
-  const Evaluate evaluate = [&](int, double t, const VectorXd& q, const VectorXd& v, VectorXd& a) {
-    return kernel.acceleration(t, q, v, tau, a);
-  };
+  Trial trial(pair, nv, kernel.group());
   RowMatrix ends(6, nv), coefficients(6, nv);
   VectorXd a_new(nv), increment(nv), rate(nv), size(2 * nv), size_new(2 * nv);
   first = floor_index(state.t / grid.dt + grid.slack) + 1;
@@ -128,7 +126,7 @@ int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, c
     trial.evaluations = 0;
     bool finished = true;
     while (true) {
-      finished = trial.take(evaluate, state.q, state.v, state.a, t, h);
+      finished = trial.take(kernel, tau, state.q, state.v, state.a, t, h, pair.needs_end());
       if (!finished) break;
       size_new << trial.q_new.cwiseAbs(), trial.v_new.cwiseAbs();
       error = trial.error(control, size, size_new, h);
@@ -150,7 +148,7 @@ int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, c
       a_new = trial.end.tail(nv);
     } else {
       ++trial.evaluations;
-      if (!kernel.acceleration(t_new, trial.q_new, trial.v_new, tau, a_new)) break;
+      if (!kernel.acceleration(0, t_new, trial.q_new, trial.v_new, tau, a_new)) break;
     }
     // the grid samples in (t, t_new] (StepLoop.grid_between): the end state on a grid time, else the dense output
     const long low = floor_index(t / grid.dt + grid.slack) + 1;

@@ -1,22 +1,22 @@
-// Error-controlled steps of an embedded Runge-Kutta pair (pinstab.integration.adaptive) on a model whose joints all
-// have one coordinate (q (+) dq = q + dq): the stages, the error norm, the step-size control and the grid samples
-// from the dense output. The Python loop calls the same trial, error norm, control and dense output, with its own
-// evaluation per stage: the two loops take the same steps to the last bit (compiled with -ffp-contract=off).
+// Explicit Runge-Kutta steps of a tableau on the configuration group (the only place their sums are:
+// pinstab.integration.schemes.ExplicitRungeKutta calls Trial) and error-controlled steps of an embedded pair
+// (pinstab.integration.adaptive) on a model whose joints all have one coordinate (q (+) dq = q + dq): the error norm,
+// the step-size control and the grid samples from the dense output. The Python loop calls the same trial, error
+// norm, control and dense output, with its own evaluation per stage: the two loops take the same steps to the last
+// bit (compiled with -ffp-contract=off).
 #pragma once
 
-#include <functional>
-
-#include "kernels.hpp"
+#include "group.hpp"
 
 namespace pinstab {
 
 // The pair's coefficients (pinstab.integration.tableaus via schemes.ExplicitRungeKutta, passed at construction) and
-// the dense output's Hermite matrix (pinstab.integration.dense.QUINTIC).
+// the dense output's Hermite matrix (pinstab.integration.dense.QUINTIC; empty for steps without error control).
 struct Pair {
   VectorXd nodes;               // c_i (s,)
   Eigen::MatrixXd coupling;     // a_ij (s x s), strictly lower triangular
   VectorXd weights;             // b_j (s,)
-  Eigen::MatrixXd estimators;   // one or two rows, s + 1 columns (the last: the new point's derivative)
+  Eigen::MatrixXd estimators;   // none, one or two rows, s + 1 columns (the last: the new point's derivative)
   Eigen::MatrixXd hermite;      // (6 x 6): ends (0, h v0, h^2 a0, q1 - q0, h v1, h^2 a1) -> coefficients of u^k
   int stages() const { return static_cast<int>(nodes.size()); }
   bool needs_end() const;       // an estimator weighs the new point's derivative (first same as last)
@@ -42,17 +42,16 @@ void hermite_coefficients(const Eigen::Ref<const Eigen::MatrixXd>& inverse, cons
 void hermite_state(const Eigen::Ref<const RowMatrix>& coefficients, double u, double h, Eigen::Ref<VectorXd> increment,
                    Eigen::Ref<VectorXd> rate);
 
-// a(t, q, v) of a stage (its index); false when the result is not to be used.
-using Evaluate = std::function<bool(int stage, double t, const VectorXd& q, const VectorXd& v, VectorXd& a)>;
-
-// One trial step of the pair.
+// One trial step of the pair on the group of `group` (nullptr: q (+) dq = q + dq).
 class Trial {
  public:
-  Trial(const Pair& pair, int nv);
-  // The step of h [s] from (q, v) at t [s] with a = a(t, q, v): fills q_new, v_new, the stage slopes (rows:
-  // [velocity | acceleration]) and, when an estimator weighs it, the new point's slope. False when an evaluation
-  // is not to be used.
-  bool take(const Evaluate& evaluate, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t, double h);
+  Trial(const Pair& pair, int nv, const pinocchio::Model* group = nullptr);
+  // The step of h [s] from (q, v) at t [s] with a = a(t, q, v), stage i evaluated by kernel.acceleration(i, ...) under
+  // tau: fills q_new, v_new, the stage slopes (rows: [velocity slope in the start's tangent space | acceleration])
+  // and, with `with_end`, the new point's slope (its acceleration evaluated as stage 0). False when an evaluation is
+  // not to be used.
+  bool take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t,
+            double h, bool with_end);
   // The largest scaled error [-] of the step of h [s] (DOP853: Hairer's combination of its two estimators), each
   // coordinate scaled by atol + rtol max(size, size_new) (2 nv: |y| before and after).
   double error(const Control& control, const VectorXd& size, const VectorXd& size_new, double h) const;
@@ -64,7 +63,8 @@ class Trial {
  private:
   const Pair& pair_;
   int nv_;
-  VectorXd start_, increment_, q_, v_, a_;
+  Group group_;
+  VectorXd increment_, q_, v_, a_;
 };
 
 // The run's time grid (stepping.TimeGrid) and where the compiled run must hand back to Python.

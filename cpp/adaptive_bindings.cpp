@@ -1,6 +1,7 @@
 // pinstab._compiled.AdaptivePair: the error-controlled compiled loop (cpp/adaptive.cpp) for
-// pinstab.integration.compiled.CompiledAdaptive, and the trial step, error norm and control that
-// pinstab.integration.adaptive calls; hermite_coefficients, hermite_state: pinstab.integration.dense's.
+// pinstab.integration.compiled.CompiledAdaptive, and the error norm and control that pinstab.integration.adaptive
+// calls (its trial steps: RungeKutta, cpp/step_bindings.cpp); hermite_coefficients, hermite_state:
+// pinstab.integration.dense's.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/optional.h>
@@ -48,22 +49,6 @@ nb::tuple run(const AdaptivePair& self, Kernel& kernel, const VectorXd& tau, dou
   return nb::make_tuple(state.steps, state.t, state.q, state.v, state.a, state.step_size, state.previous_error,
                         state.accepted, state.rejected, state.evaluations, state.smallest, state.largest, first,
                         kept_q, kept_v);
-}
-
-nb::tuple trial(const AdaptivePair& self, nb::callable acceleration, const VectorXd& q, const VectorXd& v,
-                const VectorXd& a, double t, double h) {
-  check_state(q, v, a, v.size());
-  Trial trial(self.pair, static_cast<int>(v.size()));
-  const Evaluate evaluate = [&](int stage, double time, const VectorXd& q_stage, const VectorXd& v_stage,
-                                VectorXd& out) {
-    out = nb::cast<VectorXd>(acceleration(q_stage, v_stage, time, stage));
-    if (out.size() != v_stage.size()) throw std::invalid_argument("AdaptivePair.trial: an acceleration of another size");
-    return true;
-  };
-  trial.take(evaluate, q, v, a, t, h);
-  std::optional<VectorXd> end;
-  if (self.pair.needs_end()) end = trial.end;
-  return nb::make_tuple(trial.q_new, trial.v_new, trial.slopes, end);
 }
 
 double error(const AdaptivePair& self, const VectorXd& size, const VectorXd& size_new, const RowMatrix& slopes,
@@ -119,10 +104,6 @@ void bind_adaptive(nb::module_& m) {
       .def(
           "shrink", [](const AdaptivePair& self, double h, double error) { return shrink(self.control, h, error); },
           "h"_a, "error"_a, "The step [s] to try after a rejected step of h [s] with this error [-].")
-      .def("trial", &trial, "acceleration"_a, "q"_a, "v"_a, "a"_a, "t"_a, "h"_a,
-           "(q_new, v_new, slopes, end slope or None): the step of h [s] from (q, v) at t [s], a = a(t, q, v), the "
-           "stages evaluated by acceleration(q, v, t, stage) (its exceptions propagate); slopes: stages x 2 nv, "
-           "[velocity | acceleration] per stage.")
       .def("error", &error, "size"_a, "size_new"_a, "slopes"_a, "end"_a.none(), "h"_a,
            "The largest scaled error [-] of a step of h [s] from its slopes (and the new point's when an estimator "
            "weighs it), each coordinate scaled by atol + rtol max(size, size_new).");

@@ -110,7 +110,8 @@ double BandedKernel::relative_singular_value(const VectorXd& q, int rank) {
   return spectrum_.relative(g_values_, rank);
 }
 
-bool BandedKernel::acceleration(double, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+bool BandedKernel::acceleration(int, double, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                                VectorXd& a) {
   const BandedPattern& p = pattern_;
   // crba (world convention) also gives the joint Jacobians and placements; the nonlinear effects' pass the
   // joints' spatial velocities and their accelerations at a = 0 with gravity's (a_gf): WorldBias from the

@@ -30,7 +30,8 @@ class BandedKernel : public Kernel {
   // nullptr for one of its own
   BandedKernel(const pinocchio::Model& model, BandedPattern pattern, GramSpectrum::Pattern gram, double kp, double kd,
                double pivot_tolerance, pinocchio::Data* data = nullptr);
-  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                    VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // the last evaluation met a small pivot and iterative refinement did not bring its solution to rounding
   bool singular() const { return singular_; }

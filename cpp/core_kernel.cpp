@@ -64,7 +64,8 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   multipliers_.setZero(rows_);
 }
 
-bool CoreKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+bool CoreKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                              VectorXd& a) {
   if (tilt_) model_.gravity.linear() = tilt_->gravity(t);
   // one pass: placements, Jacobians, velocities and accelerations at zero joint acceleration, M, h
   pinocchio::computeAllTerms(model_, data_, q, v);

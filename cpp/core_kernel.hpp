@@ -68,7 +68,8 @@ class CoreKernel : public Kernel {
  public:
   CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp, double kd,
              CoreSolve solve, std::optional<GravityTilt> tilt, std::shared_ptr<PythonPart> python);
-  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                    VectorXd& a) override;
   int nv() const override { return model_.nv; }
   const pinocchio::Model* group() const override { return &model_; }
   // the last evaluation's multipliers [N, N m] (the rows' order)

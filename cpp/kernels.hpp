@@ -27,12 +27,14 @@ pinocchio::Data light_data(const pinocchio::Model& model);
 // The same as a new Python pin.Data of a Python pin.Model (a new reference).
 PyObject* new_python_data(PyObject* model);
 
-// One evaluation a(t, q, v) under applied forces tau (t [s]: prescribed targets read it); false when its result is
-// not to be used (a small pivot, a servo that loses rank or its bounds).
+// One evaluation a(t, q, v) under applied forces tau (t [s]: prescribed targets read it) for stage `stage` of a step
+// (0 at its start; pinstab.system.ConstrainedSystem.acceleration's: a stabilizer may read it); false when its result
+// is not to be used (a small pivot, a servo that loses rank or its bounds).
 class Kernel {
  public:
   virtual ~Kernel() = default;
-  virtual bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) = 0;
+  virtual bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                            VectorXd& a) = 0;
   virtual int nv() const = 0;
   // The model whose configuration group the step loop integrates on (pinocchio::integrate, and stage velocities
   // carried to the step's start with dDifference, where its joints are not all of one coordinate), or nullptr: a
@@ -74,7 +76,7 @@ void banded_substitute(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, co
 void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, const VectorXd& x, const VectorXd& b,
                      VectorXd& residual);
 
-// Explicit schemes of pinstab.integration.schemes.
+// The fixed explicit schemes (pinstab.integration.schemes names them; their arithmetic: SchemeStep, cpp/group.hpp).
 enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };
 
 // Steps of dt from (q, v) at grid step `start` (time start dt): fills rows of qs, vs; returns the steps done (fewer

@@ -24,6 +24,7 @@ using namespace nb::literals;
 
 namespace pinstab {
 void bind_adaptive(nb::module_& m);  // cpp/adaptive_bindings.cpp
+void bind_steps(nb::module_& m);     // cpp/step_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -173,15 +174,17 @@ NB_MODULE(_compiled, m) {
   using namespace pinstab;
   m.doc() = "Compiled evaluations and explicit step loops of pinstab's native and banded paths.";
   bind_adaptive(m);
+  bind_steps(m);
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",
-          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t) {
+          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
             VectorXd a(self.nv());
-            const bool usable = self.acceleration(t, q, v, tau, a);
+            const bool usable = self.acceleration(stage, t, q, v, tau, a);
             return std::make_tuple(a, usable);
           },
-          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "(accelerations, usable) at (t, q, v) under tau.")
+          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
+          "(accelerations, usable) at (t, q, v) under tau, for that stage of a step.")
       .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a = 0,
            "(qs, vs, done): up to `steps` steps of dt of the scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4) "
            "from grid step `start` (time start dt).");

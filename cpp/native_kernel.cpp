@@ -21,7 +21,8 @@ NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<Clos
   pinocchio::initConstraintDynamics(model_, data_, models_, datas_);
 }
 
-bool NativeKernel::acceleration(double, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+bool NativeKernel::acceleration(int, double, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                                VectorXd& a) {
   a = pinocchio::constraintDynamics(model_, data_, q, v, tau, models_, datas_, settings_);
   return true;
 }

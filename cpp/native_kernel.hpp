@@ -34,7 +34,8 @@ class NativeKernel : public Kernel {
   // settings: the proximal solve's (absolute and relative accuracy, mu, iterations), NativeDynamics.settings
   NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp, double kd,
                const pinocchio::ProximalSettings& settings);
-  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                    VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // At each sample (rows of qs, vs) under tau: the multipliers rows * lambda_c [N] (rows: Pinocchio's contact rows to
   // the closures' rows) and the solve's relative residual (native_residual); NaN where q or v is not finite.

@@ -100,7 +100,8 @@ ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Ei
       rank_tolerance_(rank_tolerance),
       limited_(lower_.array().isFinite().any() || upper_.array().isFinite().any()) {}
 
-bool ServoKernel::acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) {
+bool ServoKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                               VectorXd& a) {
   pinocchio::crba(model_, data_, q);
   data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose().triangularView<Eigen::StrictlyLower>();
   pinocchio::nonLinearEffects(model_, data_, q, v);

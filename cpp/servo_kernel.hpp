@@ -59,7 +59,8 @@ class ServoKernel : public Kernel {
   ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Eigen::MatrixXd position_rows,
               Eigen::MatrixXd actuation, VectorXd lower,
               VectorXd upper, std::vector<Target> targets, double kp, double kd, double rank_tolerance);
-  bool acceleration(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, VectorXd& a) override;
+  bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                    VectorXd& a) override;
   int nv() const override { return model_.nv; }
   // (time [s], sign of det D) of the last usable evaluation with a square D, if any
   std::optional<std::pair<double, double>> last_sign() const { return last_sign_; }

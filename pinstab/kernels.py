@@ -3,9 +3,11 @@ row functions pinstab's constraint classes call too, as the solvers call its res
 its least squares and cone test, a joint spring its force, an external force its J^T w, a target trajectory its
 evaluation, the general servo solve its part up to the controls and the native path its residual: a rule lives in C++
 once), Pinocchio's constrained dynamics, the banded solve, the servo solve and the grasp evaluation in C++
-(:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the error-controlled
-loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a fingertip contact's point
-rows (:mod:`pinstab.constraints.grasp_contacts`) and the drift and energy series of a run of point closures
+(:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the explicit schemes'
+steps that the Python loops take too, their stages evaluated by a Python callable (:mod:`pinstab.integration.schemes`),
+the error-controlled loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a
+fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`) and the drift and energy series of a run of
+point closures
 (:mod:`pinstab.series`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
@@ -25,6 +27,8 @@ try:
         Kernel,
         NativeKernel,
         RowBlock,
+        RungeKutta,
+        SchemeStep,
         ServoKernel,
         ServoParts,
         baumgarte_term,
@@ -73,6 +77,8 @@ __all__ = [
     "Kernel",
     "NativeKernel",
     "RowBlock",
+    "RungeKutta",
+    "SchemeStep",
     "ServoKernel",
     "ServoParts",
     "baumgarte_term",

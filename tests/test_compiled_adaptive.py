@@ -17,7 +17,7 @@ from pinstab.integration import adaptive
 from pinstab.integration.compiled import CompiledAdaptive, compiled_obstacle
 from pinstab.integration.dense import QUINTIC
 from pinstab.integration.schemes import INTEGRATORS
-from pinstab.kernels import AdaptivePair, hermite_coefficients, hermite_state
+from pinstab.kernels import AdaptivePair, RungeKutta, hermite_coefficients, hermite_state
 
 
 def _run_both(monkeypatch, scene, integrator, rtol, duration, **options):
@@ -97,7 +97,10 @@ def test_trial_and_error_norm_match_the_tableau_in_numpy(integrator):
     def field(q_, v_, t_, stage):
         return -np.sin(q_) - 0.1 * v_ + 0.01 * t_
 
-    q_new, v_new, slopes, end = pair.trial(field, q, v, field(q, v, t, 0), t, h)
+    trial = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, None)
+    q_new, v_new, slopes, end = trial.attempt(
+        field, q, v, t, h, field(q, v, t, 0), bool(stepper.estimators[:, -1].any())
+    )
     expected = np.zeros((stepper.stages, 4))
     for i in range(stepper.stages):
         state = np.concatenate((q, v)) + h * stepper.coupling[i, :i] @ expected[:i]
@@ -149,17 +152,18 @@ def test_hermite_output_is_the_quintic_through_the_ends():
 
 
 def test_bad_shapes_are_refused():
-    """An error norm given slopes of another pair, Hermite values of another degree, a trial from a state of mixed
+    """An error norm given slopes of another pair, Hermite values of another degree, a trial step from a state of mixed
     sizes or with accelerations of another size raise."""
-    _, pair = _pair("dop853")
+    stepper, pair = _pair("dop853")
     with pytest.raises(ValueError):
         pair.error(np.ones(4), np.ones(4), np.zeros((7, 4)), None, 0.1)
     with pytest.raises(ValueError):
         hermite_coefficients(QUINTIC, np.zeros((4, 2)))
+    trial = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, None)
     with pytest.raises(ValueError):
-        pair.trial(lambda q, v, t, stage: np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(2), 0.0, 0.1)
+        trial.attempt(lambda q, v, t, stage: np.zeros(3), np.zeros(2), np.zeros(2), 0.0, 0.1)
     with pytest.raises(ValueError):
-        pair.trial(lambda q, v, t, stage: np.zeros(2), np.zeros(3), np.zeros(2), np.zeros(2), 0.0, 0.1)
+        trial.attempt(lambda q, v, t, stage: np.zeros(2), np.zeros(3), np.zeros(2), 0.0, 0.1)
 
 
 @pytest.mark.parametrize(

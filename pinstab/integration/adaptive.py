@@ -19,12 +19,12 @@ the accepted solution, after the estimate, and the next step starts from the cor
 the grid are taken from the quintic Hermite interpolant of each accepted step (:mod:`.dense`). Singular
 passages are planned as in fixed-step runs, by limiting the step (:meth:`PassageWatch.limit`).
 
-On a model whose joints all have one coordinate the trial step, the error norm, the control and the dense output
-are compiled (``cpp/adaptive.cpp``; the coefficients passed from :mod:`.tableaus` and :mod:`.dense`), the stages
-evaluated by the system in Python; on the compiled paths (:func:`~pinstab.integration.compiled.compiled_obstacle`)
-the runs of accepted steps between the passage watch's samples run in C++ altogether
-(:class:`~pinstab.integration.compiled.CompiledAdaptive`), with the compiled evaluation: the same operations in the
-same order, the same steps and samples to the last bit.
+The trial step (on the configuration group), the error norm and the control are compiled on every model
+(``cpp/adaptive.cpp``; the coefficients passed from :mod:`.tableaus` and :mod:`.dense`), the stages evaluated by the
+system in Python, and so is the dense output on a model whose joints all have one coordinate; on the compiled
+paths (:func:`~pinstab.integration.compiled.compiled_obstacle`) the runs of accepted steps between the passage
+watch's samples run in C++ altogether (:class:`~pinstab.integration.compiled.CompiledAdaptive`), with the compiled
+evaluation: the same operations in the same order, the same steps and samples to the last bit.
 """
 
 from __future__ import annotations
@@ -282,16 +282,8 @@ class AdaptiveLoop(StepLoop):
         self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """The step of h [s] from (q, v) at t [s], a its acceleration: the end state, the stage slopes and the new
-        point's slope when the estimator weighs it (the compiled trial on models whose joints all have one
-        coordinate, the integrator's otherwise)."""
-        if self.system.model.euclidean:
-            return self.rules.trial(self.system.acceleration, q, v, a, t, h)
-        q_new, v_new, slopes = self.pair.attempt(q, v, t, h, a)
-        return q_new, v_new, slopes, self._end_slope(q, q_new, v_new, t + h) if self.needs_end else None
-
-    def _end_slope(self, q: np.ndarray, q_new: np.ndarray, v_new: np.ndarray, t: float) -> np.ndarray:
-        """The derivative at the new point, in the start's tangent space: [velocity slope | acceleration]."""
-        return np.concatenate((self.pair.slope(q, q_new, v_new), self.system.acceleration(q_new, v_new, t, 0)))
+        point's slope when the estimator weighs it (the compiled trial, ``cpp/adaptive.cpp``)."""
+        return self.pair.attempt(q, v, t, h, a, self.needs_end)
 
     def _size(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """|y| coordinate by coordinate (2 nv,): :meth:`~pinstab.model.ConstrainedModel.magnitude` of q, |v|."""

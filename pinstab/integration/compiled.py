@@ -1,11 +1,11 @@
 """The compiled step loop: runs of fixed steps taken in C++ (``pinstab._compiled``, sources in ``cpp/``) on the
 native, banded and servo paths.
 
-A Python step on those paths costs the evaluation (Pinocchio's passes, microseconds) plus Python's calls and
-NumPy's small-array arithmetic around it (on the four-bar, more than the evaluation itself:
-``benchmarks/overhead.py``). :class:`CompiledSteps` hands the stepping loop's runs of steps between its checks to
-the compiled loop: the same schemes (:mod:`pinstab.integration.schemes`), the same sums in the same order, the
-same evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded or servo solve on
+A Python step on those paths costs the evaluation (Pinocchio's passes, microseconds) plus a Python call per stage
+around it (on the four-bar, more than the evaluation itself: ``benchmarks/overhead.py``). :class:`CompiledSteps`
+hands the stepping loop's runs of steps between its checks to the compiled loop: the same step function as the
+Python loop's (``SchemeStep``, ``cpp/stepping.cpp``: :mod:`pinstab.integration.schemes` calls it), the same
+evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded or servo solve on
 those paths, which the Python step calls too) at the same stage times: the results equal the Python loop's to the
 last bit. The loop's checks, the passage watch, the samples and the fallbacks (a near-singular banded solve, a
 servo that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose evaluation is
@@ -28,13 +28,12 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from .schemes import SCHEMES
+
 if TYPE_CHECKING:
     from ..kernels import AdaptivePair
     from ..system import ConstrainedSystem
     from .schemes import Integrator
-
-SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
-"""The explicit schemes the compiled loop takes, by name (the codes of ``cpp/kernels.hpp``)."""
 
 
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: bool = False) -> str | None:

@@ -1,13 +1,18 @@
 """Explicit integrators on the configuration Lie group: ``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``,
 ``dopri5``, ``dop853`` (the last two with embedded error estimators, for error control).
 
-Positions advance with ``pin.integrate`` (plain addition on models whose joints all have one
+Positions advance with ``pinocchio::integrate`` (plain addition on models whose joints all have one
 coordinate). For the Runge-Kutta schemes every stage velocity is carried back to the tangent space at
-the step's start point with ``pin.dDifference`` (exact ``dexp^-1``, Runge-Kutta-Munthe-Kaas), which
+the step's start point with ``pinocchio::dDifference`` (exact ``dexp^-1``, Runge-Kutta-Munthe-Kaas), which
 is the identity on models made of 1-DOF joints.
 
-A step calls ``system.acceleration(q, v, t, stage)``: Pinocchio's own algorithm on the native path,
-pinstab's KKT solve on the general one (:mod:`pinstab.system`).
+The schemes' arithmetic lives in C++ only (``pinstab._compiled``): the fixed schemes in ``cpp/stepping.cpp``
+(:class:`~pinstab.kernels.SchemeStep`, whose step the compiled loop of :mod:`.compiled` takes too), the stages of
+a tableau in ``cpp/adaptive.cpp`` (:class:`~pinstab.kernels.RungeKutta`, the trial step of the compiled
+error-controlled loop). The classes here name them (stages, nodes, the scheme's code or the tableau); a step
+calls back ``system.acceleration(q, v, t, stage)`` per stage: Pinocchio's own algorithm on the native path,
+pinstab's KKT solve on the general one (:mod:`pinstab.system`). An exception it raises reaches the step's
+caller unchanged.
 """
 
 from __future__ import annotations
@@ -16,17 +21,21 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..kernels import RungeKutta, SchemeStep
 from ..registry import NoOptions, Registry
 from ..stability import register_polynomial
 from . import tableaus
 from .tableaus import Tableau
 
 if TYPE_CHECKING:
+    import pinocchio as pin
+
     from ..system import ConstrainedSystem
 
 
 class Integrator:
-    """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``.
+    """One explicit step of ``dq/dt = v``, ``dv/dt = a(q, v, t)``: the registry's extension point (a registered
+    integrator defines :meth:`step`).
 
     Args:
         system: the stepping system (its ``acceleration`` and its model's group operations).
@@ -44,83 +53,64 @@ class Integrator:
 
     def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
         self.system = system
-        model = system.model
-        self.integrate = np.add if model.euclidean else model.integrate  # the same sum, without a call layer
-        self.tangent = None if model.flat else model.to_start_tangent
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at time t [s]; returns the end state (q, v)."""
         raise NotImplementedError
 
-    def slope(self, q: np.ndarray, q_stage: np.ndarray, v_stage: np.ndarray) -> np.ndarray:
-        """A stage velocity as a slope in the tangent space at the step's start q."""
-        return v_stage if self.tangent is None else self.tangent(q, q_stage, v_stage)
+
+SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
+"""The fixed schemes by name: their codes in ``cpp/kernels.hpp`` (``Scheme``); the compiled loop takes these."""
 
 
-class Euler(Integrator):
+def _group(system: ConstrainedSystem) -> pin.Model | None:
+    """The model whose configuration group a compiled step integrates on, None where q (+) dq = q + dq."""
+    model = system.model
+    return None if model.euclidean else model.model
+
+
+class FixedScheme(Integrator):
+    """A scheme of ``cpp/stepping.cpp`` (its code: :data:`SCHEMES` by name)."""
+
+    def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
+        super().__init__(system, options)
+        self._scheme = SchemeStep(SCHEMES[self.name], _group(system))
+
+    def step(self, q, v, t, dt):
+        return self._scheme.step(self.system.acceleration, q, v, t, dt)
+
+
+class Euler(FixedScheme):
     """Explicit Euler: q+ = q (+) dt v, v+ = v + dt a(q, v). Order 1."""
 
     name = "euler"
 
-    def step(self, q, v, t, dt):
-        return self.integrate(q, dt * v), v + dt * self.system.acceleration(q, v, t, 0)
 
-
-class SemiImplicitEuler(Integrator):
+class SemiImplicitEuler(FixedScheme):
     """Symplectic Euler, velocity first: v+ = v + dt a(q, v), q+ = q (+) dt v+. Order 1."""
 
     name = "semi-implicit-euler"
 
-    def step(self, q, v, t, dt):
-        v_new = v + dt * self.system.acceleration(q, v, t, 0)
-        return self.integrate(q, dt * v_new), v_new
 
-
-class Heun(Integrator):
+class Heun(FixedScheme):
     """Heun's two-stage Runge-Kutta method. Order 2."""
 
     name = "heun"
     stages = 2
     nodes = (0.0, 1.0)
 
-    def step(self, q, v, t, dt):
-        acceleration = self.system.acceleration
-        a1 = acceleration(q, v, t, 0)
-        q2, v2 = self.integrate(q, dt * v), v + dt * a1
-        a2 = acceleration(q2, v2, t + dt, 1)
-        half = 0.5 * dt
-        return self.integrate(q, half * (v + self.slope(q, q2, v2))), v + half * (a1 + a2)
 
-
-class RK4(Integrator):
+class RK4(FixedScheme):
     """Classical four-stage Runge-Kutta. Order 4."""
 
     name = "rk4"
     stages = 4
     nodes = (0.0, 0.5, 0.5, 1.0)
 
-    def step(self, q, v, t, dt):
-        acceleration, integrate, slope = self.system.acceleration, self.integrate, self.slope
-        half = 0.5 * dt
-        a1 = acceleration(q, v, t, 0)
-        v2 = v + half * a1
-        q2 = integrate(q, half * v)
-        a2 = acceleration(q2, v2, t + half, 1)
-        k2 = slope(q, q2, v2)
-        v3 = v + half * a2
-        q3 = integrate(q, half * k2)
-        a3 = acceleration(q3, v3, t + half, 2)
-        k3 = slope(q, q3, v3)
-        v4 = v + dt * a3
-        q4 = integrate(q, dt * k3)
-        a4 = acceleration(q4, v4, t + dt, 3)
-        sixth = dt / 6.0
-        return integrate(q, sixth * (v + 2.0 * (k2 + k3) + slope(q, q4, v4))), v + sixth * (a1 + 2.0 * (a2 + a3) + a4)
-
 
 class ExplicitRungeKutta(Integrator):
-    """An explicit Runge-Kutta scheme given by its :class:`~pinstab.integration.tableaus.Tableau`; stage
-    slopes are stacked so that each stage costs one matrix product.
+    """An explicit Runge-Kutta scheme given by its :class:`~pinstab.integration.tableaus.Tableau`, stepped by
+    ``cpp/adaptive.cpp`` (:class:`~pinstab.kernels.RungeKutta`).
 
     Attributes:
         tableau: the coefficients. nodes: c_i (s,). coupling: a_ij (s x s, strictly lower triangular).
@@ -146,40 +136,19 @@ class ExplicitRungeKutta(Integrator):
 
     def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
         super().__init__(system, options)
-        self._nv = system.model.nv
-        self._slopes = np.zeros((self.stages, 2 * self._nv))  # per stage: [velocity slope | acceleration]
-        self._scaled: tuple[float, np.ndarray] = (0.0, self.coupling)  # (dt, dt * coupling)
+        self._tableau = RungeKutta(self.nodes, self.coupling, self.weights, _group(system))
 
     def step(self, q, v, t, dt):
-        q_new, v_new, _ = self.attempt(q, v, t, dt)
-        return q_new, v_new
+        return self.attempt(q, v, t, dt)[:2]
 
     def attempt(
-        self, q: np.ndarray, v: np.ndarray, t: float, dt: float, first: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One step of ``dt`` [s] from (q, v) at t [s]; returns the end state and the stage slopes
-        (stages x 2 nv: the velocity slopes in the start's tangent space, then the accelerations), which
-        the error estimators weigh. ``first``: the acceleration at (q, v, t) when already known."""
-        acceleration, slope = self.system.acceleration, self.slope
-        nv, slopes = self._nv, self._slopes
-        if self._scaled[0] != dt:
-            self._scaled = (dt, dt * self.coupling)
-        scaled = self._scaled[1]
-        euclidean = self.integrate is np.add
-        start = np.concatenate((q, v)) if euclidean else None  # (q, v) moves by one sum per stage
-        slopes[0, :nv] = v
-        slopes[0, nv:] = acceleration(q, v, t, 0) if first is None else first
-        for stage in range(1, self.stages):
-            increment = scaled[stage, :stage] @ slopes[:stage]
-            if euclidean:
-                state = start + increment
-                q_stage, v_stage = state[:nv], state[nv:]
-            else:
-                q_stage, v_stage = self.integrate(q, increment[:nv]), v + increment[nv:]
-            slopes[stage, nv:] = acceleration(q_stage, v_stage, t + self.nodes[stage] * dt, stage)
-            slopes[stage, :nv] = slope(q, q_stage, v_stage)
-        increment = (dt * self.weights) @ slopes
-        return self.integrate(q, increment[:nv]), v + increment[nv:], slopes
+        self, q: np.ndarray, v: np.ndarray, t: float, dt: float, first: np.ndarray | None = None, end: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """One step of ``dt`` [s] from (q, v) at t [s]; returns the end state, the stage slopes (stages x 2 nv:
+        the velocity slopes in the start's tangent space, then the accelerations), which the error estimators
+        weigh, and with ``end`` the new point's slope ([velocity slope | acceleration], its acceleration evaluated
+        as stage 0; else None). ``first``: the acceleration at (q, v, t) when already known."""
+        return self._tableau.attempt(self.system.acceleration, q, v, t, dt, first, end)
 
 
 def _lower_triangle(rows: dict[int, dict[int, float]], stages: int) -> np.ndarray:
