@@ -60,7 +60,7 @@ def test_unknown_integrator_lists_the_valid_ones():
 def test_unknown_method_and_solver_list_the_valid_ones():
     with pytest.raises(PinstabError, match="valid methods: baumgarte, mukharlyamov, none, pinocchio, post, projection"):
         simulate("fourbar", method="gear", duration=0.01)
-    with pytest.raises(PinstabError, match="valid solvers: dense, pinocchio, proxsuite"):
+    with pytest.raises(PinstabError, match="valid solvers: dense, extended, pinocchio, proxsuite"):
         simulate("fourbar", solver="mumps", duration=0.01)
     with pytest.raises(
         PinstabError,
