@@ -233,6 +233,10 @@ class GraspControl(ForceElement):
                     [c.name for c in self.contacts],
                     t,
                 )
+            # ProxQP meets the object's balance carrier f = wrench only to its eps_abs (1e-10 N, or 1e-6 with older
+            # proxsuite releases), which a light object turns into 1e-8..1e-6 m/s^2 of planned acceleration the
+            # torques do not produce: the least-norm correction meets it to rounding (the cones keep their margin)
+            forces = forces + np.linalg.lstsq(carrier, wrench - carrier @ forces, rcond=None)[0]
         else:
             forces = np.linalg.lstsq(carrier, wrench, rcond=None)[0]
         tau = np.zeros(self.model.nv)
