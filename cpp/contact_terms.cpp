@@ -32,6 +32,15 @@ Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio:
   return placement.rotation().transpose() * linear;
 }
 
+Eigen::Vector3d contact_point_rate(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
+                                   int finger_frame) {
+  const pinocchio::Motion object = pinocchio::getFrameVelocity(model, data, object_frame, LWA);
+  const pinocchio::Motion finger = pinocchio::getFrameVelocity(model, data, finger_frame, LWA);
+  const Eigen::Vector3d d = difference(data, object_frame, finger_frame);
+  const Eigen::Vector3d linear = object.linear() - finger.linear() + d.cross(object.angular());
+  return data.oMf[object_frame].rotation().transpose() * linear;
+}
+
 Eigen::Vector3d contact_point_drift(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
                                     int finger_frame) {
   const pinocchio::SE3& placement = data.oMf[object_frame];

@@ -14,6 +14,10 @@ Eigen::Vector3d contact_point_residual(const pinocchio::Model& model, pinocchio:
 // LOCAL_WORLD_ALIGNED; needs the joint Jacobians and frame placements) ...
 Eigen::MatrixXd contact_point_jacobian(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
                                        int finger_frame);
+// ... their rate R^T (v_o - v_f + (p_o - p_f) x w_o) (velocities v, w in LOCAL_WORLD_ALIGNED; needs velocities and
+// frame placements: forwardKinematics(q, v), updateFramePlacements), the Jacobian's product with v without forming it ...
+Eigen::Vector3d contact_point_rate(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,
+                                   int finger_frame);
 // ... and their second derivative at zero joint acceleration, R^T (a_o - a_f + w x (w x d - 2 d') - alpha x d)
 // with d = p_o - p_f (needs a full pass: velocities and accelerations at zero joint acceleration).
 Eigen::Vector3d contact_point_drift(const pinocchio::Model& model, pinocchio::Data& data, int object_frame,

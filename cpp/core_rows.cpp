@@ -3,6 +3,7 @@
 #include "contact_terms.hpp"
 
 #include <cmath>
+#include <stdexcept>
 
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/spatial/explog.hpp>
@@ -59,6 +60,22 @@ Matrix6x weld_jacobian(const Sides& sides) {
   Matrix6x weld(6, sides.model.nv);
   weld.topRows<3>() = relative.topRows<3>();
   weld.bottomRows<3>() = jlog(rel) * rotation_a.transpose() * relative.bottomRows<3>();
+  return weld;
+}
+
+// The weld's six rows of G v: the points' relative velocity, then Jlog3(R_b^T R_a) R_a^T (w_a - w_b).
+Eigen::Matrix<double, 6, 1> weld_rate(const Sides& sides) {
+  const pinocchio::Motion velocity_a = sides.velocity(sides.block.frame_a);
+  Vector3d linear = velocity_a.linear(), angular = velocity_a.angular();
+  if (sides.moving_b()) {
+    const pinocchio::Motion velocity_b = sides.velocity(sides.block.frame_b);
+    linear -= velocity_b.linear();
+    angular -= velocity_b.angular();
+  }
+  const Matrix3d& rotation_a = sides.a().rotation();
+  Eigen::Matrix<double, 6, 1> weld;
+  weld.head<3>() = linear;
+  weld.tail<3>() = jlog(sides.b().rotation().transpose() * rotation_a) * (rotation_a.transpose() * angular);
   return weld;
 }
 
@@ -147,7 +164,7 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
   }
   const Sides sides{model, data, block};
   if (block.kind == RowKind::point) {
-    phi = block.selection * (sides.a().translation() - sides.b().translation());
+    phi.noalias() = block.selection * (sides.a().translation() - sides.b().translation());
     return;
   }
   if (block.kind == RowKind::fingertip) {
@@ -164,10 +181,10 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
       break;
     case RowKind::revolute:
       phi.head<3>() = weld.head<3>();
-      phi.tail<2>() = block.selection * weld.tail<3>();
+      phi.tail<2>().noalias() = block.selection * weld.tail<3>();
       break;
     default:  // prismatic
-      phi.head<2>() = block.selection * (sides.b().rotation().transpose() * weld.head<3>());
+      phi.head<2>().noalias() = block.selection * (sides.b().rotation().transpose() * weld.head<3>());
       phi.tail<3>() = weld.tail<3>();
   }
 }
@@ -215,6 +232,53 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
       }
       jacobian.topRows<2>() = block.selection * (sides.b().rotation().transpose() * slide);
       jacobian.bottomRows<3>() = weld.bottomRows<3>();
+    }
+  }
+}
+
+void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& v,
+                double t, Eigen::Ref<VectorXd> rate) {
+  if (block.kind == RowKind::python) throw std::invalid_argument("block_rate: a python block's rows are Python's");
+  if (block.kind == RowKind::relation) {
+    double value, target_rate, curvature;
+    block.target.evaluate(t, value, target_rate, curvature);
+    double sum = 0.0;
+    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * v(block.v_indices(k));
+    rate(0) = sum - target_rate;
+    return;
+  }
+  const Sides sides{model, data, block};
+  if (block.kind == RowKind::point) {
+    Vector3d linear = sides.velocity(block.frame_a).linear();
+    if (sides.moving_b()) linear -= sides.velocity(block.frame_b).linear();
+    rate.noalias() = block.selection * linear;
+    return;
+  }
+  if (block.kind == RowKind::fingertip) {
+    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
+    full.head<3>() = contact_point_rate(model, data, block.frame_a, block.frame_b);
+    if (rotates(block)) full.tail<3>() = weld_rate(sides).tail<3>();
+    for (int k = 0; k < block.components.size(); ++k) rate(k) = full(block.components(k));
+    return;
+  }
+  const Eigen::Matrix<double, 6, 1> weld = weld_rate(sides);
+  switch (block.kind) {
+    case RowKind::weld:
+      rate = weld;
+      break;
+    case RowKind::revolute:
+      rate.head<3>() = weld.head<3>();
+      rate.tail<2>().noalias() = block.selection * weld.tail<3>();
+      break;
+    default: {  // prismatic: d/dt of R_b^T (p_a - p_b) = R_b^T (v_a - v_b + (p_a - p_b) x w_b)
+      Vector3d slide = sides.velocity(block.frame_a).linear();
+      if (sides.moving_b()) {
+        const pinocchio::Motion velocity_b = sides.velocity(block.frame_b);
+        const Vector3d gap = sides.a().translation() - sides.b().translation();
+        slide += gap.cross(velocity_b.angular()) - velocity_b.linear();
+      }
+      rate.head<2>().noalias() = block.selection * (sides.b().rotation().transpose() * slide);
+      rate.tail<3>() = weld.tail<3>();
     }
   }
 }

@@ -49,6 +49,10 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
 // updateFramePlacements).
 void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
                     Eigen::Ref<Eigen::MatrixXd> jacobian, Eigen::Ref<VectorXd> time_term);
+// g = G v + g_t [m/s or rad/s] without forming G (O(rows)): after velocities and placements (forwardKinematics(q, v),
+// updateFramePlacements; a relation reads v only). Not for python blocks (their rows are Python's).
+void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& v,
+                double t, Eigen::Ref<VectorXd> rate);
 // gamma0 [m/s^2 or rad/s^2]: after a full pass (computeAllTerms: velocities, accelerations at zero joint acceleration,
 // Jacobians) and placements.
 void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,

@@ -227,20 +227,22 @@ NB_MODULE(_compiled, m) {
         "finger_frame"_a, "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
   m.def(
       "closure_series",
-      [](nb::handle model, nb::handle data, const VectorXi& joints_a, const Eigen::MatrixXd& local_a,
-         const VectorXi& joints_b, const Eigen::MatrixXd& local_b, const Eigen::MatrixXd& selection,
-         const VectorXi& owner, const RowMatrix& qs, const RowMatrix& vs) {
-        const pinocchio::Model& native = python_model(model.ptr());
-        pinocchio::Data& shared = python_data(data.ptr(), native);
-        const ClosurePoints points{joints_a, joints_b, local_a, local_b, selection, owner};
+      [](nb::handle model, nb::handle data, const std::vector<RowBlock>& blocks, const RowMatrix& qs,
+         const RowMatrix& vs, const VectorXd& ts) {
+        const auto [loaded, shared] = native(model, data);
+        for (const RowBlock& block : blocks) {
+          if (block.kind == RowKind::python) throw std::invalid_argument("closure_series: a python block (kind 6)");
+        }
+        if (vs.rows() != qs.rows() || ts.size() != qs.rows() || qs.cols() != loaded->nq || vs.cols() != loaded->nv) {
+          throw std::invalid_argument("closure_series: qs (n x nq), vs (n x nv), ts (n)");
+        }
         nb::gil_scoped_release released;
-        return closure_series(native, shared, points, qs, vs);
+        return closure_series(*loaded, *shared, blocks, qs, vs, ts);
       },
-      "model"_a, "data"_a, "joints_a"_a, "local_a"_a, "joints_b"_a, "local_b"_a, "selection"_a, "owner"_a, "qs"_a,
-      "vs"_a,
-      "(max |phi| [m], max |G v| [m/s], energy [J]) per sample (rows of qs, vs; NaN where not finite) of point "
-      "closures: each side's joint and point in its frame, each row's direction (rows, 3) and closure; computed in "
-      "data (a pin.Data of the model, overwritten).");
+      "model"_a, "data"_a, "blocks"_a, "qs"_a, "vs"_a, "ts"_a,
+      "(max |phi| [m or rad], max |G v + g_t| [m/s or rad/s], energy [J]) per sample (rows of qs, vs at times ts [s]; "
+      "NaN where not finite) of compiled row blocks (RowBlock, not python); computed in data (a pin.Data of the model, "
+      "overwritten).");
   m.def(
       "servo_realizability",
       [](const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
@@ -521,6 +523,18 @@ NB_MODULE(_compiled, m) {
       },
       "model"_a, "data"_a, "block"_a, "t"_a,
       "(G (rows x nv), g_t) of a block from a pin.Data after a Jacobians and placements pass.");
+  m.def(
+      "block_rate",
+      [](nb::handle model, nb::handle data, const RowBlock& block, const VectorXd& v, double t) {
+        const auto [loaded, shared] = native(model, data);
+        if (v.size() != loaded->nv) throw std::invalid_argument("block_rate: v (nv)");
+        VectorXd rate(block.rows());
+        block_rate(*loaded, *shared, block, v, t, rate);
+        return rate;
+      },
+      "model"_a, "data"_a, "block"_a, "v"_a, "t"_a,
+      "g = G v + g_t [m/s or rad/s] of a block without forming G, from a pin.Data after a velocities pass "
+      "(forwardKinematics(q, v)) and placements.");
   m.def(
       "block_drift",
       [](nb::handle model, nb::handle data, const RowBlock& block, double t) {

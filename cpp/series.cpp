@@ -1,10 +1,12 @@
-// The drift and energy series of a run of closures (see series.hpp).
+// The drift and energy series of a run of compiled rows (see series.hpp).
 #include "series.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <pinocchio/algorithm/energy.hpp>
+#include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
 
 namespace pinstab {
@@ -21,39 +23,43 @@ double largest(const VectorXd& x) {
   return value;
 }
 
+// The frames the blocks read, each once (their placements are all a sample's pass updates).
+std::vector<int> block_frames(const std::vector<RowBlock>& blocks) {
+  std::vector<int> frames;
+  for (const RowBlock& block : blocks) {
+    for (const int frame : {block.frame_a, block.frame_b}) {
+      if (frame >= 0) frames.push_back(frame);
+    }
+  }
+  std::sort(frames.begin(), frames.end());
+  frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+  return frames;
+}
+
 }  // namespace
 
 std::tuple<VectorXd, VectorXd, VectorXd> closure_series(const pinocchio::Model& model, pinocchio::Data& data,
-                                                        const ClosurePoints& points, const RowMatrix& qs,
-                                                        const RowMatrix& vs) {
+                                                        const std::vector<RowBlock>& blocks, const RowMatrix& qs,
+                                                        const RowMatrix& vs, const VectorXd& ts) {
   const long n = qs.rows();
-  const int closures = static_cast<int>(points.joints_a.size());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   VectorXd position = VectorXd::Constant(n, nan), velocity = VectorXd::Constant(n, nan),
            energy = VectorXd::Constant(n, nan);
-  Eigen::Matrix3Xd difference(3, closures), rate(3, closures);
-  VectorXd phi(points.owner.size()), g(points.owner.size());
+  int rows = 0;
+  for (const RowBlock& block : blocks) rows += block.rows();
+  const std::vector<int> frames = block_frames(blocks);
+  VectorXd phi(rows), g(rows), q(model.nq), v(model.nv);
   for (long k = 0; k < n; ++k) {
     if (!qs.row(k).allFinite() || !vs.row(k).allFinite()) continue;
-    pinocchio::forwardKinematics(model, data, qs.row(k).transpose(), vs.row(k).transpose());
-    for (int c = 0; c < closures; ++c) {
-      // each side's point and its velocity in world axes: oMi p (as the frame placement oMi * placement that
-      // Pinocchio's updateFramePlacements computes) and the joint's world-frame twist at that point
-      Eigen::Vector3d point[2], speed[2];
-      const int joints[2] = {points.joints_a(c), points.joints_b(c)};
-      for (int side = 0; side < 2; ++side) {
-        const pinocchio::SE3& placement = data.oMi[joints[side]];
-        const Eigen::Vector3d local = (side == 0 ? points.local_a : points.local_b).row(c).transpose();
-        point[side] = placement.translation() + placement.rotation() * local;
-        const pinocchio::Motion twist = placement.act(data.v[joints[side]]);
-        speed[side] = twist.linear() + twist.angular().cross(point[side]);
-      }
-      difference.col(c) = point[0] - point[1];
-      rate.col(c) = speed[0] - speed[1];
-    }
-    for (int r = 0; r < points.owner.size(); ++r) {
-      phi(r) = points.selection.row(r).dot(difference.col(points.owner(r)).transpose());
-      g(r) = points.selection.row(r).dot(rate.col(points.owner(r)).transpose());
+    q = qs.row(k).transpose();
+    v = vs.row(k).transpose();
+    pinocchio::forwardKinematics(model, data, q, v);
+    for (const int frame : frames) pinocchio::updateFramePlacement(model, data, frame);
+    int row = 0;
+    for (const RowBlock& block : blocks) {
+      block_residual(model, data, block, q, ts(k), phi.segment(row, block.rows()));
+      block_rate(model, data, block, v, ts(k), g.segment(row, block.rows()));
+      row += block.rows();
     }
     position(k) = largest(phi);
     velocity(k) = largest(g);

@@ -29,9 +29,10 @@ NO_DYNAMICS = (DivergenceError, ServoInfeasibleError, SolverError)
 class ClosureSeries:
     """The drift and energy series of a scene whose constraints are all point or planar-point closures and whose force
     elements store no energy (motors, dampers, loads: the energy is the mechanism's), by the compiled kernel
-    (``closure_series``, ``cpp/series.cpp``): one kinematics pass per sample. The position drift and the energy are
-    the Python pass's to the last bit (the same Pinocchio sums); the velocity drift is the closure points' relative
-    velocity instead of ``G v``, equal to rounding.
+    (``closure_series``, ``cpp/series.cpp``) over the constraints' compiled rows
+    (:meth:`~pinstab.constraints.base.Constraint.compiled_rows`): one kinematics pass per sample. The position drift
+    and the energy are the Python pass's to the last bit (the same row functions and Pinocchio sums); the velocity
+    drift is ``G v + g_t`` formed without G (``block_rate``), equal to rounding.
 
     Args:
         model: the scene's model (see :meth:`of`).
@@ -39,14 +40,7 @@ class ClosureSeries:
 
     def __init__(self, model: ConstrainedModel) -> None:
         self.model = model
-        closures = model.constraints.constraints
-        sides = [closure.sides(model.model) for closure in closures]
-        self.joints_a = np.array([a[0] for a, _ in sides], dtype=np.int32)
-        self.joints_b = np.array([b[0] for _, b in sides], dtype=np.int32)
-        self.local_a = np.array([a[1].translation for a, _ in sides]).reshape(-1, 3)
-        self.local_b = np.array([b[1].translation for _, b in sides]).reshape(-1, 3)
-        self.selection = np.vstack([np.zeros((0, 3)), *(closure.selection for closure in closures)])
-        self.owner = np.repeat(np.arange(len(closures), dtype=np.int32), [closure.rows for closure in closures])
+        self.blocks = [constraint.compiled_rows() for constraint in model.constraints.constraints]
 
     @classmethod
     def of(cls, model: ConstrainedModel) -> ClosureSeries | None:
@@ -57,12 +51,11 @@ class ClosureSeries:
             return None
         return cls(model)
 
-    def drift_and_energy(self, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
-        """:meth:`StateSeries.drift_and_energy` at the samples (rows of q, v) [m, m/s, J]."""
+    def drift_and_energy(self, q: np.ndarray, v: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`StateSeries.drift_and_energy` at the samples (rows of q, v at times t [s]) [m, m/s, J]."""
         position, velocity, energy = closure_series(
-            self.model.model, self.model.scratch, self.joints_a, self.local_a, self.joints_b, self.local_b,
-            self.selection, self.owner, q, v,
-        )  # fmt: skip
+            self.model.model, self.model.scratch, self.blocks, q, v, np.asarray(t, dtype=float)
+        )
         return {"position_drift": position, "velocity_drift": velocity, "energy": energy}
 
 
@@ -82,7 +75,7 @@ class StateSeries:
         [J] per sample; NaN at non-finite samples. Compiled (:class:`ClosureSeries`) for a scene of point closures
         whose force elements store no energy, else a pass over the constraints per sample."""
         if self._closures is not None:
-            return self._closures.drift_and_energy(q, v)
+            return self._closures.drift_and_energy(q, v, t)
         model = self.system.model
         n = len(t)
         position, velocity, energy = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)

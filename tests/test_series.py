@@ -74,7 +74,7 @@ def test_compiled_series_are_nan_at_non_finite_samples_and_left_to_python_with_s
     q, v = trajectory.q.copy(), trajectory.v.copy()
     q[3, 0] = np.nan
     v[5, 1] = np.inf
-    series = closures.drift_and_energy(q, v)
+    series = closures.drift_and_energy(q, v, trajectory.t)
     for values in series.values():
         assert np.isnan(values[[3, 5]]).all() and np.isfinite(np.delete(values, [3, 5])).all()
     robots = Path(__file__).resolve().parents[1] / "robots"
