@@ -28,19 +28,37 @@ KktOutcome KktSolve::solve(const Eigen::MatrixXd& mass, const VectorXd& force, c
   }
   if (!pseudo_inverse) return KktOutcome::dependent;
   // redundant or nearly dependent rows: the pseudo-inverse of D, eigenvalues below cutoff times the largest left out
-  spectrum_.compute(delassus_);
-  if (spectrum_.info() != Eigen::Success) return KktOutcome::failed;
-  const VectorXd& values = spectrum_.eigenvalues();  // ascending
-  const double floor = settings.cutoff * values(values.size() - 1);
-  const Eigen::ArrayXd kept = (values.array() > floor).select(values.array().inverse(), 0.0);
-  const auto pseudo_inverse_of = [this, &kept](const VectorXd& x) -> VectorXd {
-    return spectrum_.eigenvectors() * (kept * (spectrum_.eigenvectors().transpose() * x).array()).matrix();
-  };
+  if (!pseudo_inverse_.compute(delassus_, settings.cutoff)) return KktOutcome::failed;
+  const auto pseudo_inverse_of = [this](const VectorXd& x) -> VectorXd { return pseudo_inverse_.apply(x); };
   multipliers_ = pseudo_inverse_of(demand);
   refine(jacobian, rhs, pseudo_inverse_of);
   residual_ = primal_residual(jacobian, acceleration_, rhs, force, mass.diagonal());
   if (!acceleration_.allFinite()) return KktOutcome::failed;
   return residual_ <= settings.accepted ? KktOutcome::pseudo_inverse : KktOutcome::not_accepted;
+}
+
+bool DelassusPseudoInverse::compute(const Eigen::MatrixXd& delassus, double cutoff) {
+  spectrum_.compute(delassus);
+  if (spectrum_.info() != Eigen::Success) {
+    kept_.setConstant(delassus.rows(), std::numeric_limits<double>::quiet_NaN());
+    return false;
+  }
+  const VectorXd& values = spectrum_.eigenvalues();  // ascending
+  if (values.size() == 0) {
+    kept_.resize(0);
+    return true;
+  }
+  const double floor = cutoff * values(values.size() - 1);
+  kept_ = (values.array() > floor).select(values.array().inverse(), 0.0).matrix();
+  return true;
+}
+
+VectorXd DelassusPseudoInverse::apply(const VectorXd& x) const {
+  return spectrum_.eigenvectors() * (kept_.array() * (spectrum_.eigenvectors().transpose() * x).array()).matrix();
+}
+
+Eigen::MatrixXd DelassusPseudoInverse::apply(const Eigen::MatrixXd& x) const {
+  return spectrum_.eigenvectors() * (kept_.asDiagonal() * (spectrum_.eigenvectors().transpose() * x));
 }
 
 template <typename Inverse>

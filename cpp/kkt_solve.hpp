@@ -20,6 +20,23 @@ struct CoreSolve {
   double direct_pivot = 1e-8, cutoff = 1e-12, accepted = 1e-8, margin_slack = 1e-9;
 };
 
+// The pseudo-inverse D^+ of a Delassus matrix D = G M^-1 G^T (symmetric positive semi-definite, r x r) from its
+// eigen-decomposition, eigenvalues at most cutoff times the largest left out (for such a D: numpy.linalg.pinv's rule
+// with rcond = cutoff, its singular values being its eigenvalues). The one pseudo-inverse of the core solve (KktSolve)
+// and the servo solve (ServoParts, cpp/servo_kernel.hpp).
+class DelassusPseudoInverse {
+ public:
+  // false: the decomposition failed (D not finite); D^+ is then NaN
+  bool compute(const Eigen::MatrixXd& delassus, double cutoff);
+  // D^+ x for a vector (r) or a matrix (r x k) x
+  VectorXd apply(const VectorXd& x) const;
+  Eigen::MatrixXd apply(const Eigen::MatrixXd& x) const;
+
+ private:
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
+  VectorXd kept_;  // 1 / eigenvalue where kept, else 0
+};
+
 // How a solve ended: by Cholesky factors (direct); rows dependent by the direct test and no pseudo-inverse asked
 // (dependent); by the pseudo-inverse (pseudo_inverse), or its residual above `accepted` (not_accepted); M not positive
 // definite or a result not finite (failed).
@@ -45,7 +62,7 @@ class KktSolve {
   void refine(const Eigen::MatrixXd& jacobian, const VectorXd& rhs, const Inverse& inverse);
 
   Eigen::LLT<Eigen::MatrixXd> mass_, inner_;
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> spectrum_;
+  DelassusPseudoInverse pseudo_inverse_;
   Eigen::MatrixXd spread_, delassus_;
   VectorXd free_, acceleration_, multipliers_;
   double residual_ = 0.0;

@@ -54,21 +54,15 @@ void ServoParts::compute(const Eigen::LLT<Eigen::MatrixXd>& mass, const VectorXd
   moved = mass.solve(actuation);   // M^-1 B
   const Eigen::Index r = real.rows(), nv = force.size();
   spread.resize(nv, r);
-  delassus.resize(r, r);
   reach.resize(r, actuation.cols());
   base_multipliers.resize(r);
   if (r > 0) {
     spread = mass.solve(real.transpose());
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(real * spread, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    const VectorXd& singular = svd.singularValues();
-    const double floor = 1e-12 * singular(0);  // numpy.linalg.pinv's rcond
-    VectorXd inverse = VectorXd::Zero(r);
-    for (Eigen::Index i = 0; i < r; ++i) inverse(i) = singular(i) > floor ? 1.0 / singular(i) : 0.0;
-    delassus.noalias() = svd.matrixV() * inverse.asDiagonal() * svd.matrixU().transpose();
+    delassus.compute(real * spread, PSEUDO_INVERSE_CUTOFF);  // not finite: NaN, which the callers refuse
     reach.noalias() = spread.transpose() * actuation;
-    base_multipliers.noalias() = delassus * (real_rhs - real * base);
+    base_multipliers = delassus.apply(VectorXd(real_rhs - real * base));
     base.noalias() += spread * base_multipliers;
-    moved.noalias() -= spread * (delassus * reach);
+    moved.noalias() -= spread * delassus.apply(reach);
   }
   decoupling.noalias() = prescribed * moved;
   demand = prescribed_rhs;
@@ -79,7 +73,7 @@ void ServoParts::finish(const VectorXd& controls, VectorXd& a, VectorXd& multipl
   a = base;
   a.noalias() += moved * controls;
   multipliers = base_multipliers;
-  multipliers.noalias() -= delassus * (reach * controls);
+  if (reach.rows() > 0) multipliers -= delassus.apply(VectorXd(reach * controls));
 }
 
 ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Eigen::MatrixXd position_rows,

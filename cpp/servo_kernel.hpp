@@ -7,6 +7,7 @@
 #include <Eigen/Cholesky>
 
 #include "kernels.hpp"
+#include "kkt_solve.hpp"
 #include "targets.hpp"
 
 namespace pinstab {
@@ -33,12 +34,16 @@ VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand);
 // with real rows G (reactions lambda; r of them, r = 0: none) and prescribed rows S (p) realized by the controls u of
 // M a - G^T lambda - B u = f, G a = rhs_G, S a = rhs_S, the real rows alone give a = base + moved u with
 // base = M^-1 (f + G^T lambda0), lambda0 = (G M^-1 G^T)^+ (rhs_G - G M^-1 f) and moved = N B,
-// N = M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1 (the pseudo-inverse drops singular values under 1e-12 times the
-// largest, numpy.linalg.pinv's rule); the prescribed rows then ask D u = demand of D = S N B, demand = rhs_S - S base.
+// N = M^-1 - M^-1 G^T (G M^-1 G^T)^+ G M^-1 (the core solve's pseudo-inverse, DelassusPseudoInverse, with cutoff
+// PSEUDO_INVERSE_CUTOFF: numpy.linalg.pinv's default rule); the prescribed rows then ask D u = demand of D = S N B,
+// demand = rhs_S - S base.
+constexpr double PSEUDO_INVERSE_CUTOFF = 1e-12;  // of the largest eigenvalue of G M^-1 G^T
+
 struct ServoParts {
   VectorXd base, base_multipliers, demand;  // [m/s^2, rad/s^2] (nv), [N, N m] (r), S's units / s^2 (p)
   Eigen::MatrixXd moved, decoupling;        // N B (nv x k), D (p x k)
-  Eigen::MatrixXd spread, delassus, reach;  // M^-1 G^T (nv x r), (G M^-1 G^T)^+ (r x r), G M^-1 B (r x k)
+  Eigen::MatrixXd spread, reach;            // M^-1 G^T (nv x r), G M^-1 B (r x k)
+  DelassusPseudoInverse delassus;           // (G M^-1 G^T)^+
 
   // From the factor of M (nv x nv), f [N, N m] (nv), G (r x nv), S (p x nv), B (nv x k), rhs_G (r), rhs_S (p).
   void compute(const Eigen::LLT<Eigen::MatrixXd>& mass, const VectorXd& force, const Eigen::MatrixXd& real,
