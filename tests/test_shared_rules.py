@@ -89,6 +89,23 @@ def test_servo_parts_drop_a_dependent_real_row():
     np.testing.assert_allclose(doubled.base, once.base, rtol=0, atol=1e-10)
 
 
+
+def test_servo_parts_reactions_are_the_least_norm_ones_of_the_shared_pseudo_inverse():
+    """Real rows with a dependent one (the third the sum of the first two, rhs consistent): the servo's reactions at
+    u = 0 are numpy's pinv(G M^-1 G^T, rcond=1e-12) (rhs_G - G M^-1 f) to 1e-12 relative, the least-norm reactions of
+    the Delassus pseudo-inverse the core solve takes too (cpp/kkt_solve.hpp DelassusPseudoInverse), and they meet
+    M a - G^T lambda = f, G a = rhs_G."""
+    mass, force, rows, prescribed, actuation, real_rhs, prescribed_rhs = random_problem(6, 2, 1, 2, seed=3)
+    rows = np.vstack([rows, rows[0] + rows[1]])
+    real_rhs = np.append(real_rhs, real_rhs[0] + real_rhs[1])
+    parts = servo_parts(mass, force, rows, prescribed, actuation, real_rhs, prescribed_rhs)
+    spread = np.linalg.solve(mass, rows.T)
+    expected = np.linalg.pinv(rows @ spread, rcond=1e-12) @ (real_rhs - rows @ np.linalg.solve(mass, force))
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(parts.base_multipliers, expected, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(mass @ parts.base - rows.T @ parts.base_multipliers, force, atol=1e-12 * scale)
+    np.testing.assert_allclose(rows @ parts.base, real_rhs, atol=1e-12 * (1 + np.abs(real_rhs).max()))
+
 def test_servo_solver_takes_the_qp_within_limits():
     """Limits that the least-norm controls break: the ServoSolver's QP controls stay within them and the solution
     still meets M a - G^T lambda - B u = f, G a = rhs_G, S a = rhs_S (the compiled parts' finish)."""
