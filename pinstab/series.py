@@ -15,7 +15,6 @@ from .errors import DivergenceError, ServoInfeasibleError, SolverError
 from .forces.base import Sample
 from .kernels import closure_series
 from .model import ConstrainedModel
-from .paths.native import NATIVE_KINDS, unsupported_constraint
 from .solvers.base import ACCEPTED_RESIDUAL
 from .system import ConstrainedSystem
 from .zero_dynamics import zero_dynamics_report
@@ -27,8 +26,9 @@ NO_DYNAMICS = (DivergenceError, ServoInfeasibleError, SolverError)
 
 
 class ClosureSeries:
-    """The drift and energy series of a scene whose constraints are all point or planar-point closures and whose force
-    elements store no energy (motors, dampers, loads: the energy is the mechanism's), by the compiled kernel
+    """The drift and energy series of a scene whose constraints all have compiled rows (closures, joint closures, joint
+    relations, fingertip contacts; see :meth:`of`) and whose force elements store no energy (motors, dampers, loads:
+    the energy is the mechanism's), by the compiled kernel
     (``closure_series``, ``cpp/series.cpp``) over the constraints' compiled rows
     (:meth:`~pinstab.constraints.base.Constraint.compiled_rows`): one kinematics pass per sample. The position drift
     and the energy are the Python pass's to the last bit (the same row functions and Pinocchio sums); the velocity
@@ -44,10 +44,13 @@ class ClosureSeries:
 
     @classmethod
     def of(cls, model: ConstrainedModel) -> ClosureSeries | None:
-        """The compiled series of ``model``, or None when a force element stores energy (a spring's potential) or a
-        constraint is other than a point or planar-point closure."""
-        springs = any(element.stores_energy for element in model.forces)
-        if springs or unsupported_constraint(model.constraints.constraints, NATIVE_KINDS) is not None:
+        """The compiled series of ``model``, or None when a force element stores energy (a spring's potential), a
+        constraint has no compiled rows (its rows are Python's) or is not holonomic, or a row is unilateral (its
+        violation counts one side only)."""
+        constraints = model.constraints
+        if any(element.stores_energy for element in model.forces) or constraints.layout.unilateral.any():
+            return None
+        if any(c.compiled_rows() is None or not c.holonomic for c in constraints.constraints):
             return None
         return cls(model)
 
@@ -72,7 +75,7 @@ class StateSeries:
 
     def drift_and_energy(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
         """Position drift max |phi| [m or rad], velocity drift max |g| [m/s or rad/s] and total energy
-        [J] per sample; NaN at non-finite samples. Compiled (:class:`ClosureSeries`) for a scene of point closures
+        [J] per sample; NaN at non-finite samples. Compiled (:class:`ClosureSeries`) for a scene of compiled rows
         whose force elements store no energy, else a pass over the constraints per sample."""
         if self._closures is not None:
             return self._closures.drift_and_energy(q, v, t)

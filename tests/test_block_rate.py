@@ -75,6 +75,7 @@ def test_the_scenes_hold_every_compiled_row_kind():
     rotation_rows = {c.angular for name in SCENES for c in _scene(name).constraints if c.kind == "grasp-contact"}
     assert rotation_rows == {False, True}
 
+
 def test_block_rate_refuses_a_python_block():
     """A python block's rows are Python's: the compiled rate refuses it (ValueError) instead of a wrong number."""
     model = load_scene("fourbar").model

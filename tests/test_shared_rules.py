@@ -89,7 +89,6 @@ def test_servo_parts_drop_a_dependent_real_row():
     np.testing.assert_allclose(doubled.base, once.base, rtol=0, atol=1e-10)
 
 
-
 def test_servo_parts_reactions_are_the_least_norm_ones_of_the_shared_pseudo_inverse():
     """Real rows with a dependent one (the third the sum of the first two, rhs consistent): the servo's reactions at
     u = 0 are numpy's pinv(G M^-1 G^T, rcond=1e-12) (rhs_G - G M^-1 f) to 1e-12 relative, the least-norm reactions of
@@ -105,6 +104,7 @@ def test_servo_parts_reactions_are_the_least_norm_ones_of_the_shared_pseudo_inve
     np.testing.assert_allclose(parts.base_multipliers, expected, rtol=0, atol=1e-12 * scale)
     np.testing.assert_allclose(mass @ parts.base - rows.T @ parts.base_multipliers, force, atol=1e-12 * scale)
     np.testing.assert_allclose(rows @ parts.base, real_rhs, atol=1e-12 * (1 + np.abs(real_rhs).max()))
+
 
 def test_servo_solver_takes_the_qp_within_limits():
     """Limits that the least-norm controls break: the ServoSolver's QP controls stay within them and the solution
