@@ -61,6 +61,7 @@ def _compare(model: pin.Model, blocks: list[tuple[str, RowBlock]], seed: int) ->
 
 @pytest.mark.parametrize("name", [*SCENES, "zoo"])
 def test_block_rate_is_the_jacobians_product_with_v_plus_the_time_term(name):
+    """Every compiled block of the scene, at four random states and times (see :func:`_compare`)."""
     scene = _scene(name)
     blocks = [(c.name, c.compiled_rows()) for c in scene.constraints if c.compiled_rows() is not None]
     assert blocks
