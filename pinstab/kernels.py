@@ -7,8 +7,7 @@ once), Pinocchio's constrained dynamics, the banded solve, the servo solve and t
 steps that the Python loops take too, their stages evaluated by a Python callable (:mod:`pinstab.integration.schemes`),
 the error-controlled loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a
 fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`) and the drift and energy series of a run of
-point closures
-(:mod:`pinstab.series`).
+compiled rows (:mod:`pinstab.series`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
