@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/frames.hpp>
@@ -25,16 +26,17 @@ Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic) {
   return holonomic.select(Eigen::ArrayXd::Constant(holonomic.size(), kd), 0.5 * kd);
 }
 
-VectorXd baumgarte_term(double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate) {
-  return (-(baumgarte_velocity_gains(kd, holonomic) * rate.array()) - kp * phi.array()).matrix();
+VectorXd stabilization_term(double stiffness, const Eigen::ArrayXd& velocity_gains, const VectorXd& phi,
+                            const VectorXd& rate) {
+  return (-(velocity_gains * rate.array()) - stiffness * phi.array()).matrix();
 }
 
 Eigen::Vector3d GravityTilt::gravity(double t) const {
   return Eigen::AngleAxisd(-start - rate * t, axis).toRotationMatrix() * gravity0;
 }
 
-CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp,
-                       double kd, CoreSolve solve, std::optional<GravityTilt> tilt,
+CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, CoreTerm term,
+                       CoreSolve solve, std::optional<GravityTilt> tilt,
                        std::shared_ptr<PythonPart> python)
     : model_(model),
       data_(light_data(model_)),
@@ -42,8 +44,7 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
       forces_(std::move(forces)),
       tilt_(std::move(tilt)),
       python_(std::move(python)),
-      kp_(kp),
-      kd_(kd),
+      term_(std::move(term)),
       settings_(solve),
       rows_(0) {
   for (const RowBlock& block : blocks_) {
@@ -55,8 +56,9 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   python_phi_.setZero(python_rows_);
   python_time_term_.setZero(python_rows_);
   python_drift_.setZero(python_rows_);
-  holonomic_.resize(rows_);
-  for (size_t k = 0; k < blocks_.size(); ++k) holonomic_.segment(offsets_[k], blocks_[k].rows()) = blocks_[k].holonomic;
+  if (term_.velocity_gains.size() != rows_) {
+    throw std::invalid_argument("CoreKernel: the term's velocity gains need one entry per row");
+  }
   jacobian_.setZero(rows_, model_.nv);
   phi_.setZero(rows_);
   time_term_.setZero(rows_);
@@ -64,7 +66,7 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   multipliers_.setZero(rows_);
 }
 
-bool CoreKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                               VectorXd& a) {
   if (tilt_) model_.gravity.linear() = tilt_->gravity(t);
   // one pass: placements, Jacobians, velocities and accelerations at zero joint acceleration, M, h
@@ -72,6 +74,12 @@ bool CoreKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& 
   pinocchio::updateFramePlacements(model_, data_);
   data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose().triangularView<Eigen::StrictlyLower>();
   force_ = tau;
+  const bool holds_term = term_.held && stage > 0;
+  if (term_.held && !holds_term) held_.reset();  // a new step: its term is this evaluation's
+  if (holds_term && !held_) {
+    ++status_counts_["no held term"];
+    return false;
+  }
   if (python_ && !python_->evaluate(t, q, v, python_jacobian_, python_phi_, python_time_term_, python_drift_, force_)) {
     ++status_counts_["python part not usable"];
     return false;
@@ -92,6 +100,10 @@ bool CoreKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& 
     block_jacobian(model_, data_, block, t, jacobian_.middleRows(offset, rows), time_term_.segment(offset, rows));
     block_drift(model_, data_, block, t, drift_.segment(offset, rows));
   }
+  if (!holds_term) {
+    term_value_ = stabilization_term(term_.stiffness, term_.velocity_gains, phi_, jacobian_ * v + time_term_);
+    if (term_.held) held_ = term_value_;
+  }
   add_joint_springs(forces_.springs, q, v, force_);
   for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
   for (const HoldSpec& hold : forces_.holds) {
@@ -101,7 +113,7 @@ bool CoreKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& 
     }
   }
   force_ -= data_.nle;
-  const VectorXd rhs = -drift_ + baumgarte_term(kp_, kd_, holonomic_, phi_, jacobian_ * v + time_term_);
+  const VectorXd rhs = -drift_ + (holds_term ? *held_ : term_value_);
   if (!solve(rhs)) return false;
   if (!inside_limits() || (python_ && !python_->holds(t, multipliers_))) {
     ++status_counts_["outside a contact's limits"];

@@ -1,6 +1,7 @@
-// The core evaluation: any stack of the standard rows (cpp/core_rows.hpp) with joint springs and dampers, the
-// Baumgarte corrector and a KKT solve that survives rank loss (docs/mathematics.md eq. 3), on any joint types
-// (free flyers and balls: the step loop integrates on the configuration group).
+// The core evaluation: any stack of the standard rows (cpp/core_rows.hpp) with joint springs and dampers, a
+// stabilization term of the form -K rate - S phi (Baumgarte's, Mukharlyamov's kinematic one, held or not) and a KKT
+// solve that survives rank loss (docs/mathematics.md eq. 3), on any joint types (free flyers and balls: the step loop
+// integrates on the configuration group).
 #pragma once
 
 #include <map>
@@ -35,11 +36,21 @@ struct CoreForces {
   std::vector<WrenchSpec> wrenches;
 };
 
-// Baumgarte's term per row, -Kd rate - Kp phi with Kd on holonomic rows and Kd / 2 on nonholonomic ones
-// (pinstab.stabilizers.baumgarte calls it): phi [m or rad], rate = G v + g_t [m/s or rad/s], Kp [1/s^2], Kd [1/s].
-VectorXd baumgarte_term(double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate);
-// Its velocity gain per row [1/s]: Kd on holonomic rows, Kd / 2 on nonholonomic ones.
+// The stabilization term per row, -K rate - S phi (docs/mathematics.md section 3; pinstab.stabilizers.baumgarte and
+// .mukharlyamov call it): phi [m or rad] (zero on nonholonomic rows), rate = G v + g_t [m/s or rad/s], the stiffness S
+// [1/s^2], the velocity gains K per row [1/s].
+VectorXd stabilization_term(double stiffness, const Eigen::ArrayXd& velocity_gains, const VectorXd& phi,
+                            const VectorXd& rate);
+// Baumgarte's velocity gain per row [1/s]: Kd on holonomic rows, Kd / 2 on nonholonomic ones.
 Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic);
+
+// The core's stabilization term (pinstab.stabilizers.base.CoreTerm): S [1/s^2], K per row [1/s], and whether the term
+// is computed at a step's first stage (stage 0) and held over its other stages.
+struct CoreTerm {
+  double stiffness = 0.0;
+  Eigen::ArrayXd velocity_gains;
+  bool held = false;
+};
 
 // pinstab.scene.GravityTilt: gravity g(t) = R(axis, -(start + rate t)) g0 [m/s^2] (rate [rad/s], start [rad]).
 struct GravityTilt {
@@ -62,11 +73,11 @@ class PythonPart {
   virtual bool holds(double t, const VectorXd& multipliers) = 0;
 };
 
-// M a + h = tau + forces + G^T lambda, G a = -gamma0 - Kd (G v + g_t) - Kp phi (Kd / 2 on nonholonomic rows), under
-// gravity that tilts in time when `tilt` is given.
+// M a + h = tau + forces + G^T lambda, G a = -gamma0 - K (G v + g_t) - S phi (the term held from stage 0 over a step's
+// other stages when term.held), under gravity that tilts in time when `tilt` is given.
 class CoreKernel : public Kernel {
  public:
-  CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, double kp, double kd,
+  CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, CoreTerm term,
              CoreSolve solve, std::optional<GravityTilt> tilt, std::shared_ptr<PythonPart> python);
   bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                     VectorXd& a) override;
@@ -79,6 +90,9 @@ class CoreKernel : public Kernel {
   // evaluations by how they were solved: "cholesky", "pseudo-inverse"; not used: "... not accepted", "... outside
   // a contact's limits", "hold outside its cones"
   const std::map<std::string, long>& status_counts() const { return status_counts_; }
+  // the term held over the step (computed at its last stage-0 evaluation; none before one, or after a stage-0
+  // evaluation stopped before its rows: the general path's is held then) [m/s^2 or rad/s^2]
+  const std::optional<VectorXd>& held_term() const { return held_; }
 
  private:
   bool solve(const VectorXd& rhs);
@@ -94,14 +108,15 @@ class CoreKernel : public Kernel {
   int python_rows_ = 0;
   Eigen::MatrixXd python_jacobian_;
   VectorXd python_phi_, python_time_term_, python_drift_;
-  double kp_, kd_;
+  CoreTerm term_;
+  std::optional<VectorXd> held_;
+  VectorXd term_value_;
   CoreSolve settings_;
   int rows_;
   double worst_residual_ = 0.0;
   std::map<std::string, long> status_counts_;
   Eigen::MatrixXd jacobian_;
   VectorXd phi_, time_term_, drift_, force_, multipliers_, acceleration_;
-  Mask holonomic_;
   KktSolve kkt_;
 };
 

@@ -435,16 +435,16 @@ NB_MODULE(_compiled, m) {
       "jacobian"_a, "a"_a, "rhs"_a, "force"_a, "mass_diagonal"_a, "unilateral"_a,
       "|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-], a unilateral row (mask) counted only when violated.");
   m.def(
-      "baumgarte_term",
-      [](double kp, double kd, const Mask& holonomic, const VectorXd& phi, const VectorXd& rate) {
-        if (holonomic.size() != phi.size() || rate.size() != phi.size()) {
-          throw std::invalid_argument("baumgarte_term: holonomic, phi and rate need one entry per row");
+      "stabilization_term",
+      [](double stiffness, const VectorXd& velocity_gains, const VectorXd& phi, const VectorXd& rate) {
+        if (velocity_gains.size() != phi.size() || rate.size() != phi.size()) {
+          throw std::invalid_argument("stabilization_term: velocity_gains, phi and rate need one entry per row");
         }
-        return baumgarte_term(kp, kd, holonomic, phi, rate);
+        return stabilization_term(stiffness, velocity_gains.array(), phi, rate);
       },
-      "kp"_a, "kd"_a, "holonomic"_a, "phi"_a, "rate"_a,
-      "Baumgarte's term per row, -Kd rate - Kp phi (Kd on holonomic rows, Kd / 2 on nonholonomic ones): phi [m or "
-      "rad], rate = G v + g_t [m/s or rad/s], Kp [1/s^2], Kd [1/s].");
+      "stiffness"_a, "velocity_gains"_a, "phi"_a, "rate"_a,
+      "The stabilization term per row, -K rate - S phi (the core kernel's): phi [m or rad] (zero on nonholonomic "
+      "rows), rate = G v + g_t [m/s or rad/s], the stiffness S [1/s^2], the velocity gains K per row [1/s].");
   m.def(
       "baumgarte_velocity_gains",
       [](double kd, const Mask& holonomic) -> VectorXd { return baumgarte_velocity_gains(kd, holonomic).matrix(); },
@@ -552,8 +552,8 @@ NB_MODULE(_compiled, m) {
       .def(
           "__init__",
           [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
-             double kp, double kd, nb::dict settings, std::optional<nb::dict> tilt,
-             nb::object python) {
+             double stiffness, const VectorXd& velocity_gains, bool held, nb::dict settings,
+             std::optional<nb::dict> tilt, nb::object python) {
             CoreForces forces;
             for (const nb::dict& form : forms) {
               const std::string kind = nb::cast<std::string>(form["kind"]);
@@ -581,17 +581,22 @@ NB_MODULE(_compiled, m) {
             }
             std::shared_ptr<PythonPart> part;
             if (!python.is_none()) part = std::make_shared<CallbackPart>(python);
-            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), kp, kd, solve,
-                                  turning, std::move(part));
+            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces),
+                                  CoreTerm{stiffness, velocity_gains.array(), held}, solve, turning, std::move(part));
           },
-          "model"_a, "blocks"_a, "forces"_a, "kp"_a, "kd"_a, "settings"_a, "tilt"_a = nb::none(),
+          "model"_a, "blocks"_a, "forces"_a, "stiffness"_a, "velocity_gains"_a, "held"_a, "settings"_a,
+          "tilt"_a = nb::none(),
           "python"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
-          "wrench), Baumgarte gains, the solve's settings (dict: direct_pivot, cutoff, accepted, margin_slack) and "
-          "a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
+          "wrench), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
+          "step's stage 0 and held over its other stages), the solve's settings (dict: direct_pivot, cutoff, "
+          "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
           "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "
           "kind 6 and the elements without a compiled form, and holds(t, multipliers) -> bool.")
       .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
+      .def("held_term", &CoreKernel::held_term,
+           "The term held over the step (computed at its last stage-0 evaluation) [m/s^2 or rad/s^2], or None: a term "
+           "not held, none computed yet, or the last stage-0 evaluation stopped before its rows.")
       .def_prop_ro("worst_residual", &CoreKernel::worst_residual,
                    "The largest relative |G a - rhs| of the evaluations used (solvers.base.primal_residual).")
       .def_prop_ro("status_counts", &CoreKernel::status_counts,

@@ -271,22 +271,22 @@ class ConstrainedSystem:
         )
 
     def _bind_core(self) -> None:
-        """Take the core path when every constraint is an equality block and not prescribed, the method's term is
-        Baumgarte's and the KKT backend's solve is the direct one the core repeats; else say why in
-        :attr:`path_reason`. Blocks without compiled rows and force elements without a compiled form are evaluated
-        in Python at each evaluation (the reason names them)."""
+        """Take the core path when every constraint is an equality block and not prescribed, the method's term has
+        the core's form (:meth:`~pinstab.stabilizers.base.Stabilizer.core_term`) and the KKT backend's solve is the
+        direct one the core repeats; else say why in :attr:`path_reason`. Blocks without compiled rows and force
+        elements without a compiled form are evaluated in Python at each evaluation (the reason names them)."""
         model = self.model
         constraints = model.constraints
         reason = core_obstacle(constraints.constraints)
         if reason is None:
-            reason = self._compiled_form_obstacle("the core evaluation", tilts=True)
+            reason = self._compiled_form_obstacle("the core evaluation", core=True)
         if reason is None and not (self.solver.name == CORE_SOLVER and self.solver.options.direct):
             reason = f"solver {self.solver.name} solves every evaluation by its own method (not Cholesky factors)"
         if reason is not None:
             self.path_reason = reason
             return
-        gains = self.stabilizer.baumgarte_gains()
-        self.compiled_path = CoreDynamics(model, *gains, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+        term = self.stabilizer.core_term()
+        self.compiled_path = CoreDynamics(model, *term, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
         self.path, self.acceleration = "core", self._compiled_acceleration
         in_python = self.compiled_path.in_python()
         self.path_reason = (
@@ -320,12 +320,15 @@ class ConstrainedSystem:
         delassus = jacobian @ np.linalg.solve(self.model.mass_matrix(q), jacobian.T)
         return max(NATIVE_MU, REDUNDANT_MU * float(np.linalg.eigvalsh(delassus)[-1]))
 
-    def _compiled_form_obstacle(self, solve: str, tilts: bool = False) -> str | None:
+    def _compiled_form_obstacle(self, solve: str, core: bool = False) -> str | None:
         """Why the scene's gravity or the method keeps a compiled ``solve`` (named in the reason) off: gravity that
-        tilts in time (unless the solve ``tilts`` it), a stabilization term not of Baumgarte's form; or None."""
-        if self.model.scene.tilt is not None and not tilts:
+        tilts in time (unless the solve is the ``core``'s, which tilts it), a stabilization term not of Baumgarte's
+        form (the core's: not of its form, :meth:`~pinstab.stabilizers.base.Stabilizer.core_term`); or None."""
+        if self.model.scene.tilt is not None and not core:
             return f"gravity tilts in time ([tilt]); {solve} takes the model's one gravity"
-        if self.stabilizer.baumgarte_gains() is None:
+        if core and self.stabilizer.core_term() is None:
+            return f"method {self.stabilizer.name}'s term is not of the core's form -K (G v + g_t) - S phi"
+        if not core and self.stabilizer.baumgarte_gains() is None:
             return f"method {self.stabilizer.name}'s term is not Baumgarte's -Kp phi - Kd G v at every stage"
         return None
 
@@ -394,11 +397,15 @@ class ConstrainedSystem:
 
     def _compiled_acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         path = self.compiled_path
-        acceleration = path.acceleration(q, v, path.force(self.model, q, v, t), t)
+        acceleration = path.acceleration(q, v, path.force(self.model, q, v, t), t, stage)
         if path.unusable:  # the general solve says why (a servo: from the kernel's last sign) or solves it otherwise
             self._audit.fallbacks += 1
             if self.servo is not None:
                 self.servo.follow(path.last_sign)
+            if stage > 0 and isinstance(path, CoreDynamics) and path.held:
+                held = path.held_term()  # None: the general path computed this step's at stage 0, and holds it
+                if held is not None:
+                    self.stabilizer.hold(held)
             return self._general_acceleration(q, v, t, stage)
         self._compiled_solves += 1
         return acceleration

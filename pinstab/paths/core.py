@@ -106,20 +106,30 @@ class CoreDynamics:
     """The compiled core evaluation (see :func:`core_obstacle`).
 
     Args:
-        model: the constrained model. kp: corrector stiffness [1/s^2]. kd: corrector damping [1/s]. direct_pivot: the
-            Delassus matrix's smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows
-            count as dependent. accepted: the relative primal residual an evaluation must reach to be used.
+        model: the constrained model. stiffness: the term's S [1/s^2]. velocity_gains: its K per row [1/s]. held: the
+            term is computed at a step's stage 0 and held over its other stages. direct_pivot: the Delassus matrix's
+            smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows count as
+            dependent. accepted: the relative primal residual an evaluation must reach to be used.
 
     Attributes:
         kernel: the compiled evaluation (``cpp/core_kernel.cpp``).
         python: the blocks and force elements evaluated in Python (:class:`PythonPart`), or None.
+        held: the term is held over a step's stages (:meth:`held_term`).
         unusable: the last :meth:`acceleration` is not to be used (the general path solves it).
         status: the solver status its solves count under.
     """
 
     status = "core"
 
-    def __init__(self, model: ConstrainedModel, kp: float, kd: float, direct_pivot: float, accepted: float) -> None:
+    def __init__(
+        self,
+        model: ConstrainedModel,
+        stiffness: float,
+        velocity_gains: np.ndarray,
+        held: bool,
+        direct_pivot: float,
+        accepted: float,
+    ) -> None:
         settings: dict[str, Any] = {
             "direct_pivot": direct_pivot,
             "cutoff": CUTOFF,
@@ -137,7 +147,10 @@ class CoreDynamics:
         self.python = PythonPart(model, in_python, elements) if in_python or elements else None
         tilt = None if model.scene.tilt is None else model.scene.tilt.compiled_form()
         forms = [form for form in forms if form is not None]
-        self.kernel = CoreKernel(model.model, blocks, forms, float(kp), float(kd), settings, tilt, self.python)
+        self.kernel = CoreKernel(
+            model.model, blocks, forms, float(stiffness), velocity_gains, bool(held), settings, tilt, self.python
+        )
+        self.held = bool(held)
         self._zero = np.zeros(model.nv)
         self._zero.flags.writeable = False
         self.unusable = False
@@ -164,9 +177,15 @@ class CoreDynamics:
         """The largest relative ``|G a - rhs|`` of the evaluations used [-] (the general path's measure)."""
         return self.kernel.worst_residual
 
-    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float) -> np.ndarray:
+    def held_term(self) -> np.ndarray | None:
+        """The term the kernel holds over the step, computed at its stage 0 [m/s^2 or rad/s^2], or None (a term not
+        held, or a stage-0 evaluation that stopped before its rows: the general path computed that step's)."""
+        return self.kernel.held_term()
+
+    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         """Joint accelerations [m/s^2, rad/s^2] at (t, q, v) under the applied forces ``tau`` [N, N m] besides the
-        compiled elements'; check :attr:`unusable` before using them."""
-        acceleration, usable = self.kernel.acceleration(q, v, tau, t)
+        compiled elements', at that ``stage`` of a step (0 first: a held term is computed there); check
+        :attr:`unusable` before using them."""
+        acceleration, usable = self.kernel.acceleration(q, v, tau, t, stage)
         self.unusable = not usable
         return acceleration

@@ -96,10 +96,10 @@ class ServoDynamics:
         """The applied forces the kernel takes [N, N m]: every force element's (in Python)."""
         return model.applied_force_at(q, v, t)
 
-    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float) -> np.ndarray:
-        """Joint accelerations [m/s^2, rad/s^2] at (t, q, v) under the applied forces ``tau`` [N, N m]; check
-        :attr:`unusable` before using them."""
-        acceleration, usable = self.kernel.acceleration(q, v, tau, t)
+    def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
+        """Joint accelerations [m/s^2, rad/s^2] at (t, q, v) under the applied forces ``tau`` [N, N m], at that
+        ``stage`` of a step; check :attr:`unusable` before using them."""
+        acceleration, usable = self.kernel.acceleration(q, v, tau, t, stage)
         self.unusable = not usable
         return acceleration
 

@@ -2,7 +2,7 @@
 :data:`STABILIZERS` (``none``, ``baumgarte``, ``mukharlyamov``, ``projection``, ``post``, ``pinocchio``)."""
 
 from ..registry import load_extensions
-from .base import STABILIZERS, Correction, DeviationGains, Stabilizer
+from .base import STABILIZERS, CoreTerm, Correction, DeviationGains, Stabilizer
 from .baumgarte import DEFAULT_KD, DEFAULT_KP, BaumgarteOptions, BaumgarteStabilizer, PinocchioNativeStabilizer
 from .mukharlyamov import DEFAULT_DECAY, VARIANTS, MukharlyamovOptions, MukharlyamovStabilizer
 from .none import NoStabilizer
@@ -18,6 +18,7 @@ __all__ = [
     "VARIANTS",
     "BaumgarteOptions",
     "BaumgarteStabilizer",
+    "CoreTerm",
     "Correction",
     "DeviationGains",
     "MukharlyamovOptions",

@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from .. import kernels
 from ..constraints import ConstraintValues
+from ..errors import PinstabError
 from ..registry import Registry
 from ..stability import deviation_radius
 
@@ -38,6 +40,20 @@ class DeviationGains(NamedTuple):
     stiffness: np.ndarray
     damping: np.ndarray
     holonomic_mask: np.ndarray
+
+
+class CoreTerm(NamedTuple):
+    """The stabilization term in the core kernel's form ``gamma_stab = -K (G v + g_t) - S phi``
+    (``cpp/core_kernel.hpp`` CoreTerm).
+
+    Attributes:
+        stiffness: S [1/s^2]. velocity_gains: K per row (s,) [1/s].
+        held: computed at a step's first stage and held over its other stages.
+    """
+
+    stiffness: float
+    velocity_gains: np.ndarray
+    held: bool
 
 
 class Stabilizer:
@@ -87,6 +103,20 @@ class Stabilizer:
         """(Kp, Kd) when the term is Baumgarte's (so Pinocchio's corrector can apply it, (0, 0) for no
         term), else None. The base class says None: a new method must claim the form to get it."""
         return None
+
+    def core_term(self) -> CoreTerm | None:
+        """The term in the core kernel's form once bound, or None when it has no such form. The base class
+        gives Baumgarte's when :meth:`baumgarte_gains` names it (Kd / 2 on nonholonomic rows), not held."""
+        gains = self.baumgarte_gains()
+        if gains is None:
+            return None
+        kp, kd = gains
+        return CoreTerm(float(kp), kernels.baumgarte_velocity_gains(float(kd), self.mask), False)
+
+    def hold(self, term: np.ndarray) -> None:
+        """Take ``term`` (s,) [m/s^2 or rad/s^2] as the one held over this step, computed at its first stage by
+        the core kernel (:meth:`core_term` held); a method whose term is not held has none to take."""
+        raise PinstabError(f"method {self.name}: its term is not held over a step")
 
     def correct(
         self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float

@@ -50,8 +50,8 @@ class BaumgarteStabilizer(Stabilizer):
         )
 
     def stabilization_term(self, model, q, v, t, values: ConstraintValues, stage: int) -> np.ndarray:
-        mask = model.constraints.holonomic_mask
-        return kernels.baumgarte_term(self.kp, self.kd, mask, values.phi, values.velocity_residual)  # the core's
+        gains = kernels.baumgarte_velocity_gains(self.kd, model.constraints.holonomic_mask)
+        return kernels.stabilization_term(self.kp, gains, values.phi, values.velocity_residual)  # the core's
 
     def baumgarte_gains(self) -> tuple[float, float]:
         return (self.kp, self.kd)

@@ -29,11 +29,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import kernels
 from ..constraints import ConstraintValues
 from ..errors import PinstabError, choices
 from ..kinematics import Kinematics
 from ..stability import is_multistage, place_gains
-from .base import STABILIZERS, DeviationGains, Stabilizer
+from .base import STABILIZERS, CoreTerm, DeviationGains, Stabilizer
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
@@ -163,8 +164,8 @@ class MukharlyamovStabilizer(Stabilizer):
             raise PinstabError("mukharlyamov: bind() the stabilizer to a step and an integrator before use")
         if self.holding and stage > 0:
             return self._held_term
-        if self.variant == "kinematic":
-            term = -self._s_scalar * values.phi - self._k_diagonal * values.velocity_residual
+        if self.variant == "kinematic":  # the core kernel's
+            term = kernels.stabilization_term(self._s_scalar, self._k_diagonal, values.phi, values.velocity_residual)
         else:
             stiffness, damping = self._inertial_matrices(model, q, v, values.jacobian, model.kin.mass_matrix)
             term = -stiffness @ values.phi[self.mask] - damping @ values.velocity_residual
@@ -181,6 +182,18 @@ class MukharlyamovStabilizer(Stabilizer):
         delassus_rate = (delassus_ahead - delassus) / RATE_STEP
         inertia = np.linalg.pinv(delassus, rcond=RCOND)
         return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
+
+    def core_term(self) -> CoreTerm | None:
+        """(S, K per row, held) once bound, in the kinematic variant; None in the inertial one (S and K follow
+        Lambda(q))."""
+        if not self._bound or self.variant != "kinematic":
+            return None
+        return CoreTerm(float(self._s_scalar), self._k_diagonal, self.holding)
+
+    def hold(self, term: np.ndarray) -> None:
+        if not self.holding:
+            super().hold(term)
+        self._held_term = term
 
     def baumgarte_gains(self) -> tuple[float, float] | None:
         """(S, K) once bound, when the term is Baumgarte's: the kinematic variant on holonomic rows with
