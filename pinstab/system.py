@@ -405,7 +405,7 @@ class ConstrainedSystem:
             if stage > 0 and isinstance(path, CoreDynamics) and path.held:
                 held = path.held_term()  # None: the general path computed this step's at stage 0, and holds it
                 if held is not None:
-                    self.stabilizer.hold(held)
+                    self.stabilizer.hold_term(held)
             return self._general_acceleration(q, v, t, stage)
         self._compiled_solves += 1
         return acceleration

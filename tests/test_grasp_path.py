@@ -139,13 +139,20 @@ def test_a_lost_grasp_is_named_as_on_the_general_path():
             "solver proxsuite solves every evaluation",
         ),
         ("allegro-sphere", {"method": "projection"}, "core", "4 constraint block(s)"),
-        ("allegro-sphere", {"method": "mukharlyamov"}, "general", "method mukharlyamov's term is not Baumgarte's"),
+        ("allegro-sphere", {"method": "mukharlyamov"}, "core", "4 constraint block(s)"),
+        (
+            "allegro-sphere",
+            {"method": "mukharlyamov", "variant": "inertial"},
+            "general",
+            "method mukharlyamov's term is not of the core's form",
+        ),
     ],
 )
 def test_the_core_path_is_taken_where_it_repeats_the_general_one(scene, options, path, reason):
     """The core path for an object-level controller (evaluated in Python, named), soft fingers' rotation rows and a
-    tilting gravity, and under a projection method (its corrections run in Python on any path); the general path,
-    with the reason named, where ProxQP is asked for every solve or the stabilization term is not Baumgarte's."""
+    tilting gravity, under a projection method (its corrections run in Python on any path) and Mukharlyamov's kinematic
+    term (held over the stages); the general path, with the reason named, where ProxQP is asked for every solve or the
+    stabilization term is not of the core's form (Mukharlyamov's inertial one)."""
     system, _, _ = bound(load_scene(scene), **options)
     assert system.path == path
     assert reason in system.path_reason

@@ -113,7 +113,7 @@ class Stabilizer:
         kp, kd = gains
         return CoreTerm(float(kp), kernels.baumgarte_velocity_gains(float(kd), self.mask), False)
 
-    def hold(self, term: np.ndarray) -> None:
+    def hold_term(self, term: np.ndarray) -> None:
         """Take ``term`` (s,) [m/s^2 or rad/s^2] as the one held over this step, computed at its first stage by
         the core kernel (:meth:`core_term` held); a method whose term is not held has none to take."""
         raise PinstabError(f"method {self.name}: its term is not held over a step")

@@ -190,9 +190,9 @@ class MukharlyamovStabilizer(Stabilizer):
             return None
         return CoreTerm(float(self._s_scalar), self._k_diagonal, self.holding)
 
-    def hold(self, term: np.ndarray) -> None:
+    def hold_term(self, term: np.ndarray) -> None:
         if not self.holding:
-            super().hold(term)
+            super().hold_term(term)
         self._held_term = term
 
     def baumgarte_gains(self) -> tuple[float, float] | None:
