@@ -37,7 +37,8 @@ def main() -> None:
         system = build_system(scene)
         system.bind(DT, "rk4", q)
         special = system.banded.kernel if system.banded is not None else system.native.kernel()
-        core = CoreDynamics(ConstrainedModel(scene), 100.0, 20.0, DIRECT_PIVOT, ACCEPTED_RESIDUAL).kernel
+        term = system.stabilizer.core_term()  # Baumgarte's at its defaults, Kp = 100, Kd = 20
+        core = CoreDynamics(ConstrainedModel(scene), *term, DIRECT_PIVOT, ACCEPTED_RESIDUAL).kernel
         kernels = {system.path: special, "core": core}
         tau, steps = np.zeros(scene.model.nv), round(DURATION / DT)
         times: dict[str, list[float]] = {name: [] for name in kernels}
