@@ -113,7 +113,7 @@ def test_carried_plane_rows_match_finite_differences():
     from pinstab.solvers.contact_modes import ModeDynamics, plane_geometries
 
     scene = load_scene("pinch")
-    dynamics = ModeDynamics(ConstrainedModel(scene), plane_geometries(scene.constraints), 0.0, 0.0)
+    dynamics = ModeDynamics(ConstrainedModel(scene), plane_geometries(scene.constraints))
     model = scene.model
     rng = np.random.default_rng(3)
     q = pin.integrate(model, scene.q0, rng.normal(size=model.nv) * 0.3)

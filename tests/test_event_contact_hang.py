@@ -107,7 +107,7 @@ def test_impact_on_a_long_lever_leaves_its_contact_on_its_plane() -> None:
     scene["objects"][0]["position"] = [0.0, 0.0, 0.01]  # every rim point and the far one on the plane
     loaded = scene_from_dict(scene, "lever")
     geometries, system, q, _, _ = contact_system(loaded, loaded.q0, loaded.v0)
-    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    dynamics = ModeDynamics(system.model, geometries)
     v = np.array([1.0, 0.2486, -0.5, -1.0, -0.333, 0.0207])  # c2 closing (the body's frame velocity)
     solution = dynamics.solve(q, v, 0.0, [Mode.SEPARATED] * 3)
     before = solution.contacts.velocities[2, 0]

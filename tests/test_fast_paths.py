@@ -14,11 +14,24 @@ import pytest
 from pinstab import load_scene
 from pinstab.actuation import Actuation
 from pinstab.grasp.analysis import GraspContact
-from pinstab.grasp.holding import ConeTest, WarmQP, cone_columns, leaving
+from pinstab.grasp.holding import FEASIBILITY, ConeTest, WarmQP, cone_columns, cone_margins
 from pinstab.grasp.linalg import closest_solution, pinv, svd
 from pinstab.kinematics import Kinematics
 from pinstab.model import ConstrainedModel
 from pinstab.servo import ServoSolver
+
+
+def leaving(contacts, forces: np.ndarray) -> dict[str, dict[str, float]]:
+    """The reference the compiled cone test is checked against: every contact with a margin (:func:`cone_margins`,
+    written in Python from each contact model's limits) below the rounding slack, with those margins."""
+    slack = -FEASIBILITY * (1.0 + float(np.max(np.abs(forces), initial=0.0)))
+    found = {}
+    for name, margins in cone_margins(contacts, forces).items():
+        violated = {key: value for key, value in margins.items() if value < slack}
+        if violated:
+            found[name] = violated
+    return found
+
 
 RNG = np.random.default_rng(23)
 

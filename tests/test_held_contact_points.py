@@ -92,7 +92,7 @@ def test_a_density_below_a_microgram_is_refused(tmp_path):
 def test_a_singular_mass_matrix_in_the_contact_modes_is_named(monkeypatch):
     scene = load_scene("bouncing-ball")
     model = ConstrainedModel(scene)
-    dynamics = ModeDynamics(model, plane_geometries(scene.constraints), 0.0, 0.0)
+    dynamics = ModeDynamics(model, plane_geometries(scene.constraints))
     terms = model.dynamics_terms
     monkeypatch.setattr(model, "dynamics_terms", lambda q, v, t: terms(q, v, t)._replace(mass_matrix=np.zeros((6, 6))))
     with pytest.raises(SolverError, match=r"contacts ground at t = 0\.25 s: the mass matrix is singular"):

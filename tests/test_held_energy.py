@@ -139,7 +139,7 @@ def box_impacts():
         contact.pop("mu")
     scene = scene_from_dict(data, "box")
     geometries, system, q, _, _ = contact_system(scene, scene.q0, scene.v0)
-    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    dynamics = ModeDynamics(system.model, geometries)
     mass = system.model.mass_matrix(q)
     return dynamics, NcpSolver(3 * len(geometries), 1e-12, 10_000), q, lambda v: 0.5 * v @ mass @ v
 

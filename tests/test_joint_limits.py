@@ -120,7 +120,7 @@ def test_active_set_agrees_with_pinocchio(panda_run, t):
     selected = [by_side[i].name for i in constraint.active_idx_in_activable()]
     assert set(selected) == held
     assert len(held) == {0.1: 0, 1.0: 1, 1.7: 2}[t]
-    dynamics = ModeDynamics(ConstrainedModel(scene), [], 0.0, 0.0, table)
+    dynamics = ModeDynamics(ConstrainedModel(scene), [], table)
     dynamics.active = [limit.name in held for limit in table]
     terms = dynamics.model.dynamics_terms(q, panda_run.v[k], time)
     rows = dynamics.bilateral_rows(terms, q, panda_run.v[k])[0][scene.constraint_set.rows :]

@@ -48,7 +48,7 @@ from ..tables import SceneTables
 from ..units import within_ceiling
 from .hold import contact_rows, grasped_contacts, grasped_object, hand_columns
 from .holding import WarmQP, cone_columns, pyramid_rows
-from .linalg import pinv
+from .linalg import closest_solution, pinv
 from .welded import WeldedGrasp, welded_grasp
 
 CONTROL_KEYS = {
@@ -235,10 +235,10 @@ class GraspControl(ForceElement):
                 )
             # ProxQP meets the object's balance carrier f = wrench only to its eps_abs (1e-10 N, or 1e-6 with older
             # proxsuite releases), which a light object turns into 1e-8..1e-6 m/s^2 of planned acceleration the
-            # torques do not produce: the least-norm correction meets it to rounding (the cones keep their margin)
-            forces = forces + np.linalg.lstsq(carrier, wrench - carrier @ forces, rcond=None)[0]
+            # torques do not produce: the closest forces that meet it meet it to rounding (the cones keep their margin)
+            forces = closest_solution(carrier, wrench, forces)
         else:
-            forces = np.linalg.lstsq(carrier, wrench, rcond=None)[0]
+            forces = closest_solution(carrier, wrench, np.zeros(carrier.shape[1]))  # the least-norm forces
         tau = np.zeros(self.model.nv)
         tau[self.hand_columns] = demand - hand_rows.T @ forces
         return tau, forces, acceleration

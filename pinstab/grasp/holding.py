@@ -166,30 +166,18 @@ def cone_arrays(columns: list[ConeColumns]) -> tuple[np.ndarray, np.ndarray, np.
 
 
 class ConeTest:
-    """Whether stacked forces keep every contact's limits, as :func:`leaving` decides it, and every normal force
-    within a cap [N] (inf: none): the compiled test (``cpp/grasp_forces.cpp`` cones_hold, the core's too), at every
-    evaluation."""
+    """Whether stacked forces keep every contact's limits (each of its margins, :func:`cone_margins`, above a rounding
+    slack of FEASIBILITY (1 + the largest |force|)) and every normal force within a cap [N] (inf: none): the compiled
+    test (``cpp/grasp_forces.cpp`` cones_hold, the core's too), at every evaluation."""
 
     def __init__(self, contacts: list[Any], cap: float = math.inf) -> None:
         self._columns, self._mu, self._torsion = cone_arrays(cone_columns(contacts)[0])
         self._cap = float(cap)
 
     def holds(self, forces: np.ndarray) -> bool:
-        """No contact leaves its limits (``not leaving(contacts, forces)``) and no normal force exceeds the cap by
-        more than 1e-9 of it; False where a force is not a number."""
+        """No contact leaves its limits and no normal force exceeds the cap by more than 1e-9 of it; False where a
+        force is not a number."""
         return kernels.cones_hold(self._columns, self._mu, self._torsion, self._cap, FEASIBILITY, forces)
-
-
-def leaving(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
-    """Every contact whose force (in the stacked ``forces``) is outside what it carries, with its violated
-    margins (< 0, see :func:`cone_margins`), beyond a rounding slack relative to the largest force."""
-    slack = -FEASIBILITY * (1.0 + float(np.max(np.abs(forces), initial=0.0)))
-    found = {}
-    for name, margins in cone_margins(contacts, forces).items():
-        violated = {key: value for key, value in margins.items() if value < slack}
-        if violated:
-            found[name] = violated
-    return found
 
 
 @dataclass(frozen=True)
@@ -300,7 +288,7 @@ class _Problem:
                 continue
             forces = x[:-1] * self.scale
             residual = float(np.max(np.abs(self.carrier @ forces - self.load), initial=0.0))
-            if residual <= FEASIBILITY * self.scale and not leaving(self.contacts, forces):
+            if residual <= FEASIBILITY * self.scale and ConeTest(self.contacts).holds(forces):
                 normals = [contact.normal for contact in self.columns]
                 return Holding(forces, float(np.max(forces[normals], initial=0.0)))
         return Holding(None, math.inf)

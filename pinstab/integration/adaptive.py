@@ -240,7 +240,7 @@ class AdaptiveLoop(StepLoop):
             try:
                 q_new, v_new, slopes, end_slope = self._trial(q, v, a, t, h)
             except ContactInfeasibleError:
-                if MIN_FACTOR * h < MIN_STEP * max(1.0, t):
+                if self.rules.shrink(h, math.inf) < MIN_STEP * max(1.0, t):  # the shortest retry
                     raise
                 error = math.inf
             else:

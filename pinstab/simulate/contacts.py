@@ -107,7 +107,7 @@ def simulate_events(
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
-    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0, limits, system.solver.statistics)
+    dynamics = ModeDynamics(system.model, geometries, limits, system.solver.statistics)
     system.acceleration = dynamics.acceleration
     system.path, system.path_reason = "contact-events", reason
     stepper = INTEGRATORS.build("dop853", system)
@@ -152,7 +152,7 @@ def simulate_stepping(
     geometries, system, q, v, _ = contact_system(scene, q0, v0)
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
-    dynamics = ModeDynamics(system.model, geometries, 0.0, 0.0)
+    dynamics = ModeDynamics(system.model, geometries)
     stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
     system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
     info = run_info(scene, system, stepper.name, grid, None, "none", None, record_every)

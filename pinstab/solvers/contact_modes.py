@@ -111,7 +111,6 @@ class ModeDynamics:
     Args:
         model: the constrained model; its own constraints (equality rows: loop closures, joint relations) are
             held as bilateral rows. contacts: the plane contacts.
-        kp, kd: Baumgarte's gains on the contact, closure and limit rows [1/s^2], [1/s].
         limits: the joint limits (:mod:`pinstab.constraints.joint_limits`), each active (a bilateral row) or not.
         statistics: where its evaluations are counted (a run's solver statistics; default: its own).
 
@@ -132,14 +131,11 @@ class ModeDynamics:
         self,
         model: ConstrainedModel,
         contacts: list[PlaneContactGeometry],
-        kp: float,
-        kd: float,
         limits: list[JointLimit] | None = None,
         statistics: SolverStatistics | None = None,
     ) -> None:
         self.model = model
         self.contacts = contacts
-        self.kp, self.kd = kp, kd
         self.limits = list(limits or [])
         self.active = [False] * len(self.limits)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
@@ -183,8 +179,7 @@ class ModeDynamics:
                 system[rows, rows] = np.eye(3)
                 continue
             velocity = contacts.velocities[i]
-            error = np.array([contacts.gaps[i], *(contact.basis[1:] @ (contacts.local[i] - contact.anchor))])
-            target = -reach[rows] - self.kd * velocity - self.kp * error
+            target = -reach[rows]
             if mode is Mode.STICKING:
                 system[rows] = delassus[rows]
                 rhs[rows] = target
@@ -230,18 +225,16 @@ class ModeDynamics:
 
     def bilateral_rows(self, terms, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The bilateral rows at (q, v) (``terms``: :meth:`ConstrainedModel.dynamics_terms` there): their Jacobian
-        B (b, nv), velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2] with
-        Baumgarte's gains (closure rows, then the active limits)."""
+        B (b, nv), velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2]
+        (closure rows, then the active limits)."""
         values = terms.values
         limits = [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
         rows = np.zeros((len(limits), self.model.nv))
         for r, limit in enumerate(limits):
             rows[r, limit.index_v] = limit.sign
-        gaps = np.array([limit.gap(q) for limit in limits])
         jacobian = np.vstack([values.jacobian, rows])
         velocity = np.concatenate([values.velocity_residual, rows @ v])
-        target = np.concatenate([-values.drift, np.zeros(len(limits))]) - self.kd * velocity
-        target -= self.kp * np.concatenate([values.phi, gaps])
+        target = np.concatenate([-values.drift, np.zeros(len(limits))])
         return jacobian, velocity, target
 
     def _unforced(

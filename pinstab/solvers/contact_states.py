@@ -149,7 +149,7 @@ def contact_states(scene: Scene, trajectory: Trajectory) -> ContactStates:
     names = [geometry.name for geometry in geometries]
     spans = mode_spans(events, names, float(trajectory.t[-1]))
     by_contact = {name: [span for span in spans if span.contact == name] for name in names}
-    dynamics = ModeDynamics(ConstrainedModel(dataclasses.replace(scene, constraints=[])), geometries, 0.0, 0.0)
+    dynamics = ModeDynamics(ConstrainedModel(dataclasses.replace(scene, constraints=[])), geometries)
     n, k = len(trajectory.t), len(names)
     modes = np.empty((n, k), dtype=object)
     points, forces, local = np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan)

@@ -1,4 +1,4 @@
-"""``dense``: numpy elimination through the Delassus matrix; refuses rank-deficient constraints."""
+"""``dense``: elimination through the Delassus matrix (the core's direct solve); refuses rank-deficient constraints."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import kernels
 from ..errors import SolverError
 from ..registry import NoOptions
 from .base import SOLVERS, KKTProblem, KKTSolution, KKTSolver, check_row_kinds, primal_residual
@@ -32,28 +33,24 @@ class DenseSolver(KKTSolver):
 
     def solve(self, problem: KKTProblem) -> KKTSolution:
         jac = problem.jacobian
-        try:
-            solved = np.linalg.solve(problem.mass_matrix, np.column_stack([problem.free_force, jac.T]))
-        except np.linalg.LinAlgError:
-            raise SolverError(
-                "dense: the joint-space inertia matrix is singular (a massless moving subtree?)"
-            ) from None
-        free_acceleration, minv_gt = solved[:, 0], solved[:, 1:]
-        if jac.shape[0] == 0:
-            return self.record(KKTSolution(free_acceleration, np.zeros(0)))
-        delassus = jac @ minv_gt
-        # Cholesky of the Delassus matrix: it fails, or leaves a tiny pivot, exactly when G loses rank
-        try:
-            factor = np.linalg.cholesky(delassus)
-            pivots = np.diagonal(factor) ** 2
-            deficient = pivots.min() <= RANK_TOLERANCE * max(float(np.diagonal(delassus).max()), 1e-300)
-        except np.linalg.LinAlgError:
-            deficient = True
-        if deficient:
-            eigenvalues, eigenvectors = np.linalg.eigh(delassus)
+        terms = (problem.mass_matrix, problem.free_force, jac, problem.rhs)
+        if not all(np.isfinite(term).all() for term in terms):  # a diverging state: the caller says so
+            return self.record(KKTSolution(np.full(jac.shape[1], math.nan), np.full(jac.shape[0], math.nan)))
+        # the core's direct solve (cpp/kkt_solve.cpp: Cholesky factors of M and D, one refinement step), with this
+        # backend's pivot margin
+        solved = kernels.direct_solve(*terms, RANK_TOLERANCE)
+        if solved is None:
+            try:
+                np.linalg.cholesky(problem.mass_matrix)
+            except np.linalg.LinAlgError:
+                raise SolverError(
+                    "dense: the joint-space inertia matrix is singular (a massless moving subtree?)"
+                ) from None
+            eigenvalues, eigenvectors = np.linalg.eigh(jac @ np.linalg.solve(problem.mass_matrix, jac.T))
             raise SolverError(self._rank_message(eigenvalues, eigenvectors))
-        multipliers = np.linalg.solve(delassus, problem.rhs - jac @ free_acceleration)
-        acceleration = free_acceleration + minv_gt @ multipliers
+        acceleration, multipliers = solved
+        if jac.shape[0] == 0:
+            return self.record(KKTSolution(acceleration, multipliers))
         # the equations of motion hold by construction (a = M^-1 (f + G^T lambda)): only the rows are measured
         primal = primal_residual(problem, acceleration)
         return self.record(KKTSolution(acceleration, multipliers, "solved", 0, primal, math.nan))
