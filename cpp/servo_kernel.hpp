@@ -76,7 +76,7 @@ class ServoKernel : public Kernel {
   bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                     VectorXd& a) override;
   int nv() const override { return model_.nv; }
-  // (time [s], sign of det D) of the last usable evaluation with a square D, if any
+  // (time [s], sign of det D) of the last evaluation whose square D was usable (realizability), if any
   std::optional<std::pair<double, double>> last_sign() const { return last_sign_; }
 
  private:
