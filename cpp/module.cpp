@@ -223,6 +223,12 @@ NB_MODULE(_compiled, m) {
         "finger_frame"_a, "R_o^T (p_o - p_f) (3,) from a pin.Data after a placements pass.");
   m.def("contact_point_jacobian", on_python_data(contact_point_jacobian), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "R_o^T (J_o - J_f + [p_o - p_f]x W_o) (3 x nv) from a pin.Data after a Jacobian pass.");
+  m.def("contact_point_world_jacobian", on_python_data(contact_point_world_jacobian), "model"_a, "data"_a,
+        "object_frame"_a, "finger_frame"_a,
+        "J_o - J_f + [p_o - p_f]x W_o (3 x nv, world axes) from a pin.Data after a Jacobian pass.");
+  m.def("contact_point_world_rate", on_python_data(contact_point_world_rate), "model"_a, "data"_a, "object_frame"_a,
+        "finger_frame"_a,
+        "v_o - v_f + (p_o - p_f) x w_o [m/s] (3,) from a pin.Data after a velocities and placements pass.");
   m.def("contact_point_drift", on_python_data(contact_point_drift), "model"_a, "data"_a, "object_frame"_a,
         "finger_frame"_a, "d2/dt2 R_o^T (p_o - p_f) at zero joint acceleration (3,) from a pin.Data after a full pass.");
   m.def(
@@ -246,13 +252,28 @@ NB_MODULE(_compiled, m) {
   m.def(
       "servo_realizability",
       [](const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
-         double rank_tolerance) {
-        Realizability judged = realizability(decoupling, rows, moved, rank_tolerance);
-        return std::make_tuple(std::move(judged.unit), judged.rank, judged.sign);
+         double rank_tolerance, std::optional<double> last_sign) {
+        if (rows.rows() != decoupling.rows() || moved.cols() != decoupling.cols() || moved.rows() != rows.cols()) {
+          throw std::invalid_argument("servo_realizability: D (p x k), S (p x nv), N B (nv x k)");
+        }
+        Realizability judged = realizability(decoupling, rows, moved, rank_tolerance, last_sign);
+        return std::make_tuple(std::move(judged.unit), judged.rank, judged.sign, judged.crossed, judged.usable);
       },
-      "decoupling"_a, "rows"_a, "moved"_a, "rank_tolerance"_a,
+      "decoupling"_a, "rows"_a, "moved"_a, "rank_tolerance"_a, "last_sign"_a = nb::none(),
       "(D_ij / (|S_i| |N b_j|) (p x k), its rank: singular values above rank_tolerance max(1, the largest), the sign of "
-      "its determinant when square, else 0) of the decoupling matrix D = S N B (p x k), S (p x nv), N B (nv x k).");
+      "its determinant when square, else 0, crossed: square of full rank with a sign other than last_sign (the last "
+      "usable evaluation's; None: none), usable: full row rank and not crossed, the only evaluation whose sign is "
+      "remembered) of the decoupling matrix D = S N B (p x k), S (p x nv), N B (nv x k).");
+  m.def(
+      "controls_within",
+      [](const VectorXd& controls, const VectorXd& lower, const VectorXd& upper) {
+        if (lower.size() != controls.size() || upper.size() != controls.size()) {
+          throw std::invalid_argument("controls_within: u, lower, upper (k each)");
+        }
+        return controls_within(controls, lower, upper);
+      },
+      "controls"_a, "lower"_a, "upper"_a,
+      "Whether every control u_j [N m or N] lies in [lower_j, upper_j] (infinite: no bound); a NaN control lies in none.");
   m.def("least_norm", &least_norm, "decoupling"_a, "demand"_a,
         "The least-norm u with D u = demand for D (p x k) of full row rank, from a Householder QR of D^T (no cutoff).");
   nb::class_<ServoParts>(m, "ServoParts")

@@ -11,7 +11,7 @@
 namespace pinstab {
 
 Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
-                            double rank_tolerance) {
+                            double rank_tolerance, std::optional<double> last_sign) {
   const Eigen::Index p = decoupling.rows(), k = decoupling.cols();
   Realizability judged;
   judged.unit.resize(p, k);
@@ -31,8 +31,14 @@ Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::Matr
   if (p == k) {
     const double det = p == 1 ? judged.unit(0, 0) : judged.unit.determinant();
     judged.sign = det > 0.0 ? 1.0 : (det < 0.0 ? -1.0 : 0.0);
+    judged.crossed = judged.rank == p && last_sign && *last_sign != judged.sign;
   }
+  judged.usable = judged.rank == p && !judged.crossed;
   return judged;
+}
+
+bool controls_within(const VectorXd& controls, const VectorXd& lower, const VectorXd& upper) {
+  return (controls.array() >= lower.array() && controls.array() <= upper.array()).all();
 }
 
 VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand) {
@@ -91,8 +97,7 @@ ServoKernel::ServoKernel(const pinocchio::Model& model, Eigen::MatrixXd rows, Ei
       targets_(std::move(targets)),
       kp_(kp),
       kd_(kd),
-      rank_tolerance_(rank_tolerance),
-      limited_(lower_.array().isFinite().any() || upper_.array().isFinite().any()) {}
+      rank_tolerance_(rank_tolerance) {}
 
 bool ServoKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                                VectorXd& a) {
@@ -109,16 +114,12 @@ bool ServoKernel::acceleration(int, double t, const VectorXd& q, const VectorXd&
   }
   parts_.compute(mass_, tau - data_.nle, no_rows_, rows_, actuation_, no_multipliers_, rhs_);
   if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
-  const Realizability judged = realizability(parts_.decoupling, rows_, parts_.moved, rank_tolerance_);
-  if (judged.rank < p) return false;
+  const std::optional<double> last = last_sign_ ? std::optional<double>(last_sign_->second) : std::nullopt;
+  const Realizability judged = realizability(parts_.decoupling, rows_, parts_.moved, rank_tolerance_, last);
+  if (!judged.usable) return false;
+  if (p == k) last_sign_ = std::make_pair(t, judged.sign);
   controls_ = least_norm(parts_.decoupling, parts_.demand);
-  if (p == k) {
-    if (last_sign_ && last_sign_->second != judged.sign) return false;
-    last_sign_ = std::make_pair(t, judged.sign);
-  }
-  if (limited_ && ((controls_.array() < lower_.array()).any() || (controls_.array() > upper_.array()).any())) {
-    return false;
-  }
+  if (!controls_within(controls_, lower_, upper_)) return false;
   parts_.finish(controls_, a, no_multipliers_);
   return a.allFinite();
 }

@@ -17,15 +17,23 @@ namespace pinstab {
 // divided by |S_i| |N b_j|: the cosine between prescribed row i and the motion control j allows (0 where a control
 // moves nothing), unchanged when a row or a control (a column of B) is scaled. `rank` counts its singular values
 // above rank_tolerance times max(1, the largest) (1: the cosines' own scale); `sign` is the sign of its determinant
-// when it is square (the sign of det D), else 0.
+// when it is square (the sign of det D), else 0. `crossed`: D square of full rank whose sign differs from `last_sign`,
+// the sign at the last usable evaluation (none: nothing to compare): D was singular in between, where a step may have
+// passed it by. `usable`: full row rank and not crossed; only a usable evaluation's sign is the next one's last_sign
+// (a refused state is no reference: a retry or the general solve compares with the last usable one).
 struct Realizability {
   Eigen::MatrixXd unit;
   int rank = 0;
   double sign = 0.0;
+  bool crossed = false;
+  bool usable = false;
 };
-// decoupling: D (p x k); rows: S (p x nv); moved: N B (nv x k)
+// decoupling: D (p x k); rows: S (p x nv); moved: N B (nv x k); last_sign: +-1 of the last usable square evaluation
 Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::MatrixXd& rows, const Eigen::MatrixXd& moved,
-                            double rank_tolerance);
+                            double rank_tolerance, std::optional<double> last_sign);
+// Whether every control u_j lies in [lower_j, upper_j] (an infinite bound: none on that side); a NaN control lies in
+// no bounds (refused: the caller says why). u, lower, upper [N m or N] (k).
+bool controls_within(const VectorXd& controls, const VectorXd& lower, const VectorXd& upper);
 // The least-norm u with D u = demand for a D of full row rank (p <= k), from a Householder QR of D^T: no cutoff drops
 // the direction of a control whose column of D is much smaller than another's.
 VectorXd least_norm(const Eigen::MatrixXd& decoupling, const VectorXd& demand);
@@ -56,8 +64,9 @@ struct ServoParts {
 // The rows S a = c'' - Kd (S v - c') - Kp (S q - c) realized by the controls u of M a + h = tau + B u: with
 // a0 = M^-1 (tau - h) and D = S M^-1 B, u is the least-norm solution of D u = rhs - S a0 and a = a0 + M^-1 B u
 // (ServoParts without real rows).
-// An evaluation is not to be used (false) where D loses rank (realizability), where its determinant (square D) changed sign since the last evaluation, where a control
-// leaves its bounds or the result is not finite: the caller's general solve then says why or takes the limits.
+// An evaluation is not to be used (false) where D is not usable (realizability: rank lost, or its determinant changed
+// sign since the last usable evaluation), where a control leaves its bounds or is NaN (controls_within) or the result
+// is not finite: the caller's general solve then says why or takes the limits.
 class ServoKernel : public Kernel {
  public:
   // rows: S over the velocity coordinates (p x nv); position_rows: the same rows over the configuration's (p x nq)
@@ -67,7 +76,7 @@ class ServoKernel : public Kernel {
   bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                     VectorXd& a) override;
   int nv() const override { return model_.nv; }
-  // (time [s], sign of det D) of the last usable evaluation with a square D, if any
+  // (time [s], sign of det D) of the last evaluation whose square D was usable (realizability), if any
   std::optional<std::pair<double, double>> last_sign() const { return last_sign_; }
 
  private:
@@ -78,7 +87,6 @@ class ServoKernel : public Kernel {
   ServoParts parts_;
   std::vector<Target> targets_;
   double kp_, kd_, rank_tolerance_;
-  bool limited_;
   Eigen::LLT<Eigen::MatrixXd> mass_;
   std::optional<std::pair<double, double>> last_sign_;
 };

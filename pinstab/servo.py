@@ -26,7 +26,7 @@ import numpy as np
 
 from .actuation import Actuation
 from .errors import ServoInfeasibleError
-from .kernels import ServoParts, least_norm, servo_parts, servo_realizability
+from .kernels import ServoParts, controls_within, least_norm, servo_parts, servo_realizability
 from .proxqp import proxsuite
 
 # singular values of D with each entry over its row's and its control's sizes (D_ij / (|S_i| |N b_j|), cosines)
@@ -107,18 +107,20 @@ class ServoSolver:
 
     def _check_rank(self, decoupling: np.ndarray, rows: np.ndarray, moved: np.ndarray, state: tuple) -> None:
         """Raise when D = S N B (``rows`` S, ``moved`` N B) has rank below p here, free of the units of each row and
-        control (:func:`pinstab.kernels.servo_realizability`, the compiled servo path's rule), or (square D) when its
-        determinant changed sign since the last solve: D was singular in between, where a step may have passed it by."""
+        control, or (square D) when its determinant changed sign since the last usable solve: D was singular in
+        between, where a step may have passed it by. The verdict, and which solve's sign is remembered (a usable
+        one's only), are :func:`pinstab.kernels.servo_realizability`'s, the compiled servo path's rule."""
         count = decoupling.shape[0]
-        unit, rank, sign = servo_realizability(decoupling, rows, moved, RANK_TOLERANCE)
-        crossed = ""
-        if rank == count and decoupling.shape[1] == count:
-            last, self._last_sign = self._last_sign, (state[0], sign)
-            if last is not None and last[1] != sign:
-                crossed = f"; its determinant changed sign since t = {last[0]:.6g} s: it was singular in between"
-                rank = count - 1
-        if rank == count:
+        last = None if self._last_sign is None else self._last_sign[1]
+        unit, rank, sign, crossed, usable = servo_realizability(decoupling, rows, moved, RANK_TOLERANCE, last)
+        if usable:
+            if decoupling.shape[1] == count:
+                self._last_sign = (state[0], sign)
             return
+        since = ""
+        if crossed:
+            since = f"; its determinant changed sign since t = {self._last_sign[0]:.6g} s: it was singular in between"
+            rank = count - 1
         # the least reached combination y of the unit rows S_i / |S_i|, as a unit combination of the rows S_i
         sizes = np.linalg.norm(rows, axis=1)
         direction = np.linalg.svd(unit)[0][:, -1] / np.where(sizes > 0.0, sizes, 1.0)
@@ -129,7 +131,7 @@ class ServoSolver:
         t, q, v = state
         raise ServoInfeasibleError(
             f"servo {', '.join(repr(n) for n in involved)} cannot be realized {_when(t)}: no control reaches "
-            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {count}{crossed}; "
+            f"the direction {along} of the prescribed rows (decoupling matrix S N B of rank {rank} < {count}{since}; "
             f"controls: {', '.join(self.actuation.names)}); state q = {np.round(q, 6).tolist()}, "
             f"v = {np.round(v, 6).tolist()}",
             involved,
@@ -143,8 +145,33 @@ class ServoSolver:
         """The least-effort controls with D u = demand, within the limits (D of full row rank here)."""
         least = least_norm(decoupling, demand)  # the compiled path's: no cutoff drops a control of small columns
         actuation = self.actuation
-        if not actuation.limited or np.all((least >= actuation.lower) & (least <= actuation.upper)):
+        if controls_within(least, actuation.lower, actuation.upper):  # the compiled path's test: NaN is outside
             return least
+        finite = bool(np.all(np.isfinite(least)))
+        if finite:
+            solved = self._bounded(decoupling, demand)
+            if solved is not None:
+                return solved
+        t, q, v = state
+        over = [
+            f"{name} = {value:.4g} outside [{low:g}, {high:g}]"
+            for name, value, low, high in zip(actuation.names, least, actuation.lower, actuation.upper, strict=True)
+            if not low <= value <= high
+        ]
+        reason = "within the control limits" if finite else "by finite controls"
+        names = sorted({n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep})
+        raise ServoInfeasibleError(
+            f"servo {', '.join(repr(n) for n in names)} cannot be realized {_when(t)} {reason}: it needs "
+            f"{'; '.join(over)}; state q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()}",
+            names,
+            t,
+            q,
+            v,
+        )
+
+    def _bounded(self, decoupling: np.ndarray, demand: np.ndarray) -> np.ndarray | None:
+        """The least-effort controls with D u = demand within the limits (a ProxSuite QP), or None: none exist."""
+        actuation = self.actuation
         count = actuation.count
         qp = proxsuite.proxqp.dense.QP(count, decoupling.shape[0], count)
         qp.settings.eps_abs = 1e-12
@@ -154,20 +181,4 @@ class ServoSolver:
         upper = np.where(np.isfinite(actuation.upper), actuation.upper, 1e30)
         qp.init(np.eye(count), np.zeros(count), decoupling, demand, np.eye(count), lower, upper)
         qp.solve()
-        if qp.results.info.status in _SOLVED:
-            return np.array(qp.results.x)
-        t, q, v = state
-        over = [
-            f"{name} = {value:.4g} outside [{low:g}, {high:g}]"
-            for name, value, low, high in zip(actuation.names, least, actuation.lower, actuation.upper, strict=True)
-            if not low <= value <= high
-        ]
-        names = sorted({n for n, keep in zip(self.row_names, self.prescribed, strict=True) if keep})
-        raise ServoInfeasibleError(
-            f"servo {', '.join(repr(n) for n in names)} cannot be realized {_when(t)} within the control "
-            f"limits: it needs {'; '.join(over)}; state q = {np.round(q, 6).tolist()}, v = {np.round(v, 6).tolist()}",
-            names,
-            t,
-            q,
-            v,
-        )
+        return np.array(qp.results.x) if qp.results.info.status in _SOLVED else None

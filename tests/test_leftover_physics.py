@@ -327,14 +327,14 @@ def test_realizability_does_not_see_the_units_of_rows_and_controls():
     """The rank and the determinant's sign of D = S N B are those of D with its rows and columns scaled by any positive
     factors in [1e-12, 1e12] (the unit-free matrix the same to 1e-12); dependent rows stay dependent at any scale."""
     rows, moved = RNG.normal(size=(2, 4)), RNG.normal(size=(4, 2))
-    unit, rank, sign = servo_realizability(rows @ moved, rows, moved, 1e-9)
+    unit, rank, sign, _, _ = servo_realizability(rows @ moved, rows, moved, 1e-9)
     dependent = np.array([[1.0, 2.0, 0.0, 1.0], [2.0, 4.0, 0.0, 2.0]])
     for _ in range(20):
         row_scale, column_scale = 10.0 ** RNG.uniform(-12, 12, 2), 10.0 ** RNG.uniform(-12, 12, 2)
         scaled_rows, scaled_moved = row_scale[:, None] * rows, moved * column_scale
         scaled = servo_realizability(scaled_rows @ scaled_moved, scaled_rows, scaled_moved, 1e-9)
         np.testing.assert_allclose(scaled[0], unit, atol=1e-12)
-        assert scaled[1:] == (rank, sign) == (2, sign) and sign in (-1.0, 1.0)
+        assert scaled[1:3] == (rank, sign) == (2, sign) and sign in (-1.0, 1.0)
         scaled_dependent = row_scale[:, None] * dependent
         assert servo_realizability(scaled_dependent @ scaled_moved, scaled_dependent, scaled_moved, 1e-9)[1] == 1
 

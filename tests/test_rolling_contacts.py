@@ -22,6 +22,7 @@ from pinstab import SceneError, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints.rolling_contacts import surface_of
 from pinstab.errors import GraspLostError
+from pinstab.kernels import contact_point_jacobian, contact_point_residual
 from pinstab.kinematics import Kinematics
 from pinstab.scene import Scene, scene_from_dict
 from pinstab.system import build_system
@@ -235,6 +236,31 @@ def test_rows_are_the_relative_velocity_at_the_contact_point(shape):
     assert abs(rows[2] - spin) < 1e-12 and abs(spin) > 0.01
     assert np.abs(rolling.geometry.state(kin).axes[:, 2] + normal).max() < 1e-12
     assert np.abs(on_object - body.actInv(point)).max() < 1e-12 and np.abs(on_finger - tip.actInv(point)).max() < 1e-12
+
+
+def test_the_centre_rows_are_the_fingertip_point_rows():
+    """The rolling contact's J_w and w are minus the fingertip point rows in world axes (cpp/contact_terms.cpp):
+    R_o times the central difference of R_o^T (p_o - p_f) along q (+) s v, within 1e-6 of |w|, is -w = -J_w v; J_w v
+    and w agree to 1e-12 (relative); R_o^T of the world rows is the point rows' Jacobian to 1e-12."""
+    scene = scene_from_dict(free_object("sphere"))
+    kin, q, v = perturbed(scene)
+    geometry = block(scene, "tip").geometry
+    state = geometry.state(kin)
+    jacobian, _ = geometry.jacobians(kin, state)
+    centre = geometry.rates(kin, state)[0]
+    rotation = kin.placement(geometry.object_frame).rotation
+    frames = (geometry.object_frame, geometry.finger_frame)
+
+    def residual(step: float) -> np.ndarray:
+        moved = Kinematics(scene.model)
+        moved.update_positions(pin.integrate(scene.model, q, step * v))
+        return contact_point_residual(scene.model, moved.data, *frames)
+
+    difference = rotation @ (residual(RATE_STEP) - residual(-RATE_STEP)) / (2 * RATE_STEP)
+    assert np.abs(difference + centre).max() < 1e-6 * np.linalg.norm(centre) and np.linalg.norm(centre) > 0.01
+    np.testing.assert_allclose(jacobian @ v, centre, rtol=0, atol=1e-12 * np.linalg.norm(centre))
+    point_rows = contact_point_jacobian(scene.model, kin.data, *frames)
+    np.testing.assert_allclose(-rotation.T @ jacobian, point_rows, rtol=0, atol=1e-12 * np.abs(point_rows).max())
 
 
 # -- Montana's contact kinematics [MLS ch. 5] --------------------------------------------------------------------

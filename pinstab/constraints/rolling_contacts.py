@@ -41,6 +41,7 @@ import pinocchio as pin
 from ..contact.collisions import Touch
 from ..contact.models import ContactLimits
 from ..errors import ConstraintError, SceneError, choices
+from ..kernels import contact_point_world_jacobian, contact_point_world_rate
 from ..kinematics import Kinematics, PerUpdate
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
@@ -267,8 +268,9 @@ class RollingGeometry:
         return self._jacobians(kin)
 
     def _compute_jacobians(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray]:
-        jac_o, jac_f = kin.jacobian(self.object_frame), kin.jacobian(self.finger_frame)
-        return jac_f[:3] - jac_o[:3] + pin.skew(state.offset) @ jac_o[3:], jac_o[3:] - jac_f[3:]
+        # J_w = J_f - J_o + [c - p_o]x W_o: minus a fingertip contact's point rows in world axes (cpp/contact_terms.cpp)
+        point = contact_point_world_jacobian(kin.model, kin.data, self.object_frame, self.finger_frame)
+        return -point, kin.jacobian(self.object_frame)[3:] - kin.jacobian(self.finger_frame)[3:]
 
     def rates(self, kin: Kinematics, state: ContactState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(w, dw/dt, Omega, dOmega/dt) at zero joint acceleration (world axes) [m/s, m/s^2, rad/s, rad/s^2];
@@ -282,7 +284,9 @@ class RollingGeometry:
         acc_o, acc_f = kin.drift_acceleration(self.object_frame), kin.drift_acceleration(self.finger_frame)
         omega_o = velocity_o.angular
         linear = velocity_f.linear - velocity_o.linear
-        centre = linear - cross(omega_o, state.offset)
+        # w = v_f - v_o - omega_o x (c - p_o): minus the point rows' rate in world axes (cpp/contact_terms.cpp)
+        centre = -contact_point_world_rate(kin.model, kin.data, self.object_frame, self.finger_frame)
+        # dw/dt at zero joint acceleration (world axes; not the point rows' drift, d2/dt2 of R_o^T (p_o - p_f))
         centre_rate = acc_f.linear - acc_o.linear - cross(acc_o.angular, state.offset) - cross(omega_o, linear)
         return centre, centre_rate, omega_o - velocity_f.angular, acc_o.angular - acc_f.angular
 

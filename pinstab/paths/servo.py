@@ -105,5 +105,6 @@ class ServoDynamics:
 
     @property
     def last_sign(self) -> tuple[float, float] | None:
-        """(time [s], sign of det D) of the kernel's last usable evaluation with a square D, or None."""
+        """(time [s], sign of det D) of the kernel's last evaluation whose square D was usable
+        (:func:`pinstab.kernels.servo_realizability`), or None."""
         return self.kernel.last_sign
