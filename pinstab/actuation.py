@@ -11,7 +11,6 @@ override the limits. The matrix entries (transmission ratios [-] or lever arms [
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -37,11 +36,6 @@ class Actuation:
     def count(self) -> int:
         """k, the number of controls."""
         return self.matrix.shape[1]
-
-    @cached_property
-    def limited(self) -> bool:
-        """Some control has a finite bound (asked at every servo solve)."""
-        return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
 
 
 def read_actuation(value: Any, model: pin.Model) -> Actuation | None:
