@@ -369,12 +369,12 @@ NB_MODULE(_compiled, m) {
             new (self) RowBlock(row_block(kind, frame_a, frame_b, world_b, selection, coefficients, q_indices,
                                           v_indices, relation_target));
           },
-          "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a, "q_indices"_a,
-          "v_indices"_a, "target"_a = nb::none(),
+          "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a = VectorXd(),
+          "q_indices"_a = VectorXi(), "v_indices"_a = VectorXi(), "target"_a = nb::none(),
           "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation, "
           "5 fingertip, 7 frame target (its moving side: set_frame_target); frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
           "prismatic: the 2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled "
-          "target dict). A fingertip's components and limits: set_contact.")
+          "target dict; none for the other kinds). A fingertip's components and limits: set_contact.")
       .def(
           "set_contact",
           [](RowBlock& self, const VectorXi& components, int model, double mu, double torsion) {

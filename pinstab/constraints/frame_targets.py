@@ -25,7 +25,6 @@ from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .loops import NO_RELATION
 from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid, values_at
 
 SINE_PATH_KEYS = {"centre", "amplitude", "omega", "phase"}
@@ -99,7 +98,7 @@ class FrameTarget(Constraint):
         if self._block is None:
             placement = np.eye(4)
             placement[:3, :3] = self.start_rotation
-            self._block = RowBlock(FRAME_TARGET, self.frame, -1, placement, np.zeros((0, 3)), *NO_RELATION)
+            self._block = RowBlock(FRAME_TARGET, self.frame, -1, placement, np.zeros((0, 3)))
             forms = self._forms(None)
             self._compiled = forms is not None
             if forms is not None:
