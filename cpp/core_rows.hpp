@@ -1,7 +1,8 @@
 // The standard constraint rows, compiled once: each block's residual phi, Jacobian G (with its explicit time term
 // g_t of g = G v + g_t) and drift gamma0 of G a + gamma0 = 0 (docs/mathematics.md section 1). pinstab's Python
-// constraint classes of these kinds (pinstab.constraints.loops, joint_closures, joint_relation) call these same
-// functions (pinstab.kernels), and the core kernel (cpp/core_kernel.hpp) evaluates its rows with them.
+// constraint classes of these kinds (pinstab.constraints.loops, joint_closures, joint_relation, frame_targets,
+// grasp_contacts) and the frame form of pinstab.forces.joint_spring call these same functions (pinstab.kernels), and
+// the core kernel (cpp/core_kernel.hpp) evaluates its rows with them.
 #pragma once
 
 #include <vector>
