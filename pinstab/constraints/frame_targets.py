@@ -104,7 +104,7 @@ class FrameTarget(Constraint):
             if forms is not None:
                 self._block.set_frame_target(self.components, *forms, self.axis)
         if not self._compiled and t is not None and t != self._given_at:
-            self._block.set_frame_target(self.components, *self._forms(t), self.axis)  # type: ignore[misc]
+            self._block.set_frame_target(self.components, *self._forms(t), self.axis)
             self._given_at = t
         return self._block
 
@@ -127,7 +127,7 @@ class FramePath(FrameTarget):
 
     def target(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p, dp/dt, d2p/dt2) at time t [s]: [m, m/s, m/s^2]."""
-        return self.path.evaluate(t)  # type: ignore[union-attr]
+        return self.path.evaluate(t)
 
 
 class FrameOrientation(FrameTarget):
