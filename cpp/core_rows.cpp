@@ -18,14 +18,36 @@ using Matrix6x = Eigen::Matrix<double, 6, Eigen::Dynamic>;
 constexpr auto LWA = pinocchio::LOCAL_WORLD_ALIGNED;
 
 // The two sides of a frame block: placements, and (on demand) Jacobians, velocities and drift accelerations in
-// LOCAL_WORLD_ALIGNED; side b is the fixed world placement when frame_b < 0 (zero Jacobian, velocity, acceleration).
+// LOCAL_WORLD_ALIGNED; side b is the world placement `world` when frame_b < 0 (zero Jacobian; fixed, or a
+// frame_target's moving one with its velocity and acceleration, see at()).
 struct Sides {
   const pinocchio::Model& model;
   pinocchio::Data& data;
   const RowBlock& block;
+  pinocchio::SE3 world = block.world_b;
+  pinocchio::Motion world_velocity = pinocchio::Motion::Zero(), world_acceleration = pinocchio::Motion::Zero();
 
+  // The sides at time t [s]: a frame_target's side b at (p(t), exp(turn(t) axis) R_0), moving at (p', turn' axis)
+  // [m/s, rad/s] with acceleration (p'', turn'' axis) [m/s^2, rad/s^2].
+  static Sides at(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t) {
+    Sides sides{model, data, block};
+    if (block.kind != RowKind::frame_target) return sides;
+    double angle, rate, curvature;
+    block.target.evaluate(t, angle, rate, curvature);
+    sides.world.rotation(pinocchio::exp3(Vector3d(angle * block.axis)) * block.world_b.rotation());
+    sides.world_velocity.angular(rate * block.axis);
+    sides.world_acceleration.angular(curvature * block.axis);
+    if (!block.path.components.empty()) {
+      VectorXd position, velocity, acceleration;
+      block.path.evaluate(t, position, velocity, acceleration);
+      sides.world.translation(position);
+      sides.world_velocity.linear(velocity);
+      sides.world_acceleration.linear(acceleration);
+    }
+    return sides;
+  }
   const pinocchio::SE3& a() const { return data.oMf[block.frame_a]; }
-  const pinocchio::SE3& b() const { return block.frame_b < 0 ? block.world_b : data.oMf[block.frame_b]; }
+  const pinocchio::SE3& b() const { return block.frame_b < 0 ? world : data.oMf[block.frame_b]; }
   bool moving_b() const { return block.frame_b >= 0; }
   Matrix6x jacobian(int frame) const {
     Matrix6x jacobian = Matrix6x::Zero(6, model.nv);
@@ -36,6 +58,8 @@ struct Sides {
   pinocchio::Motion drift(int frame) const {
     return pinocchio::getFrameClassicalAcceleration(model, data, frame, LWA);
   }
+  pinocchio::Motion velocity_b() const { return moving_b() ? velocity(block.frame_b) : world_velocity; }
+  pinocchio::Motion drift_b() const { return moving_b() ? drift(block.frame_b) : world_acceleration; }
 };
 
 Matrix3d jlog(const Matrix3d& rotation) {
@@ -63,36 +87,41 @@ Matrix6x weld_jacobian(const Sides& sides) {
   return weld;
 }
 
-// The weld's six rows of G v: the points' relative velocity, then Jlog3(R_b^T R_a) R_a^T (w_a - w_b).
-Eigen::Matrix<double, 6, 1> weld_rate(const Sides& sides) {
-  const pinocchio::Motion velocity_a = sides.velocity(sides.block.frame_a);
-  Vector3d linear = velocity_a.linear(), angular = velocity_a.angular();
-  if (sides.moving_b()) {
-    const pinocchio::Motion velocity_b = sides.velocity(sides.block.frame_b);
-    linear -= velocity_b.linear();
-    angular -= velocity_b.angular();
-  }
+// The weld's time term g_t: side b's world motion through the rows, -(v_b, Jlog3(R_b^T R_a) R_a^T w_b) (zero but for
+// a frame_target's moving world side).
+Eigen::Matrix<double, 6, 1> weld_time_term(const Sides& sides) {
   const Matrix3d& rotation_a = sides.a().rotation();
   Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = linear;
+  weld.head<3>() = -sides.world_velocity.linear();
+  weld.tail<3>() = -(jlog(sides.b().rotation().transpose() * rotation_a) *
+                     (rotation_a.transpose() * sides.world_velocity.angular()));
+  return weld;
+}
+
+// The weld's six rows of G v + g_t: the points' relative velocity, then Jlog3(R_b^T R_a) R_a^T (w_a - w_b).
+Eigen::Matrix<double, 6, 1> weld_rate(const Sides& sides) {
+  const pinocchio::Motion velocity_a = sides.velocity(sides.block.frame_a), velocity_b = sides.velocity_b();
+  const Vector3d angular = velocity_a.angular() - velocity_b.angular();
+  const Matrix3d& rotation_a = sides.a().rotation();
+  Eigen::Matrix<double, 6, 1> weld;
+  weld.head<3>() = velocity_a.linear() - velocity_b.linear();
   weld.tail<3>() = jlog(sides.b().rotation().transpose() * rotation_a) * (rotation_a.transpose() * angular);
   return weld;
 }
 
 Eigen::Matrix<double, 6, 1> weld_drift(const Sides& sides) {
-  const pinocchio::Motion drift_a = sides.drift(sides.block.frame_a);
-  Vector3d linear = drift_a.linear(), angular = drift_a.angular(), omega_b = Vector3d::Zero();
-  if (sides.moving_b()) {
-    const pinocchio::Motion drift_b = sides.drift(sides.block.frame_b);
-    linear -= drift_b.linear();
-    angular -= drift_b.angular();
-    omega_b = sides.velocity(sides.block.frame_b).angular();
-  }
+  const pinocchio::Motion drift_a = sides.drift(sides.block.frame_a), drift_b = sides.drift_b();
   Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = linear;
+  weld.head<3>() = drift_a.linear() - drift_b.linear();
   weld.tail<3>() = rotation_drift(sides.a().rotation(), sides.b().rotation(),
-                                  sides.velocity(sides.block.frame_a).angular(), omega_b, angular);
+                                  sides.velocity(sides.block.frame_a).angular(), sides.velocity_b().angular(),
+                                  drift_a.angular() - drift_b.angular());
   return weld;
+}
+
+// The components of a weld's six values (a fingertip's or a frame_target's rows).
+void select(const RowBlock& block, const Eigen::Matrix<double, 6, 1>& full, Eigen::Ref<VectorXd> rows) {
+  for (int k = 0; k < block.components.size(); ++k) rows(k) = full(block.components(k));
 }
 
 // A fingertip block with rotation rows (soft-finger, rigid): the last component is a moment's.
@@ -114,6 +143,7 @@ int RowBlock::rows() const {
     case RowKind::relation:
       return 1;
     case RowKind::fingertip:
+    case RowKind::frame_target:
       return static_cast<int>(components.size());
     case RowKind::python:
       return python_rows;
@@ -162,7 +192,7 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
     phi(0) = sum - value;
     return;
   }
-  const Sides sides{model, data, block};
+  const Sides sides = Sides::at(model, data, block, t);
   if (block.kind == RowKind::point) {
     phi.noalias() = block.selection * (sides.a().translation() - sides.b().translation());
     return;
@@ -171,10 +201,11 @@ void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const 
     Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
     full.head<3>() = contact_point_residual(model, data, block.frame_a, block.frame_b);
     if (rotates(block)) full.tail<3>() = weld_residual(sides).tail<3>();
-    for (int k = 0; k < block.components.size(); ++k) phi(k) = full(block.components(k));
+    select(block, full, phi);
     return;
   }
   const Eigen::Matrix<double, 6, 1> weld = weld_residual(sides);
+  if (block.kind == RowKind::frame_target) return select(block, weld, phi);
   switch (block.kind) {
     case RowKind::weld:
       phi = weld;
@@ -200,7 +231,7 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
     time_term(0) = -rate;
     return;
   }
-  const Sides sides{model, data, block};
+  const Sides sides = Sides::at(model, data, block, t);
   if (block.kind == RowKind::point) {
     Matrix6x relative = sides.jacobian(block.frame_a);
     if (sides.moving_b()) relative -= sides.jacobian(block.frame_b);
@@ -215,6 +246,10 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
     return;
   }
   const Matrix6x weld = weld_jacobian(sides);
+  if (block.kind == RowKind::frame_target) {
+    for (int k = 0; k < block.components.size(); ++k) jacobian.row(k) = weld.row(block.components(k));
+    return select(block, weld_time_term(sides), time_term);
+  }
   switch (block.kind) {
     case RowKind::weld:
       jacobian = weld;
@@ -247,7 +282,7 @@ void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowB
     rate(0) = sum - target_rate;
     return;
   }
-  const Sides sides{model, data, block};
+  const Sides sides = Sides::at(model, data, block, t);
   if (block.kind == RowKind::point) {
     Vector3d linear = sides.velocity(block.frame_a).linear();
     if (sides.moving_b()) linear -= sides.velocity(block.frame_b).linear();
@@ -258,10 +293,11 @@ void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowB
     Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
     full.head<3>() = contact_point_rate(model, data, block.frame_a, block.frame_b);
     if (rotates(block)) full.tail<3>() = weld_rate(sides).tail<3>();
-    for (int k = 0; k < block.components.size(); ++k) rate(k) = full(block.components(k));
+    select(block, full, rate);
     return;
   }
   const Eigen::Matrix<double, 6, 1> weld = weld_rate(sides);
+  if (block.kind == RowKind::frame_target) return select(block, weld, rate);
   switch (block.kind) {
     case RowKind::weld:
       rate = weld;
@@ -291,7 +327,7 @@ void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const Row
     drift(0) = -curvature;
     return;
   }
-  const Sides sides{model, data, block};
+  const Sides sides = Sides::at(model, data, block, t);
   if (block.kind == RowKind::point) {
     Vector3d linear = sides.drift(block.frame_a).linear();
     if (sides.moving_b()) linear -= sides.drift(block.frame_b).linear();
@@ -302,10 +338,11 @@ void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const Row
     Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
     full.head<3>() = contact_point_drift(model, data, block.frame_a, block.frame_b);
     if (rotates(block)) full.tail<3>() = weld_drift(sides).tail<3>();
-    for (int k = 0; k < block.components.size(); ++k) drift(k) = full(block.components(k));
+    select(block, full, drift);
     return;
   }
   const Eigen::Matrix<double, 6, 1> weld = weld_drift(sides);
+  if (block.kind == RowKind::frame_target) return select(block, weld, drift);
   switch (block.kind) {
     case RowKind::weld:
       drift = weld;

@@ -1,7 +1,8 @@
 // The standard constraint rows, compiled once: each block's residual phi, Jacobian G (with its explicit time term
 // g_t of g = G v + g_t) and drift gamma0 of G a + gamma0 = 0 (docs/mathematics.md section 1). pinstab's Python
-// constraint classes of these kinds (pinstab.constraints.loops, joint_closures, joint_relation) call these same
-// functions (pinstab.kernels), and the core kernel (cpp/core_kernel.hpp) evaluates its rows with them.
+// constraint classes of these kinds (pinstab.constraints.loops, joint_closures, joint_relation, frame_targets,
+// grasp_contacts) and the frame form of pinstab.forces.joint_spring call these same functions (pinstab.kernels), and
+// the core kernel (cpp/core_kernel.hpp) evaluates its rows with them.
 #pragma once
 
 #include <vector>
@@ -22,7 +23,20 @@ namespace pinstab {
 // fingertip: the contact frame C on the object (frame_a) and its copy on the fingertip (frame_b): the components of
 // (R_C^T (p_a - p_b), log3(R_b^T R_a)) its contact model transmits (pinstab.constraints.grasp_contacts).
 // python: rows a Python block gives at each evaluation (the core kernel's PythonPart), not computed here.
-enum class RowKind { point = 0, weld = 1, revolute = 2, prismatic = 3, relation = 4, fingertip = 5, python = 6 };
+// frame_target: a weld's rows (the `components` of its six) between frame_a and a side b moving in time, b's
+// placement (p(t), exp(turn(t) axis) R_0): p(t) the 3-component `path` (none: world_b's translation), turn(t) the
+// `target` [rad] about the fixed world `axis`, R_0 world_b's rotation; b's velocity (p', turn' axis) gives the time
+// term g_t and its acceleration (p'', turn'' axis) the drift (pinstab.constraints.frame_targets).
+enum class RowKind {
+  point = 0,
+  weld = 1,
+  revolute = 2,
+  prismatic = 3,
+  relation = 4,
+  fingertip = 5,
+  python = 6,
+  frame_target = 7
+};
 
 struct RowBlock {
   RowKind kind = RowKind::point;
@@ -31,8 +45,11 @@ struct RowBlock {
   Eigen::MatrixXd selection;                                 // point: rows x 3; revolute, prismatic: across (2 x 3)
   VectorXd coefficients;                                     // relation: c
   VectorXi q_indices, v_indices;                             // relation: its joints' coordinates
-  Target target;                                             // relation: c(t)
-  VectorXi components;                                       // fingertip: of (fx, fy, fz, mx, my, mz) in C
+  Target target;                                             // relation: c(t); frame_target: turn(t) [rad]
+  Targets path;                                              // frame_target: p(t) [m] (3 components, or none)
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();           // frame_target: the turn's world axis (unit)
+  VectorXi components;                                       // fingertip: of (fx, fy, fz, mx, my, mz) in C;
+                                                             // frame_target: of the weld's six rows
   ContactModel contact_model = ContactModel::rigid;          // fingertip: what it carries (limits)
   double mu = 0.0, torsion = 0.0;                            // fingertip: friction [-], torsion [m]
   bool holonomic = true;                                     // false: velocity-level rows (Baumgarte's Kd / 2)

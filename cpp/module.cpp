@@ -156,7 +156,9 @@ std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb
 RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b, const Eigen::MatrixXd& selection,
                    const VectorXd& coefficients, const VectorXi& q_indices, const VectorXi& v_indices,
                    std::optional<nb::dict> relation_target) {
-  if (kind < 0 || kind > static_cast<int>(RowKind::python)) throw std::invalid_argument("RowBlock: unknown kind");
+  if (kind < 0 || kind > static_cast<int>(RowKind::frame_target)) {
+    throw std::invalid_argument("RowBlock: unknown kind");
+  }
   RowBlock block;
   block.kind = static_cast<RowKind>(kind);
   block.frame_a = frame_a, block.frame_b = frame_b;
@@ -367,12 +369,12 @@ NB_MODULE(_compiled, m) {
             new (self) RowBlock(row_block(kind, frame_a, frame_b, world_b, selection, coefficients, q_indices,
                                           v_indices, relation_target));
           },
-          "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a, "q_indices"_a,
-          "v_indices"_a, "target"_a = nb::none(),
+          "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a = VectorXd(),
+          "q_indices"_a = VectorXi(), "v_indices"_a = VectorXi(), "target"_a = nb::none(),
           "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation, "
-          "5 fingertip; frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
+          "5 fingertip, 7 frame target (its moving side: set_frame_target); frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
           "prismatic: the 2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled "
-          "target dict). A fingertip's components and limits: set_contact.")
+          "target dict; none for the other kinds). A fingertip's components and limits: set_contact.")
       .def(
           "set_contact",
           [](RowBlock& self, const VectorXi& components, int model, double mu, double torsion) {
@@ -389,6 +391,27 @@ NB_MODULE(_compiled, m) {
       .def(
           "set_target", [](RowBlock& self, nb::dict spec) { self.target = target(spec); }, "target"_a,
           "A relation's target c(t) (a compiled target dict), replacing the one it was built with.")
+      .def(
+          "set_frame_target",
+          [](RowBlock& self, const VectorXi& components, const std::vector<nb::dict>& path, nb::dict turn,
+             const Eigen::Vector3d& axis) {
+            if (self.kind != RowKind::frame_target) {
+              throw std::invalid_argument("RowBlock.set_frame_target: not a frame target block (kind 7)");
+            }
+            if ((path.size() != 0 && path.size() != 3) || components.size() > 6 ||
+                (components.size() && (components.minCoeff() < 0 || components.maxCoeff() > 5))) {
+              throw std::invalid_argument("RowBlock.set_frame_target: path (0 or 3 targets), components (of 0..5)");
+            }
+            self.components = components;
+            self.path.components.clear();
+            for (const nb::dict& spec : path) self.path.components.push_back(target(spec));
+            self.target = target(turn);
+            self.axis = axis;
+          },
+          "components"_a, "path"_a, "turn"_a, "axis"_a,
+          "A frame target's rows (components of the weld's six: p_a - p(t) [m], log3(R_d(t)^T R_a) [rad]) and its "
+          "moving side: p(t) (3 compiled target dicts [m], or none: world_b's translation), R_d(t) = exp(turn(t) "
+          "axis) R_0 (turn: a compiled target dict [rad]; axis: a unit world vector; R_0: world_b's rotation).")
       .def_rw("holonomic", &RowBlock::holonomic, "False: velocity-level rows (Baumgarte's Kd / 2).")
       .def_rw("python_rows", &RowBlock::python_rows, "Kind 6 (rows Python gives): their count.")
       .def_prop_ro("rows", &RowBlock::rows);

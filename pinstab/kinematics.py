@@ -149,32 +149,3 @@ class PerUpdate:
             self._value = self._compute(kin)
             self._kin, self._stamp = kin, kin.stamp
         return self._value
-
-
-def relative_offset(
-    kin: Kinematics, frame_a: int, frame_b: int | None, placement_b: pin.SE3
-) -> tuple[np.ndarray, np.ndarray]:
-    """Frame a's origin seen from frame b, ``R_b^T (p_a - p_b)`` [m], and its Jacobian (3 x nv) [m/rad, 1].
-
-    ``frame_b`` None: the fixed world placement ``placement_b``. Needs placements and Jacobians current.
-    """
-    omb = placement_b if frame_b is None else kin.placement(frame_b)
-    gap = kin.placement(frame_a).translation - omb.translation
-    jacobian = kin.jacobian(frame_a)[:3].copy()
-    if frame_b is not None:
-        jac_b = kin.jacobian(frame_b)
-        jacobian += pin.skew(gap) @ jac_b[3:] - jac_b[:3]
-    return omb.rotation.T @ gap, omb.rotation.T @ jacobian
-
-
-def relative_rotation(
-    kin: Kinematics, frame_a: int, frame_b: int | None, placement_b: pin.SE3
-) -> tuple[np.ndarray, np.ndarray]:
-    """``log3(R_b^T R_a)`` [rad] (frame b axes) and its Jacobian (3 x nv) [1]; as :func:`relative_offset`."""
-    rotation_a = kin.placement(frame_a).rotation
-    rotation_b = placement_b.rotation if frame_b is None else kin.placement(frame_b).rotation
-    relative = rotation_b.T @ rotation_a
-    omega = kin.jacobian(frame_a)[3:].copy()
-    if frame_b is not None:
-        omega -= kin.jacobian(frame_b)[3:]
-    return pin.log3(relative), pin.Jlog3(relative) @ rotation_a.T @ omega

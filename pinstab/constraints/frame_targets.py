@@ -21,106 +21,135 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
-from ..kernels import rotation_drift
+from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .loops import FrameClosure
-from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid
+from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid, values_at
 
 SINE_PATH_KEYS = {"centre", "amplitude", "omega", "phase"}
 PATH_KEYS = {"name", "kind", "frame", "offset", "path"} | SINE_PATH_KEYS
 ORIENTATION_KEYS = {"name", "kind", "frame"}
 POSE_KEYS = {"name", "kind", "frame", "offset", "rpy", "path", "axis", "turn"}
+FRAME_TARGET = 7  # the compiled row kind (cpp/core_rows.hpp RowKind::frame_target)
+POSITION_ROWS, ROTATION_ROWS = np.arange(3, dtype=np.int32), np.arange(3, 6, dtype=np.int32)  # of the weld's six
+HELD = {"kind": "sinusoid", "wave": np.zeros(4)}  # a compiled target of value 0: no turn
+Z_AXIS = np.array([0.0, 0.0, 1.0])
 
 
-class FramePath(Constraint):
-    """``p_frame - p(t)`` [m], world axes; multipliers: the force on the frame's body [N], world axes."""
+class FrameTarget(Constraint):
+    """A weld's rows between ``frame`` and a placement moving in time, (p(t), R_d(t) = exp(turn(t) axis) R_0), computed
+    by the compiled core (``cpp/core_rows.hpp``, kind ``frame_target``): ``p - p(t)`` [m] (world axes) and
+    ``log3(R_d(t)^T R)`` [rad], the ``components`` of the six. A target without a compiled form
+    (:meth:`~pinstab.constraints.targets.TargetTrajectory.compiled`) hands its values at each time from its Python
+    ``evaluate`` to the same rows (:func:`~pinstab.constraints.targets.values_at`), and a scene with it runs on the
+    general path (:meth:`compiled_rows` is None).
+
+    Args:
+        name, kind: the constraint's. frame: its frame id. components: of the weld's six rows (0-2 position, 3-5
+            rotation). start: R_0 (its rotation). path: p(t) [m] (3 components), or None (the rows read no position).
+        turn: turn(t) [rad] (1 component), or None (held at 0). axis: the turn's world axis (unit).
+    """
 
     holonomic = True
-    rows = 3
+
+    def __init__(
+        self,
+        name: str,
+        kind: str,
+        frame: int,
+        components: np.ndarray,
+        start: pin.SE3,
+        path: TargetTrajectory | None = None,
+        turn: TargetTrajectory | None = None,
+        axis: np.ndarray = Z_AXIS,
+    ) -> None:
+        self.name, self.kind, self.frame, self.components = name, kind, frame, components
+        self.rows = len(components)
+        self.path, self.turn, self.axis, self.start_rotation = path, turn, np.asarray(axis, float), start.rotation
+        self._block: RowBlock | None = None  # built at first use
+        self._compiled = False  # the block holds the targets' compiled forms
+        self._given_at: float | None = None  # else: the time their values (from Python) were last given
+
+    def compiled_rows(self) -> RowBlock | None:
+        """The rows in the compiled core (``cpp/core_rows.cpp``), which computes them for Python too; None when a
+        target has no compiled form."""
+        block = self._rows()
+        return block if self._compiled else None
+
+    def _forms(self, t: float | None) -> tuple[list, dict] | None:
+        """The compiled forms of p(t) (none without a path) and turn(t): the trajectories' own (``t`` None; None
+        when one has none), or their values at ``t`` [s] from Python."""
+        path = [] if self.path is None else self._given(self.path, t)
+        turn = [HELD] if self.turn is None else self._given(self.turn, t)
+        if any(form is None for form in path + turn):
+            return None
+        return path, turn[0]
+
+    @staticmethod
+    def _given(trajectory: TargetTrajectory, t: float | None) -> list:
+        if t is None:
+            return [trajectory.compiled(component) for component in range(trajectory.size)]
+        value, rate, curvature = trajectory.evaluate(t)
+        return [values_at(t, *(float(x[k]) for x in (value, rate, curvature))) for k in range(trajectory.size)]
+
+    def _rows(self, t: float | None = None) -> RowBlock:
+        """The compiled rows: with the targets' compiled forms, or with their values at ``t`` [s]."""
+        if self._block is None:
+            placement = np.eye(4)
+            placement[:3, :3] = self.start_rotation
+            self._block = RowBlock(FRAME_TARGET, self.frame, -1, placement, np.zeros((0, 3)))
+            forms = self._forms(None)
+            self._compiled = forms is not None
+            if forms is not None:
+                self._block.set_frame_target(self.components, *forms, self.axis)
+        if not self._compiled and t is not None and t != self._given_at:
+            self._block.set_frame_target(self.components, *self._forms(t), self.axis)
+            self._given_at = t
+        return self._block
+
+    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
+        return block_residual(kin.model, kin.data, self._rows(t), q, t)
+
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        return VelocityTerms(*block_jacobian(kin.model, kin.data, self._rows(t), t))
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        return block_drift(kin.model, kin.data, self._rows(t), t)
+
+
+class FramePath(FrameTarget):
+    """``p_frame - p(t)`` [m], world axes; multipliers: the force on the frame's body [N], world axes."""
 
     def __init__(self, name: str, frame: int, path: TargetTrajectory) -> None:
-        self.name, self.kind, self.frame, self.path = name, "frame-path", frame, path
+        super().__init__(name, "frame-path", frame, POSITION_ROWS, pin.SE3.Identity(), path)
         self.force_frame = "world axes, force on the frame's body"
 
     def target(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p, dp/dt, d2p/dt2) at time t [s]: [m, m/s, m/s^2]."""
         return self.path.evaluate(t)
 
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        return kin.placement(self.frame).translation - self.target(t)[0]
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        return VelocityTerms(kin.jacobian(self.frame)[:3], -self.target(t)[1])
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        return kin.drift_acceleration(self.frame).linear - self.target(t)[2]
-
-
-class FrameOrientation(Constraint):
+class FrameOrientation(FrameTarget):
     """``log3(R_0^T R)`` [rad] of the frame's rotation R against its start orientation R_0 (a weld's rotation
     rows); the multipliers are the moment on the frame's body [N m] (in the log's axes)."""
 
-    holonomic = True
-    rows = 3
-
     def __init__(self, name: str, frame: int, start: pin.SE3) -> None:
-        self.name, self.kind, self.frame = name, "frame-orientation", frame
-        self._weld = FrameClosure(name, "weld", frame, None, start)  # its rotation rows are these rows
+        super().__init__(name, "frame-orientation", frame, ROTATION_ROWS, start)
         self.force_frame = "moment on the frame's body, log3(R_0^T R) axes"
 
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        return self._weld.residual(kin, q, t)[3:]
 
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        jacobian, time_term = self._weld.velocity_terms(kin, q, t)
-        return VelocityTerms(jacobian[3:], time_term[3:])
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        return self._weld.drift(kin, q, v, t)[3:]
-
-
-class FramePose(Constraint):
+class FramePose(FrameTarget):
     """A frame following a placement: ``p - p(t)`` [m] (world axes), then ``log3(R_d(t)^T R)`` [rad] with
     ``R_d(t) = exp(theta(t) axis) R_0``; multipliers: the force [N] (world axes) and the moment [N m] (log
     axes) on the frame's body."""
 
-    holonomic = True
-    rows = 6
-
     def __init__(
         self, name: str, frame: int, path: TargetTrajectory, axis: np.ndarray, turn: TargetTrajectory, start: pin.SE3
     ) -> None:
-        self.name, self.kind, self.frame = name, "frame-pose", frame
-        self._point = FramePath(name, frame, path)  # the position rows
-        self.axis, self.turn, self.start_rotation = axis, turn, start.rotation
+        rows = np.concatenate([POSITION_ROWS, ROTATION_ROWS])
+        super().__init__(name, "frame-pose", frame, rows, start, path, turn, axis)
         self.force_frame = "world axes (force on the frame's body) + log3(R_d^T R) axes (moment)"
-
-    def orientation(self, t: float) -> tuple[np.ndarray, float, float]:
-        """(R_d(t), theta rate [rad/s], theta acceleration [rad/s^2]) at time t [s]."""
-        angle, rate, acceleration = (float(x[0]) for x in self.turn.evaluate(t))
-        return pin.exp3(angle * self.axis) @ self.start_rotation, rate, acceleration
-
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        rotation = self.orientation(t)[0]
-        error = pin.log3(rotation.T @ kin.placement(self.frame).rotation)
-        return np.concatenate([self._point.residual(kin, q, t), error])
-
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        linear = self._point.velocity_terms(kin, q, t)
-        rotation, rate, _ = self.orientation(t)
-        actual = kin.placement(self.frame).rotation
-        turned = pin.Jlog3(rotation.T @ actual) @ actual.T  # d log3 / dt = turned (omega - rate axis)
-        jacobian = np.vstack([linear.jacobian, turned @ kin.jacobian(self.frame)[3:]])
-        return VelocityTerms(jacobian, np.concatenate([linear.time_term, -rate * turned @ self.axis]))
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        rotation, rate, acceleration = self.orientation(t)
-        angular = kin.drift_acceleration(self.frame).angular - acceleration * self.axis
-        omega = kin.velocity(self.frame).angular
-        turning = rotation_drift(kin.placement(self.frame).rotation, rotation, omega, rate * self.axis, angular)
-        return np.concatenate([self._point.drift(kin, q, v, t), turning])
 
 
 def parse_frame_path(entry: dict, tables: SceneTables, name: str, where: str) -> FramePath:
@@ -149,7 +178,7 @@ def parse_frame_pose(entry: dict, tables: SceneTables, name: str, where: str) ->
     held = {"kind": "sinusoid"}  # of no amplitude: the start value
     context = TargetContext(3, "length", start.translation, tables.within_reach)
     path = read_trajectory(entry.get("path", held), context, f"{where}.path")
-    axis = tables.direction(entry.get("axis", [0.0, 0.0, 1.0]), f"{where}.axis")
+    axis = tables.direction(entry.get("axis", list(Z_AXIS)), f"{where}.axis")
     turn = read_trajectory(entry.get("turn", held), TargetContext(1, "angle", np.zeros(1)), f"{where}.turn")
     return FramePose(name, frame, path, axis, turn, start)
 

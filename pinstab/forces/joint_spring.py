@@ -17,8 +17,8 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
-from ..kernels import joint_spring_force
-from ..kinematics import Kinematics, relative_offset, relative_rotation
+from ..kernels import RowBlock, block_jacobian, block_residual, joint_spring_force
+from ..kinematics import Kinematics
 from ..tables import SceneTables, closure_frames
 from ..units import within_ceiling
 from .base import FORCE_KINDS, ForceElement
@@ -27,6 +27,8 @@ SPRING_KEYS = {"name", "kind", "stiffness", "reference", "damping"}
 JOINT_KEYS = SPRING_KEYS | {"joint"}
 FRAME_KEYS = SPRING_KEYS | {"frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b", "axis", "motion"}
 MOTIONS = ("revolute", "prismatic")
+PRISMATIC = 3  # the compiled row kind (cpp/core_rows.hpp RowKind::prismatic): its rows R_b^T (p_a - p_b) across,
+# then log3(R_b^T R_a)
 
 
 class JointSpring(ForceElement):
@@ -52,6 +54,22 @@ class JointSpring(ForceElement):
         self.name, self.stiffness, self.reference, self.damping = name, stiffness, reference, damping
         self.dofs, self.q_index, self.frames = dofs, q_index, frames  # reads kin.q: needs the kinematics pass
         self._form = self.compiled_form({})  # the joint form's force is the core's (cpp/core_kernel.cpp)
+        self._rows = None if frames is None else self._frame_rows(*frames)
+
+    @staticmethod
+    def _frame_rows(frame_a: int, frame_b: int | None, placement_b: pin.SE3, axis: np.ndarray, motion: str) -> tuple:
+        """The frame form's coordinate as compiled rows (``cpp/core_rows.cpp``): a prismatic block whose first slide
+        row is along ``axis`` (its second, zero, unused), and the projection (on its rows) that gives s: the slide
+        ``axis . R_b^T (p_a - p_b)`` [m] (row 0) or the turn ``axis . log3(R_b^T R_a)`` [rad] (rows 2-4)."""
+        selection = np.vstack([axis, np.zeros(3)])
+        block_b = -1 if frame_b is None else frame_b
+        block = RowBlock(PRISMATIC, frame_a, block_b, placement_b.homogeneous, selection)
+        projection = np.zeros(5)
+        if motion == "prismatic":
+            projection[0] = 1.0
+        else:
+            projection[2:] = axis
+        return block, projection
 
     def coordinate(self, kin: Kinematics) -> tuple[float, np.ndarray]:
         """The 1-DOF coordinate s [rad or m] and its gradient ds/dq (nv,)."""
@@ -59,10 +77,10 @@ class JointSpring(ForceElement):
             gradient = np.zeros(kin.model.nv)
             gradient[self.dofs] = 1.0
             return float(kin.q[self.q_index]), gradient
-        frame_a, frame_b, placement_b, axis, motion = self.frames
-        relative = relative_offset if motion == "prismatic" else relative_rotation
-        value, jacobian = relative(kin, frame_a, frame_b, placement_b)
-        return float(axis @ value), axis @ jacobian
+        block, projection = self._rows
+        value = block_residual(kin.model, kin.data, block, kin.q, 0.0)
+        jacobian = block_jacobian(kin.model, kin.data, block, 0.0)[0]
+        return float(projection @ value), projection @ jacobian
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
         """The joint form as the core kernel takes it (``cpp/core_kernel.hpp`` JointSpringSpec); None for the frame
