@@ -11,7 +11,7 @@ import numpy as np
 
 from ..contact.collisions import Touch
 from ..contact.cones import FrictionCone
-from ..kernels import RowBlock
+from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
 from ..kinematics import Kinematics
 from ..registry import Registry
 
@@ -119,3 +119,25 @@ CONSTRAINT_KINDS: Registry[Constraint] = Registry("constraint kind")
 ``parse(table, tables, name, where) -> Constraint``: it reads its own keys from the scene table
 through :class:`~pinstab.tables.SceneTables` (which adds frames to the model) and names ``where``
 in its errors; it returns one Constraint, or a list of blocks (rows of different kinds)."""
+
+
+class BlockRows(Constraint):
+    """A constraint whose rows are one row block of the compiled core (``cpp/core_rows.cpp``): its residual, Jacobian
+    with time term and drift are the core's functions on :meth:`block_at`."""
+
+    def block_at(self, t: float) -> RowBlock:
+        """The block whose rows hold at time t [s]: :meth:`compiled_rows` (a block that takes its target's values
+        from Python at t sets them here)."""
+        block = self.compiled_rows()
+        if block is None:  # pragma: no cover - a subclass without compiled rows overrides this
+            raise NotImplementedError(f"{type(self).__name__} has no compiled rows: override block_at")
+        return block
+
+    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
+        return block_residual(kin.model, kin.data, self.block_at(t), q, t)
+
+    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
+        return VelocityTerms(*block_jacobian(kin.model, kin.data, self.block_at(t), t))
+
+    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        return block_drift(kin.model, kin.data, self.block_at(t), t)

@@ -21,10 +21,9 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
-from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
-from ..kinematics import Kinematics
+from ..kernels import RowBlock
 from ..tables import SceneTables
-from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .base import CONSTRAINT_KINDS, BlockRows
 from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid, values_at
 
 SINE_PATH_KEYS = {"centre", "amplitude", "omega", "phase"}
@@ -37,7 +36,7 @@ HELD = {"kind": "sinusoid", "wave": np.zeros(4)}  # a compiled target of value 0
 Z_AXIS = np.array([0.0, 0.0, 1.0])
 
 
-class FrameTarget(Constraint):
+class FrameTarget(BlockRows):
     """A weld's rows between ``frame`` and a placement moving in time, (p(t), R_d(t) = exp(turn(t) axis) R_0), computed
     by the compiled core (``cpp/core_rows.hpp``, kind ``frame_target``): ``p - p(t)`` [m] (world axes) and
     ``log3(R_d(t)^T R)`` [rad], the ``components`` of the six. A target without a compiled form
@@ -74,7 +73,7 @@ class FrameTarget(Constraint):
     def compiled_rows(self) -> RowBlock | None:
         """The rows in the compiled core (``cpp/core_rows.cpp``), which computes them for Python too; None when a
         target has no compiled form."""
-        block = self._rows()
+        block = self.block_at()
         return block if self._compiled else None
 
     def _forms(self, t: float | None) -> tuple[list, dict] | None:
@@ -93,7 +92,7 @@ class FrameTarget(Constraint):
         value, rate, curvature = trajectory.evaluate(t)
         return [values_at(t, *(float(x[k]) for x in (value, rate, curvature))) for k in range(trajectory.size)]
 
-    def _rows(self, t: float | None = None) -> RowBlock:
+    def block_at(self, t: float | None = None) -> RowBlock:
         """The compiled rows: with the targets' compiled forms, or with their values at ``t`` [s]."""
         if self._block is None:
             placement = np.eye(4)
@@ -107,15 +106,6 @@ class FrameTarget(Constraint):
             self._block.set_frame_target(self.components, *self._forms(t), self.axis)
             self._given_at = t
         return self._block
-
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        return block_residual(kin.model, kin.data, self._rows(t), q, t)
-
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        return VelocityTerms(*block_jacobian(kin.model, kin.data, self._rows(t), t))
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        return block_drift(kin.model, kin.data, self._rows(t), t)
 
 
 class FramePath(FrameTarget):

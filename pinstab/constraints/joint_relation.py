@@ -13,18 +13,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SceneError
-from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
-from ..kinematics import Kinematics
+from ..kernels import RowBlock
 from ..tables import SceneTables
 from ..units import within_ceiling
-from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .base import CONSTRAINT_KINDS, BlockRows
 from .targets import TargetContext, TargetTrajectory, read_trajectory, sinusoid, values_at
 
 RELATION_KEYS = {"name", "kind", "joints", "value", "sine", "target"}
 SINE_KEYS = {"amplitude", "omega", "phase"}
 
 
-class JointRelation(Constraint):
+class JointRelation(BlockRows):
     """One holonomic row ``coefficients . q - c(t)`` [m or rad] on 1-DOF joints.
 
     Its ``residual_units`` are its largest and smallest nonzero |coefficient|: the residual over the largest is the
@@ -64,10 +63,10 @@ class JointRelation(Constraint):
     def compiled_rows(self) -> RowBlock | None:
         """The relation in the compiled core (``cpp/core_rows.cpp``), which computes it for Python too; None for a
         target without a compiled form (:meth:`~pinstab.constraints.targets.TargetTrajectory.compiled`)."""
-        block = self._rows()
+        block = self.block_at()
         return block if self._compiled else None
 
-    def _rows(self, t: float | None = None) -> RowBlock:
+    def block_at(self, t: float | None = None) -> RowBlock:
         """The compiled relation row: with the target's compiled form, or (a target without one) with its values at
         ``t`` [s] from its Python evaluate (:func:`~pinstab.constraints.targets.values_at`), the same row arithmetic."""
         if self._block is None:
@@ -79,15 +78,6 @@ class JointRelation(Constraint):
             self._block.set_target(values_at(t, value, rate, curvature))
             self._given_at = t
         return self._block
-
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        return block_residual(kin.model, kin.data, self._rows(t), q, t)
-
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        return VelocityTerms(*block_jacobian(kin.model, kin.data, self._rows(t), t))
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        return block_drift(kin.model, kin.data, self._rows(t), t)
 
 
 def parse_joint_relation(entry: dict, tables: SceneTables, name: str, where: str) -> JointRelation:

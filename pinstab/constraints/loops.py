@@ -11,10 +11,9 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import ConstraintError, SceneError, choices
-from ..kernels import RowBlock, block_drift, block_jacobian, block_residual
-from ..kinematics import Kinematics
+from ..kernels import RowBlock
 from ..tables import SceneTables, closure_frames, unit
-from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .base import CONSTRAINT_KINDS, BlockRows
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
 NO_RELATION = (np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))  # a frame block's relation part
@@ -38,7 +37,7 @@ def plane_basis(plane: str | np.ndarray) -> np.ndarray:
     return np.vstack([first, np.cross(normal, first)])
 
 
-class FrameClosure(Constraint):
+class FrameClosure(BlockRows):
     """A loop closure between frame ``a`` and frame ``b`` (or the world when ``frame_b`` is None).
 
     The frames are operational frames that the scene adds at the closure points, so the residual is
@@ -100,14 +99,6 @@ class FrameClosure(Constraint):
         return (1, np.eye(3)) if self.locks_rotation else (0, self.selection)
 
     # -- Constraint ------------------------------------------------------------------------------
-    def residual(self, kin: Kinematics, q: np.ndarray, t: float) -> np.ndarray:
-        return block_residual(kin.model, kin.data, self.compiled_rows(), q, t)
-
-    def velocity_terms(self, kin: Kinematics, q: np.ndarray, t: float) -> VelocityTerms:
-        return VelocityTerms(*block_jacobian(kin.model, kin.data, self.compiled_rows(), t))
-
-    def drift(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        return block_drift(kin.model, kin.data, self.compiled_rows(), t)
 
 
 def _plane(entry: dict, kind: str, where: str) -> str | tuple[float, float, float]:
