@@ -36,7 +36,7 @@ from ..kinematics import Kinematics, PerUpdate, frame_jacobian
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
-from .loops import NO_RELATION, plane_basis
+from .loops import plane_basis
 
 GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
 GAP_TOLERANCE = 1e-10  # [m] a fingertip this close to the surface touches it
@@ -86,7 +86,7 @@ class FingertipContact(Constraint):
         self.angular = bool(self.components[-1] >= 3)
         # the rows in the compiled core (cpp/core_rows.cpp): the point's, then a weld's rotation rows between the
         # object's and the finger's copy of C, the model's components of them
-        self.block = RowBlock(5, object_frame, finger_frame, np.eye(4), np.zeros((0, 3)), *NO_RELATION)
+        self.block = RowBlock(5, object_frame, finger_frame, np.eye(4), np.zeros((0, 3)))
         self.block.set_contact(self.components.astype(np.int32), CONTACT_MODEL_CODES[model], mu, torsion)
         self.force_frame = "contact frame C (x, y tangents, z normal into the object), force/moment of finger on object"
         # the constraint stack, a grasp force element and a grasp controller read them at the same state

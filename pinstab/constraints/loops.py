@@ -16,7 +16,6 @@ from ..tables import SceneTables, closure_frames, unit
 from .base import CONSTRAINT_KINDS, BlockRows
 
 CLOSURE_KINDS = ("point", "planar-point", "weld")
-NO_RELATION = (np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))  # a frame block's relation part
 CLOSURE_KEYS = {"name", "kind", "frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b"}
 PLANES = {"xy": (0, 1), "xz": (0, 2), "yz": (1, 2)}
 
@@ -91,7 +90,7 @@ class FrameClosure(BlockRows):
             kind, selection = self._block_form()
             frame_b = -1 if self.frame_b is None else self.frame_b
             placement_b = self.world_placement_b.homogeneous
-            self._block = RowBlock(kind, self.frame_a, frame_b, placement_b, selection, *NO_RELATION)
+            self._block = RowBlock(kind, self.frame_a, frame_b, placement_b, selection)
         return self._block
 
     def _block_form(self) -> tuple[int, np.ndarray]:

@@ -24,7 +24,6 @@ from typing import Any
 import numpy as np
 
 from ..constraints import Constraint, ConstraintSet, RowKind
-from ..constraints.loops import NO_RELATION
 from ..contact.models import MARGIN_SLACK
 from ..errors import GraspLostError
 from ..forces.base import ForceElement
@@ -59,7 +58,7 @@ def _compiled(element: ForceElement, rows: dict[str, slice]) -> dict[str, Any] |
 
 def _python_rows(constraint: Constraint) -> RowBlock:
     """The placeholder of a block whose rows Python gives at each evaluation (kind 6)."""
-    block = RowBlock(6, -1, -1, np.eye(4), np.zeros((0, 3)), *NO_RELATION)
+    block = RowBlock(6, -1, -1, np.eye(4), np.zeros((0, 3)))
     block.python_rows, block.holonomic = constraint.rows, constraint.holonomic
     return block
 
