@@ -203,7 +203,7 @@ class _Problem:
 
     def __init__(self, carrier: np.ndarray, load: np.ndarray, contacts: list[Any], cap: float) -> None:
         self.carrier, self.load, self.cap = np.asarray(carrier, float), np.asarray(load, float), cap
-        self.contacts = contacts
+        self.cone_test = ConeTest(contacts)  # the limits a solution must keep
         self.columns, count = cone_columns(contacts)
         if count != self.carrier.shape[1]:
             raise ValueError(f"the contacts have {count} force components, the carrier {self.carrier.shape[1]} columns")
@@ -288,7 +288,7 @@ class _Problem:
                 continue
             forces = x[:-1] * self.scale
             residual = float(np.max(np.abs(self.carrier @ forces - self.load), initial=0.0))
-            if residual <= FEASIBILITY * self.scale and ConeTest(self.contacts).holds(forces):
+            if residual <= FEASIBILITY * self.scale and self.cone_test.holds(forces):
                 normals = [contact.normal for contact in self.columns]
                 return Holding(forces, float(np.max(forces[normals], initial=0.0)))
         return Holding(None, math.inf)
