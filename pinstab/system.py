@@ -210,10 +210,10 @@ class ConstrainedSystem:
         )
 
     # -- choosing the path -------------------------------------------------------------------------
-    def bind(self, step: float, integrator: str, q: np.ndarray) -> None:
-        """Bind the stabilizer to the step [s], the integrator and the start configuration, and take the
-        native path when the scene, the method and the solver allow it."""
-        self.stabilizer.bind(self.model, step, integrator, q)
+    def bind(self, step: float, integrator: str, q: np.ndarray, varying: bool = False) -> None:
+        """Bind the stabilizer to the step [s] (the first, where ``varying``: error control), the integrator and the
+        start configuration, and take the native path when the scene, the method and the solver allow it."""
+        self.stabilizer.bind(self.model, step, integrator, q, varying)
         self.compiled_path = self.banded = None  # a previous bind's
         reason = self.native_obstacle(q)
         if reason is not None:

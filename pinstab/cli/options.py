@@ -139,7 +139,8 @@ def assembly_tolerance(args: argparse.Namespace) -> float | None:
 
 def add_registry_options(parser: argparse.ArgumentParser, registry: Registry, prefix: str) -> None:
     """One flag per option of the registry's entries (shared by entries with the same option), its
-    help naming the entries that take it; only flags given on the command line reach the namespace."""
+    help naming the entries that take it; only flags given on the command line reach the namespace. A boolean flag
+    stores the opposite of its default, False when named ``--no-...`` (a default of None: decided at run time)."""
     flags: dict[str, list] = {}
     for entry in registry.entries():
         for option in option_fields(entry.options):
@@ -150,7 +151,8 @@ def add_registry_options(parser: argparse.ArgumentParser, registry: Registry, pr
         described = "; ".join(f"{name}: {item.help}" for name, item in users)
         common = dict(dest=prefix + option.name, default=argparse.SUPPRESS, help=described)
         if option.kind is bool:
-            group.add_argument(flag, action="store_false" if option.default else "store_true", **common)
+            stores_false = option.default or flag.startswith("--no-")
+            group.add_argument(flag, action="store_false" if stores_false else "store_true", **common)
         else:
             metavar = None if option.choices else option.name.upper()
             group.add_argument(flag, type=option.kind, choices=option.choices, metavar=metavar, **common)

@@ -79,7 +79,7 @@ def simulate_held(
         report = assemble(model, q, v, tolerance=assembly_tol)
         q, v = report.q, report.v
     refuse_separating_contacts(system.model, q, v, scene.name)
-    system.bind(grid.dt, integrator, q)
+    system.bind(grid.dt, integrator, q, varying=control is not None)
     # with error control the steps vary: the control, not a criterion at one step, keeps them stable
     start_radius = _refuse_unstable_gains(system, q, v, strict) if control is None else None
     warned = start_radius is not None and start_radius >= 1
@@ -117,9 +117,9 @@ def held_system(
 ) -> tuple[ConstrainedSystem, Integrator]:
     """The system and the integrator of the held path (:func:`simulate_held`), refused before any step: a contact on
     a plane carried by a body, a method and a solver that do not go together or a solver that does not take the
-    scene's rows (:func:`~pinstab.system.build_system`), a method whose automatic gains are placed for one step under
-    error ``control`` (steps of varying length), a sphere contact (``radius``) with friction (it rolls). A sweep
-    checks its points with it.
+    scene's rows (:func:`~pinstab.system.build_system`), a method configured for fixed steps under error ``control``
+    (steps of varying length: :meth:`~pinstab.stabilizers.base.Stabilizer.error_control_obstacle`), a sphere contact
+    (``radius``) with friction (it rolls). A sweep checks its points with it.
 
     Raises:
         PinstabError (SolverError for the solver's refusals).
@@ -141,11 +141,9 @@ def held_system(
         )
     system = build_system(scene, method, solver, solver_options, **method_options)
     stepper = INTEGRATORS.build(integrator, system)
-    if control is not None and system.stabilizer.step_dependent:
-        raise PinstabError(
-            f"method {method} places its automatic gains for one fixed step; with rtol (error control, steps of "
-            "varying length) give its gains (kp, kd), or use baumgarte, projection or post"
-        )
+    obstacle = None if control is None else system.stabilizer.error_control_obstacle()
+    if obstacle is not None:
+        raise PinstabError(f"method {method} {obstacle}")
     return system, stepper
 
 

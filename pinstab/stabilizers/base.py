@@ -74,8 +74,9 @@ class Stabilizer:
     corrects = False
     guards_passages = True
 
-    def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray) -> None:
-        """Called once before a run with the step [s], the integrator name and the start configuration."""
+    def bind(self, model: ConstrainedModel, step: float, integrator: str, q: np.ndarray, varying: bool = False) -> None:
+        """Called once before a run with the step [s] (the first, where ``varying``: error control takes steps of
+        varying length), the integrator name and the start configuration."""
         self.step, self.integrator = step, integrator
         self.scheme = integrator  # the amplification matrix R that describes the method's deviations
         self.mask = model.constraints.holonomic_mask
@@ -142,11 +143,9 @@ class Stabilizer:
         """The method's parameters, for reports."""
         return {}
 
-    @property
-    def step_dependent(self) -> bool:
-        """Whether the method's term is placed for one fixed step (then steps of varying length, error
-        control, do not suit it)."""
-        return False
+    def error_control_obstacle(self) -> str | None:
+        """Why the method, as configured, does not suit error control (steps of varying length), or None."""
+        return None
 
 
 STABILIZERS: Registry[Stabilizer] = Registry("method")
