@@ -59,6 +59,10 @@ CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> bloc
   if (term_.velocity_gains.size() != rows_) {
     throw std::invalid_argument("CoreKernel: the term's velocity gains need one entry per row");
   }
+  if (term_.inertial) {
+    if (python_rows_ > 0) throw std::invalid_argument("CoreKernel: the inertial term needs every row compiled");
+    inertial_.emplace(model_, *term_.inertial);
+  }
   jacobian_.setZero(rows_, model_.nv);
   phi_.setZero(rows_);
   time_term_.setZero(rows_);
@@ -101,7 +105,9 @@ bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const Vect
     block_drift(model_, data_, block, t, drift_.segment(offset, rows));
   }
   if (!holds_term) {
-    term_value_ = stabilization_term(term_.stiffness, term_.velocity_gains, phi_, jacobian_ * v + time_term_);
+    const VectorXd rate = jacobian_ * v + time_term_;
+    term_value_ = inertial_ ? inertial_->term(model_, blocks_, offsets_, t, q, v, data_.M, jacobian_, phi_, rate)
+                            : stabilization_term(term_.stiffness, term_.velocity_gains, phi_, rate);
     if (term_.held) held_ = term_value_;
   }
   add_joint_springs(forces_.springs, q, v, force_);

@@ -12,6 +12,7 @@
 
 #include "core_rows.hpp"
 #include "grasp_forces.hpp"
+#include "inertial_term.hpp"
 #include "kernels.hpp"
 #include "kkt_solve.hpp"
 
@@ -45,11 +46,14 @@ VectorXd stabilization_term(double stiffness, const Eigen::ArrayXd& velocity_gai
 Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic);
 
 // The core's stabilization term (pinstab.stabilizers.base.CoreTerm): S [1/s^2], K per row [1/s], and whether the term
-// is computed at a step's first stage (stage 0) and held over its other stages.
+// is computed at a step's first stage (stage 0) and held over its other stages; with `inertial` (Mukharlyamov's
+// inertial variant, cpp/inertial_term.hpp) S and K are matrices that follow the configuration, and stiffness and
+// velocity_gains are not read.
 struct CoreTerm {
   double stiffness = 0.0;
   Eigen::ArrayXd velocity_gains;
   bool held = false;
+  std::optional<InertialGains> inertial;
 };
 
 // pinstab.scene.GravityTilt: gravity g(t) = R(axis, -(start + rate t)) g0 [m/s^2] (rate [rad/s], start [rad]).
@@ -74,7 +78,8 @@ class PythonPart {
 };
 
 // M a + h = tau + forces + G^T lambda, G a = -gamma0 - K (G v + g_t) - S phi (the term held from stage 0 over a step's
-// other stages when term.held), under gravity that tilts in time when `tilt` is given.
+// other stages when term.held), under gravity that tilts in time when `tilt` is given. An inertial term needs every
+// row compiled (no Python part: std::invalid_argument).
 class CoreKernel : public Kernel {
  public:
   CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, CoreTerm term,
@@ -109,6 +114,7 @@ class CoreKernel : public Kernel {
   Eigen::MatrixXd python_jacobian_;
   VectorXd python_phi_, python_time_term_, python_drift_;
   CoreTerm term_;
+  std::optional<InertialPass> inertial_;
   std::optional<VectorXd> held_;
   VectorXd term_value_;
   CoreSolve settings_;

@@ -14,6 +14,7 @@
 #include "contact_terms.hpp"
 #include "core_kernel.hpp"
 #include "grasp_forces.hpp"
+#include "inertial_term.hpp"
 #include "kkt_solve.hpp"
 #include "native_kernel.hpp"
 #include "series.hpp"
@@ -119,6 +120,12 @@ std::vector<ConeSpec> cones(const Eigen::MatrixXi& columns, const VectorXd& mu, 
     cones.push_back({columns(k, 0), columns(k, 1), columns(k, 2), columns(k, 3), mu(k), torsion(k)});
   }
   return cones;
+}
+
+// pinstab.stabilizers.mukharlyamov's inertial gains: the dict by name (stiffness, damping, rate_step, cutoff).
+InertialGains inertial_gains(nb::dict gains) {
+  return {nb::cast<Eigen::MatrixXd>(gains["stiffness"]), nb::cast<Eigen::MatrixXd>(gains["damping"]),
+          nb::cast<double>(gains["rate_step"]), nb::cast<double>(gains["cutoff"])};
 }
 
 // pinstab.forces.joint_spring.JointSpring.compiled_form: the dict by name.
@@ -479,6 +486,32 @@ NB_MODULE(_compiled, m) {
       "jacobian"_a, "a"_a, "rhs"_a, "force"_a, "mass_diagonal"_a, "unilateral"_a,
       "|G a - rhs| / (|rhs| + |G|_F (|a| + |f| / min diag M)) [-], a unilateral row (mask) counted only when violated.");
   m.def(
+      "delassus_pseudo_inverse",
+      [](const Eigen::MatrixXd& delassus, double cutoff) {
+        if (delassus.rows() != delassus.cols()) throw std::invalid_argument("delassus_pseudo_inverse: D must be square");
+        DelassusPseudoInverse inverse;
+        inverse.compute(delassus, cutoff);
+        return inverse.apply(Eigen::MatrixXd(Eigen::MatrixXd::Identity(delassus.rows(), delassus.cols())));
+      },
+      "delassus"_a, "cutoff"_a,
+      "D^+ of a Delassus matrix D = G M^-1 G^T (symmetric positive semi-definite), its eigenvalues at most cutoff times "
+      "the largest left out (the core solve's pseudo-inverse; NaN where D is not finite).");
+  m.def(
+      "inertial_matrices",
+      [](nb::dict gains, const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const Eigen::MatrixXd& mass_ahead,
+         const Eigen::MatrixXd& jacobian_ahead) {
+        const InertialGains given = inertial_gains(gains);
+        if (jacobian.rows() != given.damping.rows() || jacobian_ahead.rows() != jacobian.rows() ||
+            given.stiffness.rows() != jacobian.rows() || mass.rows() != jacobian.cols()) {
+          throw std::invalid_argument("inertial_matrices: H and B need one row per constraint row, M one per column");
+        }
+        return inertial_matrices(given, mass, jacobian, mass_ahead, jacobian_ahead);
+      },
+      "gains"_a, "mass"_a, "jacobian"_a, "mass_ahead"_a, "jacobian_ahead"_a,
+      "(S = D H [1/s^2], K = D B - dD/dt D^+ [1/s]) of Mukharlyamov's inertial variant (the core kernel's), D = G M^-1 "
+      "G^T from M and G at q and at q + rate_step v (dD/dt by their difference); gains: dict of stiffness H, damping B, "
+      "rate_step [s], cutoff (of D^+, relative).");
+  m.def(
       "stabilization_term",
       [](double stiffness, const VectorXd& velocity_gains, const VectorXd& phi, const VectorXd& rate) {
         if (velocity_gains.size() != phi.size() || rate.size() != phi.size()) {
@@ -597,7 +630,7 @@ NB_MODULE(_compiled, m) {
           "__init__",
           [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
              double stiffness, const VectorXd& velocity_gains, bool held, nb::dict settings,
-             std::optional<nb::dict> tilt, nb::object python) {
+             std::optional<nb::dict> tilt, nb::object python, std::optional<nb::dict> inertial) {
             CoreForces forces;
             for (const nb::dict& form : forms) {
               const std::string kind = nb::cast<std::string>(form["kind"]);
@@ -625,18 +658,22 @@ NB_MODULE(_compiled, m) {
             }
             std::shared_ptr<PythonPart> part;
             if (!python.is_none()) part = std::make_shared<CallbackPart>(python);
-            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces),
-                                  CoreTerm{stiffness, velocity_gains.array(), held}, solve, turning, std::move(part));
+            CoreTerm term{stiffness, velocity_gains.array(), held, std::nullopt};
+            if (inertial) term.inertial = inertial_gains(*inertial);
+            new (self) CoreKernel(python_model(model.ptr()), std::move(blocks), std::move(forces), std::move(term),
+                                  solve, turning, std::move(part));
           },
           "model"_a, "blocks"_a, "forces"_a, "stiffness"_a, "velocity_gains"_a, "held"_a, "settings"_a,
           "tilt"_a = nb::none(),
-          "python"_a = nb::none(),
+          "python"_a = nb::none(), "inertial"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
           "wrench), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
           "step's stage 0 and held over its other stages), the solve's settings (dict: direct_pivot, cutoff, "
           "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
           "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "
-          "kind 6 and the elements without a compiled form, and holds(t, multipliers) -> bool.")
+          "kind 6 and the elements without a compiled form, and holds(t, multipliers) -> bool; inertial: Mukharlyamov's "
+          "inertial term instead of S and K (dict: stiffness H (s x s), damping B (s x s), rate_step [s], cutoff), "
+          "or None.")
       .def("multipliers", &CoreKernel::multipliers, "The last evaluation's multipliers [N, N m] (the rows' order).")
       .def("held_term", &CoreKernel::held_term,
            "The term held over the step (computed at its last stage-0 evaluation) [m/s^2 or rad/s^2], or None: a term "

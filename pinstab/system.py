@@ -286,7 +286,15 @@ class ConstrainedSystem:
             self.path_reason = reason
             return
         term = self.stabilizer.core_term()
-        self.compiled_path = CoreDynamics(model, *term, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+        if term.inertial is not None and any(c.compiled_rows() is None for c in constraints.constraints):
+            self.path_reason = (
+                f"method {self.stabilizer.name}'s inertial term reads G at a second configuration, which Python rows "
+                "do not give the core"
+            )
+            return
+        self.compiled_path = CoreDynamics(
+            model, term.stiffness, term.velocity_gains, term.held, DIRECT_PIVOT, ACCEPTED_RESIDUAL, term.inertial
+        )
         self.path, self.acceleration = "core", self._compiled_acceleration
         in_python = self.compiled_path.in_python()
         self.path_reason = (

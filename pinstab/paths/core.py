@@ -106,8 +106,9 @@ class CoreDynamics:
 
     Args:
         model: the constrained model. stiffness: the term's S [1/s^2]. velocity_gains: its K per row [1/s]. held: the
-            term is computed at a step's stage 0 and held over its other stages. direct_pivot: the Delassus matrix's
-            smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows count as
+            term is computed at a step's stage 0 and held over its other stages. inertial: Mukharlyamov's inertial
+            term instead of S and K (:class:`~pinstab.stabilizers.base.CoreTerm`), or None. direct_pivot: the Delassus
+            matrix's smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows count as
             dependent. accepted: the relative primal residual an evaluation must reach to be used.
 
     Attributes:
@@ -128,6 +129,7 @@ class CoreDynamics:
         held: bool,
         direct_pivot: float,
         accepted: float,
+        inertial: dict | None = None,
     ) -> None:
         settings: dict[str, Any] = {
             "direct_pivot": direct_pivot,
@@ -147,7 +149,16 @@ class CoreDynamics:
         tilt = None if model.scene.tilt is None else model.scene.tilt.compiled_form()
         forms = [form for form in forms if form is not None]
         self.kernel = CoreKernel(
-            model.model, blocks, forms, float(stiffness), velocity_gains, bool(held), settings, tilt, self.python
+            model.model,
+            blocks,
+            forms,
+            float(stiffness),
+            velocity_gains,
+            bool(held),
+            settings,
+            tilt,
+            self.python,
+            inertial,
         )
         self.held = bool(held)
         self._zero = np.zeros(model.nv)

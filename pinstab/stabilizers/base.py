@@ -49,11 +49,14 @@ class CoreTerm(NamedTuple):
     Attributes:
         stiffness: S [1/s^2]. velocity_gains: K per row (s,) [1/s].
         held: computed at a step's first stage and held over its other stages.
+        inertial: Mukharlyamov's inertial variant instead of S and K (``cpp/inertial_term.hpp``: a dict of H and B,
+            s x s, the difference step [s] of dD/dt and the cutoff of D^+), or None.
     """
 
     stiffness: float
     velocity_gains: np.ndarray
     held: bool
+    inertial: dict | None = None
 
 
 class Stabilizer:

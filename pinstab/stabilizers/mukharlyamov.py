@@ -170,7 +170,7 @@ class MukharlyamovStabilizer(Stabilizer):
         if not self.automatic:
             return stiffness * self._pick, np.diag(damping)
         jac = model.constraint_values(q0, np.zeros(model.nv), 0.0).jacobian
-        inertia = np.linalg.pinv(_delassus(jac, model.mass_matrix(q0)), rcond=RCOND)
+        inertia = kernels.delassus_pseudo_inverse(_delassus(jac, model.mass_matrix(q0)), RCOND)
         weighted = inertia @ np.diag(damping)
         return stiffness * inertia @ self._pick, 0.5 * (weighted + weighted.T)
 
@@ -183,28 +183,34 @@ class MukharlyamovStabilizer(Stabilizer):
         if self.variant == "kinematic":  # the core kernel's
             term = kernels.stabilization_term(self._s_scalar, self._k_diagonal, values.phi, values.velocity_residual)
         else:
-            stiffness, damping = self._inertial_matrices(model, q, v, values.jacobian, model.kin.mass_matrix)
+            stiffness, damping = self._inertial_matrices(model, q, v, t, values.jacobian, model.kin.mass_matrix)
             term = -stiffness @ values.phi[self.mask] - damping @ values.velocity_residual
         self._held_term = term
         return term
 
-    def _inertial_matrices(self, model, q, v, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
-        """S = D H and K = D B - dD/dt Lambda (D = G M^-1 G^T = Lambda^-1, so D dLambda/dt = -dD/dt Lambda)."""
-        delassus = _delassus(jac, mass_matrix)
+    def _inertial_matrices(self, model, q, v, t, jac, mass_matrix) -> tuple[np.ndarray, np.ndarray]:
+        """S = D H and K = D B - dD/dt Lambda (D = G M^-1 G^T = Lambda^-1, so D dLambda/dt = -dD/dt Lambda): the core
+        kernel's (``cpp/inertial_term.hpp``), from G and M at q and at q + RATE_STEP v (at t [s])."""
         q_ahead = model.integrate(q, RATE_STEP * v)
         self._rate_kin.update_jacobians(q_ahead)
-        jac_ahead = model.constraints.velocity_terms(self._rate_kin, q_ahead, 0.0).jacobian
-        delassus_ahead = _delassus(jac_ahead, model.mass_matrix(q_ahead))
-        delassus_rate = (delassus_ahead - delassus) / RATE_STEP
-        inertia = np.linalg.pinv(delassus, rcond=RCOND)
-        return delassus @ self._h_matrix, delassus @ self._b_matrix - delassus_rate @ inertia
+        jac_ahead = model.constraints.velocity_terms(self._rate_kin, q_ahead, t).jacobian
+        gains = self._inertial_gains(self._h_matrix)
+        return kernels.inertial_matrices(gains, mass_matrix, jac, model.mass_matrix(q_ahead), jac_ahead)
+
+    def _inertial_gains(self, stiffness: np.ndarray) -> dict:
+        """H (``stiffness``), B, the difference step [s] and the cutoff, as the compiled functions take them."""
+        return {"stiffness": stiffness, "damping": self._b_matrix, "rate_step": RATE_STEP, "cutoff": RCOND}
 
     def core_term(self) -> CoreTerm | None:
-        """(S, K per row, held) once bound, in the kinematic variant; None in the inertial one (S and K follow
-        Lambda(q))."""
-        if not self._bound or self.variant != "kinematic":
+        """(S, K per row, held) once bound, in the kinematic variant; in the inertial one (S and K follow Lambda(q))
+        its H, padded to every row (zero columns on nonholonomic rows, whose phi is zero), and B."""
+        if not self._bound:
             return None
-        return CoreTerm(float(self._s_scalar), self._k_diagonal, self.holding)
+        if self.variant == "kinematic":
+            return CoreTerm(float(self._s_scalar), self._k_diagonal, self.holding)
+        rows = len(self.mask)
+        inertial = self._inertial_gains(self._h_matrix @ self._pick.T)
+        return CoreTerm(0.0, np.zeros(rows), self.holding, inertial)
 
     def hold_term(self, term: np.ndarray) -> None:
         if not self.holding:
@@ -225,7 +231,7 @@ class MukharlyamovStabilizer(Stabilizer):
             return DeviationGains(self._s_scalar * self._pick, np.diag(self._k_diagonal), self.mask)
         model.kin.update(q, v)
         jac = model.constraints.velocity_terms(model.kin, q, 0.0).jacobian
-        stiffness, damping = self._inertial_matrices(model, q, v, jac, model.kin.mass_matrix)
+        stiffness, damping = self._inertial_matrices(model, q, v, 0.0, jac, model.kin.mass_matrix)
         return _on_row_space(jac, stiffness, damping, self.mask)
 
     def parameters(self) -> dict[str, float | str]:
