@@ -12,7 +12,9 @@ and the time it reached.
 
 The table beside it is the one before the core path (``results/scene_paths_before.json``, commit d561c68: the
 general path in Python for every scene with a weld, a joint relation, a rolling or soft-finger contact or grasp
-control); the printout gives both and the ratio, after over before.
+control); the printout gives both and the ratio, after over before. The scenes whose path was the general one are
+also run on it now (``solver="proxsuite"`` keeps a run there) in the same rounds, interleaved: the column "general
+now" and the ratio of the two measured side by side.
 """
 
 from __future__ import annotations
@@ -39,12 +41,14 @@ OUT = Path(__file__).parent / "results" / "scene_paths.json"
 BEFORE = Path(__file__).parent / "results" / "scene_paths_before.json"
 
 
-def timed(scene: pinstab.Scene, duration: float) -> dict[str, Any]:
-    """One default ``simulate()`` of ``scene`` over ``duration`` [s]: CPU s, the simulated time reached [s], the path
-    and its reason, or the error that stopped it."""
+def timed(scene: pinstab.Scene, duration: float, **options: Any) -> dict[str, Any]:
+    """One default ``simulate()`` of ``scene`` over ``duration`` [s] (with ``options``): CPU s, the simulated time
+    reached [s], the path and its reason, or the error that stopped it."""
     began = time.process_time()
     try:
-        trajectory = pinstab.simulate(scene, duration=duration, progress=False, contacts=default_contacts(scene))
+        trajectory = pinstab.simulate(
+            scene, duration=duration, progress=False, contacts=default_contacts(scene), **options
+        )
     except PinstabError as exc:
         reached = getattr(getattr(exc, "trajectory", None), "info", None)
         return {
@@ -64,10 +68,19 @@ def timed(scene: pinstab.Scene, duration: float) -> dict[str, Any]:
     }
 
 
+def cost(measured: list[dict[str, Any]]) -> float:
+    """The median CPU s per simulated second of the runs (the last one's reach) [-]."""
+    reached = measured[-1]["reached_s"]
+    return float(np.median([run["cpu_s"] for run in measured])) / reached if reached > 0 else math.nan
+
+
 def main() -> None:
     scenes = {name: pinstab.load_scene(name) for name in bundled_scenes()}
+    before = json.loads(BEFORE.read_text())["scenes"]
+    was_general = [name for name in scenes if before.get(name, {}).get("path") == "general"]
     durations: dict[str, float] = {}
     runs: dict[str, list[dict[str, Any]]] = {name: [] for name in scenes}
+    general_runs: dict[str, list[dict[str, Any]]] = {name: [] for name in was_general}
     for name, scene in scenes.items():
         probe = timed(scene, PROBE)
         per_second = probe["cpu_s"] / max(probe["reached_s"], PROBE)
@@ -78,22 +91,26 @@ def main() -> None:
         for name, scene in scenes.items():
             if durations[name]:
                 runs[name].append(timed(scene, durations[name]))
+                if name in general_runs:
+                    general_runs[name].append(timed(scene, durations[name], solver="proxsuite"))
     rows = {}
     for name, measured in runs.items():
-        last = measured[-1]
-        reached = last["reached_s"]
-        cost = float(np.median([run["cpu_s"] for run in measured])) / reached if reached > 0 else math.nan
-        rows[name] = {**last, "duration_s": durations[name] or PROBE, "cpu_s_per_s": cost}
-    before = json.loads(BEFORE.read_text())["scenes"]
+        rows[name] = {**measured[-1], "duration_s": durations[name] or PROBE, "cpu_s_per_s": cost(measured)}
+        if general_runs.get(name):
+            rows[name]["general_now"] = {**general_runs[name][-1], "cpu_s_per_s": cost(general_runs[name])}
     width = max(map(len, rows))
-    print(f"| {'scene':<{width}} | path before | CPU s/s before | path | CPU s/s | after/before | reason or error |")
+    print(
+        f"| {'scene':<{width}} | path before | CPU s/s before | path | CPU s/s | after/before | general now | "
+        "after/general now | reason or error |"
+    )
     for name, row in rows.items():
         note = row["error"] or row["path_reason"] or ""
         old = before.get(name, {"path": None, "cpu_s_per_s": math.nan})
         ratio = row["cpu_s_per_s"] / old["cpu_s_per_s"]
+        now = row.get("general_now", {}).get("cpu_s_per_s", math.nan)
         print(
             f"| {name:<{width}} | {old['path'] or '-'} | {old['cpu_s_per_s']:.3g} | {row['path'] or '-'} | "
-            f"{row['cpu_s_per_s']:.3g} | {ratio:.2g} | {note[:90]} |"
+            f"{row['cpu_s_per_s']:.3g} | {ratio:.2g} | {now:.3g} | {row['cpu_s_per_s'] / now:.2g} | {note[:90]} |"
         )
     general = sorted(name for name, row in rows.items() if row["path"] == "general")
     print(f"general path: {len(general)} of {len(rows)}: {', '.join(general)}")
