@@ -141,6 +141,7 @@ int RowBlock::rows() const {
     case RowKind::prismatic:
       return 5;
     case RowKind::relation:
+    case RowKind::joint_limit:
       return 1;
     case RowKind::fingertip:
     case RowKind::frame_target:
@@ -149,6 +150,14 @@ int RowBlock::rows() const {
       return python_rows;
   }
   return 0;
+}
+
+double joint_limit_gap(const RowBlock& block, const VectorXd& q) {
+  return block.coefficients(0) * (q(block.q_indices(0)) - block.bound);
+}
+
+double joint_limit_rate(const RowBlock& block, const VectorXd& v) {
+  return block.coefficients(0) * v(block.v_indices(0));
 }
 
 Matrix3d jlog_rate(const Vector3d& theta, const Vector3d& theta_rate) {
@@ -184,6 +193,10 @@ Vector3d rotation_drift(const Matrix3d& rotation_a, const Matrix3d& rotation_b, 
 
 void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& q,
                     double t, Eigen::Ref<VectorXd> phi) {
+  if (block.kind == RowKind::joint_limit) {
+    phi(0) = joint_limit_gap(block, q);
+    return;
+  }
   if (block.kind == RowKind::relation) {
     double value, rate, curvature;
     block.target.evaluate(t, value, rate, curvature);
@@ -224,6 +237,10 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
                     Eigen::Ref<Eigen::MatrixXd> jacobian, Eigen::Ref<VectorXd> time_term) {
   jacobian.setZero();
   time_term.setZero();
+  if (block.kind == RowKind::joint_limit) {
+    jacobian(0, block.v_indices(0)) = block.coefficients(0);
+    return;
+  }
   if (block.kind == RowKind::relation) {
     double value, rate, curvature;
     block.target.evaluate(t, value, rate, curvature);
@@ -274,6 +291,10 @@ void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const 
 void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& v,
                 double t, Eigen::Ref<VectorXd> rate) {
   if (block.kind == RowKind::python) throw std::invalid_argument("block_rate: a python block's rows are Python's");
+  if (block.kind == RowKind::joint_limit) {
+    rate(0) = joint_limit_rate(block, v);
+    return;
+  }
   if (block.kind == RowKind::relation) {
     double value, target_rate, curvature;
     block.target.evaluate(t, value, target_rate, curvature);
@@ -321,6 +342,10 @@ void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowB
 
 void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
                  Eigen::Ref<VectorXd> drift) {
+  if (block.kind == RowKind::joint_limit) {
+    drift(0) = 0.0;
+    return;
+  }
   if (block.kind == RowKind::relation) {
     double value, rate, curvature;
     block.target.evaluate(t, value, rate, curvature);

@@ -27,6 +27,8 @@ namespace pinstab {
 // placement (p(t), exp(turn(t) axis) R_0): p(t) the 3-component `path` (none: world_b's translation), turn(t) the
 // `target` [rad] about the fixed world `axis`, R_0 world_b's rotation; b's velocity (p', turn' axis) gives the time
 // term g_t and its acceleration (p'', turn'' axis) the drift (pinstab.constraints.frame_targets).
+// joint_limit: an active joint limit, sign (q[q_indices(0)] - bound) (one row; Jacobian sign e_i on v_indices(0),
+// no time term, drift 0), sign = coefficients(0): +1 a lower limit, -1 an upper one (pinstab.constraints.joint_limits).
 enum class RowKind {
   point = 0,
   weld = 1,
@@ -35,7 +37,8 @@ enum class RowKind {
   relation = 4,
   fingertip = 5,
   python = 6,
-  frame_target = 7
+  frame_target = 7,
+  joint_limit = 8
 };
 
 struct RowBlock {
@@ -54,6 +57,7 @@ struct RowBlock {
   double mu = 0.0, torsion = 0.0;                            // fingertip: friction [-], torsion [m]
   bool holonomic = true;                                     // false: velocity-level rows (Baumgarte's Kd / 2)
   int python_rows = 0;                                       // python: its row count
+  double bound = 0.0;                                        // joint_limit: the bound [rad or m]
   int rows() const;
 };
 
@@ -74,6 +78,11 @@ void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowB
 // Jacobians) and placements.
 void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
                  Eigen::Ref<VectorXd> drift);
+
+// A joint_limit block's gap sign (q_i - bound) [rad or m] (positive inside the range) and its rate sign v_i [rad/s
+// or m/s]: its residual and G v (block_residual, block_rate) and pinstab's JointLimit.gap / speed.
+double joint_limit_gap(const RowBlock& block, const VectorXd& q);
+double joint_limit_rate(const RowBlock& block, const VectorXd& v);
 
 // d/dt Jlog3(theta(t)) for theta' = theta_rate: Jlog3(theta) = E + [theta]/2 + c(|theta|) [theta]^2,
 // c(x) = 1/x^2 - (1 + cos x) / (2 x sin x) (a series below 1e-4 rad).

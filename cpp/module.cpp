@@ -26,6 +26,7 @@ using namespace nb::literals;
 namespace pinstab {
 void bind_adaptive(nb::module_& m);  // cpp/adaptive_bindings.cpp
 void bind_steps(nb::module_& m);     // cpp/step_bindings.cpp
+void bind_limits(nb::module_& m);    // cpp/limit_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -163,7 +164,7 @@ std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb
 RowBlock row_block(int kind, int frame_a, int frame_b, const Eigen::Matrix4d& world_b, const Eigen::MatrixXd& selection,
                    const VectorXd& coefficients, const VectorXi& q_indices, const VectorXi& v_indices,
                    std::optional<nb::dict> relation_target) {
-  if (kind < 0 || kind > static_cast<int>(RowKind::frame_target)) {
+  if (kind < 0 || kind > static_cast<int>(RowKind::joint_limit)) {
     throw std::invalid_argument("RowBlock: unknown kind");
   }
   RowBlock block;
@@ -184,6 +185,7 @@ NB_MODULE(_compiled, m) {
   m.doc() = "Compiled evaluations and explicit step loops of pinstab's native and banded paths.";
   bind_adaptive(m);
   bind_steps(m);
+  bind_limits(m);
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",
@@ -379,7 +381,7 @@ NB_MODULE(_compiled, m) {
           "kind"_a, "frame_a"_a, "frame_b"_a, "world_b"_a, "selection"_a, "coefficients"_a = VectorXd(),
           "q_indices"_a = VectorXi(), "v_indices"_a = VectorXi(), "target"_a = nb::none(),
           "A block of standard rows (cpp/core_rows.hpp): kind 0 point, 1 weld, 2 revolute, 3 prismatic, 4 relation, "
-          "5 fingertip, 7 frame target (its moving side: set_frame_target); frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
+          "5 fingertip, 7 frame target, 8 joint limit (coefficients [sign], q_indices, v_indices; its bound: .bound) (its moving side: set_frame_target); frames (frame_b < 0: world_b, a 4 x 4 placement); selection (point: rows x 3; revolute, "
           "prismatic: the 2 x 3 across the axis); a relation's coefficients, joint indices and target (a compiled "
           "target dict; none for the other kinds). A fingertip's components and limits: set_contact.")
       .def(
@@ -421,6 +423,7 @@ NB_MODULE(_compiled, m) {
           "axis) R_0 (turn: a compiled target dict [rad]; axis: a unit world vector; R_0: world_b's rotation).")
       .def_rw("holonomic", &RowBlock::holonomic, "False: velocity-level rows (Baumgarte's Kd / 2).")
       .def_rw("python_rows", &RowBlock::python_rows, "Kind 6 (rows Python gives): their count.")
+      .def_rw("bound", &RowBlock::bound, "Kind 8 (a joint limit): its bound [rad or m].")
       .def_prop_ro("rows", &RowBlock::rows);
   m.def(
       "contact_margins",

@@ -158,13 +158,14 @@ def test_a_limit_left_between_kept_samples_is_held(every: int) -> None:
 
 
 def test_limit_watch_names_the_first_step_beyond_a_bound() -> None:
-    """A state :data:`LIMIT_SLACK` beyond a bound is on it; further, the watch names the first step (and the first
-    limit in the table at that step), at its time."""
+    """A state whose gap (the core's ``sign (q - bound)``) is :data:`LIMIT_SLACK` beyond a bound, or less, is on it;
+    further, the watch names the first step (and the first limit in the table at that step), at its time. (The gap
+    of -3 - 1e-12 from -3 is exact, 1.00009e-12: beyond; half the slack is within it.)"""
     limits = joint_limits(_scene(SWING).model).limits  # j0 lower -3, upper 0
     watch = LimitWatch(limits, LIMIT_SLACK)
     watch.time = lambda k: 0.001 * k
     watch.see(0, np.array([LIMIT_SLACK]))
-    watch.see_span(1, np.array([[-3.0 - LIMIT_SLACK], [-1.0]]))
+    watch.see_span(1, np.array([[-3.0 - 0.5 * LIMIT_SLACK], [-1.0]]))
     assert watch.left is None
     watch.see_span(3, np.array([[-1.0], [2 * LIMIT_SLACK], [-4.0]]))
     assert watch.left is not None and watch.left[0].name == "j0 upper" and watch.left[1] == pytest.approx(0.004)

@@ -7,6 +7,10 @@ A limit is one side of one joint: ``lower`` holds ``q_i - lower >= 0``, ``upper`
 the robot's reader filled them: a joint with ``lower == upper`` has no limit given (a URDF joint without
 ``<limit lower upper>`` comes as 0, 0), an infinite bound is no limit on that side, and joints with more than
 one coordinate (continuous joints, spherical, free flyers) are unlimited.
+
+A limit's row is the compiled core's (``cpp/core_rows.hpp`` kind ``joint_limit``): its gap, rate, Jacobian and drift
+are computed there for every caller (:meth:`JointLimit.gap`, :meth:`JointLimit.speed`, :class:`LimitWatch`, and a held
+limit's equality row :class:`ActiveLimit`, which the core kernel evaluates with the closures).
 """
 
 from __future__ import annotations
@@ -14,11 +18,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from ..kernels import RowBlock, joint_limit_gaps, joint_limit_rates
+from .base import BlockRows
 
 LOWER, UPPER = "lower", "upper"
 START_TOLERANCE = 1e-9  # [rad or m] a start this far beyond a bound counts as on it
@@ -50,17 +58,50 @@ class JointLimit:
         """+1 for a lower limit, -1 for an upper one: the direction its reaction pushes the joint."""
         return 1.0 if self.side == LOWER else -1.0
 
+    @cached_property
+    def row(self) -> RowBlock:
+        """The limit's row in the compiled core (kind 8: ``sign (q_i - bound)``, Jacobian ``sign e_i``, drift 0)."""
+        indices = np.array([self.index_q], np.int32), np.array([self.index_v], np.int32)
+        block = RowBlock(8, -1, -1, np.eye(4), np.zeros((0, 3)), np.array([self.sign]), *indices)
+        block.bound = self.bound
+        return block
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The fields without the compiled row (not picklable: built again at first use)."""
+        return {key: value for key, value in self.__dict__.items() if key != "row"}
+
     def gap(self, q: np.ndarray) -> float:
-        """The distance to the bound, positive inside the range [rad or m]."""
-        return self.sign * (float(q[self.index_q]) - self.bound)
+        """The distance to the bound, positive inside the range [rad or m] (the core's row residual)."""
+        return float(joint_limit_gaps([self.row], q[None, :])[0, 0])
 
     def gaps(self, q: np.ndarray) -> np.ndarray:
         """:meth:`gap` of each row of the samples ``q`` (k, nq) [rad or m]."""
-        return self.sign * (q[:, self.index_q] - self.bound)
+        return joint_limit_gaps([self.row], q)[:, 0]
 
     def speed(self, v: np.ndarray) -> float:
-        """The rate of the gap [rad/s or m/s] (negative: approaching the bound)."""
-        return self.sign * float(v[self.index_v])
+        """The rate of the gap [rad/s or m/s] (negative: approaching the bound): its row's ``G v``; of an
+        acceleration ``a``, its ``G a`` [rad/s^2 or m/s^2] (the row has no drift)."""
+        return float(joint_limit_rates([self.row], v[None, :])[0, 0])
+
+
+class ActiveLimit(BlockRows):
+    """A joint limit held (active): its gap kept at zero as an equality row, the core's (:attr:`JointLimit.row`);
+    its multiplier is the limit's reaction [N m or N], positive when it pushes away from the bound.
+
+    Args:
+        limit: the limit held.
+    """
+
+    holonomic = True
+    rows = 1
+
+    def __init__(self, limit: JointLimit) -> None:
+        self.name, self.kind, self.limit = limit.name, "joint-limit", limit
+        self.force_frame = "generalized force on the joint, away from its bound [N m or N]"
+
+    def compiled_rows(self) -> RowBlock:
+        """The limit's row in the compiled core."""
+        return self.limit.row
 
 
 @dataclass(frozen=True)
@@ -157,9 +198,8 @@ class LimitWatch:
         self.limits = limits
         self.left: tuple[JointLimit, float] | None = None
         self.time: Callable[[int], float] = float
-        self._index = np.array([limit.index_q for limit in limits], dtype=int)
-        self._signs = np.array([limit.sign for limit in limits])
-        self._floors = self._signs * np.array([limit.bound for limit in limits]) - slack  # sign q >= these
+        self._rows = [limit.row for limit in limits]
+        self._floor = -slack  # the gaps >= this
 
     def see(self, k: int, q: np.ndarray) -> None:
         """The state q of grid step k."""
@@ -167,10 +207,11 @@ class LimitWatch:
 
     def see_span(self, first: int, q: np.ndarray) -> None:
         """The states (rows of q) of grid steps first, first + 1, ..."""
-        if self.left is None and np.any(self._signs * q[:, self._index] < self._floors):
-            self._leave(first, q)
+        if self.left is None and self.limits:
+            outside = joint_limit_gaps(self._rows, q) < self._floor  # (steps, limits)
+            if outside.any():
+                self._leave(first, outside)
 
-    def _leave(self, first: int, q: np.ndarray) -> None:
-        outside = self._signs * q[:, self._index] < self._floors  # (steps, limits)
+    def _leave(self, first: int, outside: np.ndarray) -> None:
         row = int(np.flatnonzero(outside.any(axis=1))[0])
         self.left = (self.limits[int(np.flatnonzero(outside[row])[0])], self.time(first + row))

@@ -43,6 +43,7 @@ import numpy as np
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
+from ..kernels import joint_limit_rates
 from ..solvers.contact_modes import ModeDynamics, ModeSolution
 from ..solvers.impacts import impact, limit_impact
 from ..solvers.mode_choice import (
@@ -251,10 +252,9 @@ class EventLoop(AdaptiveLoop):
         if not released:
             return None
         limits = [self.dynamics.limits[i] for i in released]
-        signs = np.array([limit.sign for limit in limits])
-        columns = [limit.index_v for limit in limits]
         gaps = np.array([limit.gap(segment.q0) - self._floors[i] for i, limit in zip(released, limits, strict=True)])
-        terms = signs * segment.coefficients[1:, columns]  # (degree, limits): the gap's polynomial in u but its start
+        # (degree, limits): the gap's polynomial in u but its start, the limits' rows applied to the increment's
+        terms = joint_limit_rates([limit.row for limit in limits], segment.coefficients[1:])
         dips = []
         for k in np.flatnonzero(gaps < np.abs(terms).sum(axis=0)):  # else the gap stays above its floor on [0, 1]
             polynomial = np.concatenate(([gaps[k]], terms[:, k]))
@@ -587,7 +587,7 @@ class EventLoop(AdaptiveLoop):
             limit = dynamics.limits[i]
             if dynamics.active[i] and reactions[i] < -slack * scale:
                 return False
-            if not dynamics.active[i] and limit.sign * solution.acceleration[limit.index_v] < -reach:
+            if not dynamics.active[i] and limit.speed(solution.acceleration) < -reach:  # its row's G a
                 return False
         return True
 

@@ -21,6 +21,7 @@ from ..integration.contact_stepping import ContactStepper
 from ..integration.events import EventLoop, RunEnd
 from ..scene import Scene
 from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
+from ..solvers.core_modes import CoreModeDynamics
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem, build_system
 from ..trajectory import StreamedTrajectory, Trajectory
@@ -107,7 +108,11 @@ def simulate_events(
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
-    dynamics = ModeDynamics(system.model, geometries, limits, system.solver.statistics)
+    statistics = system.solver.statistics
+    if limits and not geometries:  # closures and joint limits: each mode's evaluation is the core's
+        dynamics = CoreModeDynamics(system.model, limits, statistics)
+    else:
+        dynamics = ModeDynamics(system.model, geometries, limits, statistics)
     system.acceleration = dynamics.acceleration
     system.path, system.path_reason = "contact-events", reason
     stepper = INTEGRATORS.build("dop853", system)

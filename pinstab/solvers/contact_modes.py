@@ -39,6 +39,7 @@ import pinocchio as pin
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
 from ..errors import ConstraintError, ContactInfeasibleError, SolverError
+from ..kernels import block_jacobian
 from ..model import ConstrainedModel
 from ..runinfo import SolverStatistics
 
@@ -230,8 +231,8 @@ class ModeDynamics:
         values = terms.values
         limits = [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
         rows = np.zeros((len(limits), self.model.nv))
-        for r, limit in enumerate(limits):
-            rows[r, limit.index_v] = limit.sign
+        for r, limit in enumerate(limits):  # the core's row (its Jacobian reads no pass of the Data)
+            rows[r] = block_jacobian(self.model.model, self.model.scratch, limit.row, 0.0)[0]
         jacobian = np.vstack([values.jacobian, rows])
         velocity = np.concatenate([values.velocity_residual, rows @ v])
         target = np.concatenate([-values.drift, np.zeros(len(limits))])

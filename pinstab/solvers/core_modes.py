@@ -1,0 +1,76 @@
+"""The joint limits' modes evaluated by the compiled core: a run of closures and joint limits without plane contacts
+(the event path a held run that leaves a limit is restarted on) keeps its unilateral treatment in Python (which limits
+are held, impacts, events: :mod:`pinstab.integration.events`), and each evaluation in a mode, the closures with the
+limits held as equality rows (:class:`~pinstab.constraints.joint_limits.ActiveLimit`), is one call of the core kernel
+(:class:`~pinstab.paths.core.CoreDynamics`: kinematics, rows, forces and the KKT solve compiled) instead of
+:class:`~pinstab.solvers.contact_modes.ModeDynamics`' Pinocchio passes and dense numpy solves. The rows are the
+event path's: their drift without a stabilization term (its closures are assembled and its error control keeps them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..constraints.joint_limits import ActiveLimit
+from ..model import ConstrainedModel
+from ..paths.core import CoreDynamics
+from .base import ACCEPTED_RESIDUAL
+from .contact_modes import Bilateral, ContactKinematics, ModeDynamics
+from .proxsuite_ import DIRECT_PIVOT
+
+CORE_STATUS = "contact modes, core"  # the solver status of an evaluation the core kernel solved
+
+
+class CoreModeDynamics(ModeDynamics):
+    """:class:`ModeDynamics` of a model without plane contacts whose held joint limits' modes are each solved by
+    the core kernel (one kernel per set of held limits, built at its first use). An evaluation the kernel does not
+    accept (its residual, see :class:`~pinstab.paths.core.CoreDynamics`) is solved by :class:`ModeDynamics`' own.
+
+    Args:
+        model, limits, statistics: as :class:`ModeDynamics`' (no contacts).
+
+    Attributes:
+        core_solves: the evaluations the core solved. fallbacks: those it did not accept.
+    """
+
+    def __init__(self, model: ConstrainedModel, limits, statistics=None) -> None:
+        super().__init__(model, [], limits, statistics)
+        self._kernels: dict[tuple[bool, ...], CoreDynamics] = {}
+        self._no_contacts = ContactKinematics(
+            np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, model.nv)), np.zeros(0)
+        )
+        self.core_solves = self.fallbacks = 0
+
+    def _kernel(self) -> CoreDynamics:
+        """The core evaluation of the closures with the limits held now (built at first use)."""
+        key = tuple(self.active)
+        if key not in self._kernels:
+            held = [ActiveLimit(limit) for limit, on in zip(self.limits, self.active, strict=True) if on]
+            scene = self.model.scene
+            model = ConstrainedModel(dataclasses.replace(scene, constraints=[*scene.constraints, *held]))
+            rows = model.constraints.rows
+            self._kernels[key] = CoreDynamics(model, 0.0, np.zeros(rows), False, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+        return self._kernels[key]
+
+    def _unforced(
+        self, q: np.ndarray, v: np.ndarray, t: float
+    ) -> tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None]:
+        """The accelerations and the bilateral rows' reactions (closure rows, then the held limits) at (q, v, t)
+        from the core kernel; no contacts, so no response to contact forces."""
+        key = (t, q.tobytes(), v.tobytes(), tuple(self.active))
+        if key == self._state:
+            return self._unforced_terms
+        core = self._kernel()
+        acceleration = core.acceleration(q, v, core.force(self.model, q, v, t), t)
+        if core.unusable:
+            self.fallbacks += 1
+            return super()._unforced(q, v, t)
+        self.core_solves += 1
+        self.statistics.record(CORE_STATUS, 0, np.nan, np.nan)
+        reactions = np.array(core.kernel.multipliers())
+        bilateral = Bilateral(reactions, np.zeros((reactions.size, 0)))
+        mobility = np.zeros((self.model.nv, 0))
+        self._state, self._unforced_terms = key, (acceleration, mobility, self._no_contacts, bilateral)
+        return self._unforced_terms
