@@ -152,11 +152,11 @@ int RowBlock::rows() const {
   return 0;
 }
 
-double joint_limit_gap(const RowBlock& block, const VectorXd& q) {
+double joint_limit_gap(const RowBlock& block, const Eigen::Ref<const VectorXd>& q) {
   return block.coefficients(0) * (q(block.q_indices(0)) - block.bound);
 }
 
-double joint_limit_rate(const RowBlock& block, const VectorXd& v) {
+double joint_limit_rate(const RowBlock& block, const Eigen::Ref<const VectorXd>& v) {
   return block.coefficients(0) * v(block.v_indices(0));
 }
 

@@ -81,8 +81,8 @@ void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const Row
 
 // A joint_limit block's gap sign (q_i - bound) [rad or m] (positive inside the range) and its rate sign v_i [rad/s
 // or m/s]: its residual and G v (block_residual, block_rate) and pinstab's JointLimit.gap / speed.
-double joint_limit_gap(const RowBlock& block, const VectorXd& q);
-double joint_limit_rate(const RowBlock& block, const VectorXd& v);
+double joint_limit_gap(const RowBlock& block, const Eigen::Ref<const VectorXd>& q);
+double joint_limit_rate(const RowBlock& block, const Eigen::Ref<const VectorXd>& v);
 
 // d/dt Jlog3(theta(t)) for theta' = theta_rate: Jlog3(theta) = E + [theta]/2 + c(|theta|) [theta]^2,
 // c(x) = 1/x^2 - (1 + cos x) / (2 x sin x) (a series below 1e-4 rad).

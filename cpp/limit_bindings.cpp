@@ -1,6 +1,6 @@
-// pinstab._compiled.joint_limit_gaps and joint_limit_rates: the gaps and rates of joint-limit row blocks (kind 8,
-// cpp/core_rows.hpp) at many samples in one call, the core's own rule (joint_limit_gap, joint_limit_rate) for
-// pinstab.constraints.joint_limits (JointLimit.gap / speed, LimitWatch).
+// pinstab._compiled.joint_limit_gap(s) and joint_limit_rate(s): the gaps and rates of joint-limit row blocks (kind 8,
+// cpp/core_rows.hpp), of one block at one state or of many at many samples, the core's own rule (joint_limit_gap,
+// joint_limit_rate) for pinstab.constraints.joint_limits (JointLimit.gap / speed, LimitWatch) and the event loop.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/vector.h>
@@ -34,15 +34,31 @@ void check_limits(const std::vector<const RowBlock*>& blocks, Eigen::Index size,
 }  // namespace
 
 void bind_limits(nb::module_& m) {
+  using State = Eigen::Ref<const VectorXd>;  // float64 arrays read in place (C order: no copy)
+  using Samples = Eigen::Ref<const RowMatrix>;
+  m.def(
+      "joint_limit_gap",
+      [](const RowBlock& block, State q) {
+        check_limits({&block}, q.size(), false, "joint_limit_gap");
+        return joint_limit_gap(block, q);
+      },
+      "block"_a, "q"_a, "The joint-limit block's gap sign (q_i - bound) [rad or m] (positive inside the range) at q (nq).");
+  m.def(
+      "joint_limit_rate",
+      [](const RowBlock& block, State v) {
+        check_limits({&block}, v.size(), true, "joint_limit_rate");
+        return joint_limit_rate(block, v);
+      },
+      "block"_a, "v"_a, "The joint-limit block's G v = sign v_i [rad/s or m/s] at v (nv): of an acceleration, G a.");
   m.def(
       "joint_limit_gaps",
-      [](const std::vector<const RowBlock*>& blocks, const RowMatrix& qs) {
+      [](const std::vector<const RowBlock*>& blocks, Samples qs) {
         check_limits(blocks, qs.cols(), false, "joint_limit_gaps");
         Eigen::MatrixXd gaps(qs.rows(), static_cast<Eigen::Index>(blocks.size()));
-        VectorXd q;
         for (Eigen::Index k = 0; k < qs.rows(); ++k) {
-          q = qs.row(k).transpose();
-          for (size_t i = 0; i < blocks.size(); ++i) gaps(k, static_cast<Eigen::Index>(i)) = joint_limit_gap(*blocks[i], q);
+          for (size_t i = 0; i < blocks.size(); ++i) {
+            gaps(k, static_cast<Eigen::Index>(i)) = joint_limit_gap(*blocks[i], qs.row(k).transpose());
+          }
         }
         return gaps;
       },
@@ -51,13 +67,13 @@ void bind_limits(nb::module_& m) {
       "blocks) from qs (samples x nq).");
   m.def(
       "joint_limit_rates",
-      [](const std::vector<const RowBlock*>& blocks, const RowMatrix& vs) {
+      [](const std::vector<const RowBlock*>& blocks, Samples vs) {
         check_limits(blocks, vs.cols(), true, "joint_limit_rates");
         Eigen::MatrixXd rates(vs.rows(), static_cast<Eigen::Index>(blocks.size()));
-        VectorXd v;
         for (Eigen::Index k = 0; k < vs.rows(); ++k) {
-          v = vs.row(k).transpose();
-          for (size_t i = 0; i < blocks.size(); ++i) rates(k, static_cast<Eigen::Index>(i)) = joint_limit_rate(*blocks[i], v);
+          for (size_t i = 0; i < blocks.size(); ++i) {
+            rates(k, static_cast<Eigen::Index>(i)) = joint_limit_rate(*blocks[i], vs.row(k).transpose());
+          }
         }
         return rates;
       },

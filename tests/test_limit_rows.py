@@ -24,7 +24,9 @@ from pinstab.kernels import (
     block_jacobian,
     block_rate,
     block_residual,
+    joint_limit_gap,
     joint_limit_gaps,
+    joint_limit_rate,
     joint_limit_rates,
 )
 from pinstab.solvers.contact_modes import ModeDynamics
@@ -111,8 +113,12 @@ def test_a_limit_keeps_its_fields_through_pickling_and_refuses_other_blocks():
     copy = pickle.loads(pickle.dumps(limits[0]))
     assert copy == limits[0] and copy.gap(q) == limits[0].gap(q)
     point = RowBlock(0, 1, -1, np.eye(4), np.eye(3))
-    with pytest.raises(ValueError, match="not a joint limit"):
+    with pytest.raises(ValueError, match="joint_limit_gaps: a block that is not a joint limit"):
         joint_limit_gaps([point], q[None, :])
+    with pytest.raises(ValueError, match="joint_limit_gap: a block that is not a joint limit"):
+        joint_limit_gap(point, q)
+    with pytest.raises(ValueError, match="joint_limit_rate: an index outside the state"):
+        joint_limit_rate(limits[6].row, q[:3])
     assert ActiveLimit(limits[0]).compiled_rows() is limits[0].row
 
 

@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
-from ..kernels import RowBlock, joint_limit_gaps, joint_limit_rates
+from ..kernels import RowBlock, joint_limit_gap, joint_limit_gaps, joint_limit_rate
 from .base import BlockRows
 
 LOWER, UPPER = "lower", "upper"
@@ -72,7 +72,7 @@ class JointLimit:
 
     def gap(self, q: np.ndarray) -> float:
         """The distance to the bound, positive inside the range [rad or m] (the core's row residual)."""
-        return float(joint_limit_gaps([self.row], q[None, :])[0, 0])
+        return joint_limit_gap(self.row, q)
 
     def gaps(self, q: np.ndarray) -> np.ndarray:
         """:meth:`gap` of each row of the samples ``q`` (k, nq) [rad or m]."""
@@ -81,7 +81,7 @@ class JointLimit:
     def speed(self, v: np.ndarray) -> float:
         """The rate of the gap [rad/s or m/s] (negative: approaching the bound): its row's ``G v``; of an
         acceleration ``a``, its ``G a`` [rad/s^2 or m/s^2] (the row has no drift)."""
-        return float(joint_limit_rates([self.row], v[None, :])[0, 0])
+        return joint_limit_rate(self.row, v)
 
 
 class ActiveLimit(BlockRows):
