@@ -11,7 +11,8 @@ in one run (REPEATS times each, the least kept), their ratio, and the largest di
 dense numpy solves), "after" by :class:`~pinstab.solvers.core_modes.CoreModeDynamics` (the core kernel). A third
 figure prices the evaluation of a mode's limit rows (gaps and Jacobian rows of the 14 panda limits, two held) at one
 state, per call from Python: the core's rows (joint_limit_gaps, block_jacobian) against Pinocchio 4.1's
-JointLimitConstraintModel (makeSelectionFilteredByLimitProximity, calc, jacobian).
+JointLimitConstraintModel (makeSelectionFilteredByLimitProximity, calc, jacobian); and the core kernel's whole
+evaluation (kinematics, rows, KKT solve) of the panda's closure alone and with those two limits held.
 
     python benchmarks/limits_core.py    # prints the table, writes benchmarks/results/limits_core.json (~2 min)
 """
@@ -30,6 +31,7 @@ import pinstab
 from pinstab.bench import save_results
 from pinstab.constraints.joint_limits import joint_limits
 from pinstab.kernels import block_jacobian, joint_limit_gaps
+from pinstab.model import ConstrainedModel
 from pinstab.solvers.contact_modes import ModeDynamics
 from pinstab.solvers.core_modes import CoreModeDynamics
 
@@ -61,7 +63,8 @@ def timed_run(name: str, evaluation: str) -> tuple[float, pinstab.Trajectory]:
 
 
 def row_costs() -> dict[str, float]:
-    """Seconds per evaluation of the panda's limit rows (gaps of all 14, Jacobian rows of the two held) [us]."""
+    """Microseconds per evaluation of the panda's limit rows (gaps of all 14, Jacobian rows of the two held), and per
+    core kernel evaluation without and with the two held."""
     scene = pinstab.load_scene("panda-anchor")
     model = scene.model
     data = model.createData()
@@ -90,9 +93,20 @@ def row_costs() -> dict[str, float]:
         constraint.calc(model, data, constraint_data)
         constraint.jacobian(model, data, constraint_data)
 
-    costs: dict[str, float] = {"core": np.inf, "pinocchio": np.inf}
+    system = CoreModeDynamics(ConstrainedModel(scene), limits)
+    kernels = {}
+    for label, on in (("kernel_closure_only", ()), ("kernel_two_limits_held", held)):
+        system.active = [limit in on for limit in limits]
+        kernels[label] = system.mode_kernel()
+    v = tau = np.zeros(model.nv)
+
+    def evaluation(label: str):
+        return lambda: kernels[label].acceleration(q, v, tau, 0.0)
+
+    calls = {"core": core, "pinocchio": pinocchio, **{label: evaluation(label) for label in kernels}}
+    costs = dict.fromkeys(calls, np.inf)
     for _ in range(REPEATS):
-        for label, call in (("core", core), ("pinocchio", pinocchio)):
+        for label, call in calls.items():
             start = time.process_time()
             for _ in range(CALLS):
                 call()
@@ -131,8 +145,9 @@ def main() -> None:
         )
     costs = row_costs()
     results["limit_rows_us"] = {**costs, "pinocchio_over_core": costs["pinocchio"] / costs["core"]}
-    print(f"limit rows per evaluation: core {costs['core']:.2f} us, Pinocchio's JointLimitConstraintModel "
-          f"{costs['pinocchio']:.2f} us")  # fmt: skip
+    print(f"limit rows from Python per evaluation: core {costs['core']:.2f} us, Pinocchio's JointLimitConstraintModel "
+          f"{costs['pinocchio']:.2f} us; the core kernel's evaluation: closure only {costs['kernel_closure_only']:.2f} "
+          f"us, with two limits held {costs['kernel_two_limits_held']:.2f} us")  # fmt: skip
     save_results(OUT, results)
 
 

@@ -43,7 +43,7 @@ class CoreModeDynamics(ModeDynamics):
         )
         self.core_solves = self.fallbacks = 0
 
-    def _kernel(self) -> CoreDynamics:
+    def mode_kernel(self) -> CoreDynamics:
         """The core evaluation of the closures with the limits held now (built at first use)."""
         key = tuple(self.active)
         if key not in self._kernels:
@@ -62,7 +62,7 @@ class CoreModeDynamics(ModeDynamics):
         key = (t, q.tobytes(), v.tobytes(), tuple(self.active))
         if key == self._state:
             return self._unforced_terms
-        core = self._kernel()
+        core = self.mode_kernel()
         acceleration = core.acceleration(q, v, core.force(self.model, q, v, t), t)
         if core.unusable:
             self.fallbacks += 1
