@@ -13,9 +13,10 @@ import dataclasses
 
 import numpy as np
 
-from ..constraints.joint_limits import ActiveLimit
+from ..constraints.joint_limits import ActiveLimit, JointLimit
 from ..model import ConstrainedModel
 from ..paths.core import CoreDynamics
+from ..runinfo import SolverStatistics
 from .base import ACCEPTED_RESIDUAL
 from .contact_modes import Bilateral, ContactKinematics, ModeDynamics
 from .proxsuite_ import DIRECT_PIVOT
@@ -26,22 +27,21 @@ CORE_STATUS = "contact modes, core"  # the solver status of an evaluation the co
 class CoreModeDynamics(ModeDynamics):
     """:class:`ModeDynamics` of a model without plane contacts whose held joint limits' modes are each solved by
     the core kernel (one kernel per set of held limits, built at its first use). An evaluation the kernel does not
-    accept (its residual, see :class:`~pinstab.paths.core.CoreDynamics`) is solved by :class:`ModeDynamics`' own.
+    accept (its residual, see :class:`~pinstab.paths.core.CoreDynamics`) is solved by :class:`ModeDynamics`' own; the
+    statistics count the core's under :data:`CORE_STATUS`, the others under ``contact modes``.
 
     Args:
         model, limits, statistics: as :class:`ModeDynamics`' (no contacts).
-
-    Attributes:
-        core_solves: the evaluations the core solved. fallbacks: those it did not accept.
     """
 
-    def __init__(self, model: ConstrainedModel, limits, statistics=None) -> None:
+    def __init__(
+        self, model: ConstrainedModel, limits: list[JointLimit], statistics: SolverStatistics | None = None
+    ) -> None:
         super().__init__(model, [], limits, statistics)
         self._kernels: dict[tuple[bool, ...], CoreDynamics] = {}
         self._no_contacts = ContactKinematics(
             np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, model.nv)), np.zeros(0)
         )
-        self.core_solves = self.fallbacks = 0
 
     def mode_kernel(self) -> CoreDynamics:
         """The core evaluation of the closures with the limits held now (built at first use)."""
@@ -65,9 +65,7 @@ class CoreModeDynamics(ModeDynamics):
         core = self.mode_kernel()
         acceleration = core.acceleration(q, v, core.force(self.model, q, v, t), t)
         if core.unusable:
-            self.fallbacks += 1
             return super()._unforced(q, v, t)
-        self.core_solves += 1
         self.statistics.record(CORE_STATUS, 0, np.nan, np.nan)
         reactions = np.array(core.kernel.multipliers())
         bilateral = Bilateral(reactions, np.zeros((reactions.size, 0)))
