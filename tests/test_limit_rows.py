@@ -29,6 +29,7 @@ from pinstab.kernels import (
     joint_limit_rate,
     joint_limit_rates,
 )
+from pinstab.paths.core import CoreDynamics
 from pinstab.solvers.contact_modes import ModeDynamics
 from pinstab.solvers.core_modes import CORE_STATUS
 
@@ -178,3 +179,21 @@ def test_the_pendulum_reaches_its_limit_at_the_closed_form_and_the_scipy_time():
     t_event = run.info.contact_events[0]["t"]
     assert run.info.contact_events[0]["to"] == "closing"
     assert abs(t_event - t_closed) <= 1e-9 and abs(t_event - t_scipy) <= 1e-9
+
+
+def test_an_evaluation_the_core_does_not_accept_is_solved_by_numpy(monkeypatch):
+    """Where the core kernel refuses an evaluation (unusable: its residual missed), the modes' numpy solve takes it:
+    a run whose every core evaluation is refused is the numpy run to the last bit, counted under ``contact modes``."""
+    _numpy_modes(monkeypatch)
+    numpy = pinstab.simulate(_pendulum(), duration=1.0, dt=1e-2, progress=False)
+    monkeypatch.undo()
+
+    def refused(self, q, v, tau, t, stage=0):
+        self.unusable = True
+        return np.full(q.size, np.nan)
+
+    monkeypatch.setattr(CoreDynamics, "acceleration", refused)
+    fallen = pinstab.simulate(_pendulum(), duration=1.0, dt=1e-2, progress=False)
+    assert set(fallen.info.solver_statistics.status_counts) == {"contact modes"}
+    np.testing.assert_array_equal(fallen.q, numpy.q)
+    np.testing.assert_array_equal(fallen.v, numpy.v)
