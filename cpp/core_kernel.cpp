@@ -112,6 +112,12 @@ bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const Vect
   }
   add_joint_springs(forces_.springs, q, v, force_);
   for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
+  for (const SpringDamperSpec& spring : forces_.spring_dampers) {
+    if (!add_spring_damper(model_, data_, spring, v, force_)) {  // its points coincide: the element says so
+      ++status_counts_["spring-damper without a direction"];
+      return false;
+    }
+  }
   for (const HoldSpec& hold : forces_.holds) {
     if (!add_hold_torques(model_, data_, hold, jacobian_, q, v, force_)) {
       ++status_counts_["hold outside its cones"];

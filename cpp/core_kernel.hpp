@@ -15,6 +15,7 @@
 #include "inertial_term.hpp"
 #include "kernels.hpp"
 #include "kkt_solve.hpp"
+#include "spring_damper.hpp"
 
 namespace pinstab {
 
@@ -30,11 +31,12 @@ struct JointSpringSpec {
 void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
                        Eigen::Ref<VectorXd> force);
 
-// The force elements the core computes: joint springs, grasp holds, constant wrenches.
+// The force elements the core computes: joint springs, grasp holds, constant wrenches, spring-dampers.
 struct CoreForces {
   std::vector<JointSpringSpec> springs;
   std::vector<HoldSpec> holds;
   std::vector<WrenchSpec> wrenches;
+  std::vector<SpringDamperSpec> spring_dampers;
 };
 
 // The stabilization term per row, -K rate - S phi (docs/mathematics.md section 3; pinstab.stabilizers.baumgarte and
@@ -93,7 +95,7 @@ class CoreKernel : public Kernel {
   // the largest relative primal residual of the evaluations used
   double worst_residual() const { return worst_residual_; }
   // evaluations by how they were solved: "cholesky", "pseudo-inverse"; not used: "... not accepted", "... outside
-  // a contact's limits", "hold outside its cones"
+  // a contact's limits", "hold outside its cones", "spring-damper without a direction"
   const std::map<std::string, long>& status_counts() const { return status_counts_; }
   // the term held over the step (computed at its last stage-0 evaluation; none before one, or after a stage-0
   // evaluation stopped before its rows: the general path's is held then) [m/s^2 or rad/s^2]

@@ -19,6 +19,7 @@
 #include "native_kernel.hpp"
 #include "series.hpp"
 #include "servo_kernel.hpp"
+#include "spring_damper.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -27,6 +28,9 @@ namespace pinstab {
 void bind_adaptive(nb::module_& m);  // cpp/adaptive_bindings.cpp
 void bind_steps(nb::module_& m);     // cpp/step_bindings.cpp
 void bind_limits(nb::module_& m);    // cpp/limit_bindings.cpp
+// cpp/spring_damper_bindings.cpp: the spring-damper's terms, and its compiled form read (frames checked in the model)
+void bind_spring_damper(nb::module_& m);
+SpringDamperSpec spring_damper_spec(nb::dict form, const pinocchio::Model& model);
 }  // namespace pinstab
 
 namespace pinstab {
@@ -186,6 +190,7 @@ NB_MODULE(_compiled, m) {
   bind_adaptive(m);
   bind_steps(m);
   bind_limits(m);
+  bind_spring_damper(m);
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",
@@ -644,6 +649,8 @@ NB_MODULE(_compiled, m) {
               } else if (kind == "wrench") {
                 forces.wrenches.push_back(
                     {nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
+              } else if (kind == "spring-damper") {
+                forces.spring_dampers.push_back(spring_damper_spec(form, python_model(model.ptr())));
               } else {
                 throw std::invalid_argument("CoreKernel: no compiled force of kind " + kind);
               }
@@ -670,7 +677,7 @@ NB_MODULE(_compiled, m) {
           "tilt"_a = nb::none(),
           "python"_a = nb::none(), "inertial"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
-          "wrench), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
+          "wrench, spring-damper), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
           "step's stage 0 and held over its other stages), the solve's settings (dict: direct_pivot, cutoff, "
           "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
           "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "

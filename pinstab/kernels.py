@@ -1,6 +1,6 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
 row functions pinstab's constraint classes call too, as the solvers call its residual and pivot test, the grasp hold
-its least squares and cone test, a joint spring its force, an external force its J^T w, a target trajectory its
+its least squares and cone test, a joint spring and a spring-damper their forces, an external force its J^T w, a target trajectory its
 evaluation, the general servo solve its part up to the controls and the native path its residual: a rule lives in C++
 once), Pinocchio's constrained dynamics, the banded solve, the servo solve and the grasp evaluation in C++
 (:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the explicit schemes'
@@ -27,6 +27,7 @@ try:
         NativeKernel,
         RowBlock,
         RungeKutta,
+        SPRING_COINCIDENT_LENGTH,
         SchemeStep,
         ServoKernel,
         ServoParts,
@@ -62,6 +63,7 @@ try:
         primal_residual,
         servo_parts,
         servo_realizability,
+        spring_damper_terms,
         stabilization_term,
         tilted_gravity,
         wrench_force,
@@ -89,6 +91,7 @@ __all__ = [
     "SchemeStep",
     "ServoKernel",
     "ServoParts",
+    "SPRING_COINCIDENT_LENGTH",
     "stabilization_term",
     "baumgarte_velocity_gains",
     "block_drift",
@@ -122,6 +125,7 @@ __all__ = [
     "primal_residual",
     "servo_parts",
     "servo_realizability",
+    "spring_damper_terms",
     "tilted_gravity",
     "wrench_force",
 ]

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError
+from ..kernels import SPRING_COINCIDENT_LENGTH, spring_damper_terms
 from ..kinematics import Kinematics
 from ..tables import WORLD, SceneTables
 from ..units import within_ceiling
@@ -15,9 +19,12 @@ SPRING_KEYS = {"name", "kind", "frame_a", "offset_a", "frame_b", "offset_b", "st
 
 
 class SpringDamper(ForceElement):
-    """A linear spring-damper between two frame points (``frame_b`` None: a fixed world point).
+    """A linear spring-damper between two frame points (``frame_b`` None: a fixed world point), computed by the
+    compiled core's law (``cpp/spring_damper.cpp``, which its core kernel runs too).
 
-    Force on point a: ``-(k (L - L0) + c dL/dt) u`` with ``u = (p_a - p_b)/L``.
+    Force on point a: ``-(k (L - L0) + c dL/dt) u`` with ``u = (p_a - p_b)/L``, on point b its opposite: the
+    generalized force ``(J_a - J_b)^T F``. Where the points coincide (L < 1e-12 m) u is not defined: a zero-rest-length
+    spring without damping keeps its force ``-k (p_a - p_b)`` there, any other refuses the state (SceneError).
 
     Args:
         stiffness: k [N/m]. damping: c [N s/m]. rest_length: L0 [m].
@@ -36,37 +43,48 @@ class SpringDamper(ForceElement):
         self.name, self.frame_a, self.frame_b = name, frame_a, frame_b
         self.world_point_b = np.asarray(world_point_b, float)
         self.stiffness, self.damping, self.rest_length = stiffness, damping, rest_length
+        self._form = self.compiled_form({})
 
-    def _geometry(self, kin: Kinematics) -> tuple[np.ndarray, float, np.ndarray]:
-        pa = kin.placement(self.frame_a).translation
-        pb = self.world_point_b if self.frame_b is None else kin.placement(self.frame_b).translation
-        jac = kin.jacobian(self.frame_a)[:3]
-        if self.frame_b is not None:
-            jac = jac - kin.jacobian(self.frame_b)[:3]
-        diff = pa - pb
-        return diff, float(np.linalg.norm(diff)), jac
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
+        """The element as the core kernel takes it (``cpp/spring_damper.hpp`` SpringDamperSpec)."""
+        return {
+            "kind": "spring-damper",
+            "frame_a": int(self.frame_a),
+            "frame_b": -1 if self.frame_b is None else int(self.frame_b),
+            "point_b": self.world_point_b,
+            "stiffness": float(self.stiffness),
+            "damping": float(self.damping),
+            "rest_length": float(self.rest_length),
+        }
+
+    def terms(self, kin: Kinematics, v: np.ndarray) -> tuple[float, float, np.ndarray]:
+        """The length L [m], its rate dL/dt [m/s] and the generalized force [N, N m] (nv,) at (kin's q, v).
+
+        Raises:
+            SceneError: the points coincide and the law needs the direction between them.
+        """
+        length, rate, force = spring_damper_terms(kin.model, kin.data, self._form, v)
+        if force is None:
+            raise SceneError(
+                f"spring-damper {self.name!r}: its points coincide (length {length:.3g} m < {SPRING_COINCIDENT_LENGTH:g} m), where "
+                f"the direction of its force (rest length {self.rest_length:g} m, damping {self.damping:g} N s/m) is "
+                "not defined; keep the points apart, or give rest_length = 0 and damping = 0 (then -k (p_a - p_b))"
+            )
+        return length, rate, force
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        diff, length, jac = self._geometry(kin)
-        if length < 1e-12:
-            return np.zeros(jac.shape[1])
-        direction = diff / length
-        length_rate = float(direction @ (jac @ v))
-        magnitude = -(self.stiffness * (length - self.rest_length) + self.damping * length_rate)
-        return jac.T @ (magnitude * direction)
+        return self.terms(kin, v)[2]
 
     def power(self, kin: Kinematics, v: np.ndarray, t: float) -> float:
-        diff, length, jac = self._geometry(kin)
-        if length < 1e-12:
-            return 0.0
-        return -self.damping * float(diff / length @ (jac @ v)) ** 2
+        return -self.damping * self.terms(kin, v)[1] ** 2
 
     @property
     def stores_energy(self) -> bool:
         return self.stiffness != 0.0
 
     def potential_energy(self, kin: Kinematics) -> float:
-        _, length, _ = self._geometry(kin)
+        """``k (L - L0)^2 / 2`` [J], the potential of the law's spring part (L from the same compiled line)."""
+        length = spring_damper_terms(kin.model, kin.data, self._form, np.zeros(kin.model.nv))[0]
         return 0.5 * self.stiffness * (length - self.rest_length) ** 2
 
 
