@@ -1,6 +1,6 @@
 """The compiled kernels (``pinstab._compiled``, sources in ``cpp/``): the core evaluation of the standard rows (whose
 row functions pinstab's constraint classes call too, as the solvers call its residual and pivot test, the grasp hold
-its least squares and cone test, a joint spring and a spring-damper their forces, an external force its J^T w, a target trajectory its
+its least squares and cone test, a joint spring its force, an external force its J^T w, a target trajectory its
 evaluation, the general servo solve its part up to the controls and the native path its residual: a rule lives in C++
 once), Pinocchio's constrained dynamics, the banded solve, the servo solve and the grasp evaluation in C++
 (:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the explicit schemes'
@@ -19,6 +19,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 try:
     from ._compiled import (
+        SPRING_COINCIDENT_LENGTH,
         AdaptivePair,
         BandedKernel,
         CompiledTarget,
@@ -27,7 +28,6 @@ try:
         NativeKernel,
         RowBlock,
         RungeKutta,
-        SPRING_COINCIDENT_LENGTH,
         SchemeStep,
         ServoKernel,
         ServoParts,

@@ -76,7 +76,8 @@ def test_damping_part_is_the_closed_form():
         difference = data.oMf[frame_a].translation - data.oMf[frame_b].translation
         direction = difference / np.linalg.norm(difference)
         velocity = (
-            pin.getFrameVelocity(model, data, frame_a, LWA).linear - pin.getFrameVelocity(model, data, frame_b, LWA).linear
+            pin.getFrameVelocity(model, data, frame_a, LWA).linear
+            - pin.getFrameVelocity(model, data, frame_b, LWA).linear
         )
         expected_rate = float(direction @ velocity)
         assert abs(expected_rate) > 0.05
@@ -103,7 +104,9 @@ def test_coinciding_points_are_refused_unless_the_law_needs_no_direction():
     anchor = kin.placement(frame_a).translation.copy()
     for stiffness, damping, rest in ((10.0, 0.0, 0.1), (10.0, 1.0, 0.0)):
         spring = SpringDamper("coil", frame_a, None, anchor, stiffness, damping, rest)
-        with pytest.raises(SceneError, match=r"spring-damper 'coil': its points coincide .*rest_length = 0 and damping = 0"):
+        with pytest.raises(
+            SceneError, match=r"spring-damper 'coil': its points coincide .*rest_length = 0 and damping = 0"
+        ):
             spring.generalized_force(kin, v, 0.0)
         assert spring.potential_energy(kin) == pytest.approx(0.5 * stiffness * rest**2, rel=1e-15)
     zero_rest = SpringDamper("coil", frame_a, None, anchor, 10.0, 0.0, 0.0)

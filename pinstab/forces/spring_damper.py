@@ -66,9 +66,10 @@ class SpringDamper(ForceElement):
         length, rate, force = spring_damper_terms(kin.model, kin.data, self._form, v)
         if force is None:
             raise SceneError(
-                f"spring-damper {self.name!r}: its points coincide (length {length:.3g} m < {SPRING_COINCIDENT_LENGTH:g} m), where "
-                f"the direction of its force (rest length {self.rest_length:g} m, damping {self.damping:g} N s/m) is "
-                "not defined; keep the points apart, or give rest_length = 0 and damping = 0 (then -k (p_a - p_b))"
+                f"spring-damper {self.name!r}: its points coincide (length {length:.3g} m < "
+                f"{SPRING_COINCIDENT_LENGTH:g} m), where the direction of its force (rest length {self.rest_length:g} "
+                f"m, damping {self.damping:g} N s/m) is not defined; keep the points apart, or give rest_length = 0 "
+                "and damping = 0 (then -k (p_a - p_b))"
             )
         return length, rate, force
 

@@ -4,12 +4,12 @@ A scene whose constraints all have compiled rows (:meth:`~pinstab.constraints.ba
 planar-point, weld, revolute and prismatic closures, joint relations, fingertip contacts of every contact model), all
 equalities and none prescribed, and whose stabilization term is Baumgarte's, needs per evaluation one kinematics pass,
 the rows, the forces and one KKT solve. Force elements with a compiled form the core takes (``joint-spring``, ``hold``,
-``wrench``, ``spring-damper``: :meth:`~pinstab.forces.base.ForceElement.compiled_form`) are computed in the kernel; the others (an
-object-level grasp controller, a user's element) in Python at each evaluation, after a kinematics pass of pinstab's
-where they read it, and passed in (the path's reason names them). The core kernel (``cpp/core_kernel.cpp``) makes the
-rest in one call, on any joint types (free flyers, balls), under gravity that tilts in time where the scene has a
-``[tilt]``. Its KKT solve factors M and the Delassus matrix G M^-1 G^T by Cholesky where the rows are independent by a
-margin (the general path's direct-solve test, :data:`~pinstab.solvers.proxsuite_.DIRECT_PIVOT`), and otherwise
+``wrench``, ``spring-damper``: :meth:`~pinstab.forces.base.ForceElement.compiled_form`) are computed in the kernel; the
+others (an object-level grasp controller, a user's element) in Python at each evaluation, after a kinematics pass of
+pinstab's where they read it, and passed in (the path's reason names them). The core kernel (``cpp/core_kernel.cpp``)
+makes the rest in one call, on any joint types (free flyers, balls), under gravity that tilts in time where the scene
+has a ``[tilt]``. Its KKT solve factors M and the Delassus matrix G M^-1 G^T by Cholesky where the rows are independent
+by a margin (the general path's direct-solve test, :data:`~pinstab.solvers.proxsuite_.DIRECT_PIVOT`), and otherwise
 (redundant loops, as the full Cassie's, or a near-singular configuration) takes its pseudo-inverse (:data:`CUTOFF`): the
 least-norm multipliers and, where the rows are inconsistent, the least-squares accelerations. An evaluation is not used,
 and the general path solves it (or names what fails), where the solve misses
