@@ -22,6 +22,14 @@ void add_joint_springs(const std::vector<JointSpringSpec>& springs, const Vector
   }
 }
 
+void add_joint_torques(const std::vector<JointTorqueSpec>& torques, double t, Eigen::Ref<VectorXd> force) {
+  for (const JointTorqueSpec& torque : torques) {
+    double value, rate, curvature;
+    torque.torque.evaluate(t, value, rate, curvature);
+    force(torque.dof) += value;
+  }
+}
+
 Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic) {
   return holonomic.select(Eigen::ArrayXd::Constant(holonomic.size(), kd), 0.5 * kd);
 }
@@ -111,6 +119,7 @@ bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const Vect
     if (term_.held) held_ = term_value_;
   }
   add_joint_springs(forces_.springs, q, v, force_);
+  add_joint_torques(forces_.torques, t, force_);
   for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
   for (const SpringDamperSpec& spring : forces_.spring_dampers) {
     if (!add_spring_damper(model_, data_, spring, v, force_)) {  // its points coincide: the element says so

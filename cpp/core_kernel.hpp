@@ -16,6 +16,7 @@
 #include "kernels.hpp"
 #include "kkt_solve.hpp"
 #include "spring_damper.hpp"
+#include "targets.hpp"
 
 namespace pinstab {
 
@@ -31,12 +32,23 @@ struct JointSpringSpec {
 void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
                        Eigen::Ref<VectorXd> force);
 
-// The force elements the core computes: joint springs, grasp holds, constant wrenches, spring-dampers.
+// pinstab.forces.joint_torque.JointTorque: tau[dof] = torque(t) [N m or N], its table as a compiled target (linear
+// between its points, held at its ends; a constant: one point).
+struct JointTorqueSpec {
+  int dof = -1;
+  Target torque;
+};
+
+// Adds the torques at t [s] to force.
+void add_joint_torques(const std::vector<JointTorqueSpec>& torques, double t, Eigen::Ref<VectorXd> force);
+
+// The force elements the core computes: joint springs, grasp holds, constant wrenches, spring-dampers, joint torques.
 struct CoreForces {
   std::vector<JointSpringSpec> springs;
   std::vector<HoldSpec> holds;
   std::vector<WrenchSpec> wrenches;
   std::vector<SpringDamperSpec> spring_dampers;
+  std::vector<JointTorqueSpec> torques;
 };
 
 // The stabilization term per row, -K rate - S phi (docs/mathematics.md section 3; pinstab.stabilizers.baumgarte and

@@ -651,6 +651,12 @@ NB_MODULE(_compiled, m) {
                     {nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
               } else if (kind == "spring-damper") {
                 forces.spring_dampers.push_back(spring_damper_spec(form, python_model(model.ptr())));
+              } else if (kind == "joint-torque") {
+                const int dof = nb::cast<int>(form["dof"]);
+                if (dof < 0 || dof >= python_model(model.ptr()).nv) {
+                  throw std::invalid_argument("CoreKernel: a joint torque's dof outside v");
+                }
+                forces.torques.push_back({dof, target(nb::cast<nb::dict>(form["torque"]))});
               } else {
                 throw std::invalid_argument("CoreKernel: no compiled force of kind " + kind);
               }
@@ -677,7 +683,7 @@ NB_MODULE(_compiled, m) {
           "tilt"_a = nb::none(),
           "python"_a = nb::none(), "inertial"_a = nb::none(),
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
-          "wrench, spring-damper), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
+          "wrench, spring-damper, joint-torque), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
           "step's stage 0 and held over its other stages), the solve's settings (dict: direct_pivot, cutoff, "
           "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
           "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "

@@ -50,7 +50,7 @@ def test_grasp_evaluation_equals_the_general_path(name):
     """At the start and at 8 states moved from it (configuration by 1e-3, velocities of 1e-2 per coordinate), at
     t = 0.1 s, the compiled evaluation's accelerations equal the general path's (pinstab's kinematics, the hold's least
     squares, proxsuite's direct solve) to 1e-11 of their largest, and its contact forces to 1e-12 N; "nudged" adds
-    a joint torque table (evaluated in Python, passed to the kernel)."""
+    a joint torque table (the kernel's, cpp/core_kernel.cpp add_joint_torques)."""
     scene = sphere_scene(torque=0.02) if name == "nudged" else load_scene(name)
     system, q0, v0 = bound(scene)
     assert system.path == "core", system.path_reason

@@ -72,7 +72,8 @@ class ForceElement(ABC):
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
         """The element as the compiled core takes it (``cpp/core_kernel.hpp``, ``cpp/grasp_forces.hpp``,
-        ``cpp/spring_damper.hpp``: a dict with ``kind`` ``joint-spring``, ``hold``, ``wrench`` or ``spring-damper``),
+        ``cpp/spring_damper.hpp``: a dict with ``kind`` ``joint-spring``, ``hold``, ``wrench``, ``spring-damper`` or
+        ``joint-torque``),
         given each constraint's rows in the stack by name
         (``ConstraintSet.slices``); None (the default): it has none, and an evaluation computes it in Python."""
         return None

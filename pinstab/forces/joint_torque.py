@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from ..errors import SceneError
+from ..kernels import CompiledTarget
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from .base import FORCE_KINDS, ForceElement, bounded_load
@@ -13,7 +17,8 @@ TORQUE_KEYS = {"name", "kind", "joint", "torque", "table"}
 
 
 class JointTorque(ForceElement):
-    """A torque (revolute) or force (prismatic) on one joint DOF.
+    """A torque (revolute) or force (prismatic) on one joint DOF, its table evaluated by the compiled core's target
+    (``cpp/targets.cpp``, which its core kernel runs too: ``cpp/core_kernel.cpp`` add_joint_torques).
 
     Args:
         name: element name.
@@ -28,10 +33,26 @@ class JointTorque(ForceElement):
     def __init__(self, name: str, dof: int, nv: int, times: np.ndarray, values: np.ndarray) -> None:
         self.name, self.dof, self.nv = name, dof, nv
         self.times, self.values = np.asarray(times, float), np.asarray(values, float)
+        self._table = CompiledTarget([self._compiled_table()])
+
+    def _compiled_table(self) -> dict[str, Any]:
+        """The table as a compiled piecewise polynomial (``cpp/targets.hpp``, the form of
+        :func:`pinstab.constraints.targets.piecewise`): on [t_i, t_i+1) the line
+        ``values_i + slope_i (t - t_i)``, from the last time on its last value (a constant piece), before the first its
+        first value (held)."""
+        times, values = self.times, self.values
+        slopes = np.diff(values) / np.diff(times)
+        coefficients = np.column_stack([values, np.append(slopes, 0.0)])
+        breaks = np.append(times, np.inf)
+        return {"kind": "piecewise", "breaks": breaks, "origins": times, "coefficients": coefficients, "held": True}
+
+    def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
+        """The element as the core kernel takes it (``cpp/core_kernel.hpp`` JointTorqueSpec)."""
+        return {"kind": "joint-torque", "dof": int(self.dof), "torque": self._compiled_table()}
 
     def torque(self, t: float) -> float:
-        """Applied torque at time t [N m or N]."""
-        return float(np.interp(t, self.times, self.values))
+        """Applied torque at time t [N m or N]: linear between the table's points, held at its ends."""
+        return float(self._table.evaluate(t)[0][0])
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         tau = np.zeros(self.nv)

@@ -4,17 +4,17 @@ A scene whose constraints all have compiled rows (:meth:`~pinstab.constraints.ba
 planar-point, weld, revolute and prismatic closures, joint relations, fingertip contacts of every contact model), all
 equalities and none prescribed, and whose stabilization term is Baumgarte's, needs per evaluation one kinematics pass,
 the rows, the forces and one KKT solve. Force elements with a compiled form the core takes (``joint-spring``, ``hold``,
-``wrench``, ``spring-damper``: :meth:`~pinstab.forces.base.ForceElement.compiled_form`) are computed in the kernel; the
-others (an object-level grasp controller, a user's element) in Python at each evaluation, after a kinematics pass of
-pinstab's where they read it, and passed in (the path's reason names them). The core kernel (``cpp/core_kernel.cpp``)
-makes the rest in one call, on any joint types (free flyers, balls), under gravity that tilts in time where the scene
-has a ``[tilt]``. Its KKT solve factors M and the Delassus matrix G M^-1 G^T by Cholesky where the rows are independent
-by a margin (the general path's direct-solve test, :data:`~pinstab.solvers.proxsuite_.DIRECT_PIVOT`), and otherwise
-(redundant loops, as the full Cassie's, or a near-singular configuration) takes its pseudo-inverse (:data:`CUTOFF`): the
-least-norm multipliers and, where the rows are inconsistent, the least-squares accelerations. An evaluation is not used,
-and the general path solves it (or names what fails), where the solve misses
-:data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`, a fingertip contact's force leaves its limits, or a hold's
-least-squares forces leave a cone or the cap (its QP takes them).
+``wrench``, ``spring-damper``, ``joint-torque``: :meth:`~pinstab.forces.base.ForceElement.compiled_form`) are computed
+in the kernel; the others (an object-level grasp controller, a user's element) in Python at each evaluation, after a
+kinematics pass of pinstab's where they read it, and passed in (the path's reason names them). The core kernel
+(``cpp/core_kernel.cpp``) makes the rest in one call, on any joint types (free flyers, balls), under gravity that tilts
+in time where the scene has a ``[tilt]``. Its KKT solve factors M and the Delassus matrix G M^-1 G^T by Cholesky where
+the rows are independent by a margin (the general path's direct-solve test,
+:data:`~pinstab.solvers.proxsuite_.DIRECT_PIVOT`), and otherwise (redundant loops, as the full Cassie's, or a
+near-singular configuration) takes its pseudo-inverse (:data:`CUTOFF`): the least-norm multipliers and, where the rows
+are inconsistent, the least-squares accelerations. An evaluation is not used, and the general path solves it (or names
+what fails), where the solve misses :data:`~pinstab.solvers.base.ACCEPTED_RESIDUAL`, a fingertip contact's force leaves
+its limits, or a hold's least-squares forces leave a cone or the cap (its QP takes them).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from ..forces.base import ForceElement
 from ..kernels import CoreKernel, RowBlock
 from ..model import ConstrainedModel
 
-CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench", "spring-damper")
+CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench", "spring-damper", "joint-torque")
 """Compiled force forms the core kernel takes."""
 # the pseudo-inverse's cutoff on the Delassus matrix's eigenvalues, relative to its largest: rows independent by less
 # (a singular value of M^-1/2 G^T under 1e-6 of the largest) would need forces 1e12 times the others' for what is the
