@@ -1,8 +1,10 @@
-"""The spring-damper compiled in the core kernel (``cpp/spring_damper.cpp``) against its evaluation in Python at every
-stage, as before (the core's Python part, ``pinstab.paths.core.PythonPart``: ``CORE_FORCE_KINDS`` without
-``spring-damper``), side by side in one run: CPU s per simulated second of the whole ``pinstab.simulate()`` call of
+"""The spring-damper and the joint torque compiled in the core kernel (``cpp/spring_damper.cpp``,
+``cpp/core_kernel.cpp`` add_joint_torques) against their evaluation in Python at every stage, as before (the core's
+Python part, ``pinstab.paths.core.PythonPart``: ``CORE_FORCE_KINDS`` as it was, joint springs, holds and wrenches), side
+by side in one run: CPU s per simulated second of the whole ``pinstab.simulate()`` call of
 
-- ``finger-rolling`` at its defaults (its ``press`` spring; its joint torques and rolling rows stay in Python), and
+- ``finger-rolling`` at its defaults (its ``press`` spring and three joint torques, one a table; its rolling rows stay
+  in Python), and
 - the four-bar with a damped spring from its coupler to a world point under Mukharlyamov's term (the core path; the
   spring is the scene's only element, so before it the Python part held the spring alone),
 
@@ -33,7 +35,7 @@ REPEATS = 5
 DURATION = 1.0  # [s] simulated
 OUT = Path(__file__).parent / "results" / "spring_damper.json"
 COMPILED_KINDS = pinstab.paths.core.CORE_FORCE_KINDS
-PYTHON_KINDS = tuple(kind for kind in COMPILED_KINDS if kind != "spring-damper")
+PYTHON_KINDS = ("joint-spring", "hold", "wrench")  # before: spring-dampers and joint torques in Python
 
 
 def fourbar_spring() -> pinstab.Scene:
@@ -93,7 +95,7 @@ def measure(name: str) -> dict[str, Any]:
     }
     row["speedup"] = row["python_cpu_s_per_s"] / row["compiled_cpu_s_per_s"]
     print(
-        f"{name:<15} {DURATION:3.1f} s  spring in Python {row['python_cpu_s_per_s']:7.3f}  compiled "
+        f"{name:<15} {DURATION:3.1f} s  in Python {row['python_cpu_s_per_s']:7.3f}  compiled "
         f"{row['compiled_cpu_s_per_s']:7.3f} CPU s/s  ({row['speedup']:4.2f}x)  |dq| {row['max_dq']:.1e}  "
         f"|dv| {row['max_dv']:.1e}",
         flush=True,
