@@ -14,6 +14,7 @@ from conftest import coupler_spring, fourbar_dict
 from pinstab import simulate
 from pinstab.errors import SceneError
 from pinstab.forces import SpringDamper
+from pinstab.kernels import CoreKernel
 from pinstab.kinematics import LWA, Kinematics
 from pinstab.scene import scene_from_dict
 
@@ -95,8 +96,9 @@ def test_damping_part_is_the_closed_form():
 
 def test_coinciding_points_are_refused_unless_the_law_needs_no_direction():
     """Point a on the world point b (L = 0): with a rest length or damping the force's direction is not defined and
-    the element refuses, naming itself and what would do; a zero-rest-length spring without damping gives -k (p_a -
-    p_b) = 0 there (exactly)."""
+    the element refuses, naming itself and what would do, and the core kernel does not use the evaluation (the general
+    path's, the element's, says why); a zero-rest-length spring without damping gives -k (p_a - p_b) = 0 there
+    (exactly), in the kernel too (its acceleration M^-1 (-h) as Pinocchio's ABA's, to 1e-12)."""
     model, frame_a, _ = _arm()
     kin = Kinematics(model)
     q, v = _state(model, 0)
@@ -109,8 +111,21 @@ def test_coinciding_points_are_refused_unless_the_law_needs_no_direction():
         ):
             spring.generalized_force(kin, v, 0.0)
         assert spring.potential_energy(kin) == pytest.approx(0.5 * stiffness * rest**2, rel=1e-15)
+        kernel = _kernel(model, spring)
+        assert not kernel.acceleration(q, v, np.zeros(model.nv))[1]
+        assert kernel.status_counts == {"spring-damper without a direction": 1}
     zero_rest = SpringDamper("coil", frame_a, None, anchor, 10.0, 0.0, 0.0)
     np.testing.assert_array_equal(zero_rest.generalized_force(kin, v, 0.0), np.zeros(model.nv))
+    acceleration, usable = _kernel(model, zero_rest).acceleration(q, v, np.zeros(model.nv))
+    assert usable
+    expected = pin.aba(model, model.createData(), q, v, np.zeros(model.nv))
+    np.testing.assert_allclose(acceleration, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def _kernel(model: pin.Model, spring: SpringDamper) -> CoreKernel:
+    """A core kernel of no rows with the spring as its one force element."""
+    settings = {"direct_pivot": 1e-12, "cutoff": 1e-12, "accepted": 1e-8, "margin_slack": 0.0}
+    return CoreKernel(model, [], [spring.compiled_form({})], 0.0, np.zeros(0), False, settings)
 
 
 def _fourbar_with_spring() -> object:
