@@ -140,19 +140,14 @@ def test_a_lost_grasp_is_named_as_on_the_general_path():
         ),
         ("allegro-sphere", {"method": "projection"}, "core", "4 constraint block(s)"),
         ("allegro-sphere", {"method": "mukharlyamov"}, "core", "4 constraint block(s)"),
-        (
-            "allegro-sphere",
-            {"method": "mukharlyamov", "variant": "inertial"},
-            "general",
-            "method mukharlyamov's term is not of the core's form",
-        ),
+        ("allegro-sphere", {"method": "mukharlyamov", "variant": "inertial"}, "core", "4 constraint block(s)"),
     ],
 )
 def test_the_core_path_is_taken_where_it_repeats_the_general_one(scene, options, path, reason):
     """The core path for an object-level controller (evaluated in Python, named), soft fingers' rotation rows and a
     tilting gravity, under a projection method (its corrections run in Python on any path) and Mukharlyamov's kinematic
-    term (held over the stages); the general path, with the reason named, where ProxQP is asked for every solve or the
-    stabilization term is not of the core's form (Mukharlyamov's inertial one)."""
+    term (held over the stages) and its inertial one; the general path, with the reason named, where ProxQP is asked for
+    every solve."""
     system, _, _ = bound(load_scene(scene), **options)
     assert system.path == path
     assert reason in system.path_reason
