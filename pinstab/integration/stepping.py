@@ -229,17 +229,17 @@ class StepLoop:
             # the steps before the watch's next sample, the last grid step (shortened) excepted
             span = 0 if compiled is None else steps_before(k, min(stop, last - 1), dt, watch.next_due)
             if span:
-                run = compiled.run(q, v, k, dt, span)
-                if run is not None:
-                    qs, vs, done = run
-                    if done:
-                        self.records.put_span(k + 1, qs[:done], vs[:done])
-                        if self.limit_watch is not None:
-                            self.limit_watch.see_span(k + 1, qs[:done])
-                        q, v, k = qs[done - 1], vs[done - 1], k + done
-                    if done == span:
-                        continue
-                    t = k * dt  # the next step's evaluation is not to be used: the Python step takes it
+                qs, vs, done, raised = compiled.run(q, v, k, dt, span)
+                if done:
+                    self.records.put_span(k + 1, qs[:done], vs[:done])
+                    if self.limit_watch is not None:
+                        self.limit_watch.see_span(k + 1, qs[:done])
+                    q, v, k = qs[done - 1], vs[done - 1], k + done
+                if raised is not None:
+                    raise raised
+                if done == span:
+                    continue
+                t = k * dt  # the next step's evaluation is not to be used: the Python step takes it
             k += 1
             q, v = step(q, v, t, dt if k != last else grid.duration - t)
             if corrects:
