@@ -13,7 +13,7 @@ import pytest
 from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import FrameClosure
-from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, steps_before
+from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, kernel_obstacle, steps_before
 from pinstab.integration.schemes import INTEGRATORS
 from pinstab.paths.banded import BandedDynamics
 
@@ -92,17 +92,22 @@ def test_a_singular_evaluation_stops_the_compiled_loop_before_its_step():
 
 
 def test_runs_left_to_python_say_why():
-    """The general path, a scheme outside the four, a correcting method and force elements keep the Python
-    loop, each named."""
+    """A scheme outside the four and a correcting method keep the Python loop, each named; the general path and
+    force elements outside the core run the compiled loop on the system's Python evaluation, kernel_obstacle naming
+    why."""
     scene = load_scene("fourbar")
-    cases = [
-        (dict(solver="proxsuite"), "rk4", "general path"),
-        ({}, "dop853", "not one of"),
-    ]
-    for options, integrator, reason in cases:
-        system = build_system(scene, "baumgarte", **options)
-        system.bind(1e-3, integrator, scene.q0)
-        assert reason in compiled_obstacle(system, INTEGRATORS.build(integrator, system))
+    system = build_system(scene, "baumgarte")
+    system.bind(1e-3, "dop853", scene.q0)
+    assert "not one of" in compiled_obstacle(system, INTEGRATORS.build("dop853", system))
+    for scene_name, options, reason in [
+        ("fourbar", dict(solver="proxsuite"), "general path"),
+        ("slider-crank", {}, "force elements"),
+    ]:
+        other = load_scene(scene_name)
+        system = build_system(other, "baumgarte", **options)
+        system.bind(1e-3, "rk4", other.q0)
+        assert compiled_obstacle(system, INTEGRATORS.build("rk4", system)) is None
+        assert reason in kernel_obstacle(system)
     system = build_system(scene, "projection")
     system.bind(1e-3, "rk4", scene.q0)
     assert "corrects" in compiled_obstacle(system, INTEGRATORS.build("rk4", system))
