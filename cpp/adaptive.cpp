@@ -1,4 +1,5 @@
 #include "adaptive.hpp"
+#include "step_loop.hpp"
 
 #include <Eigen/LU>
 
@@ -146,6 +147,19 @@ VectorXd magnitude(const Group& group, const VectorXd& q) {
   VectorXd increment(group.model->nv);
   pinocchio::difference(*group.model, pinocchio::neutral(*group.model), q, increment);
   return increment.cwiseAbs();
+}
+
+int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs) {
+  Trial trial(pair, kernel.nv(), kernel.group());
+  VectorXd a(kernel.nv());
+  auto take = [&](double t, VectorXd& q, VectorXd& v) {
+    if (!kernel.acceleration(0, t, q, v, tau, a) || !trial.take(kernel, tau, q, v, a, t, dt, false)) return false;
+    q = trial.q_new;
+    v = trial.v_new;
+    return true;
+  };
+  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs);
 }
 
 Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& control, const VectorXd& tau,

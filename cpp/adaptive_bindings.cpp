@@ -35,28 +35,6 @@ Hermite hermite_of(const Matrices& matrices) {
   return Hermite{quintic, quartic, cubic};
 }
 
-// The kernel of a run: a compiled Kernel, or (acceleration, pin.Model or None, refusals) of the Python evaluation
-// (CallbackKernel, made here for one call).
-struct RunKernel {
-  Kernel* compiled = nullptr;
-  std::optional<CallbackKernel> callback;
-
-  RunKernel(nb::handle kernel, int nv) {
-    if (nb::isinstance<Kernel>(kernel)) {
-      compiled = nb::cast<Kernel*>(kernel);
-      return;
-    }
-    if (!nb::isinstance<nb::tuple>(kernel) || nb::len(kernel) != 3) {
-      throw std::invalid_argument("a run's kernel is a Kernel or (acceleration, pin.Model or None, refusals)");
-    }
-    auto part = [&](Py_ssize_t i) { return nb::handle(PyTuple_GET_ITEM(kernel.ptr(), i)); };  // borrowed
-    callback.emplace(part(0), nv, python_group(part(1)), part(2));
-  }
-  Kernel& operator*() { return compiled != nullptr ? *compiled : *callback; }
-  // The exception to raise (the callback's; with `refusal_too`, its refusal when there is no other), or None.
-  nb::object raised(bool refusal_too) const { return callback ? callback->raised(refusal_too) : nb::none(); }
-};
-
 // q of the kernel's group's nq (of nv without one), v and a of nv.
 void check_state(Kernel& kernel, const VectorXd& q, const VectorXd& v, const VectorXd& a) {
   const long nq = kernel.group() != nullptr ? kernel.group()->nq : kernel.nv();
@@ -84,7 +62,7 @@ nb::tuple run(const AdaptivePair& self, nb::handle kernel_spec, const VectorXd& 
   }
   RowMatrix kept_q = qs.topRows(samples), kept_v = vs.topRows(samples);
   nb::object raised = nb::none();
-  if (state.outcome == Outcome::raised) raised = kernel.raised(true);
+  if (state.outcome == Outcome::raised) raised = kernel.raised();
   return nb::make_tuple(state.steps, state.t, state.q, state.v, state.a, state.step_size, state.previous_error,
                         state.accepted, state.rejected, state.evaluations, state.smallest, state.largest, first,
                         kept_q, kept_v, state.outcome == Outcome::too_short ? state.failed_step : NAN, raised);
@@ -103,7 +81,7 @@ nb::tuple attempt_step(const AdaptivePair& self, nb::handle kernel_spec, const V
   const bool accepted = outcome == Outcome::accepted;
   return nb::make_tuple(static_cast<int>(outcome), h, error, rejected, trial.q_new, trial.v_new, trial.slopes,
                         accepted && self.pair.needs_end() ? nb::cast(trial.end) : nb::none(),
-                        outcome == Outcome::raised ? kernel.raised(true) : nb::none());
+                        outcome == Outcome::raised ? kernel.raised() : nb::none());
 }
 
 // The dense output of one step (pinstab.integration.dense.Segment), holding the pin.Model of its group.

@@ -52,6 +52,18 @@ nb::object CallbackKernel::raised(bool refusal_too) const {
   return nb::none();
 }
 
+RunKernel::RunKernel(nb::handle kernel, int nv) {
+  if (nb::isinstance<Kernel>(kernel)) {
+    compiled = nb::cast<Kernel*>(kernel);
+    return;
+  }
+  if (!nb::isinstance<nb::tuple>(kernel) || nb::len(kernel) != 3) {
+    throw std::invalid_argument("a run's kernel is a Kernel or (acceleration, pin.Model or None, refusals)");
+  }
+  auto part = [&](Py_ssize_t i) { return nb::handle(PyTuple_GET_ITEM(kernel.ptr(), i)); };  // borrowed
+  callback.emplace(part(0), nv, python_group(part(1)), part(2));
+}
+
 void reraise(nb::handle exception) {
   PyErr_Restore(nb::handle(exception.type()).inc_ref().ptr(), exception.inc_ref().ptr(),
                 PyException_GetTraceback(exception.ptr()));

@@ -42,6 +42,18 @@ class CallbackKernel : public Kernel, public Refusing {
   nb::object pending_, refusal_;
 };
 
+// The kernel of a compiled run: a compiled Kernel, or (acceleration, pin.Model or None, refusals) of the Python
+// evaluation (a CallbackKernel, made here for one call).
+struct RunKernel {
+  Kernel* compiled = nullptr;
+  std::optional<CallbackKernel> callback;
+
+  RunKernel(nb::handle kernel, int nv);
+  Kernel& operator*() { return compiled != nullptr ? *compiled : *callback; }
+  // The exception to raise (the callback's, its refusal too), or None.
+  nb::object raised() const { return callback ? callback->raised(true) : nb::none(); }
+};
+
 // Raise `exception` (a Python exception object) in C++ (nb::python_error), its traceback kept.
 [[noreturn]] void reraise(nb::handle exception);
 

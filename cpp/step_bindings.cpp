@@ -55,15 +55,38 @@ nb::tuple scheme_step(PythonScheme& self, nb::handle acceleration, nb::handle q_
   return nb::make_tuple(std::move(q), std::move(v));
 }
 
-// Fixed steps (advance) evaluated by a Python callable: the compiled loop's steps on a path without a compiled kernel.
-nb::tuple python_run(PythonScheme& self, nb::handle acceleration, const VectorXd& q, const VectorXd& v, double dt,
-                     int steps, long start) {
-  self.model.check(q, v, "SchemeStep.run");
-  CallbackKernel kernel(acceleration, static_cast<int>(v.size()), self.model.group);
+// Fixed steps of a compiled run (advance(kernel, qs, vs) -> steps done) from (q, v) on `kernel` (RunKernel's: the
+// GIL released for a compiled kernel): (qs, vs, done, the exception a Python evaluation raised or None).
+template <class Advance>
+nb::tuple fixed_run(const GroupModel& model, nb::handle kernel_spec, const VectorXd& q, const VectorXd& v, int steps,
+                    Advance advance) {
+  model.check(q, v, "run");
+  if (steps < 0) throw std::invalid_argument("run: steps must be >= 0");
+  RunKernel kernel(kernel_spec, static_cast<int>(v.size()));
   RowMatrix qs(steps, q.size()), vs(steps, v.size());
-  const int done = advance(kernel, self.code, q, v, VectorXd(), dt, start, steps, qs, vs);
+  int done;
+  if (kernel.callback) {
+    done = advance(*kernel, qs, vs);
+  } else {
+    nb::gil_scoped_release released;
+    done = advance(*kernel, qs, vs);
+  }
   RowMatrix kept_q = qs.topRows(done), kept_v = vs.topRows(done);
-  return nb::make_tuple(kept_q, kept_v, done, kernel.raised(false));
+  return nb::make_tuple(kept_q, kept_v, done, kernel.raised());
+}
+
+nb::tuple scheme_run(PythonScheme& self, nb::handle kernel, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                     double dt, int steps, long start) {
+  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
+    return advance(evaluation, self.code, q, v, tau, dt, start, steps, qs, vs);
+  });
+}
+
+nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q, const VectorXd& v,
+                      const VectorXd& tau, double dt, int steps, long start) {
+  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
+    return advance_tableau(evaluation, self.pair, q, v, tau, dt, start, steps, qs, vs);
+  });
 }
 
 nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array, double t,
@@ -84,6 +107,11 @@ nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::hand
   if (!trial.take(kernel, VectorXd(), q, v, a, t, h, with_end)) reraise(kernel.raised(false));
   return nb::make_tuple(trial.q_new, trial.v_new, trial.slopes, with_end ? nb::cast(trial.end) : nb::none());
 }
+
+constexpr const char* RUN_DOC =
+    "(qs, vs, done, raised): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start dt) under tau "
+    "on a Kernel, or on (acceleration(q, v, t, stage), pin.Model or None, refusals): the Python evaluation; the steps "
+    "before one whose evaluation is not to be used, and the exception that evaluation raised (to raise; else None).";
 
 }  // namespace
 
@@ -106,10 +134,7 @@ void bind_steps(nb::module_& m) {
       .def("step", &scheme_step, "acceleration"_a, "q"_a, "v"_a, "t"_a, "dt"_a,
            "(q, v) after one step of dt [s] from (q, v) at t [s], stage i evaluated by acceleration(q, v, t, i) -> "
            "(nv,) (its exceptions propagate).")
-      .def("run", &python_run, "acceleration"_a, "q"_a, "v"_a, "dt"_a, "steps"_a, "start"_a,
-           "(qs, vs, done, raised): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start dt) "
-           "as Kernel.run's, stage i evaluated by acceleration(q, v, t, i); the steps before one whose evaluation "
-           "raised, and that exception (to raise; else None).");
+      .def("run", &scheme_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
   nb::class_<PythonTableau>(m, "RungeKutta")
       .def(
           "__init__",
@@ -129,7 +154,8 @@ void bind_steps(nb::module_& m) {
            "(q_new, v_new, slopes, end slope or None): the step of h [s] from (q, v) at t [s], stage i evaluated by "
            "acceleration(q, v, t, i) (its exceptions propagate; first: the acceleration at (q, v, t) when known); "
            "slopes: stages x 2 nv, [velocity slope in the start's tangent space | acceleration] per stage; with end, "
-           "the new point's slope (its acceleration evaluated as stage 0).");
+           "the new point's slope (its acceleration evaluated as stage 0).")
+      .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
 }
 
 }  // namespace pinstab

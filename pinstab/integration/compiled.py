@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from ..errors import ContactInfeasibleError
-from ..kernels import SchemeStep
-from .schemes import SCHEMES
+from ..kernels import RungeKutta, SchemeStep
+from .schemes import SCHEMES, ExplicitRungeKutta
 
 if TYPE_CHECKING:
     from ..kernels import AdaptivePair, Kernel
@@ -42,8 +42,8 @@ if TYPE_CHECKING:
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: bool = False) -> str | None:
     """Why the compiled loop cannot take this run's steps (naming the first reason), or None; ``adaptive``: the
     error-controlled steps of an embedded pair (:class:`CompiledAdaptive`), else fixed steps of :data:`SCHEMES`."""
-    if not adaptive and stepper.name not in SCHEMES:
-        return f"integrator {stepper.name} is not one of {', '.join(SCHEMES)}"
+    if not adaptive and stepper.name not in SCHEMES and not isinstance(stepper, ExplicitRungeKutta):
+        return f"integrator {stepper.name} is neither one of {', '.join(SCHEMES)} nor a Runge-Kutta tableau"
     if system.stabilizer.corrects:
         return f"method {system.stabilizer.name} corrects the state after each step (in Python)"
     return None
@@ -85,17 +85,21 @@ class Evaluation:
 
 
 class CompiledSteps(Evaluation):
-    """Fixed steps of the compiled loop (``cpp/stepping.cpp``).
+    """Fixed steps of the compiled loop (``cpp/stepping.cpp``: a scheme's, or a tableau's as
+    :meth:`ExplicitRungeKutta.step` takes them).
 
     Args:
-        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`).
+        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`, or an
+            :class:`~pinstab.integration.schemes.ExplicitRungeKutta`).
     """
 
     def __init__(self, system: ConstrainedSystem, stepper: Integrator) -> None:
         super().__init__(system)
-        self.scheme = SCHEMES[stepper.name]
         self.stages = stepper.stages
-        self.python = SchemeStep(self.scheme, self.group)
+        if isinstance(stepper, ExplicitRungeKutta):
+            self.step = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, self.group)
+        else:
+            self.step = SchemeStep(SCHEMES[stepper.name], self.group)
 
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator) -> CompiledSteps | None:
@@ -110,14 +114,14 @@ class CompiledSteps(Evaluation):
         near-singular banded solve, a servo that loses rank or meets a bound) or its Python evaluation raised, and
         that exception (for the caller to raise once it has kept the steps done; else None)."""
         kernel = self.kernel()
+        evaluation = python_evaluation(self.system) if kernel is None else kernel
+        qs, vs, done, raised = self.step.run(evaluation, q, v, self.system.model.no_force, dt, steps, start)
         if kernel is None:
-            qs, vs, done, raised = self.python.run(self.system.acceleration, q, v, dt, steps, start)
             self.callback_steps += done
-            return qs, vs, done, raised
-        qs, vs, done = kernel.run(self.scheme, q, v, self.system.model.no_force, dt, steps, start)
-        self.system.count_compiled(done * self.stages)
-        self.steps += done
-        return qs, vs, done, None
+        else:
+            self.system.count_compiled(done * self.stages)
+            self.steps += done
+        return qs, vs, done, raised
 
 
 class CompiledAdaptive(Evaluation):
