@@ -143,10 +143,10 @@ struct ControlState {
   double failed_step = NAN;                // too_short: the step [s]
 };
 
-// Accepted steps from `state` until t_stop, the watch's due time, a crossing within the horizon, or an attempt
-// the compiled loop cannot finish (its outcome in state.outcome; the counts of a CallbackKernel's failed attempt
-// added, as the Python loop adds them before it raises): the state is left at that step's start. Grid samples in the steps taken
-// (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many.
+// Accepted steps from `state` until t_stop, the watch's due time, a crossing within the horizon, or an attempt the
+// compiled loop cannot finish (its outcome in state.outcome; the counts of a CallbackKernel's failed attempt added, as
+// the Python loop adds them before it raises): the state is left at that step's start. Grid samples in the steps
+// taken (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many.
 int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
                      const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs);
 

@@ -137,8 +137,8 @@ void bind_adaptive(nb::module_& m) {
            "the Python evaluation; then too_short: the step [s] that fell below the smallest (else NaN), raised: the "
            "exception an evaluation raised, to raise (else None).")
       .def("attempt", &attempt_step, "kernel"_a, "tau"_a, "q"_a, "v"_a, "a"_a, "t"_a, "h"_a,
-           "(outcome, h, error, rejected, q_new, v_new, slopes, end slope or None, raised): the trial steps from (q, v, "
-           "a) at t [s] of h [s], shorter after each rejection, until one meets the tolerance (outcome 0), an "
+           "(outcome, h, error, rejected, q_new, v_new, slopes, end slope or None, raised): the trial steps from "
+           "(q, v, a) at t [s] of h [s], shorter after each rejection, until one meets the tolerance (outcome 0), an "
            "evaluation raised (2: raised, the exception), or the step fell below the smallest (3: h); kernel as "
            "run's.")
       .def(

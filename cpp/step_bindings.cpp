@@ -89,8 +89,8 @@ nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q,
   });
 }
 
-nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array, double t,
-                  double h, std::optional<VectorXd> first, bool with_end) {
+nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array,
+                          double t, double h, std::optional<VectorXd> first, bool with_end) {
   const VectorXd q = nb::cast<VectorXd>(q_array), v = nb::cast<VectorXd>(v_array);
   self.model.check(q, v, "RungeKutta.attempt");
   const int nv = static_cast<int>(v.size());
@@ -126,7 +126,8 @@ void bind_steps(nb::module_& m) {
             }
             GroupModel group(std::move(model));
             const pinocchio::Model* pointer = group.group;
-            new (self) PythonScheme{std::move(group), static_cast<Scheme>(scheme), SchemeStep(static_cast<Scheme>(scheme), pointer)};
+            const Scheme code = static_cast<Scheme>(scheme);
+            new (self) PythonScheme{std::move(group), code, SchemeStep(code, pointer)};
           },
           "scheme"_a, "model"_a.none(),
           "A fixed scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4) on the group of a pin.Model (None: every "

@@ -63,7 +63,7 @@ def kernel_obstacle(system: ConstrainedSystem) -> str | None:
     return None
 
 
-class Evaluation:
+class CompiledLoop:
     """The evaluation of a run's compiled loop: the system's compiled kernel when :func:`kernel_obstacle` names no
     reason and the system lends it (:meth:`ConstrainedSystem.compiled_kernel`), else its Python evaluation.
 
@@ -84,7 +84,7 @@ class Evaluation:
         return self.system.compiled_kernel() if self.compiled else None
 
 
-class CompiledSteps(Evaluation):
+class CompiledSteps(CompiledLoop):
     """Fixed steps of the compiled loop (``cpp/stepping.cpp``: a scheme's, or a tableau's as
     :meth:`ExplicitRungeKutta.step` takes them).
 
@@ -124,7 +124,7 @@ class CompiledSteps(Evaluation):
         return qs, vs, done, raised
 
 
-class CompiledAdaptive(Evaluation):
+class CompiledAdaptive(CompiledLoop):
     """The compiled error-controlled loop of a run (:class:`~pinstab.kernels.AdaptivePair`, built by
     :class:`~pinstab.integration.adaptive.AdaptiveLoop`).
 
