@@ -1,4 +1,7 @@
 #include "adaptive.hpp"
+#include "step_loop.hpp"
+
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -101,6 +104,90 @@ double Trial::error(const Control& control, const VectorXd& size, const VectorXd
   return std::abs(h) * fifth * fifth / std::sqrt(fifth * fifth + control.estimator_mix * third * third);
 }
 
+void Segment::fit(Group& group, const Hermite& hermite, double start, const VectorXd& q_start, const VectorXd& v0,
+                  const VectorXd* a0, double t1, const VectorXd& q1, const VectorXd& v1, const VectorXd* a1) {
+  t0 = start, h = t1 - start, q0 = q_start;
+  const Eigen::Index nv = v0.size();
+  const bool accelerations = a0 != nullptr && a1 != nullptr;
+  const Eigen::MatrixXd& inverse = !accelerations ? hermite.cubic : group.flat ? hermite.quintic : hermite.quartic;
+  RowMatrix ends(inverse.cols(), nv);
+  Eigen::Index row = 0;
+  ends.row(row++).setZero();
+  ends.row(row++) = (h * v0).transpose();
+  if (accelerations) ends.row(row++) = ((h * h) * *a0).transpose();
+  if (group.euclidean) {
+    ends.row(row++) = (q1 - q0).transpose();
+  } else {
+    VectorXd increment(nv);
+    pinocchio::difference(*group.model, q0, q1, increment);
+    ends.row(row++) = increment.transpose();
+  }
+  ends.row(row++) = (h * group.slope(q0, q1, v1)).transpose();
+  if (row < ends.rows()) ends.row(row) = ((h * h) * *a1).transpose();
+  coefficients.resize(inverse.rows(), nv);
+  hermite_coefficients(inverse, ends, coefficients);
+}
+
+void Segment::state(Group& group, double t, VectorXd& q, VectorXd& v) const {
+  VectorXd increment(coefficients.cols());
+  v.resize(coefficients.cols());
+  hermite_state(coefficients, h != 0.0 ? (t - t0) / h : 0.0, h, increment, v);
+  if (group.euclidean) {
+    q = q0 + increment;
+    return;
+  }
+  q = group.integrate(q0, increment);
+  if (group.flat) return;
+  pinocchio::dDifference(*group.model, q0, q, group.carry, pinocchio::ARG1);  // v = dDifference(q0, q) v(q)
+  v = group.carry.partialPivLu().solve(VectorXd(v));
+}
+
+VectorXd magnitude(const Group& group, const VectorXd& q) {
+  if (group.euclidean) return q.cwiseAbs();
+  VectorXd increment(group.model->nv);
+  pinocchio::difference(*group.model, pinocchio::neutral(*group.model), q, increment);
+  return increment.cwiseAbs();
+}
+
+int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs) {
+  Trial trial(pair, kernel.nv(), kernel.group());
+  VectorXd a(kernel.nv());
+  auto take = [&](double t, VectorXd& q, VectorXd& v) {
+    if (!kernel.acceleration(0, t, q, v, tau, a) || !trial.take(kernel, tau, q, v, a, t, dt, false)) return false;
+    q = trial.q_new;
+    v = trial.v_new;
+    return true;
+  };
+  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs);
+}
+
+Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& control, const VectorXd& tau,
+                const VectorXd& q, const VectorXd& v, const VectorXd& a, const VectorXd& size, double t, double& h,
+                double& error, long& rejected) {
+  const auto* own = dynamic_cast<const Refusing*>(&kernel);
+  const int nv = kernel.nv();
+  VectorXd size_new(2 * nv);
+  rejected = 0;
+  while (true) {
+    if (trial.take(kernel, tau, q, v, a, t, h, pair.needs_end())) {
+      size_new << magnitude(trial.group(), trial.q_new), trial.v_new.cwiseAbs();
+      error = trial.error(control, size, size_new, h);
+      if (error <= 1.0) return Outcome::accepted;
+      if (!std::isfinite(error) && own == nullptr) return Outcome::handed_back;  // Python's evaluation says why
+    } else {
+      if (own == nullptr) return Outcome::handed_back;  // not to be used: the Python loop's evaluation takes it
+      if (!own->refused() || shrink(control, h, INFINITY) < control.min_step * std::max(1.0, t)) {
+        return Outcome::raised;
+      }
+      error = INFINITY;  // a state refused by a stage: a shorter step
+    }
+    ++rejected;
+    h = shrink(control, h, error);
+    if (h < control.min_step * std::max(1.0, t)) return own == nullptr ? Outcome::handed_back : Outcome::too_short;
+  }
+}
+
 namespace {
 
 long floor_index(double x) { return static_cast<long>(std::floor(x)); }
@@ -110,45 +197,45 @@ long floor_index(double x) { return static_cast<long>(std::floor(x)); }
 int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
                      const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs) {
   const int nv = kernel.nv();
+  const bool own = dynamic_cast<const Refusing*>(&kernel) != nullptr;
   Trial trial(pair, nv, kernel.group());
-  RowMatrix ends(6, nv), coefficients(6, nv);
-  VectorXd a_new(nv), increment(nv), rate(nv), size(2 * nv), size_new(2 * nv);
+  Group group(kernel.group());
+  Segment segment;
+  VectorXd a_new(nv), q_sample, v_sample, size(2 * nv);
   first = floor_index(state.t / grid.dt + grid.slack) + 1;
   int count = 0;
+  state.outcome = Outcome::handed_back;
   while (state.t < stops.t_stop - grid.slack * grid.dt && !(state.t >= stops.due)) {
     const double t = state.t;
     const double proposal = stops.t_stop - t < state.step_size * (1 + grid.slack) ? stops.t_stop - t : state.step_size;
     if (t < stops.crossing && stops.crossing < t + stops.horizon * proposal) break;  // the passage watch plans
-    // AdaptiveLoop.attempt: shorter after each rejection until the tolerance is met
-    size << state.q.cwiseAbs(), state.v.cwiseAbs();
+    size << magnitude(group, state.q), state.v.cwiseAbs();
     double h = proposal, error = 0.0;
     long rejected = 0;
     trial.evaluations = 0;
-    bool finished = true;
-    while (true) {
-      finished = trial.take(kernel, tau, state.q, state.v, state.a, t, h, pair.needs_end());
-      if (!finished) break;
-      size_new << trial.q_new.cwiseAbs(), trial.v_new.cwiseAbs();
-      error = trial.error(control, size, size_new, h);
-      if (error <= 1.0) break;
-      if (!std::isfinite(error)) {  // the Python step rejects it (or names a contact that left its cone)
-        finished = false;
-        break;
-      }
-      ++rejected;
-      h = shrink(control, h, error);
-      if (h < control.min_step * std::max(1.0, t)) {  // the Python step raises the divergence
-        finished = false;
-        break;
-      }
-    }
-    if (!finished) break;
+    const Outcome outcome = attempt(trial, kernel, pair, control, tau, state.q, state.v, state.a, size, t, h, error,
+                                    rejected);
+    const bool accepted = outcome == Outcome::accepted;
+    bool usable = accepted;
     const double t_new = t + h;
-    if (pair.needs_end()) {
+    if (accepted && pair.needs_end()) {
       a_new = trial.end.tail(nv);
-    } else {
+    } else if (accepted) {
       ++trial.evaluations;
-      if (!kernel.acceleration(0, t_new, trial.q_new, trial.v_new, tau, a_new)) break;
+      usable = kernel.acceleration(0, t_new, trial.q_new, trial.v_new, tau, a_new);
+    }
+    if (!usable) {
+      if (own) {  // what the Python loop counted before it raised
+        state.outcome = accepted ? Outcome::raised : outcome;
+        state.failed_step = h;
+        state.rejected += rejected;
+        if (accepted) {
+          state.accepted += 1;
+          state.smallest = std::min(state.smallest, h);
+          state.largest = std::max(state.largest, h);
+        }
+      }
+      break;
     }
     // the grid samples in (t, t_new] (StepLoop.grid_between): the end state on a grid time, else the dense output
     const long low = floor_index(t / grid.dt + grid.slack) + 1;
@@ -156,14 +243,7 @@ int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, c
                           ? grid.steps
                           : std::min(floor_index(t_new / grid.dt + grid.slack), grid.steps);
     if (high >= low) {
-      const double span = t_new - t;  // dense.Segment's h
-      ends.row(0).setZero();
-      ends.row(1) = (span * state.v).transpose();
-      ends.row(2) = ((span * span) * state.a).transpose();
-      ends.row(3) = (trial.q_new - state.q).transpose();
-      ends.row(4) = (span * trial.v_new).transpose();
-      ends.row(5) = ((span * span) * a_new).transpose();
-      hermite_coefficients(pair.hermite, ends, coefficients);
+      segment.fit(group, pair.hermite, t, state.q, state.v, &state.a, t_new, trial.q_new, trial.v_new, &a_new);
       for (long k = low; k <= high; ++k) {
         const double time = k == grid.steps ? grid.duration : static_cast<double>(k) * grid.dt;
         const long row = k - first;
@@ -175,9 +255,9 @@ int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, c
           qs.row(row) = trial.q_new.transpose();
           vs.row(row) = trial.v_new.transpose();
         } else {
-          hermite_state(coefficients, span != 0.0 ? (time - t) / span : 0.0, span, increment, rate);
-          qs.row(row) = (state.q + increment).transpose();
-          vs.row(row) = rate.transpose();
+          segment.state(group, time, q_sample, v_sample);
+          qs.row(row) = q_sample.transpose();
+          vs.row(row) = v_sample.transpose();
         }
         count = static_cast<int>(row + 1);
       }

@@ -1,26 +1,61 @@
 // Explicit Runge-Kutta steps of a tableau on the configuration group (the only place their sums are:
 // pinstab.integration.schemes.ExplicitRungeKutta calls Trial) and error-controlled steps of an embedded pair
-// (pinstab.integration.adaptive) on a model whose joints all have one coordinate (q (+) dq = q + dq): the error norm,
-// the step-size control and the grid samples from the dense output. The Python loop calls the same trial, error
-// norm, control and dense output, with its own evaluation per stage: the two loops take the same steps to the last
-// bit (compiled with -ffp-contract=off).
+// (pinstab.integration.adaptive) on the configuration group: the attempt (accept, reject, retry), the error norm, the
+// step-size control and the grid samples from the dense output (Segment, pinstab.integration.dense's). The Python
+// loop's own steps (a passage's, a correcting method's) are this attempt with the Python evaluation (CallbackKernel):
+// the loops take the same steps to the last bit (compiled with -ffp-contract=off).
 #pragma once
 
 #include "group.hpp"
 
 namespace pinstab {
 
+// The dense output's Hermite matrices (pinstab.integration.dense's QUINTIC, QUARTIC, CUBIC): ends -> coefficients of
+// u^k, the ends (0, h v0, h^2 a0, d1, h r1, h^2 a1), (0, h v0, h^2 a0, d1, h r1), (0, h v0, d1, h r1) (d1: q0 (-) q1,
+// r1: v1 in q0's tangent space).
+struct Hermite {
+  Eigen::MatrixXd quintic, quartic, cubic;
+};
+
 // The pair's coefficients (pinstab.integration.tableaus via schemes.ExplicitRungeKutta, passed at construction) and
-// the dense output's Hermite matrix (pinstab.integration.dense.QUINTIC; empty for steps without error control).
+// the dense output's Hermite matrices (empty for steps without error control).
 struct Pair {
   VectorXd nodes;               // c_i (s,)
   Eigen::MatrixXd coupling;     // a_ij (s x s), strictly lower triangular
   VectorXd weights;             // b_j (s,)
   Eigen::MatrixXd estimators;   // none, one or two rows, s + 1 columns (the last: the new point's derivative)
-  Eigen::MatrixXd hermite;      // (6 x 6): ends (0, h v0, h^2 a0, q1 - q0, h v1, h^2 a1) -> coefficients of u^k
+  Hermite hermite;
   int stages() const { return static_cast<int>(nodes.size()); }
   bool needs_end() const;       // an estimator weighs the new point's derivative (first same as last)
 };
+
+// A kernel whose evaluation is the Python loop's own (CallbackKernel): the error-controlled loop takes every decision
+// of the Python one with it (a trial whose evaluation refused its state, refused(), is rejected like one of infinite
+// error; a non-finite error is a rejection, not a hand-back).
+class Refusing {
+ public:
+  virtual ~Refusing() = default;
+  virtual bool refused() const = 0;
+};
+
+// The interpolated motion of one step (pinstab.integration.dense.Segment is this one): the increment q0 (-) q(t) in
+// the tangent space at q0 as a polynomial in u = (t - t0) / h matching the increment, its rate and its second
+// derivative at both ends (quintic; quartic without the end's where the joints are not all of one velocity
+// coordinate, its transport needing the derivative of dDifference; cubic without accelerations).
+struct Segment {
+  double t0 = 0.0, h = 0.0;
+  VectorXd q0;
+  RowMatrix coefficients;  // rows: powers of u
+  // From (q0, v0, a0) at t0 [s] to (q1, v1, a1) at t1 [s] on the group (a0, a1 nullptr: cubic).
+  void fit(Group& group, const Hermite& hermite, double t0, const VectorXd& q0, const VectorXd& v0,
+           const VectorXd* a0, double t1, const VectorXd& q1, const VectorXd& v1, const VectorXd* a1);
+  // (q, v) at t [s].
+  void state(Group& group, double t, VectorXd& q, VectorXd& v) const;
+};
+
+// |neutral (-) q| (nv,): the size of each coordinate of q in the tangent space (|q| where every joint has one
+// coordinate; pinstab.model.ConstrainedModel.magnitude), what a relative tolerance is relative to.
+VectorXd magnitude(const Group& group, const VectorXd& q);
 
 // The tolerances and the constants of pinstab.integration.adaptive (passed from there).
 struct Control {
@@ -56,6 +91,8 @@ class Trial {
   // coordinate scaled by atol + rtol max(size, size_new) (2 nv: |y| before and after).
   double error(const Control& control, const VectorXd& size, const VectorXd& size_new, double h) const;
 
+  Group& group() { return group_; }
+
   VectorXd q_new, v_new, end;  // end: [velocity | acceleration] at the new point (when needed)
   RowMatrix slopes;
   long evaluations = 0;
@@ -66,6 +103,23 @@ class Trial {
   Group group_;
   VectorXd increment_, q_, v_, a_;
 };
+
+// Fixed steps of dt [s] of the pair's tableau (ExplicitRungeKutta.step: the first stage evaluated at the step's start)
+// from (q, v) at grid step `start`, as advance takes the schemes'.
+int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs);
+
+// How an attempt ended: accepted; handed back to the caller (an evaluation of a compiled kernel not to be used, its
+// error not finite, its step below min_step: the Python loop takes that step); an evaluation raised (the kernel's
+// pending exception, or its refusal when no shorter step may follow); the step fell below min_step.
+enum class Outcome { accepted = 0, handed_back = 1, raised = 2, too_short = 3 };
+
+// AdaptiveLoop.attempt: trial steps from (q, v, a) at t [s] (size: the start's |y|, 2 nv) of h [s], shorter after each
+// rejection, until one meets the tolerance; h and error become the accepted step's (too_short: the step below
+// min_step), rejected counts the rejections.
+Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& control, const VectorXd& tau,
+                const VectorXd& q, const VectorXd& v, const VectorXd& a, const VectorXd& size, double t, double& h,
+                double& error, long& rejected);
 
 // The run's time grid (stepping.TimeGrid) and where the compiled run must hand back to Python.
 struct Grid {
@@ -85,12 +139,14 @@ struct ControlState {
   VectorXd q, v, a;  // a: the acceleration at (t, q, v)
   long accepted = 0, rejected = 0, evaluations = 0, steps = 0;
   double smallest = INFINITY, largest = 0.0;
+  Outcome outcome = Outcome::handed_back;  // raised, too_short: the Python loop raises (the CallbackKernel's only)
+  double failed_step = NAN;                // too_short: the step [s]
 };
 
-// Accepted steps from `state` until t_stop, the watch's due time, a crossing within the horizon, or an attempt
-// the compiled loop cannot finish (an evaluation not to be used, an error that is not finite, a step below
-// min_step): the state is left at that step's start for Python to take it. Grid samples in the steps taken
-// (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many.
+// Accepted steps from `state` until t_stop, the watch's due time, a crossing within the horizon, or an attempt the
+// compiled loop cannot finish (its outcome in state.outcome; the counts of a CallbackKernel's failed attempt added, as
+// the Python loop adds them before it raises): the state is left at that step's start. Grid samples in the steps
+// taken (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many.
 int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
                      const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs);
 

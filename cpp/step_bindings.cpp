@@ -10,7 +10,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "adaptive.hpp"
+#include "callback_kernel.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -18,37 +18,6 @@ using namespace nb::literals;
 namespace pinstab {
 
 namespace {
-
-// The evaluation of a Python step: acceleration(q, v, t, stage) -> (nv,) array (pinstab.system.ConstrainedSystem's),
-// called with the GIL held (the step never releases it); an exception it raises propagates unchanged to the step's
-// caller (nb::python_error). Made for one call and holding the callable borrowed, it keeps no Python object alive:
-// no reference cycle runs through C++. The step's start state is passed as the caller's own arrays.
-class PythonKernel : public Kernel {
- public:
-  PythonKernel(nb::handle acceleration, Eigen::Index nv, const VectorXd& q0, const VectorXd& v0, nb::handle q0_array,
-               nb::handle v0_array)
-      : acceleration_(acceleration), nv_(nv), q0_(q0), v0_(v0), q0_array_(q0_array), v0_array_(v0_array) {}
-  bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd&, VectorXd& a) override {
-    const nb::object result = acceleration_(array(q, q0_, q0_array_), array(v, v0_, v0_array_), t, stage);
-    a = nb::cast<VectorXd>(result);
-    if (a.size() != nv_) {
-      throw std::invalid_argument("the acceleration of a step has " + std::to_string(a.size()) + " entries, not nv = " +
-                                  std::to_string(nv_));
-    }
-    return true;
-  }
-  int nv() const override { return static_cast<int>(nv_); }
-
- private:
-  static nb::object array(const VectorXd& x, const VectorXd& start, nb::handle start_array) {
-    if (&x == &start) return nb::borrow(start_array);
-    return nb::cast(VectorXd(x));
-  }
-  nb::handle acceleration_;
-  Eigen::Index nv_;
-  const VectorXd &q0_, &v0_;
-  nb::handle q0_array_, v0_array_;
-};
 
 // A pin.Model (held) for the group, or None: every joint of one coordinate.
 struct GroupModel {
@@ -67,6 +36,7 @@ struct GroupModel {
 
 struct PythonScheme {
   GroupModel model;
+  Scheme code;
   SchemeStep scheme;
 };
 
@@ -79,28 +49,69 @@ nb::tuple scheme_step(PythonScheme& self, nb::handle acceleration, nb::handle q_
                       double dt) {
   VectorXd q = nb::cast<VectorXd>(q_array), v = nb::cast<VectorXd>(v_array);
   self.model.check(q, v, "SchemeStep.step");
-  PythonKernel kernel(acceleration, v.size(), q, v, q_array, v_array);
-  self.scheme.take(kernel, VectorXd(), t, dt, q, v);
+  CallbackKernel kernel(acceleration, static_cast<int>(v.size()), self.model.group);
+  kernel.share(q, q_array, v, v_array);  // the stages at the start: the caller's arrays (q, v change after the last)
+  if (!self.scheme.take(kernel, VectorXd(), t, dt, q, v)) reraise(kernel.raised(false));
   return nb::make_tuple(std::move(q), std::move(v));
 }
 
-nb::tuple attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array, double t,
-                  double h, std::optional<VectorXd> first, bool with_end) {
+// Fixed steps of a compiled run (advance(kernel, qs, vs) -> steps done) from (q, v) on `kernel` (RunKernel's: the
+// GIL released for a compiled kernel): (qs, vs, done, the exception a Python evaluation raised or None).
+template <class Advance>
+nb::tuple fixed_run(const GroupModel& model, nb::handle kernel_spec, const VectorXd& q, const VectorXd& v, int steps,
+                    Advance advance) {
+  model.check(q, v, "run");
+  if (steps < 0) throw std::invalid_argument("run: steps must be >= 0");
+  RunKernel kernel(kernel_spec, static_cast<int>(v.size()));
+  RowMatrix qs(steps, q.size()), vs(steps, v.size());
+  int done;
+  if (kernel.callback) {
+    done = advance(*kernel, qs, vs);
+  } else {
+    nb::gil_scoped_release released;
+    done = advance(*kernel, qs, vs);
+  }
+  RowMatrix kept_q = qs.topRows(done), kept_v = vs.topRows(done);
+  return nb::make_tuple(kept_q, kept_v, done, kernel.raised());
+}
+
+nb::tuple scheme_run(PythonScheme& self, nb::handle kernel, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                     double dt, int steps, long start) {
+  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
+    return advance(evaluation, self.code, q, v, tau, dt, start, steps, qs, vs);
+  });
+}
+
+nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q, const VectorXd& v,
+                      const VectorXd& tau, double dt, int steps, long start) {
+  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
+    return advance_tableau(evaluation, self.pair, q, v, tau, dt, start, steps, qs, vs);
+  });
+}
+
+nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array,
+                          double t, double h, std::optional<VectorXd> first, bool with_end) {
   const VectorXd q = nb::cast<VectorXd>(q_array), v = nb::cast<VectorXd>(v_array);
   self.model.check(q, v, "RungeKutta.attempt");
   const int nv = static_cast<int>(v.size());
-  PythonKernel kernel(acceleration, nv, q, v, q_array, v_array);
+  CallbackKernel kernel(acceleration, nv, self.model.group);
+  kernel.share(q, q_array, v, v_array);
   VectorXd a(nv);
   if (first) {
     if (first->size() != nv) throw std::invalid_argument("RungeKutta.attempt: first is not of size nv");
     a = *first;
-  } else {
-    kernel.acceleration(0, t, q, v, VectorXd(), a);
+  } else if (!kernel.acceleration(0, t, q, v, VectorXd(), a)) {
+    reraise(kernel.raised(false));
   }
   Trial trial(self.pair, nv, self.model.group);
-  trial.take(kernel, VectorXd(), q, v, a, t, h, with_end);
+  if (!trial.take(kernel, VectorXd(), q, v, a, t, h, with_end)) reraise(kernel.raised(false));
   return nb::make_tuple(trial.q_new, trial.v_new, trial.slopes, with_end ? nb::cast(trial.end) : nb::none());
 }
+
+constexpr const char* RUN_DOC =
+    "(qs, vs, done, raised): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start dt) under tau "
+    "on a Kernel, or on (acceleration(q, v, t, stage), pin.Model or None, refusals): the Python evaluation; the steps "
+    "before one whose evaluation is not to be used, and the exception that evaluation raised (to raise; else None).";
 
 }  // namespace
 
@@ -115,14 +126,16 @@ void bind_steps(nb::module_& m) {
             }
             GroupModel group(std::move(model));
             const pinocchio::Model* pointer = group.group;
-            new (self) PythonScheme{std::move(group), SchemeStep(static_cast<Scheme>(scheme), pointer)};
+            const Scheme code = static_cast<Scheme>(scheme);
+            new (self) PythonScheme{std::move(group), code, SchemeStep(code, pointer)};
           },
           "scheme"_a, "model"_a.none(),
           "A fixed scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4) on the group of a pin.Model (None: every "
           "joint of one coordinate, q (+) dq = q + dq).")
       .def("step", &scheme_step, "acceleration"_a, "q"_a, "v"_a, "t"_a, "dt"_a,
            "(q, v) after one step of dt [s] from (q, v) at t [s], stage i evaluated by acceleration(q, v, t, i) -> "
-           "(nv,) (its exceptions propagate).");
+           "(nv,) (its exceptions propagate).")
+      .def("run", &scheme_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
   nb::class_<PythonTableau>(m, "RungeKutta")
       .def(
           "__init__",
@@ -137,12 +150,13 @@ void bind_steps(nb::module_& m) {
           "nodes"_a, "coupling"_a, "weights"_a, "model"_a.none(),
           "An explicit tableau (c_i, a_ij strictly lower triangular, b_j) on the group of a pin.Model (None: every "
           "joint of one coordinate).")
-      .def("attempt", &attempt, "acceleration"_a, "q"_a, "v"_a, "t"_a, "h"_a, "first"_a.none() = nb::none(),
+      .def("attempt", &tableau_attempt, "acceleration"_a, "q"_a, "v"_a, "t"_a, "h"_a, "first"_a.none() = nb::none(),
            "end"_a = false,
            "(q_new, v_new, slopes, end slope or None): the step of h [s] from (q, v) at t [s], stage i evaluated by "
            "acceleration(q, v, t, i) (its exceptions propagate; first: the acceleration at (q, v, t) when known); "
            "slopes: stages x 2 nv, [velocity slope in the start's tangent space | acceleration] per stage; with end, "
-           "the new point's slope (its acceleration evaluated as stage 0).");
+           "the new point's slope (its acceleration evaluated as stage 0).")
+      .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
 }
 
 }  // namespace pinstab

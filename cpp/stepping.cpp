@@ -1,4 +1,5 @@
 #include "group.hpp"
+#include "step_loop.hpp"
 
 namespace pinstab {
 
@@ -46,13 +47,8 @@ bool SchemeStep::take(Kernel& kernel, const VectorXd& tau, double t, double dt, 
 int advance(Kernel& kernel, Scheme scheme, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau, double dt,
             long start, int steps, RowMatrix& qs, RowMatrix& vs) {
   SchemeStep step(scheme, kernel.group());
-  VectorXd q = q0, v = v0;
-  for (int k = 0; k < steps; ++k) {
-    if (!step.take(kernel, tau, static_cast<double>(start + k) * dt, dt, q, v)) return k;  // t: Python's k * dt
-    qs.row(k) = q.transpose();
-    vs.row(k) = v.transpose();
-  }
-  return steps;
+  auto take = [&](double t, VectorXd& q, VectorXd& v) { return step.take(kernel, tau, t, dt, q, v); };
+  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs);
 }
 
 }  // namespace pinstab

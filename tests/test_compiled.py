@@ -13,8 +13,8 @@ import pytest
 from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import FrameClosure
-from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, steps_before
-from pinstab.integration.schemes import INTEGRATORS
+from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, kernel_obstacle, steps_before
+from pinstab.integration.schemes import INTEGRATORS, Integrator
 from pinstab.paths.banded import BandedDynamics
 
 
@@ -26,14 +26,27 @@ def _run_both(monkeypatch, scene, integrator, duration, **options):
     return fast, slow
 
 
-@pytest.mark.parametrize("integrator", list(SCHEMES))
+@pytest.mark.parametrize("integrator", [*SCHEMES, "dopri5", "dop853"])
 def test_native_path_bitwise_equal_to_the_python_loop(monkeypatch, integrator):
-    """The four-bar over 2 s (2000 steps): q, v and t equal to the last bit (the same Pinocchio call, the same
-    sums in the same order), almost every step compiled (the first chunk's solves are checked in Python)."""
+    """The four-bar over 2 s (2000 steps), the fixed schemes and the tableaus' fixed steps: q, v and t equal to the
+    last bit (the same Pinocchio call, the same sums in the same order), almost every step compiled (the first
+    chunk's solves are checked in Python)."""
     fast, slow = _run_both(monkeypatch, load_scene("fourbar"), integrator, 2.0)
     assert fast.info.path == slow.info.path == "native"
     assert fast.info.compiled_steps >= 1900 and slow.info.compiled_steps == 0
     np.testing.assert_array_equal(fast.t, slow.t)
+    np.testing.assert_array_equal(fast.q, slow.q)
+    np.testing.assert_array_equal(fast.v, slow.v)
+    assert fast.info.solver_statistics.solves == slow.info.solver_statistics.solves
+
+
+@pytest.mark.parametrize(("scene", "options"), [("fourbar", {"solver": "proxsuite"}), ("cassie-legs", {})])
+def test_python_evaluation_fixed_tableau_steps_bitwise_equal(monkeypatch, scene, options):
+    """dop853's fixed steps over 0.2 s on the general path (the four-bar with proxsuite) and with force elements on
+    the core path (cassie-legs' springs and dampers): the compiled loop on the system's Python evaluation or the core
+    kernel takes the Python loop's steps to the last bit."""
+    fast, slow = _run_both(monkeypatch, load_scene(scene), "dop853", 0.2, **options)
+    assert fast.info.path == slow.info.path and slow.info.compiled_steps == 0
     np.testing.assert_array_equal(fast.q, slow.q)
     np.testing.assert_array_equal(fast.v, slow.v)
     assert fast.info.solver_statistics.solves == slow.info.solver_statistics.solves
@@ -92,17 +105,27 @@ def test_a_singular_evaluation_stops_the_compiled_loop_before_its_step():
 
 
 def test_runs_left_to_python_say_why():
-    """The general path, a scheme outside the four, a correcting method and force elements keep the Python
-    loop, each named."""
+    """A registered integrator of its own step and a correcting method keep the Python loop, each named (a tableau,
+    dop853, does not); the general path and force elements outside the core run the compiled loop on the system's
+    Python evaluation, kernel_obstacle naming why."""
+
+    class OwnStep(Integrator):
+        name = "own-step"
+
     scene = load_scene("fourbar")
-    cases = [
-        (dict(solver="proxsuite"), "rk4", "general path"),
-        ({}, "dop853", "not one of"),
-    ]
-    for options, integrator, reason in cases:
-        system = build_system(scene, "baumgarte", **options)
-        system.bind(1e-3, integrator, scene.q0)
-        assert reason in compiled_obstacle(system, INTEGRATORS.build(integrator, system))
+    system = build_system(scene, "baumgarte")
+    system.bind(1e-3, "dop853", scene.q0)
+    assert "own-step is neither one of" in compiled_obstacle(system, OwnStep(system))
+    assert compiled_obstacle(system, INTEGRATORS.build("dop853", system)) is None
+    for scene_name, options, reason in [
+        ("fourbar", dict(solver="proxsuite"), "general path"),
+        ("slider-crank", {}, "force elements"),
+    ]:
+        other = load_scene(scene_name)
+        system = build_system(other, "baumgarte", **options)
+        system.bind(1e-3, "rk4", other.q0)
+        assert compiled_obstacle(system, INTEGRATORS.build("rk4", system)) is None
+        assert reason in kernel_obstacle(system)
     system = build_system(scene, "projection")
     system.bind(1e-3, "rk4", scene.q0)
     assert "corrects" in compiled_obstacle(system, INTEGRATORS.build("rk4", system))

@@ -19,12 +19,12 @@ the accepted solution, after the estimate, and the next step starts from the cor
 the grid are taken from the quintic Hermite interpolant of each accepted step (:mod:`.dense`). Singular
 passages are planned as in fixed-step runs, by limiting the step (:meth:`PassageWatch.limit`).
 
-The trial step (on the configuration group), the error norm and the control are compiled on every model
-(``cpp/adaptive.cpp``; the coefficients passed from :mod:`.tableaus` and :mod:`.dense`), the stages evaluated by the
-system in Python, and so is the dense output on a model whose joints all have one coordinate; on the compiled
-paths (:func:`~pinstab.integration.compiled.compiled_obstacle`) the runs of accepted steps between the passage
-watch's samples run in C++ altogether (:class:`~pinstab.integration.compiled.CompiledAdaptive`), with the compiled
-evaluation: the same operations in the same order, the same steps and samples to the last bit.
+The loop is compiled (``cpp/adaptive.cpp``; the coefficients passed from :mod:`.tableaus` and :mod:`.dense`): the
+runs of accepted steps between the passage watch's samples run in C++ altogether
+(:class:`~pinstab.integration.compiled.CompiledAdaptive`), with the path's compiled evaluation or the system's own
+in Python, called back; the steps Python takes itself (a straddling step of a passage, a step of a method that
+corrects the state, a step the compiled evaluation leaves) are one attempt of the same compiled function with the
+system's evaluation: the same operations in the same order, the same steps and samples to the last bit.
 """
 
 from __future__ import annotations
@@ -35,10 +35,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ContactInfeasibleError, DivergenceError
+from ..errors import DivergenceError
 from ..kernels import AdaptivePair
-from .compiled import AdaptiveRun, CompiledAdaptive
-from .dense import QUINTIC, Segment
+from .compiled import AdaptiveRun, CompiledAdaptive, python_evaluation
+from .dense import HERMITE, Segment
 from .passages import HORIZON
 from .schemes import ExplicitRungeKutta
 from .stepping import GRID_SLACK, StepLoop
@@ -48,6 +48,7 @@ MIN_FACTOR, MAX_FACTOR = 0.2, 10.0  # bounds of the step-size change per step
 MIN_STEP = 1e-14  # [s per s of simulated time] below this the step cannot advance time reliably
 PI_ALPHA, PI_BETA = 0.7, 0.4  # proportional-integral step control (Gustafsson): exponents in units of 1/(p+1)
 ESTIMATOR_MIX = 0.01  # DOP853: weight of the 3rd-order estimate in the combined error (Hairer's code)
+TOO_SHORT = 3  # AdaptivePair.attempt's outcome: the step fell below MIN_STEP
 
 
 @dataclass
@@ -103,7 +104,6 @@ class AdaptiveLoop(StepLoop):
         super().__init__(system, stepper, grid, every, drift_limit, warned)
         self.control = control
         self.pair = stepper
-        self.needs_end = bool(np.any(stepper.estimators[:, -1]))  # the estimator weighs the new point's slope
         self.exponent = -1.0 / (stepper.tableau.estimator_order + 1)
         constants = {
             "rtol": control.rtol,
@@ -118,7 +118,7 @@ class AdaptiveLoop(StepLoop):
             "exponent": self.exponent,
         }
         self.rules = AdaptivePair(
-            stepper.nodes, stepper.coupling, stepper.weights, stepper.estimators, QUINTIC, constants
+            stepper.nodes, stepper.coupling, stepper.weights, stepper.estimators, HERMITE, constants
         )
         self.compiled = CompiledAdaptive.of(system, stepper, self.rules)  # in place of the fixed-step loop
         self.step_size: float | None = None
@@ -148,10 +148,12 @@ class AdaptiveLoop(StepLoop):
                     watch.sample(t, q, self.step_size)
                 if self.compiled is not None:
                     run = self._compiled_run(t, q, v, a, t_stop)
-                    if run is not None and run.steps:
+                    if run.steps:
                         if len(run.qs):
                             runs.append(run)
                         t, q, v, a = run.t, run.q, run.v, run.a
+                    self._raise_failure(run.raised, run.too_short, t, q, v)
+                    if run.steps:
                         continue
                 self._keep_runs(runs)
                 proposal = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
@@ -179,11 +181,11 @@ class AdaptiveLoop(StepLoop):
         self._start = (q, v, a)
         return q, v, stop
 
-    def _compiled_run(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, t_stop: float) -> AdaptiveRun | None:
+    def _compiled_run(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, t_stop: float) -> AdaptiveRun:
         """Accepted steps from (q, v, a) at t [s] taken by the compiled loop, until ``t_stop`` [s], the passage
         watch's next sample, a step a predicted crossing may shorten, or an attempt left to the Python step (their
-        grid samples, of the grid steps after those of the run before, for :meth:`_keep_runs`); the control's counts
-        and state updated. None while the kernel is not to be used."""
+        grid samples, of the grid steps after those of the run before, for :meth:`_keep_runs`), or an attempt that
+        failed (the run's ``raised`` and ``too_short``); the control's counts and state updated."""
         grid, watch, control = self.grid, self.watch, self.control
         crossing = watch.crossing()
         run = self.compiled.run(
@@ -202,8 +204,6 @@ class AdaptiveLoop(StepLoop):
             math.nan if crossing is None else crossing,
             HORIZON,
         )
-        if run is None or not run.steps:
-            return run
         self.step_size, self.previous_error = run.step_size, run.previous_error
         control.accepted += run.accepted
         control.rejected += run.rejected
@@ -225,7 +225,7 @@ class AdaptiveLoop(StepLoop):
 
     def attempt(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float) -> Attempt:
         """Steps from (q, v, a) at t [s], shorter after each rejection, until one meets the tolerance; counts
-        them.
+        them (the compiled attempt, ``cpp/adaptive.cpp``, with the system's evaluation).
 
         A trial step one of whose stages finds a sticking contact outside its cone (a stage of a step too long
         overshoots the state, and the contact forces with it) is rejected like one whose error is not finite.
@@ -234,34 +234,35 @@ class AdaptiveLoop(StepLoop):
             DivergenceError: the step fell below :data:`MIN_STEP` (the tolerance cannot be met).
             ContactInfeasibleError: a contact still leaves its cone within a step of :data:`MIN_STEP`.
         """
-        control, size = self.control, self._size(q, v)
-        self.rejected_last = False
-        while True:
-            try:
-                q_new, v_new, slopes, end_slope = self._trial(q, v, a, t, h)
-            except ContactInfeasibleError:
-                if self.rules.shrink(h, math.inf) < MIN_STEP * max(1.0, t):  # the shortest retry
-                    raise
-                error = math.inf
-            else:
-                error = self.error_norm(size, self._size(q_new, v_new), slopes, end_slope, h)
-            if error <= 1.0:
-                control.accepted += 1
-                control.smallest_step = min(control.smallest_step, h)
-                control.largest_step = max(control.largest_step, h)
-                return Attempt(h, q_new, v_new, slopes, end_slope, error)
-            control.rejected += 1
-            h = self.rules.shrink(h, error)
-            self.rejected_last = True
-            if h < MIN_STEP * max(1.0, t):
-                raise DivergenceError(
-                    f"the error control cannot meet rtol = {control.rtol:g}, atol = {control.atol:g} at t = "
-                    f"{t:.6g} s: the step fell to {h:.3g} s",
-                    t,
-                    q,
-                    v,
-                    diverged_at=t,
-                )
+        system, control = self.system, self.control
+        outcome, h, error, rejected, q_new, v_new, slopes, end_slope, raised = self.rules.attempt(
+            python_evaluation(system), system.model.no_force, q, v, a, t, h
+        )
+        control.rejected += rejected
+        self.rejected_last = rejected > 0
+        self._raise_failure(raised, h if outcome == TOO_SHORT else math.nan, t, q, v)
+        control.accepted += 1
+        control.smallest_step = min(control.smallest_step, h)
+        control.largest_step = max(control.largest_step, h)
+        return Attempt(h, q_new, v_new, slopes, end_slope, error)
+
+    def _raise_failure(
+        self, raised: BaseException | None, too_short: float, t: float, q: np.ndarray, v: np.ndarray
+    ) -> None:
+        """Raise what ended an attempt from (q, v) at t [s]: the exception an evaluation raised, or the
+        DivergenceError of a step that fell to ``too_short`` [s] below :data:`MIN_STEP` (NaN: none)."""
+        if raised is not None:
+            raise raised
+        if not math.isnan(too_short):
+            control = self.control
+            raise DivergenceError(
+                f"the error control cannot meet rtol = {control.rtol:g}, atol = {control.atol:g} at t = "
+                f"{t:.6g} s: the step fell to {too_short:.3g} s",
+                t,
+                q,
+                v,
+                diverged_at=t,
+            )
 
     def _next_step(self, step: Attempt) -> float:
         """The step the estimate asks for [s] after an accepted step: proportional-integral control, at most
@@ -277,25 +278,6 @@ class AdaptiveLoop(StepLoop):
         if self._start is not None and self._start[0] is q and self._start[1] is v:
             return self._start[2]
         return self.system.acceleration(q, v, t, 0)
-
-    def _trial(
-        self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float, h: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """The step of h [s] from (q, v) at t [s], a its acceleration: the end state, the stage slopes and the new
-        point's slope when the estimator weighs it (the compiled trial, ``cpp/adaptive.cpp``)."""
-        return self.pair.attempt(q, v, t, h, a, self.needs_end)
-
-    def _size(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """|y| coordinate by coordinate (2 nv,): :meth:`~pinstab.model.ConstrainedModel.magnitude` of q, |v|."""
-        return np.concatenate((self.system.model.magnitude(q), np.abs(v)))
-
-    def error_norm(
-        self, size: np.ndarray, size_new: np.ndarray, slopes: np.ndarray, end_slope: np.ndarray | None, h: float
-    ) -> float:
-        """The largest scaled error of a step over the coordinates [-] (accepted at <= 1): the estimators'
-        weights on the stage slopes (and the end slope), each coordinate scaled by ``atol + rtol max(|y0|, |y1|)``;
-        the compiled norm (``cpp/adaptive.cpp``, the compiled loop's) on every model."""
-        return self.rules.error(size, size_new, slopes, end_slope, h)
 
     def initial_step(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: float) -> float:
         """A first step [s] from the size of the state and of its derivatives (Hairer, Norsett and Wanner,

@@ -1,24 +1,25 @@
-"""The compiled step loop: runs of fixed steps taken in C++ (``pinstab._compiled``, sources in ``cpp/``) on the
-native, banded and servo paths.
+"""The compiled step loop: runs of steps taken in C++ (``pinstab._compiled``, sources in ``cpp/``) on every path.
 
-A Python step on those paths costs the evaluation (Pinocchio's passes, microseconds) plus a Python call per stage
-around it (on the four-bar, more than the evaluation itself: ``benchmarks/overhead.py``). :class:`CompiledSteps`
-hands the stepping loop's runs of steps between its checks to the compiled loop: the same step function as the
-Python loop's (``SchemeStep``, ``cpp/stepping.cpp``: :mod:`pinstab.integration.schemes` calls it), the same
-evaluations (Pinocchio's ``constraintDynamics`` on the native path, the compiled banded or servo solve on
-those paths, which the Python step calls too) at the same stage times: the results equal the Python loop's to the
-last bit. The loop's checks, the passage watch, the samples and the fallbacks (a near-singular banded solve, a
-servo that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose evaluation is
-not to be used and the Python step takes it.
+A Python step costs the evaluation plus a Python call per stage around it (on the four-bar, more than the
+evaluation itself: ``benchmarks/overhead.py``). :class:`CompiledSteps` hands the stepping loop's runs of steps between
+its checks to the compiled loop: the same step function as the Python loop's (``SchemeStep``, ``cpp/stepping.cpp``:
+:mod:`pinstab.integration.schemes` calls it), the same evaluations at the same stage times: the results equal the
+Python loop's to the last bit. The evaluation is the path's compiled kernel (Pinocchio's ``constraintDynamics`` on
+the native path, the compiled banded, servo or core solve) where :func:`kernel_obstacle` names no reason, else the
+system's own in Python (``system.acceleration``: the general path's KKT solve, a Python stabilizer's term, a compiled
+path's fallbacks), called back from the C++ loop (``cpp/callback_kernel.cpp``). The loop's checks, the passage watch,
+the samples, the corrections of ``projection`` and ``post`` and the fallbacks (a near-singular banded solve, a servo
+that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose compiled evaluation is
+not to be used (or whose Python evaluation raised) and the Python step takes it (or the exception is raised there).
 
-:class:`CompiledAdaptive` does the same for error-controlled runs (``--rtol``, :mod:`pinstab.integration.adaptive`)
-on models whose joints all have one coordinate: the embedded pair's trial steps, its error norm, the step-size
-control and the grid samples from the dense output in C++ (``cpp/adaptive.cpp``; the coefficients passed from
-:mod:`pinstab.integration.tableaus` and :mod:`pinstab.integration.dense`), the same functions the Python adaptive
-loop calls with its own evaluation per stage: the results equal the Python loop's to the last bit
-(``tests/test_compiled_adaptive.py``). It hands back to Python at the chunk's end, where the passage watch samples,
-before a step that a predicted singular crossing may shorten, and before an attempt it cannot finish (an evaluation
-not to be used, an error that is not finite, a step below the smallest).
+:class:`CompiledAdaptive` does the same for error-controlled runs (``--rtol``, :mod:`pinstab.integration.adaptive`):
+the embedded pair's attempts (accept, reject, retry), its error norm, the step-size control and the grid samples from
+the dense output on the configuration group in C++ (``cpp/adaptive.cpp``; the coefficients passed from
+:mod:`pinstab.integration.tableaus` and :mod:`pinstab.integration.dense`), the functions the Python adaptive loop's
+own steps call: the results equal the Python loop's to the last bit (``tests/test_compiled_adaptive.py``). It hands
+back to Python at the chunk's end, where the passage watch samples, before a step that a predicted singular crossing
+may shorten, and before an attempt the compiled kernel cannot finish (an evaluation not to be used, an error that is
+not finite, a step below the smallest).
 """
 
 from __future__ import annotations
@@ -28,10 +29,12 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from .schemes import SCHEMES
+from ..errors import ContactInfeasibleError
+from ..kernels import RungeKutta, SchemeStep
+from .schemes import SCHEMES, ExplicitRungeKutta
 
 if TYPE_CHECKING:
-    from ..kernels import AdaptivePair
+    from ..kernels import AdaptivePair, Kernel
     from ..system import ConstrainedSystem
     from .schemes import Integrator
 
@@ -39,37 +42,64 @@ if TYPE_CHECKING:
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: bool = False) -> str | None:
     """Why the compiled loop cannot take this run's steps (naming the first reason), or None; ``adaptive``: the
     error-controlled steps of an embedded pair (:class:`CompiledAdaptive`), else fixed steps of :data:`SCHEMES`."""
-    if system.path not in ("native", "banded", "servo", "core"):
-        return f"the {system.path} path (pinstab's KKT backend) runs in Python"
-    if not adaptive and stepper.name not in SCHEMES:
-        return f"integrator {stepper.name} is not one of {', '.join(SCHEMES)}"
+    if not adaptive and stepper.name not in SCHEMES and not isinstance(stepper, ExplicitRungeKutta):
+        return f"integrator {stepper.name} is neither one of {', '.join(SCHEMES)} nor a Runge-Kutta tableau"
     if system.stabilizer.corrects:
         return f"method {system.stabilizer.name} corrects the state after each step (in Python)"
-    takes_forces = system.path == "core"  # its kernel takes every force (its Python part too)
-    if takes_forces and not adaptive:  # and its fixed steps integrate on the configuration group
-        return None
-    if system.model.forces and not takes_forces:
-        return "the scene has force elements (the compiled loop takes none)"
-    if not system.model.euclidean:
-        return "a joint with more than one configuration coordinate (the compiled loop adds q + dt v)"
     return None
 
 
-class CompiledSteps:
-    """Steps of the system's compiled kernel (:meth:`ConstrainedSystem.compiled_kernel`).
+def kernel_obstacle(system: ConstrainedSystem) -> str | None:
+    """Why the compiled loop evaluates this system in Python (``system.acceleration``, called back from C++) rather
+    than with its compiled kernel (naming the first reason), or None."""
+    if system.path not in ("native", "banded", "servo", "core"):
+        return f"the {system.path} path (pinstab's KKT backend) runs in Python"
+    if system.path == "core":  # its kernel takes every force (its Python part too) and steps on the group
+        return None
+    if system.model.forces:
+        return "the scene has force elements (the compiled kernel takes none)"
+    if not system.model.euclidean:
+        return "a joint with more than one configuration coordinate (the kernel's loop adds q + dt v)"
+    return None
 
-    Args:
-        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`).
+
+class CompiledLoop:
+    """The evaluation of a run's compiled loop: the system's compiled kernel when :func:`kernel_obstacle` names no
+    reason and the system lends it (:meth:`ConstrainedSystem.compiled_kernel`), else its Python evaluation.
 
     Attributes:
-        steps: steps taken by the compiled loop so far.
+        steps: steps (accepted steps) taken by the compiled loop with the compiled kernel so far.
+        callback_steps: ... with the Python evaluation.
+    """
+
+    def __init__(self, system: ConstrainedSystem) -> None:
+        self.system = system
+        self.compiled = kernel_obstacle(system) is None
+        self.group = None if system.model.euclidean else system.model.model
+        self.steps = 0
+        self.callback_steps = 0
+
+    def kernel(self) -> Kernel | None:
+        """The compiled kernel to step with now, or None: the system's Python evaluation."""
+        return self.system.compiled_kernel() if self.compiled else None
+
+
+class CompiledSteps(CompiledLoop):
+    """Fixed steps of the compiled loop (``cpp/stepping.cpp``: a scheme's, or a tableau's as
+    :meth:`ExplicitRungeKutta.step` takes them).
+
+    Args:
+        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`, or an
+            :class:`~pinstab.integration.schemes.ExplicitRungeKutta`).
     """
 
     def __init__(self, system: ConstrainedSystem, stepper: Integrator) -> None:
-        self.system = system
-        self.scheme = SCHEMES[stepper.name]
+        super().__init__(system)
         self.stages = stepper.stages
-        self.steps = 0
+        if isinstance(stepper, ExplicitRungeKutta):
+            self.step = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, self.group)
+        else:
+            self.step = SchemeStep(SCHEMES[stepper.name], self.group)
 
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator) -> CompiledSteps | None:
@@ -78,59 +108,65 @@ class CompiledSteps:
 
     def run(
         self, q: np.ndarray, v: np.ndarray, start: int, dt: float, steps: int
-    ) -> tuple[np.ndarray, np.ndarray, int] | None:
+    ) -> tuple[np.ndarray, np.ndarray, int, BaseException | None]:
         """Up to ``steps`` steps of ``dt`` [s] from (q, v) at grid step ``start`` (time ``start * dt``): the states
-        after each (rows) and the number done, fewer when the next step's evaluation is not to be used (a
-        near-singular banded solve, a servo that loses rank or meets a bound); None while the system's solves must
-        be checked one by one (the native path after a failed check)."""
-        kernel = self.system.compiled_kernel()
+        after each (rows), the number done, fewer when the next step's compiled evaluation is not to be used (a
+        near-singular banded solve, a servo that loses rank or meets a bound) or its Python evaluation raised, and
+        that exception (for the caller to raise once it has kept the steps done; else None)."""
+        kernel = self.kernel()
+        evaluation = python_evaluation(self.system) if kernel is None else kernel
+        qs, vs, done, raised = self.step.run(evaluation, q, v, self.system.model.no_force, dt, steps, start)
         if kernel is None:
-            return None
-        qs, vs, done = kernel.run(self.scheme, q, v, self.system.model.no_force, dt, steps, start)
-        self.system.count_compiled(done * self.stages)
-        self.steps += done
-        return qs, vs, done
+            self.callback_steps += done
+        else:
+            self.system.count_compiled(done * self.stages)
+            self.steps += done
+        return qs, vs, done, raised
 
 
-class CompiledAdaptive:
+class CompiledAdaptive(CompiledLoop):
     """The compiled error-controlled loop of a run (:class:`~pinstab.kernels.AdaptivePair`, built by
-    :class:`~pinstab.integration.adaptive.AdaptiveLoop`) over the system's compiled kernel.
+    :class:`~pinstab.integration.adaptive.AdaptiveLoop`).
 
     Args:
         system: the bound system. pair: the pair and the control's constants in compiled form.
-
-    Attributes:
-        steps: accepted steps taken by the compiled loop so far.
     """
 
     def __init__(self, system: ConstrainedSystem, pair: AdaptivePair) -> None:
-        self.system = system
+        super().__init__(system)
         self.pair = pair
-        self.steps = 0
 
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator, pair: AdaptivePair) -> CompiledAdaptive | None:
         """The compiled loop of this run, or None when :func:`compiled_obstacle` names a reason."""
         return None if compiled_obstacle(system, stepper, adaptive=True) is not None else cls(system, pair)
 
-    def run(self, *arguments: Any) -> AdaptiveRun | None:
-        """:meth:`AdaptivePair.run <pinstab.kernels.AdaptivePair.run>` on the system's kernel under the scene's
-        applied forces (none), its evaluations counted; None while the system's solves must be checked one by one
-        (the native path after a failed check)."""
-        kernel = self.system.compiled_kernel()
+    def run(self, *arguments: Any) -> AdaptiveRun:
+        """:meth:`AdaptivePair.run <pinstab.kernels.AdaptivePair.run>` under the scene's applied forces (none) on the
+        system's compiled kernel (its evaluations counted), or on its Python evaluation."""
+        kernel = self.kernel()
         if kernel is None:
-            return None
+            run = AdaptiveRun(*self.pair.run(python_evaluation(self.system), self.system.model.no_force, *arguments))
+            self.callback_steps += run.steps
+            return run
         run = AdaptiveRun(*self.pair.run(kernel, self.system.model.no_force, *arguments))
         self.system.count_compiled(run.evaluations)
         self.steps += run.steps
         return run
 
 
+def python_evaluation(system: ConstrainedSystem) -> tuple:
+    """The system's Python evaluation as the compiled loops take it: (acceleration, the group's pin.Model or None,
+    the exceptions that refuse a trial's state: a contact leaving its cone, a step the error control shortens)."""
+    return (system.acceleration, None if system.model.euclidean else system.model.model, ContactInfeasibleError)
+
+
 class AdaptiveRun(NamedTuple):
     """What a compiled error-controlled run did: its accepted ``steps``, the state it reached (t [s], q, v, a) and
     the controller's (``step_size`` [s], ``previous_error`` [-]), its counts (accepted and rejected steps,
-    evaluations, smallest and largest accepted step [s]) and the grid samples of grid steps first, first + 1, ...
-    (rows of qs, vs)."""
+    evaluations, smallest and largest accepted step [s]), the grid samples of grid steps first, first + 1, ...
+    (rows of qs, vs), and how a run of the Python evaluation failed: ``too_short``, the step [s] the control fell to
+    below the smallest (else NaN), ``raised``, the exception an evaluation raised (else None)."""
 
     steps: int
     t: float
@@ -147,6 +183,8 @@ class AdaptiveRun(NamedTuple):
     first: int
     qs: np.ndarray
     vs: np.ndarray
+    too_short: float
+    raised: BaseException | None
 
 
 def steps_before(k: int, stop: int, dt: float, due: float) -> int:

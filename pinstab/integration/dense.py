@@ -6,8 +6,8 @@ derivative at both ends (quintic Hermite, error O(h^6) in q), and ``q(t) = q0 (+
 whose joints have one velocity coordinate each the rate of the increment is the velocity and its second
 derivative the acceleration; on others (free flyers, spherical joints) the end velocity is carried to
 q0's tangent space with ``pin.dDifference`` and the end acceleration is left out (quartic, O(h^5)),
-since its transport needs the derivative of that map. The coefficients and the polynomial's value are the compiled
-ones (``cpp/adaptive.cpp``), which the compiled error-controlled loop samples with.
+since its transport needs the derivative of that map. The segment is the compiled one (``cpp/adaptive.cpp``), which
+the compiled error-controlled loop samples with.
 """
 
 from __future__ import annotations
@@ -16,9 +16,8 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pinocchio as pin
 
-from ..kernels import hermite_coefficients, hermite_state
+from ..kernels import Segment as CompiledSegment
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel
@@ -38,6 +37,7 @@ def _hermite_inverse(*points: tuple[float, int]) -> np.ndarray:
 QUINTIC = _hermite_inverse((0.0, 0), (0.0, 1), (0.0, 2), (1.0, 0), (1.0, 1), (1.0, 2))
 QUARTIC = _hermite_inverse((0.0, 0), (0.0, 1), (0.0, 2), (1.0, 0), (1.0, 1))
 CUBIC = _hermite_inverse((0.0, 0), (0.0, 1), (1.0, 0), (1.0, 1))
+HERMITE = (QUINTIC, QUARTIC, CUBIC)  # as the compiled segment takes them
 
 
 class Segment:
@@ -47,6 +47,10 @@ class Segment:
         model: the constrained model (its group operations).
         t0, q0, v0, a0: the start: time [s], configuration, velocity, acceleration.
         t1, q1, v1, a1: the end. Without accelerations (None: a saved run's samples), cubic Hermite (O(h^4)).
+
+    Attributes:
+        t0, t1, h: the start, the end and the step [s]. q0: the start configuration. coefficients: (degree + 1, nv),
+            the increment's polynomial p(u) = sum_k c_k u^k, u = (t - t0) / h.
     """
 
     def __init__(
@@ -61,34 +65,11 @@ class Segment:
         v1: np.ndarray,
         a1: np.ndarray | None,
     ) -> None:
-        self.model, self.t0, self.t1, self.q0 = model, float(t0), float(t1), q0.copy()
-        h = self.t1 - self.t0
-        self.h = h
-        if model.euclidean:
-            increment, rate = q1 - q0, v1
-        else:
-            increment, rate = model.difference(q0, q1), model.to_start_tangent(q0, q1, v1)
-        if a0 is None or a1 is None:
-            self.coefficients = hermite_coefficients(CUBIC, np.array([np.zeros_like(v0), h * v0, increment, h * rate]))
-            return
-        ends = [np.zeros_like(v0), h * v0, h * h * a0, increment, h * rate]
-        inverse = QUARTIC
-        if model.flat:
-            ends.append(h * h * a1)
-            inverse = QUINTIC
-        self.coefficients = hermite_coefficients(
-            inverse, np.array(ends)
-        )  # (degree + 1, nv): p(u) = sum_k c_k u^k, u = (t - t0) / h
+        group = None if model.euclidean else model.model
+        self._segment = CompiledSegment(group, HERMITE, float(t0), q0, v0, a0, float(t1), q1, v1, a1)
+        self.t0, self.t1, self.h = float(t0), float(t1), self._segment.h
+        self.q0, self.coefficients = self._segment.q0, self._segment.coefficients
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) at time t [s] (t0 <= t <= t1)."""
-        increment, rate = hermite_state(self.coefficients, (t - self.t0) / self.h if self.h else 0.0, self.h)
-        model = self.model
-        if model.euclidean:
-            return self.q0 + increment, rate
-        q = model.integrate(self.q0, increment)
-        if model.flat:
-            return q, rate
-        # rate = dDifference(q0, q) v: back to the velocity at q
-        jacobian = pin.dDifference(model.model, self.q0, q, pin.ArgumentPosition.ARG1)
-        return q, np.linalg.solve(jacobian, rate)
+        return self._segment.state(t)
