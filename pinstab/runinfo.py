@@ -79,9 +79,10 @@ class RunInfo:
             solved compiled, :mod:`pinstab.paths.servo`) or ``general`` (pinstab's kinematics and KKT backend; see
             :mod:`pinstab.system`). path_reason: why ``general``, or why ``banded`` or ``servo``.
         record_every: a sample was kept every this many steps (and at the last).
-        compiled_steps: steps taken by the compiled step loop (``pinstab._compiled``, on the native, banded and
-            servo paths with euler, semi-implicit-euler, heun or rk4; :mod:`pinstab.integration.compiled`), the rest
-            by Python.
+        compiled_steps: steps taken by the compiled step loop with a compiled evaluation (``pinstab._compiled``, on
+            the native, banded, servo and core paths; :mod:`pinstab.integration.compiled`); the loop takes the other
+            steps too, calling the evaluation back in Python, but for a correcting method's (``projection``,
+            ``post``), a shortened last step, a passage's and a registered integrator's own steps.
         controls: the names of the controls that realize prescribed constraints (``[actuation]``).
         correction_iterations_total, correction_iterations_max: post-step correction iterations over
             every step (projection, post).
