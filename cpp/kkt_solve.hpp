@@ -54,8 +54,14 @@ class KktSolve {
   // base, whose M^-1 couples every row): M factored along the kinematic tree (Pinocchio's M = U D U^T,
   // cholesky::decompose: no fill-in), D = G (M^-1 G^T) formed from G's entries not zero, and D's Cholesky in sparse
   // storage in its natural order (D's pivots, so the direct test, are the dense Cholesky's); the pseudo-inverse and the
-  // refinement as in the dense solve. Elsewhere the dense solve. Measured by benchmarks/kkt_sparsity.py
-  // (docs/guide/benchmarks.md): FIGURES.
+  // refinement as in the dense solve. Elsewhere the dense solve.
+  // Decided by measurement (benchmarks/kkt_sparsity.py, figures in docs/guide/benchmarks.md): on the N-four-bar forced
+  // onto the core this makes the evaluation about 2x faster at N = 40 and 4x at N = 80 (the dense solve, O(nv^3), was
+  // 3/4 and 7/8 of it); on cassie (a floating base: D dense, its redundant rows' eigen-decomposition half the solve)
+  // and delta (12 rows, a 3 us solve) no factorization of M or D gains 1.2x, so they keep the dense solve. Eigen's
+  // sparse LDL^T of the regularized KKT matrix, refined, is faster still (about 2x on cassie's evaluation, 6x at
+  // N = 80) but has no Delassus matrix for the direct test and the pseudo-inverse (a proximal answer on redundant
+  // rows), and Pinocchio's ContactCholeskyDecomposition costs more than the whole dense solve at N = 40 and 80.
   KktOutcome solve(const pinocchio::Model& model, pinocchio::Data& data, const VectorXd& force,
                    const Eigen::MatrixXd& jacobian, const VectorXd& rhs, const CoreSolve& settings,
                    bool pseudo_inverse);
