@@ -157,7 +157,7 @@ bool CoreKernel::inside_limits() const {
 }
 
 bool CoreKernel::solve(const VectorXd& rhs) {
-  switch (kkt_.solve(data_.M, force_, jacobian_, rhs, settings_, true)) {
+  switch (kkt_.solve(model_, data_, force_, jacobian_, rhs, settings_, true)) {
     case KktOutcome::direct:
       ++status_counts_["cholesky"];
       break;

@@ -31,6 +31,7 @@ void bind_limits(nb::module_& m);    // cpp/limit_bindings.cpp
 // cpp/spring_damper_bindings.cpp: the spring-damper's terms, and its compiled form read (frames checked in the model)
 void bind_spring_damper(nb::module_& m);
 SpringDamperSpec spring_damper_spec(nb::dict form, const pinocchio::Model& model);
+void bind_kkt_sparsity(nb::module_& m);  // cpp/kkt_sparsity_bindings.cpp (a measurement)
 }  // namespace pinstab
 
 namespace pinstab {
@@ -191,6 +192,7 @@ NB_MODULE(_compiled, m) {
   bind_steps(m);
   bind_limits(m);
   bind_spring_damper(m);
+  bind_kkt_sparsity(m);
   nb::class_<Kernel>(m, "Kernel")
       .def(
           "acceleration",
