@@ -38,7 +38,7 @@ def main() -> None:
         system.bind(DT, "rk4", q)
         special = system.banded.kernel if system.banded is not None else system.native.kernel()
         term = system.stabilizer.core_term()  # Baumgarte's at its defaults, Kp = 100, Kd = 20
-        core = CoreDynamics(ConstrainedModel(scene), *term, DIRECT_PIVOT, ACCEPTED_RESIDUAL).kernel
+        core = CoreDynamics(ConstrainedModel(scene), term, DIRECT_PIVOT, ACCEPTED_RESIDUAL).kernel
         kernels = {system.path: special, "core": core}
         tau, steps = np.zeros(scene.model.nv), round(DURATION / DT)
         times: dict[str, list[float]] = {name: [] for name in kernels}

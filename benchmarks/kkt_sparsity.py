@@ -208,9 +208,7 @@ def measure(label: str, name: str, parameters: dict[str, Any]) -> dict[str, Any]
     system = build_system(scene)
     system.bind(DT, "rk4", q)
     term = system.stabilizer.core_term()  # Baumgarte's at its defaults
-    core = CoreDynamics(
-        model, term.stiffness, term.velocity_gains, term.held, DIRECT_PIVOT, ACCEPTED_RESIDUAL, term.inertial
-    ).kernel
+    core = CoreDynamics(model, term, DIRECT_PIVOT, ACCEPTED_RESIDUAL).kernel
     tau = np.zeros(model.nv)
     loop = cpu_per_call(lambda: core.run(SCHEMES["rk4"], q, v, tau, DT, STEPS, 0), 1) / (4 * STEPS)
     row = {

@@ -292,9 +292,7 @@ class ConstrainedSystem:
                 "do not give the core"
             )
             return
-        self.compiled_path = CoreDynamics(
-            model, term.stiffness, term.velocity_gains, term.held, DIRECT_PIVOT, ACCEPTED_RESIDUAL, term.inertial
-        )
+        self.compiled_path = CoreDynamics(model, term, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
         self.path, self.acceleration = "core", self._compiled_acceleration
         in_python = self.compiled_path.in_python()
         self.path_reason = (

@@ -19,7 +19,7 @@ its limits, or a hold's least-squares forces leave a cone or the cap (its QP tak
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -37,6 +37,24 @@ CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench", "spring-damper", "joint-to
 # rounding or drift of redundant rows (the full Cassie: 10 redundant rows at 1e-16 .. 1e-14, its near-singular
 # shin-spring triangles at 1.4e-14, its least genuine eigenvalue at 1.8e-8)
 CUTOFF = 1e-12
+
+
+class CoreTerm(NamedTuple):
+    """The stabilization term in the core kernel's form ``gamma_stab = -K (G v + g_t) - S phi``
+    (``cpp/core_kernel.hpp`` CoreTerm; a stabilizer gives it:
+    :meth:`~pinstab.stabilizers.base.Stabilizer.core_term`).
+
+    Attributes:
+        stiffness: S [1/s^2]. velocity_gains: K per row (s,) [1/s].
+        held: computed at a step's first stage and held over its other stages.
+        inertial: Mukharlyamov's inertial variant instead of S and K (``cpp/inertial_term.hpp``: a dict of H and B,
+            s x s, the difference step [s] of dD/dt and the cutoff of D^+), or None.
+    """
+
+    stiffness: float
+    velocity_gains: np.ndarray
+    held: bool
+    inertial: dict | None = None
 
 
 def core_obstacle(constraints: list[Constraint]) -> str | None:
@@ -105,9 +123,8 @@ class CoreDynamics:
     """The compiled core evaluation (see :func:`core_obstacle`).
 
     Args:
-        model: the constrained model. stiffness: the term's S [1/s^2]. velocity_gains: its K per row [1/s]. held: the
-            term is computed at a step's stage 0 and held over its other stages. inertial: Mukharlyamov's inertial
-            term instead of S and K (:class:`~pinstab.stabilizers.base.CoreTerm`), or None. direct_pivot: the Delassus
+        model: the constrained model. term: the stabilization term in the core's form (S, K per row, held over a
+            step's stages or not, or Mukharlyamov's inertial one: :class:`CoreTerm`). direct_pivot: the Delassus
             matrix's smallest Cholesky pivot (squared) over its largest diagonal entry below which the rows count as
             dependent. accepted: the relative primal residual an evaluation must reach to be used.
 
@@ -121,16 +138,7 @@ class CoreDynamics:
 
     status = "core"
 
-    def __init__(
-        self,
-        model: ConstrainedModel,
-        stiffness: float,
-        velocity_gains: np.ndarray,
-        held: bool,
-        direct_pivot: float,
-        accepted: float,
-        inertial: dict | None = None,
-    ) -> None:
+    def __init__(self, model: ConstrainedModel, term: CoreTerm, direct_pivot: float, accepted: float) -> None:
         settings: dict[str, Any] = {
             "direct_pivot": direct_pivot,
             "cutoff": CUTOFF,
@@ -152,15 +160,15 @@ class CoreDynamics:
             model.model,
             blocks,
             forms,
-            float(stiffness),
-            velocity_gains,
-            bool(held),
+            float(term.stiffness),
+            term.velocity_gains,
+            bool(term.held),
             settings,
             tilt,
             self.python,
-            inertial,
+            term.inertial,
         )
-        self.held = bool(held)
+        self.held = bool(term.held)
         self._zero = np.zeros(model.nv)
         self._zero.flags.writeable = False
         self.unusable = False

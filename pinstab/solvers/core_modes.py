@@ -15,7 +15,7 @@ import numpy as np
 
 from ..constraints.joint_limits import ActiveLimit, JointLimit
 from ..model import ConstrainedModel
-from ..paths.core import CoreDynamics
+from ..paths.core import CoreDynamics, CoreTerm
 from ..runinfo import SolverStatistics
 from .base import ACCEPTED_RESIDUAL
 from .contact_modes import Bilateral, ContactKinematics, ModeDynamics
@@ -51,7 +51,9 @@ class CoreModeDynamics(ModeDynamics):
             scene = self.model.scene
             model = ConstrainedModel(dataclasses.replace(scene, constraints=[*scene.constraints, *held]))
             rows = model.constraints.rows
-            self._kernels[key] = CoreDynamics(model, 0.0, np.zeros(rows), False, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
+            self._kernels[key] = CoreDynamics(
+                model, CoreTerm(0.0, np.zeros(rows), False), DIRECT_PIVOT, ACCEPTED_RESIDUAL
+            )
         return self._kernels[key]
 
     def _unforced(

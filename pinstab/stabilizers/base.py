@@ -12,6 +12,7 @@ import numpy as np
 from .. import kernels
 from ..constraints import ConstraintValues
 from ..errors import PinstabError
+from ..paths.core import CoreTerm
 from ..registry import Registry
 from ..stability import deviation_radius
 
@@ -40,23 +41,6 @@ class DeviationGains(NamedTuple):
     stiffness: np.ndarray
     damping: np.ndarray
     holonomic_mask: np.ndarray
-
-
-class CoreTerm(NamedTuple):
-    """The stabilization term in the core kernel's form ``gamma_stab = -K (G v + g_t) - S phi``
-    (``cpp/core_kernel.hpp`` CoreTerm).
-
-    Attributes:
-        stiffness: S [1/s^2]. velocity_gains: K per row (s,) [1/s].
-        held: computed at a step's first stage and held over its other stages.
-        inertial: Mukharlyamov's inertial variant instead of S and K (``cpp/inertial_term.hpp``: a dict of H and B,
-            s x s, the difference step [s] of dD/dt and the cutoff of D^+), or None.
-    """
-
-    stiffness: float
-    velocity_gains: np.ndarray
-    held: bool
-    inertial: dict | None = None
 
 
 class Stabilizer:
