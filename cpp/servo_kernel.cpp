@@ -1,5 +1,7 @@
 #include "servo_kernel.hpp"
 
+#include "stabilization.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -110,7 +112,8 @@ bool ServoKernel::acceleration(int, double t, const VectorXd& q, const VectorXd&
   for (int i = 0; i < p; ++i) {
     double value, rate, curvature;
     targets_[i].evaluate(t, value, rate, curvature);
-    rhs_(i) = curvature - kd_ * (rows_.row(i).dot(v) - rate) - kp_ * (position_rows_.row(i).dot(q) - value);
+    // -gamma0 plus the term, as the core kernel's right-hand side (a relation's gamma0 is -c'')
+    rhs_(i) = curvature + stabilization_law(kp_, kd_, rows_.row(i).dot(v) - rate, position_rows_.row(i).dot(q) - value);
   }
   parts_.compute(mass_, tau - data_.nle, no_rows_, rows_, actuation_, no_multipliers_, rhs_);
   if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so
