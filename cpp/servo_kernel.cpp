@@ -1,5 +1,6 @@
 #include "servo_kernel.hpp"
 
+#include "rank_floor.hpp"
 #include "stabilization.hpp"
 
 #include <algorithm>
@@ -28,7 +29,7 @@ Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::Matr
   if (p == 0) return judged;
   const VectorXd singular = p == 1 ? VectorXd::Constant(1, judged.unit.row(0).norm())
                                    : VectorXd(judged.unit.jacobiSvd().singularValues());
-  const double floor = rank_tolerance * std::max(singular(0), 1.0);
+  const double floor = rank_floor(singular, rank_tolerance);
   judged.rank = static_cast<int>((singular.array() > floor).count());
   if (p == k) {
     const double det = p == 1 ? judged.unit(0, 0) : judged.unit.determinant();
