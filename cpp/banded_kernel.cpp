@@ -2,6 +2,8 @@
 // Pinocchio passes, the KKT matrix scattered into LAPACK's band storage and factored by banded_solve.
 #include "banded_kernel.hpp"
 
+#include "stabilization.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -121,7 +123,11 @@ bool BandedKernel::acceleration(int, double, const VectorXd& q, const VectorXd& 
       world_ ? world_bias_.compute(model_, data_, v) : pinocchio::nonLinearEffects(model_, data_, q, v);
   jacobian_values();
   const pinocchio::Motion gravity = model_.gravity;
-  terms_ = kp_ * points_;  // points fixed in the world: no motion, the corrector's Kp p
+  // a point's share of the corrector, Kp p + Kd v: the rows' -Kp phi - Kd G v once mapped (stabilization_law)
+  const auto corrector = [this](const auto& position, const auto& velocity) {
+    return -stabilization_law(kp_, kd_, velocity, position);
+  };
+  terms_ = corrector(points_, Eigen::MatrixXd::Zero(3, points_.cols()));  // points fixed in the world: no motion
   // a point's terms from the spatial velocity and the bias acceleration (without gravity's) of its body at the world
   // origin, world axes; taken by reference where WorldBias holds them (a copy read back as pairs of lanes stalled)
   const auto point_terms = [&](int point, const pinocchio::Motion& velocity_0, const pinocchio::Motion& acceleration_0) {
@@ -129,8 +135,8 @@ bool BandedKernel::acceleration(int, double, const VectorXd& q, const VectorXd& 
     const Eigen::Vector3d omega = velocity_0.angular();
     const Eigen::Vector3d position = points_.col(point);
     const Eigen::Vector3d velocity = velocity_0.linear() + omega.cross(position);
-    terms_.col(point) = bias_0.linear() + bias_0.angular().cross(position) + omega.cross(velocity) +
-                        (kp_ * position + kd_ * velocity);
+    terms_.col(point) =
+        bias_0.linear() + bias_0.angular().cross(position) + omega.cross(velocity) + corrector(position, velocity);
   };
   for (int c = 0; c < p.carried.size(); ++c) {
     const int joint = p.joints(c);

@@ -1,5 +1,7 @@
 #include "core_kernel.hpp"
 
+#include "stabilization.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -36,7 +38,7 @@ Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic) {
 
 VectorXd stabilization_term(double stiffness, const Eigen::ArrayXd& velocity_gains, const VectorXd& phi,
                             const VectorXd& rate) {
-  return (-(velocity_gains * rate.array()) - stiffness * phi.array()).matrix();
+  return stabilization_law(stiffness, velocity_gains, rate.array(), phi.array()).matrix();
 }
 
 Eigen::Vector3d GravityTilt::gravity(double t) const {

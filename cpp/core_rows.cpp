@@ -3,6 +3,7 @@
 #include "contact_terms.hpp"
 
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include <pinocchio/algorithm/frames.hpp>
@@ -14,18 +15,21 @@ namespace {
 
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
+using Six = Eigen::Matrix<double, 6, 1>;
 using Matrix6x = Eigen::Matrix<double, 6, Eigen::Dynamic>;
 constexpr auto LWA = pinocchio::LOCAL_WORLD_ALIGNED;
 
-// The two sides of a frame block: placements, and (on demand) Jacobians, velocities and drift accelerations in
-// LOCAL_WORLD_ALIGNED; side b is the world placement `world` when frame_b < 0 (zero Jacobian; fixed, or a
-// frame_target's moving one with its velocity and acceleration, see at()).
+// The two sides of a frame block: placements, and (on demand; side b's and the motions computed once) Jacobians,
+// velocities and drift accelerations in LOCAL_WORLD_ALIGNED; side b is the world placement `world` when frame_b < 0 (zero Jacobian; fixed,
+// or a frame_target's moving one with its velocity and acceleration, see at()).
 struct Sides {
   const pinocchio::Model& model;
   pinocchio::Data& data;
   const RowBlock& block;
   pinocchio::SE3 world = block.world_b;
   pinocchio::Motion world_velocity = pinocchio::Motion::Zero(), world_acceleration = pinocchio::Motion::Zero();
+  std::optional<Matrix6x> jacobian_b;
+  std::optional<pinocchio::Motion> velocity_a, velocity_b, drift_a, drift_b;
 
   // The sides at time t [s]: a frame_target's side b at (p(t), exp(turn(t) axis) R_0), moving at (p', turn' axis)
   // [m/s, rad/s] with acceleration (p'', turn'' axis) [m/s^2, rad/s^2].
@@ -49,17 +53,36 @@ struct Sides {
   const pinocchio::SE3& a() const { return data.oMf[block.frame_a]; }
   const pinocchio::SE3& b() const { return block.frame_b < 0 ? world : data.oMf[block.frame_b]; }
   bool moving_b() const { return block.frame_b >= 0; }
-  Matrix6x jacobian(int frame) const {
+  // R_b^T R_a
+  Matrix3d relative_rotation() const { return b().rotation().transpose() * a().rotation(); }
+  Matrix6x frame_jacobian(int frame) const {
     Matrix6x jacobian = Matrix6x::Zero(6, model.nv);
     pinocchio::getFrameJacobian(model, data, frame, LWA, jacobian);
     return jacobian;
   }
-  pinocchio::Motion velocity(int frame) const { return pinocchio::getFrameVelocity(model, data, frame, LWA); }
-  pinocchio::Motion drift(int frame) const {
-    return pinocchio::getFrameClassicalAcceleration(model, data, frame, LWA);
+  const Matrix6x& jacobian_of_b() {
+    if (!jacobian_b) jacobian_b = frame_jacobian(block.frame_b);
+    return *jacobian_b;
   }
-  pinocchio::Motion velocity_b() const { return moving_b() ? velocity(block.frame_b) : world_velocity; }
-  pinocchio::Motion drift_b() const { return moving_b() ? drift(block.frame_b) : world_acceleration; }
+  const pinocchio::Motion& velocity_of_a() {
+    if (!velocity_a) velocity_a = pinocchio::getFrameVelocity(model, data, block.frame_a, LWA);
+    return *velocity_a;
+  }
+  // side b's velocity: its frame's, or the world side's motion
+  const pinocchio::Motion& velocity_of_b() {
+    if (!moving_b()) return world_velocity;
+    if (!velocity_b) velocity_b = pinocchio::getFrameVelocity(model, data, block.frame_b, LWA);
+    return *velocity_b;
+  }
+  const pinocchio::Motion& drift_of_a() {
+    if (!drift_a) drift_a = pinocchio::getFrameClassicalAcceleration(model, data, block.frame_a, LWA);
+    return *drift_a;
+  }
+  const pinocchio::Motion& drift_of_b() {
+    if (!moving_b()) return world_acceleration;
+    if (!drift_b) drift_b = pinocchio::getFrameClassicalAcceleration(model, data, block.frame_b, LWA);
+    return *drift_b;
+  }
 };
 
 Matrix3d jlog(const Matrix3d& rotation) {
@@ -68,65 +91,228 @@ Matrix3d jlog(const Matrix3d& rotation) {
   return jacobian;
 }
 
-// The weld's six rows (points in world axes, then log3(R_b^T R_a)), from which the other frame kinds select.
-Eigen::Matrix<double, 6, 1> weld_residual(const Sides& sides) {
-  Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = sides.a().translation() - sides.b().translation();
-  weld.tail<3>() = pinocchio::log3(Matrix3d(sides.b().rotation().transpose() * sides.a().rotation()));
-  return weld;
-}
+// The quantities the kinds' rows select from (kind_rows), one class per quantity the callers need: a relation's row,
+// a joint limit's, and the relative motion of a frame block's two sides --
+//   linear:  the points' p_a - p_b (world axes),
+//   angular: log3(R_b^T R_a),
+//   slide:   p_a - p_b as seen turning with side b (its rows R_b^T slide: R_b^T (p_a - p_b) and its derivatives),
+//   contact: a fingertip's point rows (cpp/contact_terms.hpp),
+// each as the value (Residual), its Jacobian (Jacobian) with the time term g_t (TimeTerm), its rate G v + g_t (Rate)
+// and its drift at zero joint acceleration (Drift). `Full` holds a weld's six values (one column, or nv).
 
-Matrix6x weld_jacobian(const Sides& sides) {
-  Matrix6x relative = sides.jacobian(sides.block.frame_a);
-  if (sides.moving_b()) relative -= sides.jacobian(sides.block.frame_b);
-  const Matrix3d& rotation_a = sides.a().rotation();
-  const Matrix3d rel = sides.b().rotation().transpose() * rotation_a;
-  Matrix6x weld(6, sides.model.nv);
-  weld.topRows<3>() = relative.topRows<3>();
-  weld.bottomRows<3>() = jlog(rel) * rotation_a.transpose() * relative.bottomRows<3>();
-  return weld;
-}
+// phi [m or rad] (after placements)
+struct Residual {
+  using Full = Six;
+  Sides& sides;
+  const VectorXd& q;
+  double t;
+  Full full() const { return Full::Zero(); }
+  void relation(Eigen::Ref<VectorXd> rows) const {
+    const RowBlock& block = sides.block;
+    double value, rate, curvature;
+    block.target.evaluate(t, value, rate, curvature);
+    double sum = 0.0;
+    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * q(block.q_indices(k));
+    rows(0) = sum - value;
+  }
+  void joint_limit(Eigen::Ref<VectorXd> rows) const { rows(0) = joint_limit_gap(sides.block, q); }
+  Vector3d linear() const { return sides.a().translation() - sides.b().translation(); }
+  Vector3d angular() const { return pinocchio::log3(sides.relative_rotation()); }
+  Vector3d slide() const { return linear(); }
+  Vector3d contact() const {
+    return contact_point_residual(sides.model, sides.data, sides.block.frame_a, sides.block.frame_b);
+  }
+};
 
-// The weld's time term g_t: side b's world motion through the rows, -(v_b, Jlog3(R_b^T R_a) R_a^T w_b) (zero but for
-// a frame_target's moving world side).
-Eigen::Matrix<double, 6, 1> weld_time_term(const Sides& sides) {
-  const Matrix3d& rotation_a = sides.a().rotation();
-  Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = -sides.world_velocity.linear();
-  weld.tail<3>() = -(jlog(sides.b().rotation().transpose() * rotation_a) *
-                     (rotation_a.transpose() * sides.world_velocity.angular()));
-  return weld;
-}
+// G [m/rad or 1] (after joint Jacobians and placements)
+struct Jacobian {
+  using Full = Matrix6x;
+  Sides& sides;
+  double t;
+  std::optional<Matrix6x> relative_;
+  Full full() const { return Matrix6x::Zero(6, sides.model.nv); }
+  // J_a - J_b (6 x nv), LOCAL_WORLD_ALIGNED
+  const Matrix6x& relative() {
+    if (!relative_) {
+      relative_ = sides.frame_jacobian(sides.block.frame_a);
+      if (sides.moving_b()) *relative_ -= sides.jacobian_of_b();
+    }
+    return *relative_;
+  }
+  void relation(Eigen::Ref<Eigen::MatrixXd> rows) const {
+    const RowBlock& block = sides.block;
+    for (int k = 0; k < block.coefficients.size(); ++k) rows(0, block.v_indices(k)) = block.coefficients(k);
+  }
+  void joint_limit(Eigen::Ref<Eigen::MatrixXd> rows) const {
+    rows(0, sides.block.v_indices(0)) = sides.block.coefficients(0);
+  }
+  auto linear() { return relative().topRows<3>(); }
+  Eigen::Matrix<double, 3, Eigen::Dynamic> angular() {
+    const Matrix3d& rotation_a = sides.a().rotation();
+    return jlog(sides.relative_rotation()) * rotation_a.transpose() * relative().bottomRows<3>();
+  }
+  // d/dq of (p_a - p_b) turning with b: J_a - J_b + [p_a - p_b]x W_b
+  Eigen::MatrixXd slide() {
+    Eigen::MatrixXd slide = sides.frame_jacobian(sides.block.frame_a).topRows<3>();
+    if (sides.moving_b()) {
+      const Matrix6x& jacobian_b = sides.jacobian_of_b();
+      const Vector3d gap = sides.a().translation() - sides.b().translation();
+      slide += pinocchio::skew(gap) * jacobian_b.bottomRows<3>() - jacobian_b.topRows<3>();
+    }
+    return slide;
+  }
+  Eigen::MatrixXd contact() const {
+    return contact_point_jacobian(sides.model, sides.data, sides.block.frame_a, sides.block.frame_b);
+  }
+};
 
-// The weld's six rows of G v + g_t: the points' relative velocity, then Jlog3(R_b^T R_a) R_a^T (w_a - w_b).
-Eigen::Matrix<double, 6, 1> weld_rate(const Sides& sides) {
-  const pinocchio::Motion velocity_a = sides.velocity(sides.block.frame_a), velocity_b = sides.velocity_b();
-  const Vector3d angular = velocity_a.angular() - velocity_b.angular();
-  const Matrix3d& rotation_a = sides.a().rotation();
-  Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = velocity_a.linear() - velocity_b.linear();
-  weld.tail<3>() = jlog(sides.b().rotation().transpose() * rotation_a) * (rotation_a.transpose() * angular);
-  return weld;
-}
+// g_t [m/s or rad/s]: a relation's target and a frame_target's side b move in time (block_jacobian asks no other
+// kind; their side b is fixed)
+struct TimeTerm {
+  using Full = Six;
+  Sides& sides;
+  double t;
+  Full full() const { return Full::Zero(); }
+  void relation(Eigen::Ref<VectorXd> rows) const {
+    double value, rate, curvature;
+    sides.block.target.evaluate(t, value, rate, curvature);
+    rows(0) = -rate;
+  }
+  void joint_limit(Eigen::Ref<VectorXd>) const {}
+  // side b's world motion through the rows: -(v_b, Jlog3(R_b^T R_a) R_a^T w_b)
+  Vector3d linear() const { return -sides.world_velocity.linear(); }
+  Vector3d angular() const {
+    return -(jlog(sides.relative_rotation()) * (sides.a().rotation().transpose() * sides.world_velocity.angular()));
+  }
+  Vector3d slide() const { return Vector3d::Zero(); }
+  Vector3d contact() const { return Vector3d::Zero(); }
+};
 
-Eigen::Matrix<double, 6, 1> weld_drift(const Sides& sides) {
-  const pinocchio::Motion drift_a = sides.drift(sides.block.frame_a), drift_b = sides.drift_b();
-  Eigen::Matrix<double, 6, 1> weld;
-  weld.head<3>() = drift_a.linear() - drift_b.linear();
-  weld.tail<3>() = rotation_drift(sides.a().rotation(), sides.b().rotation(),
-                                  sides.velocity(sides.block.frame_a).angular(), sides.velocity_b().angular(),
-                                  drift_a.angular() - drift_b.angular());
-  return weld;
-}
+// g = G v + g_t [m/s or rad/s] without forming G (after velocities and placements)
+struct Rate {
+  using Full = Six;
+  Sides& sides;
+  const VectorXd& v;
+  double t;
+  Full full() const { return Full::Zero(); }
+  void relation(Eigen::Ref<VectorXd> rows) const {
+    const RowBlock& block = sides.block;
+    double value, target_rate, curvature;
+    block.target.evaluate(t, value, target_rate, curvature);
+    double sum = 0.0;
+    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * v(block.v_indices(k));
+    rows(0) = sum - target_rate;
+  }
+  void joint_limit(Eigen::Ref<VectorXd> rows) const { rows(0) = joint_limit_rate(sides.block, v); }
+  Vector3d linear() { return sides.velocity_of_a().linear() - sides.velocity_of_b().linear(); }
+  // Jlog3(R_b^T R_a) R_a^T (w_a - w_b)
+  Vector3d angular() {
+    const Vector3d angular = sides.velocity_of_a().angular() - sides.velocity_of_b().angular();
+    return jlog(sides.relative_rotation()) * (sides.a().rotation().transpose() * angular);
+  }
+  // d/dt of (p_a - p_b) turning with b: v_a - v_b + (p_a - p_b) x w_b
+  Vector3d slide() {
+    Vector3d slide = sides.velocity_of_a().linear();
+    if (sides.moving_b()) {
+      const pinocchio::Motion& velocity_b = sides.velocity_of_b();
+      const Vector3d gap = sides.a().translation() - sides.b().translation();
+      slide += gap.cross(velocity_b.angular()) - velocity_b.linear();
+    }
+    return slide;
+  }
+  Vector3d contact() const {
+    return contact_point_rate(sides.model, sides.data, sides.block.frame_a, sides.block.frame_b);
+  }
+};
+
+// gamma0 [m/s^2 or rad/s^2] (after a full pass at zero joint acceleration and placements)
+struct Drift {
+  using Full = Six;
+  Sides& sides;
+  double t;
+  Full full() const { return Full::Zero(); }
+  void relation(Eigen::Ref<VectorXd> rows) const {
+    double value, rate, curvature;
+    sides.block.target.evaluate(t, value, rate, curvature);
+    rows(0) = -curvature;
+  }
+  void joint_limit(Eigen::Ref<VectorXd> rows) const { rows(0) = 0.0; }
+  Vector3d linear() { return sides.drift_of_a().linear() - sides.drift_of_b().linear(); }
+  Vector3d angular() {
+    const Vector3d relative_angular_drift = sides.drift_of_a().angular() - sides.drift_of_b().angular();
+    return rotation_drift(sides.a().rotation(), sides.b().rotation(), sides.velocity_of_a().angular(),
+                          sides.velocity_of_b().angular(), relative_angular_drift);
+  }
+  // d2/dt2 of (p_a - p_b) turning with b at zero joint acceleration
+  Vector3d slide() {
+    const Vector3d gap = sides.a().translation() - sides.b().translation();
+    Vector3d gap_rate = sides.velocity_of_a().linear();
+    Vector3d omega_b = Vector3d::Zero(), alpha_b = Vector3d::Zero();
+    if (sides.moving_b()) {
+      gap_rate -= sides.velocity_of_b().linear();
+      omega_b = sides.velocity_of_b().angular();
+      alpha_b = sides.drift_of_b().angular();
+    }
+    Vector3d second = linear() - alpha_b.cross(gap) - 2.0 * omega_b.cross(gap_rate);
+    second += omega_b.cross(omega_b.cross(gap));
+    return second;
+  }
+  Vector3d contact() const {
+    return contact_point_drift(sides.model, sides.data, sides.block.frame_a, sides.block.frame_b);
+  }
+};
 
 // The components of a weld's six values (a fingertip's or a frame_target's rows).
-void select(const RowBlock& block, const Eigen::Matrix<double, 6, 1>& full, Eigen::Ref<VectorXd> rows) {
-  for (int k = 0; k < block.components.size(); ++k) rows(k) = full(block.components(k));
+template <typename Full, typename Rows>
+void select(const RowBlock& block, const Full& full, Rows& rows) {
+  for (int k = 0; k < block.components.size(); ++k) rows.row(k) = full.row(block.components(k));
 }
 
 // A fingertip block with rotation rows (soft-finger, rigid): the last component is a moment's.
 bool rotates(const RowBlock& block) {
   return block.components.size() > 0 && block.components(block.components.size() - 1) >= 3;
+}
+
+// Each kind's rows, the one place they are defined (docs in core_rows.hpp), for any of the quantities above: rows
+// (a segment, or the rows x nv block of G) written whole.
+template <typename Quantity, typename Rows>
+void kind_rows(const RowBlock& block, Quantity& x, Rows rows) {
+  switch (block.kind) {
+    case RowKind::relation:
+      return x.relation(rows);
+    case RowKind::joint_limit:
+      return x.joint_limit(rows);
+    case RowKind::point:
+      rows.noalias() = block.selection * x.linear();
+      return;
+    case RowKind::weld:
+      rows.template topRows<3>() = x.linear();
+      rows.template bottomRows<3>() = x.angular();
+      return;
+    case RowKind::revolute:
+      rows.template topRows<3>() = x.linear();
+      rows.template bottomRows<2>().noalias() = block.selection * x.angular();
+      return;
+    case RowKind::prismatic:
+      rows.template topRows<2>().noalias() = block.selection * (x.sides.b().rotation().transpose() * x.slide());
+      rows.template bottomRows<3>() = x.angular();
+      return;
+    case RowKind::fingertip: {
+      typename Quantity::Full full = x.full();
+      full.template topRows<3>() = x.contact();
+      if (rotates(block)) full.template bottomRows<3>() = x.angular();
+      return select(block, full, rows);
+    }
+    case RowKind::frame_target: {
+      typename Quantity::Full full = x.full();
+      full.template topRows<3>() = x.linear();
+      full.template bottomRows<3>() = x.angular();
+      return select(block, full, rows);
+    }
+    case RowKind::python:
+      break;
+  }
+  throw std::invalid_argument("core rows: a python block's rows are Python's");
 }
 
 }  // namespace
@@ -193,204 +379,36 @@ Vector3d rotation_drift(const Matrix3d& rotation_a, const Matrix3d& rotation_b, 
 
 void block_residual(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& q,
                     double t, Eigen::Ref<VectorXd> phi) {
-  if (block.kind == RowKind::joint_limit) {
-    phi(0) = joint_limit_gap(block, q);
-    return;
-  }
-  if (block.kind == RowKind::relation) {
-    double value, rate, curvature;
-    block.target.evaluate(t, value, rate, curvature);
-    double sum = 0.0;
-    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * q(block.q_indices(k));
-    phi(0) = sum - value;
-    return;
-  }
-  const Sides sides = Sides::at(model, data, block, t);
-  if (block.kind == RowKind::point) {
-    phi.noalias() = block.selection * (sides.a().translation() - sides.b().translation());
-    return;
-  }
-  if (block.kind == RowKind::fingertip) {
-    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
-    full.head<3>() = contact_point_residual(model, data, block.frame_a, block.frame_b);
-    if (rotates(block)) full.tail<3>() = weld_residual(sides).tail<3>();
-    select(block, full, phi);
-    return;
-  }
-  const Eigen::Matrix<double, 6, 1> weld = weld_residual(sides);
-  if (block.kind == RowKind::frame_target) return select(block, weld, phi);
-  switch (block.kind) {
-    case RowKind::weld:
-      phi = weld;
-      break;
-    case RowKind::revolute:
-      phi.head<3>() = weld.head<3>();
-      phi.tail<2>().noalias() = block.selection * weld.tail<3>();
-      break;
-    default:  // prismatic
-      phi.head<2>().noalias() = block.selection * (sides.b().rotation().transpose() * weld.head<3>());
-      phi.tail<3>() = weld.tail<3>();
-  }
+  Sides sides = Sides::at(model, data, block, t);
+  Residual residual{sides, q, t};
+  kind_rows(block, residual, phi);
 }
 
 void block_jacobian(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
                     Eigen::Ref<Eigen::MatrixXd> jacobian, Eigen::Ref<VectorXd> time_term) {
   jacobian.setZero();
   time_term.setZero();
-  if (block.kind == RowKind::joint_limit) {
-    jacobian(0, block.v_indices(0)) = block.coefficients(0);
-    return;
-  }
-  if (block.kind == RowKind::relation) {
-    double value, rate, curvature;
-    block.target.evaluate(t, value, rate, curvature);
-    for (int k = 0; k < block.coefficients.size(); ++k) jacobian(0, block.v_indices(k)) = block.coefficients(k);
-    time_term(0) = -rate;
-    return;
-  }
-  const Sides sides = Sides::at(model, data, block, t);
-  if (block.kind == RowKind::point) {
-    Matrix6x relative = sides.jacobian(block.frame_a);
-    if (sides.moving_b()) relative -= sides.jacobian(block.frame_b);
-    jacobian = block.selection * relative.topRows<3>();
-    return;
-  }
-  if (block.kind == RowKind::fingertip) {
-    Matrix6x full = Matrix6x::Zero(6, model.nv);
-    full.topRows<3>() = contact_point_jacobian(model, data, block.frame_a, block.frame_b);
-    if (rotates(block)) full.bottomRows<3>() = weld_jacobian(sides).bottomRows<3>();
-    for (int k = 0; k < block.components.size(); ++k) jacobian.row(k) = full.row(block.components(k));
-    return;
-  }
-  const Matrix6x weld = weld_jacobian(sides);
-  if (block.kind == RowKind::frame_target) {
-    for (int k = 0; k < block.components.size(); ++k) jacobian.row(k) = weld.row(block.components(k));
-    return select(block, weld_time_term(sides), time_term);
-  }
-  switch (block.kind) {
-    case RowKind::weld:
-      jacobian = weld;
-      break;
-    case RowKind::revolute:
-      jacobian.topRows<3>() = weld.topRows<3>();
-      jacobian.bottomRows<2>() = block.selection * weld.bottomRows<3>();
-      break;
-    default: {  // prismatic: d/dq of R_b^T (p_a - p_b) = R_b^T (J_a - J_b + [p_a - p_b]x W_b)
-      Eigen::MatrixXd slide = sides.jacobian(block.frame_a).topRows<3>();
-      if (sides.moving_b()) {
-        const Matrix6x jacobian_b = sides.jacobian(block.frame_b);
-        const Vector3d gap = sides.a().translation() - sides.b().translation();
-        slide += pinocchio::skew(gap) * jacobian_b.bottomRows<3>() - jacobian_b.topRows<3>();
-      }
-      jacobian.topRows<2>() = block.selection * (sides.b().rotation().transpose() * slide);
-      jacobian.bottomRows<3>() = weld.bottomRows<3>();
-    }
+  Sides sides = Sides::at(model, data, block, t);
+  Jacobian rows{sides, t};
+  kind_rows(block, rows, jacobian);
+  if (block.kind == RowKind::relation || block.kind == RowKind::frame_target) {  // the kinds that move in time
+    TimeTerm term{sides, t};
+    kind_rows(block, term, time_term);
   }
 }
 
 void block_rate(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, const VectorXd& v,
                 double t, Eigen::Ref<VectorXd> rate) {
-  if (block.kind == RowKind::python) throw std::invalid_argument("block_rate: a python block's rows are Python's");
-  if (block.kind == RowKind::joint_limit) {
-    rate(0) = joint_limit_rate(block, v);
-    return;
-  }
-  if (block.kind == RowKind::relation) {
-    double value, target_rate, curvature;
-    block.target.evaluate(t, value, target_rate, curvature);
-    double sum = 0.0;
-    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * v(block.v_indices(k));
-    rate(0) = sum - target_rate;
-    return;
-  }
-  const Sides sides = Sides::at(model, data, block, t);
-  if (block.kind == RowKind::point) {
-    Vector3d linear = sides.velocity(block.frame_a).linear();
-    if (sides.moving_b()) linear -= sides.velocity(block.frame_b).linear();
-    rate.noalias() = block.selection * linear;
-    return;
-  }
-  if (block.kind == RowKind::fingertip) {
-    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
-    full.head<3>() = contact_point_rate(model, data, block.frame_a, block.frame_b);
-    if (rotates(block)) full.tail<3>() = weld_rate(sides).tail<3>();
-    select(block, full, rate);
-    return;
-  }
-  const Eigen::Matrix<double, 6, 1> weld = weld_rate(sides);
-  if (block.kind == RowKind::frame_target) return select(block, weld, rate);
-  switch (block.kind) {
-    case RowKind::weld:
-      rate = weld;
-      break;
-    case RowKind::revolute:
-      rate.head<3>() = weld.head<3>();
-      rate.tail<2>().noalias() = block.selection * weld.tail<3>();
-      break;
-    default: {  // prismatic: d/dt of R_b^T (p_a - p_b) = R_b^T (v_a - v_b + (p_a - p_b) x w_b)
-      Vector3d slide = sides.velocity(block.frame_a).linear();
-      if (sides.moving_b()) {
-        const pinocchio::Motion velocity_b = sides.velocity(block.frame_b);
-        const Vector3d gap = sides.a().translation() - sides.b().translation();
-        slide += gap.cross(velocity_b.angular()) - velocity_b.linear();
-      }
-      rate.head<2>().noalias() = block.selection * (sides.b().rotation().transpose() * slide);
-      rate.tail<3>() = weld.tail<3>();
-    }
-  }
+  Sides sides = Sides::at(model, data, block, t);
+  Rate rows{sides, v, t};
+  kind_rows(block, rows, rate);
 }
 
 void block_drift(const pinocchio::Model& model, pinocchio::Data& data, const RowBlock& block, double t,
                  Eigen::Ref<VectorXd> drift) {
-  if (block.kind == RowKind::joint_limit) {
-    drift(0) = 0.0;
-    return;
-  }
-  if (block.kind == RowKind::relation) {
-    double value, rate, curvature;
-    block.target.evaluate(t, value, rate, curvature);
-    drift(0) = -curvature;
-    return;
-  }
-  const Sides sides = Sides::at(model, data, block, t);
-  if (block.kind == RowKind::point) {
-    Vector3d linear = sides.drift(block.frame_a).linear();
-    if (sides.moving_b()) linear -= sides.drift(block.frame_b).linear();
-    drift = block.selection * linear;
-    return;
-  }
-  if (block.kind == RowKind::fingertip) {
-    Eigen::Matrix<double, 6, 1> full = Eigen::Matrix<double, 6, 1>::Zero();
-    full.head<3>() = contact_point_drift(model, data, block.frame_a, block.frame_b);
-    if (rotates(block)) full.tail<3>() = weld_drift(sides).tail<3>();
-    select(block, full, drift);
-    return;
-  }
-  const Eigen::Matrix<double, 6, 1> weld = weld_drift(sides);
-  if (block.kind == RowKind::frame_target) return select(block, weld, drift);
-  switch (block.kind) {
-    case RowKind::weld:
-      drift = weld;
-      break;
-    case RowKind::revolute:
-      drift.head<3>() = weld.head<3>();
-      drift.tail<2>() = block.selection * weld.tail<3>();
-      break;
-    default: {  // prismatic: d2/dt2 of R_b^T (p_a - p_b) at zero joint acceleration, in frame b's axes
-      const Vector3d gap = sides.a().translation() - sides.b().translation();
-      Vector3d gap_rate = sides.velocity(block.frame_a).linear();
-      Vector3d omega_b = Vector3d::Zero(), alpha_b = Vector3d::Zero();
-      if (sides.moving_b()) {
-        gap_rate -= sides.velocity(block.frame_b).linear();
-        omega_b = sides.velocity(block.frame_b).angular();
-        alpha_b = sides.drift(block.frame_b).angular();
-      }
-      Vector3d second = weld.head<3>() - alpha_b.cross(gap) - 2.0 * omega_b.cross(gap_rate);
-      second += omega_b.cross(omega_b.cross(gap));
-      drift.head<2>() = block.selection * (sides.b().rotation().transpose() * second);
-      drift.tail<3>() = weld.tail<3>();
-    }
-  }
+  Sides sides = Sides::at(model, data, block, t);
+  Drift rows{sides, t};
+  kind_rows(block, rows, drift);
 }
 
 }  // namespace pinstab

@@ -1,5 +1,7 @@
 #include "grasp_forces.hpp"
 
+#include "rank_floor.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -61,7 +63,7 @@ bool closest_solution(const Eigen::MatrixXd& matrix, const VectorXd& rhs, const 
   }
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(matrix, Eigen::ComputeThinU | Eigen::ComputeThinV);
   const VectorXd& singular = svd.singularValues();
-  const double floor = rank * std::max(singular.size() ? singular(0) : 0.0, 1.0);
+  const double floor = rank_floor(singular, rank);
   x = target;
   for (int k = 0; k < singular.size() && singular(k) > floor; ++k) {
     x += svd.matrixV().col(k) * (svd.matrixU().col(k).dot(residual) / singular(k));

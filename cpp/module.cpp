@@ -582,8 +582,9 @@ NB_MODULE(_compiled, m) {
         return native_residual(*loaded, *shared, closures, contacts, rows, kp, kd, v, a);
       },
       "model"_a, "data"_a, "models"_a, "datas"_a, "rows"_a, "kp"_a, "kd"_a, "v"_a, "a"_a,
-      "|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2) [-] of the last constraintDynamics solve in data, datas of point "
-      "closures (rhs = -gamma0 - Kp phi - Kd G v on the rows); NaN where not finite.");
+      "primal_residual without the free force's scale, |G a - rhs| / (|rhs| + |G|_F |a|) [-], of the last "
+      "constraintDynamics solve in data, datas of point closures (rhs = -gamma0 - Kp phi - Kd G v on the rows); NaN "
+      "where not finite.");
   m.def(
       "tilted_gravity",
       [](const Eigen::Vector3d& axis, double rate, double start, const Eigen::Vector3d& gravity0, double t) {

@@ -1,5 +1,7 @@
 #include "native_kernel.hpp"
 
+#include "stabilization.hpp"
+
 #include <cmath>
 #include <limits>
 
@@ -33,18 +35,18 @@ double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
   if (datas.empty()) return 0.0;  // no closures: nothing to miss
   Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(rows.cols(), model.nv);
   pinocchio::getConstraintsJacobian(model, data, models, datas, jacobian);
-  VectorXd target(rows.cols());
-  for (size_t c = 0; c < datas.size(); ++c) {  // -gamma0 - Kp phi, contact by contact, world axes
+  VectorXd phi(rows.cols()), drift(rows.cols());
+  for (size_t c = 0; c < datas.size(); ++c) {  // phi and gamma0, contact by contact, world axes
     const pinocchio::RigidConstraintData& contact = datas[c];
-    target.segment<3>(3 * c) = contact.contact2_acceleration_drift.linear() -
-                               contact.contact1_acceleration_drift.linear() -
-                               kp * (contact.oMc1.translation() - contact.oMc2.translation());
+    phi.segment<3>(3 * c) = contact.oMc1.translation() - contact.oMc2.translation();
+    drift.segment<3>(3 * c) =
+        contact.contact1_acceleration_drift.linear() - contact.contact2_acceleration_drift.linear();
   }
-  const VectorXd rhs = rows * (target - kd * (jacobian * v));
-  const VectorXd residual = rows * (jacobian * a) - rhs;
-  const double scale = rhs.squaredNorm() + jacobian.squaredNorm() * a.squaredNorm();
-  if (!std::isfinite(scale)) return std::numeric_limits<double>::quiet_NaN();
-  return scale > 0.0 ? std::sqrt(residual.squaredNorm() / scale) : 0.0;
+  const VectorXd rate = jacobian * v;
+  const VectorXd rhs = rows * (-drift + stabilization_law(kp, kd, rate, phi));
+  // the free force tau - h is not at hand (the check follows a solve it is not given tau of): no natural scale
+  const double residual = primal_residual(rows * jacobian, a, rhs, VectorXd::Zero(model.nv), data.M.diagonal());
+  return std::isfinite(residual) ? residual : std::numeric_limits<double>::quiet_NaN();
 }
 
 std::pair<RowMatrix, VectorXd> NativeKernel::multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,

@@ -21,9 +21,10 @@ pinocchio::RigidConstraintModelVector& python_constraint_models(PyObject* object
 pinocchio::RigidConstraintDataVector& python_constraint_datas(PyObject* object);
 
 // How far the last constraintDynamics solve in data, datas (of the closures `models`, Kp [1/s^2], Kd [1/s]) misses
-// G a + gamma0 = -Kp phi - Kd G v, relative: |G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2) [-] on the closures' rows
-// (rows: Pinocchio's contact rows to them), from Pinocchio's constraint Jacobian, contact points and drifts; NaN where
-// the scale is not finite, 0 where it is zero (pinstab.paths.native.NativeDynamics.residual calls it).
+// G a + gamma0 = -Kp phi - Kd G v (stabilization_law), relative: primal_residual [-] on the closures' rows (rows:
+// Pinocchio's contact rows to them; G = rows times Pinocchio's constraint Jacobian) without the free force's scale,
+// |G a - rhs| / (|rhs| + |G|_F |a|), from Pinocchio's constraint Jacobian, contact points and drifts; NaN where it is
+// not finite (a miss where the scale is zero) (pinstab.paths.native.NativeDynamics.residual calls it).
 double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
                        const pinocchio::RigidConstraintModelVector& models, pinocchio::RigidConstraintDataVector& datas,
                        const Eigen::MatrixXd& rows, double kp, double kd, const VectorXd& v, const VectorXd& a);

@@ -1,5 +1,8 @@
 #include "servo_kernel.hpp"
 
+#include "rank_floor.hpp"
+#include "stabilization.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -26,7 +29,7 @@ Realizability realizability(const Eigen::MatrixXd& decoupling, const Eigen::Matr
   if (p == 0) return judged;
   const VectorXd singular = p == 1 ? VectorXd::Constant(1, judged.unit.row(0).norm())
                                    : VectorXd(judged.unit.jacobiSvd().singularValues());
-  const double floor = rank_tolerance * std::max(singular(0), 1.0);
+  const double floor = rank_floor(singular, rank_tolerance);
   judged.rank = static_cast<int>((singular.array() > floor).count());
   if (p == k) {
     const double det = p == 1 ? judged.unit(0, 0) : judged.unit.determinant();
@@ -110,7 +113,8 @@ bool ServoKernel::acceleration(int, double t, const VectorXd& q, const VectorXd&
   for (int i = 0; i < p; ++i) {
     double value, rate, curvature;
     targets_[i].evaluate(t, value, rate, curvature);
-    rhs_(i) = curvature - kd_ * (rows_.row(i).dot(v) - rate) - kp_ * (position_rows_.row(i).dot(q) - value);
+    // -gamma0 plus the term, as the core kernel's right-hand side (a relation's gamma0 is -c'')
+    rhs_(i) = curvature + stabilization_law(kp_, kd_, rows_.row(i).dot(v) - rate, position_rows_.row(i).dot(q) - value);
   }
   parts_.compute(mass_, tau - data_.nle, no_rows_, rows_, actuation_, no_multipliers_, rhs_);
   if (p > k) return false;  // more prescribed rows than controls: rank < p, the general solve says so

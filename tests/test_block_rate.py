@@ -16,7 +16,7 @@ import pytest
 
 from pinstab import load_scene
 from pinstab.errors import PenetrationWarning
-from pinstab.kernels import RowBlock, block_jacobian, block_rate
+from pinstab.kernels import RowBlock, block_drift, block_jacobian, block_rate, block_residual
 from pinstab.scene import scene_from_dict
 
 ROBOTS = Path(__file__).resolve().parents[1] / "robots"
@@ -77,10 +77,18 @@ def test_the_scenes_hold_every_compiled_row_kind():
     assert rotation_rows == {False, True}
 
 
-def test_block_rate_refuses_a_python_block():
-    """A python block's rows are Python's: the compiled rate refuses it (ValueError) instead of a wrong number."""
+def test_every_compiled_quantity_refuses_a_python_block():
+    """A python block's rows are Python's: its compiled residual, Jacobian, rate and drift (cpp/core_rows.cpp's one
+    dispatch on the kind) refuse it (ValueError) instead of a wrong number."""
     model = load_scene("fourbar").model
     block = RowBlock(6, -1, -1, np.eye(4), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), np.zeros(0, np.int32))
     data = model.createData()
-    with pytest.raises(ValueError, match="python"):
-        block_rate(model, data, block, np.zeros(model.nv), 0.0)
+    zero = np.zeros(model.nv)
+    for quantity in (
+        lambda: block_rate(model, data, block, zero, 0.0),
+        lambda: block_residual(model, data, block, pin.neutral(model), 0.0),
+        lambda: block_jacobian(model, data, block, 0.0),
+        lambda: block_drift(model, data, block, 0.0),
+    ):
+        with pytest.raises(ValueError, match="python"):
+            quantity()

@@ -214,9 +214,10 @@ class NativeDynamics:
 
     def residual(self, v: np.ndarray, acceleration: np.ndarray) -> float:
         """How far the last :meth:`acceleration` misses ``G a + gamma0 = -Kp phi - Kd G v``, relative to
-        the size of its terms (Euclidean norms): ``|G a - rhs| / sqrt(|rhs|^2 + |G|_F^2 |a|^2)`` [-],
-        from Pinocchio's data after the solve: its constraint Jacobian, contact points and drifts (the compiled
-        rule, ``cpp/native_kernel.cpp``, the compiled kernel's too)."""
+        the size of its terms (Euclidean norms): :func:`pinstab.kernels.primal_residual` without the free force's
+        scale (the solve's tau is not at hand), ``|G a - rhs| / (|rhs| + |G|_F |a|)`` [-], from Pinocchio's data
+        after the solve: its constraint Jacobian, contact points and drifts (``cpp/native_kernel.cpp``, the compiled
+        kernel's too)."""
         built = self._pinocchio
         return native_residual(
             self.model, self.data, built.models, built.datas, self.rows, self.kp, self.kd, v, acceleration
