@@ -178,8 +178,7 @@ def test_pinch_slips_when_the_squeeze_falls_below_the_weight():
     mu, mass, start, rate = 0.5, 0.1, 1.5, 1.0
     scene = load_scene("pinch", mu=mu, squeeze=start, mass=mass)
     for force in scene.forces:
-        force.times = np.array([0.0, 10.0])
-        force.values = force.values[0] * np.array([1.0, 1.0 - 10.0 * rate / start])
+        force.set_table([0.0, 10.0], force.values[0] * np.array([1.0, 1.0 - 10.0 * rate / start]))
     run = simulate(scene, dt=0.01, duration=1.0, contacts="event")
     slips = [e for e in run.info.contact_events if e["from"] == "sticking" and e["to"] == "sliding"]
     t_slip = (start - mass * G / (2 * mu)) / rate
@@ -187,3 +186,20 @@ def test_pinch_slips_when_the_squeeze_falls_below_the_weight():
     assert max(abs(e["t"] - t_slip) for e in slips) <= 1e-9
     exact = -(mu * rate / mass) * (1.0 - t_slip) ** 3 / 3
     assert abs(run.q[-1, 2] - exact) <= 1e-8 * abs(exact)
+
+
+def test_a_torque_table_replaced_after_loading_reaches_the_compiled_table():
+    """Assigning a joint-torque's times or values recompiles its table (the core reads the compiled copy); an edit
+    in place is refused (the arrays are read-only) rather than silently ignored."""
+    scene = load_scene("pinch", mu=0.5, squeeze=1.5, mass=0.1)
+    force = scene.forces[0]
+    squeeze = force.values[0]
+    force.set_table([0.0, 1.0], squeeze * np.array([1.0, 0.5]))
+    force.times = np.array([0.0, 2.0])
+    assert force.torque(1.0) == pytest.approx(0.75 * squeeze, rel=1e-15)
+    with pytest.raises(SceneError, match="one value per time"):
+        force.times = np.array([0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match="read-only"):
+        force.values[0] = 0.0
+    with pytest.raises(SceneError, match=f"{force.name}.*strictly increasing"):
+        force.times = np.array([2.0, 0.0])

@@ -221,12 +221,34 @@ def test_a_corrupt_parquet_table_is_a_named_error(tmp_path, capsys):
 
 
 # -- stopping --------------------------------------------------------------------------------------------------------
+GROUPS: list[int] = []  # process groups of the sweeps this module started
+
+
+@pytest.fixture(autouse=True)
+def no_sweep_outlives_its_test():
+    """Kill every sweep's process group (the CLI and its Dask workers) when its test ends, failed or not: a failed
+    assertion before the signal would otherwise leave a million-point sweep running for hours."""
+    yield
+    while GROUPS:
+        try:
+            os.killpg(GROUPS.pop(), signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def spawn(command: list[str], **popen) -> subprocess.Popen:
+    """``command`` in a child process of its own group, killed with its group when the test ends."""
+    process = subprocess.Popen(command, env=env(), start_new_session=True, stderr=subprocess.PIPE, **popen)
+    GROUPS.append(process.pid)
+    return process
+
+
 def start_sweep(out: Path, *extra: str, **popen) -> subprocess.Popen:
     """A sweep of the four-bar over drift_limit (400 points of 0.2 s) in a child process of its own group."""
     grid = ",".join(str(i) for i in range(1, 401))
     command = [sys.executable, "-m", "pinstab.cli", "sweep", "fourbar", "--grid", f"drift_limit={grid}"]
     command += ["--param", "duration=0.2", "-o", str(out), "--quiet", *extra]
-    return subprocess.Popen(command, env=env(), start_new_session=True, stderr=subprocess.PIPE, **popen)
+    return spawn(command, **popen)
 
 
 def rows_in(out: Path) -> int:
@@ -290,9 +312,7 @@ def test_a_sweep_of_a_million_points_writes_rows_at_once_and_stops_on_sigterm(tm
     out = tmp_path / "million.csv"
     command = [sys.executable, "-m", "pinstab.cli", "sweep", "fourbar", "--grid", f"drift_limit={values}"]
     command += ["--grid", f"kp={values}", "--param", "duration=0.01", "-o", str(out), "--quiet"]
-    process = subprocess.Popen(
-        [*command, "--max-points", "1000000"], env=env(), start_new_session=True, stderr=subprocess.PIPE
-    )
+    process = spawn([*command, "--max-points", "1000000"])
     started = time.monotonic()
     first = wait_for_rows(process, out, 1)
     assert first - started < 8
@@ -474,9 +494,7 @@ def start_check(tmp_path: Path) -> tuple[subprocess.Popen, list[bytes]]:
     values = ",".join(str(0.01 * i) for i in range(1, 101))
     command = [sys.executable, "-m", "pinstab.cli", "sweep", "pinch", "--grid", f"mu={values}"]
     command += ["--grid", f"squeeze={values}", "-o", str(tmp_path / "t.csv")]
-    process = subprocess.Popen(
-        command, env=env(), start_new_session=True, stderr=subprocess.PIPE, preexec_fn=interruptible
-    )
+    process = spawn(command, preexec_fn=interruptible)
     chunks: list[bytes] = []
     threading.Thread(target=lambda: chunks.extend(iter(lambda: process.stderr.read1(256), b"")), daemon=True).start()
     return process, chunks

@@ -32,7 +32,50 @@ class JointTorque(ForceElement):
 
     def __init__(self, name: str, dof: int, nv: int, times: np.ndarray, values: np.ndarray) -> None:
         self.name, self.dof, self.nv = name, dof, nv
-        self.times, self.values = np.asarray(times, float), np.asarray(values, float)
+        self.set_table(times, values)
+
+    @property
+    def times(self) -> np.ndarray:
+        """Table times [s] (read-only; :meth:`set_table` or assignment replaces the table)."""
+        return self._times
+
+    @times.setter
+    def times(self, times: np.ndarray) -> None:
+        self.set_table(times, self._values)
+
+    @property
+    def values(self) -> np.ndarray:
+        """Table values [N m or N] (read-only; :meth:`set_table` or assignment replaces the table)."""
+        return self._values
+
+    @values.setter
+    def values(self, values: np.ndarray) -> None:
+        self.set_table(self._times, values)
+
+    def set_table(self, times: np.ndarray, values: np.ndarray) -> None:
+        """Replace the table and recompile it (an edit of the arrays in place would not reach the compiled copy,
+        so they are stored read-only).
+
+        Args:
+            times: table times [s], strictly increasing.
+            values: table values [N m or N], one per time.
+
+        Raises:
+            SceneError: naming the element when the lengths differ, the times do not increase, or an entry is not
+                finite.
+        """
+        times, values = np.array(times, float, ndmin=1), np.array(values, float, ndmin=1)
+        if times.shape != values.shape or times.ndim != 1 or times.size == 0:
+            raise SceneError(
+                f"joint-torque '{self.name}': the table needs one value per time, got {times.shape} times and "
+                f"{values.shape} values"
+            )
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values))):
+            raise SceneError(f"joint-torque '{self.name}': the table's times and values must be finite")
+        if np.any(np.diff(times) <= 0):
+            raise SceneError(f"joint-torque '{self.name}': the table's times must be strictly increasing")
+        times.flags.writeable = values.flags.writeable = False
+        self._times, self._values = times, values
         self._table = CompiledTarget([self._compiled_table()])
 
     def _compiled_table(self) -> dict[str, Any]:
@@ -79,8 +122,6 @@ def parse_joint_torque(entry: dict, tables: SceneTables, name: str, where: str) 
             raise SceneError(f"{where}.table must be a non-empty list of [time, torque] pairs")
         times = np.array([tables.quantity(r[0], "time", f"{where}.table time") for r in rows])
         values = np.array([tables.quantity(r[1], "torque", f"{where}.table torque") for r in rows])
-        if np.any(np.diff(times) <= 0):
-            raise SceneError(f"{where}.table: times must be strictly increasing")
     for k, value in enumerate(values):
         bounded_load(value, f"{where}.torque" if "torque" in entry else f"{where}.table[{k}] torque", "N m or N")
     return JointTorque(name, joint.idx_v, model.nv, times, values)
