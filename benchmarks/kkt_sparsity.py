@@ -34,14 +34,13 @@ import pinocchio as pin
 
 import pinstab
 from pinstab.bench import save_results
+from pinstab.bench.kkt_split import split_and_reference
 from pinstab.constraints import FrameClosure
 from pinstab.integration.compiled import SCHEMES
-from pinstab.kernels import kkt_cost_split
 from pinstab.kinematics import LWA
 from pinstab.model import ConstrainedModel
 from pinstab.paths.core import CoreDynamics
-from pinstab.solvers import ExtendedSolver
-from pinstab.solvers.base import ACCEPTED_RESIDUAL, KKTProblem
+from pinstab.solvers.base import ACCEPTED_RESIDUAL
 from pinstab.solvers.proxsuite_ import DIRECT_PIVOT
 from pinstab.system import build_system
 
@@ -178,21 +177,8 @@ def measure(label: str, name: str, parameters: dict[str, Any]) -> dict[str, Any]
     q, v = run.q[-1].copy(), run.v[-1].copy()
     q_other = run.q[len(run.q) // 2].copy()
     model = ConstrainedModel(scene)
-    blocks = [constraint.compiled_rows() for constraint in model.constraints.constraints]
-    split = kkt_cost_split(model.model, blocks, q, v, q_other, ROUNDS, REPEATS, REGULARIZATION)
+    split, reference = split_and_reference(model, q, v, q_other, ROUNDS, REPEATS, REGULARIZATION)
     seconds: dict[str, float] = split["seconds"]
-    problem = KKTProblem(
-        q,
-        v,
-        0.0,
-        np.zeros(model.nv),
-        split["mass"],
-        split["force"],
-        split["jacobian"],
-        split["rhs"],
-        model.constraints.layout,
-    )
-    reference = ExtendedSolver().solve(problem).acceleration
     base = seconds["pass (kinematics, M, h)"] + seconds["rows"]
     evaluations = {solve: base + sum(seconds[part] for part in parts) for solve, parts in SOLVES.items()}
     solves = {

@@ -9,31 +9,15 @@ import numpy as np
 import pytest
 
 from pinstab import load_scene, simulate
-from pinstab.kernels import kkt_cost_split
+from pinstab.bench.kkt_split import split_and_reference
 from pinstab.model import ConstrainedModel
-from pinstab.solvers import ExtendedSolver
-from pinstab.solvers.base import KKTProblem
 
 EXACT = 1e-11  # relative to the largest |a| (the refinement's bound, tests/test_kkt_refinement.py)
 
 
 def _solved(scene, q, v):
     """kkt_cost_split at (q, v) once: the problem, each solve's accelerations and the extended solve's."""
-    model = ConstrainedModel(scene)
-    blocks = [constraint.compiled_rows() for constraint in model.constraints.constraints]
-    split = kkt_cost_split(model.model, blocks, q, v, q, 1, 1, 1e-10)
-    problem = KKTProblem(
-        q,
-        v,
-        0.0,
-        np.zeros(model.nv),
-        split["mass"],
-        split["force"],
-        split["jacobian"],
-        split["rhs"],
-        model.constraints.layout,
-    )
-    return split, ExtendedSolver().solve(problem).acceleration
+    return split_and_reference(ConstrainedModel(scene), q, v, q, 1, 1, 1e-10)
 
 
 def _off(a, reference):
