@@ -239,3 +239,15 @@ def test_the_text_summary_prints_plain_numbers(capsys, scene):
     assert code == 0
     control = next(line for line in out.splitlines() if line.startswith("error_control"))
     assert "np." not in out and re.search(r"'smallest_step': [\d.e+-]+, 'largest_step': [\d.e+-]+}$", control)
+
+
+def test_plot_of_a_run_that_meets_a_joint_limit(capsys, tmp_path):
+    """panda-anchor swings into panda_joint6's upper limit at 0.274 s (an impact, then it leaves it): --plot draws the
+    limit's events (it exited 2, 'has no plane contacts'), and the energy the chart balances holds: E(end) - E(0) is
+    the impact's work to 1e-5 J (the error panel's scale: 2e-6 J)."""
+    chart = tmp_path / "limits.png"
+    code, result, _ = run_json(capsys, "run", "panda-anchor", "--duration", "0.3", "--json", "--plot", str(chart))
+    assert code == 0 and chart.stat().st_size > 10_000
+    impacts = [event for event in result["contact_events"] if event["cause"] == "impact" and "work" in event]
+    assert [event["contact"] for event in impacts] == ["panda_joint6 upper"]
+    assert abs(result["energy_end"] - result["energy_start"] - impacts[0]["work"]) <= 1e-5

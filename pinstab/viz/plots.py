@@ -12,6 +12,7 @@ from ..analysis.energy import EnergyBudget, energy_budget
 from ..errors import PinstabError
 from ..plotting import pyplot, save_figure
 from ..scene import Scene, load_scene
+from ..solvers.contact_modes import plane_geometries
 from ..solvers.contact_states import contact_states, mode_spans
 from ..trajectory import Trajectory
 from .contacts import MODE_COLORS
@@ -221,8 +222,8 @@ def contact_panels(mode_axis, force_axis, trajectory: Trajectory, scene: Scene |
 def _states(trajectory: Trajectory, scene: Scene | None):
     """The run's contact states, with ``scene`` or the bundled scene of the run's name and parameters;
     None when there is no such bundled scene or it does not match the run."""
-    if scene is not None:
-        return contact_states(scene, trajectory)
+    if scene is not None:  # its events may be joint limits' only: no contact states then, the events' forces
+        return contact_states(scene, trajectory) if plane_geometries(scene.constraints) else None
     info = trajectory.info
     try:
         return contact_states(load_scene(info.scene, **info.scene_parameters), trajectory)
