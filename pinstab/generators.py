@@ -110,13 +110,14 @@ def _link(
     visual_at: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> str:
     """URDF text of one link: ``mass`` [kg] and principal ``inertia`` [kg m^2] at its origin, ``shape`` drawn at
-    ``visual_at`` [m]."""
+    ``visual_at`` [m] and its collision shape there (contacts found from geometry use it)."""
     ixx, iyy, izz = inertia
     x, y, z = visual_at
+    placed = f'<origin xyz="{x!r} {y!r} {z!r}"/><geometry>{shape}</geometry>'
     return (
         f'<link name="{name}"><inertial><origin xyz="0 0 0"/><mass value="{mass!r}"/>'
         f'<inertia ixx="{ixx!r}" ixy="0" ixz="0" iyy="{iyy!r}" iyz="0" izz="{izz!r}"/></inertial>'
-        f'<visual><origin xyz="{x!r} {y!r} {z!r}"/><geometry>{shape}</geometry></visual></link>'
+        f"<visual>{placed}</visual><collision>{placed}</collision></link>"
     )
 
 

@@ -11,6 +11,7 @@ import copy
 import functools
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -253,6 +254,7 @@ def scene_from_dict(
     check_velocity(model, v0, "initial.v")
 
     tables = SceneTables(model, q0, {item.name: item for item in objects})
+    tables.robot_shapes = _robot_shapes(source_robot, locked_positions)
     constraints: list[Constraint] = []
     for key, (label, prescribed) in KIND_TABLES.items():
         blocks = _read_kinds(data, key, label, CONSTRAINT_KINDS, tables)
@@ -266,7 +268,7 @@ def scene_from_dict(
     tables.constraints = {c.name: c for c in constraints}
     forces: list[ForceElement] = _read_kinds(data, "forces", "force", FORCE_KINDS, tables)
     _check_unique([c.name for c in constraints] + [f.name for f in forces])
-    collisions = _collisions(name, model, q0, source_robot, locked_positions, objects, constraints)
+    collisions = _collisions(name, model, q0, tables.robot_shapes, objects, constraints)
     return Scene(
         name=name,
         description=description,
@@ -329,12 +331,28 @@ def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
     return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start)
 
 
+def _robot_shapes(robot: RobotSource, locked: dict[str, float]) -> Callable[[], pin.GeometryModel]:
+    """The robot's collision geometry, reduced like the scene's model, built once when first called.
+
+    Raises (when called):
+        SceneError: its reader cannot build it (a mesh missing, ...).
+    """
+
+    @functools.cache
+    def shapes() -> pin.GeometryModel:
+        try:
+            return robot_geometry(robot, robot.model, locked, pin.GeometryType.COLLISION)
+        except (ValueError, RuntimeError) as exc:
+            raise SceneError(f"the robot's collision geometry cannot be loaded ({exc})") from None
+
+    return shapes
+
+
 def _collisions(
     name: str,
     model: pin.Model,
     q0: np.ndarray,
-    robot: RobotSource,
-    locked: dict[str, float],
+    robot_shapes: Callable[[], pin.GeometryModel],
     objects: list[SceneObject],
     constraints: list[Constraint],
 ) -> CollisionCheck | None:
@@ -344,12 +362,9 @@ def _collisions(
         return None
     touches = [c.touch for c in constraints if c.touch is not None]
     try:
-        geometry = robot_geometry(robot, robot.model, locked, pin.GeometryType.COLLISION)
-    except (ValueError, RuntimeError) as exc:
-        warnings.warn(
-            PinstabWarning(f"scene {name}: the robot's collision geometry cannot be loaded ({exc}); not checked"),
-            stacklevel=3,
-        )
+        geometry = robot_shapes()
+    except SceneError as exc:
+        warnings.warn(PinstabWarning(f"scene {name}: {exc}; not checked"), stacklevel=3)
         geometry = pin.GeometryModel()
     check = CollisionCheck(model, geometry, objects, touches)
     check.warn_at_start(q0, name)

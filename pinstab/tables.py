@@ -4,6 +4,7 @@ valid alternatives. Constraint and force kinds read their own tables through :cl
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -192,6 +193,8 @@ class SceneTables:
             kinds read are checked against it (:meth:`within_reach`).
         bounds: the lowest and highest corners [m] of the box holding the scene's joints, frames and centres of
             mass at ``q0`` (:func:`group_points`), from which points on the world are measured.
+        robot_shapes: the robot's collision geometry (indices of ``model``), built when called (the scene sets it;
+            raises :class:`~pinstab.errors.SceneError` when it cannot be built); empty by default.
     """
 
     def __init__(self, model: pin.Model, q0: np.ndarray, objects: dict[str, Any] | None = None) -> None:
@@ -203,6 +206,7 @@ class SceneTables:
         self.size = scene_size(model, q0)
         every = np.vstack(group_points(model, q0))
         self.bounds = (every.min(axis=0), every.max(axis=0))  # [m] the box holding every group's points
+        self.robot_shapes: Callable[[], pin.GeometryModel] = pin.GeometryModel
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)

@@ -1,0 +1,210 @@
+"""Contacts found from collision geometry with coal (Pinocchio's collision library).
+
+The shapes are the robot's collision geometry, the scene objects' collision shapes and the ground, a coal
+half-space (``{x : n . (x - p0) <= 0}``, fixed in the world). A *pair* is two shapes allowed to touch: by default
+every shape against every other except two shapes of one body and the shapes of two bodies joined by a joint
+(adjacent links). For each pair, after a broad phase (the shapes' bounding spheres farther apart than the margin:
+no contact), coal's signed distance gives the nearest points and the normal; the pair's contact *features* are
+then the points of shape A that lie within the margin of the nearest one, measured across the separating plane
+(B's tangent plane at its nearest point, normal along coal's): a sphere's centre with its radius (one feature), a
+capsule's two end centres with its radius, a box's eight corners, a convex mesh's vertices.
+
+A feature keeps its identity while it persists: its name is ``<shapeA>/<shapeB>[k]``, k its index among shape A's
+points (a box's corner k is the same corner wherever the box turns), and the features come in the order of the
+pairs, then of k. Each becomes a point contact the contact machinery already treats
+(:class:`~pinstab.constraints.contacts.PointContact`): the point on body A (a sphere of the feature's radius
+centred there) on the separating plane, fixed in the world for the ground, carried by body B otherwise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import coal
+import numpy as np
+import pinocchio as pin
+
+from ..errors import SceneError, choices
+
+GROUND = "ground"  # the ground's shape name
+MARGIN = 0.1  # [-] the default margin, in bounding radii of shape A: features this close to the nearest one count
+SHAPE_KINDS = ("box", "capsule", "convex", "sphere")  # the shapes whose features are found
+
+
+class Feature(NamedTuple):
+    """A contact feature of a pair at a configuration.
+
+    Attributes:
+        name: ``<shapeA>/<shapeB>[k]``. pair: the pair's index. index: k, the point's index on shape A.
+        joint_point: the point on body A [m] in its joint's frame. radius: the sphere's radius at it [m] (0: a
+        vertex). normal: the separating plane's unit normal into A (world). point: a point of the plane [m, world].
+        gap: the feature's signed distance to the plane [m] (< 0: overlap).
+    """
+
+    name: str
+    pair: int
+    index: int
+    joint_point: np.ndarray
+    radius: float
+    normal: np.ndarray
+    point: np.ndarray
+    gap: float
+
+
+def shape_points(shape: coal.CollisionGeometry, where: str) -> tuple[np.ndarray, float]:
+    """The points (k, 3) [m, shape frame] of a shape's features and their radius [m].
+
+    Raises:
+        SceneError: a shape kind without features here (naming the kinds there are).
+    """
+    if isinstance(shape, coal.Sphere):
+        return np.zeros((1, 3)), float(shape.radius)
+    if isinstance(shape, coal.Capsule):
+        return np.array([[0.0, 0.0, shape.halfLength], [0.0, 0.0, -shape.halfLength]]), float(shape.radius)
+    if isinstance(shape, coal.Box):
+        signs = np.array([[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)], dtype=float)
+        return signs * np.asarray(shape.halfSide), 0.0
+    if isinstance(shape, coal.ConvexBase):
+        return np.array([np.asarray(p) for p in shape.points()]), 0.0
+    raise SceneError(
+        f"{where}: a {type(shape).__name__} shape has no contact features here; shapes with them: "
+        f"{', '.join(SHAPE_KINDS)} (a mesh: give its convex hull)"
+    )
+
+
+class ContactShapes:
+    """The collision shapes of a scene, the pairs allowed to touch and their contact features.
+
+    Args:
+        model: the scene's model. robot: the robot's collision geometry (indices of ``model``).
+        objects: the scene objects (:class:`~pinstab.contact.objects.SceneObject`).
+        ground: (unit normal, point [m]) of the ground plane, or None for no ground.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        robot: pin.GeometryModel,
+        objects: Sequence[Any],
+        ground: tuple[np.ndarray, np.ndarray] | None,
+    ) -> None:
+        self.model = model
+        self.geometry = pin.GeometryModel()
+        for shape in robot.geometryObjects:
+            self.geometry.addGeometryObject(shape)
+        for item in objects:
+            for index, (shape, local) in enumerate(item.geometries):
+                self.geometry.addGeometryObject(
+                    pin.GeometryObject(f"{item.name}/collision{index}", item.joint, item.frame, local, shape)
+                )
+        if ground is not None:
+            normal, point = ground
+            self.geometry.addGeometryObject(
+                pin.GeometryObject(GROUND, 0, 0, pin.SE3.Identity(), coal.Halfspace(normal, float(normal @ point)))
+            )
+        self.names = [shape.name for shape in self.geometry.geometryObjects]
+        self.pairs: list[tuple[int, int]] = []
+        self.margins: list[float] = []
+        self._points: list[tuple[np.ndarray, float]] = []
+        self._data = pin.Data(model)
+        self._geometry_data = self.geometry.createData()
+
+    def shape(self, name: Any, where: str) -> int:
+        """A shape's index by name.
+
+        Raises:
+            SceneError: an unknown name, listing the shapes.
+        """
+        if not isinstance(name, str) or name not in self.names:
+            raise SceneError(f"{where}: no collision shape {name!r}; shapes: {choices(self.names)}")
+        return self.names.index(name)
+
+    def default_pairs(self) -> list[tuple[int, int]]:
+        """Every two shapes but two of one body and those of two bodies a joint joins (adjacent links), in
+        shape order; the ground (and any shape on the world) last in a pair."""
+        joints = [shape.parentJoint for shape in self.geometry.geometryObjects]
+        found = []
+        for a in range(len(joints)):
+            for b in range(a + 1, len(joints)):
+                ja, jb = joints[a], joints[b]
+                if ja == jb or self._joined(ja, jb) or self._joined(jb, ja):
+                    continue
+                found.append((b, a) if ja == 0 else (a, b))
+        return found
+
+    def _joined(self, child: int, parent: int) -> bool:
+        """Whether joint ``child`` joins its body to ``parent``'s (a free flyer joins none: it is no hinge)."""
+        joint = self.model.joints[child]
+        return self.model.parents[child] == parent and joint.shortname() != "JointModelFreeFlyer"
+
+    def allow(self, a: int, b: int, margin: float | None, where: str) -> None:
+        """Allow the pair (shape a, shape b); features within ``margin`` [m] of the nearest one count (None:
+        :data:`MARGIN` bounding radii of a). A shape whose features cannot be found (a half-space) is put second.
+
+        Raises:
+            SceneError: two shapes of one body, or neither shape with features (naming them).
+        """
+        objects = self.geometry.geometryObjects
+        if objects[a].parentJoint == objects[b].parentJoint:
+            raise SceneError(f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are on one body")
+        if isinstance(objects[a].geometry, coal.Halfspace):
+            a, b = b, a
+        points = shape_points(objects[a].geometry, f"{where}: shape {self.names[a]!r}")
+        if points[1] and not isinstance(objects[b].geometry, coal.Halfspace):  # B's plane touches a point of A
+            other = shape_points(objects[b].geometry, f"{where}: shape {self.names[b]!r}")
+            if other[1]:
+                raise SceneError(
+                    f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere or a "
+                    "capsule): not yet a pair of contacts found from geometry; pair one with a box or a convex shape"
+                )
+            a, b, points = b, a, other
+        radius = points[1] + float(np.max(np.linalg.norm(points[0], axis=1)))
+        self.pairs.append((a, b))
+        self.margins.append(MARGIN * max(radius, np.finfo(float).tiny) if margin is None else margin)
+        self._points.append(points)
+
+    def features(self, q: np.ndarray) -> list[Feature]:
+        """The contact features of every allowed pair at configuration q, in pair order, then by point."""
+        pin.updateGeometryPlacements(self.model, self._data, self.geometry, self._geometry_data, q)
+        found: list[Feature] = []
+        for pair in range(len(self.pairs)):
+            found += self._pair_features(pair)
+        return found
+
+    def frame_placement(self, frame: int) -> pin.SE3:
+        """A frame's world placement at the configuration :meth:`features` last took."""
+        return pin.updateFramePlacement(self.model, self._data, frame).copy()
+
+    def _pair_features(self, pair: int) -> list[Feature]:
+        """The features of one pair at the placements last updated (none beyond the broad phase)."""
+        a, b = self.pairs[pair]
+        objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
+        shape_a, shape_b = objects[a].geometry, objects[b].geometry
+        placed_a, placed_b = placements[a], placements[b]
+        margin = self.margins[pair]
+        if not isinstance(shape_b, coal.Halfspace):  # broad phase: the bounding spheres
+            apart = np.linalg.norm(placed_a.act(shape_a.aabb_center) - placed_b.act(shape_b.aabb_center))
+            if apart > shape_a.aabb_radius + shape_b.aabb_radius + margin:
+                return []
+        result = coal.DistanceResult()
+        coal.distance(
+            shape_a,
+            coal.Transform3s(placed_a.rotation, placed_a.translation),
+            shape_b,
+            coal.Transform3s(placed_b.rotation, placed_b.translation),
+            coal.DistanceRequest(),
+            result,
+        )
+        normal = -np.asarray(result.normal)  # coal's runs from A to B: the plane's, into A
+        plane_point = np.asarray(result.getNearestPoint2())
+        points, radius = self._points[pair]
+        local = objects[a].placement  # shape A in its joint's frame
+        world = placed_a.rotation @ points.T + placed_a.translation[:, None]
+        gaps = normal @ (world - plane_point[:, None]) - radius
+        near = np.flatnonzero(gaps <= gaps.min() + margin)
+        label = f"{self.names[a]}/{self.names[b]}"
+        return [
+            Feature(f"{label}[{k}]", pair, int(k), local.act(points[k]), radius, normal, plane_point, float(gaps[k]))
+            for k in near
+        ]
