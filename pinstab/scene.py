@@ -94,6 +94,8 @@ class Scene:
         step: ``[run] dt``, the scene's time step [s] (what ``simulate`` and ``--dt`` default to), or None (1e-3).
         collisions: the robot-object collision checks of a scene with objects
             (:mod:`pinstab.contact.collisions`: warned at load, run at a run's samples), or None.
+        contact_finders: the finders of its contacts from geometry
+            (:class:`~pinstab.constraints.geometry_contacts.FoundContacts`), which event-driven runs ask at every step.
     """
 
     name: str
@@ -118,6 +120,7 @@ class Scene:
     assembly_tolerance: float | None = None
     step: float | None = None
     collisions: CollisionCheck | None = None
+    contact_finders: list[Any] = field(default_factory=list)
 
     @property
     def constraint_set(self) -> ConstraintSet:
@@ -292,6 +295,7 @@ def scene_from_dict(
         assembly_tolerance=_assembly_tolerance(data.get("assembly")),
         step=_run_step(data.get("run")),
         collisions=collisions,
+        contact_finders=tables.contact_finders,
     )
 
 

@@ -195,6 +195,8 @@ class SceneTables:
             mass at ``q0`` (:func:`group_points`), from which points on the world are measured.
         robot_shapes: the robot's collision geometry (indices of ``model``), built when called (the scene sets it;
             raises :class:`~pinstab.errors.SceneError` when it cannot be built); empty by default.
+        contact_finders: the finders of contacts from geometry the kinds made
+            (:class:`~pinstab.constraints.geometry_contacts.FoundContacts`).
     """
 
     def __init__(self, model: pin.Model, q0: np.ndarray, objects: dict[str, Any] | None = None) -> None:
@@ -207,6 +209,7 @@ class SceneTables:
         every = np.vstack(group_points(model, q0))
         self.bounds = (every.min(axis=0), every.max(axis=0))  # [m] the box holding every group's points
         self.robot_shapes: Callable[[], pin.GeometryModel] = pin.GeometryModel
+        self.contact_finders: list[Any] = []
 
     check_keys = staticmethod(check_keys)
     vector = staticmethod(vector)

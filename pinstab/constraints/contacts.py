@@ -117,15 +117,7 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     normal = tables.direction(entry.get("normal", [0.0, 0.0, 1.0]), f"{where}.normal")
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
     tables.within_reach(point, f"{where}.point", plane_frame is None)  # a world plane: from the bodies
-    friction = None
-    if "mu" in entry:
-        try:
-            friction = FrictionCone(friction_coefficient(entry["mu"], f"{where}.mu"), entry.get("facets", 8))
-        except ConstraintError as exc:
-            raise SceneError(f"{where}: {exc}") from None
-    elif "facets" in entry:
-        raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
-    restitution = restitution_coefficient(entry.get("restitution", 0.0), f"{where}.restitution")
+    friction, restitution = contact_coefficients(entry, where)
     radius = tables.number(entry, "radius", where, 0.0)
     if radius < 0.0:
         raise SceneError(f"{where}.radius must be >= 0 [m], got {radius!r}")
@@ -135,11 +127,25 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     plane = pin.SE3.Identity() if plane_frame is None else tables.initial_placement(plane_frame)
     start = plane.actInv(tables.initial_placement(frame).translation)
     gap = float(normal @ (start - point))
-    _check_penetration(gap - radius, tables.size, where)
+    check_penetration(gap - radius, tables.size, where)
     return PointContact(name, frame, start - normal * gap, normal, friction, restitution, radius, plane_frame)
 
 
-def _check_penetration(gap: float, size: float, where: str) -> None:
+def contact_coefficients(entry: dict, where: str) -> tuple[FrictionCone | None, float]:
+    """A contact table's friction cone (``mu``, ``facets``; None without ``mu``: frictionless) and Newton's
+    restitution e [-] (``restitution``, default 0)."""
+    friction = None
+    if "mu" in entry:
+        try:
+            friction = FrictionCone(friction_coefficient(entry["mu"], f"{where}.mu"), entry.get("facets", 8))
+        except ConstraintError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+    elif "facets" in entry:
+        raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
+    return friction, restitution_coefficient(entry.get("restitution", 0.0), f"{where}.restitution")
+
+
+def check_penetration(gap: float, size: float, where: str) -> None:
     """Refuse a contact starting deeper than :data:`MAX_PENETRATION` scene sizes (``size`` [m]) inside its plane
     (``gap`` [m] < 0: inside)."""
     if gap < -MAX_PENETRATION * size:

@@ -9,10 +9,12 @@ Scene table::
     ground = {normal = [0, 0, 1], point = [0, 0, 0]}   # the default; false: no ground
     margin = 0.005                  # [m] optional; features this close to a pair's nearest one count
 
-coal finds each allowed pair's contact features at the scene's initial configuration; each is read as a
-``plane-contact`` (:func:`~pinstab.constraints.contacts.parse_plane_contact`, so that its checks are that kind's)
-named ``<shapeA>/<shapeB>[k]``: the point of body A (a sphere's centre with its radius) on the separating plane,
-the ground's fixed in the world, another body's carried by it (event-driven contacts only).
+coal finds each allowed pair's contact features (:class:`FoundContacts`); each is a
+:class:`~pinstab.constraints.contacts.PointContact` named ``<shapeA>/<shapeB>[k]`` (with plane-contact's
+coefficients and start check): the point of body A (a sphere's centre with its radius) on the separating plane
+where it was found, the ground's fixed in the world, another body's carried by it (event-driven contacts only). The
+scene's constraints are those found at its initial configuration; an event-driven run finds them again after every
+step (:class:`~pinstab.integration.events.EventLoop`).
 """
 
 from __future__ import annotations
@@ -20,15 +22,16 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
+from ..contact.cones import FrictionCone
 from ..contact.geometry import GROUND, ContactShapes, Feature
 from ..errors import SceneError
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS
-from .contacts import PointContact, parse_plane_contact
+from .contacts import PointContact, check_penetration, contact_coefficients
 
 GEOMETRY_KEYS = {"kind", "pairs", "mu", "facets", "restitution", "ground", "margin"}
-COPIED = ("mu", "facets", "restitution")  # the keys each found contact takes from the entry
 
 
 def contact_shapes(entry: dict[str, Any], tables: SceneTables, where: str) -> ContactShapes:
@@ -56,42 +59,77 @@ def contact_shapes(entry: dict[str, Any], tables: SceneTables, where: str) -> Co
     return shapes
 
 
+class FoundContacts:
+    """The point contacts coal finds from a scene's collision shapes (:class:`~pinstab.contact.geometry.ContactShapes`),
+    each the same :class:`~pinstab.constraints.contacts.PointContact` while it persists.
+
+    Args:
+        shapes: the shapes with their pairs allowed; an operational frame is added to its model at every feature
+            point of every pair (named like its contact). friction: the contacts' cone (None: frictionless).
+        restitution: their Newton's e [-].
+
+    Attributes:
+        order: each contact found so far, by name: its place in a run's order, (pair, point index).
+    """
+
+    def __init__(self, shapes: ContactShapes, friction: FrictionCone | None, restitution: float) -> None:
+        self.shapes, self.friction, self.restitution = shapes, friction, restitution
+        model, objects = shapes.model, shapes.geometry.geometryObjects
+        self.frames: dict[tuple[int, int], int] = {}  # (pair, point index) -> the frame at the point on body A
+        for pair, (a, _) in enumerate(shapes.pairs):
+            shape = objects[a]
+            for k, point in enumerate(shapes.joint_points(pair).T):
+                frame = pin.Frame(
+                    f"{shapes.label(pair)}[{k}]",
+                    shape.parentJoint,
+                    shape.parentFrame,
+                    pin.SE3(np.eye(3), point),
+                    pin.FrameType.OP_FRAME,
+                )
+                self.frames[pair, k] = model.addFrame(frame)
+        self.order: dict[str, tuple[int, int]] = {}
+        self._made: dict[str, PointContact] = {}
+
+    def contacts(self, q: np.ndarray) -> list[PointContact]:
+        """The contacts found at configuration q, in pair order, then by point (a contact found before: the same
+        object, its plane where it was first found)."""
+        return [self._contact(feature) for feature in self.shapes.features(q)]
+
+    def _contact(self, feature: Feature) -> PointContact:
+        contact = self._made.get(feature.name)
+        if contact is not None:
+            return contact
+        shapes = self.shapes
+        shape_b = shapes.geometry.geometryObjects[shapes.pairs[feature.pair][1]]
+        centre_gap = float(feature.normal @ (feature.world - feature.point))
+        anchor, normal, plane_frame = feature.world - feature.normal * centre_gap, feature.normal, None
+        if shape_b.parentJoint != 0:  # the plane in B's frame, carried by it
+            plane_frame = shape_b.parentFrame
+            placed = shapes.frame_placement(plane_frame)
+            anchor, normal = placed.actInv(anchor), placed.rotation.T @ normal
+        frame = self.frames[feature.pair, feature.index]
+        contact = PointContact(
+            feature.name, frame, anchor, normal, self.friction, self.restitution, feature.radius, plane_frame
+        )
+        self._made[feature.name] = contact
+        self.order[feature.name] = (feature.pair, feature.index)
+        return contact
+
+
 def parse_geometry_contacts(entry: dict[str, Any], tables: SceneTables, name: str, where: str) -> list[PointContact]:
-    """The point contacts coal finds at the scene's initial configuration (module docstring), in pair order."""
+    """The point contacts coal finds at the scene's initial configuration (module docstring), in pair order; the
+    finder is added to the scene's (``tables.contact_finders``), which event-driven runs ask again at every step.
+
+    Raises:
+        SceneError: a contact starting deeper inside its plane than plane-contact allows (naming it).
+    """
     tables.check_keys(entry, GEOMETRY_KEYS, where)
-    shapes = contact_shapes(entry, tables, where)
-    found = shapes.features(tables.q0)
-    copied = {key: entry[key] for key in COPIED if key in entry}
-    return [
-        parse_plane_contact(
-            {**copied, **_plane_entry(shapes, feature)}, tables, feature.name, f"contact {feature.name!r}"
-        )
-        for feature in found
-    ]
-
-
-def _plane_entry(shapes: ContactShapes, feature: Feature) -> dict[str, Any]:
-    """A ``plane-contact`` table for a feature: its point on body A's frame, the plane on the world or on B."""
-    model, objects = shapes.model, shapes.geometry.geometryObjects
-    a, b = shapes.pairs[feature.pair]
-    frame_a = model.frames[objects[a].parentFrame]
-    entry: dict[str, Any] = {
-        "frame_a": frame_a.name,
-        "offset_a": frame_a.placement.actInv(feature.joint_point).tolist(),
-        "normal": feature.normal.tolist(),
-        "point": feature.point.tolist(),
-    }
-    if feature.radius:
-        entry["radius"] = feature.radius
-    if objects[b].parentJoint != 0:  # the plane in B's frame, carried by it
-        frame_b = model.frames[objects[b].parentFrame]
-        placed = shapes.frame_placement(objects[b].parentFrame)
-        entry.update(
-            frame_b=frame_b.name,
-            normal=(placed.rotation.T @ feature.normal).tolist(),
-            point=placed.actInv(feature.point).tolist(),
-        )
-    return entry
+    friction, restitution = contact_coefficients(entry, where)
+    finder = FoundContacts(contact_shapes(entry, tables, where), friction, restitution)
+    tables.contact_finders.append(finder)
+    for feature in finder.shapes.features(tables.q0):
+        check_penetration(feature.gap, tables.size, f"contact {feature.name!r}")
+    return finder.contacts(tables.q0)
 
 
 def _ground(entry: dict[str, Any], tables: SceneTables, where: str) -> tuple[np.ndarray, np.ndarray] | None:

@@ -37,15 +37,16 @@ class Feature(NamedTuple):
 
     Attributes:
         name: ``<shapeA>/<shapeB>[k]``. pair: the pair's index. index: k, the point's index on shape A.
-        joint_point: the point on body A [m] in its joint's frame. radius: the sphere's radius at it [m] (0: a
-        vertex). normal: the separating plane's unit normal into A (world). point: a point of the plane [m, world].
-        gap: the feature's signed distance to the plane [m] (< 0: overlap).
+        joint_point: the point on body A [m] in its joint's frame. world: the point [m, world]. radius: the
+        sphere's radius at it [m] (0: a vertex). normal: the separating plane's unit normal into A (world).
+        point: a point of the plane [m, world]. gap: the feature's signed distance to the plane [m] (< 0: overlap).
     """
 
     name: str
     pair: int
     index: int
     joint_point: np.ndarray
+    world: np.ndarray
     radius: float
     normal: np.ndarray
     point: np.ndarray
@@ -172,6 +173,16 @@ class ContactShapes:
             found += self._pair_features(pair)
         return found
 
+    def label(self, pair: int) -> str:
+        """``<shapeA>/<shapeB>``: a pair's name."""
+        a, b = self.pairs[pair]
+        return f"{self.names[a]}/{self.names[b]}"
+
+    def joint_points(self, pair: int) -> np.ndarray:
+        """The feature points (k, 3) of a pair's shape A [m] in its joint's frame."""
+        local = self.geometry.geometryObjects[self.pairs[pair][0]].placement
+        return local.rotation @ self._points[pair][0].T + local.translation[:, None]
+
     def frame_placement(self, frame: int) -> pin.SE3:
         """A frame's world placement at the configuration :meth:`features` last took."""
         return pin.updateFramePlacement(self.model, self._data, frame).copy()
@@ -199,12 +210,13 @@ class ContactShapes:
         normal = -np.asarray(result.normal)  # coal's runs from A to B: the plane's, into A
         plane_point = np.asarray(result.getNearestPoint2())
         points, radius = self._points[pair]
-        local = objects[a].placement  # shape A in its joint's frame
         world = placed_a.rotation @ points.T + placed_a.translation[:, None]
         gaps = normal @ (world - plane_point[:, None]) - radius
         near = np.flatnonzero(gaps <= gaps.min() + margin)
-        label = f"{self.names[a]}/{self.names[b]}"
+        label, joint = self.label(pair), self.joint_points(pair)
         return [
-            Feature(f"{label}[{k}]", pair, int(k), local.act(points[k]), radius, normal, plane_point, float(gaps[k]))
+            Feature(
+                f"{label}[{k}]", pair, int(k), joint[:, k], world[:, k], radius, normal, plane_point, float(gaps[k])
+            )
             for k in near
         ]
