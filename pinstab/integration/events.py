@@ -37,6 +37,7 @@ slack further, its load's work over it keeping the chatter going for ever.
 from __future__ import annotations
 
 import itertools
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
-from ..solvers.contact_modes import ModeDynamics, ModeSolution
+from ..solvers.contact_modes import ModeDynamics, ModeSolution, plane_geometries
 from ..solvers.impacts import impact, limit_impact
 from ..solvers.mode_choice import (
     CONSISTENCY,
@@ -106,6 +107,11 @@ class EventLoop(AdaptiveLoop):
             (:class:`RunEnd`), empty by default.
         active_time: each joint limit's time held so far [s], by name (to the last switch; see
             :meth:`limit_times`).
+        finders: the finders of contacts from geometry
+            (:class:`~pinstab.constraints.geometry_contacts.FoundContacts`, set by :meth:`find_contacts`), asked at
+            every step's end: a contact
+            found there that the dynamics lack is added (separated) and the step taken again; a separated one no
+            longer found is dropped. Empty by default.
     """
 
     def __init__(self, system, stepper, grid, every, drift_limit, warned, control, dynamics: ModeDynamics):
@@ -122,6 +128,9 @@ class EventLoop(AdaptiveLoop):
         self._crawl = 0  # accepted steps shorter than CRAWL_STEP in a row since the last event
         self._chatter: list[tuple[float, list[int]]] = []  # the limit impacts in a row CHATTER_GAP apart: t [s], limits
         self.active_time = {limit.name: 0.0 for limit in dynamics.limits}
+        self.finders: list[Any] = []
+        self._declared: dict[str, int] = {}  # the contacts not found from geometry: their places, by name
+        self._found: set[str] = set()  # the names of the contacts found from geometry at the last step's end
 
     def _touches(self, i: int, q: np.ndarray) -> bool:
         """Whether limit i touches at q: its gap within TOUCH_GAP of where it counts as reached."""
@@ -145,6 +154,8 @@ class EventLoop(AdaptiveLoop):
                 h = t_stop - t if t_stop - t < self.step_size * (1 + GRID_SLACK) else self.step_size
                 self._continue_slips(q, v)
                 step = self.attempt(q, v, a, t, h)
+                if self._refind(q, v, step.q):  # contacts found at the step's end are new: the step again with them
+                    continue
                 t_new = t + step.h
                 a_new = system.acceleration(step.q, step.v, t_new, 0)
                 segment = Segment(system.model, t, q, v, a, t_new, step.q, step.v, a_new)
@@ -173,11 +184,61 @@ class EventLoop(AdaptiveLoop):
                     raise RunEnd(t_new, step.q, step.v, error=self._crawling(step.q, step.v, t_new))
                 self.step_size = self._next_step(step)
                 t, q, v, a = t_new, step.q, step.v, a_new
+                self._prune(q, v)
         except ContactInfeasibleError as exc:  # the modes have switched: a replay of the chunk would not be this run
             raise RunEnd(t, q, v, error=exc) from None
         finally:
             self.dynamics.continued = None
         return q, v, stop
+
+    def find_contacts(self, finders: list[Any]) -> None:
+        """Watch the contacts of ``finders`` (:attr:`finders`); the dynamics' other contacts stay, first."""
+        self.finders = list(finders)
+        found = {name for finder in self.finders for name in finder.order}
+        self._declared = {c.name: i for i, c in enumerate(self.dynamics.contacts) if c.name not in found}
+
+    def _refind(self, q: np.ndarray, v: np.ndarray, q_end: np.ndarray) -> bool:
+        """Ask the finders of contacts from geometry (:attr:`finders`) for the contacts at a step's end ``q_end``;
+        add those the dynamics lack, separated, at the step's start (q, v) (their gaps closing from where they are
+        there); whether any was added: the step is then taken again, its end's events located with them."""
+        if not self.finders:
+            return False
+        found = [contact for finder in self.finders for contact in finder.contacts(q_end)]
+        self._found = {contact.name for contact in found}
+        current = {contact.name for contact in self.dynamics.contacts}
+        new = [contact for contact in found if contact.name not in current]
+        if new:
+            self._arrange(self.dynamics.contacts + plane_geometries(new), q, v)
+        return bool(new)
+
+    def _prune(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Drop the separated contacts found from geometry that were not found at the accepted step's end (q, v)."""
+        if not self.finders:
+            return
+        dynamics = self.dynamics
+        kept = [
+            contact
+            for contact, mode in zip(dynamics.contacts, dynamics.modes, strict=True)
+            if contact.name in self._declared or contact.name in self._found or mode is not Mode.SEPARATED
+        ]
+        if len(kept) < len(dynamics.contacts):
+            self._arrange(kept, q, v)
+
+    def _arrange(self, contacts: list, q: np.ndarray, v: np.ndarray) -> None:
+        """Take ``contacts`` (the declared ones, then those found from geometry, by finder, pair and point) as the
+        dynamics' contacts at (q, v), each kept one with its state (:meth:`ModeDynamics.rearrange`)."""
+        finders = {name: (k, *finder.order[name]) for k, finder in enumerate(self.finders) for name in finder.order}
+        contacts = sorted(
+            contacts,
+            key=lambda c: (0, self._declared[c.name]) if c.name in self._declared else (1, *finders[c.name]),
+        )
+        places = self.dynamics.rearrange(contacts)
+        gaps = self.dynamics.kinematics(q, v).gaps
+        self._armed = [True if i is None else self._armed[i] for i in places]
+        self._gap_floors = [min(0.0, gaps[k]) if i is None else self._gap_floors[i] for k, i in enumerate(places)]
+        self._reference = [np.array([1.0, 0.0]) if i is None else self._reference[i] for i in places]
+        if 3 * len(contacts) > self.impacts.size:
+            self.impacts = NcpSolver(3 * len(contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
 
     def _continue_slips(self, q: np.ndarray, v: np.ndarray) -> None:
         """Take the slip directions at the start of a step from (q, v) as the references of the sliding contacts' event

@@ -119,6 +119,7 @@ def simulate_events(
     info = run_info(scene, system, "dop853", grid, report, dynamics.name, None, record_every)
     loop = EventLoop(system, stepper, grid, record_every, DEFAULT_DRIFT_LIMIT, False, control, dynamics)
     loop.stop_on = stop_on
+    loop.find_contacts(scene.contact_finders)
     stream_records(loop, stream, info)
     bar = progress_bar(grid.steps, scene.name, progress)
     end = None

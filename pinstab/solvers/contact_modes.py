@@ -147,6 +147,20 @@ class ModeDynamics:
         self._state: tuple | None = None
         self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None] | None = None
 
+    def rearrange(self, contacts: list[PlaneContactGeometry]) -> list[int | None]:
+        """Take ``contacts`` as the contacts, in their order (contacts found from geometry come and go): one of the
+        same name as a contact kept is that contact, with its mode, slip direction and anchor; a new one starts
+        separated. Returns each one's former index (None: new)."""
+        former = {contact.name: i for i, contact in enumerate(self.contacts)}
+        places = [former.get(contact.name) for contact in contacts]
+        self.contacts = [c if i is None else self.contacts[i] for c, i in zip(contacts, places, strict=True)]
+        self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
+        self.directions = [np.array([1.0, 0.0]) if i is None else self.directions[i] for i in places]
+        self.continued = None
+        self._redundant.clear()  # keyed by the modes of a layout
+        self._state = None
+        return places
+
     def kinematics(self, q: np.ndarray, v: np.ndarray) -> ContactKinematics:
         """The contacts' gaps, velocities, Jacobians and drifts at (q, v) (a full kinematics pass)."""
         self.model.kin.update(q, v)

@@ -93,7 +93,8 @@ class NcpSolver:
         warm_start: start each :meth:`solve` from the previous one's lambda (when the sizes match).
 
     Attributes:
-        result: Pinocchio's ``ADMMSolverResult`` of the last ADMM solve. method: the solver whose answer the last
+        size: the largest problem size it takes (at least 3). result: Pinocchio's ``ADMMSolverResult`` of the last
+        ADMM solve. method: the solver whose answer the last
             :meth:`solve_contacts` kept (``ADMM`` or ``PGS``; the last one tried when none passed). residual:
             that answer's :func:`ncp_residual` [units of g]. tolerance: the residual it accepted [units of g].
     """
@@ -107,6 +108,7 @@ class NcpSolver:
         warm_start: bool = False,
     ) -> None:
         size = max(size, 3)
+        self.size = size
         self.settings = admm_settings(tolerance, max_iterations)
         self.solver = pin.ADMMConstraintSolver(size)
         self.result = pin.ADMMSolverResult()
