@@ -38,7 +38,7 @@ from pinstab.scene import scene_from_dict
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
             r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, frame-orientation, frame-path, "
-            r"frame-pose, grasp-contact, joint-relation, planar-point, plane-contact, point, prismatic, revolute, "
+            r"frame-pose, geometry, grasp-contact, joint-relation, planar-point, plane-contact, point, prismatic, revolute, "
             r"rolling-contact, rolling-disk, weld",
         ),
         (
