@@ -38,8 +38,8 @@ from pinstab.scene import scene_from_dict
         (
             {"closures": [{"kind": "hinge", "frame_a": "coupler"}]},
             r"kind 'hinge' is not a constraint kind; valid kinds: disk-touch, frame-orientation, frame-path, "
-            r"frame-pose, geometry, grasp-contact, joint-relation, planar-point, plane-contact, point, prismatic, revolute, "
-            r"rolling-contact, rolling-disk, weld",
+            r"frame-pose, geometry, grasp-contact, joint-relation, planar-point, plane-contact, point, prismatic, "
+            r"revolute, rolling-contact, rolling-disk, weld",
         ),
         (
             {"closures": [{"kind": "point", "frame_a": "cupler"}]},
