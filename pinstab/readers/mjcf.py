@@ -40,14 +40,15 @@ import pinocchio as pin
 from ..errors import SceneError
 from ..memory import named_when_exhausted
 from .base import READERS, ReaderOptions, RobotSource
-from .mjcf_bodies import check_before_parser, check_compiled, joint_kind
+from .mjcf_bodies import check_before_parser, check_compiled
 from .mjcf_equalities import EqualityReader
+from .mjcf_joints import JointReader
+from .mjcf_keyframes import read_start
 from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
 NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out
 UNIT_AXIS_TOLERANCE = 1e-9
-SCALAR_JOINTS = {"hinge": 1, "slide": 1, "ball": 4, "free": 7}  # MJCF joint type -> configuration size
 
 
 def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
@@ -74,17 +75,31 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     check_compiled(document, model)
     _check_axis_angles(document)
     _place_root(document, model)
-    notes = _joint_limits(document, model)
+    joints = JointReader(document, model)
+    joints.read()
     equalities = EqualityReader(document, model)
     equalities.read()
-    notes += equalities.notes + _not_read(document)
+    notes = joints.notes + equalities.notes + _not_read(document)
+    keyframe = robot.get("keyframe")
+    if keyframe is not None and not isinstance(keyframe, str):
+        raise SceneError(f"robot.keyframe must be the name of a <key> of {path}, got {keyframe!r}")
+    start = read_start(document, model, keyframe, notes)
+    notes.append(f"the start is {start.label} (robot.keyframe or --keyframe names another key)")
+    tables = equalities.tables | ({"forces": joints.forces} if joints.forces else {})
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         with parser_file(document) as parsed:  # placed by the model's body frames; meshes by path
             return pin.buildGeomFromMJCF(full, str(parsed), kind)
 
     return RobotSource(
-        model, "mjcf", path, package_dirs=[str(path.parent)], tables=equalities.tables, notes=notes, geometry=geometry
+        model,
+        "mjcf",
+        path,
+        package_dirs=[str(path.parent)],
+        tables=tables,
+        notes=notes,
+        geometry=geometry,
+        start=(start.q, start.v),
     )
 
 
@@ -138,57 +153,6 @@ def _place_root(document: MjcfDocument, model: pin.Model) -> None:
         if frame.parentJoint == 0:
             frame.placement = pose * frame.placement
             model.frames[index] = frame
-
-
-def _joint_limits(document: MjcfDocument, model: pin.Model) -> list[str]:
-    """Write the file's joint limits into ``model``'s position limits; notes on what could not be."""
-    notes: list[str] = []
-    for body in document.root.iter("body"):
-        joints = [j for j in body if j.tag in ("joint", "freejoint")]
-        names = [str(j.get("name")) for j in joints]
-        if len(joints) > 1:
-            notes.append(f"body {body.get('name')!r}: its joints {', '.join(names)} are one composite joint")
-        offset = 0
-        for joint, name in zip(joints, names, strict=True):
-            where = f"robot.mjcf joint {name!r}"
-            kind = joint_kind(document, joint, where)
-            index = _q_index(model, name, names[0], offset)
-            offset += SCALAR_JOINTS[kind]
-            limits = _limits(document, joint, kind, where)
-            if limits is None:
-                continue
-            if kind == "ball":
-                notes.append(f"joint {name!r}: the cone limit of a ball joint is not read")
-            elif index is None:
-                notes.append(f"joint {name!r}: not found in Pinocchio's model, its range is not read")
-            else:
-                model.lowerPositionLimit[index], model.upperPositionLimit[index] = limits
-    return notes
-
-
-def _limits(document: MjcfDocument, joint: ET.Element, kind: str, where: str) -> tuple[float, float] | None:
-    """The joint's (lower, upper) position limits [rad or m], (-inf, inf) when unlimited, None for a free joint."""
-    if kind == "free":
-        return None
-    limited = document.attribute(joint, "limited") or "auto"
-    has_range = document.attribute(joint, "range") is not None
-    if limited not in ("true", "false", "auto"):
-        raise SceneError(f"{where}: limited={limited!r} is not one of true, false, auto")
-    if limited == "false" or (limited == "auto" and not (document.autolimits and has_range)):
-        return -np.inf, np.inf
-    lower, upper = document.numbers(joint, "range", 2, where)
-    if lower > upper:
-        raise SceneError(f"{where}: range lower {lower} > upper {upper}")
-    factor = document.angle_factor() if kind in ("hinge", "ball") else 1.0
-    return lower * factor, upper * factor
-
-
-def _q_index(model: pin.Model, name: str, first: str, offset: int) -> int | None:
-    """The configuration index of joint ``name``: its own joint, or its place in the body's composite joint."""
-    for joint_name, start in ((name, 0), (f"Composite_{first}", offset)):
-        if model.existJointName(joint_name):
-            return model.joints[model.getJointId(joint_name)].idx_q + start
-    return None
 
 
 @contextmanager
