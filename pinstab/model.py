@@ -194,7 +194,7 @@ def kinetic_energy(model: pin.Model, data: pin.Data, q: np.ndarray, v: np.ndarra
     ``armature . v^2 / 2`` (MJCF ``armature``, in the mass matrix Pinocchio's CRBA and ABA use). Pinocchio 4.1's
     ``computeKineticEnergy`` adds the rotors' on the joints of a coordinate axis only (on a revolute joint of
     another axis it adds a wrong term: a 1 % energy drift that is not there), so its sum is taken without them."""
-    armature = np.asarray(model.armature)
+    armature = np.array(model.armature)  # a copy: the model's own is overwritten below
     if not armature.any():
         return float(pin.computeKineticEnergy(model, data, q, v))
     model.armature = np.zeros(model.nv)

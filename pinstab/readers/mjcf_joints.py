@@ -10,10 +10,11 @@
   velocities as MuJoCo's; a ball or free joint's stiffness, and a spring on a joint of a composite joint (a body
   with several joints) are refused, naming the joint;
 - ``armature`` [kg m^2 or kg]: the parser writes it into ``model.armature`` (rotor inertia, in the mass matrix);
-- ``frictionloss`` (MuJoCo's dry joint friction, a force bounded by it with stick and slip) is refused, naming the
-  joint: pinstab has no such force, and dropping it would run another mechanism;
-- ``springdamper`` (stiffness and damping given by a time constant and a damping ratio) is refused, naming the
-  joint; ``margin`` and the actuator attributes (``actuatorfrcrange``, ``actuatorgravcomp``) are noted as not read.
+- ``frictionloss`` (MuJoCo's dry joint friction, a force bounded by it with stick and slip) is left out with a
+  note naming the joints and values, as an SDF joint's ``<friction>``: pinstab has no such force;
+- ``springdamper`` (stiffness and damping given by a time constant and a damping ratio, from the joint's inertia
+  at qpos0) is refused, naming the joint; ``margin`` and the actuator attributes (``actuatorfrcrange``,
+  ``actuatorgravcomp``) are noted as not read.
 """
 
 from __future__ import annotations
@@ -30,14 +31,7 @@ from .mjcf_bodies import joint_kind
 from .mjcf_xml import MjcfDocument
 
 SCALAR_JOINTS = {"hinge": 1, "slide": 1, "ball": 4, "free": 7}  # MJCF joint type -> configuration size
-REFUSED = {  # joint attribute -> (its numbers, why pinstab refuses a non-zero one)
-    "frictionloss": (1, "MuJoCo's dry joint friction (a force bounded by it, sticking, slipping) has no pinstab model"),
-    "springdamper": (
-        2,
-        "a stiffness and damping from a time constant and a damping ratio are not read; give them "
-        "as stiffness and damping",
-    ),
-}
+SPRINGDAMPER = "springdamper"  # a stiffness and damping from a time constant and a damping ratio: refused
 NOT_READ = ("margin", "actuatorfrcrange", "actuatorfrclimited", "actuatorgravcomp")  # noted when given
 
 
@@ -59,10 +53,11 @@ class JointReader:
         """Every joint of the file: its limits into the model, its damping and spring into :attr:`forces`.
 
         Raises:
-            SceneError: a joint attribute pinstab refuses (:data:`REFUSED`), a spring it cannot hold, a bad range.
+            SceneError: a springdamper, a spring it cannot hold, a bad range.
         """
         limited: list[str] = []
         not_read: dict[str, list[str]] = {}
+        friction: list[str] = []
         for body in self.document.root.iter("body"):
             joints = [j for j in body if j.tag in ("joint", "freejoint")]
             names = [str(j.get("name")) for j in joints]
@@ -75,6 +70,8 @@ class JointReader:
                 index = q_index(self.model, name, names[0], offset)
                 offset += SCALAR_JOINTS[kind]
                 self._refuse(joint, where)
+                if self._number(joint, "frictionloss", where):
+                    friction.append(f"{name!r} ({self._number(joint, 'frictionloss', where):g})")
                 for key in NOT_READ:
                     if self.document.attribute(joint, key) is not None:
                         not_read.setdefault(key, []).append(name)
@@ -86,13 +83,20 @@ class JointReader:
                 f"joints {', '.join(map(repr, limited))}: their ranges are held as hard limits (MuJoCo's are soft, "
                 "solreflimit/solimplimit: a joint passes its range a little)"
             )
+        if friction:
+            self.notes.append(
+                f"frictionloss of joints {', '.join(friction)} [N m or N] left out (MuJoCo's dry joint friction, "
+                "sticking and slipping: pinstab has no joint friction)"
+            )
         self.notes += [f"joint {key} of {', '.join(map(repr, joints))} not read" for key, joints in not_read.items()]
 
     def _refuse(self, joint: ET.Element, where: str) -> None:
-        for key, (size, reason) in REFUSED.items():
-            text = self.document.attribute(joint, key)
-            if text is not None and np.any(self.document.numbers(joint, key, size, where) != 0.0):
-                raise SceneError(f"{where}: {key}={text!r}: {reason}; remove it (or set it to 0) to read the file")
+        text = self.document.attribute(joint, SPRINGDAMPER)
+        if text is not None and np.any(self.document.numbers(joint, SPRINGDAMPER, 2, where) != 0.0):
+            raise SceneError(
+                f"{where}: springdamper={text!r} (a stiffness and damping from a time constant and a damping ratio) "
+                "is not read: give them as stiffness [N m/rad or N/m] and damping [N m s/rad or N s/m]"
+            )
 
     def _limits(self, joint: ET.Element, name: str, kind: str, index: int | None, where: str) -> bool:
         """Write the joint's limits into the model; whether it is limited."""
