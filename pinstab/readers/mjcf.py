@@ -8,20 +8,23 @@ that parser is wrong or silent:
   ``<worldbody>`` and its subtree): a SceneError names the ones it dropped;
 - a static first body of ``<worldbody>`` is put at its pose (the parser leaves it at the origin); an
   ``axisangle`` with an axis not of unit length is refused (the parser does not normalize it);
-- joint limits: ``range`` and ``limited`` (``<compiler autolimits>``, ``<default>`` classes), a hinge's range in
-  the file's angle unit, a slide's in metres (the parser also converts a slide's range as an angle and limits a
-  joint with ``limited="false"``); an unlimited joint has infinite limits;
+- the parser is given a temporary copy of the file written as MuJoCo reads it (:func:`parser_file`): the
+  ``<default>`` classes applied to every element (the parser skips many attributes of a class: a joint's ``pos``,
+  a geom's ``type``, ``mass`` and ``pos``), the includes inlined (the parser ignores ``<include>``), the
+  ``<compiler>`` first (the parser reads the bodies with only what came before them);
+- joints (:mod:`.mjcf_joints`): limits (``range``, ``limited``, in the file's units), ``damping`` and
+  ``stiffness``/``springref`` as ``joint-spring`` forces, ``armature`` (the parser's rotor inertia);
+- the start (:mod:`.mjcf_keyframes`): the keyframe ``robot.keyframe`` names, else the file's first, else MuJoCo's
+  qpos0 (the joints at ``ref``);
 - ``<equality>``: closures and joint relations with their names (:mod:`.mjcf_equalities`);
 - the file within the bounds on size, depth and memory, its masses and inertias physical, checked before the
   parser reads it, and the inertias it compiled after (:mod:`.mjcf_bodies`);
-- ``<include>``: the parser ignores it (the included bodies, defaults and assets left out); when the file
-  includes others, the parser is given a temporary copy with the includes inlined (:func:`parser_file`), as when
-  a ``<compiler>`` or ``<default>`` comes after the bodies (which the parser reads without it) or an element names
-  the class ``main`` (which the parser does not know by that name);
 - Pinocchio's remaining refusals quoted, naming the file (a SceneError).
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
-it), actuators, tendons, sensors, contact pairs, a ball joint's cone limit, the soft-constraint parameters.
+it), actuators, tendons, sensors, contact pairs (each named), a ball joint's cone limit, joint friction
+(``frictionloss``), the soft-constraint parameters of equalities and limits (pinstab's are rigid), a keyframe's
+controls.
 """
 
 from __future__ import annotations
@@ -47,7 +50,8 @@ from .mjcf_keyframes import read_start
 from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
-NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out
+NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out (actuators: the scene's
+# [actuation] and [[servos]] drive the robot)
 UNIT_AXIS_TOLERANCE = 1e-9
 
 
@@ -231,7 +235,13 @@ def _xml_text(root: ET.Element) -> str:
 
 
 def _not_read(document: MjcfDocument) -> list[str]:
-    notes = [f"<{tag}> not read" for tag in NOT_READ if document.root.find(tag) is not None]
+    """Notes on the file's sections pinstab leaves out (:data:`NOT_READ`, each element named) and its gravity."""
+    notes = []
+    for tag in NOT_READ:
+        elements = [item for section in document.root.findall(tag) for item in section]
+        if elements:
+            named = ", ".join(f"{item.tag} {item.get('name', f'number {i}')!r}" for i, item in enumerate(elements))
+            notes.append(f"<{tag}> not read: {named}")
     option = document.root.find("option")
     if option is not None and option.get("gravity") is not None:
         notes.append(f"<option gravity={option.get('gravity')!r}> not read: the scene's gravity key sets gravity")
