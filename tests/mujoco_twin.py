@@ -25,7 +25,7 @@ def scene_of(path: Path, **robot) -> Scene:
 
 
 def joint_quantities(scene: Scene, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Each joint of pinstab's model at ``q``: (anchor [m], unit axis, the 6x6 world spatial inertia of the bodies it
+    """Each joint of pinstab's model at ``q`` (hinges and slides): (anchor [m], unit axis, the 6x6 world spatial inertia of the bodies it
     carries [kg, kg m, kg m^2]) by joint name."""
     model = scene.model
     data = model.createData()
@@ -35,12 +35,13 @@ def joint_quantities(scene: Scene, q: np.ndarray) -> dict[str, tuple[np.ndarray,
     for joint in range(1, model.njoints):
         column = pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.WORLD)[:, model.joints[joint].idx_v]
         inertia = data.oMi[joint].act(model.inertias[joint]).matrix()
-        out[model.names[joint]] = (data.oMi[joint].translation.copy(), column[3:].copy(), inertia)
+        axis = column[3:] if np.any(column[3:]) else column[:3]  # a hinge's turn, else a slide's direction
+        out[model.names[joint]] = (data.oMi[joint].translation.copy(), axis.copy(), inertia)
     return out
 
 
 def mujoco_quantities(model, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The same of MuJoCo's compiled ``model`` at qpos ``q``: ``xanchor``, ``xaxis``, and the inertias of the bodies
+    """The same of MuJoCo's compiled ``model`` at qpos ``q``: ``xanchor`` (a slide's moved by its slide), ``xaxis``, and the inertias of the bodies
     (``body_mass``, ``body_ipos``, ``body_iquat``, ``body_inertia``) whose nearest jointed body (itself or an
     ancestor) has that joint, summed in the world frame."""
     data = mujoco.MjData(model)
@@ -58,13 +59,20 @@ def mujoco_quantities(model, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.nd
                 continue
             w, x, y, z = model.body_iquat[body]
             principal = pin.Inertia(
-                model.body_mass[body], np.zeros(3), pin.Quaternion(w, x, y, z).matrix() @ np.diag(model.body_inertia[body])
-                @ pin.Quaternion(w, x, y, z).matrix().T
+                model.body_mass[body],
+                np.zeros(3),
+                pin.Quaternion(w, x, y, z).matrix()
+                @ np.diag(model.body_inertia[body])
+                @ pin.Quaternion(w, x, y, z).matrix().T,
             )
             local = pin.SE3(np.eye(3), model.body_ipos[body]).act(principal)
             world = pin.SE3(data.xmat[body].reshape(3, 3), data.xpos[body]).act(local)
             total = total + world
-        out[name] = (data.xanchor[joint].copy(), data.xaxis[joint].copy(), total.matrix())
+        anchor = data.xanchor[joint].copy()  # a slide's: before its own slide (Pinocchio's joint frame: after it)
+        if model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_SLIDE:
+            address = model.jnt_qposadr[joint]
+            anchor += data.xaxis[joint] * (q[address] - model.qpos0[address])
+        out[name] = (anchor, data.xaxis[joint].copy(), total.matrix())
     return out
 
 
