@@ -25,8 +25,8 @@ def scene_of(path: Path, **robot) -> Scene:
 
 
 def joint_quantities(scene: Scene, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Each joint of pinstab's model at ``q`` (hinges and slides): (anchor [m], unit axis, the 6x6 world spatial inertia of the bodies it
-    carries [kg, kg m, kg m^2]) by joint name."""
+    """Each joint of pinstab's model at ``q`` (hinges and slides): (anchor [m], unit axis, the 6x6 world spatial
+    inertia of the bodies it carries [kg, kg m, kg m^2]) by joint name."""
     model = scene.model
     data = model.createData()
     pin.forwardKinematics(model, data, q)
@@ -41,9 +41,9 @@ def joint_quantities(scene: Scene, q: np.ndarray) -> dict[str, tuple[np.ndarray,
 
 
 def mujoco_quantities(model, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """The same of MuJoCo's compiled ``model`` at qpos ``q``: ``xanchor`` (a slide's moved by its slide), ``xaxis``, and the inertias of the bodies
-    (``body_mass``, ``body_ipos``, ``body_iquat``, ``body_inertia``) whose nearest jointed body (itself or an
-    ancestor) has that joint, summed in the world frame."""
+    """The same of MuJoCo's compiled ``model`` at qpos ``q``: ``xanchor`` (a slide's moved by its slide), ``xaxis``,
+    and the inertias of the bodies (``body_mass``, ``body_ipos``, ``body_iquat``, ``body_inertia``) whose nearest
+    jointed body (itself or an ancestor) has that joint, summed in the world frame."""
     data = mujoco.MjData(model)
     data.qpos[:] = q
     mujoco.mj_forward(model, data)

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-
 from mujoco_twin import assert_same_joints, mujoco, scene_of
 
 # A class per attribute the parser skips: a joint's pos and axis, a geom's type, size, mass, pos and fromto, a

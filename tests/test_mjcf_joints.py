@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from mujoco_twin import largest_difference, mujoco, scene_of
 
 from conftest import ROBOTS
-from mujoco_twin import largest_difference, mujoco, scene_of
 from pinstab import simulate
 from pinstab.cli import main
 from pinstab.errors import SceneError

@@ -172,7 +172,8 @@ def parser_file(document: MjcfDocument) -> Iterator[Path]:
     - the included files inlined (the parser ignores ``<include>``);
     - the ``<compiler>`` put first (the parser reads the bodies with only what came before them: angles in degrees
       where the compiler says radians);
-    - the mesh and texture folders made absolute (as MuJoCo reads them: relative to the model's folder).
+    - the mesh and texture folders made absolute (as MuJoCo reads them: relative to the model's folder);
+    - the keyframes left out (read by :mod:`.mjcf_keyframes`, which names a key of a wrong size).
     """
     root = ET.Element(document.root.tag, document.root.attrib)
     if document.root.find("compiler") is None:
@@ -181,7 +182,7 @@ def parser_file(document: MjcfDocument) -> Iterator[Path]:
         if child.tag == "compiler":
             compiler = ET.SubElement(root, "compiler", _absolute_folders(child.attrib, document.path.parent))
             compiler.extend(child)
-        elif child.tag != "default":
+        elif child.tag not in ("default", "keyframe"):  # keyframes: read by pinstab (.mjcf_keyframes)
             root.append(_with_defaults(document, child))
     with tempfile.TemporaryDirectory(prefix="pinstab-mjcf-") as temporary:
         parsed = Path(temporary) / document.path.name
