@@ -19,9 +19,21 @@ mujoco = pytest.importorskip("mujoco")
 STATIC_TOL = 1e-12  # [m, rad, kg, kg m, kg m^2]: the same compiled quantities, two libraries' rounding
 
 
+def written(folder: Path, name: str, text: str) -> Path:
+    """The MJCF file ``name`` of ``text`` written in ``folder``."""
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
 def scene_of(path: Path, **robot) -> Scene:
     """pinstab's scene of the MJCF file ``path`` (gravity MuJoCo's default, -9.81 m/s^2 along z)."""
     return scene_from_dict({"robot": {"mjcf": path.name, **robot}}, base_dir=path.parent)
+
+
+def twins(path: Path, **robot) -> tuple[Scene, object]:
+    """pinstab's scene of the MJCF file ``path`` (:func:`scene_of`) and MuJoCo's compiled model of it."""
+    return scene_of(path, **robot), mujoco.MjModel.from_xml_path(str(path))
 
 
 def joint_quantities(scene: Scene, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:

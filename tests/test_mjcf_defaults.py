@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from mujoco_twin import assert_same_joints, mujoco, scene_of
+from mujoco_twin import assert_same_joints, mujoco, scene_of, twins, written
 
 # A class per attribute the parser skips: a joint's pos and axis, a geom's type, size, mass, pos and fromto, a
 # partial size (its class's half-length kept), a childclass inside a body of another, class= naming a nested class.
@@ -56,14 +56,11 @@ DEFAULTS = """<mujoco model="defaults">
 
 @pytest.fixture
 def defaults(tmp_path: Path) -> Path:
-    path = tmp_path / "defaults.xml"
-    path.write_text(DEFAULTS)
-    return path
+    return written(tmp_path, "defaults.xml", DEFAULTS)
 
 
 def test_default_classes_match_mujocos_compiled_model(defaults: Path) -> None:
-    scene = scene_of(defaults)
-    model = mujoco.MjModel.from_xml_path(str(defaults))
+    scene, model = twins(defaults)
     assert_same_joints(scene, model, scene.q0)
     assert_same_joints(scene, model, np.random.default_rng(3).uniform(-1.0, 1.0, scene.model.nq))
     masses = {name: scene.model.inertias[scene.model.getJointId(name)].mass for name in ("j0", "j1", "j2", "j3")}

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from mujoco_twin import largest_difference, mujoco, scene_of
+from mujoco_twin import largest_difference, mujoco, scene_of, twins, written
 
-from conftest import ROBOTS
+from conftest import FOURBAR_LOOP, ROBOTS
 from pinstab import simulate
 from pinstab.cli import main
 from pinstab.errors import SceneError
@@ -51,14 +51,11 @@ PASSIVE = """<mujoco model="passive">
 
 @pytest.fixture
 def passive(tmp_path: Path) -> Path:
-    path = tmp_path / "passive.xml"
-    path.write_text(PASSIVE)
-    return path
+    return written(tmp_path, "passive.xml", PASSIVE)
 
 
 def test_springs_dampers_and_rotors_are_mujocos(passive: Path) -> None:
-    scene = scene_of(passive)
-    theirs = mujoco.MjModel.from_xml_path(str(passive))
+    scene, theirs = twins(passive)
     springs = {element.name: element for element in scene.forces}
     assert sorted(springs) == ["shoulder/spring", "slide/spring"]  # the tilted joint has none
     for name in ("shoulder", "slide"):
@@ -162,22 +159,7 @@ def test_locked_joint_named_like_its_body(tmp_path: Path) -> None:
     q = {"crank": 1.0, "coupler": -0.9, "rocker": 1.6}
     runs = []
     for robot in ({"mjcf": str(ROBOTS / "mjcf/fourbar.xml")}, {"urdf": str(ROBOTS / "urdf/fourbar.urdf")}):
-        closure = (
-            {
-                "closures": [
-                    {
-                        "name": "loop",
-                        "kind": "point",
-                        "frame_a": "coupler",
-                        "offset_a": [0.6, 0, 0],
-                        "frame_b": "rocker",
-                        "offset_b": [0.5, 0, 0],
-                    }
-                ]
-            }
-            if "urdf" in robot
-            else {}
-        )
+        closure = {"closures": [FOURBAR_LOOP]} if "urdf" in robot else {}  # the MJCF file's own: a connect
         scene = scene_from_dict(
             {"robot": {**robot, "locked_joints": ["crank"]}, "gravity": [0, -9.81, 0], "initial": {"q": q}, **closure}
         )

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from mujoco_twin import mujoco, scene_of
+from mujoco_twin import mujoco, scene_of, written
 
 from pinstab.cli import main
 from pinstab.errors import SceneError
@@ -43,9 +43,7 @@ FLOATING = """<mujoco model="floating">
 
 @pytest.fixture
 def floating(tmp_path: Path) -> Path:
-    path = tmp_path / "floating.xml"
-    path.write_text(FLOATING)
-    return path
+    return written(tmp_path, "floating.xml", FLOATING)
 
 
 def _world(scene, name: str, q: np.ndarray, v: np.ndarray) -> tuple[pin.SE3, np.ndarray]:
