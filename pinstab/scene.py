@@ -29,7 +29,7 @@ from .generators import generate
 from .kernels import tilted_gravity
 from .memory import named_when_exhausted
 from .readers import READERS, ROBOT_KEYS, RobotSource, bundled_scenes, read_robot
-from .readers.base import robot_geometry
+from .readers.base import reduce_model, robot_geometry, robot_start
 from .readers.urdf import read_body
 from .registry import Registry
 from .tables import SceneTables, check_keys, frame_id, joint_id, list_of_tables, table, vector
@@ -153,11 +153,13 @@ class Scene:
 
 
 @named_when_exhausted("loading a scene (load_scene)")
-def load_scene(path_or_name: str | Path, **parameters: Any) -> Scene:
+def load_scene(path_or_name: str | Path, keyframe: str | None = None, **parameters: Any) -> Scene:
     """Read a scene from a TOML file or a bundled scene name.
 
     Args:
         path_or_name: a path to a ``.toml`` scene file, or a bundled scene name (``fourbar``, ...).
+        keyframe: the robot file's keyframe to start from (an MJCF ``<key>`` by name; ``robot.keyframe`` of the
+            scene); None: the scene's, else the file's first.
         parameters: generator parameters overriding the scene file's (e.g. ``N=20`` for
             ``nfourbar``).
 
@@ -167,7 +169,9 @@ def load_scene(path_or_name: str | Path, **parameters: Any) -> Scene:
     """
     path = _locate(path_or_name)
     data = read_scene_file(path)
-    return scene_from_dict(data, name=path.stem, base_dir=path.parent, parameters=parameters, source=path)
+    return scene_from_dict(
+        data, name=path.stem, base_dir=path.parent, parameters=parameters, source=path, keyframe=keyframe
+    )
 
 
 def _locate(path_or_name: str | Path) -> Path:
@@ -191,6 +195,7 @@ def scene_from_dict(
     base_dir: Path | None = None,
     parameters: dict[str, Any] | None = None,
     source: Path | None = None,
+    keyframe: str | None = None,
 ) -> Scene:
     """Build a :class:`Scene` from parsed scene-file content (see :func:`load_scene`)."""
     check_depth(data, f"scene file {source}" if source else f"scene {name}")
@@ -215,28 +220,30 @@ def scene_from_dict(
     name = str(data.get("name", name))
     description = str(data.get("description", ""))
 
-    robot = table(data.get("robot"), "robot")
+    robot = table(data.get("robot"), "robot") | ({} if keyframe is None else {"keyframe": keyframe})
     check_keys(robot, ROBOT_KEYS | set(READERS), "robot")
     source_robot = read_robot(robot, base_dir)
     full_model = source_robot.model
     _ignore_limits(full_model, robot.get("ignore_limits", []))
+    locked = robot.get("locked_joints", [])
     for key, entries in source_robot.tables.items():  # the file's closures, relations, springs before the scene's
-        data[key] = entries + list_of_tables(data.get(key, []), key)
+        moving = [entry for entry in entries if not (isinstance(locked, list) and entry.get("joint") in locked)]
+        data[key] = moving + list_of_tables(data.get(key, []), key)
 
     initial = table(data.get("initial", {}), "initial")
     check_keys(initial, INITIAL_KEYS, "initial")
     q_table = table(initial.get("q", {}), "initial.q")
     v_table = table(initial.get("v", {}), "initial.v")
-    q_full = _configuration(full_model, {j: x for j, x in q_table.items() if full_model.existJointName(j)})
+    start = robot_start(source_robot, full_model)[0]
+    q_full = _configuration(full_model, {j: x for j, x in q_table.items() if full_model.existJointName(j)}, start)
     check_configuration(full_model, q_full, "initial.q")
 
-    locked = robot.get("locked_joints", [])
     if not isinstance(locked, list) or not all(isinstance(j, str) for j in locked):
         raise SceneError("robot.locked_joints must be a list of joint names")
     check_locked_joints(locked)
     locked_ids = [joint_id(full_model, j, "robot.locked_joints") for j in locked]
     if locked_ids:
-        model = pin.buildReducedModel(full_model, locked_ids, q_full)
+        model = reduce_model(full_model, locked_ids, q_full)[0]
     else:
         model = full_model.copy()
     locked_positions = {j: float(q_full[full_model.joints[joint_id(full_model, j, "robot")].idx_q]) for j in locked}
@@ -249,11 +256,12 @@ def scene_from_dict(
     for j in v_table:
         if j in locked:
             raise SceneError(f"initial.v: joint {j!r} is locked (robot.locked_joints); it cannot move")
-    q0 = _configuration(model, q_table)
+    start, start_v = robot_start(source_robot, model)
+    q0 = _configuration(model, q_table, start)
     check_configuration(model, q0, "initial.q")
     place_objects(objects, q0, set(q_table))
     check_model(model)
-    v0 = _velocity(model, v_table)
+    v0 = _velocity(model, v_table, start_v)
     check_velocity(model, v0, "initial.v")
 
     tables = SceneTables(model, q0, {item.name: item for item in objects})
@@ -433,8 +441,9 @@ def _joint_kind(model: pin.Model, joint_id: int) -> str:
     return "other"
 
 
-def _configuration(model: pin.Model, table: dict[str, Any]) -> np.ndarray:
-    q = pin.neutral(model)
+def _configuration(model: pin.Model, table: dict[str, Any], start: np.ndarray) -> np.ndarray:
+    """``start`` [rad, m] with the joints of ``table`` (``initial.q``) set."""
+    q = start.copy()
     for joint, value in table.items():
         jid = joint_id(model, joint, "initial.q")
         jm = model.joints[jid]
@@ -448,8 +457,9 @@ def _configuration(model: pin.Model, table: dict[str, Any]) -> np.ndarray:
     return q
 
 
-def _velocity(model: pin.Model, table: dict[str, Any]) -> np.ndarray:
-    v = np.zeros(model.nv)
+def _velocity(model: pin.Model, table: dict[str, Any], start: np.ndarray) -> np.ndarray:
+    """``start`` [rad/s, m/s] with the joints of ``table`` (``initial.v``) set."""
+    v = start.copy()
     for joint, value in table.items():
         jid = joint_id(model, joint, "initial.v")
         jm = model.joints[jid]

@@ -45,10 +45,13 @@ class ClosureSeries:
     @classmethod
     def of(cls, model: ConstrainedModel) -> ClosureSeries | None:
         """The compiled series of ``model``, or None when a force element stores energy (a spring's potential), a
-        constraint has no compiled rows (its rows are Python's) or is not holonomic, or a row is unilateral (its
-        violation counts one side only)."""
+        joint has an armature (rotor inertia: the compiled energy is Pinocchio's sum), a constraint has no compiled
+        rows (its rows are Python's) or is not holonomic, or a row is unilateral (its violation counts one side
+        only)."""
         constraints = model.constraints
         if any(element.stores_energy for element in model.forces) or constraints.layout.unilateral.any():
+            return None
+        if np.asarray(model.model.armature).any():  # Pinocchio's sum is wrong with rotors (model.kinetic_energy)
             return None
         if any(c.compiled_rows() is None or not c.holonomic for c in constraints.constraints):
             return None

@@ -87,7 +87,7 @@ def parameters(pairs: list[str]) -> dict[str, Any]:
 
 
 def scene_arguments(parser: argparse.ArgumentParser) -> None:
-    """The scene (bundled name or file), ``--param``, ``--json`` and ``--memory-limit``."""
+    """The scene (bundled name or file), ``--param``, ``--keyframe``, ``--json`` and ``--memory-limit``."""
     parser.add_argument(
         "scene",
         help="bundled scene name (fourbar, nfourbar, allegro-sphere, ...: see docs/guide/scenes.md) or a .toml file",
@@ -95,8 +95,18 @@ def scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUE", help="scene generator parameter, e.g. N=20"
     )
+    parser.add_argument(
+        "--keyframe",
+        metavar="NAME",
+        help="start from this keyframe of the robot's MJCF file (default: the scene's robot.keyframe, else the first)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     memory_limit_argument(parser)
+
+
+def scene_options(args: argparse.Namespace) -> dict[str, Any]:
+    """:func:`~pinstab.scene.load_scene`'s keywords from :func:`scene_arguments`: ``--param``'s and ``--keyframe``."""
+    return {**parameters(args.param), "keyframe": args.keyframe}
 
 
 def memory_limit_argument(parser: argparse.ArgumentParser) -> None:

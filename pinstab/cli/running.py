@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import ContactInfeasibleError, PinstabError, ServoInfeasibleError
 from ..simulate import HELD_ONLY
 from .exits import Kept
-from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, parameters
+from .options import DEFAULT_METHOD, METHOD_OPTION, SOLVER_OPTION, assembly_tolerance, given_options, scene_options
 
 
 def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | None = None, scene: Any = None):
@@ -21,7 +21,7 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
     from ..simulate import simulate
 
     if scene is None:
-        scene = load_scene(args.scene, **parameters(args.param))
+        scene = load_scene(args.scene, **scene_options(args))
     if before is not None:
         before(scene)
     contacts = _contacts(args, scene)

@@ -17,7 +17,14 @@ from .urdf import read_named
 load_extensions(__name__, __path__)
 
 URDF_KEYS = ("urdf", "urdf_text")  # the source keys of URDF documents, which copies are made of
-ROBOT_KEYS = {"name", "free_flyer", "locked_joints", "copies", "ignore_limits"}  # with one key per reader (READERS)
+ROBOT_KEYS = {
+    "name",
+    "free_flyer",
+    "locked_joints",
+    "copies",
+    "ignore_limits",
+    "keyframe",
+}  # with one key per reader (READERS)
 
 
 def read_robot(robot: dict[str, Any], base_dir: Path) -> RobotSource:
@@ -45,6 +52,7 @@ def _read(robot: dict[str, Any], base_dir: Path) -> RobotSource:
     options = ReaderOptions(base_dir, free_flyer)
     if sources[0] != "name":
         _refuse_copies(robot, sources[0])
+        _refuse_keyframe(robot, sources[0])
         return READERS.entry(sources[0]).factory(robot, options)
     if not isinstance(robot["name"], str):
         raise SceneError(f"robot.name must be a string, got {robot['name']!r}")
@@ -52,7 +60,9 @@ def _read(robot: dict[str, Any], base_dir: Path) -> RobotSource:
     if path.suffix != ".urdf":  # another format: the reader registered for its suffix
         reader = next(entry for entry in READERS.entries() if path.suffix in entry.capabilities)
         _refuse_copies(robot, reader.name)
+        _refuse_keyframe(robot, reader.name)
         return reader.factory({**robot, reader.name: str(path)}, options)
+    _refuse_keyframe(robot, "urdf")
     # meshes are named package://example-robot-data/robots/...: the share/ folder resolves them
     package_dirs = [str(package_dir), str(package_dir.parent), str(package_dir.parent.parent)]
     return read_named(robot, options, path, package_dirs)
@@ -69,6 +79,16 @@ def _refuse_copies(robot: dict[str, Any], format: str) -> None:
             f"robot.copies: copies of a robot are made from a URDF (robot.urdf, robot.urdf_text or a URDF robot.name), "
             f"not {format.upper()}"
         )
+
+
+def _refuse_keyframe(robot: dict[str, Any], format: str) -> None:
+    """``robot.keyframe`` of a robot read in ``format``: keyframes are read from MJCF files only.
+
+    Raises:
+        SceneError: naming the format.
+    """
+    if "keyframe" in robot and format != "mjcf":
+        raise SceneError(f"robot.keyframe: keyframes are read from MJCF files (robot.mjcf), not {format.upper()}")
 
 
 __all__ = [

@@ -8,9 +8,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pinocchio as pin
 
 from ..registry import Registry
+
+RENAMED = "#body"  # appended to a body frame's name while a joint of its name is locked (reduce_model)
 
 
 @dataclass
@@ -28,6 +31,8 @@ class RobotSource:
         notes: what the reader left out or changed, in words (reported by ``pinstab check``).
         geometry: ``geometry(model, kind, package_dirs)`` builds the geometry of ``model`` of a kind (visual,
             collision), meshes found in ``package_dirs``; None: the file has no geometry.
+        start: the start the file gives, (q, v) of ``model`` [rad, m; rad/s, m/s] (an MJCF keyframe or MuJoCo's
+            qpos0); None: the neutral configuration at rest.
     """
 
     model: pin.Model
@@ -39,6 +44,7 @@ class RobotSource:
     tables: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     geometry: Callable[[pin.Model, pin.GeometryType, list[str]], pin.GeometryModel] | None = None
+    start: tuple[np.ndarray, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -76,8 +82,49 @@ def robot_geometry(
     reference = pin.neutral(full)
     for joint, position in locked.items():
         reference[full.joints[full.getJointId(joint)].idx_q] = position
-    _, reduced = pin.buildReducedModel(full, geometry, [full.getJointId(joint) for joint in locked], reference)
-    return reduced
+    return reduce_model(full, [full.getJointId(joint) for joint in locked], reference, geometry)[1]
+
+
+def robot_start(robot: RobotSource | None, model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
+    """The start (q, v) [rad, m; rad/s, m/s] the robot's file gives, of ``model`` (the robot's model reduced by
+    locked joints: each joint's coordinates by its name), or the neutral configuration at rest."""
+    q, v = pin.neutral(model), np.zeros(model.nv)
+    if robot is None or robot.start is None:
+        return q, v
+    full = robot.model
+    for joint in range(1, model.njoints):
+        if not full.existJointName(model.names[joint]):
+            continue
+        given, own = full.joints[full.getJointId(model.names[joint])], model.joints[joint]
+        q[own.idx_q : own.idx_q + own.nq] = robot.start[0][given.idx_q : given.idx_q + given.nq]
+        v[own.idx_v : own.idx_v + own.nv] = robot.start[1][given.idx_v : given.idx_v + given.nv]
+    return q, v
+
+
+def reduce_model(
+    full: pin.Model, locked: list[int], q: np.ndarray, geometry: pin.GeometryModel | None = None
+) -> tuple[pin.Model, pin.GeometryModel | None]:
+    """``pin.buildReducedModel`` of ``full`` (and of ``geometry``, when given) with the joints ``locked`` at ``q``
+    [rad or m]. Where a body frame shares its name with a joint (an MJCF body and its joint, as in the bundled
+    four-bar), Pinocchio 4.1 fails to tell the joint's frame from the body's (``Several frames match``): such body
+    frames are renamed for the reduction and named back after it."""
+    names = set(full.names)
+    model = full.copy()
+    renamed: dict[str, str] = {}
+    for index, frame in enumerate(model.frames):
+        if frame.name in names and frame.type == pin.FrameType.BODY:
+            renamed[f"{frame.name}{RENAMED}"] = frame.name
+            frame.name += RENAMED
+            model.frames[index] = frame
+    if geometry is None:
+        reduced, reduced_geometry = pin.buildReducedModel(model, locked, q), None
+    else:
+        reduced, reduced_geometry = pin.buildReducedModel(model, geometry, locked, q)
+    for index, frame in enumerate(reduced.frames):
+        if frame.name in renamed:
+            frame.name = renamed[frame.name]
+            reduced.frames[index] = frame
+    return reduced, reduced_geometry
 
 
 # key of the [robot] table naming the file (``urdf = "arm.urdf"``) -> reader(robot table, options) -> RobotSource;

@@ -8,20 +8,23 @@ that parser is wrong or silent:
   ``<worldbody>`` and its subtree): a SceneError names the ones it dropped;
 - a static first body of ``<worldbody>`` is put at its pose (the parser leaves it at the origin); an
   ``axisangle`` with an axis not of unit length is refused (the parser does not normalize it);
-- joint limits: ``range`` and ``limited`` (``<compiler autolimits>``, ``<default>`` classes), a hinge's range in
-  the file's angle unit, a slide's in metres (the parser also converts a slide's range as an angle and limits a
-  joint with ``limited="false"``); an unlimited joint has infinite limits;
+- the parser is given a temporary copy of the file written as MuJoCo reads it (:func:`parser_file`): the
+  ``<default>`` classes applied to every element (the parser skips many attributes of a class: a joint's ``pos``,
+  a geom's ``type``, ``mass`` and ``pos``), the includes inlined (the parser ignores ``<include>``), the
+  ``<compiler>`` first (the parser reads the bodies with only what came before them);
+- joints (:mod:`.mjcf_joints`): limits (``range``, ``limited``, in the file's units), ``damping`` and
+  ``stiffness``/``springref`` as ``joint-spring`` forces, ``armature`` (the parser's rotor inertia);
+- the start (:mod:`.mjcf_keyframes`): the keyframe ``robot.keyframe`` names, else the file's first, else MuJoCo's
+  qpos0 (the joints at ``ref``);
 - ``<equality>``: closures and joint relations with their names (:mod:`.mjcf_equalities`);
 - the file within the bounds on size, depth and memory, its masses and inertias physical, checked before the
   parser reads it, and the inertias it compiled after (:mod:`.mjcf_bodies`);
-- ``<include>``: the parser ignores it (the included bodies, defaults and assets left out); when the file
-  includes others, the parser is given a temporary copy with the includes inlined (:func:`parser_file`), as when
-  a ``<compiler>`` or ``<default>`` comes after the bodies (which the parser reads without it) or an element names
-  the class ``main`` (which the parser does not know by that name);
 - Pinocchio's remaining refusals quoted, naming the file (a SceneError).
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
-it), actuators, tendons, sensors, contact pairs, a ball joint's cone limit, the soft-constraint parameters.
+it), actuators, tendons, sensors, contact pairs (each named), a ball joint's cone limit, joint friction
+(``frictionloss``), the soft-constraint parameters of equalities and limits (pinstab's are rigid), a keyframe's
+controls.
 """
 
 from __future__ import annotations
@@ -40,15 +43,16 @@ import pinocchio as pin
 from ..errors import SceneError
 from ..memory import named_when_exhausted
 from .base import READERS, ReaderOptions, RobotSource
-from .mjcf_bodies import check_before_parser, check_compiled, joint_kind
+from .mjcf_bodies import check_before_parser, check_compiled
 from .mjcf_equalities import EqualityReader
+from .mjcf_joints import JointReader
+from .mjcf_keyframes import read_start
 from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
-NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out
-FIRST_SECTIONS = ("compiler", "default")  # read by MuJoCo before the bodies wherever they stand
+NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out (actuators: the scene's
+# [actuation] and [[servos]] drive the robot)
 UNIT_AXIS_TOLERANCE = 1e-9
-SCALAR_JOINTS = {"hinge": 1, "slide": 1, "ball": 4, "free": 7}  # MJCF joint type -> configuration size
 
 
 def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
@@ -75,17 +79,31 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
     check_compiled(document, model)
     _check_axis_angles(document)
     _place_root(document, model)
-    notes = _joint_limits(document, model)
+    joints = JointReader(document, model)
+    joints.read()
     equalities = EqualityReader(document, model)
     equalities.read()
-    notes += equalities.notes + _not_read(document)
+    notes = joints.notes + equalities.notes + _not_read(document)
+    keyframe = robot.get("keyframe")
+    if keyframe is not None and not isinstance(keyframe, str):
+        raise SceneError(f"robot.keyframe must be the name of a <key> of {path}, got {keyframe!r}")
+    start = read_start(document, model, keyframe, notes)
+    notes.append(f"the start is {start.label} (robot.keyframe or --keyframe names another key)")
+    tables = equalities.tables | ({"forces": joints.forces} if joints.forces else {})
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         with parser_file(document) as parsed:  # placed by the model's body frames; meshes by path
             return pin.buildGeomFromMJCF(full, str(parsed), kind)
 
     return RobotSource(
-        model, "mjcf", path, package_dirs=[str(path.parent)], tables=equalities.tables, notes=notes, geometry=geometry
+        model,
+        "mjcf",
+        path,
+        package_dirs=[str(path.parent)],
+        tables=tables,
+        notes=notes,
+        geometry=geometry,
+        start=(start.q, start.v),
     )
 
 
@@ -141,91 +159,52 @@ def _place_root(document: MjcfDocument, model: pin.Model) -> None:
             model.frames[index] = frame
 
 
-def _joint_limits(document: MjcfDocument, model: pin.Model) -> list[str]:
-    """Write the file's joint limits into ``model``'s position limits; notes on what could not be."""
-    notes: list[str] = []
-    for body in document.root.iter("body"):
-        joints = [j for j in body if j.tag in ("joint", "freejoint")]
-        names = [str(j.get("name")) for j in joints]
-        if len(joints) > 1:
-            notes.append(f"body {body.get('name')!r}: its joints {', '.join(names)} are one composite joint")
-        offset = 0
-        for joint, name in zip(joints, names, strict=True):
-            where = f"robot.mjcf joint {name!r}"
-            kind = joint_kind(document, joint, where)
-            index = _q_index(model, name, names[0], offset)
-            offset += SCALAR_JOINTS[kind]
-            limits = _limits(document, joint, kind, where)
-            if limits is None:
-                continue
-            if kind == "ball":
-                notes.append(f"joint {name!r}: the cone limit of a ball joint is not read")
-            elif index is None:
-                notes.append(f"joint {name!r}: not found in Pinocchio's model, its range is not read")
-            else:
-                model.lowerPositionLimit[index], model.upperPositionLimit[index] = limits
-    return notes
-
-
-def _limits(document: MjcfDocument, joint: ET.Element, kind: str, where: str) -> tuple[float, float] | None:
-    """The joint's (lower, upper) position limits [rad or m], (-inf, inf) when unlimited, None for a free joint."""
-    if kind == "free":
-        return None
-    limited = document.attribute(joint, "limited") or "auto"
-    has_range = document.attribute(joint, "range") is not None
-    if limited not in ("true", "false", "auto"):
-        raise SceneError(f"{where}: limited={limited!r} is not one of true, false, auto")
-    if limited == "false" or (limited == "auto" and not (document.autolimits and has_range)):
-        return -np.inf, np.inf
-    lower, upper = document.numbers(joint, "range", 2, where)
-    if lower > upper:
-        raise SceneError(f"{where}: range lower {lower} > upper {upper}")
-    factor = document.angle_factor() if kind in ("hinge", "ball") else 1.0
-    return lower * factor, upper * factor
-
-
-def _q_index(model: pin.Model, name: str, first: str, offset: int) -> int | None:
-    """The configuration index of joint ``name``: its own joint, or its place in the body's composite joint."""
-    for joint_name, start in ((name, 0), (f"Composite_{first}", offset)):
-        if model.existJointName(joint_name):
-            return model.joints[model.getJointId(joint_name)].idx_q + start
-    return None
-
-
 @contextmanager
 def parser_file(document: MjcfDocument) -> Iterator[Path]:
-    """The file Pinocchio's MJCF parser is given: the model's own, or a temporary copy (removed on leaving), with
-    the mesh and texture folders made absolute (as MuJoCo reads them: relative to the model's folder), when the
-    parser would read the model's own otherwise than MuJoCo:
+    """The file Pinocchio's MJCF parser is given: a temporary copy of the model (removed on leaving) written as MuJoCo
+    reads it, where the parser alone would read it otherwise:
 
-    - it includes others (which the parser ignores): the includes inlined;
-    - a ``<compiler>`` or ``<default>`` comes after the bodies (the parser reads the bodies with only what came
-      before them: angles in degrees where the compiler says radians): those put first;
-    - an element names the class ``main`` (MuJoCo's name of the top ``<default>``, which the parser calls
-      otherwise, failing to find it): the top ``<default>`` named ``main``.
+    - the ``<default>`` classes applied to every element (:meth:`~.mjcf_xml.MjcfDocument.attributes`: nested
+      classes, ``childclass``, ``class``, MuJoCo's ``main``), written on the element, the classes removed: the parser
+      skips many attributes of a class (a joint's ``pos``, a geom's ``type``, ``mass`` and ``pos``: a gripper's
+      finger axes 1.9 cm off, a body's mass 76 % off); a ``pos`` beside a ``fromto`` is left out (the ``fromto``
+      places the geom, as in MuJoCo);
+    - the included files inlined (the parser ignores ``<include>``);
+    - the ``<compiler>`` put first (the parser reads the bodies with only what came before them: angles in degrees
+      where the compiler says radians);
+    - the mesh and texture folders made absolute (as MuJoCo reads them: relative to the model's folder);
+    - the keyframes left out (read by :mod:`.mjcf_keyframes`, which names a key of a wrong size).
     """
-    children = list(document.root)
-    ordered = sorted(children, key=lambda child: child.tag not in FIRST_SECTIONS)  # stable: the rest in order
-    main = any("main" in (element.get("class"), element.get("childclass")) for element in document.root.iter())
-    if not document.origins and not main and ordered == children:
-        yield document.path
-        return
-    top = document.root.find("default")
-    root = ET.Element(document.root.tag, document.root.attrib)  # the same elements, compilers and top default rewritten
+    root = ET.Element(document.root.tag, document.root.attrib)
     if document.root.find("compiler") is None:
         root.append(ET.Element("compiler", _absolute_folders({}, document.path.parent)))
-    for child in ordered:
+    for child in sorted(document.root, key=lambda child: child.tag != "compiler"):  # stable: the rest in order
         if child.tag == "compiler":
             compiler = ET.SubElement(root, "compiler", _absolute_folders(child.attrib, document.path.parent))
             compiler.extend(child)
-        elif child is top:
-            ET.SubElement(root, "default", {**child.attrib, "class": "main"}).extend(child)
-        else:
-            root.append(child)
+        elif child.tag not in ("default", "keyframe"):  # keyframes: read by pinstab (.mjcf_keyframes)
+            root.append(_with_defaults(document, child))
     with tempfile.TemporaryDirectory(prefix="pinstab-mjcf-") as temporary:
         parsed = Path(temporary) / document.path.name
         parsed.write_text(_xml_text(root), encoding="utf-8")
         yield parsed
+
+
+def _with_defaults(document: MjcfDocument, top: ET.Element) -> ET.Element:
+    """A copy of ``top`` and the elements below it, each with the attributes MuJoCo reads through the defaults,
+    without ``class`` and ``childclass`` (walked without recursion)."""
+    copied = ET.Element(top.tag)
+    stack = [(top, copied)]
+    while stack:
+        element, copy = stack.pop()
+        attributes = document.attributes(element)
+        if "fromto" in attributes:
+            attributes.pop("pos", None)
+        copy.attrib.update(attributes)
+        copy.text, copy.tail = element.text, element.tail
+        for child in element:
+            stack.append((child, ET.SubElement(copy, child.tag)))
+    return copied
 
 
 def _absolute_folders(attributes: dict[str, str], folder: Path) -> dict[str, str]:
@@ -257,7 +236,13 @@ def _xml_text(root: ET.Element) -> str:
 
 
 def _not_read(document: MjcfDocument) -> list[str]:
-    notes = [f"<{tag}> not read" for tag in NOT_READ if document.root.find(tag) is not None]
+    """Notes on the file's sections pinstab leaves out (:data:`NOT_READ`, each element named) and its gravity."""
+    notes = []
+    for tag in NOT_READ:
+        elements = [item for section in document.root.findall(tag) for item in section]
+        if elements:
+            named = ", ".join(f"{item.tag} {item.get('name', f'number {i}')!r}" for i, item in enumerate(elements))
+            notes.append(f"<{tag}> not read: {named}")
     option = document.root.find("option")
     if option is not None and option.get("gravity") is not None:
         notes.append(f"<option gravity={option.get('gravity')!r}> not read: the scene's gravity key sets gravity")

@@ -153,7 +153,7 @@ def _check_numbers(document: MjcfDocument, element: ET.Element, where: str) -> N
     for key in element.attrib:
         if key in NUMBERS:
             document.numbers(element, key, NUMBERS[key], where)
-    text = element.get("size")
+    text = document.attribute(element, "size") if "size" in element.attrib else None  # with its class's last ones
     if text is not None and element.tag in ("geom", "site"):
         count = len(text.split())
         if not 1 <= count <= 3:

@@ -24,6 +24,7 @@ from .bounds import check_nesting, read_bounded
 # file); files that include 10 files each, 3 levels deep, are 1110
 MAX_INCLUDED_FILES = 100
 MAX_INCLUDE_DEPTH = 10  # includes within includes (a scene that includes a robot that includes its parts: 2)
+ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")  # the ways an element's orientation is given
 
 
 @dataclass
@@ -91,17 +92,41 @@ class MjcfDocument:
         return self.path if element is None else self.origins[element]
 
     def attribute(self, element: ET.Element, key: str) -> str | None:
-        """``key`` of ``element``, else of its default class (its ``class``, the nearest ``childclass`` of the
-        bodies holding it, or ``main``) and the classes that class is nested in."""
-        if key in element.attrib:
-            return element.get(key)
+        """``key`` of ``element`` as MuJoCo reads it through the defaults (:meth:`attributes`)."""
+        return self.attributes(element).get(key)
+
+    def attributes(self, element: ET.Element) -> dict[str, str]:
+        """The attributes of ``element`` as MuJoCo reads them: those of its default class (its ``class``, the nearest
+        ``childclass`` of the bodies holding it, or ``main``) and of the classes that class is nested in, the nearer
+        class first, under the element's own; an orientation given by the element replaces the classes' (one of
+        :data:`ORIENTATIONS`), and a ``size`` with fewer numbers than the class's keeps the class's last ones (a
+        capsule of ``size="0.05"`` keeps its class's half-length)."""
+        tag = self._default_tag(element)
+        merged: dict[str, str] = {}
         node = self.classes.get(self._class_of(element))
+        chain: list[ET.Element] = []
         while node is not None:
-            default = node.find(element.tag)
-            if default is not None and key in default.attrib:
-                return default.get(key)
+            chain.append(node)
             node = self.parents.get(node) if node is not self.classes.get("main") else None
-        return None
+        for default in reversed(chain):  # main first, the nearest class last
+            found = default.find(tag)
+            if found is not None:
+                merged.update(found.attrib)
+        own = {key: value for key, value in element.attrib.items() if key not in ("class", "childclass")}
+        if any(key in own for key in ORIENTATIONS):
+            merged = {key: value for key, value in merged.items() if key not in ORIENTATIONS}
+        if "size" in own and "size" in merged:
+            given, inherited = own["size"].split(), merged["size"].split()
+            own["size"] = " ".join(given + inherited[len(given) :])
+        return merged | own
+
+    def _default_tag(self, element: ET.Element) -> str:
+        """The tag of ``element``'s defaults in a ``<default>`` class: ``equality`` for an equality (``<joint>`` of
+        ``<equality>`` is not a joint), ``tendon`` for a tendon, else its own tag."""
+        section = self.parents.get(element)
+        if section is not None and section.tag in ("equality", "tendon"):
+            return section.tag
+        return element.tag
 
     def _class_of(self, element: ET.Element) -> str:
         if "class" in element.attrib:

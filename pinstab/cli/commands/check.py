@@ -18,8 +18,8 @@ from ..options import (
     assembly_argument,
     assembly_tolerance,
     limits_argument,
-    parameters,
     scene_arguments,
+    scene_options,
 )
 from .base import Command, register
 
@@ -58,7 +58,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...simulate.held import refuse_separating_contacts
     from ...simulate.limits import held_limits
 
-    scene = load_scene(args.scene, **parameters(args.param))
+    scene = load_scene(args.scene, **scene_options(args))
     held_limits(scene, scene.q0, not args.ignore_limits)
     servos = (
         servo_at_start(scene, DEFAULT_METHOD, assembly_tolerance(args))

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..options import parameters, scene_arguments, vector_argument
+from ..options import scene_arguments, scene_options, vector_argument
 from .base import Command, register
 
 
@@ -34,7 +34,7 @@ def grasp(args: argparse.Namespace) -> dict[str, Any]:
     from ...grasp.report import analyse_scene_grasps
     from ...scene import load_scene
 
-    scene = load_scene(args.scene, **parameters(args.param))
+    scene = load_scene(args.scene, **scene_options(args))
     grasps = analyse_scene_grasps(scene, facets=args.facets, squeeze=args.squeeze, tilt_axis=args.tilt_axis)
     return {"scene": scene.name, "objects": {name: grasp.to_json() for name, grasp in grasps.items()}}
 

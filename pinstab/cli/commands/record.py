@@ -97,9 +97,9 @@ def _saved_run(args: argparse.Namespace):
     """(scene, trajectory, None) of ``--from``: the run file read whole, checked against the scene."""
     from ...scene import load_scene
     from ...trajectory import Trajectory
-    from ..options import parameters
+    from ..options import scene_options
 
-    scene = load_scene(args.scene, **parameters(args.param))
+    scene = load_scene(args.scene, **scene_options(args))
     trajectory = Trajectory.load(args.run_file)
     if trajectory.q.shape[1] != scene.model.nq:
         raise PinstabError(

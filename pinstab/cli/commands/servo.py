@@ -9,7 +9,7 @@ import numpy as np
 
 from ...errors import SceneError
 from ..exits import EXIT_CODES
-from ..options import DEFAULT_METHOD, assembly_tolerance, parameters, run_options, scene_arguments
+from ..options import DEFAULT_METHOD, assembly_tolerance, run_options, scene_arguments, scene_options
 from .base import Command, register
 from .check import servo_at_start
 from .run import run
@@ -36,7 +36,7 @@ def servo(args: argparse.Namespace) -> dict[str, Any]:
     from ...scene import load_scene
     from ...simulate.limits import held_limits
 
-    scene = load_scene(args.scene, **parameters(args.param))
+    scene = load_scene(args.scene, **scene_options(args))
     if not any(c.prescribed for c in scene.constraints):
         raise SceneError(f"scene {scene.name} has no prescribed constraints ([[servos]]) to realize")
     if args.check:

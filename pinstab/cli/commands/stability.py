@@ -9,7 +9,7 @@ from ...files import check_output
 from ...integration import INTEGRATORS
 from ...solvers import SOLVERS
 from ...stability_map import map_methods
-from ..options import output_argument, parameters, scene_arguments
+from ..options import output_argument, scene_arguments, scene_options
 from .base import Command, register
 
 
@@ -53,7 +53,7 @@ def stability(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.output:
         check_output(args.output, ".png", "chart")
-    scene = load_scene(args.scene, **parameters(args.param))
+    scene = load_scene(args.scene, **scene_options(args))
     result = stability_map(
         scene,
         method=args.method,
