@@ -98,11 +98,15 @@ def assert_same_joints(scene: Scene, model, q: np.ndarray) -> None:
         np.testing.assert_allclose(ours[name][2], inertia, atol=STATIC_TOL, err_msg=f"inertia of {name}")
 
 
-def mujoco_run(model, qpos: np.ndarray, qvel: np.ndarray, duration: float, every: int) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's run of ``model`` (its own options: RK4, its timestep, contacts off) from (qpos, qvel): the times
-    [s] and qpos every ``every`` steps."""
+def mujoco_run(
+    model, qpos: np.ndarray, qvel: np.ndarray, duration: float, every: int, ctrl: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's run of ``model`` (its own options: RK4, its timestep, contacts off) from (qpos, qvel) with the
+    actuators' controls ``ctrl`` (default 0): the times [s] and qpos every ``every`` steps."""
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos, qvel
+    if ctrl is not None:
+        data.ctrl[:] = ctrl
     steps = round(duration / model.opt.timestep)
     times, positions = [0.0], [data.qpos.copy()]
     for step in range(1, steps + 1):
@@ -113,10 +117,11 @@ def mujoco_run(model, qpos: np.ndarray, qvel: np.ndarray, duration: float, every
     return np.array(times), np.array(positions)
 
 
-def largest_difference(scene: Scene, model, duration: float = 1.0, **run) -> float:
+def largest_difference(scene: Scene, model, duration: float = 1.0, ctrl: np.ndarray | None = None, **run) -> float:
     """The largest |q_pinstab - qpos_MuJoCo| [rad or m] over ``duration`` [s] from the scene's start (MuJoCo started
-    at the same state), pinstab's run by dop853 at tight tolerances sampled where MuJoCo's is."""
-    times, positions = mujoco_run(model, scene.q0, scene.v0, duration, every=100)
+    at the same state, its controls ``ctrl``), pinstab's run by dop853 at tight tolerances sampled where MuJoCo's
+    is."""
+    times, positions = mujoco_run(model, scene.q0, scene.v0, duration, every=100, ctrl=ctrl)
     trajectory = simulate(scene, duration=duration, dt=float(times[1] - times[0]), rtol=1e-11, atol=1e-11, **run)
     assert np.allclose(trajectory.t, times, atol=1e-12)
     return float(np.max(np.abs(trajectory.q - positions)))

@@ -126,8 +126,8 @@ def test_joint_dynamics_pinstab_cannot_hold_are_refused_by_name(tmp_path: Path, 
 
 
 def test_check_lists_what_is_not_read(tmp_path: Path, capsys) -> None:
-    """An MJCF with friction, soft limits, an actuator, a soft equality of a <default> and a keyframe's controls:
-    every one is a note of ``pinstab check`` (its note list was empty)."""
+    """An MJCF with friction, soft limits, an actuator pinstab does not read (a cylinder), a soft equality of a
+    <default> and a keyframe: every one is a note of ``pinstab check`` (its note list was empty)."""
     path = tmp_path / "robot.xml"
     path.write_text(
         '<mujoco><compiler angle="radian"/><default><equality solref="0.01 1"/><joint frictionloss="0.2" range="-1 1"/>'
@@ -135,8 +135,8 @@ def test_check_lists_what_is_not_read(tmp_path: Path, capsys) -> None:
         '<worldbody><body name="a"><joint name="ja"/><geom size="0.1"/><body name="b"><joint name="jb" margin="0.1"/>'
         '<geom size="0.1"/></body></body></worldbody>'
         '<equality><joint name="pair" joint1="ja" joint2="jb"/></equality>'
-        '<actuator><motor name="m" joint="ja"/></actuator>'
-        '<keyframe><key name="k" qpos="0.1 0.1" ctrl="1"/></keyframe></mujoco>'
+        '<actuator><motor name="m" joint="ja"/><cylinder name="c" joint="jb"/></actuator>'
+        '<keyframe><key name="k" qpos="0.1 0.1" ctrl="1 0"/></keyframe></mujoco>'
     )
     (tmp_path / "scene.toml").write_text('[robot]\nmjcf = "robot.xml"\n')
     assert main(["check", str(tmp_path / "scene.toml"), "--json"]) == 0
@@ -146,8 +146,7 @@ def test_check_lists_what_is_not_read(tmp_path: Path, capsys) -> None:
         "joints 'ja', 'jb': their ranges are held as hard limits",
         "joint margin of 'jb' not read",
         "solref/solimp/torquescale of equalities 'pair' ignored",
-        "<actuator> not read: motor 'm'",
-        "keyframe 'k': ctrl not read",
+        "actuators not read (no force in the run): 'c' (<cylinder>)",
         "the start is keyframe 'k'",
     ):
         assert phrase in notes

@@ -55,8 +55,8 @@ from pinstab.scene import scene_from_dict
         ),
         (
             {"forces": [{"kind": "motor"}]},
-            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, joint-spring, "
-            r"joint-torque, spring-damper",
+            r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, "
+            r"joint-actuator, joint-spring, joint-torque, spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},

@@ -24,6 +24,7 @@ ROBOT_KEYS = {
     "copies",
     "ignore_limits",
     "keyframe",
+    "ctrl",
 }  # with one key per reader (READERS)
 
 
@@ -82,13 +83,15 @@ def _refuse_copies(robot: dict[str, Any], format: str) -> None:
 
 
 def _refuse_keyframe(robot: dict[str, Any], format: str) -> None:
-    """``robot.keyframe`` of a robot read in ``format``: keyframes are read from MJCF files only.
+    """``robot.keyframe`` or ``robot.ctrl`` of a robot read in ``format``: keyframes and actuators are read from MJCF
+    files only.
 
     Raises:
-        SceneError: naming the format.
+        SceneError: naming the key and the format.
     """
-    if "keyframe" in robot and format != "mjcf":
-        raise SceneError(f"robot.keyframe: keyframes are read from MJCF files (robot.mjcf), not {format.upper()}")
+    for key, what in (("keyframe", "keyframes"), ("ctrl", "actuators' controls")):
+        if key in robot and format != "mjcf":
+            raise SceneError(f"robot.{key}: {what} are read from MJCF files (robot.mjcf), not {format.upper()}")
 
 
 __all__ = [

@@ -22,9 +22,9 @@ that parser is wrong or silent:
 - Pinocchio's remaining refusals quoted, naming the file (a SceneError).
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
-it), actuators, tendons, sensors, contact pairs (each named), a ball joint's cone limit, joint friction
-(``frictionloss``), the soft-constraint parameters of equalities and limits (pinstab's are rigid), a keyframe's
-controls.
+it), actuators other than a joint's motor, position, velocity or affine general one (:mod:`.mjcf_actuators`),
+tendons, sensors, contact pairs (each named), a ball joint's cone limit, joint friction (``frictionloss``), the
+soft-constraint parameters of equalities and limits (pinstab's are rigid).
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ import pinocchio as pin
 from ..errors import SceneError
 from ..memory import named_when_exhausted
 from .base import READERS, ReaderOptions, RobotSource
+from .mjcf_actuators import read_actuators
 from .mjcf_bodies import check_before_parser, check_compiled
 from .mjcf_equalities import EqualityReader
 from .mjcf_joints import JointReader
@@ -50,8 +51,7 @@ from .mjcf_keyframes import read_start
 from .mjcf_xml import MjcfDocument, read_document
 from .urdf import resolve_file
 
-NOT_READ = ("actuator", "tendon", "sensor", "contact")  # top-level sections pinstab leaves out (actuators: the scene's
-# [actuation] and [[servos]] drive the robot)
+NOT_READ = ("tendon", "sensor", "contact")  # top-level sections pinstab leaves out (actuators: .mjcf_actuators)
 UNIT_AXIS_TOLERANCE = 1e-9
 
 
@@ -89,7 +89,9 @@ def read_mjcf(robot: dict[str, Any], options: ReaderOptions) -> RobotSource:
         raise SceneError(f"robot.keyframe must be the name of a <key> of {path}, got {keyframe!r}")
     start = read_start(document, model, keyframe, notes)
     notes.append(f"the start is {start.label} (robot.keyframe or --keyframe names another key)")
-    tables = equalities.tables | ({"forces": joints.forces} if joints.forces else {})
+    scalar = {name for name, joint in zip(model.names, model.joints, strict=True) if joint.nv == 1}
+    forces = joints.forces + read_actuators(document, scalar, robot.get("ctrl"), start.ctrl, notes)
+    tables = equalities.tables | ({"forces": forces} if forces else {})
 
     def geometry(full: pin.Model, kind: pin.GeometryType, search: list[str]) -> pin.GeometryModel:
         with parser_file(document) as parsed:  # placed by the model's body frames; meshes by path

@@ -142,17 +142,45 @@ def joint_limits(document: MjcfDocument, joint: ET.Element, kind: str, where: st
     """The joint's (lower, upper) position limits [rad or m], (-inf, inf) when unlimited, None for a free joint."""
     if kind == "free":
         return None
-    limited = document.attribute(joint, "limited") or "auto"
-    has_range = document.attribute(joint, "range") is not None
-    if limited not in ("true", "false", "auto"):
-        raise SceneError(f"{where}: limited={limited!r} is not one of true, false, auto")
-    if limited == "false" or (limited == "auto" and not (document.autolimits and has_range)):
+    declared = limited_range(document, joint, "limited", "range", where)
+    if declared is None:
         return -np.inf, np.inf
-    lower, upper = document.numbers(joint, "range", 2, where)
-    if lower > upper:
-        raise SceneError(f"{where}: range lower {lower} > upper {upper}")
     factor = document.angle_factor() if kind in ("hinge", "ball") else 1.0
-    return lower * factor, upper * factor
+    return declared[0] * factor, declared[1] * factor
+
+
+def limited_range(
+    document: MjcfDocument,
+    element: ET.Element,
+    flag: str,
+    key: str,
+    where: str,
+    attributes: dict[str, str] | None = None,
+) -> tuple[float, float] | None:
+    """An element's range ``key`` (in the file's numbers) where its ``flag`` (``true``, ``false`` or ``auto``:
+    limited when the range is given and ``<compiler autolimits>`` is on) limits it, else None; read from
+    ``attributes`` where given (an actuator's, through MuJoCo's shared actuator default), else from the element's
+    attributes through its classes.
+
+    Raises:
+        SceneError: a flag of another value, a range that is not two numbers or whose low end is above its high.
+    """
+    given = document.attributes(element) if attributes is None else attributes
+    limited = given.get(flag) or "auto"
+    if limited not in ("true", "false", "auto"):
+        raise SceneError(f"{where}: {flag}={limited!r} is not one of true, false, auto")
+    text = given.get(key)
+    if limited == "false" or (limited == "auto" and not (document.autolimits and text is not None)):
+        return None
+    try:
+        lower, upper = (float(x) for x in (text or "").split())
+    except ValueError:
+        raise SceneError(f"{where}: {key}={text!r} is not 2 numbers") from None
+    if not (np.isfinite(lower) and np.isfinite(upper)):
+        raise SceneError(f"{where}: {key}={text!r} is not 2 finite numbers")
+    if lower > upper:
+        raise SceneError(f"{where}: {key} lower {lower} > upper {upper}")
+    return lower, upper
 
 
 def q_index(model: pin.Model, name: str, first: str, offset: int) -> int | None:

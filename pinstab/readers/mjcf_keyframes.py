@@ -21,17 +21,19 @@ from .mjcf_joints import SCALAR_JOINTS
 from .mjcf_xml import MjcfDocument
 
 VELOCITIES = {"hinge": 1, "slide": 1, "ball": 3, "free": 6}  # MJCF joint type -> qvel size
-NOT_READ = ("ctrl", "act", "mpos", "mquat")
+NOT_READ = ("act", "mpos", "mquat")
 
 
 @dataclass(frozen=True)
 class Start:
-    """A robot's start: ``q`` (nq,) [rad, m] and ``v`` (nv,) [rad/s, m/s] of the model the reader built, and what
-    it is (``keyframe 'home'`` or ``qpos0``)."""
+    """A robot's start: ``q`` (nq,) [rad, m] and ``v`` (nv,) [rad/s, m/s] of the model the reader built, what
+    it is (``keyframe 'home'`` or ``qpos0``), and the key's controls ``ctrl`` (one per actuator of the file, in
+    its order; None: not given, MuJoCo's 0)."""
 
     q: np.ndarray
     v: np.ndarray
     label: str
+    ctrl: np.ndarray | None = None
 
 
 def read_start(document: MjcfDocument, model: pin.Model, name: str | None, notes: list[str]) -> Start:
@@ -70,7 +72,9 @@ def read_start(document: MjcfDocument, model: pin.Model, name: str | None, notes
         left.append("time")
     if left:
         notes.append(f"keyframe {label!r}: {', '.join(left)} not read (the run starts at t = 0 s from qpos, qvel)")
-    return Start(q, v, f"keyframe {label!r}")
+    actuators = [item for section in document.root.findall("actuator") for item in section]
+    ctrl = _numbers(document, key, "ctrl", len(actuators), where)
+    return Start(q, v, f"keyframe {label!r}", ctrl)
 
 
 def _blocks(document: MjcfDocument, model: pin.Model) -> list[tuple[str, int, int]]:

@@ -103,12 +103,7 @@ class MjcfDocument:
         capsule of ``size="0.05"`` keeps its class's half-length)."""
         tag = self._default_tag(element)
         merged: dict[str, str] = {}
-        node = self.classes.get(self._class_of(element))
-        chain: list[ET.Element] = []
-        while node is not None:
-            chain.append(node)
-            node = self.parents.get(node) if node is not self.classes.get("main") else None
-        for default in reversed(chain):  # main first, the nearest class last
+        for default in self.default_chain(element):
             found = default.find(tag)
             if found is not None:
                 merged.update(found.attrib)
@@ -119,6 +114,16 @@ class MjcfDocument:
             given, inherited = own["size"].split(), merged["size"].split()
             own["size"] = " ".join(given + inherited[len(given) :])
         return merged | own
+
+    def default_chain(self, element: ET.Element) -> list[ET.Element]:
+        """The ``<default>`` classes that apply to ``element``: ``main`` first, the element's own class (its
+        ``class``, else the nearest ``childclass`` of the bodies holding it, else ``main``) last."""
+        node = self.classes.get(self._class_of(element))
+        chain: list[ET.Element] = []
+        while node is not None:
+            chain.append(node)
+            node = self.parents.get(node) if node is not self.classes.get("main") else None
+        return chain[::-1]
 
     def _default_tag(self, element: ET.Element) -> str:
         """The tag of ``element``'s defaults in a ``<default>`` class: ``equality`` for an equality (``<joint>`` of
