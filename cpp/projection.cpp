@@ -23,27 +23,38 @@ double largest(const VectorXd& x) {
 
 }  // namespace
 
+bool LeastChange::factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, double cutoff) {
+  factored_ = false;
+  if (!(mass.allFinite() && jacobian.allFinite())) return false;
+  const Eigen::LLT<Eigen::MatrixXd> factors(mass);
+  if (factors.info() != Eigen::Success) return false;
+  spread_ = factors.solve(jacobian.transpose());  // M^-1 G^T
+  if (jacobian.rows() && !inverse_.compute(jacobian * spread_, cutoff)) return false;
+  factored_ = true;
+  return true;
+}
+
+bool LeastChange::apply(const VectorXd& residual, VectorXd& change) const {
+  if (!factored_ || !residual.allFinite()) {
+    change.setConstant(spread_.rows(), NOT_A_NUMBER);
+    return false;
+  }
+  if (residual.size() == 0) {
+    change.setZero(spread_.rows());
+    return true;
+  }
+  change.noalias() = -(spread_ * inverse_.apply(residual));
+  return change.allFinite();
+}
+
 bool weighted_correction(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual,
                          double cutoff, VectorXd& change) {
-  change.setZero(mass.rows());
-  if (!(mass.allFinite() && jacobian.allFinite() && residual.allFinite())) {
-    change.setConstant(NOT_A_NUMBER);
+  LeastChange least;
+  if (!least.factor(mass, jacobian, cutoff)) {
+    change.setConstant(mass.rows(), NOT_A_NUMBER);
     return false;
   }
-  if (jacobian.rows() == 0) return true;
-  const Eigen::LLT<Eigen::MatrixXd> factors(mass);
-  if (factors.info() != Eigen::Success) {
-    change.setConstant(NOT_A_NUMBER);
-    return false;
-  }
-  const Eigen::MatrixXd spread = factors.solve(jacobian.transpose());  // M^-1 G^T
-  DelassusPseudoInverse inverse;
-  if (!inverse.compute(jacobian * spread, cutoff)) {
-    change.setConstant(NOT_A_NUMBER);
-    return false;
-  }
-  change.noalias() = -(spread * inverse.apply(residual));
-  return change.allFinite();
+  return least.apply(residual, change);
 }
 
 CorrectionOutcome project_positions(Projections& projections, const Group& group, const PositionRule& rule, double t,
@@ -100,6 +111,7 @@ CoreProjection::CoreProjection(const CoreKernel& kernel, double cutoff)
     for (int row = 0; row < block.rows(); ++row) {
       if (block.holonomic) holonomic_.push_back(rows_ + row);
     }
+    every_row_holonomic_ = every_row_holonomic_ && block.holonomic;
     rows_ += block.rows();
     if (block.kind == RowKind::python) python_rows_ += block.rows();
   }
@@ -115,6 +127,7 @@ CoreProjection::CoreProjection(const CoreKernel& kernel, double cutoff)
 bool CoreProjection::evaluate(const VectorXd& q, double t) {
   if (evaluated_ && t == t_ && q.size() == q_.size() && q == q_) return finite_;
   evaluated_ = true, finite_ = false, q_ = q, t_ = t;
+  enforced_factored_ = every_factored_ = false;
   // M first (crba passes its own kinematics), then the placements and Jacobians the rows read (pinstab's
   // Kinematics.update_jacobians)
   pinocchio::crba(model_, data_, q);
@@ -162,7 +175,11 @@ bool CoreProjection::position_step(const VectorXd& q, double t, VectorXd& step, 
     return false;
   }
   worst = largest(enforced_phi_);
-  return weighted_correction(mass_, enforced_jacobian_, enforced_phi_, cutoff_, step);
+  if (!enforced_factored_) {
+    enforced_factored_ = true;
+    enforced_.factor(mass_, enforced_jacobian_, cutoff_);
+  }
+  return enforced_.apply(enforced_phi_, step);
 }
 
 bool CoreProjection::velocity_projection(const VectorXd& q, const VectorXd& v, double t, VectorXd& projected) {
@@ -170,8 +187,17 @@ bool CoreProjection::velocity_projection(const VectorXd& q, const VectorXd& v, d
     projected.setConstant(model_.nv, NOT_A_NUMBER);
     return false;
   }
+  const LeastChange* rows = &every_;  // every row's factors: the holonomic rows' where they are every row
+  if (every_row_holonomic_) {
+    if (!enforced_factored_) enforced_.factor(mass_, enforced_jacobian_, cutoff_);
+    enforced_factored_ = true;
+    rows = &enforced_;
+  } else if (!every_factored_) {
+    every_.factor(mass_, jacobian_, cutoff_);
+    every_factored_ = true;
+  }
   VectorXd change;
-  const bool finite = weighted_correction(mass_, jacobian_, jacobian_ * v + time_term_, cutoff_, change);
+  const bool finite = rows->apply(jacobian_ * v + time_term_, change);
   projected = v + change;
   return finite;
 }

@@ -15,8 +15,22 @@ namespace pinstab {
 
 // -M^-1 G^T (G M^-1 G^T)^+ r [m or rad, m/s or rad/s]: the smallest change in the kinetic metric that removes the
 // residual r to first order, D^+ the Delassus matrix's pseudo-inverse (DelassusPseudoInverse, eigenvalues at most
-// cutoff times the largest left out), M^-1 G^T from the Cholesky factors of M. False (change NaN): M not positive
-// definite, or the rows or the change not finite.
+// cutoff times the largest left out), M^-1 G^T from the Cholesky factors of M; factored once for (M, G), applied to
+// any residual of the rows.
+class LeastChange {
+ public:
+  // false: M not positive definite, or M or G not finite
+  bool factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, double cutoff);
+  // the change for r (rows); false (change NaN): not factored, or r or the change not finite
+  bool apply(const VectorXd& residual, VectorXd& change) const;
+
+ private:
+  bool factored_ = false;
+  Eigen::MatrixXd spread_;  // M^-1 G^T
+  DelassusPseudoInverse inverse_;
+};
+
+// LeastChange's factors of (M, G) applied to r once.
 bool weighted_correction(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual,
                          double cutoff, VectorXd& change);
 
@@ -57,7 +71,8 @@ CorrectionOutcome correct(Projections& projections, const Group& group, bool pos
 
 // The projections on the core kernel's rows (its blocks, its Python part's rows), from a kinematics pass and M of its
 // own: the position step over the holonomic rows, the velocity projection over every row (the core's rows are
-// equalities). The last evaluation (its q and t) is reused by a velocity projection at the same state.
+// equalities). The last evaluation (its q and t) and its factors are reused at the same state (a velocity projection
+// after the position step there: one factorization where every row is holonomic).
 class CoreProjection : public Projections {
  public:
   CoreProjection(const CoreKernel& kernel, double cutoff);
@@ -76,7 +91,9 @@ class CoreProjection : public Projections {
   double cutoff_;
   int rows_ = 0, python_rows_ = 0;
   std::vector<int> holonomic_;  // the holonomic rows' indices
-  bool evaluated_ = false, finite_ = false;
+  bool evaluated_ = false, finite_ = false, every_row_holonomic_ = true;
+  bool enforced_factored_ = false, every_factored_ = false;  // at the last evaluation
+  LeastChange enforced_, every_;  // the factors of the holonomic rows, of every row
   double t_ = 0.0;
   VectorXd q_;
   Eigen::MatrixXd mass_, jacobian_, python_jacobian_, enforced_jacobian_;
