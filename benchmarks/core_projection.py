@@ -37,8 +37,8 @@ def python_correction():
     """The correction in Python: the general projector and the Python step loop (the core's dynamics kept)."""
     bind = ConstrainedSystem.bind
 
-    def python_bind(self, *arguments):
-        bind(self, *arguments)
+    def python_bind(self, *arguments, **keywords):
+        bind(self, *arguments, **keywords)
         self.projector = GeneralProjector(self.model)
 
     with (

@@ -104,8 +104,8 @@ def _python_path(patch) -> None:
     """The correction in Python: pinstab's rows and the general projector, the Python step loop."""
     bind = ConstrainedSystem.bind
 
-    def python_bind(self, *arguments):
-        bind(self, *arguments)
+    def python_bind(self, *arguments, **keywords):
+        bind(self, *arguments, **keywords)
         self.projector = GeneralProjector(self.model)
 
     patch.setattr(ConstrainedSystem, "bind", python_bind)
