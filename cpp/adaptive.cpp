@@ -150,8 +150,7 @@ VectorXd magnitude(const Group& group, const VectorXd& q) {
 }
 
 int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
-                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs,
-                    Correction* correction) {
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
   Trial trial(pair, kernel.nv(), kernel.group());
   VectorXd a(kernel.nv());
   auto take = [&](double t, VectorXd& q, VectorXd& v) {

@@ -7,7 +7,8 @@ Gauss-Newton iteration with its stopping rule (:func:`project_positions`) and th
 ``post`` (:func:`correct`) take any :class:`Projector`'s two projections: :class:`GeneralProjector` from pinstab's
 rows, :class:`pinstab.paths.native.NativeProjector` from Pinocchio's algorithms,
 :class:`pinstab.paths.banded.BandedProjector` from the banded solve (each called back from C++), and
-:class:`pinstab.paths.core.CoreProjector`, the core kernel's rows evaluated in C++ (no Python call); with those the compiled step loop corrects each of its steps (:func:`loop_correction`).
+:class:`pinstab.paths.core.CoreProjector`, the core kernel's rows evaluated in C++ (no Python call); with those the
+compiled step loop corrects each of its steps (:func:`loop_correction`).
 """
 
 from __future__ import annotations

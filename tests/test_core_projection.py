@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pinstab import load_scene, simulate
+from pinstab import build_system, load_scene, simulate
 from pinstab.errors import DivergenceError, ProjectionError
-from pinstab.integration.compiled import CompiledSteps
+from pinstab.integration.compiled import CompiledSteps, compiled_obstacle
+from pinstab.integration.schemes import INTEGRATORS
 from pinstab.kernels import weighted_correction as compiled_correction
 from pinstab.projection import CUTOFF, GeneralProjector, project_positions, weighted_correction
 from pinstab.system import ConstrainedSystem
@@ -114,20 +115,27 @@ def _python_path(patch) -> None:
 
 @pytest.mark.parametrize("method", ["projection", "post"])
 @pytest.mark.parametrize(
-    ("scene_name", "path", "duration"), [("fourbar", "native", 0.2), ("delta", "core", 0.2), ("cassie", "core", 0.05)]
+    ("scene_name", "path", "duration", "integrator"),
+    [
+        ("fourbar", "native", 0.2, "rk4"),
+        ("delta", "core", 0.2, "rk4"),
+        ("delta", "core", 0.2, "dopri5"),
+        ("cassie", "core", 0.05, "rk4"),
+    ],
 )
-def test_the_compiled_correction_is_the_python_one(monkeypatch, scene_name, path, duration, method):
-    """The run with its corrections compiled (the core path: in the compiled loop; the native path: Pinocchio's
-    projector called back by the compiled rule) equals the Python path's (pinstab's rows, the general projector, the
-    Python loop) to 1e-12 in q and 1e-10 in v (their M^-1 G^T and G v + g_t are summed in other orders; measured: equal
-    to the last bit on fourbar, 3e-15 in q and 1.1e-13 in v on delta over 0.2 s, 1e-25 on cassie over 0.05 s, whose
-    free fall RK4 keeps on its manifold to 3e-15 m: no Gauss-Newton iteration needed), with the same correction
-    iterations; `projection` leaves every step on the manifold to ON_MANIFOLD."""
+def test_the_compiled_correction_is_the_python_one(monkeypatch, scene_name, path, duration, integrator, method):
+    """The run with its corrections compiled (the core path: in the compiled loop, a scheme's steps or a tableau's,
+    dopri5 without error control; the native path: Pinocchio's projector called back by the compiled rule) equals the
+    Python path's (pinstab's rows, the general projector, the Python loop) to 1e-12 in q and 1e-10 in v (their
+    M^-1 G^T and G v + g_t are summed in other orders; measured: equal to the last bit on fourbar, 3e-15 in q and
+    1.1e-13 in v on delta over 0.2 s by RK4, 1.6e-14 and 1.6e-13 by dopri5, 1e-25 on cassie over 0.05 s, whose free
+    fall RK4 keeps on its manifold to 3e-15 m: no Gauss-Newton iteration needed), with the same correction iterations;
+    `projection` leaves every step on the manifold to ON_MANIFOLD."""
     scene = load_scene(scene_name)
-    compiled = simulate(scene, method, "rk4", 1e-3, duration)
+    compiled = simulate(scene, method, integrator, 1e-3, duration)
     with monkeypatch.context() as patch:
         _python_path(patch)
-        python = simulate(scene, method, "rk4", 1e-3, duration)
+        python = simulate(scene, method, integrator, 1e-3, duration)
     assert compiled.info.path == python.info.path == path
     assert python.info.compiled_steps == 0
     if path == "core":
@@ -150,3 +158,23 @@ def test_a_projection_that_cannot_converge_names_its_time_and_keeps_the_run(monk
     assert "coordinate projection did not converge" in message and "at t = 0.001 s" in message
     assert "Reduce dt or use another method" in message
     assert caught.value.trajectory is not None and len(caught.value.trajectory.t) >= 1
+
+
+def test_the_compiled_loop_corrects_on_the_core_path_only():
+    """`projection` on the core path (delta): the compiled loop takes its fixed steps, a scheme's and a tableau's (no
+    obstacle); its error-controlled steps stay in Python, and off the core path (the four-bar's native path) so do
+    its fixed steps, each reason named."""
+    scene = load_scene("delta")
+    system = build_system(scene, "projection")
+    system.bind(1e-3, "rk4", scene.q0)
+    assert system.path == "core"
+    assert compiled_obstacle(system, INTEGRATORS.build("rk4", system)) is None
+    assert compiled_obstacle(system, INTEGRATORS.build("dopri5", system)) is None
+    reason = compiled_obstacle(system, INTEGRATORS.build("dop853", system), adaptive=True)
+    assert reason == "method projection corrects the accepted steps of error control (in Python)"
+    fourbar = load_scene("fourbar")
+    system = build_system(fourbar, "post")
+    system.bind(1e-3, "rk4", fourbar.q0)
+    assert system.path == "native"
+    reason = compiled_obstacle(system, INTEGRATORS.build("rk4", system))
+    assert reason == "method post corrects the state after each step (compiled on the core path only)"

@@ -1,15 +1,15 @@
 """The stepping loop of :func:`~pinstab.simulate.simulate`: steps in chunks, samples kept every K steps,
 and checks between chunks.
 
-The runs of steps between the passage watch's samples are the compiled loop's (:mod:`.compiled`: in C++, on every
-path, with the path's compiled evaluation or the system's own called back); the Python step takes the others (the
-last, shortened step, a passage's, a step of a method that corrects the state off the core path, an integrator of its
-own, a step the compiled evaluation or correction leaves). Per step the loop calls the integrator (and the stabilizer's correction, for methods that
-have one) and stores (q, v) on recorded steps; nothing else. Every :data:`CHECK_STEPS` steps it checks the
-state: finite, drift below the limit, the native solve still accurate (``system.audit``), and for
-state-dependent gains the spectral radius. When a check fails, the chunk is replayed from its start
-with a check after every step, so a divergence is reported at the step where it happened, with the
-last good state, exactly as if every step had been checked.
+The runs of steps between the passage watch's samples are the compiled loop's (:mod:`.compiled`: in C++, on every path,
+with the path's compiled evaluation or the system's own called back); the Python step takes the others (the last,
+shortened step, a passage's, a step of a method that corrects the state off the core path, an integrator of its own, a
+step the compiled evaluation or correction leaves). Per step the loop calls the integrator (and the stabilizer's
+correction, for methods that have one) and stores (q, v) on recorded steps; nothing else. Every :data:`CHECK_STEPS`
+steps it checks the state: finite, drift below the limit, the native solve still accurate (``system.audit``), and for
+state-dependent gains the spectral radius. When a check fails, the chunk is replayed from its start with a check after
+every step, so a divergence is reported at the step where it happened, with the last good state, exactly as if every
+step had been checked.
 """
 
 from __future__ import annotations
