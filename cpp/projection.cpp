@@ -29,7 +29,11 @@ bool LeastChange::factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jac
   const Eigen::LLT<Eigen::MatrixXd> factors(mass);
   if (factors.info() != Eigen::Success) return false;
   spread_ = factors.solve(jacobian.transpose());  // M^-1 G^T
-  if (jacobian.rows() && !inverse_.compute(jacobian * spread_, cutoff)) return false;
+  if (jacobian.rows()) {
+    const Eigen::MatrixXd delassus = jacobian * spread_;
+    // rows that overflow D: D^+ of an infinite D would be 0 (no eigenvalue above cutoff times infinity), no change
+    if (!delassus.allFinite() || !inverse_.compute(delassus, cutoff)) return false;
+  }
   factored_ = true;
   return true;
 }

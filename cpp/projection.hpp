@@ -19,7 +19,7 @@ namespace pinstab {
 // any residual of the rows.
 class LeastChange {
  public:
-  // false: M not positive definite, or M or G not finite
+  // false: M not positive definite, or M, G or G M^-1 G^T not finite
   bool factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, double cutoff);
   // the change for r (rows); false (change NaN): not factored, or r or the change not finite
   bool apply(const VectorXd& residual, VectorXd& change) const;

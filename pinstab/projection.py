@@ -43,9 +43,11 @@ def weighted_correction(mass: np.ndarray, jacobian: np.ndarray, residual: np.nda
 
 
 def not_finite() -> ProjectionError:
-    """The error of a projection whose rows or mass matrix are not finite (or M not positive definite)."""
+    """The error of a projection whose rows, their G M^-1 G^T or the mass matrix are not finite (or M not positive
+    definite)."""
     return ProjectionError(
-        "projection failed: the constraint rows or the mass matrix are not finite (or M is not positive definite)"
+        "projection failed: the constraint rows are not finite or overflow (G M^-1 G^T), or the mass matrix is not "
+        "finite or not positive definite"
     )
 
 

@@ -51,10 +51,15 @@ def test_the_least_change_correction_is_numpys_least_squares_one(redundant):
 
 
 def test_a_correction_of_rows_not_finite_is_a_projection_error():
-    """NaN rows or an M that is not positive definite: a ProjectionError (the compiled rule says so), not NaN."""
+    """NaN rows, rows whose G M^-1 G^T overflows (1e200: D = 3e400, whose pseudo-inverse would be 0, no change) or an
+    M that is not positive definite: a ProjectionError (the compiled rule says so), not NaN nor a zero change."""
     mass, jacobian = np.eye(3), np.ones((1, 3))
     change, finite = compiled_correction(mass, jacobian * np.nan, np.ones(1), CUTOFF)
     assert not finite and np.isnan(change).all()
+    change, finite = compiled_correction(mass, jacobian * 1e200, np.ones(1), CUTOFF)
+    assert not finite and np.isnan(change).all()
+    with pytest.raises(ProjectionError, match="overflow"):
+        weighted_correction(mass, jacobian * 1e200, np.ones(1))
     with pytest.raises(ProjectionError, match="not finite"):
         weighted_correction(mass, jacobian * np.nan, np.ones(1))
     with pytest.raises(ProjectionError, match="positive definite"):
