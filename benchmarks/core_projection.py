@@ -6,7 +6,7 @@ second of ``delta`` and the full ``cassie`` over 0.2 s, the runs interleaved and
 with the ratio, the largest difference of the two runs' q and v, the largest position drift and the correction
 iterations.
 
-    python benchmarks/core_projection.py    # prints the table, writes benchmarks/results/core_projection.json (~3 min)
+    python benchmarks/core_projection.py    # prints the table, writes benchmarks/results/core_projection.json (~5 s)
 """
 
 from __future__ import annotations
