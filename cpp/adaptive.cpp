@@ -150,7 +150,7 @@ VectorXd magnitude(const Group& group, const VectorXd& q) {
 }
 
 int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
-                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs) {
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
   Trial trial(pair, kernel.nv(), kernel.group());
   VectorXd a(kernel.nv());
   auto take = [&](double t, VectorXd& q, VectorXd& v) {
@@ -159,7 +159,7 @@ int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const 
     v = trial.v_new;
     return true;
   };
-  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs);
+  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs, correction);
 }
 
 Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& control, const VectorXd& tau,

@@ -107,7 +107,7 @@ class Trial {
 // Fixed steps of dt [s] of the pair's tableau (ExplicitRungeKutta.step: the first stage evaluated at the step's start)
 // from (q, v) at grid step `start`, as advance takes the schemes'.
 int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
-                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs);
+                    double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction = nullptr);
 
 // How an attempt ended: accepted; handed back to the caller (an evaluation of a compiled kernel not to be used, its
 // error not finite, its step below min_step: the Python loop takes that step); an evaluation raised (the kernel's

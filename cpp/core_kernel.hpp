@@ -112,6 +112,10 @@ class CoreKernel : public Kernel {
   // the term held over the step (computed at its last stage-0 evaluation; none before one, or after a stage-0
   // evaluation stopped before its rows: the general path's is held then) [m/s^2 or rad/s^2]
   const std::optional<VectorXd>& held_term() const { return held_; }
+  // what the projections over its rows read (cpp/projection.hpp CoreProjection): the model, the blocks, the Python part
+  const pinocchio::Model& model() const { return model_; }
+  const std::vector<RowBlock>& blocks() const { return blocks_; }
+  const std::shared_ptr<PythonPart>& python() const { return python_; }
 
  private:
   bool solve(const VectorXd& rhs);

@@ -79,9 +79,25 @@ void banded_residual(const Eigen::Ref<const Eigen::MatrixXd>& ab, int band, cons
 // The fixed explicit schemes (pinstab.integration.schemes names them; their arithmetic: SchemeStep, cpp/group.hpp).
 enum class Scheme { euler = 0, semi_implicit_euler = 1, heun = 2, rk4 = 3 };
 
+// A correction of the state after each step of the fixed-step loop (fixed_steps, cpp/step_loop.hpp; CoreCorrection,
+// cpp/projection.hpp: `projection` and `post` on the core path): (q, v) reached at t [s] corrected in place; the
+// iterations it took, or -1 where it cannot correct it (the loop stops before that step: the caller takes it).
+class Corrector {
+ public:
+  virtual ~Corrector() = default;
+  virtual int correct(double t, VectorXd& q, VectorXd& v) = 0;
+};
+
+// The correction of a run's steps: the corrector and each step's iterations (an entry per step asked).
+struct Correction {
+  Corrector& corrector;
+  VectorXi iterations;
+};
+
 // Steps of dt from (q, v) at grid step `start` (time start dt): fills rows of qs, vs; returns the steps done (fewer
-// than asked when an evaluation was not to be used: the caller takes that step).
+// than asked when an evaluation was not to be used, or a correction could not be made: the caller takes that step).
+// With a correction, each step's end state is corrected (fixed_steps).
 int advance(Kernel& kernel, Scheme scheme, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau, double dt,
-            long start, int steps, RowMatrix& qs, RowMatrix& vs);
+            long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction = nullptr);
 
 }  // namespace pinstab

@@ -32,6 +32,7 @@ void bind_limits(nb::module_& m);    // cpp/limit_bindings.cpp
 void bind_spring_damper(nb::module_& m);
 SpringDamperSpec spring_damper_spec(nb::dict form, const pinocchio::Model& model);
 void bind_kkt_sparsity(nb::module_& m);  // cpp/kkt_sparsity_bindings.cpp (a measurement)
+void bind_projection(nb::module_& m);  // cpp/projection_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -757,4 +758,5 @@ NB_MODULE(_compiled, m) {
             return std::make_tuple(x, usable);
           },
           "q"_a, "rows"_a, "(M^-1 G^T (G M^-1 G^T)^-1 rows, usable) at q.");
+  bind_projection(m);  // after CoreKernel, which its classes take
 }

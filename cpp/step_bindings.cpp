@@ -55,38 +55,45 @@ nb::tuple scheme_step(PythonScheme& self, nb::handle acceleration, nb::handle q_
   return nb::make_tuple(std::move(q), std::move(v));
 }
 
-// Fixed steps of a compiled run (advance(kernel, qs, vs) -> steps done) from (q, v) on `kernel` (RunKernel's: the
-// GIL released for a compiled kernel): (qs, vs, done, the exception a Python evaluation raised or None).
+// Fixed steps of a compiled run (advance(kernel, qs, vs, correction) -> steps done) from (q, v) on `kernel`
+// (RunKernel's: the GIL released for a compiled kernel), each step corrected by `corrector` when one is given: (qs, vs,
+// done, the exception a Python evaluation raised or None, the corrections' iterations per step done or None).
 template <class Advance>
 nb::tuple fixed_run(const GroupModel& model, nb::handle kernel_spec, const VectorXd& q, const VectorXd& v, int steps,
-                    Advance advance) {
+                    Corrector* corrector, Advance advance) {
   model.check(q, v, "run");
   if (steps < 0) throw std::invalid_argument("run: steps must be >= 0");
   RunKernel kernel(kernel_spec, static_cast<int>(v.size()));
   RowMatrix qs(steps, q.size()), vs(steps, v.size());
+  std::optional<Correction> correction;
+  if (corrector != nullptr) correction.emplace(Correction{*corrector, VectorXi::Zero(steps)});
+  Correction* correcting = correction ? &*correction : nullptr;
   int done;
   if (kernel.callback) {
-    done = advance(*kernel, qs, vs);
+    done = advance(*kernel, qs, vs, correcting);
   } else {
     nb::gil_scoped_release released;
-    done = advance(*kernel, qs, vs);
+    done = advance(*kernel, qs, vs, correcting);
   }
   RowMatrix kept_q = qs.topRows(done), kept_v = vs.topRows(done);
-  return nb::make_tuple(kept_q, kept_v, done, kernel.raised());
+  nb::object iterations = correction ? nb::cast(VectorXi(correction->iterations.head(done))) : nb::none();
+  return nb::make_tuple(kept_q, kept_v, done, kernel.raised(), iterations);
 }
 
 nb::tuple scheme_run(PythonScheme& self, nb::handle kernel, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
-                     double dt, int steps, long start) {
-  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
-    return advance(evaluation, self.code, q, v, tau, dt, start, steps, qs, vs);
-  });
+                     double dt, int steps, long start, Corrector* corrector) {
+  return fixed_run(self.model, kernel, q, v, steps, corrector,
+                   [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
+                     return advance(evaluation, self.code, q, v, tau, dt, start, steps, qs, vs, correction);
+                   });
 }
 
 nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q, const VectorXd& v,
-                      const VectorXd& tau, double dt, int steps, long start) {
-  return fixed_run(self.model, kernel, q, v, steps, [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs) {
-    return advance_tableau(evaluation, self.pair, q, v, tau, dt, start, steps, qs, vs);
-  });
+                      const VectorXd& tau, double dt, int steps, long start, Corrector* corrector) {
+  return fixed_run(self.model, kernel, q, v, steps, corrector,
+                   [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
+                     return advance_tableau(evaluation, self.pair, q, v, tau, dt, start, steps, qs, vs, correction);
+                   });
 }
 
 nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array,
@@ -109,13 +116,17 @@ nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::hand
 }
 
 constexpr const char* RUN_DOC =
-    "(qs, vs, done, raised): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start dt) under tau "
-    "on a Kernel, or on (acceleration(q, v, t, stage), pin.Model or None, refusals): the Python evaluation; the steps "
-    "before one whose evaluation is not to be used, and the exception that evaluation raised (to raise; else None).";
+    "(qs, vs, done, raised, iterations): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start "
+    "dt) under tau on a Kernel, or on (acceleration(q, v, t, stage), pin.Model or None, refusals): the Python "
+    "evaluation, each step's end state corrected by `corrector` (a Corrector: CoreCorrection) when one is given; the "
+    "steps before one whose evaluation is not to be used or whose correction cannot be made, the exception that "
+    "evaluation raised (to raise; else None) and the corrections' iterations per step done (None without one).";
 
 }  // namespace
 
 void bind_steps(nb::module_& m) {
+  nb::class_<Corrector>(m, "Corrector",
+                        "A correction of the state after each step of a compiled run (its kind: CoreCorrection).");
   nb::class_<PythonScheme>(m, "SchemeStep")
       .def(
           "__init__",
@@ -135,7 +146,8 @@ void bind_steps(nb::module_& m) {
       .def("step", &scheme_step, "acceleration"_a, "q"_a, "v"_a, "t"_a, "dt"_a,
            "(q, v) after one step of dt [s] from (q, v) at t [s], stage i evaluated by acceleration(q, v, t, i) -> "
            "(nv,) (its exceptions propagate).")
-      .def("run", &scheme_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
+      .def("run", &scheme_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a,
+           "corrector"_a.none() = nb::none(), RUN_DOC);
   nb::class_<PythonTableau>(m, "RungeKutta")
       .def(
           "__init__",
@@ -156,7 +168,8 @@ void bind_steps(nb::module_& m) {
            "acceleration(q, v, t, i) (its exceptions propagate; first: the acceleration at (q, v, t) when known); "
            "slopes: stages x 2 nv, [velocity slope in the start's tangent space | acceleration] per stage; with end, "
            "the new point's slope (its acceleration evaluated as stage 0).")
-      .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a, RUN_DOC);
+      .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a,
+           "corrector"_a.none() = nb::none(), RUN_DOC);
 }
 
 }  // namespace pinstab

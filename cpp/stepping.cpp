@@ -45,10 +45,10 @@ bool SchemeStep::take(Kernel& kernel, const VectorXd& tau, double t, double dt, 
 }
 
 int advance(Kernel& kernel, Scheme scheme, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau, double dt,
-            long start, int steps, RowMatrix& qs, RowMatrix& vs) {
+            long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
   SchemeStep step(scheme, kernel.group());
   auto take = [&](double t, VectorXd& q, VectorXd& v) { return step.take(kernel, tau, t, dt, q, v); };
-  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs);
+  return fixed_steps(take, q0, v0, dt, start, steps, qs, vs, correction);
 }
 
 }  // namespace pinstab

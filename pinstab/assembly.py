@@ -158,11 +158,11 @@ def assemble(
             "a larger residual (--assembly-tol, [assembly] tolerance, assembly_tol).",
             residual,
         )
-    inverse_mass = _inverse_mass(model, q)
+    mass = _mass(model, q)
     try:
         # the iteration closes unilateral rows too (held contacts touch at the start): one it left a rounding
         # open still holds, else a start velocity into it would be kept and sink the body
-        v = project_velocities(model, q, v, t, inverse_mass, model.scratch_kinematics, accepted)
+        v = project_velocities(model, q, v, t, mass, model.scratch_kinematics, accepted)
     except ProjectionError:
         v = np.full(model.nv, np.nan)  # the rows or the velocity overflow: refused below
     rates = model.constraint_values(q, v, t, model.scratch_kinematics).velocity_residual
@@ -179,13 +179,15 @@ def assemble(
     return AssemblyReport(q, v, iterations, residual, velocity_residual, displacement, accepted, size)
 
 
-def _inverse_mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:
-    """M(q)^-1; a singular mass matrix is a SceneError naming the joints that move no mass."""
+def _mass(model: ConstrainedModel, q: np.ndarray) -> np.ndarray:
+    """M(q) [kg, kg m^2], positive definite (its Cholesky factors exist); a singular mass matrix is a SceneError
+    naming the joints that move no mass."""
     mass = model.mass_matrix(q)
     try:
-        return np.linalg.inv(mass)
+        np.linalg.cholesky(mass)
     except np.linalg.LinAlgError:
         raise singular_mass_error(model.scene.model, mass, "the assembled configuration") from None
+    return mass
 
 
 def _residual(

@@ -16,7 +16,7 @@ from .errors import ContactInfeasibleError, DivergenceError, PinstabError
 from .kernels import Kernel
 from .model import ConstrainedModel
 from .paths.banded import BandedDynamics, BandedProjector, banded_obstacle
-from .paths.core import CoreDynamics, core_obstacle
+from .paths.core import CoreDynamics, CoreProjector, core_obstacle
 from .paths.native import NATIVE_KINDS, NativeDynamics, NativeProjector, non_planar_closure, unsupported_constraint
 from .paths.servo import ServoDynamics, servo_obstacle
 from .projection import GeneralProjector, Projector
@@ -294,6 +294,8 @@ class ConstrainedSystem:
             return
         self.compiled_path = CoreDynamics(model, term, DIRECT_PIVOT, ACCEPTED_RESIDUAL)
         self.path, self.acceleration = "core", self._compiled_acceleration
+        if self.stabilizer.corrects:  # its rows projected in C++ too
+            self.projector = CoreProjector(self.compiled_path)
         in_python = self.compiled_path.in_python()
         self.path_reason = (
             f"{len(constraints.constraints)} constraint block(s) of {constraints.rows} rows, {len(model.forces)} force "

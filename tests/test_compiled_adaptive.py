@@ -264,8 +264,14 @@ def test_an_exception_of_the_python_evaluation_reaches_the_caller():
         return np.zeros_like(v)
 
     system.acceleration = failing
-    qs, vs, done, raised = steps.run(scene.q0, scene.v0, 0, 1e-2, 10)
-    assert done == 1 and len(qs) == 1 and isinstance(raised, KeyError) and raised.args == ("the fifth",)
+    qs, vs, done, raised, iterations = steps.run(scene.q0, scene.v0, 0, 1e-2, 10)
+    assert (
+        iterations is None
+        and done == 1
+        and len(qs) == 1
+        and isinstance(raised, KeyError)
+        and raised.args == ("the fifth",)
+    )
     np.testing.assert_allclose(qs[0], scene.q0 + 1e-2 * scene.v0, rtol=1e-15)
 
 

@@ -7,10 +7,13 @@ its checks to the compiled loop: the same step function as the Python loop's (``
 Python loop's to the last bit. The evaluation is the path's compiled kernel (Pinocchio's ``constraintDynamics`` on
 the native path, the compiled banded, servo or core solve) where :func:`kernel_obstacle` names no reason, else the
 system's own in Python (``system.acceleration``: the general path's KKT solve, a Python stabilizer's term, a compiled
-path's fallbacks), called back from the C++ loop (``cpp/callback_kernel.cpp``). The loop's checks, the passage watch,
-the samples, the corrections of ``projection`` and ``post`` and the fallbacks (a near-singular banded solve, a servo
-that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose compiled evaluation is
-not to be used (or whose Python evaluation raised) and the Python step takes it (or the exception is raised there).
+path's fallbacks), called back from the C++ loop (``cpp/callback_kernel.cpp``). On the core path the corrections of
+``projection`` and ``post`` are made in the loop after each step (:meth:`ProjectingStabilizer.loop_correction
+<pinstab.stabilizers.projection.ProjectingStabilizer.loop_correction>`: the core's rows in C++); elsewhere such a
+method keeps the Python loop. The loop's checks, the passage watch, the samples and the fallbacks (a near-singular
+banded solve, a servo that loses rank or meets a bound) stay in Python: the compiled loop stops before a step whose
+compiled evaluation is not to be used, whose Python evaluation raised or whose correction cannot be made, and the
+Python step takes it (or the exception is raised there).
 
 :class:`CompiledAdaptive` does the same for error-controlled runs (``--rtol``, :mod:`pinstab.integration.adaptive`):
 the embedded pair's attempts (accept, reject, retry), its error norm, the step-size control and the grid samples from
@@ -31,6 +34,8 @@ import numpy as np
 
 from ..errors import ContactInfeasibleError
 from ..kernels import RungeKutta, SchemeStep
+from ..projection import compiled_projections
+from ..stabilizers.projection import ProjectingStabilizer
 from .schemes import SCHEMES, ExplicitRungeKutta
 
 if TYPE_CHECKING:
@@ -44,8 +49,13 @@ def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: 
     error-controlled steps of an embedded pair (:class:`CompiledAdaptive`), else fixed steps of :data:`SCHEMES`."""
     if not adaptive and stepper.name not in SCHEMES and not isinstance(stepper, ExplicitRungeKutta):
         return f"integrator {stepper.name} is neither one of {', '.join(SCHEMES)} nor a Runge-Kutta tableau"
-    if system.stabilizer.corrects:
-        return f"method {system.stabilizer.name} corrects the state after each step (in Python)"
+    stabilizer = system.stabilizer
+    if stabilizer.corrects and not (
+        isinstance(stabilizer, ProjectingStabilizer) and compiled_projections(system.projector) is not None
+    ):
+        return f"method {stabilizer.name} corrects the state after each step (compiled on the core path only)"
+    if stabilizer.corrects and adaptive:
+        return f"method {stabilizer.name} corrects the accepted steps of error control (in Python)"
     return None
 
 
@@ -100,6 +110,12 @@ class CompiledSteps(CompiledLoop):
             self.step = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, self.group)
         else:
             self.step = SchemeStep(SCHEMES[stepper.name], self.group)
+        stabilizer = system.stabilizer  # a method that corrects: on the core's compiled projections (the obstacle)
+        self.corrector = (
+            stabilizer.loop_correction(system.model, system.projector)
+            if isinstance(stabilizer, ProjectingStabilizer)
+            else None
+        )
 
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator) -> CompiledSteps | None:
@@ -108,20 +124,24 @@ class CompiledSteps(CompiledLoop):
 
     def run(
         self, q: np.ndarray, v: np.ndarray, start: int, dt: float, steps: int
-    ) -> tuple[np.ndarray, np.ndarray, int, BaseException | None]:
+    ) -> tuple[np.ndarray, np.ndarray, int, BaseException | None, np.ndarray | None]:
         """Up to ``steps`` steps of ``dt`` [s] from (q, v) at grid step ``start`` (time ``start * dt``): the states
-        after each (rows), the number done, fewer when the next step's compiled evaluation is not to be used (a
-        near-singular banded solve, a servo that loses rank or meets a bound) or its Python evaluation raised, and
-        that exception (for the caller to raise once it has kept the steps done; else None)."""
+        after each (rows, corrected by a method that corrects: :attr:`corrector`), the number done, fewer when the
+        next step's compiled evaluation is not to be used (a near-singular banded solve, a servo that loses rank or
+        meets a bound), its Python evaluation raised or its correction cannot be made (the Python step takes it and
+        says why), that exception (for the caller to raise once it has kept the steps done; else None), and the
+        corrections' iterations per step done (None for a method that does not correct)."""
         kernel = self.kernel()
         evaluation = python_evaluation(self.system) if kernel is None else kernel
-        qs, vs, done, raised = self.step.run(evaluation, q, v, self.system.model.no_force, dt, steps, start)
+        qs, vs, done, raised, iterations = self.step.run(
+            evaluation, q, v, self.system.model.no_force, dt, steps, start, self.corrector
+        )
         if kernel is None:
             self.callback_steps += done
         else:
             self.system.count_compiled(done * self.stages)
             self.steps += done
-        return qs, vs, done, raised
+        return qs, vs, done, raised, iterations
 
 
 class CompiledAdaptive(CompiledLoop):

@@ -74,11 +74,12 @@ class Records:
         self.steps[slot], self.t[slot] = step, self.grid.time(step)
         self.q[slot], self.v[slot], self.corrections[slot] = q, v, iterations
 
-    def put_span(self, first: int, q: np.ndarray, v: np.ndarray) -> None:
-        """Keep the recorded ones among the states (rows of q, v) of grid steps first, first + 1, ..."""
+    def put_span(self, first: int, q: np.ndarray, v: np.ndarray, iterations: np.ndarray | None = None) -> None:
+        """Keep the recorded ones among the states (rows of q, v) of grid steps first, first + 1, ... (with their
+        correction ``iterations``, none: 0)."""
         if len(q) == 1:  # one step at a time (a watched run near its singular passages): without the arrays
             if first % self.every == 0 or first == self.grid.steps:
-                self.put(self.index(first), q[0], v[0])
+                self.put(self.index(first), q[0], v[0], 0 if iterations is None else int(iterations[0]))
             return
         steps = np.arange(first, first + len(q))
         kept = (steps % self.every == 0) | (steps == self.grid.steps)
@@ -89,7 +90,8 @@ class Records:
         slots = indices - self.offset
         self.steps[slots] = np.where(indices == self.last, self.grid.steps, indices * self.every)
         self.t[slots] = self.grid.times(self.steps[slots])
-        self.q[slots], self.v[slots], self.corrections[slots] = q[kept], v[kept], 0
+        self.q[slots], self.v[slots] = q[kept], v[kept]
+        self.corrections[slots] = 0 if iterations is None else iterations[kept]
 
     def checked(self, k: int) -> None:
         """The samples up to grid step k passed the loop's check (they will not be replayed)."""

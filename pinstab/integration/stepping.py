@@ -1,15 +1,15 @@
 """The stepping loop of :func:`~pinstab.simulate.simulate`: steps in chunks, samples kept every K steps,
 and checks between chunks.
 
-The runs of steps between the passage watch's samples are the compiled loop's (:mod:`.compiled`: in C++, on every
-path, with the path's compiled evaluation or the system's own called back); the Python step takes the others (the
-last, shortened step, a passage's, a step of a method that corrects the state, an integrator of its own, a step the
-compiled evaluation leaves). Per step the loop calls the integrator (and the stabilizer's correction, for methods that
-have one) and stores (q, v) on recorded steps; nothing else. Every :data:`CHECK_STEPS` steps it checks the
-state: finite, drift below the limit, the native solve still accurate (``system.audit``), and for
-state-dependent gains the spectral radius. When a check fails, the chunk is replayed from its start
-with a check after every step, so a divergence is reported at the step where it happened, with the
-last good state, exactly as if every step had been checked.
+The runs of steps between the passage watch's samples are the compiled loop's (:mod:`.compiled`: in C++, on every path,
+with the path's compiled evaluation or the system's own called back); the Python step takes the others (the last,
+shortened step, a passage's, a step of a method that corrects the state off the core path, an integrator of its own, a
+step the compiled evaluation or correction leaves). Per step the loop calls the integrator (and the stabilizer's
+correction, for methods that have one) and stores (q, v) on recorded steps; nothing else. Every :data:`CHECK_STEPS`
+steps it checks the state: finite, drift below the limit, the native solve still accurate (``system.audit``), and for
+state-dependent gains the spectral radius. When a check fails, the chunk is replayed from its start with a check after
+every step, so a divergence is reported at the step where it happened, with the last good state, exactly as if every
+step had been checked.
 """
 
 from __future__ import annotations
@@ -232,9 +232,12 @@ class StepLoop:
             # the steps before the watch's next sample, the last grid step (shortened) excepted
             span = 0 if compiled is None else steps_before(k, min(stop, last - 1), dt, watch.next_due)
             if span:
-                qs, vs, done, raised = compiled.run(q, v, k, dt, span)
+                qs, vs, done, raised, iterations = compiled.run(q, v, k, dt, span)
                 if done:
-                    self.records.put_span(k + 1, qs[:done], vs[:done])
+                    if iterations is not None:  # the method's corrections, made in the compiled loop
+                        self.correction_total += int(iterations.sum())
+                        self.correction_max = max(self.correction_max, int(iterations.max()))
+                    self.records.put_span(k + 1, qs[:done], vs[:done], iterations)
                     if self.limit_watch is not None:
                         self.limit_watch.see_span(k + 1, qs[:done])
                     q, v, k = qs[done - 1], vs[done - 1], k + done

@@ -27,8 +27,10 @@ from ..constraints import Constraint, ConstraintSet, RowKind
 from ..contact.models import MARGIN_SLACK
 from ..errors import GraspLostError
 from ..forces.base import ForceElement
-from ..kernels import CoreKernel, RowBlock
+from ..kernels import CoreKernel, CoreProjection, RowBlock
 from ..model import ConstrainedModel
+from ..projection import CUTOFF as PROJECTION_CUTOFF
+from ..projection import not_finite
 
 CORE_FORCE_KINDS = ("joint-spring", "hold", "wrench", "spring-damper", "joint-torque")
 """Compiled force forms the core kernel takes."""
@@ -207,3 +209,33 @@ class CoreDynamics:
         acceleration, usable = self.kernel.acceleration(q, v, tau, t, stage)
         self.unusable = not usable
         return acceleration
+
+
+class CoreProjector:
+    """The projections of :mod:`pinstab.projection` on the core kernel's rows, evaluated in C++
+    (``cpp/projection.cpp`` CoreProjection: a kinematics pass, M and the rows of its own, its Python part's rows called
+    back): the corrections of ``projection`` and ``post`` take :attr:`compiled` without a Python call.
+
+    Args:
+        dynamics: the core evaluation.
+
+    Attributes:
+        compiled: the compiled projections (:class:`~pinstab.kernels.CoreProjection`).
+    """
+
+    def __init__(self, dynamics: CoreDynamics) -> None:
+        self.compiled = CoreProjection(dynamics.kernel, PROJECTION_CUTOFF)
+
+    def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        """The Gauss-Newton step and max |phi| [m or rad] at (q, t) (:class:`~pinstab.projection.Projector`)."""
+        step, worst, finite = self.compiled.step_at(q, t)
+        if not finite:
+            raise not_finite()
+        return step, worst
+
+    def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The projected velocity [m/s or rad/s] at (q, t) (:class:`~pinstab.projection.Projector`)."""
+        projected, finite = self.compiled.velocities_at(q, v, t)
+        if not finite:
+            raise not_finite()
+        return projected

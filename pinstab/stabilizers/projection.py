@@ -9,11 +9,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..projection import project_positions
+from ..projection import correct, loop_correction
 from ..registry import NoOptions
 from .base import STABILIZERS, Correction, Stabilizer
 
 if TYPE_CHECKING:
+    from ..kernels import CoreCorrection
     from ..model import ConstrainedModel
     from ..projection import Projector
 
@@ -41,8 +42,32 @@ class ProjectionOptions:
             raise ValueError(f"max_iterations must be an integer >= 1, got {self.max_iterations!r}")
 
 
+class ProjectingStabilizer(Stabilizer):
+    """A method whose correction after every step is one of the compiled corrections
+    (:func:`pinstab.projection.correct`): ``projection``'s (post False) or ``post``'s, with Gauss-Newton's tolerance
+    [m or rad, relative] and iterations."""
+
+    corrects = True
+    post = False
+    tolerance = 0.0
+    max_iterations = 1
+
+    def baumgarte_gains(self) -> tuple[float, float]:
+        return (0.0, 0.0)
+
+    def correct(
+        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
+    ) -> Correction:
+        return Correction(*correct(model, projector, q, v, t, self.post, self.tolerance, self.max_iterations))
+
+    def loop_correction(self, model: ConstrainedModel, projector: Projector) -> CoreCorrection:
+        """:meth:`correct` as the compiled step loop makes it after each step, on the projector's compiled
+        projections (the core path's: :func:`pinstab.projection.loop_correction`)."""
+        return loop_correction(model, projector, self.post, self.tolerance, self.max_iterations)
+
+
 @STABILIZERS.register("projection", options=ProjectionOptions, summary="project q and v onto the manifold every step")
-class ProjectionStabilizer(Stabilizer):
+class ProjectionStabilizer(ProjectingStabilizer):
     """Project q onto phi = 0 by Gauss-Newton, then v onto G v + g_t = 0, after every step.
 
     Args:
@@ -50,41 +75,22 @@ class ProjectionStabilizer(Stabilizer):
     """
 
     name = "projection"
-    corrects = True
 
     def __init__(self, options: ProjectionOptions | None = None) -> None:
         options = options or ProjectionOptions()
         self.tolerance, self.max_iterations = options.tolerance, options.max_iterations
-
-    def baumgarte_gains(self) -> tuple[float, float]:
-        return (0.0, 0.0)
-
-    def correct(
-        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
-    ) -> Correction:
-        q, iterations = project_positions(model, projector, q, t, self.tolerance, self.max_iterations)
-        return Correction(q, projector.velocity_projection(q, v, t), iterations)
 
     def parameters(self) -> dict[str, float | str]:
         return {"tolerance": self.tolerance, "max_iterations": self.max_iterations}
 
 
 @STABILIZERS.register("post", options=NoOptions, summary="one projection step per step (Ascher et al. 1995)")
-class PostStabilizer(Stabilizer):
+class PostStabilizer(ProjectingStabilizer):
     """One post-stabilization step: ``q <- q (+) (-F phi)``, ``v <- v - F g`` with
     ``F = M^-1 G^T (G M^-1 G^T)^+`` evaluated once, at the uncorrected state."""
 
     name = "post"
-    corrects = True
+    post = True
 
     def __init__(self, options: NoOptions | None = None) -> None:
         pass
-
-    def baumgarte_gains(self) -> tuple[float, float]:
-        return (0.0, 0.0)
-
-    def correct(
-        self, model: ConstrainedModel, projector: Projector, q: np.ndarray, v: np.ndarray, t: float
-    ) -> Correction:
-        step, _ = projector.position_step(q, t)
-        return Correction(model.integrate(q, step), projector.velocity_projection(q, v, t), 1)
