@@ -117,11 +117,12 @@ KktOutcome KktSolve::finish(const Eigen::MatrixXd& jacobian, const VectorXd& rhs
 
 bool DelassusPseudoInverse::compute(const Eigen::MatrixXd& delassus, double cutoff) {
   spectrum_.compute(delassus);
-  if (spectrum_.info() != Eigen::Success) {
+  const VectorXd& values = spectrum_.eigenvalues();  // ascending
+  // a 1 x 1 infinite D decomposes "successfully" (eigenvalue inf): its cutoff would keep nothing, D^+ = 0
+  if (spectrum_.info() != Eigen::Success || !values.allFinite()) {
     kept_.setConstant(delassus.rows(), std::numeric_limits<double>::quiet_NaN());
     return false;
   }
-  const VectorXd& values = spectrum_.eigenvalues();  // ascending
   if (values.size() == 0) {
     kept_.resize(0);
     return true;

@@ -31,8 +31,7 @@ bool LeastChange::factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jac
   spread_ = factors.solve(jacobian.transpose());  // M^-1 G^T
   if (jacobian.rows()) {
     const Eigen::MatrixXd delassus = jacobian * spread_;
-    // rows that overflow D: D^+ of an infinite D would be 0 (no eigenvalue above cutoff times infinity), no change
-    if (!delassus.allFinite() || !inverse_.compute(delassus, cutoff)) return false;
+    if (!inverse_.compute(delassus, cutoff)) return false;  // rows that overflow D: not finite
   }
   factored_ = true;
   return true;

@@ -3,7 +3,10 @@ trajectory against the general path's, which computes the same matrices from its
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import pytest
 
 from pinstab import kernels, simulate
 
@@ -40,3 +43,11 @@ def test_the_core_runs_the_inertial_term_as_the_general_path_does():
     np.testing.assert_allclose(core.q, general.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(core.v, general.v, rtol=0, atol=1e-10)
     assert core.position_drift.max() < 1e-9
+
+
+@pytest.mark.parametrize("delassus", [[[math.inf]], [[1.0, math.inf], [math.inf, 1.0]], [[math.nan]]])
+def test_the_pseudo_inverse_of_a_delassus_matrix_that_is_not_finite_is_nan(delassus):
+    """D^+ of a D that overflowed is NaN (its caller then refuses the state), not 0: the 1 x 1 infinite D decomposes
+    without an error (eigenvalue inf), and a cutoff of cutoff * inf kept no eigenvalue, a zero D^+ that read as 'no
+    correction needed'."""
+    assert np.isnan(kernels.delassus_pseudo_inverse(np.array(delassus), 1e-10)).all()
