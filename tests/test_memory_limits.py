@@ -171,10 +171,10 @@ def out_of_memory_at_half_a_second(monkeypatch):
 
     put_span = Records.put_span
 
-    def failing_span(self, first, q, v):  # the compiled loop's samples
+    def failing_span(self, first, q, v, iterations=None):  # the compiled loop's samples
         if self.grid.time(first + len(q) - 1) >= 0.5:
             raise MemoryError("Unable to allocate 8 GiB for an array")
-        return put_span(self, first, q, v)
+        return put_span(self, first, q, v, iterations)
 
     monkeypatch.setattr(StepLoop, "keep", failing)
     monkeypatch.setattr(Records, "put_span", failing_span)
