@@ -171,3 +171,32 @@ def test_limit_watch_names_the_first_step_beyond_a_bound() -> None:
     assert watch.left is not None and watch.left[0].name == "j0 upper" and watch.left[1] == pytest.approx(0.004)
     watch.see(7, np.array([-4.0]))
     assert watch.left[0].name == "j0 upper"  # the first one stays
+
+
+def test_a_held_run_that_diverges_after_leaving_a_limit_is_run_with_the_limits(monkeypatch) -> None:
+    """A held run that passed a limit and then diverged (a gripper's fingers through their stops into a singular
+    loop, exit 3, ran fine with --contacts event): the divergence the limit would have prevented is not the answer;
+    the run is the event path's with the limits held, the same samples to the last bit as asked for directly. A held
+    run that diverged inside its limits still raises."""
+    from pinstab.errors import DivergenceError
+    from pinstab.simulate import api
+
+    held = api.simulate_held
+
+    def diverging(*args, **kwargs):
+        trajectory = held(*args, **kwargs)
+        raise DivergenceError(
+            "non-finite state", float(trajectory.t[-1]), trajectory.q[-1], trajectory.v[-1], trajectory
+        )
+
+    monkeypatch.setattr(api, "simulate_held", diverging)
+    run = simulate(_scene(SWING), duration=0.1)
+    direct = simulate(_scene(SWING), duration=0.1, contacts="event")
+    assert (
+        run.info.path_reason
+        == "joint limits: j0 upper left at t = 0.018 s on the held path, which then diverged at t = 0.1 s"
+    )
+    assert np.array_equal(run.t, direct.t) and np.array_equal(run.q, direct.q) and np.array_equal(run.v, direct.v)
+    inside = {**SWING, "initial": {"q": {"j0": -1.5}, "v": {"j0": 0.0}}}
+    with pytest.raises(DivergenceError, match="non-finite state"):
+        simulate(_scene(inside), duration=0.1)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import JointLimitsWarning, SolverLimitWarning
+from ..errors import DivergenceError, JointLimitsWarning, SolverLimitWarning
 from ..files import check_output
 from ..memory import named_when_exhausted
 from ..runinfo import SolverStatistics
@@ -185,10 +185,16 @@ def simulate(
             assembly_tol=assembly_tol, clock=clock,
         )  # fmt: skip
         return _checked(scene, events, clock)
-    trajectory = simulate_held(
-        scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
-        assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream, clock, watch,
-    )  # fmt: skip
+    diverged: DivergenceError | None = None
+    try:
+        trajectory = simulate_held(
+            scene, method, integrator, dt, duration, solver, solver_options, strict, drift_limit, progress, q0, v0,
+            assemble_initial, assembly_tol, record_every, rtol, atol, method_options, stream, clock, watch,
+        )  # fmt: skip
+    except DivergenceError as error:  # after a limit the held path passed: the limit would have prevented it
+        if watch is None or watch.left is None or error.trajectory is None:
+            raise
+        trajectory, diverged = error.trajectory, error
     if watch is None:
         return _checked(scene, trajectory, clock)
     left = limit_left(trajectory, watch, v0)
@@ -196,7 +202,11 @@ def simulate(
         trajectory.info.limits_active_s = {}
         return _checked(scene, trajectory, clock)
     reason = f"joint limits: {left[0].name} left at t = {left[1]:.6g} s on the held path"
+    if diverged is not None:
+        reason += f", which then diverged at t = {diverged.time:.6g} s"
     refused = not_event_driven(scene)
+    if refused and diverged is not None:
+        raise diverged
     if refused:
         warnings.warn(
             JointLimitsWarning(
