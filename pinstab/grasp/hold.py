@@ -5,7 +5,9 @@ fingers' forces on the object in the contact frames):
 
 * the contact forces ``lambda*`` that carry the object's weight (``A_object^T lambda* = g_object``) closest
   to pressing every contact with ``squeeze`` [N] along its normal, with every force inside its friction
-  cone (and torsion limit) and every normal force at most ``max_squeeze`` [N] (default: no cap): the
+  cone (and torsion limit) narrowed by :data:`~pinstab.grasp.holding.HOLD_MARGIN` (relative: no held contact
+  sits on its cone's edge, where rounding would decide whether it slips) and every normal force at most
+  ``max_squeeze`` [N] (default: no cap): the
   least-squares forces when they are inside, else a ProxQP on the cones' inscribed pyramids (``facets``
   sides), else SciPy's SLSQP on the exact round cones (:mod:`pinstab.grasp.holding`). When no forces
   inside the cones carry the weight (a grasp without force closure, or the cap), the least-squares
@@ -36,7 +38,17 @@ from ..kernels import hold_torques
 from ..kinematics import Kinematics
 from ..tables import SceneTables
 from ..units import within_ceiling
-from .holding import FEASIBILITY, ConeTest, WarmQP, closest_holding, cone_arrays, cone_columns, pyramid_rows
+from .holding import (
+    FEASIBILITY,
+    HOLD_MARGIN,
+    ConeTest,
+    WarmQP,
+    closest_holding,
+    cone_arrays,
+    cone_columns,
+    narrowed,
+    pyramid_rows,
+)
 from .linalg import NORMAL_EQUATIONS_CONDITION, RANK_TOLERANCE, closest_solution
 
 HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
@@ -79,7 +91,8 @@ class GraspHold(ForceElement):
         self.squeeze, self.stiffness, self.damping = squeeze, stiffness, damping
         self.q_start = q_start.copy()
         self.pressing = np.concatenate([(c.components == 2).astype(float) * squeeze for c in contacts])
-        columns, count = cone_columns(contacts)
+        self._limits = narrowed(contacts, HOLD_MARGIN)  # the cones it holds its forces in
+        columns, count = cone_columns(self._limits)
         self._normals = [c.normal for c in columns]
         caps = np.zeros((len(columns), count))
         caps[np.arange(len(columns)), self._normals] = 1.0
@@ -87,7 +100,7 @@ class GraspHold(ForceElement):
         limit = UNBOUNDED if math.isinf(max_squeeze) else max_squeeze
         self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
-        self._cone_test = ConeTest(contacts, max_squeeze)
+        self._cone_test = ConeTest(self._limits, max_squeeze)
         self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
@@ -105,7 +118,7 @@ class GraspHold(ForceElement):
         )
         if solved and self._cone_test.holds(solution):
             return solution
-        exact = closest_holding(carrier, load, self.contacts, self.pressing, self.max_squeeze)
+        exact = closest_holding(carrier, load, self._limits, self.pressing, self.max_squeeze)
         if exact.holds or math.isinf(self.max_squeeze):
             return exact.forces if exact.holds else free
         # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
@@ -133,7 +146,7 @@ class GraspHold(ForceElement):
         none; friction and torsion coefficients) and the tolerances of its least squares and cone test. (The kernel
         keeps the least-squares forces only: where they leave a limit or the cap, the evaluation is not used and this
         element's QPs take them.)"""
-        columns, mu, torsion = cone_arrays(cone_columns(self.contacts)[0])
+        columns, mu, torsion = cone_arrays(cone_columns(self._limits)[0])
         return {
             "kind": "hold",
             "rows": np.r_[tuple(rows[c.name] for c in self.contacts)].astype(np.int32),

@@ -36,6 +36,10 @@ FEASIBILITY = 1e-9  # relative to the load: residuals and cone margins above -th
 QP_ITERATIONS = 200  # a small QP converges in tens of iterations; an infeasible one would run for minutes
 ACTIVE_SET_TOLERANCE = 1e-10  # relative to the largest entry: bounds and multiplier signs of a previous active set
 COMPLEMENTARITY = 1e-6  # relative to the bound: a row with a multiplier farther from its bound was left by it
+# relative: a grasp-hold chooses its forces in cones (and torsion limits) this much narrower than the contacts', so that
+# no contact it holds sits on its cone's edge, where rounding (the solves' 1e-13, FEASIBILITY's 1e-9 N) decides
+# whether it slips; 1000 times FEASIBILITY, and the hold lets go that much earlier (tilt_at_first_slip)
+HOLD_MARGIN = 1e-6
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 
@@ -54,6 +58,22 @@ class ConeColumns(NamedTuple):
     tangents: tuple[int, int] | None
     spin: int | None
     model: str
+
+
+class Limits(NamedTuple):
+    """A contact's limits as this module reads them: name, model (a key of ``WRENCH_BASES``), mu [-], torsion [m]."""
+
+    name: str
+    model: str
+    mu: float
+    torsion: float
+
+
+def narrowed(contacts: list[Any], margin: float) -> list[Limits]:
+    """The contacts' limits with their friction and torsion coefficients ``margin`` (relative) smaller: forces inside
+    those keep ``margin`` mu f_n (and margin torsion f_n) from the contacts' own bounds."""
+    scale = 1.0 - margin
+    return [Limits(c.name, c.model, c.mu * scale, c.torsion * scale) for c in contacts]
 
 
 def cone_columns(contacts: list[Any]) -> tuple[list[ConeColumns], int]:

@@ -23,6 +23,7 @@ from ..scene import Scene
 from .analysis import RANK_TOLERANCE, GraspAnalysis, GraspContact, analyse_grasp
 from .capacity import Capacity, Weight, grasp_capacity, horizontal_axes
 from .hold import contact_rows
+from .holding import HOLD_MARGIN, narrowed
 
 FRAMES = {
     "grasp_map": "contact forces in C_i [N, N m] -> object wrench in O [N, N m]",
@@ -131,13 +132,18 @@ def hold_squeeze(scene: Scene, name: str) -> float | None:
 
 
 def analyse_scene_grasps(
-    scene: Scene, facets: int = 8, squeeze: float | None = None, tilt_axis: np.ndarray | None = None
+    scene: Scene,
+    facets: int = 8,
+    squeeze: float | None = None,
+    tilt_axis: np.ndarray | None = None,
+    margin: float = 0.0,
 ) -> dict[str, ObjectGrasp]:
     """Every grasped object's :class:`ObjectGrasp` at the scene's assembled start, cones linearized with
     ``facets`` sides for force closure and quality; the squeeze its weight needs on the exact cones, and
     for ``squeeze`` [N] (default: the scene's ``grasp-hold`` on the object, see :func:`hold_squeeze`) the
     largest load and the first slipping tilt about ``tilt_axis`` (world; default: the two horizontal
-    world axes), both senses.
+    world axes), both senses; the capacity on the cones narrowed by ``margin`` (relative: a ``grasp-hold``'s
+    :data:`~pinstab.grasp.holding.HOLD_MARGIN` gives where the hold lets go; default 0: the contacts' own cones).
 
     Raises:
         PinstabError: the scene has no grasp contacts (naming its objects); AssemblyError from assembly.
@@ -167,7 +173,7 @@ def analyse_scene_grasps(
     model.kin.update_jacobians(start.q)
     return {
         name: _object_grasp(
-            model, name, contacts, facets, hold_squeeze(scene, name) if squeeze is None else squeeze, axes
+            model, name, contacts, facets, hold_squeeze(scene, name) if squeeze is None else squeeze, axes, margin
         )
         for name, contacts in grasped.items()
     }
@@ -180,27 +186,36 @@ def tilt_at_first_slip(
     minus that angle) at which the first contact of the grasp on ``object_name`` (default: the scene's
     only grasped object) leaves its cone, when every contact presses with at most ``squeeze`` [N] (default:
     the scene's ``grasp-hold`` on the object, :func:`hold_squeeze`): the smallest tilt in (0, 180] deg at
-    which no contact forces inside the round cones with normal forces <= squeeze hold the object's weight,
+    which no contact forces inside the round cones narrowed as a ``grasp-hold`` narrows them
+    (:data:`~pinstab.grasp.holding.HOLD_MARGIN`) with normal forces <= squeeze hold the object's weight,
     computed at the scene's assembled start to 1e-6 deg. 0 when the grasp does not hold untilted, inf when
-    it holds at every tilt. A ``grasp-hold`` with ``max_squeeze`` equal to that squeeze lets go there.
+    it holds at every tilt. A ``grasp-hold`` with ``max_squeeze`` equal to that squeeze lets go there (on the
+    contacts' own cones, ``pinstab grasp``'s ``first_slip_tilt_deg``, the bound is later: 3.4e-4 deg on
+    allegro-tilt).
 
     Raises:
         PinstabError: no grasp contacts, an unknown object, no squeeze given or found, a bad axis.
     """
-    grasps = analyse_scene_grasps(scene, squeeze=squeeze, tilt_axis=axis)
+    grasps = analyse_scene_grasps(scene, squeeze=squeeze, tilt_axis=axis, margin=HOLD_MARGIN)
     if object_name is None and len(grasps) > 1:
         raise PinstabError(f"scene {scene.name} grasps several objects; name one of {choices(grasps)}")
     name = object_name if object_name is not None else next(iter(grasps))
     if name not in grasps:
         raise PinstabError(f"scene {scene.name} has no grasp on {name!r}; grasped objects: {choices(grasps)}")
-    capacity = grasps[name].capacity
-    if capacity.squeeze is None:
+    grasp = grasps[name]
+    if grasp.capacity.squeeze is None:
         raise PinstabError(f"scene {scene.name} has no grasp-hold on {name!r}: give the squeeze [N]")
-    return capacity.tilts["+axis"]
+    return grasp.capacity.tilts["+axis"]
 
 
 def _object_grasp(
-    model: ConstrainedModel, name: str, contacts: list[Any], facets: int, squeeze: float | None, axes: dict
+    model: ConstrainedModel,
+    name: str,
+    contacts: list[Any],
+    facets: int,
+    squeeze: float | None,
+    axes: dict,
+    margin: float,
 ) -> ObjectGrasp:
     kin = model.kin
     item = next(o for o in model.scene.objects if o.name == name)
@@ -236,7 +251,9 @@ def _object_grasp(
         twist_singular_values=np.linalg.svd(twist, compute_uv=False) if twist.size else np.zeros(0),
         row_mismatch=float(np.max(np.abs(rows[:, object_columns] - transpose))),
         weight=weight,
-        capacity=grasp_capacity(analysis.grasp_map, geometry, weight, squeeze, axes),
+        capacity=grasp_capacity(
+            analysis.grasp_map, narrowed(geometry, margin) if margin else geometry, weight, squeeze, axes
+        ),
     )
 
 
