@@ -70,6 +70,10 @@ class ForceElement(ABC):
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         """Generalized force [N, N m] (nv,); needs placements and Jacobians current."""
 
+    def restart(self) -> None:
+        """A run starts: forget what an earlier run left in the element (the default keeps nothing)."""
+        return None
+
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:
         """The element as the compiled core takes it (``cpp/core_kernel.hpp``, ``cpp/grasp_forces.hpp``,
         ``cpp/spring_damper.hpp``: a dict with ``kind`` ``joint-spring``, ``hold``, ``wrench``, ``spring-damper`` or

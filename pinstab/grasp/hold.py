@@ -102,14 +102,20 @@ class GraspHold(ForceElement):
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
         self._cone_test = ConeTest(self._limits, max_squeeze)
         self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
+        self.released = math.inf  # [s] when the hold let go in the current run (inf: it holds)
 
-    def held_forces(self, rows: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    def held_forces(self, rows: np.ndarray, gravity: np.ndarray, t: float | None = None) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
-        gravity g(q) [N, N m] (see the module docstring)."""
+        gravity g(q) [N, N m] (see the module docstring). With the time t [s] of a run, the hold lets go for good:
+        from the earliest t at which no forces inside the cones hold (:attr:`released`) its forces are the let-go
+        ones at every later t, without the QPs (near that bound whether a solve finds forces within its tolerance
+        flickers, over 1e-5 s of allegro-tilt, and with it the hand's torques, by 0.06 N at the fingertips)."""
         carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self._object]
         # least squares: the forces closest to the squeeze among those that best carry the object's weight
         free = closest_solution(carrier, load, self.pressing)
+        if t is not None and t >= self.released:
+            return self._let_go(carrier, load, free)
         if self._cone_test.holds(free):
             return free
         count = len(free)
@@ -119,26 +125,41 @@ class GraspHold(ForceElement):
         if solved and self._cone_test.holds(solution):
             return solution
         exact = closest_holding(carrier, load, self._limits, self.pressing, self.max_squeeze)
-        if exact.holds or math.isinf(self.max_squeeze):
-            return exact.forces if exact.holds else free
-        # no forces hold within the cap: the fingers press at most max_squeeze, and some contact leaves its cone
-        caps = len(self._normals)
+        if exact.holds:
+            return exact.forces
+        if t is not None:
+            self.released = t
+        return self._let_go(carrier, load, free)
+
+    def _let_go(self, carrier: np.ndarray, load: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """The forces [N, N m] when none inside the cones hold: the least-squares ``free`` ones, or with a cap those
+        closest to the squeeze within it (the fingers press at most max_squeeze, and some contact leaves its cone)."""
+        if math.isinf(self.max_squeeze):
+            return free
+        count, caps = len(free), len(self._normals)
         capped, solved, _ = self._capped_qp.solve(
             np.eye(count), -self.pressing, carrier, load, self._cones[-caps:], self._lower[-caps:], self._upper[-caps:]
         )
         return capped if solved else free
 
-    def torques(self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def restart(self) -> None:
+        """A run starts: the hold holds again (:attr:`released` inf)."""
+        self.released = math.inf
+
+    def torques(
+        self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray, t: float | None = None
+    ) -> np.ndarray:
         """The hand's joint torques tau (nv,) [N m] at (q, v) given the contact rows A (s x nv) and the
-        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques, stiffness and damping (the compiled
-        balance, ``cpp/grasp_forces.cpp``, the core's hold's too)."""
-        forces = self.held_forces(rows, gravity)
+        generalized gravity g(q) [N, N m]: gravity, minus the held forces' torques (at a run's time t [s], see
+        :meth:`held_forces`), stiffness and damping (the compiled balance, ``cpp/grasp_forces.cpp``, the core's hold's
+        too)."""
+        forces = self.held_forces(rows, gravity, t)
         deviation = pin.difference(self.model, self.q_start, q)
         return hold_torques(rows, self._hand_int, gravity, forces, deviation, v, self.stiffness, self.damping)
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
-        return self.torques(rows, kin.gravity(), kin.q, v)
+        return self.torques(rows, kin.gravity(), kin.q, v, t)
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:
         """The hold for the compiled grasp evaluation: its contacts' rows in the stack, the columns, the squeeze, the

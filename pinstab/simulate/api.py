@@ -165,6 +165,8 @@ def simulate(
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
     q0, v0 = start_state(scene, q0, v0)
+    for element in scene.forces:
+        element.restart()
     table = held_limits(scene, q0, limits)  # every path refuses a start outside the limits
     watch = limit_watch(table) if table else None  # sees every step of a path that does not hold them
     if contacts == "stepping":
