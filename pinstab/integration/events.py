@@ -573,7 +573,7 @@ class EventLoop(AdaptiveLoop):
         dynamics = self.dynamics
         slack = CONSISTENCY if cause in (START, GAP_CLOSED, LIMIT_REACHED) else EVENT_SLACK
         try:
-            choice = self._choose(q, v, t, slack)
+            choice = self._choose(q, v, t, slack, self._stopped(q, v))
         except ContactInfeasibleError as exc:  # no replay: the modes up to here are the run's
             raise RunEnd(t, q, v, error=exc) from None
         self._limit_events(q, v, t, cause, limits_before or [], choice.solution)
@@ -604,8 +604,23 @@ class EventLoop(AdaptiveLoop):
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
 
-    def _choose(self, q: np.ndarray, v: np.ndarray, t: float, slack: float):
-        """The contact modes (:func:`~pinstab.solvers.mode_choice.choose_modes`) with the joint limits that touch
+    def _stopped(self, q: np.ndarray, v: np.ndarray) -> list[int]:
+        """The sliding contacts whose slip ends at (q, v): watched (armed), their velocity along the slip's direction
+        at the step's start within SLIP_SPEED of zero and their speed below :data:`ARMING_SPEED` (what is left across
+        that direction, where it turns as the slip stops); the mode choice lets them stick."""
+        velocities = self.dynamics.kinematics(q, v).velocities
+        return [
+            i
+            for i, mode in enumerate(self.dynamics.modes)
+            if mode is Mode.SLIDING
+            and self._armed[i]
+            and velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED
+            and float(np.hypot(*velocities[i, 1:])) <= ARMING_SPEED
+        ]
+
+    def _choose(self, q: np.ndarray, v: np.ndarray, t: float, slack: float, stopped: list[int]):
+        """The contact modes (:func:`~pinstab.solvers.mode_choice.choose_modes`, the contacts ``stopped`` free to
+        stick: :meth:`_stopped`) with the joint limits that touch
         (gap within TOUCH_GAP beyond where they count as reached, rate within TOUCH_SPEED) set to the first
         consistent assignment, held ones first, the others released (``dynamics.active`` is left at it).
 
@@ -622,7 +637,7 @@ class EventLoop(AdaptiveLoop):
             for i, held in zip(candidates, assignment, strict=True):
                 dynamics.active[i] = held
             try:
-                choice = choose_modes(dynamics, q, v, t, slack)
+                choice = choose_modes(dynamics, q, v, t, slack, stopped)
             except ContactInfeasibleError as exc:
                 error = exc
                 continue

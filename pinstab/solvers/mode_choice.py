@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Collection
 from typing import NamedTuple
 
 import numpy as np
@@ -54,10 +55,20 @@ def touching(kinematics: ContactKinematics) -> list[int]:
     ]
 
 
-def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, slack: float = CONSISTENCY) -> Choice:
+def choose_modes(
+    dynamics: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    slack: float = CONSISTENCY,
+    stopped: Collection[int] = (),
+) -> Choice:
     """The modes of the contacts at (q, v, t): those not touching are separated, the touching ones take the
     consistent assignment (see the module); a force within ``slack`` (relative) of its bound is on it
-    (:data:`EVENT_SLACK` at an event located on that bound).
+    (:data:`EVENT_SLACK` at an event located on that bound). The contacts ``stopped`` (a slip whose end the event is)
+    may stick whatever their speed: a slip located at its end, its velocity along its direction zero, can keep a
+    speed across it of about SLIP_SPEED where the direction turns as it stops (allegro-tilt's ring finger: 1.0002e-9
+    m/s, which decelerating at 10 m/s^2 stops within 1e-10 s); sliding on, against that speed, no mode was consistent.
 
     Raises:
         PainleveError: no consistent assignment, or consistent ones with different accelerations.
@@ -67,19 +78,19 @@ def choose_modes(dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float,
     active = touching(kinematics)
     options = []
     for i in active:
-        slipping = math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
+        slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
         options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
     consistent: list[Choice] = []
     for assignment in itertools.product(*options):
         modes = [Mode.SEPARATED] * count
         for i, mode in zip(active, assignment, strict=True):
             modes[i] = mode
-        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack)
+        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack, stopped)
         if choice is not None:
             consistent.append(choice)
     names = [dynamics.contacts[i].name for i in active]
     if not consistent:  # e.g. several contacts starting to slide at once: their directions are coupled
-        choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack)
+        choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack, stopped)
         consistent += [] if choice is None else [choice]
     if not consistent:
         raise PainleveError(
@@ -120,14 +131,15 @@ def _consistent(
     active: list[int],
     kinematics,
     slack: float,
+    stopped: Collection[int] = (),
 ) -> Choice | None:
-    """The choice of ``modes`` when consistent at (q, v, t), else None."""
+    """The choice of ``modes`` when consistent at (q, v, t), else None (the contacts ``stopped`` slide from rest)."""
     directions = {}
     for i in active:
         if modes[i] is Mode.SLIDING:
             slip = kinematics.velocities[i, 1:]
             speed = math.hypot(*slip)
-            directions[i] = slip / speed if speed > SLIP_SPEED else None
+            directions[i] = slip / speed if speed > SLIP_SPEED and i not in stopped else None
     starting = [i for i, d in directions.items() if d is None]
     solution = _solve_with_directions(dynamics, q, v, t, modes, directions, starting)
     if solution is None:
@@ -168,13 +180,20 @@ def _checked(
 
 
 def _ncp_choice(
-    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, active: list[int], kinematics, slack: float
+    dynamics: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    active: list[int],
+    kinematics,
+    slack: float,
+    stopped: Collection[int] = (),
 ) -> Choice | None:
     """The modes of the touching contacts, all at rest along the surface, read from the contact problem on
     accelerations solved by Pinocchio's ADMM in NCP mode (exact round cones, friction opposing the slip
     acceleration), then checked as an enumerated assignment is; None when some contact already slips or the
-    modes read are not consistent."""
-    if not active or any(math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED for i in active):
+    modes read are not consistent (the contacts ``stopped`` count as at rest)."""
+    if not active or any(i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED for i in active):
         return None
     count = len(dynamics.contacts)
     free = dynamics.solve(q, v, t, [Mode.SEPARATED] * count)
