@@ -101,8 +101,7 @@ class GraspHold(ForceElement):
         self._lower = np.concatenate([np.zeros(len(self._cones) - len(caps)), np.full(len(caps), -UNBOUNDED)])
         self._upper = np.concatenate([np.full(len(self._cones) - len(caps), UNBOUNDED), np.full(len(caps), limit)])
         self._cone_test = ConeTest(self._limits, max_squeeze)
-        self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
-        self.released = math.inf  # [s] when the hold let go in the current run (inf: it holds)
+        self.restart()
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray, t: float | None = None) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
@@ -143,8 +142,10 @@ class GraspHold(ForceElement):
         return capped if solved else free
 
     def restart(self) -> None:
-        """A run starts: the hold holds again (:attr:`released` inf)."""
-        self.released = math.inf
+        """A run starts: the hold holds again (:attr:`released` inf) and its QPs start cold (a warm start from an
+        earlier run's last solve gave start forces 1e-11 N apart from a fresh hold's)."""
+        self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
+        self.released = math.inf  # [s] when the hold let go in the current run (inf: it holds)
 
     def torques(
         self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray, t: float | None = None
