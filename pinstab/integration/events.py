@@ -439,12 +439,13 @@ class EventLoop(AdaptiveLoop):
         solution = dynamics.solve(q, v, t)
         forces, velocities = solution.forces, solution.contacts.velocities
         worst, cause = np.inf, "a contact force reached its bound"
+        stopped = self._stopped(q, v)
         for i, mode in enumerate(dynamics.modes):
             name = dynamics.contacts[i].name
             if mode is Mode.SLIDING:
                 if forces[i, 0] <= _force_slack(forces):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED:  # at rest for the mode choice
+                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED or i in stopped:  # at rest for the mode choice
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
