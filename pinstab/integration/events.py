@@ -439,13 +439,12 @@ class EventLoop(AdaptiveLoop):
         solution = dynamics.solve(q, v, t)
         forces, velocities = solution.forces, solution.contacts.velocities
         worst, cause = np.inf, "a contact force reached its bound"
-        stopped = self._stopped(q, v)
         for i, mode in enumerate(dynamics.modes):
             name = dynamics.contacts[i].name
             if mode is Mode.SLIDING:
                 if forces[i, 0] <= _force_slack(forces):
                     return f"normal force reached zero at {name}"
-                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED or i in stopped:  # at rest for the mode choice
+                if velocities[i, 1:] @ self._reference[i] <= SLIP_SPEED:  # at rest for the mode choice
                     return f"slip velocity reached zero at {name}"
             elif mode is Mode.STICKING:
                 friction = dynamics.contacts[i].mu * forces[i, 0] - float(np.hypot(*forces[i, 1:]))
@@ -606,10 +605,10 @@ class EventLoop(AdaptiveLoop):
             raise RunEnd(t, q, v, event=stops[0])
 
     def _stopped(self, q: np.ndarray, v: np.ndarray) -> list[int]:
-        """The sliding contacts whose slip ends at (q, v): watched (armed: they slipped faster than
+        """The sliding contacts whose slip may end at (q, v): watched (armed: they slipped faster than
         :data:`ARMING_SPEED`) and now slower than that (what is left of a slip located at its end: its velocity
         across the direction it had, which turns as the slip stops, 1.0 to 1.1e-9 m/s on allegro-tilt's ring finger);
-        the mode choice lets them stick."""
+        the mode choice lets them stick when no mode is consistent with them sliding."""
         velocities = self.dynamics.kinematics(q, v).velocities
         return [
             i

@@ -65,32 +65,23 @@ def choose_modes(
 ) -> Choice:
     """The modes of the contacts at (q, v, t): those not touching are separated, the touching ones take the
     consistent assignment (see the module); a force within ``slack`` (relative) of its bound is on it
-    (:data:`EVENT_SLACK` at an event located on that bound). The contacts ``stopped`` (a slip whose end the event is)
-    may stick whatever their speed: a slip located at its end, its velocity along its direction zero, can keep a
-    speed across it of about SLIP_SPEED where the direction turns as it stops (allegro-tilt's ring finger: 1.0002e-9
-    m/s, which decelerating at 10 m/s^2 stops within 1e-10 s); sliding on, against that speed, no mode was consistent.
+    (:data:`EVENT_SLACK` at an event located on that bound). When no assignment is consistent, the contacts
+    ``stopped`` (slow slips) may stick whatever their speed, as at rest: a slip at its end can keep a speed across its
+    old direction of about SLIP_SPEED where the direction turns as it stops (allegro-tilt's ring finger: 1.0 to
+    1.1e-9 m/s, which decelerating at 10 m/s^2 stops within 1e-10 s); sliding on against that speed, no mode was.
 
     Raises:
         PainleveError: no consistent assignment, or consistent ones with different accelerations.
     """
     kinematics = dynamics.kinematics(q, v)
-    count = len(dynamics.contacts)
     active = touching(kinematics)
-    options = []
-    for i in active:
-        slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
-        options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
-    consistent: list[Choice] = []
-    for assignment in itertools.product(*options):
-        modes = [Mode.SEPARATED] * count
-        for i, mode in zip(active, assignment, strict=True):
-            modes[i] = mode
-        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack, stopped)
-        if choice is not None:
-            consistent.append(choice)
+    consistent = _enumerated(dynamics, q, v, t, active, kinematics, slack, ())
+    slow = [i for i in stopped if i in active]
+    if not consistent and slow:  # the slow slips stop
+        consistent = _enumerated(dynamics, q, v, t, active, kinematics, slack, slow)
     names = [dynamics.contacts[i].name for i in active]
     if not consistent:  # e.g. several contacts starting to slide at once: their directions are coupled
-        choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack, stopped)
+        choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack, slow)
         consistent += [] if choice is None else [choice]
     if not consistent:
         raise PainleveError(
@@ -112,6 +103,34 @@ def choose_modes(
                 t,
             )
     return first
+
+
+def _enumerated(
+    dynamics: ModeDynamics,
+    q: np.ndarray,
+    v: np.ndarray,
+    t: float,
+    active: list[int],
+    kinematics,
+    slack: float,
+    stopped: Collection[int],
+) -> list[Choice]:
+    """Every consistent assignment of modes to the touching contacts ``active`` at (q, v, t): sticking, sliding or
+    separated for those at rest along their surface (and the ``stopped`` ones), sliding or separated for the others."""
+    count = len(dynamics.contacts)
+    options = []
+    for i in active:
+        slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
+        options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
+    consistent: list[Choice] = []
+    for assignment in itertools.product(*options):
+        modes = [Mode.SEPARATED] * count
+        for i, mode in zip(active, assignment, strict=True):
+            modes[i] = mode
+        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack, stopped)
+        if choice is not None:
+            consistent.append(choice)
+    return consistent
 
 
 def _differences(dynamics: ModeDynamics, first: Choice, other: Choice) -> list[tuple[str, Mode, Mode]]:
