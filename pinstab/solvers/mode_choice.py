@@ -75,10 +75,10 @@ def choose_modes(
     """
     kinematics = dynamics.kinematics(q, v)
     active = touching(kinematics)
-    consistent = _enumerated(dynamics, q, v, t, active, kinematics, slack, ())
+    consistent = _enumerated(dynamics, q, v, t, kinematics, slack, ())
     slow = [i for i in stopped if i in active]
     if not consistent and slow:  # the slow slips stop
-        consistent = _enumerated(dynamics, q, v, t, active, kinematics, slack, slow)
+        consistent = _enumerated(dynamics, q, v, t, kinematics, slack, slow)
     names = [dynamics.contacts[i].name for i in active]
     if not consistent:  # e.g. several contacts starting to slide at once: their directions are coupled
         choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack, slow)
@@ -106,18 +106,13 @@ def choose_modes(
 
 
 def _enumerated(
-    dynamics: ModeDynamics,
-    q: np.ndarray,
-    v: np.ndarray,
-    t: float,
-    active: list[int],
-    kinematics,
-    slack: float,
-    stopped: Collection[int],
+    dynamics: ModeDynamics, q: np.ndarray, v: np.ndarray, t: float, kinematics, slack: float, stopped: Collection[int]
 ) -> list[Choice]:
-    """Every consistent assignment of modes to the touching contacts ``active`` at (q, v, t): sticking, sliding or
-    separated for those at rest along their surface (and the ``stopped`` ones), sliding or separated for the others."""
+    """Every consistent assignment of modes to the touching contacts at (q, v, t) (``kinematics`` there): sticking,
+    sliding or separated for those at rest along their surface (and the ``stopped`` ones), sliding or separated for
+    the others."""
     count = len(dynamics.contacts)
+    active = touching(kinematics)
     options = []
     for i in active:
         slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
