@@ -322,6 +322,38 @@ def painleve_rod(mu: float = 2.0) -> dict[str, Any]:
     }
 
 
+MAX_STACK = 10  # box-stack's tallest stack
+DROP_REASON = "from resting on the stack to a metre above it"
+GROUND_URDF = '<?xml version="1.0"?>\n<robot name="ground"><link name="ground"/></robot>\n'  # a robot without bodies
+
+
+def box_stack(count: int = 3, mu: float = 0.5, drop: float = -1.0) -> dict[str, Any]:
+    """``count`` 1 kg cubes (side 0.1 m, objects ``box0``, ``box1``, ... from the bottom) stacked at rest on the
+    ground z = 0, their contacts found from geometry (kind ``geometry``, friction ``mu``): four corners per face
+    pair, the normal forces under box k summing to the weight of the boxes from k up, (count - k) m g. With
+    ``drop`` >= 0 [m] one more cube (``dropped``) starts that far above the top, at rest: it lands flat on its
+    four corners (an impact, e = 0) and rests there."""
+    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= MAX_STACK:
+        raise SceneError(f"generator box-stack: parameter count must be an integer in [1, {MAX_STACK}], got {count!r}")
+    mu = friction_coefficient(mu, "generator box-stack: parameter mu")
+    drop = _number("box-stack", "drop", drop, -1.0, 1.0, "m", f"-1: no box dropped; {DROP_REASON}")
+    half = BOX_SIDE / 2
+    heights = [half + k * BOX_SIDE for k in range(count)]
+    names = [f"box{k}" for k in range(count)]
+    if drop >= 0.0:
+        heights.append(half + count * BOX_SIDE + drop)
+        names.append("dropped")
+    return {
+        "robot": {"urdf_text": GROUND_URDF},
+        "gravity": [0.0, 0.0, -GRAVITY],
+        "objects": [
+            {"name": name, "shape": "box", "size": [BOX_SIDE] * 3, "mass": 1.0, "position": [0.0, 0.0, z]}
+            for name, z in zip(names, heights, strict=True)
+        ],
+        "contacts": [{"kind": "geometry", "mu": mu}],
+    }
+
+
 GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {
     "nfourbar": nfourbar,
     "incline": incline,
@@ -329,6 +361,7 @@ GENERATORS: dict[str, Callable[..., dict[str, Any]]] = {
     "bouncing-ball": bouncing_ball,
     "pinch": pinch,
     "painleve-rod": painleve_rod,
+    "box-stack": box_stack,
 }
 GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "nfourbar": {"N": "n", "link_length": "link_length", "link_mass": "link_mass"},
@@ -337,6 +370,7 @@ GENERATOR_PARAMETERS: dict[str, dict[str, str]] = {
     "bouncing-ball": {"height": "height", "restitution": "restitution"},
     "pinch": {"mu": "mu", "squeeze": "squeeze", "mass": "mass"},
     "painleve-rod": {"mu": "mu"},
+    "box-stack": {"count": "count", "mu": "mu", "drop": "drop"},
 }
 
 

@@ -6,8 +6,15 @@ every shape against every other except two shapes of one body and the shapes of 
 (adjacent links). For each pair, after a broad phase (the shapes' bounding spheres farther apart than the margin:
 no contact), coal's signed distance gives the nearest points and the normal; the pair's contact *features* are
 then the points of shape A that lie within the margin of the nearest one, measured across the separating plane
-(B's tangent plane at its nearest point, normal along coal's): a sphere's centre with its radius (one feature), a
-capsule's two end centres with its radius, a box's eight corners, a convex mesh's vertices.
+(B's tangent plane at its nearest point, normal along coal's; when B is a box, the face of B that normal is
+nearest to, exactly: coal's normal and point between two boxes face to face are its solver's, 1e-12 off): a
+sphere's centre with its radius (one feature), a capsule's two end centres with its radius, a box's eight
+corners, a convex mesh's vertices, and a cylinder's features by how it lies (:func:`cylinder_usable`): on its
+side (its axis within :data:`SIDE_TILT` of the plane) the two ends of its lowest line, each the centre of an
+end cap with the cylinder's radius (a sphere there touches the plane where the rim does: exact while the axis
+stays parallel to the plane, rolling or at rest); else its rim points, :data:`RIM_POINTS` around each end cap
+(a cap flat on the plane rests on them; a cylinder tilted onto its rim touches it at the nearest of them, a
+polygon's corner, not the circle's lowest point).
 
 A feature keeps its identity while it persists: its name is ``<shapeA>/<shapeB>[k]``, k its index among shape A's
 points (a box's corner k is the same corner wherever the box turns), and the features come in the order of the
@@ -29,7 +36,9 @@ from ..errors import SceneError, choices
 
 GROUND = "ground"  # the ground's shape name
 MARGIN = 0.1  # [-] the default margin, in bounding radii of shape A: features this close to the nearest one count
-SHAPE_KINDS = ("box", "capsule", "convex", "sphere")  # the shapes whose features are found
+SHAPE_KINDS = ("box", "capsule", "convex", "cylinder", "sphere")  # the shapes whose features are found
+RIM_POINTS = 8  # a cylinder's points around each end cap's rim
+SIDE_TILT = 1e-6  # [rad] a cylinder whose axis is this close to parallel to the plane lies on its side
 
 
 class Feature(NamedTuple):
@@ -53,25 +62,50 @@ class Feature(NamedTuple):
     gap: float
 
 
-def shape_points(shape: coal.CollisionGeometry, where: str) -> tuple[np.ndarray, float]:
-    """The points (k, 3) [m, shape frame] of a shape's features and their radius [m].
+def shape_points(shape: coal.CollisionGeometry, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The points (k, 3) [m, shape frame] of a shape's features and the radius (k,) [m] of each (0: a vertex).
+    A cylinder's: the centres of its end caps (+z, -z), then :data:`RIM_POINTS` around the +z cap's rim from +x
+    counter-clockwise, then as many around the -z cap's.
 
     Raises:
         SceneError: a shape kind without features here (naming the kinds there are).
     """
     if isinstance(shape, coal.Sphere):
-        return np.zeros((1, 3)), float(shape.radius)
+        return np.zeros((1, 3)), np.full(1, float(shape.radius))
     if isinstance(shape, coal.Capsule):
-        return np.array([[0.0, 0.0, shape.halfLength], [0.0, 0.0, -shape.halfLength]]), float(shape.radius)
+        ends = np.array([[0.0, 0.0, shape.halfLength], [0.0, 0.0, -shape.halfLength]])
+        return ends, np.full(2, float(shape.radius))
+    if isinstance(shape, coal.Cylinder):
+        radius, half = float(shape.radius), float(shape.halfLength)
+        turns = 2.0 * np.pi * np.arange(RIM_POINTS) / RIM_POINTS
+        rim = np.column_stack([radius * np.cos(turns), radius * np.sin(turns), np.zeros(RIM_POINTS)])
+        ends = np.array([[0.0, 0.0, half], [0.0, 0.0, -half]])
+        points = np.vstack([ends, rim + ends[0], rim + ends[1]])
+        return points, np.concatenate([np.full(2, radius), np.zeros(2 * RIM_POINTS)])
     if isinstance(shape, coal.Box):
         signs = np.array([[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)], dtype=float)
-        return signs * np.asarray(shape.halfSide), 0.0
+        return signs * np.asarray(shape.halfSide), np.zeros(8)
     if isinstance(shape, coal.ConvexBase):
-        return np.array([np.asarray(p) for p in shape.points()]), 0.0
+        points = np.array([np.asarray(p) for p in shape.points()])
+        return points, np.zeros(len(points))
     raise SceneError(
         f"{where}: a {type(shape).__name__} shape has no contact features here; shapes with them: "
         f"{', '.join(SHAPE_KINDS)} (a mesh: give its convex hull)"
     )
+
+
+def is_round(shape: coal.CollisionGeometry) -> bool:
+    """Whether a shape touches a plane with round features (a sphere, a capsule, a cylinder on its side): such a
+    shape pairs with a shape whose plane it touches (a box, a convex mesh, the ground), not with another round one."""
+    return isinstance(shape, coal.Sphere | coal.Capsule | coal.Cylinder)
+
+
+def cylinder_usable(normal: np.ndarray) -> np.ndarray:
+    """Which features of a cylinder (:func:`shape_points`' order) count against a plane of unit ``normal`` (in the
+    cylinder's frame): its end caps' centres (round) when it lies on its side (its axis, z, within
+    :data:`SIDE_TILT` of the plane), else its rim points."""
+    side = abs(float(normal[2])) <= np.sin(SIDE_TILT)
+    return np.concatenate([np.full(2, side), np.full(2 * RIM_POINTS, not side)])
 
 
 class ContactShapes:
@@ -107,7 +141,7 @@ class ContactShapes:
         self.names = [shape.name for shape in self.geometry.geometryObjects]
         self.pairs: list[tuple[int, int]] = []
         self.margins: list[float] = []
-        self._points: list[tuple[np.ndarray, float]] = []
+        self._points: list[tuple[np.ndarray, np.ndarray]] = []
         self._data = pin.Data(model)
         self._geometry_data = self.geometry.createData()
 
@@ -152,15 +186,19 @@ class ContactShapes:
         if isinstance(objects[a].geometry, coal.Halfspace):
             a, b = b, a
         points = shape_points(objects[a].geometry, f"{where}: shape {self.names[a]!r}")
-        if points[1] and not isinstance(objects[b].geometry, coal.Halfspace):  # B's plane touches a point of A
+        if is_round(objects[a].geometry) and not isinstance(objects[b].geometry, coal.Halfspace):  # B's plane
             other = shape_points(objects[b].geometry, f"{where}: shape {self.names[b]!r}")
-            if other[1]:
+            if is_round(objects[b].geometry):
                 raise SceneError(
-                    f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere or a "
-                    "capsule): not yet a pair of contacts found from geometry; pair one with a box or a convex shape"
+                    f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere, a capsule "
+                    "or a cylinder): not yet a pair of contacts found from geometry; pair one with a box or a convex "
+                    "shape"
                 )
             a, b, points = b, a, other
-        radius = points[1] + float(np.max(np.linalg.norm(points[0], axis=1)))
+        for shape in (a, b):  # the broad phase's bounding spheres (coal leaves a shape's unset until asked)
+            if not isinstance(objects[shape].geometry, coal.Halfspace):
+                objects[shape].geometry.computeLocalAABB()
+        radius = float(np.max(points[1] + np.linalg.norm(points[0], axis=1)))
         self.pairs.append((a, b))
         self.margins.append(MARGIN * max(radius, np.finfo(float).tiny) if margin is None else margin)
         self._points.append(points)
@@ -209,14 +247,28 @@ class ContactShapes:
         )
         normal = -np.asarray(result.normal)  # coal's runs from A to B: the plane's, into A
         plane_point = np.asarray(result.getNearestPoint2())
-        points, radius = self._points[pair]
+        if isinstance(shape_b, coal.Box):
+            normal, plane_point = _box_face(shape_b, placed_b, normal)
+        points, radii = self._points[pair]
         world = placed_a.rotation @ points.T + placed_a.translation[:, None]
-        gaps = normal @ (world - plane_point[:, None]) - radius
+        gaps = normal @ (world - plane_point[:, None]) - radii
+        if isinstance(shape_a, coal.Cylinder):
+            gaps[~cylinder_usable(placed_a.rotation.T @ normal)] = np.inf
         near = np.flatnonzero(gaps <= gaps.min() + margin)
         label, joint = self.label(pair), self.joint_points(pair)
         return [
             Feature(
-                f"{label}[{k}]", pair, int(k), joint[:, k], world[:, k], radius, normal, plane_point, float(gaps[k])
+                f"{label}[{k}]", pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, float(gaps[k])
             )
             for k in near
         ]
+
+
+def _box_face(box: coal.Box, placed: pin.SE3, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The outward unit normal and centre [m] (world) of the face of a box placed at ``placed`` whose normal is
+    nearest to ``normal`` (world): the plane a shape touching that face rests on."""
+    local = placed.rotation.T @ normal
+    axis = int(np.argmax(np.abs(local)))
+    outward = np.zeros(3)
+    outward[axis] = 1.0 if local[axis] > 0.0 else -1.0
+    return placed.rotation @ outward, placed.act(outward * np.asarray(box.halfSide))

@@ -50,6 +50,7 @@ distance from the axis), which the next step's gap term takes back.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -57,7 +58,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from ..contact.modes import ContactEvent, Mode, as_tuple
 from ..errors import ContactSolveError
-from ..solvers.contact_modes import ModeDynamics
+from ..solvers.contact_modes import ContactKinematics, ModeDynamics, PlaneContactGeometry, plane_geometries
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
 from .free_flyers import FreeFlyers
@@ -99,11 +100,38 @@ class ContactStepper(Integrator):
         self.impulses = np.zeros((count, 3))
         self._index = {contact.name: i for i, contact in enumerate(dynamics.contacts)}
         self.free_flyers = FreeFlyers(system.model.model)
+        self.finders: list[Any] = []
+        self._declared: list[PlaneContactGeometry] = []
+
+    def find_contacts(self, finders: list[Any]) -> None:
+        """Ask ``finders`` (:class:`~pinstab.constraints.geometry_contacts.FoundContacts`) for their contacts at
+        every step's start, as the event-driven loop does at every step's end: the step's contacts are the
+        dynamics' others (first), then those found there, by finder, pair and point; one found before keeps its
+        mode, a new one starts separated."""
+        self.finders = list(finders)
+        found = {name for finder in self.finders for name in finder.order}
+        self._declared = [contact for contact in self.dynamics.contacts if contact.name not in found]
+
+    def _refind(self, q: np.ndarray) -> None:
+        """Take the contacts found at q as the dynamics' (see :meth:`find_contacts`)."""
+        found = plane_geometries([contact for finder in self.finders for contact in finder.contacts(q)])
+        contacts = self._declared + found
+        if [c.name for c in contacts] == [c.name for c in self.dynamics.contacts]:
+            return
+        places = self.dynamics.rearrange(contacts)
+        if self.modes is not None:
+            self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
+        self.impulses = np.array([np.zeros(3) if i is None else self.impulses[i] for i in places]).reshape(-1, 3)
+        self._index = {contact.name: i for i, contact in enumerate(contacts)}
+        if 3 * len(contacts) > self.solver.size:
+            self.solver = NcpSolver(3 * len(contacts))
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
         if self.events and self.events[-1].t > t + dt / 2:
             self._rewind(t + dt / 2)
+        if self.finders:
+            self._refind(q)
         model = self.system.model
         terms = model.dynamics_terms(q, v, t)
         contacts = self.dynamics.kinematics_from_kin(v)
@@ -113,24 +141,41 @@ class ContactStepper(Integrator):
             cho_solve(factor, contacts.jacobian.T),
         )
         reach = contacts.jacobian @ v_free
-        active = tuple(int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[0::3] <= 0.0))
         impulses = np.zeros_like(self.impulses)
-        v_new = v_free
-        if active:
-            offset = reach.copy()
-            for i in active:
-                offset[3 * i] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
-            mus = [self.dynamics.contacts[i].mu for i in active]
-            impulses[np.array(active)] = self.solver.solve_contacts(contacts.jacobian, mobility, offset, active, mus)
-            self.solver.record(self.system.solver.statistics)
-            if not self.solver.status().converged:
-                raise self._unsolved(active, t)
-            v_new = v_free + mobility @ impulses.ravel()
+        v_new, active = v_free, ()
+        closing = contacts.gaps + dt * reach[0::3] <= 0.0
+        while np.any(closing):  # the contacts whose gaps close within the step, with those the impulses close
+            active = tuple(sorted({*active, *(int(i) for i in np.flatnonzero(closing))}))
+            impulses, v_new = self._impulses(contacts, mobility, reach, v_free, active, t, dt)
+            closing = contacts.gaps + dt * (contacts.jacobian[0::3] @ v_new) < 0.0
+            closing[list(active)] = False
         velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
         normal = contacts.jacobian[0::3]
         self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
         self.impulses = impulses
         return self.free_flyers.integrate(self.system.model.model, q, v_new, dt)
+
+    def _impulses(
+        self,
+        contacts: ContactKinematics,
+        mobility: np.ndarray,
+        reach: np.ndarray,
+        v_free: np.ndarray,
+        active: tuple[int, ...],
+        t: float,
+        dt: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The impulses (k, 3) [N s] of the ``active`` contacts (the others' zero) and the velocity after them."""
+        offset = reach.copy()
+        for i in active:
+            offset[3 * i] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
+        mus = [self.dynamics.contacts[i].mu for i in active]
+        impulses = np.zeros_like(self.impulses)
+        impulses[np.array(active)] = self.solver.solve_contacts(contacts.jacobian, mobility, offset, active, mus)
+        self.solver.record(self.system.solver.statistics)
+        if not self.solver.status().converged:
+            raise self._unsolved(active, t)
+        return impulses, v_free + mobility @ impulses.ravel()
 
     def free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
         """v_free [m/s, rad/s] of a step of ``dt`` [s] from (q, v): ``force`` = tau - h(q, v) [N, N m] with the
@@ -157,7 +202,8 @@ class ContactStepper(Integrator):
         self.events = [event for event in self.events if event.t <= t]
         modes = [Mode.SEPARATED] * len(self.impulses)  # the first step's events give every contact's mode
         for event in self.events:
-            modes[self._index[event.contact]] = Mode(event.after)
+            if event.contact in self._index:  # (contacts found from geometry come and go)
+                modes[self._index[event.contact]] = Mode(event.after)
         self.modes = modes
 
     def _unsolved(self, active: tuple[int, ...], t: float) -> ContactSolveError:

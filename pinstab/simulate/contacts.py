@@ -38,7 +38,7 @@ from .loop import (
 )
 
 EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
-MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many, default to event-driven contacts
+MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many (or found from geometry), default to events
 HELD_ONLY = ("method", "integrator", "solver")  # simulate()'s options that event-driven contacts have no use for
 
 
@@ -73,9 +73,10 @@ def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]
 
 def default_contacts(scene: Scene) -> str | None:
     """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
-    them; None (contacts held as constraint rows) otherwise (grasps are held unless asked)."""
+    them or found from geometry (which held contacts would keep as found at the start); None (contacts held as
+    constraint rows) otherwise (grasps are held unless asked)."""
     plane = [c for c in scene.constraints if isinstance(c, PointContact)]
-    many = len(plane) > MAX_EVENT_CONTACTS
+    many = len(plane) > MAX_EVENT_CONTACTS and not scene.contact_finders
     return "event" if plane and len(plane) == len(scene.constraints) and not many else None
 
 
@@ -160,6 +161,7 @@ def simulate_stepping(
     system.bind(grid.dt, "semi-implicit-euler", q)
     dynamics = ModeDynamics(system.model, geometries)
     stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
+    stepper.find_contacts(scene.contact_finders)
     system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
     info = run_info(scene, system, stepper.name, grid, None, "none", None, record_every)
     info.solver = "pinocchio-admm"

@@ -12,6 +12,12 @@ contacts) the first in the order sticking, sliding, separated is taken. When no 
 while every touching contact is at rest along its surface (several contacts starting to slide together,
 their slip directions coupled), the modes are read from the same problem solved by Pinocchio's ADMM in NCP
 mode (exact round cones, friction opposing the slip acceleration) and checked the same way.
+
+The enumeration solves 3^k assignments of k touching contacts at rest; beyond :data:`ENUMERATED` of them (a stack of
+three boxes touches on twelve corners: 531,441 solves at every event) only the first assignment is tried in place of
+each enumeration (each contact in its first mode: sticking, or sliding when it slips), then the modes read from the
+NCP solution; the first consistent one is taken. Consistency is checked as for an enumerated one, uniqueness (the
+second half of Painlevé's paradox) is not.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ TOUCH_GAP = 1e-9  # [m] a contact this close touches
 TOUCH_SPEED = 1e-9  # [m/s] ... and moving apart or closing slower than this is at rest on the surface
 SLIP_SPEED = SLIP_FLOOR  # [m/s] a contact point slower than this along the surface does not slip
 NCP_EDGE = 1e-7  # relative: ADMM's forces within this of a cone's edge (or of zero) are on it
+ENUMERATED = 6  # touching contacts whose assignments are all enumerated (3^6 = 729 solves); see the module
 
 
 class Choice(NamedTuple):
@@ -84,8 +91,9 @@ def choose_modes(
         choice = _ncp_choice(dynamics, q, v, t, active, kinematics, slack, slow)
         consistent += [] if choice is None else [choice]
     if not consistent:
+        tried = "" if len(active) <= ENUMERATED else f" of those tried ({len(active)} contacts touch, not enumerated)"
         raise PainleveError(
-            f"at t = {t:.9g} s no contact mode of {', '.join(names)} is consistent (Painleve's paradox: the "
+            f"at t = {t:.9g} s no contact mode{tried} of {', '.join(names)} is consistent (Painleve's paradox: the "
             "friction would need a normal force that pulls); use the time-stepping contacts, which resolve it "
             "by a tangential impulse",
             names,
@@ -117,6 +125,8 @@ def _enumerated(
     for i in active:
         slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
         options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
+    if len(active) > ENUMERATED:
+        options = [choices[:1] for choices in options]  # the first assignment, then the NCP's (see the module)
     consistent: list[Choice] = []
     for assignment in itertools.product(*options):
         modes = [Mode.SEPARATED] * count
