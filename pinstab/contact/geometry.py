@@ -25,7 +25,7 @@ centred there) on the separating plane, fixed in the world for the ground, carri
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import coal
@@ -175,7 +175,8 @@ class ContactShapes:
 
     def allow(self, a: int, b: int, margin: float | None, where: str) -> None:
         """Allow the pair (shape a, shape b); features within ``margin`` [m] of the nearest one count (None:
-        :data:`MARGIN` bounding radii of a). A shape whose features cannot be found (a half-space) is put second.
+        :data:`MARGIN` bounding radii of a). A shape whose features cannot be found (a half-space) is put second, a
+        round one (:func:`is_round`) first.
 
         Raises:
             SceneError: two shapes of one body, or neither shape with features (naming them).
@@ -183,18 +184,14 @@ class ContactShapes:
         objects = self.geometry.geometryObjects
         if objects[a].parentJoint == objects[b].parentJoint:
             raise SceneError(f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are on one body")
-        if isinstance(objects[a].geometry, coal.Halfspace):
-            a, b = b, a
+        if is_round(objects[a].geometry) and is_round(objects[b].geometry):
+            raise SceneError(
+                f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere, a capsule or a "
+                "cylinder): not yet a pair of contacts found from geometry; pair one with a box or a convex shape"
+            )
+        if isinstance(objects[a].geometry, coal.Halfspace) or is_round(objects[b].geometry):
+            a, b = b, a  # a round shape's features touch the other's plane (a ball on a box's face: its lowest point)
         points = shape_points(objects[a].geometry, f"{where}: shape {self.names[a]!r}")
-        if is_round(objects[a].geometry) and not isinstance(objects[b].geometry, coal.Halfspace):  # B's plane
-            other = shape_points(objects[b].geometry, f"{where}: shape {self.names[b]!r}")
-            if is_round(objects[b].geometry):
-                raise SceneError(
-                    f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere, a capsule "
-                    "or a cylinder): not yet a pair of contacts found from geometry; pair one with a box or a convex "
-                    "shape"
-                )
-            a, b, points = b, a, other
         for shape in (a, b):  # the broad phase's bounding spheres (coal leaves a shape's unset until asked)
             if not isinstance(objects[shape].geometry, coal.Halfspace):
                 objects[shape].geometry.computeLocalAABB()
@@ -225,17 +222,33 @@ class ContactShapes:
         """A frame's world placement at the configuration :meth:`features` last took."""
         return pin.updateFramePlacement(self.model, self._data, frame).copy()
 
+    def pair_features(self, q: np.ndarray, pair: int) -> list[Feature]:
+        """Every feature point of one pair at configuration q, found or not (no broad phase, no margin): where a
+        contact found at another configuration is made, its plane that of q."""
+        pin.updateGeometryPlacements(self.model, self._data, self.geometry, self._geometry_data, q)
+        gaps, make = self._measure(pair)
+        return [make(k) for k in range(gaps.size)]
+
     def _pair_features(self, pair: int) -> list[Feature]:
         """The features of one pair at the placements last updated (none beyond the broad phase)."""
         a, b = self.pairs[pair]
         objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
         shape_a, shape_b = objects[a].geometry, objects[b].geometry
-        placed_a, placed_b = placements[a], placements[b]
-        margin = self.margins[pair]
         if not isinstance(shape_b, coal.Halfspace):  # broad phase: the bounding spheres
+            placed_a, placed_b = placements[a], placements[b]
             apart = np.linalg.norm(placed_a.act(shape_a.aabb_center) - placed_b.act(shape_b.aabb_center))
-            if apart > shape_a.aabb_radius + shape_b.aabb_radius + margin:
+            if apart > shape_a.aabb_radius + shape_b.aabb_radius + self.margins[pair]:
                 return []
+        gaps, make = self._measure(pair)
+        return [make(k) for k in np.flatnonzero(gaps <= gaps.min() + self.margins[pair])]
+
+    def _measure(self, pair: int) -> tuple[np.ndarray, Callable[[int], Feature]]:
+        """The gaps [m] of a pair's points to its separating plane at the placements last updated (inf: a point
+        that does not count as the shape lies) and the maker of point k's feature."""
+        a, b = self.pairs[pair]
+        objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
+        shape_a, shape_b = objects[a].geometry, objects[b].geometry
+        placed_a, placed_b = placements[a], placements[b]
         result = coal.DistanceResult()
         coal.distance(
             shape_a,
@@ -254,14 +267,13 @@ class ContactShapes:
         gaps = normal @ (world - plane_point[:, None]) - radii
         if isinstance(shape_a, coal.Cylinder):
             gaps[~cylinder_usable(placed_a.rotation.T @ normal)] = np.inf
-        near = np.flatnonzero(gaps <= gaps.min() + margin)
         label, joint = self.label(pair), self.joint_points(pair)
-        return [
-            Feature(
-                f"{label}[{k}]", pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, float(gaps[k])
-            )
-            for k in near
-        ]
+
+        def make(k: int) -> Feature:
+            name = f"{label}[{k}]"
+            return Feature(name, pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, gaps[k])
+
+        return gaps, make
 
 
 def _box_face(box: coal.Box, placed: pin.SE3, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -203,7 +203,7 @@ class EventLoop(AdaptiveLoop):
         there); whether any was added: the step is then taken again, its end's events located with them."""
         if not self.finders:
             return False
-        found = [contact for finder in self.finders for contact in finder.contacts(q_end)]
+        found = [contact for finder in self.finders for contact in finder.contacts(q_end, q)]
         self._found = {contact.name for contact in found}
         current = {contact.name for contact in self.dynamics.contacts}
         new = [contact for contact in found if contact.name not in current]

@@ -352,15 +352,17 @@ def _relative(
 
 
 def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
-    """The smallest x minimizing |system x - rhs| (redundant rows give a singular system: least squares);
-    NaN where no finite solution is found."""
+    """The smallest x minimizing |system x - rhs| (redundant rows give a singular system: least squares, refined
+    once on its residual: a stack of three boxes on twelve corners turned 1.2e-10 rad in 10 s at rest under the
+    first solve's rounding, 8e-12 refined); NaN where no finite solution is found."""
     try:
         if not redundant:
             return np.linalg.solve(system, rhs)
     except np.linalg.LinAlgError:
         pass
     try:
-        return np.linalg.lstsq(system, rhs, rcond=RANK_TOLERANCE)[0]
+        forces = np.linalg.lstsq(system, rhs, rcond=RANK_TOLERANCE)[0]
+        return forces + np.linalg.lstsq(system, rhs - system @ forces, rcond=RANK_TOLERANCE)[0]
     except np.linalg.LinAlgError:  # SVD did not converge: non-finite entries
         return np.full(rhs.shape, np.nan)
 
