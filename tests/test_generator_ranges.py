@@ -9,7 +9,15 @@ import math
 import pytest
 from fuzzing import cli
 
-from pinstab.generators import GENERATOR_PARAMETERS, MAX_LOOPS, MIN_LINK_LENGTH, MIN_MASS, MIN_RADIUS, generate
+from pinstab.generators import (
+    GENERATOR_PARAMETERS,
+    MAX_LOOPS,
+    MAX_STACK,
+    MIN_LINK_LENGTH,
+    MIN_MASS,
+    MIN_RADIUS,
+    generate,
+)
 from pinstab.units import MAX_COORDINATE, MAX_MAGNITUDE, MAX_RATE
 
 # (generator, parameter): (a value out of its range, the range's boundaries); the ranges written out here from
@@ -32,6 +40,9 @@ RANGES: dict[tuple[str, str], tuple[float, list[float]]] = {
     ("pinch", "squeeze"): (2e6, [0.0, 1e6]),  # a joint-torque's range (forces.base.MAX_LOAD)
     ("pinch", "mass"): (1e-12, [MIN_MASS, MAX_MAGNITUDE]),
     ("painleve-rod", "mu"): (math.inf, [0.0, 10.0]),
+    ("box-stack", "count"): (MAX_STACK + 1, [1, MAX_STACK]),
+    ("box-stack", "mu"): (10.5, [0.0, 10.0]),
+    ("box-stack", "drop"): (1.5, [-1.0, 1.0]),
 }
 BOUNDARIES = [(scene, name, value) for (scene, name), (_, values) in RANGES.items() for value in values]
 

@@ -12,9 +12,10 @@ Scene table::
 coal finds each allowed pair's contact features (:class:`FoundContacts`); each is a
 :class:`~pinstab.constraints.contacts.PointContact` named ``<shapeA>/<shapeB>[k]`` (with plane-contact's
 coefficients and start check): the point of body A (a sphere's centre with its radius) on the separating plane
-where it was found, the ground's fixed in the world, another body's carried by it (event-driven contacts only). The
-scene's constraints are those found at its initial configuration; an event-driven run finds them again after every
-step (:class:`~pinstab.integration.events.EventLoop`).
+where it was found, the ground's fixed in the world, another body's carried by it (event-driven and time-stepping
+contacts only). The scene's constraints are those found at its initial configuration; an event-driven run finds
+them again after every step (:class:`~pinstab.integration.events.EventLoop`), a time-stepping run before every
+step (:class:`~pinstab.integration.contact_stepping.ContactStepper`).
 """
 
 from __future__ import annotations
