@@ -7,11 +7,13 @@ the final configurations.
 * ``sphere-spin``: the ball thrown with backspin (1 s): one sphere contact;
 * ``bouncing-ball``: dropped from 1 m with e = 0.5 (2 s): one sphere contact;
 * ``box-drop``: a frictionless cube dropped on a corner (1.5 s): the corners found as they come near, against all
-  eight declared.
+  eight declared;
+* ``box-stack``: three cubes at rest (2 s): twelve redundant corners sticking, 20 declared (the far ones too);
+* ``stack-drop``: a fourth cube dropped 0.1 m onto them (1 s): its corners found on the way, 28 declared.
 
 The geometry runs ask coal for the contacts at every step's end (:class:`~pinstab.integration.events.EventLoop`).
 
-    python benchmarks/geometry_contacts.py    # prints the table (~1 min); with --save, writes
+    python benchmarks/geometry_contacts.py    # prints the table (~20 s); with --save, writes
                                               # benchmarks/results/geometry_contacts.json
 """
 
@@ -27,6 +29,7 @@ import pinocchio as pin
 
 from pinstab import simulate
 from pinstab.bench import save_results
+from pinstab.bench.box_stack import declared_stack
 from pinstab.scene import scene_from_dict
 
 ROUNDS = 5
@@ -57,6 +60,18 @@ CASES: dict[str, tuple[dict[str, Any], list[dict[str, Any]] | None, dict[str, An
         corner_entries(CORNERS, 0.0),
         {"mu": 0.0},
         1.5,
+    ),
+    "box-stack": (
+        {"generator": {"name": "box-stack"}},
+        declared_stack(["box0", "box1", "box2"], 0.5)[0],
+        {"mu": 0.5},
+        2.0,
+    ),
+    "stack-drop": (
+        {"generator": {"name": "box-stack", "drop": 0.1}},
+        declared_stack(["box0", "box1", "box2", "dropped"], 0.5)[0],
+        {"mu": 0.5},
+        1.0,
     ),
 }
 

@@ -11,48 +11,13 @@ import pinocchio as pin
 import pytest
 from test_geometry_contacts import assert_same_events
 
+from pinstab.bench.box_stack import HALF, TOP_CORNERS, declared_stack
 from pinstab.errors import SceneError
 from pinstab.generators import BOX_SIDE, GROUND_URDF
 from pinstab.scene import load_scene, scene_from_dict
 from pinstab.simulate import default_contacts, simulate
 
 G = 9.81
-HALF = BOX_SIDE / 2
-TOP_CORNERS = [1, 3, 5, 7]  # a box's corners (shape_points' order, signs (x, y, z) from +++) with z = -half
-BOTTOM_CORNERS = [0, 2, 4, 6]  # ... with z = +half
-
-
-def corner(k: int) -> list[float]:
-    """Box corner k's offset [m] from the centre (:func:`~pinstab.contact.geometry.shape_points`' order)."""
-    signs = [(sx, sy, sz) for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)][k]
-    return [s * HALF for s in signs]
-
-
-def declared_stack(names: list[str], mu: float) -> tuple[list[dict], dict[str, str]]:
-    """The contacts of boxes ``names`` (bottom up) declared: each box's corners on the ground, each box's top
-    corners on the face of the box above (carried by it); and the found contacts' names for the declared ones."""
-    entries, renames = [], {}
-    for j, name in enumerate(names):
-        for k in TOP_CORNERS:
-            entry = {"name": f"{name}-ground{k}", "kind": "plane-contact", "frame_a": name, "offset_a": corner(k)}
-            entries.append({**entry, "mu": mu})
-            renames[f"{name}/collision0/ground[{k}]"] = entry["name"]
-        if j + 1 < len(names):
-            above = names[j + 1]
-            for k in BOTTOM_CORNERS:
-                entry = {
-                    "name": f"{name}-{above}{k}",
-                    "kind": "plane-contact",
-                    "frame_a": name,
-                    "offset_a": corner(k),
-                    "frame_b": above,
-                    "normal": [0.0, 0.0, -1.0],
-                    "point": [0.0, 0.0, -HALF],
-                    "mu": mu,
-                }
-                entries.append(entry)
-                renames[f"{name}/collision0/{above}/collision0[{k}]"] = entry["name"]
-    return entries, renames
 
 
 def creep(q: np.ndarray, bodies: int) -> float:
@@ -114,7 +79,7 @@ def test_a_box_dropped_on_the_stack_lands_at_the_closed_form_time_and_rests():
     assert {round(e["t"], 12) for e in later} == {round(later[0]["t"], 12)}
     assert abs(later[0]["t"] - landing) <= 1e-9
     closed = [e["contact"] for e in later if e["from"] == "separated"]
-    assert closed == [f"box2/collision0/dropped/collision0[{k}]" for k in BOTTOM_CORNERS]
+    assert closed == [f"box2/collision0/dropped/collision0[{k}]" for k in TOP_CORNERS]
     assert [e["to"] for e in later if e["from"] == "closing"] == ["sticking"] * 16
     assert abs(run.q[-1, 23] - (3 * BOX_SIDE + HALF)) <= 1e-9 and np.max(np.abs(run.v[-1])) <= 1e-9
     entries, renames = declared_stack(["box0", "box1", "box2", "dropped"], 0.5)
@@ -139,7 +104,7 @@ def test_stepping_finds_the_dropped_box_and_rests_where_the_event_run_does():
     assert np.max(np.abs(stepped.q[-1] - events.q[-1])) <= 1e-6
     assert creep(stepped.q, 3) <= 1e-9
     landed = [e for e in stepped.info.contact_events if e["cause"] != "start"]
-    assert {e["contact"] for e in landed} == {f"box2/collision0/dropped/collision0[{k}]" for k in BOTTOM_CORNERS}
+    assert {e["contact"] for e in landed} == {f"box2/collision0/dropped/collision0[{k}]" for k in TOP_CORNERS}
     assert {e["to"] for e in landed} == {"sticking"}
     assert abs(landed[0]["t"] - math.sqrt(2 * DROP / G)) <= 1e-3  # located to within a step
 
