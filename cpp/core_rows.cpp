@@ -100,6 +100,16 @@ Matrix3d jlog(const Matrix3d& rotation) {
 // each as the value (Residual), its Jacobian (Jacobian) with the time term g_t (TimeTerm), its rate G v + g_t (Rate)
 // and its drift at zero joint acceleration (Drift). `Full` holds a weld's six values (one column, or nv).
 
+// A joint relation's row: sum_k c_k x(indices_k) less the target's value (order 0: x = q) or rate (order 1: x = v)
+// at t [s]: its residual [rad or m] or its rate G v + g_t [rad/s or m/s].
+double relation_row(const RowBlock& block, const VectorXd& x, const VectorXi& indices, double t, int order) {
+  double value, rate, curvature;
+  block.target.evaluate(t, value, rate, curvature);
+  double sum = 0.0;
+  for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * x(indices(k));
+  return sum - (order == 0 ? value : rate);
+}
+
 // phi [m or rad] (after placements)
 struct Residual {
   using Full = Six;
@@ -108,12 +118,7 @@ struct Residual {
   double t;
   Full full() const { return Full::Zero(); }
   void relation(Eigen::Ref<VectorXd> rows) const {
-    const RowBlock& block = sides.block;
-    double value, rate, curvature;
-    block.target.evaluate(t, value, rate, curvature);
-    double sum = 0.0;
-    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * q(block.q_indices(k));
-    rows(0) = sum - value;
+    rows(0) = relation_row(sides.block, q, sides.block.q_indices, t, 0);
   }
   void joint_limit(Eigen::Ref<VectorXd> rows) const { rows(0) = joint_limit_gap(sides.block, q); }
   Vector3d linear() const { return sides.a().translation() - sides.b().translation(); }
@@ -196,12 +201,7 @@ struct Rate {
   double t;
   Full full() const { return Full::Zero(); }
   void relation(Eigen::Ref<VectorXd> rows) const {
-    const RowBlock& block = sides.block;
-    double value, target_rate, curvature;
-    block.target.evaluate(t, value, target_rate, curvature);
-    double sum = 0.0;
-    for (int k = 0; k < block.coefficients.size(); ++k) sum += block.coefficients(k) * v(block.v_indices(k));
-    rows(0) = sum - target_rate;
+    rows(0) = relation_row(sides.block, v, sides.block.v_indices, t, 1);
   }
   void joint_limit(Eigen::Ref<VectorXd> rows) const { rows(0) = joint_limit_rate(sides.block, v); }
   Vector3d linear() { return sides.velocity_of_a().linear() - sides.velocity_of_b().linear(); }
