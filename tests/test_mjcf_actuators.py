@@ -109,3 +109,15 @@ def test_bad_controls_are_named(arm: Path, robot: dict, phrase: str) -> None:
 def test_ctrl_on_a_urdf_robot_is_refused() -> None:
     with pytest.raises(SceneError, match="robot.ctrl: actuators' controls are read from MJCF files"):
         scene_from_dict({"robot": {"urdf": "urdf/fourbar.urdf", "ctrl": {"m": 1.0}}})
+
+
+def test_a_bad_number_in_an_actuator_is_named(tmp_path: Path) -> None:
+    """A dampratio that is not a number is a SceneError naming the actuator and the attribute (it was a raw
+    ValueError)."""
+    path = written(
+        tmp_path,
+        "arm.xml",
+        ARM.replace('<position name="shoulder_servo"', '<position dampratio="x" name="shoulder_servo"'),
+    )
+    with pytest.raises(SceneError, match="actuator 'shoulder_servo': dampratio='x' is not a list of numbers"):
+        scene_from_dict({"robot": {"mjcf": path.name}}, base_dir=path.parent)

@@ -131,7 +131,7 @@ def _law(document: MjcfDocument, element: ET.Element, joint_names: set[str], whe
     if transmission is not None:
         return f"on a {transmission}"
     for key in ZERO_WHEN_READ:
-        if float(attributes.get(key, "0") or 0.0) != 0.0:
+        if _parameters(attributes.get(key, "0"), key, where)[0] != 0.0:
             return key
     joint = attributes.get("joint")
     if joint is None:
