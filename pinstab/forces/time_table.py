@@ -36,7 +36,7 @@ class TimeTable:
         if np.any(np.diff(times) <= 0):
             raise SceneError(f"{owner}: the table's times must be strictly increasing")
         times.flags.writeable = values.flags.writeable = False  # an edit in place would not reach the compiled copy
-        self.owner, self.times, self.values = owner, times, values
+        self.times, self.values = times, values
         self._target = CompiledTarget([self.compiled()])
 
     def compiled(self) -> dict[str, Any]:
