@@ -67,7 +67,14 @@ class PointContact(FrameClosure):
             plane is fixed in the world); ``anchor`` and ``normal`` are then in its axes.
 
     The multipliers are the contact force on body a [N] in the contact frame (normal, t1, t2).
+
+    Attributes:
+        core, core_radius: a round pair's B core and radius
+            (:class:`~pinstab.constraints.geometry_contacts.RoundContact`); None and 0 for a plane.
     """
+
+    core: np.ndarray | None = None
+    core_radius: float = 0.0
 
     def __init__(
         self,

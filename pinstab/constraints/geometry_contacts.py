@@ -111,19 +111,39 @@ class FoundContacts:
             return contact
         shapes = self.shapes
         shape_b = shapes.geometry.geometryObjects[shapes.pairs[feature.pair][1]]
+        frame = self.frames[feature.pair, feature.index]
         centre_gap = float(feature.normal @ (feature.world - feature.point))
         anchor, normal, plane_frame = feature.world - feature.normal * centre_gap, feature.normal, None
-        if shape_b.parentJoint != 0:  # the plane in B's frame, carried by it
+        core = shapes.cores[feature.pair]
+        if shape_b.parentJoint != 0 or core is not None:  # the plane in B's frame, carried by it
             plane_frame = shape_b.parentFrame
             placed = shapes.frame_placement(plane_frame)
             anchor, normal = placed.actInv(anchor), placed.rotation.T @ normal
-        frame = self.frames[feature.pair, feature.index]
-        contact = PointContact(
-            feature.name, frame, anchor, normal, self.friction, self.restitution, feature.radius, plane_frame
-        )
+        arguments = (feature.name, frame, anchor, normal, self.friction, self.restitution, feature.radius, plane_frame)
+        if core is None:
+            contact = PointContact(*arguments)
+        else:  # a round pair: B's core in the plane's frame, the plane re-computed at every state
+            ends = np.array([placed.actInv(end) for end in shapes.core_world(feature.pair)])
+            contact = RoundContact(*arguments, core=ends, core_radius=float(shape_b.geometry.radius))
         self._made[feature.name] = contact
         self.order[feature.name] = (feature.pair, feature.index)
         return contact
+
+
+class RoundContact(PointContact):
+    """A sphere's contact with a sphere or a capsule (:mod:`~pinstab.contact.round_pairs`): a
+    :class:`~pinstab.constraints.contacts.PointContact` whose plane (``anchor``, ``normal``: where it was found) the
+    event-driven and time-stepping dynamics re-compute at every state from the line of centres; held rows do not
+    take it (its plane turns as the sphere moves).
+
+    Args:
+        core: B's core ends (2, 3) [m, in ``plane_frame``'s axes, B's operational frame, 0 for the world].
+        core_radius: B's radius [m]. The others: as :class:`PointContact`'s (``radius``: the sphere's).
+    """
+
+    def __init__(self, *arguments: Any, core: np.ndarray, core_radius: float) -> None:
+        super().__init__(*arguments)
+        self.core, self.core_radius = core, core_radius
 
 
 def parse_geometry_contacts(entry: dict[str, Any], tables: SceneTables, name: str, where: str) -> list[PointContact]:

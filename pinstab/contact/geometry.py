@@ -33,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
+from .round_pairs import core_nearest
 
 GROUND = "ground"  # the ground's shape name
 MARGIN = 0.1  # [-] the default margin, in bounding radii of shape A: features this close to the nearest one count
@@ -96,8 +97,19 @@ def shape_points(shape: coal.CollisionGeometry, where: str) -> tuple[np.ndarray,
 
 def is_round(shape: coal.CollisionGeometry) -> bool:
     """Whether a shape touches a plane with round features (a sphere, a capsule, a cylinder on its side): such a
-    shape pairs with a shape whose plane it touches (a box, a convex mesh, the ground), not with another round one."""
+    shape pairs with a shape whose plane it touches (a box, a convex mesh, the ground); of two round shapes only a
+    sphere with a sphere or a capsule pair (:mod:`~pinstab.contact.round_pairs`)."""
     return isinstance(shape, coal.Sphere | coal.Capsule | coal.Cylinder)
+
+
+def core_ends(shape: coal.CollisionGeometry) -> np.ndarray | None:
+    """The ends (2, 3) [m, shape frame] of a sphere's or a capsule's core (a sphere's centre twice, a capsule's end
+    centres), the B side of a round pair; None for other shapes."""
+    if isinstance(shape, coal.Sphere):
+        return np.zeros((2, 3))
+    if isinstance(shape, coal.Capsule):
+        return shape_points(shape, "")[0]
+    return None
 
 
 def cylinder_usable(normal: np.ndarray) -> np.ndarray:
@@ -141,6 +153,7 @@ class ContactShapes:
         self.names = [shape.name for shape in self.geometry.geometryObjects]
         self.pairs: list[tuple[int, int]] = []
         self.margins: list[float] = []
+        self.cores: list[np.ndarray | None] = []  # per pair: B's core ends (2, 3) [m, B's shape frame] (a round pair)
         self._points: list[tuple[np.ndarray, np.ndarray]] = []
         self._data = pin.Data(model)
         self._geometry_data = self.geometry.createData()
@@ -184,12 +197,18 @@ class ContactShapes:
         objects = self.geometry.geometryObjects
         if objects[a].parentJoint == objects[b].parentJoint:
             raise SceneError(f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are on one body")
+        core = None
         if is_round(objects[a].geometry) and is_round(objects[b].geometry):
-            raise SceneError(
-                f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round (a sphere, a capsule or a "
-                "cylinder): not yet a pair of contacts found from geometry; pair one with a box or a convex shape"
-            )
-        if isinstance(objects[a].geometry, coal.Halfspace) or is_round(objects[b].geometry):
+            if not isinstance(objects[a].geometry, coal.Sphere):
+                a, b = b, a  # a sphere is shape A of a round pair: its centre against B's core
+            core = core_ends(objects[b].geometry)
+            if not isinstance(objects[a].geometry, coal.Sphere) or core is None:
+                raise SceneError(
+                    f"{where}: shapes {self.names[a]!r} and {self.names[b]!r} are both round: of two round shapes a "
+                    "sphere pairs with a sphere or a capsule (not yet a capsule with a capsule, nor a cylinder with a "
+                    "round shape); pair the other with a box or a convex shape"
+                )
+        elif isinstance(objects[a].geometry, coal.Halfspace) or is_round(objects[b].geometry):
             a, b = b, a  # a round shape's features touch the other's plane (a ball on a box's face: its lowest point)
         points = shape_points(objects[a].geometry, f"{where}: shape {self.names[a]!r}")
         for shape in (a, b):  # the broad phase's bounding spheres (coal leaves a shape's unset until asked)
@@ -197,6 +216,7 @@ class ContactShapes:
                 objects[shape].geometry.computeLocalAABB()
         radius = float(np.max(points[1] + np.linalg.norm(points[0], axis=1)))
         self.pairs.append((a, b))
+        self.cores.append(core)
         self.margins.append(MARGIN * max(radius, np.finfo(float).tiny) if margin is None else margin)
         self._points.append(points)
 
@@ -249,6 +269,37 @@ class ContactShapes:
         objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
         shape_a, shape_b = objects[a].geometry, objects[b].geometry
         placed_a, placed_b = placements[a], placements[b]
+        points, radii = self._points[pair]
+        if self.cores[pair] is not None:  # a round pair: the plane on the line of centres (round_pairs)
+            centre = placed_a.translation
+            nearest = core_nearest(centre, self.core_world(pair))[0]
+            normal = (centre - nearest) / np.linalg.norm(centre - nearest)
+            plane_point = nearest + float(shape_b.radius) * normal
+        else:
+            normal, plane_point = self._separating_plane(shape_a, placed_a, shape_b, placed_b)
+        world = placed_a.rotation @ points.T + placed_a.translation[:, None]
+        gaps = normal @ (world - plane_point[:, None]) - radii
+        if isinstance(shape_a, coal.Cylinder):
+            gaps[~cylinder_usable(placed_a.rotation.T @ normal)] = np.inf
+        label, joint = self.label(pair), self.joint_points(pair)
+
+        def make(k: int) -> Feature:
+            name = f"{label}[{k}]"
+            return Feature(name, pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, gaps[k])
+
+        return gaps, make
+
+    def core_world(self, pair: int) -> np.ndarray:
+        """A round pair's B core ends (2, 3) [m, world] at the placements last updated."""
+        placed = self._geometry_data.oMg[self.pairs[pair][1]]
+        return (placed.rotation @ self.cores[pair].T).T + placed.translation
+
+    @staticmethod
+    def _separating_plane(
+        shape_a: coal.CollisionGeometry, placed_a: pin.SE3, shape_b: coal.CollisionGeometry, placed_b: pin.SE3
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The unit normal (into A) and a point [m] (world) of the plane separating two placed shapes: coal's normal
+        and B's nearest point, a box's face nearest to that normal."""
         result = coal.DistanceResult()
         coal.distance(
             shape_a,
@@ -261,19 +312,8 @@ class ContactShapes:
         normal = -np.asarray(result.normal)  # coal's runs from A to B: the plane's, into A
         plane_point = np.asarray(result.getNearestPoint2())
         if isinstance(shape_b, coal.Box):
-            normal, plane_point = _box_face(shape_b, placed_b, normal)
-        points, radii = self._points[pair]
-        world = placed_a.rotation @ points.T + placed_a.translation[:, None]
-        gaps = normal @ (world - plane_point[:, None]) - radii
-        if isinstance(shape_a, coal.Cylinder):
-            gaps[~cylinder_usable(placed_a.rotation.T @ normal)] = np.inf
-        label, joint = self.label(pair), self.joint_points(pair)
-
-        def make(k: int) -> Feature:
-            name = f"{label}[{k}]"
-            return Feature(name, pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, gaps[k])
-
-        return gaps, make
+            return _box_face(shape_b, placed_b, normal)
+        return normal, plane_point
 
 
 def _box_face(box: coal.Box, placed: pin.SE3, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -36,8 +36,10 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from ..constraints.contacts import contact_basis
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
+from ..contact.round_pairs import core_nearest
 from ..errors import ConstraintError, ContactInfeasibleError, SolverError
 from ..kernels import block_jacobian
 from ..model import ConstrainedModel
@@ -57,7 +59,9 @@ class PlaneContactGeometry:
         restitution: Newton's e [-]. radius: a sphere of this radius [m] centred at the frame touches the
         plane (0: the frame's origin). plane_frame: the operational frame carrying the plane (None: the
         world's axes). anchor: where a sticking contact holds the point [m, plane's axes] (set when it
-        starts sticking).
+        starts sticking). core: a round pair's (:mod:`~pinstab.contact.round_pairs`): the ends (2, 3) [m, plane's
+        axes] of B's core, against which the plane is re-computed at every state (None: the plane is fixed on its
+        body). core_radius: B's radius [m] about its core.
     """
 
     name: str
@@ -69,6 +73,8 @@ class PlaneContactGeometry:
     radius: float = 0.0
     plane_frame: int | None = None
     anchor: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    core: np.ndarray | None = None
+    core_radius: float = 0.0
 
 
 class ContactKinematics(NamedTuple):
@@ -303,6 +309,11 @@ class ModeDynamics:
         jacobian, drift = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k)
         for i, contact in enumerate(self.contacts):
             rows = slice(3 * i, 3 * i + 3)
+            if contact.core is not None:
+                gaps[i], positions[i], jacobian[rows], drift[rows] = _round_rows(kin, contact, v)
+                local[i] = kin.placement(contact.plane_frame).actInv(positions[i])
+                velocities[i] = jacobian[rows] @ v
+                continue
             plane = None if contact.plane_frame is None else kin.placement(contact.plane_frame)
             basis = contact.basis if plane is None else contact.basis @ plane.rotation.T  # (n, t1, t2), world axes
             normal, frame = basis[0], contact.frame
@@ -351,6 +362,35 @@ def _relative(
     return relative, drift - carried_drift - 2.0 * spin @ w
 
 
+def _round_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """A round pair's gap [m], contact point [m, world], rows (3, nv) and drifts (3,) [m/s^2] in its basis (n, t1,
+    t2) at the state of ``kin``, n along the line from B's core to A's centre x (:mod:`~pinstab.contact.round_pairs`).
+    In B's frame (world axes), with w the velocity of x relative to B and H = (P - n n^T) / |x - c| the gap's
+    Hessian: the normal row is the gap's second derivative, ``n . x''_B + w^T H w``; the tangent rows that of the
+    slip ``s = w + r_a n x (omega_a - omega_b)`` (the relative velocity of the two surfaces' material points at the
+    contact point), whose derivative in B's frame is ``x''_B + r_a (H w) x Omega + r_a n x Omega'_B``."""
+    plane = kin.placement(contact.plane_frame)
+    centre = kin.placement(contact.frame).translation
+    nearest, projector = core_nearest(centre, (plane.rotation @ contact.core.T).T + plane.translation)
+    distance = float(np.linalg.norm(centre - nearest))
+    normal = (centre - nearest) / distance
+    basis = contact_basis(normal)
+    frame_jacobian, frame_drift = kin.jacobian(contact.frame), kin.drift_acceleration(contact.frame)
+    body_jacobian, body_drift = kin.jacobian(contact.plane_frame), kin.drift_acceleration(contact.plane_frame)
+    relative, relative_drift = _relative(kin, contact.plane_frame, centre, v, frame_jacobian[:3], frame_drift.linear)
+    w = relative @ v
+    turn = (projector @ w - normal * (normal @ w)) / distance  # n's rate in B's frame: H w
+    spin_jacobian = frame_jacobian[3:] - body_jacobian[3:]
+    spin, omega_b = spin_jacobian @ v, body_jacobian[3:] @ v
+    arm = contact.radius * pin.skew(normal)  # r_a n x .
+    spin_drift = frame_drift.angular - body_drift.angular - np.cross(omega_b, spin)  # Omega'_B at zero acceleration
+    slip_drift = relative_drift + contact.radius * np.cross(turn, spin) + arm @ spin_drift
+    drift = basis @ slip_drift
+    drift[0] = normal @ relative_drift + w @ turn
+    gap = distance - contact.radius - contact.core_radius
+    return gap, centre - contact.radius * normal, basis @ (relative + arm @ spin_jacobian), drift
+
+
 def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
     """The smallest x minimizing |system x - rhs| (redundant rows give a singular system: least squares, refined
     once on its residual: a stack of three boxes on twelve corners turned 1.2e-10 rad in 10 s at rest under the
@@ -380,7 +420,6 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
         ConstraintError: a grasp contact whose model has no event-driven modes (naming the valid ones).
     """
     from ..constraints import FingertipContact, PointContact
-    from ..constraints.contacts import contact_basis
 
     geometries = []
     for constraint in constraints:
@@ -397,6 +436,8 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     constraint.restitution,
                     constraint.radius,
                     constraint.plane_frame,
+                    core=constraint.core,
+                    core_radius=constraint.core_radius,
                 )
             )
         elif isinstance(constraint, FingertipContact):
