@@ -311,17 +311,24 @@ def scene_from_dict(
 class GravityTilt:
     """The robot's base turned by ``start`` [rad] and turning at ``rate`` [rad/s] about the world ``axis``
     (unit), modelled by gravity turning the other way: ``g(t) = R(axis, -(start + rate t)) g0`` [m/s^2] (the
-    slow turn's own accelerations, omega^2 r and 2 omega x v, are left out). Scene table ``[tilt]``: ``axis``,
-    ``rate`` (e.g. ``"2 deg/s"``), optional ``start`` (e.g. ``"1.5 deg"``)."""
+    slow turn's own accelerations, omega^2 r and 2 omega x v, are left out), until the turn reaches ``stop`` [rad]
+    (inf: it turns on), from when on gravity stays. Scene table ``[tilt]``: ``axis``, ``rate`` (e.g.
+    ``"2 deg/s"``), optional ``start`` (e.g. ``"1.5 deg"``) and ``stop`` (e.g. ``"2 deg"``)."""
 
     axis: np.ndarray
     rate: float
     gravity0: np.ndarray
     start: float = 0.0
+    stop: float = math.inf
+
+    @property
+    def stop_time(self) -> float:
+        """The time [s] the turn reaches ``stop`` (inf: never)."""
+        return math.inf if math.isinf(self.stop) else (self.stop - self.start) / self.rate
 
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time t [s], in world axes [m/s^2]."""
-        return tilted_gravity(self.axis, self.rate, self.start, self.gravity0, t)
+        return tilted_gravity(self.axis, self.rate, self.start, self.gravity0, min(t, self.stop_time))
 
     def compiled_form(self) -> dict[str, Any]:
         """The tilt as the core kernel takes it (``cpp/core_kernel.hpp`` GravityTilt)."""
@@ -329,18 +336,26 @@ class GravityTilt:
 
 
 def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:
-    keys = {"axis", "rate", "start"}
+    keys = {"axis", "rate", "start", "stop"}
     if not isinstance(value, dict) or not {"axis", "rate"} <= set(value) <= keys:
         raise SceneError(
             "tilt must be a table with 'axis' (a world direction), 'rate' (e.g. '2 deg/s') and optionally 'start' "
-            f"(e.g. '1.5 deg'), got {value!r}"
+            f"(e.g. '1.5 deg') and 'stop' (e.g. '2 deg'), got {value!r}"
         )
     axis = vector(value["axis"], 3, "tilt.axis", None)
     if not np.linalg.norm(axis) > 1e-12:
         raise SceneError(f"tilt.axis must be a non-zero vector, got {value['axis']!r}")
     rate = quantity(value["rate"], "angular-velocity", "tilt.rate")
     start = quantity(value.get("start", 0.0), "angle", "tilt.start")
-    return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start)
+    stop = math.inf
+    if "stop" in value:
+        stop = quantity(value["stop"], "angle", "tilt.stop")
+        if not (stop - start) * rate > 0.0:
+            raise SceneError(
+                f"tilt.stop must be an angle the turn reaches from start ({start:.6g} rad) at rate {rate:.6g} rad/s, "
+                f"got {value['stop']!r}"
+            )
+    return GravityTilt(axis / np.linalg.norm(axis), rate, gravity.copy(), start, stop)
 
 
 def _robot_shapes(robot: RobotSource, locked: dict[str, float]) -> Callable[[], pin.GeometryModel]:

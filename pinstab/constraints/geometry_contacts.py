@@ -6,7 +6,7 @@ Scene table::
     kind = "geometry"
     pairs = [["box_0", "ground"]]   # optional; default every shape against every other but adjacent links
     mu = 0.3                        # optional (frictionless without), as plane-contact's; facets, restitution too
-    ground = {normal = [0, 0, 1], point = [0, 0, 0]}   # the default; false: no ground
+    ground = {normal = [0, 0, 1], point = [0, 0, 0]}   # the default; false: no ground; a list: several planes
     margin = 0.005                  # [m] optional; features this close to a pair's nearest one count
 
 coal finds each allowed pair's contact features (:class:`FoundContacts`); each is a
@@ -162,20 +162,28 @@ def parse_geometry_contacts(entry: dict[str, Any], tables: SceneTables, name: st
     return finder.contacts(tables.q0)
 
 
-def _ground(entry: dict[str, Any], tables: SceneTables, where: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """The ground's (unit normal, point [m]) from ``ground`` (default: the plane z = 0), or None for ``false``."""
+def _ground(entry: dict[str, Any], tables: SceneTables, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The ground planes' (unit normal, point [m]) from ``ground``: a table (``normal``, ``point``; default the plane
+    z = 0), a list of them (half-spaces named ``ground``, ``ground_1``, ...), or ``false`` (none)."""
     value = entry.get("ground", True)
     if value is False:
-        return None
+        return []
     if value is True:
         value = {}
-    if not isinstance(value, dict):
-        raise SceneError(f"{where}.ground must be a table (normal, point) or false (no ground), got {value!r}")
-    tables.check_keys(value, {"normal", "point"}, f"{where}.{GROUND}")
-    normal = tables.direction(value.get("normal", [0.0, 0.0, 1.0]), f"{where}.ground.normal")
-    point = tables.vector(value.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.ground.point", "length")
-    tables.within_reach(point, f"{where}.ground.point", True)
-    return normal, point
+    planes = value if isinstance(value, list) and value else [value]
+    grounds = []
+    for k, plane in enumerate(planes):
+        at = f"{where}.{GROUND}" if len(planes) == 1 else f"{where}.{GROUND}[{k}]"
+        if not isinstance(plane, dict):
+            raise SceneError(
+                f"{at} must be a table (normal, point), a list of them or false (no ground), got {plane!r}"
+            )
+        tables.check_keys(plane, {"normal", "point"}, at)
+        normal = tables.direction(plane.get("normal", [0.0, 0.0, 1.0]), f"{at}.normal")
+        point = tables.vector(plane.get("point", [0.0, 0.0, 0.0]), 3, f"{at}.point", "length")
+        tables.within_reach(point, f"{at}.point", True)
+        grounds.append((normal, point))
+    return grounds
 
 
 CONSTRAINT_KINDS.register(

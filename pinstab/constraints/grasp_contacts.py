@@ -38,7 +38,8 @@ from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
 from .loops import plane_basis
 
-GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion"}
+GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion", "surface"}
+SURFACES = ("plane", "round")  # event-driven grasp contacts: the tangent plane at C, or both spheres' surfaces
 GAP_TOLERANCE = 1e-10  # [m] a fingertip this close to the surface touches it
 GAP_ITERATIONS = 60
 
@@ -78,6 +79,7 @@ class FingertipContact(Constraint):
         self.object_frame, self.finger_frame = object_frame, finger_frame
         self.object_name, self.finger_name = object_name, finger_name
         self.mu, self.torsion, self.radius = mu, torsion, radius
+        self.round: RoundGrasp | None = None  # event-driven contacts on both spheres' surfaces (surface = "round")
         self.limits = ContactLimits(name, model, mu, torsion, finger_name, object_name)
         self.touch = Touch(name, finger_frame, object_frame, at_point=True)
         self.components = np.flatnonzero(WRENCH_BASES[model].any(axis=1))  # of (fx, fy, fz, mx, my, mz) in C
@@ -250,10 +252,46 @@ def read_coefficients(entry: dict, tables: SceneTables, model_name: str, where: 
     return mu, torsion
 
 
+class RoundGrasp(NamedTuple):
+    """A grasp contact that event-driven contacts treat as a round pair (:mod:`~pinstab.contact.round_pairs`): the
+    fingertip sphere (its centre's frame ``tip_frame``) against a sphere object (its centre ``centre`` [m] in the
+    object's body frame ``object_frame``, radius ``radius`` [m])."""
+
+    tip_frame: int
+    object_frame: int
+    centre: np.ndarray
+    radius: float
+
+
+def round_grasp(entry: dict, fingertip: Fingertip, where: str) -> RoundGrasp | None:
+    """The entry's ``surface``: ``plane`` (default: the tangent plane at C, carried by the object) or ``round`` (the
+    fingertip sphere on a sphere object's surface, re-computed at every state, so that it may slide over and leave
+    it), or None for ``plane``.
+
+    Raises:
+        SceneError: another value, or ``round`` on an object that is not one sphere (naming its shapes).
+    """
+    surface = entry.get("surface", "plane")
+    if surface not in SURFACES:
+        raise SceneError(f"{where}.surface: unknown surface {surface!r}; surfaces: {choices(SURFACES)}")
+    if surface == "plane":
+        return None
+    item = fingertip.item
+    shapes = [type(shape).__name__ for shape, _ in item.geometries]
+    if shapes != ["Sphere"]:
+        raise SceneError(
+            f"{where}.surface: 'round' takes an object that is one sphere; object {item.name!r} has shapes "
+            f"{', '.join(shapes) or 'none'}; use surface 'plane'"
+        )
+    shape, local = item.geometries[0]
+    return RoundGrasp(fingertip.frame, item.frame, local.translation.copy(), float(shape.radius))
+
+
 def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> FingertipContact:
     """Scene table: ``finger`` (a frame at the fingertip sphere's centre), ``object`` (a scene object),
     ``model`` (default ``point-friction``), ``radius`` [m] of the fingertip sphere, ``mu`` for
-    ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``."""
+    ``point-friction`` / ``soft-finger``, ``torsion`` [m] for ``soft-finger``, ``surface`` (event-driven contacts:
+    ``plane`` or ``round``, :func:`round_grasp`)."""
     tables.check_keys(entry, GRASP_KEYS, where)
     model_name = entry.get("model", "point-friction")
     if not isinstance(model_name, str) or model_name not in WRENCH_BASES:
@@ -266,9 +304,11 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     contact = pin.SE3(rotation, centre + fingertip.radius * normal)
     object_frame = _frame_at(tables, fingertip.item.frame, contact, f"{name}/object")
     finger_frame = _frame_at(tables, fingertip.frame, contact, f"{name}/finger")
-    return FingertipContact(
+    contact = FingertipContact(
         name, model_name, object_frame, finger_frame, fingertip.item.name, fingertip.name, mu, torsion, fingertip.radius
     )
+    contact.round = round_grasp(entry, fingertip, where)
+    return contact
 
 
 def _is_frame(tables: SceneTables, entry: dict) -> bool:

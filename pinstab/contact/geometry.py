@@ -126,7 +126,8 @@ class ContactShapes:
     Args:
         model: the scene's model. robot: the robot's collision geometry (indices of ``model``).
         objects: the scene objects (:class:`~pinstab.contact.objects.SceneObject`).
-        ground: (unit normal, point [m]) of the ground plane, or None for no ground.
+        grounds: (unit normal, point [m]) of each ground plane (none: no ground): the first named :data:`GROUND`,
+            the k-th after it ``ground_k`` (half-spaces whose union is the ground: planes tilted inward, a pocket).
     """
 
     def __init__(
@@ -134,7 +135,7 @@ class ContactShapes:
         model: pin.Model,
         robot: pin.GeometryModel,
         objects: Sequence[Any],
-        ground: tuple[np.ndarray, np.ndarray] | None,
+        grounds: Sequence[tuple[np.ndarray, np.ndarray]],
     ) -> None:
         self.model = model
         self.geometry = pin.GeometryModel()
@@ -145,10 +146,10 @@ class ContactShapes:
                 self.geometry.addGeometryObject(
                     pin.GeometryObject(f"{item.name}/collision{index}", item.joint, item.frame, local, shape)
                 )
-        if ground is not None:
-            normal, point = ground
+        for k, (normal, point) in enumerate(grounds):
+            name = GROUND if k == 0 else f"{GROUND}_{k}"
             self.geometry.addGeometryObject(
-                pin.GeometryObject(GROUND, 0, 0, pin.SE3.Identity(), coal.Halfspace(normal, float(normal @ point)))
+                pin.GeometryObject(name, 0, 0, pin.SE3.Identity(), coal.Halfspace(normal, float(normal @ point)))
             )
         self.names = [shape.name for shape in self.geometry.geometryObjects]
         self.pairs: list[tuple[int, int]] = []

@@ -52,7 +52,19 @@ from .holding import (
 from .linalg import NORMAL_EQUATIONS_CONDITION, RANK_TOLERANCE, closest_solution
 
 HOLD_VALUES = (("squeeze", "force", "N"), ("stiffness", None, "N m/rad"), ("damping", None, "N m s/rad"))
-HOLD_KEYS = {"name", "kind", "object", "contacts", "squeeze", "max_squeeze", "facets", "stiffness", "damping"}
+HOLD_KEYS = {
+    "name",
+    "kind",
+    "object",
+    "contacts",
+    "squeeze",
+    "max_squeeze",
+    "facets",
+    "stiffness",
+    "damping",
+    "release",
+}
+RELEASES = ("press", "relax")  # once let go: press at the cap as before, or press no more
 UNBOUNDED = 1e30  # ProxQP's infinite bound
 
 
@@ -65,7 +77,10 @@ class GraspHold(ForceElement):
         squeeze: normal force per contact [N]. stiffness: [N m/rad]. damping: [N m s/rad].
         q_start: the configuration the stiffness pulls the hand joints back to.
         max_squeeze: the largest normal force of a contact [N] (inf: none). facets: sides of the pyramids
-            of the fast QP. object_name: the held object (for reports).
+            of the fast QP. object_name: the held object (for reports). release: once it has let go
+            (:attr:`released`), ``press``: the forces closest to the squeeze within the cap (the hand keeps pressing),
+            or ``relax``: no contact forces (the hand keeps its gravity compensation, stiffness and damping only: the
+            object is left to fall out of it).
     """
 
     def __init__(
@@ -81,9 +96,10 @@ class GraspHold(ForceElement):
         max_squeeze: float = math.inf,
         facets: int = 16,
         object_name: str = "",
+        release: str = "press",
     ) -> None:
         self.name, self.kind, self.model, self.contacts = name, "grasp-hold", model, contacts
-        self.object_name, self.max_squeeze = object_name, max_squeeze
+        self.object_name, self.max_squeeze, self.release = object_name, max_squeeze, release
         self.object_columns = object_columns
         self.hand_columns = hand_columns(model.nv, object_columns)
         self._object = as_slice(object_columns)  # a view where contiguous
@@ -132,7 +148,10 @@ class GraspHold(ForceElement):
 
     def _let_go(self, carrier: np.ndarray, load: np.ndarray, free: np.ndarray) -> np.ndarray:
         """The forces [N, N m] when none inside the cones hold: the least-squares ``free`` ones, or with a cap those
-        closest to the squeeze within it (the fingers press at most max_squeeze, and some contact leaves its cone)."""
+        closest to the squeeze within it (the fingers press at most max_squeeze, and some contact leaves its cone);
+        none with ``release`` ``relax``."""
+        if self.release == "relax":
+            return np.zeros_like(free)
         if math.isinf(self.max_squeeze):
             return free
         count, caps = len(free), len(self._normals)
@@ -194,7 +213,8 @@ class GraspHold(ForceElement):
 def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) -> GraspHold:
     """Scene table: ``object``, ``contacts`` (names; default: every grasp contact on the object),
     ``squeeze`` [N] per contact, ``max_squeeze`` [N] (the largest normal force; default: no cap), ``facets``
-    (sides of the fast QP's pyramids, 16), ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0)."""
+    (sides of the fast QP's pyramids, 16), ``stiffness`` [N m/rad] and ``damping`` [N m s/rad] (default 0),
+    ``release`` (:data:`RELEASES`, default ``press``: what it does once it has let go)."""
     tables.check_keys(entry, HOLD_KEYS, where)
     item, contacts, columns = grasped_contacts(entry, tables, where)
     values = {}
@@ -214,6 +234,9 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
     facets = entry.get("facets", 16)
     if isinstance(facets, bool) or not isinstance(facets, int) or not 3 <= facets <= MAX_CONE_FACETS:
         raise SceneError(f"{where}.facets must be a whole number >= 3 (at most {MAX_CONE_FACETS}), got {facets!r}")
+    release = entry.get("release", "press")
+    if release not in RELEASES:
+        raise SceneError(f"{where}.release: unknown release {release!r}; releases: {choices(RELEASES)}")
     return GraspHold(
         name,
         tables.model,
@@ -223,6 +246,7 @@ def parse_grasp_hold(entry: dict, tables: SceneTables, name: str, where: str) ->
         max_squeeze=cap,
         facets=facets,
         object_name=item.name,
+        release=release,
         **values,
     )
 

@@ -414,7 +414,8 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
     """The unilateral contacts among a scene's constraints as geometries for the event-driven dynamics: plane
     contacts, and grasp contacts (the fingertip's point at C on the object's tangent plane at C, carried by the
     object: exact for the motion while the contact sticks and its first slip; a sliding fingertip is followed
-    on that plane, not on the curved surface).
+    on that plane, not on the curved surface; with ``surface = "round"`` the fingertip sphere on the sphere
+    object, a round pair re-computed at every state).
 
     Raises:
         ConstraintError: a grasp contact whose model has no event-driven modes (naming the valid ones).
@@ -448,6 +449,23 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                 )
             outward = contact_basis(np.array([0.0, 0.0, -1.0]))  # C's z points into the object
             mu = constraint.mu if constraint.model == "point-friction" else 0.0
+            surface = constraint.round
+            if surface is not None:  # the fingertip sphere on the sphere object, a round pair
+                geometries.append(
+                    PlaneContactGeometry(
+                        constraint.name,
+                        surface.tip_frame,
+                        outward,
+                        np.zeros(3),
+                        mu,
+                        0.0,
+                        constraint.radius,
+                        surface.object_frame,
+                        core=np.array([surface.centre, surface.centre]),
+                        core_radius=surface.radius,
+                    )
+                )
+                continue
             geometries.append(
                 PlaneContactGeometry(
                     constraint.name,
