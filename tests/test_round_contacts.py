@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from pinstab.contact.modes import Mode
 from pinstab.contact.round_pairs import core_nearest
+from pinstab.errors import SceneError
 from pinstab.model import ConstrainedModel
 from pinstab.scene import scene_from_dict
 from pinstab.simulate import simulate
@@ -21,6 +24,7 @@ from pinstab.solvers.contact_modes import ModeDynamics, plane_geometries
 G = 9.81
 R, r = 0.5, 0.1  # [m] the fixed ball's and the moving ball's radii
 THETA0 = 0.1  # [rad] the moving ball's start from the top, at rest
+ROBOTS = Path(__file__).resolve().parents[1] / "robots"
 
 
 def fixed_urdf(shapes: list[str]) -> str:
@@ -116,3 +120,47 @@ def test_the_nearest_point_of_a_capsule_core():
     nearest, projector = core_nearest(np.array([0.3, 0.4, 0.5]), ends)
     np.testing.assert_array_equal(nearest, ends[1])
     np.testing.assert_array_equal(projector, np.eye(3))
+
+
+def test_a_ball_in_a_v_of_two_ground_planes_carries_its_weight_by_the_closed_form():
+    """``ground`` as a list of planes (half-spaces ``ground``, ``ground_1``): a frictionless ball resting in the V
+    of two planes tilted by alpha pushes on each with m g / (2 cos alpha) (1e-9 N)."""
+    alpha = math.radians(30.0)
+    planes = [{"normal": [math.sin(s * alpha), 0.0, math.cos(alpha)], "point": [0.0, 0.0, 0.0]} for s in (1, -1)]
+    data = {
+        "robot": {"urdf_text": fixed_urdf([])},
+        "gravity": [0.0, 0.0, -G],
+        "objects": [
+            {"name": "ball", "shape": "sphere", "radius": r, "mass": 1.0, "position": [0, 0, r / math.cos(alpha)]}
+        ],
+        "contacts": [{"kind": "geometry", "ground": planes}],
+    }
+    scene = scene_from_dict(data, name="v-planes")
+    assert [c.name for c in scene.constraints] == ["ball/collision0/ground[0]", "ball/collision0/ground_1[0]"]
+    dynamics = ModeDynamics(
+        ConstrainedModel(dataclasses.replace(scene, constraints=[])), plane_geometries(scene.constraints)
+    )
+    forces = dynamics.solve(scene.q0, np.zeros(scene.model.nv), 0.0, [Mode.SLIDING, Mode.SLIDING]).forces
+    np.testing.assert_allclose(forces[:, 0], G / (2 * math.cos(alpha)), rtol=0.0, atol=1e-9)
+
+
+def test_the_new_keys_are_checked():
+    """grasp-contact ``surface``, grasp-hold ``release`` and the tilt's ``stop``: bad values refused, naming the
+    valid ones."""
+    with pytest.raises(SceneError, match=r"surface: unknown surface 'curved'; surfaces: plane, round"):
+        scene_from_dict(_allegro(surface="curved"), name="bad")
+    with pytest.raises(SceneError, match=r"release: unknown release 'drop'; releases: press, relax"):
+        scene_from_dict(_allegro(release="drop"), name="bad")
+    with pytest.raises(SceneError, match=r"tilt.stop must be an angle the turn reaches"):
+        scene_from_dict(_allegro(stop="1 deg"), name="bad")
+
+
+def _allegro(surface: str = "round", release: str = "relax", stop: str = "1.9 deg") -> dict:
+    """allegro-drop's table with one value changed."""
+    data = tomllib.loads((ROBOTS / "allegro-drop.toml").read_text())
+    for contact in data["contacts"]:
+        if contact["kind"] == "grasp-contact":
+            contact["surface"] = surface
+    data["forces"][0]["release"] = release
+    data["tilt"]["stop"] = stop
+    return data

@@ -255,15 +255,17 @@ def read_coefficients(entry: dict, tables: SceneTables, model_name: str, where: 
 class RoundGrasp(NamedTuple):
     """A grasp contact that event-driven contacts treat as a round pair (:mod:`~pinstab.contact.round_pairs`): the
     fingertip sphere (its centre's frame ``tip_frame``) against a sphere object (its centre ``centre`` [m] in the
-    object's body frame ``object_frame``, radius ``radius`` [m])."""
+    object's body frame ``object_frame``, radius ``radius`` [m]); ``normal``: the unit normal from the object's centre
+    towards the fingertip at the start (in the object frame's axes), whose tangents the contact's turn from."""
 
     tip_frame: int
     object_frame: int
     centre: np.ndarray
     radius: float
+    normal: np.ndarray
 
 
-def round_grasp(entry: dict, fingertip: Fingertip, where: str) -> RoundGrasp | None:
+def round_grasp(entry: dict, tables: SceneTables, fingertip: Fingertip, where: str) -> RoundGrasp | None:
     """The entry's ``surface``: ``plane`` (default: the tangent plane at C, carried by the object) or ``round`` (the
     fingertip sphere on a sphere object's surface, re-computed at every state, so that it may slide over and leave
     it), or None for ``plane``.
@@ -284,7 +286,11 @@ def round_grasp(entry: dict, fingertip: Fingertip, where: str) -> RoundGrasp | N
             f"{', '.join(shapes) or 'none'}; use surface 'plane'"
         )
     shape, local = item.geometries[0]
-    return RoundGrasp(fingertip.frame, item.frame, local.translation.copy(), float(shape.radius))
+    placed = tables.initial_placement(item.frame)
+    outward = placed.actInv(tables.initial_placement(fingertip.frame).translation) - local.translation
+    return RoundGrasp(
+        fingertip.frame, item.frame, local.translation.copy(), float(shape.radius), outward / np.linalg.norm(outward)
+    )
 
 
 def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str) -> FingertipContact:
@@ -307,7 +313,7 @@ def parse_grasp_contact(entry: dict, tables: SceneTables, name: str, where: str)
     contact = FingertipContact(
         name, model_name, object_frame, finger_frame, fingertip.item.name, fingertip.name, mu, torsion, fingertip.radius
     )
-    contact.round = round_grasp(entry, fingertip, where)
+    contact.round = round_grasp(entry, tables, fingertip, where)
     return contact
 
 

@@ -14,7 +14,9 @@ side (its axis within :data:`SIDE_TILT` of the plane) the two ends of its lowest
 end cap with the cylinder's radius (a sphere there touches the plane where the rim does: exact while the axis
 stays parallel to the plane, rolling or at rest); else its rim points, :data:`RIM_POINTS` around each end cap
 (a cap flat on the plane rests on them; a cylinder tilted onto its rim touches it at the nearest of them, a
-polygon's corner, not the circle's lowest point).
+polygon's corner, not the circle's lowest point). Two round shapes pair only as a sphere (shape A) against a sphere
+or a capsule (:mod:`~pinstab.contact.round_pairs`): one feature, the sphere's centre, on the plane normal to the line
+from B's core, which the contacts re-compute at every state (:attr:`ContactShapes.cores`).
 
 A feature keeps its identity while it persists: its name is ``<shapeA>/<shapeB>[k]``, k its index among shape A's
 points (a box's corner k is the same corner wherever the box turns), and the features come in the order of the

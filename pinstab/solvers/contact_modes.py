@@ -37,6 +37,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..constraints.contacts import contact_basis
+from ..constraints.grasp_contacts import cross
 from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
 from ..contact.round_pairs import core_nearest
@@ -364,17 +365,23 @@ def _relative(
 
 def _round_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """A round pair's gap [m], contact point [m, world], rows (3, nv) and drifts (3,) [m/s^2] in its basis (n, t1,
-    t2) at the state of ``kin``, n along the line from B's core to A's centre x (:mod:`~pinstab.contact.round_pairs`).
-    In B's frame (world axes), with w the velocity of x relative to B and H = (P - n n^T) / |x - c| the gap's
-    Hessian: the normal row is the gap's second derivative, ``n . x''_B + w^T H w``; the tangent rows that of the
-    slip ``s = w + r_a n x (omega_a - omega_b)`` (the relative velocity of the two surfaces' material points at the
-    contact point), whose derivative in B's frame is ``x''_B + r_a (H w) x Omega + r_a n x Omega'_B``."""
+    t2) at the state of ``kin``, n along the line from B's core to A's centre x (:mod:`~pinstab.contact.round_pairs`),
+    t1 the first tangent of ``contact.basis`` (fixed in B's frame: where the contact was found) made normal to n
+    (continuous while n turns less than 90 degrees towards it; a tangent chosen from n alone jumps where it switches
+    axes, and with it a slip's direction). In B's frame (world axes), with w the velocity of x relative to B and
+    H = (P - n n^T) / |x - c| the gap's Hessian: the normal row is the gap's second derivative, ``n . x''_B +
+    w^T H w``; the tangent rows that of the slip ``s = w + r_a n x (omega_a - omega_b)`` (the relative velocity of
+    the two surfaces' material points at the contact point), whose derivative in B's frame is
+    ``x''_B + r_a (H w) x Omega + r_a n x Omega'_B``."""
     plane = kin.placement(contact.plane_frame)
     centre = kin.placement(contact.frame).translation
     nearest, projector = core_nearest(centre, (plane.rotation @ contact.core.T).T + plane.translation)
     distance = float(np.linalg.norm(centre - nearest))
     normal = (centre - nearest) / distance
-    basis = contact_basis(normal)
+    helper = plane.rotation @ contact.basis[1]
+    first = helper - (helper @ normal) * normal
+    first /= np.linalg.norm(first)
+    basis = np.array([normal, first, cross(normal, first)])
     frame_jacobian, frame_drift = kin.jacobian(contact.frame), kin.drift_acceleration(contact.frame)
     body_jacobian, body_drift = kin.jacobian(contact.plane_frame), kin.drift_acceleration(contact.plane_frame)
     relative, relative_drift = _relative(kin, contact.plane_frame, centre, v, frame_jacobian[:3], frame_drift.linear)
@@ -383,8 +390,8 @@ def _round_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[floa
     spin_jacobian = frame_jacobian[3:] - body_jacobian[3:]
     spin, omega_b = spin_jacobian @ v, body_jacobian[3:] @ v
     arm = contact.radius * pin.skew(normal)  # r_a n x .
-    spin_drift = frame_drift.angular - body_drift.angular - np.cross(omega_b, spin)  # Omega'_B at zero acceleration
-    slip_drift = relative_drift + contact.radius * np.cross(turn, spin) + arm @ spin_drift
+    spin_drift = frame_drift.angular - body_drift.angular - cross(omega_b, spin)  # Omega'_B at zero acceleration
+    slip_drift = relative_drift + contact.radius * cross(turn, spin) + arm @ spin_drift
     drift = basis @ slip_drift
     drift[0] = normal @ relative_drift + w @ turn
     gap = distance - contact.radius - contact.core_radius
@@ -455,7 +462,7 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     PlaneContactGeometry(
                         constraint.name,
                         surface.tip_frame,
-                        outward,
+                        contact_basis(surface.normal),
                         np.zeros(3),
                         mu,
                         0.0,
