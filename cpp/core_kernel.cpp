@@ -42,7 +42,9 @@ VectorXd stabilization_term(double stiffness, const Eigen::ArrayXd& velocity_gai
 }
 
 Eigen::Vector3d GravityTilt::gravity(double t) const {
-  return Eigen::AngleAxisd(-start - rate * t, axis).toRotationMatrix() * gravity0;
+  const double turning = start + rate * t;
+  const double angle = std::isinf(stop) ? turning : (rate > 0.0 ? std::min(turning, stop) : std::max(turning, stop));
+  return Eigen::AngleAxisd(-angle, axis).toRotationMatrix() * gravity0;
 }
 
 CoreKernel::CoreKernel(const pinocchio::Model& model, std::vector<RowBlock> blocks, CoreForces forces, CoreTerm term,

@@ -70,10 +70,11 @@ struct CoreTerm {
   std::optional<InertialGains> inertial;
 };
 
-// pinstab.scene.GravityTilt: gravity g(t) = R(axis, -(start + rate t)) g0 [m/s^2] (rate [rad/s], start [rad]).
+// pinstab.scene.GravityTilt: gravity g(t) = R(axis, -angle(t)) g0 [m/s^2], angle(t) = start + rate t [rad] (rate
+// [rad/s]) until it reaches stop [rad] (infinite: it turns on), from when on it stays at stop.
 struct GravityTilt {
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ(), gravity0 = Eigen::Vector3d::Zero();
-  double rate = 0.0, start = 0.0;
+  double rate = 0.0, start = 0.0, stop = std::numeric_limits<double>::infinity();
   Eigen::Vector3d gravity(double t) const;
 };
 

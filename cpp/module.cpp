@@ -588,10 +588,10 @@ NB_MODULE(_compiled, m) {
       "where not finite.");
   m.def(
       "tilted_gravity",
-      [](const Eigen::Vector3d& axis, double rate, double start, const Eigen::Vector3d& gravity0, double t) {
-        return GravityTilt{axis, gravity0, rate, start}.gravity(t);
-      },
-      "axis"_a, "rate"_a, "start"_a, "gravity0"_a, "t"_a, "R(axis, -(start + rate t)) g0 [m/s^2].");
+      [](const Eigen::Vector3d& axis, double rate, double start, const Eigen::Vector3d& gravity0, double t,
+         double stop) { return GravityTilt{axis, gravity0, rate, start, stop}.gravity(t); },
+      "axis"_a, "rate"_a, "start"_a, "gravity0"_a, "t"_a, "stop"_a = std::numeric_limits<double>::infinity(),
+      "R(axis, -angle) g0 [m/s^2], angle = start + rate t [rad] until it reaches stop [rad] (inf: never).");
   m.def(
       "block_residual",
       [](nb::handle model, nb::handle data, const RowBlock& block, const VectorXd& q, double t) {
@@ -674,7 +674,7 @@ NB_MODULE(_compiled, m) {
             if (tilt) {
               turning = GravityTilt{nb::cast<Eigen::Vector3d>((*tilt)["axis"]),
                                     nb::cast<Eigen::Vector3d>((*tilt)["gravity0"]), nb::cast<double>((*tilt)["rate"]),
-                                    nb::cast<double>((*tilt)["start"])};
+                                    nb::cast<double>((*tilt)["start"]), nb::cast<double>((*tilt)["stop"])};
             }
             std::shared_ptr<PythonPart> part;
             if (!python.is_none()) part = std::make_shared<CallbackPart>(python);
@@ -689,7 +689,7 @@ NB_MODULE(_compiled, m) {
           "The core evaluation: row blocks, the force elements' compiled forms (dicts by kind: joint-spring, hold, "
           "wrench, spring-damper, joint-torque), the stabilization term -K (G v + g_t) - S phi (S [1/s^2], K per row [1/s], held: computed at a "
           "step's stage 0 and held over its other stages), the solve's settings (dict: direct_pivot, cutoff, "
-          "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start) or None, and the Python part or None: an object (held "
+          "accepted, margin_slack) and a gravity tilt (dict: axis, gravity0, rate, start, stop) or None, and the Python part or None: an object (held "
           "weakly: its owner keeps it alive) with evaluate(t, q, v) -> (G, phi, g_t, gamma0, forces) of the blocks of "
           "kind 6 and the elements without a compiled form, and holds(t, multipliers) -> bool; inertial: Mukharlyamov's "
           "inertial term instead of S and K (dict: stiffness H (s x s), damping B (s x s), rate_step [s], cutoff), "

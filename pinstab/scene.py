@@ -321,18 +321,19 @@ class GravityTilt:
     start: float = 0.0
     stop: float = math.inf
 
-    @property
-    def stop_time(self) -> float:
-        """The time [s] the turn reaches ``stop`` (inf: never)."""
-        return math.inf if math.isinf(self.stop) else (self.stop - self.start) / self.rate
-
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time t [s], in world axes [m/s^2]."""
-        return tilted_gravity(self.axis, self.rate, self.start, self.gravity0, min(t, self.stop_time))
+        return tilted_gravity(self.axis, self.rate, self.start, self.gravity0, t, self.stop)
 
     def compiled_form(self) -> dict[str, Any]:
         """The tilt as the core kernel takes it (``cpp/core_kernel.hpp`` GravityTilt)."""
-        return {"axis": self.axis, "gravity0": self.gravity0, "rate": float(self.rate), "start": float(self.start)}
+        return {
+            "axis": self.axis,
+            "gravity0": self.gravity0,
+            "rate": float(self.rate),
+            "start": float(self.start),
+            "stop": float(self.stop),
+        }
 
 
 def _tilt(value: Any, gravity: np.ndarray) -> GravityTilt:

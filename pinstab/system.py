@@ -334,8 +334,6 @@ class ConstrainedSystem:
         form (the core's: not of its form, :meth:`~pinstab.stabilizers.base.Stabilizer.core_term`); or None."""
         if self.model.scene.tilt is not None and not core:
             return f"gravity tilts in time ([tilt]); {solve} takes the model's one gravity"
-        if core and self.model.scene.tilt is not None and math.isfinite(self.model.scene.tilt.stop):
-            return "gravity's tilt stops ([tilt] stop); the core tilts it without a stop"
         if core and self.stabilizer.core_term() is None:
             return f"method {self.stabilizer.name}'s term is not of the core's form -K (G v + g_t) - S phi"
         if not core and self.stabilizer.baumgarte_gains() is None:

@@ -4,7 +4,6 @@ time-stepping contacts (Moreau-Jean over an NCP solve)."""
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Collection
 from contextlib import closing, nullcontext
 from pathlib import Path
@@ -111,8 +110,7 @@ def simulate_events(
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
     statistics = system.solver.statistics
-    stops = scene.tilt is not None and math.isfinite(scene.tilt.stop)  # the core tilts gravity without a stop
-    if limits and not geometries and not stops:  # closures and joint limits: each mode's evaluation is the core's
+    if limits and not geometries:  # closures and joint limits: each mode's evaluation is the core's
         dynamics = CoreModeDynamics(system.model, limits, statistics)
     else:
         dynamics = ModeDynamics(system.model, geometries, limits, statistics)
