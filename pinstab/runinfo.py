@@ -107,6 +107,8 @@ class RunInfo:
             by Ctrl-C or SIGTERM, or killed): ``t`` [s] and ``step`` of its last sample written, ``cause``
             (``interrupted``: its final info was written; ``killed``: the info is its start's, with ``t_end`` and
             ``steps`` from its samples); None otherwise.
+        contact_treatment: how contacts were treated (:class:`~pinstab.simulate.choice.ContactChoice` as a dict:
+            ``treatment``, ``chosen``, ``why``); None for a scene without contacts.
     """
 
     scene: str
@@ -138,6 +140,7 @@ class RunInfo:
     limits_active_s: dict[str, float] | None = None
     timings: dict[str, float] = field(default_factory=dict)
     cut_short: dict[str, Any] | None = None
+    contact_treatment: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

@@ -46,6 +46,7 @@ from .validation import (
 )
 
 MAX_GRAVITY = 1e6  # [m/s^2]
+CONTACT_TREATMENTS = ("held", "event", "stepping")  # [run] contacts: rows that hold, event-driven, time-stepping
 TOP_KEYS = {
     "name",
     "description",
@@ -92,6 +93,8 @@ class Scene:
         assembly_tolerance: ``[assembly] tolerance``, the residual assembly accepts relative to the mechanism's
             size [-] (:func:`~pinstab.assembly.assemble`), or None (the default).
         step: ``[run] dt``, the scene's time step [s] (what ``simulate`` and ``--dt`` default to), or None (1e-3).
+        contacts: ``[run] contacts``, the contact treatment the scene asks for (:data:`CONTACT_TREATMENTS`; what
+            ``--contacts`` defaults to), or None (:func:`~pinstab.simulate.choice.contact_choice`).
         collisions: the robot-object collision checks of a scene with objects
             (:mod:`pinstab.contact.collisions`: warned at load, run at a run's samples), or None.
         contact_finders: the finders of its contacts from geometry
@@ -119,6 +122,7 @@ class Scene:
     robot: RobotSource | None = None
     assembly_tolerance: float | None = None
     step: float | None = None
+    contacts: str | None = None
     collisions: CollisionCheck | None = None
     contact_finders: list[Any] = field(default_factory=list)
 
@@ -302,6 +306,7 @@ def scene_from_dict(
         tilt=None if "tilt" not in data else _tilt(data["tilt"], model.gravity.linear),
         assembly_tolerance=_assembly_tolerance(data.get("assembly")),
         step=_run_step(data.get("run")),
+        contacts=_run_contacts(data.get("run")),
         collisions=collisions,
         contact_finders=tables.contact_finders,
     )
@@ -416,11 +421,22 @@ def _ignore_limits(model: pin.Model, joints: Any) -> None:
     model.lowerPositionLimit, model.upperPositionLimit = lower, upper
 
 
+def _run_contacts(value: Any) -> str | None:
+    """``[run] contacts``, the treatment the scene asks for (:data:`CONTACT_TREATMENTS`), or None when not given."""
+    if value is None or "contacts" not in table(value, "run"):
+        return None
+    if value["contacts"] not in CONTACT_TREATMENTS:
+        raise SceneError(
+            f"run.contacts: unknown treatment {value['contacts']!r}; valid: {', '.join(CONTACT_TREATMENTS)}"
+        )
+    return value["contacts"]
+
+
 def _run_step(value: Any) -> float | None:
     """``[run] dt``, the scene's time step [s] (positive, finite; units allowed), or None when not given."""
     if value is None:
         return None
-    check_keys(table(value, "run"), {"dt"}, "run")
+    check_keys(table(value, "run"), {"dt", "contacts"}, "run")
     if "dt" not in value:
         return None
     step = quantity(value["dt"], "time", "run.dt")

@@ -59,8 +59,8 @@ def test_spinning_point_contact_separating_is_refused_at_its_speed(tmp_path: Pat
 
 
 def test_check_refuses_the_separating_start_its_held_run_refuses(tmp_path: Path) -> None:
-    """Nine contacts (more than MAX_EVENT_CONTACTS: held by default) on an arc of the spinning ball's points around
-    OFFSET: ``check`` refuses the start as ``run`` does (it exited 0), with the run's message, naming the contact
+    """Nine contacts held (the scene asks for it: ``[run] contacts = "held"``) on an arc of the spinning ball's points
+    around OFFSET: ``check`` refuses the start as ``run`` does (it exited 0), with the run's message, naming the contact
     separating at the closed-form speed of c0."""
     scene = ball(OFFSET, [-1.0, 1.0, 0.0, *SPIN])
     radius, heading = float(np.hypot(*OFFSET)), float(np.arctan2(OFFSET[1], OFFSET[0]))
@@ -69,6 +69,7 @@ def test_check_refuses_the_separating_start_its_held_run_refuses(tmp_path: Path)
         {"name": f"c{k}", "kind": "plane-contact", "frame_a": "crate", "offset_a": [float(x), float(y), 0.0]}
         for k, (x, y) in enumerate(points)
     ]
+    scene["run"] = {"contacts": "held"}
     path = tmp_path / "scene.toml"
     path.write_text(toml_document(scene), encoding="utf-8")
     checked = cli(["check", str(path)])

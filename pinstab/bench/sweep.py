@@ -72,7 +72,7 @@ def run_point(
     try:
         options = {name: value for name, value in values.items() if name not in parameters}
         scene = load_scene(scene_name, **{name: value for name, value in values.items() if name in parameters})
-        contacts = options.pop("contacts", None) or default_contacts(scene) or "held"
+        contacts = options.pop("contacts", None) or default_contacts(scene)
         trajectory = simulate(scene, contacts=None if contacts == "held" else contacts, **options)
         row.update(run_figures(trajectory.summary()), path=trajectory.info.path)
         row["error"] = ""

@@ -175,7 +175,7 @@ def _contacts(fixed: dict[str, Any], scene_name: str, names: list[str]) -> str:
     if "contacts" in fixed:
         return fixed["contacts"]
     scene = load_scene(scene_name, **{name: value for name, value in fixed.items() if name in names})
-    return default_contacts(scene) or "held"
+    return default_contacts(scene)
 
 
 def _check_option(name: str, value: Any) -> None:
@@ -253,7 +253,7 @@ def _checks(
         for names, check in RUN_CHECKS:
             for point in sweep_points(_read(grids, names)):
                 options = {**fixed_options, **point}
-                contacts = options.get("contacts") or default_contacts(scene) or "held"
+                contacts = options.get("contacts") or default_contacts(scene)
                 yield _at_point({**scene_point, **point}, check, scene, contacts, options)
 
 

@@ -196,8 +196,10 @@ def run_options(parser: argparse.ArgumentParser) -> None:
         choices=CONTACTS,
         help=f"how contacts are treated: event (modes sticking, sliding, separated switched at located events, "
         f"with impacts; error-controlled dop853, --rtol default {EVENT_RTOL:g}), stepping (time-stepping with "
-        "impulses), held (constraint rows that hold, with --method, --integrator, --solver). Default: event for "
-        f"scenes whose constraints are plane contacts, at most {MAX_EVENT_CONTACTS}; held otherwise",
+        "impulses), held (constraint rows that hold, with --method, --integrator, --solver). Default: the scene's "
+        "[run] contacts, else event where every contact has modes and they are the only constraints "
+        f"(time-stepping beyond {MAX_EVENT_CONTACTS} declared ones), held otherwise; the run's JSON says which and "
+        "why (contact_treatment)",
     )
     parser.add_argument(
         "--stop-on",

@@ -55,19 +55,19 @@ def simulate_scene(args: argparse.Namespace, before: Callable[[Any], None] | Non
 
 
 def _contacts(args: argparse.Namespace, scene) -> str | None:
-    """The contact treatment of ``simulate`` (None: held rows): ``--contacts``, else the scene's default
-    (:func:`~pinstab.simulate.default_contacts`). Refuses the held contacts' options with ``event`` and
+    """The contact treatment of ``simulate``: ``--contacts``, else ``auto`` (the scene's choice,
+    :func:`~pinstab.simulate.choice.contact_choice`). Refuses the held contacts' options with ``event`` and
     ``--stop-on`` without it."""
-    from ..simulate import default_contacts
+    from ..simulate.choice import resolve_contacts
 
-    contacts = default_contacts(scene) if args.contacts is None else args.contacts
-    contacts = None if contacts == "held" else contacts
+    asked = "auto" if args.contacts is None else args.contacts
+    contacts, _ = resolve_contacts(scene, asked)
     if contacts == "event":
         given = [f"--{name}" for name in HELD_ONLY if getattr(args, name) is not None]
         given += [f"--{name.replace('_', '-')}" for name in given_options(args, METHOD_OPTION)]
         given += [f"--{name.replace('_', '-')}" for name in given_options(args, SOLVER_OPTION)]
         if given:
-            chosen = "--contacts event" if args.contacts else f"scene {scene.name}'s default, event"
+            chosen = "--contacts event" if args.contacts else f"scene {scene.name}'s choice, event"
             raise PinstabError(
                 f"{', '.join(given)}: the contacts are event-driven ({chosen}): their modes are integrated by "
                 "error-controlled dop853 (--rtol), without a stabilization method or KKT backend; give --contacts "
@@ -79,7 +79,7 @@ def _contacts(args: argparse.Namespace, scene) -> str | None:
             f"--stop-on {' '.join(args.stop_on)} ends a run at a contact event, which event-driven contacts locate "
             f"(--contacts event); scene {scene.name}'s contacts are {treatment} here"
         )
-    return contacts
+    return asked
 
 
 def run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
@@ -97,6 +97,7 @@ def run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
         "parameters": info.parameters,
         "path": info.path,
         "path_reason": info.path_reason,
+        "contact_treatment": info.contact_treatment,
         "compiled_steps": info.compiled_steps,
         "record_every": info.record_every,
     }

@@ -20,6 +20,7 @@ from ..solvers.proxsuite_ import LIMIT_STATUS
 from ..stream import h5py_module
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
+from .choice import ContactChoice, resolve_contacts
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
 from .limits import held_limits, limit_left, limit_watch, not_event_driven
@@ -105,8 +106,9 @@ def simulate(
             rtol default :data:`EVENT_RTOL`); ``stepping``: time-stepping contacts, a velocity-level Moreau-Jean
             step of ``dt`` with impulses on the exact round cone (Pinocchio's ADMM in NCP mode;
             :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
-            change in ``info.contact_events``; None: they are held as constraint rows (see
-            :func:`default_contacts`).
+            change in ``info.contact_events``; None or ``held``: they are held as constraint rows; ``auto``: the
+            scene's choice (:func:`~pinstab.simulate.choice.contact_choice`). The run reports the treatment, how it
+            was chosen and why in ``info.contact_treatment``.
         stop_on: with ``contacts="event"``, the kinds of contact event that end the run
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
             ``separation``, a touching contact opens): the trajectory ends at the first such event, with
@@ -158,6 +160,7 @@ def simulate(
     if dt is None:
         dt = DEFAULT_DT if scene.step is None else scene.step
     integrator = default_integrator(integrator, rtol, atol)
+    contacts, choice = resolve_contacts(scene, contacts)
     kinds = stop_kinds(stop_on, contacts)
     if stream is not None:
         h5py_module()
@@ -180,13 +183,13 @@ def simulate(
                 ),
                 stacklevel=2,
             )
-        return _checked(scene, stepped, clock)
+        return _checked(scene, choice, stepped, clock)
     if contacts is not None:
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,
             assembly_tol=assembly_tol, clock=clock,
         )  # fmt: skip
-        return _checked(scene, events, clock)
+        return _checked(scene, choice, events, clock)
     diverged: DivergenceError | None = None
     try:
         trajectory = simulate_held(
@@ -198,11 +201,11 @@ def simulate(
             raise
         trajectory, diverged = error.trajectory, error
     if watch is None:
-        return _checked(scene, trajectory, clock)
+        return _checked(scene, choice, trajectory, clock)
     left = limit_left(trajectory, watch, v0)
     if left is None:
         trajectory.info.limits_active_s = {}
-        return _checked(scene, trajectory, clock)
+        return _checked(scene, choice, trajectory, clock)
     reason = f"joint limits: {left[0].name} left at t = {left[1]:.6g} s on the held path"
     if diverged is not None:
         reason += f", which then diverged at t = {diverged.time:.6g} s"
@@ -217,7 +220,7 @@ def simulate(
             ),
             stacklevel=2,
         )
-        return _checked(scene, trajectory, clock)
+        return _checked(scene, choice, trajectory, clock)
     held = os.stat(trajectory.path).st_ino if isinstance(trajectory, StreamedTrajectory) else None
     try:
         events = simulate_events(
@@ -228,7 +231,7 @@ def simulate(
         if held is not None and os.path.exists(trajectory.path) and os.stat(trajectory.path).st_ino == held:
             os.remove(trajectory.path)
         raise
-    return _checked(scene, events, clock)
+    return _checked(scene, choice, events, clock)
 
 
 def _warn_of_solver_limits(scene: Scene, statistics: SolverStatistics) -> None:
@@ -247,12 +250,13 @@ def _warn_of_solver_limits(scene: Scene, statistics: SolverStatistics) -> None:
 
 
 def _checked(
-    scene: Scene, trajectory: Trajectory | StreamedTrajectory, clock: RunClock
+    scene: Scene, choice: ContactChoice | None, trajectory: Trajectory | StreamedTrajectory, clock: RunClock
 ) -> Trajectory | StreamedTrajectory:
-    """``trajectory``, after warning of the robot-object overlaps at its kept samples
-    (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`), its drift and energy series computed (what
-    its summary reads) and its timings set (``clock``); a streamed run instead gets its completed info and timings
-    written to its file."""
+    """``trajectory`` with its contact treatment's ``choice`` (``info.contact_treatment``), after warning of the robot-
+    object overlaps at its kept samples (:meth:`~pinstab.contact.collisions.CollisionCheck.warn_during`), its drift and
+    energy series computed (what its summary reads) and its timings set (``clock``); a streamed run instead gets its
+    completed info and timings written to its file."""
+    trajectory.info.contact_treatment = None if choice is None else choice.summary()
     if isinstance(trajectory, StreamedTrajectory):
         clock.stamp(trajectory)
         trajectory.write_info()  # as completed after the file was finished

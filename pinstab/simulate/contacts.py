@@ -12,7 +12,6 @@ from typing import Any
 import numpy as np
 
 from ..assembly import AssemblyReport, assemble
-from ..constraints import PointContact
 from ..constraints.joint_limits import JointLimit, LimitWatch
 from ..contact.modes import STOP_KINDS, stop_kind
 from ..errors import PinstabError
@@ -38,7 +37,6 @@ from .loop import (
 )
 
 EVENT_RTOL = 1e-10  # the default tolerance of event-driven contacts
-MAX_EVENT_CONTACTS = 8  # scenes of plane contacts only, at most this many (or found from geometry), default to events
 HELD_ONLY = ("method", "integrator", "solver")  # simulate()'s options that event-driven contacts have no use for
 
 
@@ -69,15 +67,6 @@ def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]
     geometries = plane_geometries(scene.constraints)
     names = {g.name for g in geometries}
     return geometries, [c.name for c in scene.constraints if c.name not in names]
-
-
-def default_contacts(scene: Scene) -> str | None:
-    """``event`` for a scene whose constraints are plane contacts only, at most :data:`MAX_EVENT_CONTACTS` of
-    them or found from geometry (which held contacts would keep as found at the start); None (contacts held as
-    constraint rows) otherwise (grasps are held unless asked)."""
-    plane = [c for c in scene.constraints if isinstance(c, PointContact)]
-    many = len(plane) > MAX_EVENT_CONTACTS and not scene.contact_finders
-    return "event" if plane and len(plane) == len(scene.constraints) and not many else None
 
 
 def simulate_events(

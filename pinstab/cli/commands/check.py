@@ -54,7 +54,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...constraints.joint_limits import joint_limits
     from ...model import ConstrainedModel
     from ...scene import load_scene
-    from ...simulate.contacts import default_contacts
+    from ...simulate.choice import default_contacts
     from ...simulate.held import refuse_separating_contacts
     from ...simulate.limits import held_limits
 
@@ -67,7 +67,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     )
     model = ConstrainedModel(scene)
     assembled = (
-        model if default_contacts(scene) is None else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
+        model if default_contacts(scene) == "held" else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
     )
     report = assemble(assembled, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     if assembled is model:  # contacts held as rows (the scene's default): a start they cannot hold, as run refuses

@@ -1,0 +1,85 @@
+"""Which contact treatment a run takes: what it is asked for (``simulate(contacts=...)``, ``--contacts``, the scene's
+``[run] contacts``), else chosen from the scene's contacts (:func:`contact_choice`), and reported in the run's JSON
+(``info.contact_treatment``: treatment, how it was chosen and why).
+
+The choice: a scene whose contacts can switch switches by default; holding them rigid is asked for. Contacts with
+event-driven modes (plane contacts, contacts found from geometry, point-friction and frictionless grasp contacts) are
+``event`` when they are the scene's only constraints and at most :data:`MAX_EVENT_CONTACTS` are declared (contacts
+found from geometry always: the touching ones are few of those found), ``stepping`` (time-stepping, whose cost does
+not grow with the events) when more plane contacts are declared; ``held`` (constraint rows) otherwise, naming the
+constraint that keeps the modes off."""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+from ..constraints import FingertipContact, PointContact
+from ..errors import ConstraintError, PinstabError
+from ..scene import CONTACT_TREATMENTS, Scene
+from ..solvers.contact_modes import plane_geometries
+
+MAX_EVENT_CONTACTS = 8  # declared plane contacts beyond this many default to time-stepping
+
+
+class ContactChoice(NamedTuple):
+    """A run's contact treatment: ``treatment`` (``held``, ``event`` or ``stepping``), ``chosen`` (``asked``: by the
+    caller; ``scene``: by its ``[run] contacts``; ``automatic``: :func:`contact_choice`) and ``why`` (words)."""
+
+    treatment: str
+    chosen: str
+    why: str
+
+    def summary(self) -> dict[str, Any]:
+        """The choice as the run's JSON reports it (``info.contact_treatment``)."""
+        return self._asdict()
+
+
+def contact_choice(scene: Scene) -> ContactChoice | None:
+    """The treatment a run of ``scene`` takes unless asked for one (module docstring), or None for a scene without
+    contacts."""
+    contacts = [c for c in scene.constraints if isinstance(c, PointContact | FingertipContact)]
+    if not contacts:
+        return None
+    if scene.contacts is not None:
+        return ContactChoice(scene.contacts, "scene", f"scene {scene.name} asks for it ([run] contacts)")
+    others = [c.name for c in scene.constraints if not isinstance(c, PointContact | FingertipContact)]
+    if others:
+        return ContactChoice("held", "automatic", f"constraints {', '.join(others)} are not contacts")
+    try:
+        plane_geometries(contacts)
+    except ConstraintError as error:
+        return ContactChoice("held", "automatic", str(error).split(":")[0] + ": no event-driven modes")
+    count = len(contacts)
+    if scene.contact_finders:
+        return ContactChoice("event", "automatic", f"{count} contacts found from geometry, each with modes")
+    if count > MAX_EVENT_CONTACTS:
+        return ContactChoice(
+            "stepping", "automatic", f"{count} contacts, more than {MAX_EVENT_CONTACTS}: time-stepping"
+        )
+    return ContactChoice("event", "automatic", f"{count} contacts, each with modes (at most {MAX_EVENT_CONTACTS})")
+
+
+def default_contacts(scene: Scene) -> str:
+    """The treatment (``held``, ``event`` or ``stepping``) a run of ``scene`` takes unless asked for one."""
+    choice = contact_choice(scene)
+    return "held" if choice is None else choice.treatment
+
+
+def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, ContactChoice | None]:
+    """``simulate``'s ``contacts`` (None or ``held``: rows; ``event``; ``stepping``; ``auto``: the scene's choice) as
+    (``event``, ``stepping`` or None for held rows; the choice to report, None for a scene without contacts).
+
+    Raises:
+        PinstabError: another value (naming the valid ones).
+    """
+    valid = (*CONTACT_TREATMENTS, "auto")
+    if contacts is not None and contacts not in valid:
+        raise PinstabError(f"contacts: unknown treatment {contacts!r}; valid: {', '.join(valid)}")
+    automatic = contact_choice(scene)
+    if contacts == "auto":
+        choice = automatic
+        treatment = "held" if choice is None else choice.treatment
+    else:
+        treatment = contacts or "held"
+        choice = None if automatic is None else ContactChoice(treatment, "asked", f"asked for {treatment}")
+    return (None if treatment == "held" else treatment), choice

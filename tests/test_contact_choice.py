@@ -1,0 +1,91 @@
+"""The contact treatment a run takes (``pinstab.simulate.choice``): a scene whose contacts can switch switches by
+default (event-driven; time-stepping beyond MAX_EVENT_CONTACTS declared ones), holding them is asked for (the
+option, or the scene's ``[run] contacts``), and the run's JSON says which, how chosen and why."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from fuzzing import cli
+
+from pinstab import load_scene, simulate
+from pinstab.errors import PinstabError, SceneError
+from pinstab.scene import scene_from_dict
+from pinstab.simulate import MAX_EVENT_CONTACTS, contact_choice
+
+
+@pytest.mark.parametrize(
+    ("name", "treatment", "chosen"),
+    [
+        ("bouncing-ball", "event", "automatic"),
+        ("box-push", "event", "automatic"),
+        ("allegro-tilt", "event", "automatic"),  # its grasp contacts switch by default (it held them, exit 5 at a slip)
+        ("box-stack", "event", "automatic"),  # 20 found from geometry
+        ("allegro-sphere", "held", "scene"),  # [run] contacts = "held"
+    ],
+)
+def test_a_scene_whose_contacts_switch_switches_by_default(name, treatment, chosen):
+    choice = contact_choice(load_scene(name))
+    assert (choice.treatment, choice.chosen) == (treatment, chosen), choice
+
+
+def test_no_contacts_no_choice():
+    assert contact_choice(load_scene("fourbar")) is None
+
+
+def test_many_declared_contacts_step_in_time_and_others_keep_them_held():
+    """Nine declared plane contacts: time-stepping; contacts beside a closure: held,
+    naming the closure."""
+    push = load_scene("box-push")
+    nine = dataclasses.replace(push, constraints=[*push.constraints, *push.constraints, push.constraints[0]])
+    assert len(nine.constraints) == MAX_EVENT_CONTACTS + 1
+    choice = contact_choice(nine)
+    assert (choice.treatment, choice.chosen) == ("stepping", "automatic") and "9 contacts" in choice.why
+    fourbar = load_scene("fourbar")
+    mixed = dataclasses.replace(push, constraints=[*push.constraints, *fourbar.constraints])
+    choice = contact_choice(mixed)
+    assert choice.treatment == "held" and fourbar.constraints[0].name in choice.why
+
+
+def test_auto_runs_the_scenes_choice_to_the_last_bit_and_reports_it():
+    """simulate(contacts="auto") on bouncing-ball is the event-driven run (equal to the last bit) and says so; asked
+    for held, the run says it was asked."""
+    scene = load_scene("bouncing-ball")
+    auto = simulate(scene, contacts="auto", duration=0.5)
+    event = simulate(scene, contacts="event", duration=0.5)
+    assert np.array_equal(auto.q, event.q) and np.array_equal(auto.v, event.v)
+    assert auto.info.contact_treatment == {
+        "treatment": "event",
+        "chosen": "automatic",
+        "why": auto.info.contact_treatment["why"],
+    }
+    assert event.info.contact_treatment["chosen"] == "asked"
+    assert simulate(scene, duration=0.01).info.contact_treatment == {
+        "treatment": "held",
+        "chosen": "asked",
+        "why": "asked for held",
+    }
+
+
+def test_the_scene_asks_and_a_wrong_ask_is_refused():
+    with pytest.raises(SceneError, match="run.contacts: unknown treatment 'rigid'; valid: held, event, stepping"):
+        scene_from_dict({"run": {"contacts": "rigid"}, "robot": {"name": "panda"}})
+    with pytest.raises(PinstabError, match="contacts: unknown treatment 'rigid'; valid: held, event, stepping, auto"):
+        simulate(load_scene("bouncing-ball"), contacts="rigid", duration=0.01)
+
+
+def test_the_cli_json_reports_the_choice():
+    """``run --json`` without --contacts: the scene's choice, with why; with --contacts held: asked."""
+    ran = cli(["run", "box-push", "--duration", "0.05", "--json", "--quiet"])
+    assert ran.code == 0
+    report = json.loads(ran.out)
+    assert report["contact_treatment"]["treatment"] == "event" and report["contact_treatment"]["chosen"] == "automatic"
+    ran = cli(["run", "box-push", "--duration", "0.05", "--json", "--quiet", "--contacts", "held"])
+    assert ran.code == 0 and json.loads(ran.out)["contact_treatment"] == {
+        "treatment": "held",
+        "chosen": "asked",
+        "why": "asked for held",
+    }
