@@ -24,11 +24,17 @@ def slip_time(scene, tilt: float) -> float:
 
 
 def test_the_tilted_grasp_slips_where_the_analysis_predicts(capsys, tmp_path):
+    """``pinstab grasp allegro-tilt`` predicts, under the scene's tilt, when the hold lets go (its cones narrowed by
+    HOLD_MARGIN: tilt_at_first_slip's tilt, at the scene's rate) and when the contacts' own cones would (3.4e-4 deg,
+    1.7e-4 s later); the event-driven run's first slip is within 1e-6 s of the first."""
     scene = load_scene("allegro-tilt")
-    t_slip = slip_time(scene, tilt_at_first_slip(scene, AXIS))  # the hold's cones, from the untilted start
-    # the contacts' own cones hold 3.4e-4 deg longer: the hold keeps its forces 1e-6 (relative) inside them
+    assert cli.main(["grasp", "allegro-tilt", "--json"]) == 0
+    predicted = json.loads(capsys.readouterr().out)["objects"]["ball"]["under_scene_tilt"]
+    t_slip = predicted["hold_lets_go_t_s"]
+    assert t_slip == slip_time(scene, tilt_at_first_slip(scene, AXIS))  # the hold's cones, from the untilted start
     own = analyse_scene_grasps(scene, tilt_axis=AXIS)["ball"].capacity.tilts["+axis"]
-    assert 1e-4 < slip_time(scene, own) - t_slip < 1e-3
+    assert predicted["first_slip_t_s"] == slip_time(scene, own) and predicted["first_slip_tilt_deg"] == own
+    assert 1e-4 < predicted["first_slip_t_s"] - t_slip < 1e-3
     saved = tmp_path / "tilt.npz"
     argv = ["run", "allegro-tilt", "--contacts", "event", "--duration", "0.3", "--dt", str(OUTPUT_STEP)]
     code = cli.main([*argv, "--stop-on", "slip", "--json", "--save", str(saved), "--quiet"])

@@ -5,7 +5,14 @@ and the report of a scene's grasps. They use the scene and the dynamics: they si
 from .analysis import GraspAnalysis, GraspContact, analyse_grasp, grasp_map
 from .control import GraspControl
 from .hold import GraspHold
-from .report import ControlSeries, ObjectGrasp, analyse_scene_grasps, control_series, tilt_at_first_slip
+from .report import (
+    ControlSeries,
+    ObjectGrasp,
+    analyse_scene_grasps,
+    control_series,
+    slips_under_tilt,
+    tilt_at_first_slip,
+)
 
 __all__ = [
     "ControlSeries",
@@ -18,5 +25,6 @@ __all__ = [
     "analyse_scene_grasps",
     "control_series",
     "grasp_map",
+    "slips_under_tilt",
     "tilt_at_first_slip",
 ]

@@ -208,6 +208,40 @@ def tilt_at_first_slip(
     return grasp.capacity.tilts["+axis"]
 
 
+def slips_under_tilt(scene: Scene, facets: int = 8) -> dict[str, dict[str, float | None]]:
+    """Under the scene's ``[tilt]`` (its axis, turned in the sense of its rate from ``start`` until ``stop``), per
+    grasped object: ``first_slip_tilt_deg`` and ``first_slip_t_s``, where the first contact leaves its own cone
+    (``pinstab grasp``'s ``first_slip_tilt_deg`` about that axis), and with a ``grasp-hold`` on the object
+    ``hold_lets_go_tilt_deg`` and ``hold_lets_go_t_s``, where the hold lets go (:func:`tilt_at_first_slip`: its
+    cones narrowed by :data:`~pinstab.grasp.holding.HOLD_MARGIN`; an event-driven run's first slip). Tilts [deg]
+    about the turn's axis from the untilted hand, times [s] from the run's start (0 where the start is past it);
+    None where the turn never reaches it (the grasp holds at every tilt, or the turn stops before). Empty without a
+    tilt."""
+    tilt = scene.tilt
+    if tilt is None:
+        return {}
+    sense = math.copysign(1.0, tilt.rate)
+    axis, reached = sense * tilt.axis, sense * tilt.stop
+
+    def when(angle: float) -> float | None:
+        """The time [s] the turn reaches ``angle`` [deg] about ``axis``, None if never."""
+        turned = math.radians(angle)
+        if not math.isfinite(turned) or turned > reached:
+            return None
+        return max(0.0, (turned - sense * tilt.start) / abs(tilt.rate))
+
+    slips: dict[str, dict[str, float | None]] = {}
+    for margin, key in ((0.0, "first_slip"), (HOLD_MARGIN, "hold_lets_go")):
+        for name, grasp in analyse_scene_grasps(scene, facets, tilt_axis=axis, margin=margin).items():
+            if grasp.capacity.squeeze is None or (margin and hold_squeeze(scene, name) is None):
+                continue
+            angle = grasp.capacity.tilts["+axis"]
+            slips.setdefault(name, {}).update(
+                {f"{key}_tilt_deg": angle if math.isfinite(angle) else None, f"{key}_t_s": when(angle)}
+            )
+    return slips
+
+
 def _object_grasp(
     model: ConstrainedModel,
     name: str,

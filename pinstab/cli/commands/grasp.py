@@ -31,12 +31,19 @@ def arguments(grasp: argparse.ArgumentParser) -> None:
 
 
 def grasp(args: argparse.Namespace) -> dict[str, Any]:
-    from ...grasp.report import analyse_scene_grasps
+    """The figures of every grasped object (:class:`~pinstab.grasp.report.ObjectGrasp`), and without ``--squeeze``
+    under the scene's ``[tilt]`` when it has one (``under_scene_tilt``,
+    :func:`~pinstab.grasp.report.slips_under_tilt`): when its first contact slips and its grasp-hold lets go."""
+    from ...grasp.report import analyse_scene_grasps, slips_under_tilt
     from ...scene import load_scene
 
     scene = load_scene(args.scene, **scene_options(args))
     grasps = analyse_scene_grasps(scene, facets=args.facets, squeeze=args.squeeze, tilt_axis=args.tilt_axis)
-    return {"scene": scene.name, "objects": {name: grasp.to_json() for name, grasp in grasps.items()}}
+    objects = {name: grasp.to_json() for name, grasp in grasps.items()}
+    if args.squeeze is None:  # under the scene's own tilt and hold (a squeeze given is another grasp's)
+        for name, slips in slips_under_tilt(scene, args.facets).items():
+            objects[name]["under_scene_tilt"] = slips
+    return {"scene": scene.name, "objects": objects}
 
 
 def grasp_text(result: dict[str, Any]) -> str:
@@ -81,7 +88,23 @@ def _capacity_text(figures: dict[str, Any]) -> list[str]:
             + ("unbounded" if largest is None else f"{largest:.4g} N")
             + f"; first slip at tilt [deg] {tilts}"
         )
+    slips = figures.get("under_scene_tilt")
+    if slips:
+        lines.append(
+            "  under the scene's [tilt]: "
+            + "; ".join(_slip_text(slips, key) for key in _SLIPS if f"{key}_t_s" in slips)
+        )
     return lines
+
+
+_SLIPS = {"first_slip": "the first contact leaves its cone", "hold_lets_go": "its grasp-hold lets go"}
+
+
+def _slip_text(slips: dict[str, Any], key: str) -> str:
+    """One line's part: what happens (``_SLIPS``) at which tilt [deg] and time [s], or never."""
+    tilt, time = slips[f"{key}_tilt_deg"], slips[f"{key}_t_s"]
+    at = "never" if time is None else f"at {tilt:.7g} deg, t = {time:.7g} s"
+    return f"{_SLIPS[key]} {at}"
 
 
 register(
