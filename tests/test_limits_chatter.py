@@ -7,6 +7,7 @@ limit (the energy integral) and its impact's work."""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pinocchio as pin
@@ -200,3 +201,24 @@ def test_a_held_run_that_diverges_after_leaving_a_limit_is_run_with_the_limits(m
     inside = {**SWING, "initial": {"q": {"j0": -1.5}, "v": {"j0": 0.0}}}
     with pytest.raises(DivergenceError, match="non-finite state"):
         simulate(_scene(inside), duration=0.1)
+
+
+def test_a_run_restarted_for_a_limit_reports_both_attempts_in_its_wall_time(monkeypatch) -> None:
+    """The held attempt that left the limit counts in the run's wall time (it reported the second attempt only): the
+    held path made 0.3 s slower, the event-path run's wall time grows by at least that, and stays within the call's
+    own time measured around it."""
+    from pinstab.simulate import api
+
+    held = api.simulate_held
+
+    def slow_held(*arguments, **options):
+        time.sleep(0.3)
+        return held(*arguments, **options)
+
+    monkeypatch.setattr(api, "simulate_held", slow_held)
+    began = time.perf_counter()
+    run = simulate(_scene(SWING), duration=0.05)
+    outside = time.perf_counter() - began
+    assert run.info.path == "contact-events"
+    assert 0.3 <= run.wall_time <= outside
+    assert run.wall_time == sum(run.info.timings.values())
