@@ -22,7 +22,7 @@ from pinstab.scene import scene_from_dict
         ),
         ({"run": {"dt": "0 ms"}}, r"run.dt must be a positive time step"),
         ({"run": {"dt": "1 m"}}, r"run.dt: unit 'm' is not a unit of time"),
-        ({"run": {"step": 1e-3}}, r"unknown key 'step'; valid keys: dt"),
+        ({"run": {"step": 1e-3}}, r"unknown key 'step'; valid keys: contacts, dt"),
         ({"robot": {"urdf": "missing.urdf"}}, r"robot.urdf: file .*missing.urdf does not exist"),
         (
             {"robot": {"name": "no-such-robot"}},
