@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..contact.coefficients import friction_coefficient, restitution_coefficient
+from ..contact.coefficients import MAX_FRICTION, friction_coefficient, restitution_coefficient
 from ..contact.cones import FrictionCone
 from ..errors import ConstraintError, SceneError
 from ..kinematics import Kinematics
@@ -39,6 +39,8 @@ CONTACT_KEYS = {
     "facets",
     "restitution",
     "radius",
+    "torsion",
+    "rolling",
 }
 MAX_PENETRATION = 1e-4  # [-] scene sizes: the deepest a contact point may start inside its plane. Declared starts
 # are rounded (unit quaternions to 4 digits leave a 0.1 m arm 1e-5 m off); deeper, the start is a mistake: a rigid
@@ -65,6 +67,8 @@ class PointContact(FrameClosure):
             itself (a vertex).
         plane_frame: for event-driven contacts, the operational frame of body b carrying the plane (None: the
             plane is fixed in the world); ``anchor`` and ``normal`` are then in its axes.
+        torsion, rolling: the rotational friction [m] of event-driven contacts: the largest torque about the
+            normal, about the tangents, per unit normal force (:func:`rotational_friction`).
 
     The multipliers are the contact force on body a [N] in the contact frame (normal, t1, t2).
 
@@ -86,6 +90,8 @@ class PointContact(FrameClosure):
         restitution: float = 0.0,
         radius: float = 0.0,
         plane_frame: int | None = None,
+        torsion: float = 0.0,
+        rolling: float = 0.0,
     ) -> None:
         basis = contact_basis(normal)
         anchor = np.asarray(anchor, dtype=float)
@@ -100,6 +106,7 @@ class PointContact(FrameClosure):
         self.radius = radius
         self.plane_frame = plane_frame
         self.plane_point = anchor.copy()  # [m] on the plane (the held centre's foot)
+        self.torsion, self.rolling = torsion, rolling
 
     def slip(self, kin: Kinematics) -> float | None:
         """A sticking contact's distance from its anchor [m]; None when frictionless (it may slide)."""
@@ -113,7 +120,8 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     [m] (default the origin), ``mu`` (omit for frictionless), ``facets`` of the linearized cone, ``restitution``
     e in [0, 1] of its impacts (event-driven contacts; default 0), ``radius`` [m] of a sphere at the point.
     With ``frame_b`` (+ ``offset_b``, ``rpy_b``) the plane is carried by that body: ``normal`` and ``point``
-    are in the frame's axes (event-driven contacts only)."""
+    are in the frame's axes (event-driven contacts only). ``torsion`` and ``rolling`` [m]: rotational friction
+    (event-driven contacts; :func:`rotational_friction`)."""
     tables.check_keys(entry, CONTACT_KEYS, where)
     frame = tables.attached_frame(entry, "frame_a", "offset_a", "rpy_a", f"{name}/a", where)
     plane_frame = None
@@ -125,6 +133,7 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     point = tables.vector(entry.get("point", [0.0, 0.0, 0.0]), 3, f"{where}.point", "length")
     tables.within_reach(point, f"{where}.point", plane_frame is None)  # a world plane: from the bodies
     friction, restitution = contact_coefficients(entry, where)
+    torsion, rolling = rotational_friction(entry, tables, friction, where)
     radius = tables.number(entry, "radius", where, 0.0)
     if radius < 0.0:
         raise SceneError(f"{where}.radius must be >= 0 [m], got {radius!r}")
@@ -135,7 +144,9 @@ def parse_plane_contact(entry: dict, tables: SceneTables, name: str, where: str)
     start = plane.actInv(tables.initial_placement(frame).translation)
     gap = float(normal @ (start - point))
     check_penetration(gap - radius, tables.size, where)
-    return PointContact(name, frame, start - normal * gap, normal, friction, restitution, radius, plane_frame)
+    return PointContact(
+        name, frame, start - normal * gap, normal, friction, restitution, radius, plane_frame, torsion, rolling
+    )
 
 
 def contact_coefficients(entry: dict, where: str) -> tuple[FrictionCone | None, float]:
@@ -150,6 +161,44 @@ def contact_coefficients(entry: dict, where: str) -> tuple[FrictionCone | None, 
     elif "facets" in entry:
         raise SceneError(f"{where}: 'facets' linearizes a friction cone; give 'mu' too")
     return friction, restitution_coefficient(entry.get("restitution", 0.0), f"{where}.restitution")
+
+
+def friction_length(entry: dict, key: str, tables: SceneTables, where: str) -> float:
+    """A rotational friction's length [m] ``entry[key]`` (a number or ``"3 mm"``; 0 when absent): the largest torque
+    per unit normal force, >= 0 and within the scene's reach (:meth:`~pinstab.tables.SceneTables.within_reach`).
+
+    Raises:
+        SceneError: naming ``where.key``, the value and the valid range.
+    """
+    if key not in entry:
+        return 0.0
+    value = tables.quantity(entry[key], "length", f"{where}.{key}")
+    if not value >= 0.0:
+        raise SceneError(
+            f"{where}.{key} must be a length >= 0 [m] (the largest torque per unit normal force), got {entry[key]!r}"
+        )
+    tables.within_reach(value, f"{where}.{key}")
+    return value
+
+
+def rotational_friction(
+    entry: dict, tables: SceneTables, friction: FrictionCone | None, where: str
+) -> tuple[float, float]:
+    """A contact table's rotational friction (``torsion``, ``rolling``) [m], 0 when absent: event-driven contacts
+    bound the torque about the normal by ``torsion f_n`` and about the tangents by ``rolling f_n`` (MuJoCo's
+    condim 6), each holding its relative angular velocity at zero below its bound, opposing it at its bound.
+
+    Raises:
+        SceneError: a negative or non-numeric value, or one on a contact without friction (``mu``).
+    """
+    torsion, rolling = (friction_length(entry, key, tables, where) for key in ("torsion", "rolling"))
+    if (torsion or rolling) and friction is None:
+        key = "torsion" if torsion else "rolling"
+        raise SceneError(
+            f"{where}.{key}: rotational friction acts on a contact with friction; give 'mu' too (a number in "
+            f"[0, {MAX_FRICTION:g}]) or drop '{key}'"
+        )
+    return torsion, rolling
 
 
 def check_penetration(gap: float, size: float, where: str) -> None:

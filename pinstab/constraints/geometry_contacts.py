@@ -6,6 +6,7 @@ Scene table::
     kind = "geometry"
     pairs = [["box_0", "ground"]]   # optional; default every shape against every other but adjacent links
     mu = 0.3                        # optional (frictionless without), as plane-contact's; facets, restitution too
+    rolling = "3 mm"                # optional, as plane-contact's (event-driven contacts); torsion too
     ground = {normal = [0, 0, 1], point = [0, 0, 0]}   # the default; false: no ground; a list: several planes
     margin = 0.005                  # [m] optional; features this close to a pair's nearest one count
 
@@ -30,9 +31,9 @@ from ..contact.geometry import GROUND, ContactShapes, Feature
 from ..errors import SceneError
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS
-from .contacts import PointContact, check_penetration, contact_coefficients
+from .contacts import PointContact, check_penetration, contact_coefficients, rotational_friction
 
-GEOMETRY_KEYS = {"kind", "pairs", "mu", "facets", "restitution", "ground", "margin"}
+GEOMETRY_KEYS = {"kind", "pairs", "mu", "facets", "restitution", "ground", "margin", "torsion", "rolling"}
 
 
 def contact_shapes(entry: dict[str, Any], tables: SceneTables, where: str) -> ContactShapes:
@@ -67,14 +68,20 @@ class FoundContacts:
     Args:
         shapes: the shapes with their pairs allowed; an operational frame is added to its model at every feature
             point of every pair (named like its contact). friction: the contacts' cone (None: frictionless).
-        restitution: their Newton's e [-].
+        restitution: their Newton's e [-]. spin: their (torsion, rolling) [m].
 
     Attributes:
         order: each contact found so far, by name: its place in a run's order, (pair, point index).
     """
 
-    def __init__(self, shapes: ContactShapes, friction: FrictionCone | None, restitution: float) -> None:
-        self.shapes, self.friction, self.restitution = shapes, friction, restitution
+    def __init__(
+        self,
+        shapes: ContactShapes,
+        friction: FrictionCone | None,
+        restitution: float,
+        spin: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        self.shapes, self.friction, self.restitution, self.spin = shapes, friction, restitution, spin
         model, objects = shapes.model, shapes.geometry.geometryObjects
         self.frames: dict[tuple[int, int], int] = {}  # (pair, point index) -> the frame at the point on body A
         for pair, (a, _) in enumerate(shapes.pairs):
@@ -119,7 +126,17 @@ class FoundContacts:
             plane_frame = shape_b.parentFrame
             placed = shapes.frame_placement(plane_frame)
             anchor, normal = placed.actInv(anchor), placed.rotation.T @ normal
-        arguments = (feature.name, frame, anchor, normal, self.friction, self.restitution, feature.radius, plane_frame)
+        arguments = (
+            feature.name,
+            frame,
+            anchor,
+            normal,
+            self.friction,
+            self.restitution,
+            feature.radius,
+            plane_frame,
+            *self.spin,
+        )
         if core is None:
             contact = PointContact(*arguments)
         else:  # a round pair: B's core in the plane's frame, the plane re-computed at every state
@@ -155,7 +172,8 @@ def parse_geometry_contacts(entry: dict[str, Any], tables: SceneTables, name: st
     """
     tables.check_keys(entry, GEOMETRY_KEYS, where)
     friction, restitution = contact_coefficients(entry, where)
-    finder = FoundContacts(contact_shapes(entry, tables, where), friction, restitution)
+    spin = rotational_friction(entry, tables, friction, where)
+    finder = FoundContacts(contact_shapes(entry, tables, where), friction, restitution, spin)
     tables.contact_finders.append(finder)
     for feature in finder.shapes.features(tables.q0):
         check_penetration(feature.gap, tables.size, f"contact {feature.name!r}")

@@ -36,6 +36,7 @@ from ..kinematics import Kinematics, PerUpdate, frame_jacobian
 from ..memory import new_data
 from ..tables import SceneTables
 from .base import CONSTRAINT_KINDS, Constraint, VelocityTerms
+from .contacts import friction_length
 from .loops import plane_basis
 
 GRASP_KEYS = {"name", "kind", "finger", "object", "model", "radius", "mu", "torsion", "surface"}
@@ -245,10 +246,7 @@ def read_coefficients(entry: dict, tables: SceneTables, model_name: str, where: 
     if _takes(entry, "mu", model_name in FRICTION_MODELS, model_name, where):
         mu = friction_coefficient(entry["mu"], f"{where}.mu")
     if _takes(entry, "torsion", model_name == "soft-finger", model_name, where):
-        torsion = tables.quantity(entry["torsion"], "length", f"{where}.torsion")
-        if torsion < 0:
-            raise SceneError(f"{where}.torsion must be >= 0, got {torsion!r}")
-        tables.within_reach(torsion, f"{where}.torsion")
+        torsion = friction_length(entry, "torsion", tables, where)
     return mu, torsion
 
 

@@ -37,6 +37,7 @@ slack further, its load's work over it keeping the chatter going for ever.
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Any
 
 import numpy as np
@@ -45,7 +46,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
-from ..solvers.contact_modes import ModeDynamics, ModeSolution, plane_geometries
+from ..solvers.contact_modes import ModeDynamics, ModeSolution, Spin, plane_geometries
 from ..solvers.impacts import impact, limit_impact
 from ..solvers.mode_choice import (
     CONSISTENCY,
@@ -54,6 +55,7 @@ from ..solvers.mode_choice import (
     TOUCH_GAP,
     TOUCH_SPEED,
     choose_modes,
+    cone_margin,
     sticking_margin,
 )
 from ..solvers.ncp import NcpSolver
@@ -121,7 +123,7 @@ class EventLoop(AdaptiveLoop):
         self.stop_on: frozenset[str] = frozenset()
         self.impacts = NcpSolver(3 * len(dynamics.contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
         self._reference: list[np.ndarray] = []
-        self._armed = [True] * len(dynamics.contacts)  # a slip from rest is watched for its end once it is faster
+        self._armed = [True] * len(dynamics.frictions)  # a slip from rest is watched for its end once it is faster
         self._floors = [-LIMIT_SLACK] * len(dynamics.limits)  # where each released limit counts as reached [rad, m]
         self._gap_floors = [0.0] * len(dynamics.contacts)  # where each separated gap closes [m]
         self._since: dict[int, float] = {}  # the active limits: since when [s]
@@ -232,11 +234,13 @@ class EventLoop(AdaptiveLoop):
             contacts,
             key=lambda c: (0, self._declared[c.name]) if c.name in self._declared else (1, *finders[c.name]),
         )
-        places = self.dynamics.rearrange(contacts)
-        gaps = self.dynamics.kinematics(q, v).gaps
-        self._armed = [True if i is None else self._armed[i] for i in places]
+        dynamics = self.dynamics
+        places = dynamics.rearrange(contacts)
+        gaps = dynamics.kinematics(q, v).gaps
+        moved = dynamics.friction_places  # the frictions' former indices
+        self._armed = [True if i is None else self._armed[i] for i in moved]
         self._gap_floors = [min(0.0, gaps[k]) if i is None else self._gap_floors[i] for k, i in enumerate(places)]
-        self._reference = [np.array([1.0, 0.0]) if i is None else self._reference[i] for i in places]
+        self._reference = [dynamics.directions[f] if i is None else self._reference[i] for f, i in enumerate(moved)]
         if 3 * len(contacts) > self.impacts.size:
             self.impacts = NcpSolver(3 * len(contacts), IMPACT_TOLERANCE, IMPACT_ITERATIONS)
 
@@ -286,7 +290,7 @@ class EventLoop(AdaptiveLoop):
         dynamics = self.dynamics
         solution = dynamics.solve(q, v, t)
         contacts, forces = solution.contacts, solution.forces
-        values = np.zeros(len(dynamics.contacts))
+        values = np.zeros(len(dynamics.contacts) + len(dynamics.spins))
         slack = _force_slack(forces)
         limits = self._limit_values(q, solution)
         margin = None
@@ -300,7 +304,22 @@ class EventLoop(AdaptiveLoop):
                 if margin is None:
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
+        values[len(dynamics.contacts) :] = [self._spin_value(solution, j, slack) for j in range(len(dynamics.spins))]
         return np.concatenate([values, limits])
+
+    def _spin_value(self, solution: ModeSolution, j: int, slack: float) -> float:
+        """Spin j's event function in ``solution`` (``slack``: the force slack [N]): none (inf) while its contact is
+        separated; sliding, its slip velocity along its reference [rad/s] (inf until armed); sticking, its margin per
+        unit bound beyond the slack [N]."""
+        dynamics = self.dynamics
+        f = len(dynamics.contacts) + j
+        friction = dynamics.frictions[f]
+        if dynamics.modes[friction.contact] is Mode.SEPARATED:
+            return np.inf
+        if dynamics.spin_modes[j] is Mode.SLIDING:
+            rates = solution.contacts.spins[friction.rows - 3 * len(dynamics.contacts)]
+            return float(rates @ self._reference[f]) if self._armed[f] else np.inf
+        return cone_margin(solution.loads(), friction) / friction.bound + slack
 
     def _limit_dip(self, segment: Segment) -> float | None:
         """The earliest time [s] inside the step ``segment`` at which a released joint limit's gap on the dense
@@ -350,10 +369,11 @@ class EventLoop(AdaptiveLoop):
         """Each contact's slip direction at (q, v); a slip that started from rest is armed (its slip velocity
         reaching zero becomes an event) once faster than :data:`ARMING_SPEED`: at a cone's edge the slip starts
         at zero acceleration, and rounding would otherwise end it at once, over and over."""
-        contacts = self.dynamics.kinematics(q, v)
-        for i, velocity in enumerate(contacts.velocities):
-            self._armed[i] = self._armed[i] or float(np.hypot(*velocity[1:])) > ARMING_SPEED
-        return [self.dynamics.slip_direction(i, contacts.velocities[i]) for i in range(len(self.dynamics.contacts))]
+        rates = self.dynamics.kinematics(q, v).rates()
+        slips = [rates[friction.rows] for friction in self.dynamics.frictions]
+        for f, slip in enumerate(slips):
+            self._armed[f] = self._armed[f] or math.hypot(*slip) > ARMING_SPEED
+        return [self.dynamics.slip_direction(f, slip) for f, slip in enumerate(slips)]
 
     def _locate(self, segment: Segment, t0: float, t1: float) -> float:
         """The first time in (t0, t1] [s] at which an event function turns negative (bisection)."""
@@ -452,6 +472,17 @@ class EventLoop(AdaptiveLoop):
                     worst = min(forces[i, 0], friction)
                     what = "normal force reached zero" if forces[i, 0] <= friction else "friction reached the cone"
                     cause = f"{what} at {name}"
+        rates, loads, k = solution.contacts.rates(), solution.loads(), len(dynamics.contacts)
+        for j, spin in enumerate(dynamics.spins):
+            friction, name = dynamics.frictions[k + j], dynamics.contacts[spin.contact].name
+            if dynamics.modes[spin.contact] is Mode.SEPARATED:
+                continue
+            if dynamics.spin_modes[j] is Mode.SLIDING:
+                if rates[friction.rows] @ self._reference[k + j] <= SLIP_SPEED:
+                    return f"{spin.kind} slip reached zero at {name}"
+            elif cone_margin(loads, friction) / friction.bound < worst:
+                worst = cone_margin(loads, friction) / friction.bound
+                cause = f"{spin.kind} reached its bound at {name}"
         return cause
 
     def _reaction_zero(self, q: np.ndarray, v: np.ndarray, t: float) -> str | None:
@@ -579,8 +610,8 @@ class EventLoop(AdaptiveLoop):
         self._limit_events(q, v, t, cause, limits_before or [], choice.solution)
         first = len(self.events)
         contacts = choice.solution.contacts
-        for i, direction in choice.directions.items():
-            dynamics.directions[i] = direction
+        for f, direction in choice.directions.items():
+            dynamics.directions[f] = direction
         for i, (old, new) in enumerate(zip(before, choice.modes, strict=True)):
             self._armed[i] = new is not Mode.SLIDING or float(np.hypot(*contacts.velocities[i, 1:])) > SLIP_SPEED
             if new is Mode.STICKING and dynamics.modes[i] is not Mode.STICKING:
@@ -597,23 +628,54 @@ class EventLoop(AdaptiveLoop):
                         as_tuple(contacts.velocities[i, 1:]),
                     )
                 )
+        self._spin_events(t, cause, before, force_record, choice)
         dynamics.modes[:] = choice.modes
+        dynamics.spin_modes[:] = choice.spin_modes
         self._gap_floors = [min(0.0, gap) for gap in contacts.gaps]  # a gap closes again from where it is
         names = {contact.name for contact in dynamics.contacts}
         stops = [e for e in self.events[first:] if e.contact in names and stop_kind(e) in self.stop_on]
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
 
+    def _spin_events(self, t: float, cause: str, before: list[str], force_record: bool, choice) -> None:
+        """Record the spins whose mode changes at t in ``choice`` (from their contacts' modes ``before`` and their
+        own): contact ``<name> <kind>`` (e.g. ``table rolling``), force (f_n [N], torque [N m]), slip velocity
+        its relative angular velocity [rad/s] (padded with zeros); arm the sliding ones that spin."""
+        dynamics, k = self.dynamics, len(self.dynamics.contacts)
+        torques, spins = choice.solution.torques, choice.solution.contacts.spins
+        for j, spin in enumerate(dynamics.spins):
+            rows = dynamics.frictions[k + j].rows - 3 * k
+            on_before = before[spin.contact] not in (Mode.SEPARATED.value, CLOSING)
+            old = dynamics.spin_modes[j].value if on_before else Mode.SEPARATED.value
+            new = choice.spin_modes[j] if choice.modes[spin.contact] is not Mode.SEPARATED else Mode.SEPARATED
+            self._armed[k + j] = new is not Mode.SLIDING or float(np.hypot(*spins[rows])) > SLIP_SPEED
+            if force_record or old != new.value:
+                event_cause = "impact" if before[spin.contact] == CLOSING else cause
+                force = np.zeros(3)
+                force[0], force[1 : 1 + rows.size] = choice.solution.forces[spin.contact, 0], torques[rows]
+                self.events.append(
+                    ContactEvent(
+                        t,
+                        spin_name(dynamics.contacts[spin.contact].name, spin),
+                        old,
+                        new.value,
+                        event_cause,
+                        as_tuple(force),
+                        as_tuple(np.pad(spins[rows], (0, 2 - rows.size))),
+                    )
+                )
+
     def _stopped(self, q: np.ndarray, v: np.ndarray) -> list[int]:
-        """The sliding contacts whose slip may end at (q, v): watched (armed: they slipped faster than
-        :data:`ARMING_SPEED`) and now slower than that (what is left of a slip located at its end: its velocity
-        across the direction it had, which turns as the slip stops, 1.0 to 1.1e-9 m/s on allegro-tilt's ring finger);
-        the mode choice lets them stick when no mode is consistent with them sliding."""
-        velocities = self.dynamics.kinematics(q, v).velocities
+        """The sliding frictions (by index in the dynamics' frictions) whose slip may end at (q, v): watched (armed:
+        they slipped faster than :data:`ARMING_SPEED`) and now slower than that (what is left of a slip located at
+        its end: its velocity across the direction it had, which turns as the slip stops, 1.0 to 1.1e-9 m/s on
+        allegro-tilt's ring finger); the mode choice lets them stick when no mode is consistent with them sliding."""
+        dynamics = self.dynamics
+        rates = dynamics.kinematics(q, v).rates()
         return [
-            i
-            for i, mode in enumerate(self.dynamics.modes)
-            if mode is Mode.SLIDING and self._armed[i] and float(np.hypot(*velocities[i, 1:])) <= ARMING_SPEED
+            f
+            for f, friction in enumerate(dynamics.frictions)
+            if dynamics.sliding(f) and self._armed[f] and math.hypot(*rates[friction.rows]) <= ARMING_SPEED
         ]
 
     def _choose(self, q: np.ndarray, v: np.ndarray, t: float, slack: float, stopped: list[int]):
@@ -699,6 +761,11 @@ class EventLoop(AdaptiveLoop):
         if limit.speed(v) <= TOUCH_SPEED:
             return _floor(limit, q)
         return min(self._floors[i], limit.gap(q))
+
+
+def spin_name(contact: str, spin: Spin) -> str:
+    """The name a spin's events carry: its contact's and its kind, ``table rolling``."""
+    return f"{contact} {spin.kind}"
 
 
 def _floor(limit: JointLimit, q: np.ndarray) -> float:

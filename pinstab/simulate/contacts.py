@@ -62,8 +62,8 @@ def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
 
 
 def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
-    """(the scene's unilateral contacts as event-driven geometries: plane contacts and point-friction or
-    frictionless grasp contacts, the names of its other constraints)."""
+    """(the scene's unilateral contacts as event-driven geometries: plane contacts and grasp contacts (soft-finger:
+    event-driven only), the names of its other constraints)."""
     geometries = plane_geometries(scene.constraints)
     names = {g.name for g in geometries}
     return geometries, [c.name for c in scene.constraints if c.name not in names]
@@ -146,6 +146,12 @@ def simulate_stepping(
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), which do not hold joint limits
     (``limit_watch`` fed every step's state), timed by the call's ``clock``."""
     geometries, system, q, v, _ = contact_system(scene, q0, v0)
+    turning = [g.name for g in geometries if g.torsion or g.rolling]
+    if turning:
+        raise PinstabError(
+            f"scene {scene.name}: time-stepping contacts have no rotational friction yet (torsion, rolling, a soft "
+            f"finger's torsion) at {', '.join(turning)}; run it with event-driven contacts (--contacts event)"
+        )
     grid = TimeGrid.of(dt, duration, record_every)
     system.bind(grid.dt, "semi-implicit-euler", q)
     dynamics = ModeDynamics(system.model, geometries)
@@ -181,7 +187,7 @@ def contact_system(
     if (not geometries and not closures) or refused:
         raise PinstabError(
             f"scene {scene.name}: event-driven and time-stepping contacts take scenes whose constraints are plane "
-            "contacts or point-friction / frictionless grasp contacts (with joint limits, closures too)"
+            "contacts or frictionless, point-friction or soft-finger grasp contacts (with joint limits, closures too)"
             + (f"; not yet {', '.join(refused)}" if refused else "; it has none")
         )
     # the modes' dynamics replace the system's accelerations (its solver counts theirs): off Pinocchio's native

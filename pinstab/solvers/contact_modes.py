@@ -62,7 +62,8 @@ class PlaneContactGeometry:
         world's axes). anchor: where a sticking contact holds the point [m, plane's axes] (set when it
         starts sticking). core: a round pair's (:mod:`~pinstab.contact.round_pairs`): the ends (2, 3) [m, plane's
         axes] of B's core, against which the plane is re-computed at every state (None: the plane is fixed on its
-        body). core_radius: B's radius [m] about its core.
+        body). core_radius: B's radius [m] about its core. torsion, rolling: the rotational friction [m]
+        (:class:`Spin`): the largest torque about the normal, about the tangents, per unit normal force (0: none).
     """
 
     name: str
@@ -76,12 +77,73 @@ class PlaneContactGeometry:
     anchor: np.ndarray = field(default_factory=lambda: np.zeros(3))
     core: np.ndarray | None = None
     core_radius: float = 0.0
+    torsion: float = 0.0
+    rolling: float = 0.0
+
+
+class Spin(NamedTuple):
+    """A contact's rotational friction, Coulomb-like: the torque ``tau`` [N m] on body a about the ``axes`` of the
+    contact's basis (``(0,)``: torsion about the normal; ``(1, 2)``: rolling about the tangents) opposes the relative
+    angular velocity of a and b there, ``|tau| <= bound f_n``; sticking, it holds that velocity at zero (``kind``:
+    ``torsion`` or ``rolling``; ``contact``: the contact's index; ``bound`` [m])."""
+
+    contact: int
+    kind: str
+    axes: tuple[int, ...]
+    bound: float
+
+
+def contact_spins(contacts: list[PlaneContactGeometry]) -> list[Spin]:
+    """The rotational frictions of ``contacts``: each contact's torsion, then its rolling, when not zero."""
+    spins = []
+    for i, contact in enumerate(contacts):
+        if contact.torsion > 0.0:
+            spins.append(Spin(i, "torsion", (0,), contact.torsion))
+        if contact.rolling > 0.0:
+            spins.append(Spin(i, "rolling", (1, 2), contact.rolling))
+    return spins
+
+
+class Friction(NamedTuple):
+    """One friction law of the contacts as the modes see it: the linear friction of contact ``contact`` (``spin``
+    None: the forces (f_t1, f_t2) [N], bound mu [-]) or its rotational friction ``spin`` (the torques [N m], bound
+    [m]). ``rows``: its forces' places in the force vector (each contact's (f_n, f_t1, f_t2), then every spin's
+    torques), and its slip velocities' in the velocity vector (the contact points' velocities in their bases, then
+    the spins' relative angular velocities); ``normal``: its contact's normal force's place."""
+
+    contact: int
+    spin: int | None
+    rows: np.ndarray
+    normal: int
+    bound: float
+
+
+def frictions(contacts: list[PlaneContactGeometry], spins: list[Spin]) -> list[Friction]:
+    """Every friction law of ``contacts``: each contact's linear friction (indices 0..k-1), then each spin's."""
+    linear = [Friction(i, None, np.array([3 * i + 1, 3 * i + 2]), 3 * i, c.mu) for i, c in enumerate(contacts)]
+    offset, rotational = 3 * len(contacts), []
+    for j, spin in enumerate(spins):
+        rows = np.arange(offset, offset + len(spin.axes))
+        rotational.append(Friction(spin.contact, j, rows, 3 * spin.contact, spin.bound))
+        offset += len(spin.axes)
+    return linear + rotational
+
+
+def unit_slip(slip: np.ndarray, fallback: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """The unit direction of a slip (linear [m/s] or rotational [rad/s]), ``fallback`` while it is slower than
+    :data:`SLIP_FLOOR`; with a ``reference`` (the direction a continued slip had at its step's start) that one once
+    the slip has turned against it."""
+    if reference is not None and float(slip @ reference) <= 0.0:
+        return reference
+    speed = math.hypot(*slip)
+    return slip / speed if speed > SLIP_FLOOR else fallback
 
 
 class ContactKinematics(NamedTuple):
     """The contacts at one state, in their bases: gaps (k,) [m], point positions (k, 3) [m, world] and in
     their plane's axes (k, 3) [m], velocities relative to the plane (k, 3) [m/s, basis], Jacobians (3k, nv)
-    [basis] and drifts (3k,) [m/s^2, basis]."""
+    [basis] and drifts (3k,) [m/s^2, basis]; the spins' (:class:`Spin`) relative angular velocities (m,) [rad/s,
+    basis], rows (m, nv) and drifts (m,) [rad/s^2] (their derivative in b's frame at zero acceleration)."""
 
     gaps: np.ndarray
     positions: np.ndarray
@@ -89,13 +151,22 @@ class ContactKinematics(NamedTuple):
     velocities: np.ndarray
     jacobian: np.ndarray
     drift: np.ndarray
+    spins: np.ndarray = np.zeros(0)
+    spin_jacobian: np.ndarray = np.zeros((0, 0))
+    spin_drift: np.ndarray = np.zeros(0)
+
+    def rates(self) -> np.ndarray:
+        """The velocity vector the frictions' rows index (:class:`Friction`): the contact points' (3k,), then the
+        spins' (m,)."""
+        return np.concatenate([self.velocities.ravel(), self.spins])
 
 
 class ModeSolution(NamedTuple):
     """Accelerations [m/s^2, rad/s^2], the contact forces (k, 3) [N, basis], the free accelerations
     (without contact forces, the bilateral rows held), their response to the contact forces (nv, 3k; M^-1 W^T
     without bilateral rows), the kinematics they were computed at, and the bilateral rows' reactions (closure
-    rows, then active limits) [N, N m] (empty without bilateral rows)."""
+    rows, then active limits) [N, N m] (empty without bilateral rows); the spins' torques (m,) [N m, basis] and
+    the accelerations' response to them (nv, m)."""
 
     acceleration: np.ndarray
     forces: np.ndarray
@@ -103,6 +174,21 @@ class ModeSolution(NamedTuple):
     mobility: np.ndarray
     contacts: ContactKinematics
     reactions: np.ndarray = np.zeros(0)
+    torques: np.ndarray = np.zeros(0)
+    spin_mobility: np.ndarray = np.zeros((0, 0))
+
+    def loads(self) -> np.ndarray:
+        """The force vector the frictions' rows index (:class:`Friction`): the contact forces (3k,) [N], then the
+        spins' torques (m,) [N m]."""
+        return np.concatenate([self.forces.ravel(), self.torques])
+
+    def slip_rates(self) -> np.ndarray:
+        """The rates of the velocity vector of :meth:`ContactKinematics.rates` [m/s^2, rad/s^2]."""
+        contacts = self.contacts
+        linear = contacts.jacobian @ self.acceleration + contacts.drift
+        if not contacts.spins.size:
+            return linear
+        return np.concatenate([linear, contacts.spin_jacobian @ self.acceleration + contacts.spin_drift])
 
 
 class Bilateral(NamedTuple):
@@ -123,11 +209,15 @@ class ModeDynamics:
         statistics: where its evaluations are counted (a run's solver statistics; default: its own).
 
     Attributes:
-        name: what a run reports as its method (``info.method``). modes: each contact's mode. directions: the slip
-            direction (t1, t2) each sliding contact started in. continued: None, or each contact's slip direction at
-            the start of the step being taken (None: not continued), which a sliding contact's friction keeps once
-            its slip turns against it: the sliding mode continued smoothly past its end, where the event loop's
-            step and dense output locate that end (:meth:`~pinstab.integration.events.EventLoop._continue_slips`).
+        name: what a run reports as its method (``info.method``). modes: each contact's mode. spins: the contacts'
+            rotational frictions (:class:`Spin`), spin_modes: each one's (sticking or sliding; none while its contact
+            is separated). frictions: every friction law (:class:`Friction`: each contact's linear one, then the
+            spins). directions: the slip direction each sliding friction started in ((t1, t2) for a contact's).
+            friction_places: each friction's index before the last :meth:`rearrange`. continued: None, or each
+            friction's slip direction at the start of the step being taken (None: not continued), which a sliding
+            one keeps once its slip turns against it: the sliding mode continued smoothly past its end, where the
+            event loop's step and dense output locate that end
+            (:meth:`~pinstab.integration.events.EventLoop._continue_slips`).
             active: whether each limit is held. statistics:
             the dynamics evaluations so far (states: a state solved in several modes counts once; status
             ``contact modes``), the worst relative residual of the mode's force system [-].
@@ -147,7 +237,11 @@ class ModeDynamics:
         self.limits = list(limits or [])
         self.active = [False] * len(self.limits)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
-        self.directions: list[np.ndarray] = [np.array([1.0, 0.0]) for _ in contacts]
+        self.spins = contact_spins(contacts)
+        self.frictions = frictions(contacts, self.spins)
+        self.spin_modes: list[Mode] = [Mode.STICKING] * len(self.spins)
+        self.directions: list[np.ndarray] = [_first_direction(f) for f in self.frictions]
+        self.friction_places: list[int | None] = list(range(len(self.frictions)))
         self.continued: list[np.ndarray | None] | None = None
         self.statistics = SolverStatistics() if statistics is None else statistics
         self._redundant: dict[tuple[Mode, ...], bool] = {}
@@ -160,9 +254,25 @@ class ModeDynamics:
         separated. Returns each one's former index (None: new)."""
         former = {contact.name: i for i, contact in enumerate(self.contacts)}
         places = [former.get(contact.name) for contact in contacts]
+        old = {
+            (self.contacts[f.contact].name, f.spin is None or self.spins[f.spin].kind): k
+            for k, f in enumerate(self.frictions)
+        }
+        spin_modes = {
+            (self.contacts[s.contact].name, s.kind): m for s, m in zip(self.spins, self.spin_modes, strict=True)
+        }
         self.contacts = [c if i is None else self.contacts[i] for c, i in zip(contacts, places, strict=True)]
         self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
-        self.directions = [np.array([1.0, 0.0]) if i is None else self.directions[i] for i in places]
+        self.spins = contact_spins(self.contacts)
+        self.spin_modes = [spin_modes.get((self.contacts[s.contact].name, s.kind), Mode.STICKING) for s in self.spins]
+        directions, self.frictions = self.directions, frictions(self.contacts, self.spins)
+        self.friction_places = [
+            old.get((self.contacts[f.contact].name, f.spin is None or self.spins[f.spin].kind)) for f in self.frictions
+        ]
+        self.directions = [
+            _first_direction(f) if k is None else directions[k]
+            for f, k in zip(self.frictions, self.friction_places, strict=True)
+        ]
         self.continued = None
         self._redundant.clear()  # keyed by the modes of a layout
         self._state = None
@@ -173,45 +283,68 @@ class ModeDynamics:
         self.model.kin.update(q, v)
         return self.kinematics_from_kin(v)
 
-    def slip_direction(self, i: int, velocity: np.ndarray) -> np.ndarray:
-        """The unit slip direction (t1, t2) of contact i at its basis velocity ``velocity``; with :attr:`continued`
-        set, its direction there once the slip has turned against it (the mode continued past its end)."""
-        slip = velocity[1:]
-        reference = None if self.continued is None else self.continued[i]
-        if reference is not None and float(slip @ reference) <= 0.0:
-            return reference
-        speed = math.hypot(slip[0], slip[1])
-        return slip / speed if speed > SLIP_FLOOR else self.directions[i]
+    def slip_direction(self, f: int, slip: np.ndarray) -> np.ndarray:
+        """The unit slip direction of friction f (:attr:`frictions`) at its slip velocity ``slip`` ((t1, t2) [m/s]
+        for a contact's, its spin's [rad/s]); with :attr:`continued` set, its direction there once the slip has
+        turned against it (the mode continued past its end)."""
+        return unit_slip(slip, self.directions[f], None if self.continued is None else self.continued[f])
 
-    def solve(self, q: np.ndarray, v: np.ndarray, t: float, modes: list[Mode] | None = None) -> ModeSolution:
-        """The accelerations and contact forces at (q, v, t) with the contacts in ``modes`` (default: theirs)."""
+    def sliding(self, f: int, modes: list[Mode] | None = None, spin_modes: list[Mode] | None = None) -> bool:
+        """Whether friction f slides in ``modes`` and ``spin_modes`` (default: theirs)."""
         modes = self.modes if modes is None else modes
+        friction = self.frictions[f]
+        if friction.spin is None or modes[friction.contact] is Mode.SEPARATED:
+            return modes[friction.contact] is Mode.SLIDING
+        return (self.spin_modes if spin_modes is None else spin_modes)[friction.spin] is Mode.SLIDING
+
+    def solve(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        t: float,
+        modes: list[Mode] | None = None,
+        spin_modes: list[Mode] | None = None,
+    ) -> ModeSolution:
+        """The accelerations and contact forces at (q, v, t) with the contacts in ``modes`` and their spins in
+        ``spin_modes`` (default: theirs)."""
+        modes = self.modes if modes is None else modes
+        spin_modes = self.spin_modes if spin_modes is None else spin_modes
         free, mobility, contacts, bilateral = self._unforced(q, v, t)
-        size = 3 * len(self.contacts)
+        linear = 3 * len(self.contacts)
+        size = linear + contacts.spins.size
         if size == 0:
             reactions = np.zeros(0) if bilateral is None else bilateral.reactions
             return ModeSolution(free, np.zeros((0, 3)), free, mobility, contacts, reactions)
         system, rhs = np.zeros((size, size)), np.zeros(size)
-        delassus = contacts.jacobian @ mobility
-        reach = contacts.jacobian @ free + contacts.drift  # the contact accelerations without forces
-        for i, (contact, mode) in enumerate(zip(self.contacts, modes, strict=True)):
+        rows_all = contacts.jacobian if size == linear else np.vstack([contacts.jacobian, contacts.spin_jacobian])
+        delassus = rows_all @ mobility
+        reach = rows_all @ free + np.concatenate([contacts.drift, contacts.spin_drift])  # accelerations without forces
+        velocities = contacts.rates()
+        for i, mode in enumerate(modes):
             rows = slice(3 * i, 3 * i + 3)
-            n = 3 * i
             if mode is Mode.SEPARATED:
                 system[rows, rows] = np.eye(3)
-                continue
-            velocity = contacts.velocities[i]
-            target = -reach[rows]
-            if mode is Mode.STICKING:
+            elif mode is Mode.STICKING:
                 system[rows] = delassus[rows]
-                rhs[rows] = target
+                rhs[rows] = -reach[rows]
+            else:
+                system[3 * i] = delassus[3 * i]
+                rhs[3 * i] = -reach[3 * i]
+        for f, friction in enumerate(self.frictions):
+            contact_mode = modes[friction.contact]
+            spin = friction.spin
+            if spin is None and contact_mode is not Mode.SLIDING:
                 continue
-            system[n] = delassus[n]
-            rhs[n] = target[0]
-            direction = self.slip_direction(i, velocity)
-            system[n + 1 : n + 3, n + 1 : n + 3] = np.eye(2)
-            system[n + 1 : n + 3, n] = contact.mu * direction
-        key = tuple(modes)
+            rows = friction.rows
+            if contact_mode is Mode.SEPARATED:
+                system[np.ix_(rows, rows)] = np.eye(rows.size)
+            elif spin is not None and spin_modes[spin] is Mode.STICKING:
+                system[rows] = delassus[rows]
+                rhs[rows] = -reach[rows]
+            else:  # sliding: f + bound f_n d = 0
+                system[np.ix_(rows, rows)] = np.eye(rows.size)
+                system[rows, friction.normal] = friction.bound * self.slip_direction(f, velocities[rows])
+        key = (*modes, *spin_modes)
         if key not in self._redundant:  # the rank of the rows: fixed by the modes and the contacts' layout
             self._redundant[key] = not np.linalg.cond(system) < 1.0 / RANK_TOLERANCE
         forces = _forces(system, rhs, self._redundant[key])
@@ -226,7 +359,16 @@ class ModeDynamics:
             )
         acceleration = free + mobility @ forces
         reactions = np.zeros(0) if bilateral is None else bilateral.reactions + bilateral.response @ forces
-        return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions)
+        return ModeSolution(
+            acceleration,
+            forces[:linear].reshape(-1, 3),
+            free,
+            mobility[:, :linear],
+            contacts,
+            reactions,
+            forces[linear:],
+            mobility[:, linear:],
+        )
 
     def _measure(self, system: np.ndarray, forces: np.ndarray, rhs: np.ndarray) -> None:
         """The force system's residual ``|system f - rhs|`` relative to its terms' size [-] into the statistics'
@@ -271,13 +413,15 @@ class ModeDynamics:
             terms = self.model.dynamics_terms(q, v, t)
             contacts = self.kinematics_from_kin(v)
             columns = [terms.tau - terms.bias, contacts.jacobian.T]
+            if contacts.spins.size:
+                columns.append(contacts.spin_jacobian.T)
             if not self.model.constraints.rows and not any(self.active):
                 solved = self._mass_solve(terms.mass_matrix, np.column_stack(columns), t)
                 self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts, None)
                 return self._unforced_terms
             jacobian, _, target = self.bilateral_rows(terms, q, v)
             solved = self._mass_solve(terms.mass_matrix, np.column_stack([*columns, jacobian.T]), t)
-            size = 1 + contacts.jacobian.shape[0]
+            size = 1 + contacts.jacobian.shape[0] + contacts.spins.size
             unheld, held = solved[:, :size], solved[:, size:]
             # B (unheld + held lambda) = (beta, 0): the reactions without contact forces and per unit force
             rhs = np.column_stack([target, np.zeros((jacobian.shape[0], size - 1))]) - jacobian @ unheld
@@ -308,15 +452,17 @@ class ModeDynamics:
         k = len(self.contacts)
         gaps, positions, local, velocities = np.zeros(k), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
         jacobian, drift = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k)
+        bases = [np.eye(3)] * k  # (n, t1, t2) in world axes
         for i, contact in enumerate(self.contacts):
             rows = slice(3 * i, 3 * i + 3)
             if contact.core is not None:
-                gaps[i], positions[i], jacobian[rows], drift[rows] = _round_rows(kin, contact, v)
+                gaps[i], positions[i], jacobian[rows], drift[rows], bases[i] = _round_rows(kin, contact, v)
                 local[i] = kin.placement(contact.plane_frame).actInv(positions[i])
                 velocities[i] = jacobian[rows] @ v
                 continue
             plane = None if contact.plane_frame is None else kin.placement(contact.plane_frame)
             basis = contact.basis if plane is None else contact.basis @ plane.rotation.T  # (n, t1, t2), world axes
+            bases[i] = basis
             normal, frame = basis[0], contact.frame
             frame_jacobian, frame_drift = kin.jacobian(frame), kin.drift_acceleration(frame)
             positions[i] = kin.placement(frame).translation - contact.radius * normal
@@ -339,7 +485,20 @@ class ModeDynamics:
                     f"contact {contact.name}: its gap is {gaps[i]} (the state is not finite: q has "
                     f"{np.count_nonzero(~np.isfinite(self.model.kin.q))} non-finite entries)"
                 )
-        return ContactKinematics(gaps, positions, local, velocities, jacobian, drift)
+        if not self.spins:
+            return ContactKinematics(gaps, positions, local, velocities, jacobian, drift)
+        spin_rows = [np.zeros((0, self.model.nv))]
+        spin_drifts = [np.zeros(0)]
+        for spin in self.spins:
+            axes = bases[spin.contact][list(spin.axes)]
+            relative, relative_drift = _spin_rows(kin, self.contacts[spin.contact], v)
+            spin_rows.append(axes @ relative)
+            spin_drifts.append(axes @ relative_drift)
+        spin_jacobian = np.vstack(spin_rows)
+        spins = spin_jacobian @ v
+        return ContactKinematics(
+            gaps, positions, local, velocities, jacobian, drift, spins, spin_jacobian, np.concatenate(spin_drifts)
+        )
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         """The accelerations at (q, v, t) in the current modes [m/s^2, rad/s^2] (the integrators' call)."""
@@ -363,9 +522,25 @@ def _relative(
     return relative, drift - carried_drift - 2.0 * spin @ w
 
 
-def _round_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """A round pair's gap [m], contact point [m, world], rows (3, nv) and drifts (3,) [m/s^2] in its basis (n, t1,
-    t2) at the state of ``kin``, n along the line from B's core to A's centre x (:mod:`~pinstab.contact.round_pairs`),
+def _spin_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (3, nv) [world axes] of the angular velocity of body a (``contact.frame``) relative to body b (its
+    plane's, or the world) and their drift [rad/s^2]: the derivative in b's frame at zero acceleration, ``Omega'_B =
+    alpha_a - alpha_b - omega_b x Omega``."""
+    frame_jacobian, frame_drift = kin.jacobian(contact.frame)[3:], kin.drift_acceleration(contact.frame).angular
+    if contact.plane_frame is None:
+        return frame_jacobian, frame_drift
+    body_jacobian = kin.jacobian(contact.plane_frame)[3:]
+    relative = frame_jacobian - body_jacobian
+    spin_drift = frame_drift - kin.drift_acceleration(contact.plane_frame).angular
+    return relative, spin_drift - cross(body_jacobian @ v, relative @ v)
+
+
+def _round_rows(
+    kin, contact: PlaneContactGeometry, v: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A round pair's gap [m], contact point [m, world], rows (3, nv), drifts (3,) [m/s^2] and basis (n, t1, t2)
+    [world axes] at the state of ``kin``, n along the line from B's core to A's centre x
+    (:mod:`~pinstab.contact.round_pairs`),
     t1 the first tangent of ``contact.basis`` (fixed in B's frame: where the contact was found) made normal to n
     (continuous while n turns less than 90 degrees towards it; a tangent chosen from n alone jumps where it switches
     axes, and with it a slip's direction). In B's frame (world axes), with w the velocity of x relative to B and
@@ -383,19 +558,22 @@ def _round_rows(kin, contact: PlaneContactGeometry, v: np.ndarray) -> tuple[floa
     first /= np.linalg.norm(first)
     basis = np.array([normal, first, cross(normal, first)])
     frame_jacobian, frame_drift = kin.jacobian(contact.frame), kin.drift_acceleration(contact.frame)
-    body_jacobian, body_drift = kin.jacobian(contact.plane_frame), kin.drift_acceleration(contact.plane_frame)
     relative, relative_drift = _relative(kin, contact.plane_frame, centre, v, frame_jacobian[:3], frame_drift.linear)
     w = relative @ v
     turn = (projector @ w - normal * (normal @ w)) / distance  # n's rate in B's frame: H w
-    spin_jacobian = frame_jacobian[3:] - body_jacobian[3:]
-    spin, omega_b = spin_jacobian @ v, body_jacobian[3:] @ v
+    spin_jacobian, spin_drift = _spin_rows(kin, contact, v)  # Omega and Omega'_B at zero acceleration
+    spin = spin_jacobian @ v
     arm = contact.radius * pin.skew(normal)  # r_a n x .
-    spin_drift = frame_drift.angular - body_drift.angular - cross(omega_b, spin)  # Omega'_B at zero acceleration
     slip_drift = relative_drift + contact.radius * cross(turn, spin) + arm @ spin_drift
     drift = basis @ slip_drift
     drift[0] = normal @ relative_drift + w @ turn
     gap = distance - contact.radius - contact.core_radius
-    return gap, centre - contact.radius * normal, basis @ (relative + arm @ spin_jacobian), drift
+    return gap, centre - contact.radius * normal, basis @ (relative + arm @ spin_jacobian), drift, basis
+
+
+def _first_direction(friction: Friction) -> np.ndarray:
+    """The slip direction a friction law keeps until it first slips: its first axis."""
+    return np.eye(friction.rows.size)[0]
 
 
 def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
@@ -414,15 +592,15 @@ def _forces(system: np.ndarray, rhs: np.ndarray, redundant: bool) -> np.ndarray:
         return np.full(rhs.shape, np.nan)
 
 
-EVENT_GRASP_MODELS = ("point-friction", "frictionless")  # grasp contact models with event-driven modes
+EVENT_GRASP_MODELS = ("point-friction", "frictionless", "soft-finger")  # grasp models with event-driven modes
 
 
 def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
     """The unilateral contacts among a scene's constraints as geometries for the event-driven dynamics: plane
-    contacts, and grasp contacts (the fingertip's point at C on the object's tangent plane at C, carried by the
-    object: exact for the motion while the contact sticks and its first slip; a sliding fingertip is followed
-    on that plane, not on the curved surface; with ``surface = "round"`` the fingertip sphere on the sphere
-    object, a round pair re-computed at every state).
+    contacts (their ``torsion`` and ``rolling``), and grasp contacts (the fingertip's point at C on the object's tangent
+    plane at C, carried by the object: exact for the motion while the contact sticks and its first slip; a sliding
+    fingertip is followed on that plane, not on the curved surface; with ``surface = "round"`` the fingertip sphere on
+    the sphere object, a round pair re-computed at every state; a soft finger's ``torsion`` its spin's bound).
 
     Raises:
         ConstraintError: a grasp contact whose model has no event-driven modes (naming the valid ones).
@@ -446,6 +624,8 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     constraint.plane_frame,
                     core=constraint.core,
                     core_radius=constraint.core_radius,
+                    torsion=constraint.torsion,
+                    rolling=constraint.rolling,
                 )
             )
         elif isinstance(constraint, FingertipContact):
@@ -455,7 +635,8 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     f"{', '.join(EVENT_GRASP_MODELS)}; hold it as constraint rows (contacts None / --contacts held)"
                 )
             outward = contact_basis(np.array([0.0, 0.0, -1.0]))  # C's z points into the object
-            mu = constraint.mu if constraint.model == "point-friction" else 0.0
+            mu = 0.0 if constraint.model == "frictionless" else constraint.mu
+            torsion = constraint.torsion if constraint.model == "soft-finger" else 0.0
             surface = constraint.round
             if surface is not None:  # the fingertip sphere on the sphere object, a round pair
                 geometries.append(
@@ -470,6 +651,7 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                         surface.object_frame,
                         core=np.array([surface.centre, surface.centre]),
                         core_radius=surface.radius,
+                        torsion=torsion,
                     )
                 )
                 continue
@@ -483,6 +665,7 @@ def plane_geometries(constraints: list) -> list[PlaneContactGeometry]:
                     0.0,
                     0.0,
                     constraint.object_frame,
+                    torsion=torsion,
                 )
             )
     return geometries

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..contact.modes import Mode
 from ..errors import PainleveError
-from .contact_modes import SLIP_FLOOR, ContactKinematics, ModeDynamics, ModeSolution
+from .contact_modes import SLIP_FLOOR, ContactKinematics, Friction, ModeDynamics, ModeSolution
 from .ncp import NcpSolver
 
 CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
@@ -45,11 +45,13 @@ ENUMERATED = 6  # touching contacts whose assignments are all enumerated (3^6 = 
 
 
 class Choice(NamedTuple):
-    """The modes chosen, the slip directions of contacts that start sliding, and the solution in them."""
+    """The modes chosen, the slip directions of the sliding frictions (by index in ``dynamics.frictions``), the
+    solution in them and the spins' modes."""
 
     modes: list[Mode]
     directions: dict[int, np.ndarray]
     solution: ModeSolution
+    spin_modes: list[Mode]
 
 
 def touching(kinematics: ContactKinematics) -> list[int]:
@@ -73,7 +75,8 @@ def choose_modes(
     """The modes of the contacts at (q, v, t): those not touching are separated, the touching ones take the
     consistent assignment (see the module); a force within ``slack`` (relative) of its bound is on it
     (:data:`EVENT_SLACK` at an event located on that bound). When no assignment is consistent, the contacts
-    ``stopped`` (slow slips) may stick whatever their speed, as at rest: a slip at its end can keep a speed across its
+    ``stopped`` (slow slips, frictions by index in ``dynamics.frictions``) may stick whatever their speed, as at rest:
+    a slip at its end can keep a speed across its
     old direction of about SLIP_SPEED where the direction turns as it stops (allegro-tilt's ring finger: 1.0 to
     1.1e-9 m/s, which decelerating at 10 m/s^2 stops within 1e-10 s); sliding on against that speed, no mode was.
 
@@ -83,7 +86,7 @@ def choose_modes(
     kinematics = dynamics.kinematics(q, v)
     active = touching(kinematics)
     consistent = _enumerated(dynamics, q, v, t, kinematics, slack, ())
-    slow = [i for i in stopped if i in active]
+    slow = [f for f in stopped if dynamics.frictions[f].contact in active]
     if not consistent and slow:  # the slow slips stop
         consistent = _enumerated(dynamics, q, v, t, kinematics, slack, slow)
     names = [dynamics.contacts[i].name for i in active]
@@ -118,30 +121,47 @@ def _enumerated(
 ) -> list[Choice]:
     """Every consistent assignment of modes to the touching contacts at (q, v, t) (``kinematics`` there): sticking,
     sliding or separated for those at rest along their surface (and the ``stopped`` ones), sliding or separated for
-    the others."""
+    the others; the spins of those not separated sticking or sliding when at rest (or ``stopped``), else sliding."""
     count = len(dynamics.contacts)
     active = touching(kinematics)
     options = []
     for i in active:
-        slipping = i not in stopped and math.hypot(*kinematics.velocities[i, 1:]) > SLIP_SPEED
-        options.append((Mode.SLIDING, Mode.SEPARATED) if slipping else (Mode.STICKING, Mode.SLIDING, Mode.SEPARATED))
+        options.append(_friction_options(dynamics, i, kinematics, stopped) + (Mode.SEPARATED,))
+    spin_options = [_friction_options(dynamics, count + j, kinematics, stopped) for j in range(len(dynamics.spins))]
     if len(active) > ENUMERATED:
         options = [choices[:1] for choices in options]  # the first assignment, then the NCP's (see the module)
+        spin_options = [choices[:1] for choices in spin_options]
     consistent: list[Choice] = []
     for assignment in itertools.product(*options):
         modes = [Mode.SEPARATED] * count
         for i, mode in zip(active, assignment, strict=True):
             modes[i] = mode
-        choice = _consistent(dynamics, q, v, t, modes, active, kinematics, slack, stopped)
-        if choice is not None:
-            consistent.append(choice)
+        live = [j for j, spin in enumerate(dynamics.spins) if modes[spin.contact] is not Mode.SEPARATED]
+        for spin_assignment in itertools.product(*(spin_options[j] for j in live)):
+            spin_modes = [Mode.STICKING] * len(dynamics.spins)
+            for j, mode in zip(live, spin_assignment, strict=True):
+                spin_modes[j] = mode
+            choice = _consistent(dynamics, q, v, t, modes, spin_modes, active, kinematics, slack, stopped)
+            if choice is not None:
+                consistent.append(choice)
     return consistent
 
 
+def _friction_options(
+    dynamics: ModeDynamics, f: int, kinematics: ContactKinematics, stopped: Collection[int]
+) -> tuple[Mode, ...]:
+    """The modes friction f may take: sliding when it slips (and is not ``stopped``), else sticking or sliding."""
+    slipping = f not in stopped and math.hypot(*kinematics.rates()[dynamics.frictions[f].rows]) > SLIP_SPEED
+    return (Mode.SLIDING,) if slipping else (Mode.STICKING, Mode.SLIDING)
+
+
 def _differences(dynamics: ModeDynamics, first: Choice, other: Choice) -> list[tuple[str, Mode, Mode]]:
+    names = [c.name for c in dynamics.contacts] + [
+        f"{dynamics.contacts[s.contact].name} {s.kind}" for s in dynamics.spins
+    ]
     return [
-        (contact.name, a, b)
-        for contact, a, b in zip(dynamics.contacts, first.modes, other.modes, strict=True)
+        (name, a, b)
+        for name, a, b in zip(names, first.modes + first.spin_modes, other.modes + other.spin_modes, strict=True)
         if a is not b
     ]
 
@@ -152,40 +172,44 @@ def _consistent(
     v: np.ndarray,
     t: float,
     modes: list[Mode],
+    spin_modes: list[Mode],
     active: list[int],
     kinematics,
     slack: float,
     stopped: Collection[int] = (),
 ) -> Choice | None:
-    """The choice of ``modes`` when consistent at (q, v, t), else None (the contacts ``stopped`` slide from rest)."""
+    """The choice of ``modes`` and ``spin_modes`` when consistent at (q, v, t), else None (the frictions ``stopped``
+    slide from rest)."""
     directions = {}
-    for i in active:
-        if modes[i] is Mode.SLIDING:
-            slip = kinematics.velocities[i, 1:]
+    rates = kinematics.rates()
+    for f, friction in enumerate(dynamics.frictions):
+        if friction.contact in active and dynamics.sliding(f, modes, spin_modes):
+            slip = rates[friction.rows]
             speed = math.hypot(*slip)
-            directions[i] = slip / speed if speed > SLIP_SPEED and i not in stopped else None
-    starting = [i for i, d in directions.items() if d is None]
-    solution = _solve_with_directions(dynamics, q, v, t, modes, directions, starting)
+            directions[f] = slip / speed if speed > SLIP_SPEED and f not in stopped else None
+    starting = [f for f, d in directions.items() if d is None]
+    solution = _solve_with_directions(dynamics, q, v, t, (modes, spin_modes), directions, starting)
     if solution is None:
         return None
-    found = {i: d for i, d in directions.items() if d is not None}
-    return _checked(dynamics, solution, modes, active, slack, found, [])
+    found = {f: d for f, d in directions.items() if d is not None}
+    return _checked(dynamics, solution, (modes, spin_modes), active, slack, found, [])
 
 
 def _checked(
     dynamics: ModeDynamics,
     solution: ModeSolution,
-    modes: list[Mode],
+    assignment: tuple[list[Mode], list[Mode]],
     active: list[int],
     slack: float,
     directions: dict[int, np.ndarray],
     starting: list[int],
 ) -> Choice | None:
-    """The choice of ``modes`` if ``solution`` is consistent: touching contacts push, separated ones do not
-    approach, sticking forces can lie in their cones and the contacts in ``starting`` (sliding from rest)
-    slip along their ``directions``; else None."""
+    """The choice of ``assignment`` (the contacts' modes, the spins') if ``solution`` is consistent: touching contacts
+    push, separated ones do not approach, sticking forces and torques can lie in their bounds and the frictions in
+    ``starting`` (sliding from rest) slip along their ``directions``; else None."""
+    modes, spin_modes = assignment
     forces, contacts = solution.forces, solution.contacts
-    scale = 1.0 + float(np.max(np.abs(forces), initial=0.0))
+    scale = 1.0 + float(np.max(np.abs(solution.loads()), initial=0.0))
     accelerations = contacts.jacobian @ solution.acceleration + contacts.drift
     acceleration_scale = 1.0 + float(np.max(np.abs(contacts.jacobian @ solution.free), initial=0.0))
     for i in active:
@@ -195,12 +219,15 @@ def _checked(
                 return None
         elif forces[i, 0] < -slack * scale:
             return None
-    for i in starting:
-        if accelerations[3 * i + 1 : 3 * i + 3] @ directions[i] < -CONSISTENCY * acceleration_scale:
+    rates = solution.slip_rates()
+    for f in starting:
+        if rates[dynamics.frictions[f].rows] @ directions[f] < -CONSISTENCY * acceleration_scale:
             return None
     if any(modes[i] is Mode.STICKING for i in active) and sticking_margin(dynamics, solution, modes) < -slack * scale:
         return None
-    return Choice(modes, directions, solution)
+    if spin_margin(dynamics, solution, modes, spin_modes) < -slack * scale:
+        return None
+    return Choice(modes, directions, solution, spin_modes)
 
 
 def _ncp_choice(
@@ -229,6 +256,7 @@ def _ncp_choice(
     accelerations = (offset + contacts.jacobian @ (free.mobility @ forces.ravel())).reshape(-1, 3)
     scale = 1.0 + float(np.max(np.abs(forces)))
     modes, directions = [Mode.SEPARATED] * count, {}
+    spin_modes = [_friction_options(dynamics, count + j, kinematics, stopped)[0] for j in range(len(dynamics.spins))]
     for i in active:
         normal, tangential = forces[i, 0], forces[i, 1:]
         if normal <= NCP_EDGE * scale:
@@ -244,10 +272,10 @@ def _ncp_choice(
     try:
         for i, direction in directions.items():
             dynamics.directions[i] = direction
-        solution = dynamics.solve(q, v, t, modes)
+        solution = dynamics.solve(q, v, t, modes, spin_modes)
     finally:
         dynamics.directions[:] = saved
-    return _checked(dynamics, solution, modes, active, slack, directions, list(directions))
+    return _checked(dynamics, solution, (modes, spin_modes), active, slack, directions, list(directions))
 
 
 def _solve_with_directions(
@@ -255,33 +283,41 @@ def _solve_with_directions(
     q: np.ndarray,
     v: np.ndarray,
     t: float,
-    modes: list[Mode],
+    assignment: tuple[list[Mode], list[Mode]],
     directions: dict[int, np.ndarray | None],
     starting: list[int],
 ) -> ModeSolution | None:
-    """Solve ``modes``; the contacts in ``starting`` slide from rest in the direction of their own tangential
-    acceleration (a fixed point, from the direction opposite the force that sticking would need; where that
-    acceleration vanishes, at the cone's edge, the direction stays). None when the direction does not settle
-    (the tangential acceleration turns against the friction: the contact would not slip)."""
+    """Solve ``assignment`` (the contacts' modes, the spins'); the frictions in ``starting`` slide from rest in the
+    direction of their own slip acceleration (a fixed point, from the direction opposite the force or torque that
+    sticking would need; where that acceleration vanishes, at the bound, the direction stays). None when the
+    direction does not settle (the slip acceleration turns against the friction: it would not slip)."""
+    modes, spin_modes = assignment
     saved = list(dynamics.directions)
     try:
         if starting:
-            stuck = dynamics.solve(q, v, t, [Mode.STICKING if i in starting else m for i, m in enumerate(modes)])
-            for i in starting:
-                force = stuck.forces[i, 1:]
+            held, held_spins = list(modes), list(spin_modes)
+            for f in starting:
+                friction = dynamics.frictions[f]
+                if friction.spin is None:
+                    held[f] = Mode.STICKING
+                else:
+                    held_spins[friction.spin] = Mode.STICKING
+            loads = dynamics.solve(q, v, t, held, held_spins).loads()
+            for f in starting:
+                force = loads[dynamics.frictions[f].rows]
                 norm = math.hypot(*force)
-                dynamics.directions[i] = -force / norm if norm > 0 else np.array([1.0, 0.0])
-        for i, d in directions.items():
+                dynamics.directions[f] = -force / norm if norm > 0 else np.eye(force.size)[0]
+        for f, d in directions.items():
             if d is not None:
-                dynamics.directions[i] = d
+                dynamics.directions[f] = d
         for _ in range(DIRECTION_ITERATIONS):
-            solution = dynamics.solve(q, v, t, modes)
+            solution = dynamics.solve(q, v, t, modes, spin_modes)
             if not starting:
                 return solution
-            tangential = solution.contacts.jacobian @ solution.acceleration + solution.contacts.drift
+            rates = solution.slip_rates()
             changed = 0.0
             for i in starting:
-                slip = tangential[3 * i + 1 : 3 * i + 3]
+                slip = rates[dynamics.frictions[i].rows]
                 speed = math.hypot(*slip)
                 if speed <= CONSISTENCY * (1.0 + float(np.max(np.abs(solution.free)))):
                     continue  # at the cone's edge the slip starts from zero acceleration: keep its direction
@@ -309,12 +345,9 @@ def sticking_margin(dynamics: ModeDynamics, solution: ModeSolution, modes: list[
     forces = solution.forces
 
     def margins(f: np.ndarray) -> np.ndarray:
-        f = f.reshape(-1, 3)
-        return np.array(
-            [m for i in sticking for m in (f[i, 0], dynamics.contacts[i].mu * f[i, 0] - math.hypot(f[i, 1], f[i, 2]))]
-        )
+        return np.array([m for i in sticking for m in (f[3 * i], cone_margin(f, dynamics.frictions[i]))])
 
-    direct = float(margins(forces).min())
+    direct = float(margins(forces.ravel()).min())
     rows = [r for i in sticking for r in range(3 * i, 3 * i + 3)]
     block = solution.contacts.jacobian[rows] @ solution.mobility[:, rows]
     singular_values, basis = np.linalg.svd(block)[1:]
@@ -340,3 +373,22 @@ def sticking_margin(dynamics: ModeDynamics, solution: ModeSolution, modes: list[
     )
     best = float(margins(start + null @ result.x[:-1]).min())
     return max(best, direct)
+
+
+def cone_margin(loads: np.ndarray, friction: Friction) -> float:
+    """How far a friction's forces (or torques) in ``loads`` (:meth:`ModeSolution.loads`) lie inside its bound:
+    ``bound f_n - |f|`` [N, or N m for a spin]."""
+    return friction.bound * loads[friction.normal] - math.hypot(*loads[friction.rows])
+
+
+def spin_margin(dynamics: ModeDynamics, solution: ModeSolution, modes: list[Mode], spin_modes: list[Mode]) -> float:
+    """The smallest margin of the sticking spins in ``solution`` (contacts in ``modes``, spins in ``spin_modes``),
+    per unit bound: ``f_n - |tau| / bound`` [N] (inf when none sticks). Their torques are the smallest that give the
+    motion (redundant spins share theirs evenly, not at their best)."""
+    loads = solution.loads()
+    margins = [
+        cone_margin(loads, friction) / friction.bound
+        for friction in dynamics.frictions[len(dynamics.contacts) :]
+        if modes[friction.contact] is not Mode.SEPARATED and spin_modes[friction.spin] is Mode.STICKING
+    ]
+    return min(margins, default=math.inf)
