@@ -648,7 +648,7 @@ class EventLoop(AdaptiveLoop):
             on_before = before[spin.contact] not in (Mode.SEPARATED.value, CLOSING)
             old = dynamics.spin_modes[j].value if on_before else Mode.SEPARATED.value
             new = choice.spin_modes[j] if choice.modes[spin.contact] is not Mode.SEPARATED else Mode.SEPARATED
-            self._armed[k + j] = new is not Mode.SLIDING or float(np.hypot(*spins[rows])) > SLIP_SPEED
+            self._armed[k + j] = new is not Mode.SLIDING or math.hypot(*spins[rows]) > SLIP_SPEED
             if force_record or old != new.value:
                 event_cause = "impact" if before[spin.contact] == CLOSING else cause
                 force = np.zeros(3)

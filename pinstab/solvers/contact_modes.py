@@ -199,6 +199,14 @@ class Bilateral(NamedTuple):
     response: np.ndarray
 
 
+class SpinResponse(NamedTuple):
+    """The accelerations' response to the spins' torques (nv, m) and the bilateral rows' (b, m) (None without
+    bilateral rows), at one state."""
+
+    mobility: np.ndarray
+    reactions: np.ndarray | None
+
+
 class ModeDynamics:
     """Accelerations of a model whose plane contacts are in given modes.
 
@@ -247,6 +255,7 @@ class ModeDynamics:
         self._redundant: dict[tuple[Mode, ...], bool] = {}
         self._state: tuple | None = None
         self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None] | None = None
+        self._spin_terms: SpinResponse | None = None  # the spins' response at the state of _unforced_terms
 
     def rearrange(self, contacts: list[PlaneContactGeometry]) -> list[int | None]:
         """Take ``contacts`` as the contacts, in their order (contacts found from geometry come and go): one of the
@@ -311,15 +320,25 @@ class ModeDynamics:
         spin_modes = self.spin_modes if spin_modes is None else spin_modes
         free, mobility, contacts, bilateral = self._unforced(q, v, t)
         linear = 3 * len(self.contacts)
-        size = linear + contacts.spins.size
-        if size == 0:
+        live = [f for f in self.frictions[len(self.contacts) :] if modes[f.contact] is not Mode.SEPARATED]
+        if linear == 0:
             reactions = np.zeros(0) if bilateral is None else bilateral.reactions
             return ModeSolution(free, np.zeros((0, 3)), free, mobility, contacts, reactions)
+        # the force system's unknowns: the contact forces, then the torques of the spins whose contacts touch
+        index = np.concatenate([np.arange(linear), *(f.rows for f in live)])
+        size = index.size
+        local = np.zeros(linear + contacts.spins.size, dtype=int)
+        local[index] = np.arange(size)
         system, rhs = np.zeros((size, size)), np.zeros(size)
-        rows_all = contacts.jacobian if size == linear else np.vstack([contacts.jacobian, contacts.spin_jacobian])
-        delassus = rows_all @ mobility
-        reach = rows_all @ free + np.concatenate([contacts.drift, contacts.spin_drift])  # accelerations without forces
-        velocities = contacts.rates()
+        if not live:
+            delassus = contacts.jacobian @ mobility
+            reach = contacts.jacobian @ free + contacts.drift  # the contact accelerations without forces
+        else:
+            spun = self._spin_terms
+            rows_all = np.vstack([contacts.jacobian, contacts.spin_jacobian])[index]
+            delassus = rows_all @ np.hstack([mobility, spun.mobility])[:, index]
+            reach = rows_all @ free + np.concatenate([contacts.drift, contacts.spin_drift])[index]
+        velocities, turning = contacts.rates(), {f.spin for f in live}
         for i, mode in enumerate(modes):
             rows = slice(3 * i, 3 * i + 3)
             if mode is Mode.SEPARATED:
@@ -331,19 +350,15 @@ class ModeDynamics:
                 system[3 * i] = delassus[3 * i]
                 rhs[3 * i] = -reach[3 * i]
         for f, friction in enumerate(self.frictions):
-            contact_mode = modes[friction.contact]
-            spin = friction.spin
-            if spin is None and contact_mode is not Mode.SLIDING:
+            if modes[friction.contact] is not Mode.SLIDING if friction.spin is None else friction.spin not in turning:
                 continue
-            rows = friction.rows
-            if contact_mode is Mode.SEPARATED:
-                system[np.ix_(rows, rows)] = np.eye(rows.size)
-            elif spin is not None and spin_modes[spin] is Mode.STICKING:
+            rows = local[friction.rows]
+            if friction.spin is not None and spin_modes[friction.spin] is Mode.STICKING:
                 system[rows] = delassus[rows]
                 rhs[rows] = -reach[rows]
             else:  # sliding: f + bound f_n d = 0
                 system[np.ix_(rows, rows)] = np.eye(rows.size)
-                system[rows, friction.normal] = friction.bound * self.slip_direction(f, velocities[rows])
+                system[rows, friction.normal] = friction.bound * self.slip_direction(f, velocities[friction.rows])
         key = (*modes, *spin_modes)
         if key not in self._redundant:  # the rank of the rows: fixed by the modes and the contacts' layout
             self._redundant[key] = not np.linalg.cond(system) < 1.0 / RANK_TOLERANCE
@@ -357,17 +372,21 @@ class ModeDynamics:
                 [c.name for c in self.contacts],
                 t,
             )
-        acceleration = free + mobility @ forces
-        reactions = np.zeros(0) if bilateral is None else bilateral.reactions + bilateral.response @ forces
+        if not live:
+            acceleration = free + mobility @ forces
+            reactions = np.zeros(0) if bilateral is None else bilateral.reactions + bilateral.response @ forces
+            torques = np.zeros(contacts.spins.size)
+        else:
+            loads = np.zeros(local.size)
+            loads[index] = forces
+            forces, torques = loads[:linear], loads[linear:]
+            acceleration = free + mobility @ forces + spun.mobility @ torques
+            reactions = np.zeros(0)
+            if bilateral is not None:
+                reactions = bilateral.reactions + bilateral.response @ forces + spun.reactions @ torques
+        spin_mobility = np.zeros((free.size, 0)) if self._spin_terms is None else self._spin_terms.mobility
         return ModeSolution(
-            acceleration,
-            forces[:linear].reshape(-1, 3),
-            free,
-            mobility[:, :linear],
-            contacts,
-            reactions,
-            forces[linear:],
-            mobility[:, linear:],
+            acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions, torques, spin_mobility
         )
 
     def _measure(self, system: np.ndarray, forces: np.ndarray, rhs: np.ndarray) -> None:
@@ -413,23 +432,37 @@ class ModeDynamics:
             terms = self.model.dynamics_terms(q, v, t)
             contacts = self.kinematics_from_kin(v)
             columns = [terms.tau - terms.bias, contacts.jacobian.T]
-            if contacts.spins.size:
-                columns.append(contacts.spin_jacobian.T)
+            self._spin_terms = None
             if not self.model.constraints.rows and not any(self.active):
                 solved = self._mass_solve(terms.mass_matrix, np.column_stack(columns), t)
+                if contacts.spins.size:  # a solve of its own: the contacts' columns as without spins, to the bit
+                    spun = self._mass_solve(terms.mass_matrix, contacts.spin_jacobian.T, t)
+                    self._spin_terms = SpinResponse(spun, None)
                 self._state, self._unforced_terms = key, (solved[:, 0], solved[:, 1:], contacts, None)
                 return self._unforced_terms
             jacobian, _, target = self.bilateral_rows(terms, q, v)
-            solved = self._mass_solve(terms.mass_matrix, np.column_stack([*columns, jacobian.T]), t)
-            size = 1 + contacts.jacobian.shape[0] + contacts.spins.size
-            unheld, held = solved[:, :size], solved[:, size:]
-            # B (unheld + held lambda) = (beta, 0): the reactions without contact forces and per unit force
-            rhs = np.column_stack([target, np.zeros((jacobian.shape[0], size - 1))]) - jacobian @ unheld
-            reactions = np.linalg.lstsq(jacobian @ held, rhs, rcond=RANK_TOLERANCE)[0]
-            response = unheld + held @ reactions
+            targets = np.column_stack([target, np.zeros((jacobian.shape[0], contacts.jacobian.shape[0]))])
+            response, reactions = self._held(terms.mass_matrix, jacobian, np.column_stack(columns), targets, t)
             bilateral = Bilateral(reactions[:, 0], reactions[:, 1:])
+            if contacts.spins.size:
+                targets = np.zeros((jacobian.shape[0], contacts.spins.size))
+                self._spin_terms = SpinResponse(
+                    *self._held(terms.mass_matrix, jacobian, contacts.spin_jacobian.T, targets, t)
+                )
             self._state, self._unforced_terms = key, (response[:, 0], response[:, 1:], contacts, bilateral)
         return self._unforced_terms
+
+    def _held(
+        self, mass_matrix: np.ndarray, jacobian: np.ndarray, columns: np.ndarray, targets: np.ndarray, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The accelerations' response to the generalized forces ``columns`` (nv, c) with the bilateral rows
+        ``jacobian`` (b, nv) held at ``targets`` (b, c): ``B (unheld + held lambda) = targets``; and the rows'
+        reactions lambda (b, c)."""
+        solved = self._mass_solve(mass_matrix, np.column_stack([columns, jacobian.T]), t)
+        size = columns.shape[1]
+        unheld, held = solved[:, :size], solved[:, size:]
+        reactions = np.linalg.lstsq(jacobian @ held, targets - jacobian @ unheld, rcond=RANK_TOLERANCE)[0]
+        return unheld + held @ reactions, reactions
 
     def _mass_solve(self, mass_matrix: np.ndarray, rhs: np.ndarray, t: float) -> np.ndarray:
         """``M^-1 rhs`` at time ``t`` [s].
