@@ -20,6 +20,7 @@ from pinstab.scene import load_scene, scene_from_dict
 from pinstab.simulate import simulate
 from pinstab.simulate.contacts import contact_system
 from pinstab.solvers.contact_modes import ModeDynamics
+from pinstab.solvers.contact_states import contact_states
 from pinstab.solvers.mode_choice import choose_modes
 from pinstab.system import build_system
 
@@ -215,3 +216,17 @@ def test_geometry_contacts_take_rotational_friction_and_refuse_it_without_fricti
 def test_time_stepping_contacts_refuse_rotational_friction():
     with pytest.raises(PinstabError, match="time-stepping contacts have no rotational friction yet .* at ground"):
         simulate(scene_from_dict(ball(rolling=0.003)), dt=0.01, duration=0.1, contacts="stepping")
+
+
+def test_contact_states_replay_the_spins_modes():
+    """contact_states of the rolling ball: the rolling spin's modes from its events, the table's force m g up and
+    -m a along the motion while it rolls against the rolling torque (Newton: the only horizontal force), 0 at rest."""
+    v0, rolling = 0.2, 0.003
+    scene = scene_from_dict(ball(v0, (0.0, v0 / RADIUS, 0.0), rolling=rolling))
+    run = simulate(scene, dt=0.01, duration=1.5, contacts="event")
+    states = contact_states(scene, run)
+    deceleration = rolling * G / (RADIUS * SHAPE)
+    rolls = run.t < v0 / deceleration - 0.01
+    np.testing.assert_allclose(states.forces[:, 0, 2], G, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(states.forces[rolls, 0, 0], -deceleration, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(states.forces[run.t > v0 / deceleration, 0, :2], 0.0, rtol=0, atol=1e-9)

@@ -46,7 +46,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
-from ..solvers.contact_modes import ModeDynamics, ModeSolution, Spin, plane_geometries
+from ..solvers.contact_modes import ModeDynamics, ModeSolution, plane_geometries, spin_name
 from ..solvers.impacts import impact, limit_impact
 from ..solvers.mode_choice import (
     CONSISTENCY,
@@ -761,11 +761,6 @@ class EventLoop(AdaptiveLoop):
         if limit.speed(v) <= TOUCH_SPEED:
             return _floor(limit, q)
         return min(self._floors[i], limit.gap(q))
-
-
-def spin_name(contact: str, spin: Spin) -> str:
-    """The name a spin's events carry: its contact's and its kind, ``table rolling``."""
-    return f"{contact} {spin.kind}"
 
 
 def _floor(limit: JointLimit, q: np.ndarray) -> float:

@@ -93,6 +93,11 @@ class Spin(NamedTuple):
     bound: float
 
 
+def spin_name(contact: str, spin: Spin) -> str:
+    """The name a spin's events carry: its contact's and its kind, ``table rolling``."""
+    return f"{contact} {spin.kind}"
+
+
 def contact_spins(contacts: list[PlaneContactGeometry]) -> list[Spin]:
     """The rotational frictions of ``contacts``: each contact's torsion, then its rolling, when not zero."""
     spins = []
@@ -165,8 +170,7 @@ class ModeSolution(NamedTuple):
     """Accelerations [m/s^2, rad/s^2], the contact forces (k, 3) [N, basis], the free accelerations
     (without contact forces, the bilateral rows held), their response to the contact forces (nv, 3k; M^-1 W^T
     without bilateral rows), the kinematics they were computed at, and the bilateral rows' reactions (closure
-    rows, then active limits) [N, N m] (empty without bilateral rows); the spins' torques (m,) [N m, basis] and
-    the accelerations' response to them (nv, m)."""
+    rows, then active limits) [N, N m] (empty without bilateral rows); the spins' torques (m,) [N m, basis]."""
 
     acceleration: np.ndarray
     forces: np.ndarray
@@ -175,7 +179,6 @@ class ModeSolution(NamedTuple):
     contacts: ContactKinematics
     reactions: np.ndarray = np.zeros(0)
     torques: np.ndarray = np.zeros(0)
-    spin_mobility: np.ndarray = np.zeros((0, 0))
 
     def loads(self) -> np.ndarray:
         """The force vector the frictions' rows index (:class:`Friction`): the contact forces (3k,) [N], then the
@@ -384,10 +387,7 @@ class ModeDynamics:
             reactions = np.zeros(0)
             if bilateral is not None:
                 reactions = bilateral.reactions + bilateral.response @ forces + spun.reactions @ torques
-        spin_mobility = np.zeros((free.size, 0)) if self._spin_terms is None else self._spin_terms.mobility
-        return ModeSolution(
-            acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions, torques, spin_mobility
-        )
+        return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions, torques)
 
     def _measure(self, system: np.ndarray, forces: np.ndarray, rhs: np.ndarray) -> None:
         """The force system's residual ``|system f - rhs|`` relative to its terms' size [-] into the statistics'

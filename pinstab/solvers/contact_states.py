@@ -9,7 +9,8 @@ counts too, since the run keeps the state after an event that falls on a grid ti
 The forces are those of :class:`~pinstab.solvers.contact_modes.ModeDynamics` with the contacts in these
 modes at the sample's state, as the run computed them (no Baumgarte gains); a sliding contact whose slip
 speed is below :data:`~pinstab.solvers.contact_modes.SLIP_FLOOR` slides in the direction its event's
-friction force gave.
+friction force gave. The contacts' rotational frictions (``<contact> torsion``, ``<contact> rolling`` events) take
+their modes the same way; the states list the contacts' own.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from ..errors import PinstabError
 from ..model import ConstrainedModel
 from ..scene import Scene
 from ..trajectory import Trajectory
-from .contact_modes import ModeDynamics, plane_geometries
+from .contact_modes import ModeDynamics, plane_geometries, spin_name
 
 SAMPLE_SLACK = 1e-9  # [fraction of a step] the grid's slack: an event this close after a sample is at it
 MODES = [mode.value for mode in Mode]
@@ -147,9 +148,10 @@ def contact_states(scene: Scene, trajectory: Trajectory) -> ContactStates:
             f"scene {scene.name} has {scene.model.nq} configuration coordinates, the run {trajectory.q.shape[1]}"
         )
     names = [geometry.name for geometry in geometries]
-    spans = mode_spans(events, names, float(trajectory.t[-1]))
-    by_contact = {name: [span for span in spans if span.contact == name] for name in names}
     dynamics = ModeDynamics(ConstrainedModel(dataclasses.replace(scene, constraints=[])), geometries)
+    turning = [spin_name(names[spin.contact], spin) for spin in dynamics.spins]  # their rotational frictions
+    spans = mode_spans(events, names + turning, float(trajectory.t[-1]))
+    by_contact = {name: [span for span in spans if span.contact == name] for name in names + turning}
     n, k = len(trajectory.t), len(names)
     modes = np.empty((n, k), dtype=object)
     points, forces, local = np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan)
@@ -159,10 +161,12 @@ def contact_states(scene: Scene, trajectory: Trajectory) -> ContactStates:
         modes[s] = [span.mode for span in current]
         if not (np.isfinite(q).all() and np.isfinite(v).all()):
             continue
-        for i, span in enumerate(current):
+        spins = [span_at(by_contact[name], float(t), slack) for name in turning]
+        for f, span in enumerate(current + spins):
             if span.direction is not None:
-                dynamics.directions[i] = np.array(span.direction)
-        solution = dynamics.solve(q, v, float(t), [Mode(span.mode) for span in current])
+                dynamics.directions[f] = np.array(span.direction[: dynamics.frictions[f].rows.size])
+        sliding = [Mode.SLIDING if span.mode == Mode.SLIDING else Mode.STICKING for span in spins]
+        solution = dynamics.solve(q, v, float(t), [Mode(span.mode) for span in current], sliding)
         points[s], local[s] = solution.contacts.positions, solution.forces
         forces[s] = np.einsum("kij,ki->kj", np.array([g.basis for g in geometries]), solution.forces)
     impacts = [(float(e["t"]), e["contact"]) for e in events if e["to"] not in MODES]

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..contact.modes import Mode
 from ..errors import PainleveError
-from .contact_modes import SLIP_FLOOR, ContactKinematics, Friction, ModeDynamics, ModeSolution
+from .contact_modes import SLIP_FLOOR, ContactKinematics, Friction, ModeDynamics, ModeSolution, spin_name
 from .ncp import NcpSolver
 
 CONSISTENCY = 1e-9  # relative: forces and accelerations within this of their bounds are on them
@@ -156,9 +156,8 @@ def _friction_options(
 
 
 def _differences(dynamics: ModeDynamics, first: Choice, other: Choice) -> list[tuple[str, Mode, Mode]]:
-    names = [c.name for c in dynamics.contacts] + [
-        f"{dynamics.contacts[s.contact].name} {s.kind}" for s in dynamics.spins
-    ]
+    names = [c.name for c in dynamics.contacts]
+    names += [spin_name(names[s.contact], s) for s in dynamics.spins]
     return [
         (name, a, b)
         for name, a, b in zip(names, first.modes + first.spin_modes, other.modes + other.spin_modes, strict=True)
