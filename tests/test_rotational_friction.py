@@ -18,6 +18,7 @@ from pinstab.generators import pinch, sphere_spin
 from pinstab.integration.stepping import CHECK_STEPS
 from pinstab.scene import load_scene, scene_from_dict
 from pinstab.simulate import simulate
+from pinstab.simulate.choice import MAX_EVENT_CONTACTS, contact_choice
 from pinstab.simulate.contacts import contact_system
 from pinstab.solvers.contact_modes import ModeDynamics
 from pinstab.solvers.contact_states import contact_states
@@ -230,3 +231,13 @@ def test_contact_states_replay_the_spins_modes():
     np.testing.assert_allclose(states.forces[:, 0, 2], G, rtol=0, atol=1e-9)
     np.testing.assert_allclose(states.forces[rolls, 0, 0], -deceleration, rtol=0, atol=1e-9)
     np.testing.assert_allclose(states.forces[run.t > v0 / deceleration, 0, :2], 0.0, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("rolling", "treatment"), [(0.003, "event"), (0.0, "stepping")])
+def test_many_contacts_with_rotational_friction_default_to_event_driven(rolling, treatment):
+    """Beyond MAX_EVENT_CONTACTS declared contacts the automatic choice is time-stepping, which has no rotational
+    friction: with it, event-driven."""
+    scene = ball()
+    contact = {**scene["contacts"][0], "rolling": rolling}
+    scene["contacts"] = [{**contact, "name": f"ground{k}"} for k in range(MAX_EVENT_CONTACTS + 1)]
+    assert contact_choice(scene_from_dict(scene)).treatment == treatment

@@ -3,10 +3,11 @@
 (``info.contact_treatment``: treatment, how it was chosen and why).
 
 The choice: a scene whose contacts can switch switches by default; holding them rigid is asked for. Contacts with
-event-driven modes (plane contacts, contacts found from geometry, point-friction and frictionless grasp contacts) are
-``event`` when they are the scene's only constraints and at most :data:`MAX_EVENT_CONTACTS` are declared (contacts
-found from geometry always: the touching ones are few of those found), ``stepping`` (time-stepping, whose cost does
-not grow with the events) when more plane contacts are declared; ``held`` (constraint rows) otherwise, naming the
+event-driven modes (plane contacts, contacts found from geometry, grasp contacts but rigid ones) are ``event`` when
+they are the scene's only constraints and at most :data:`MAX_EVENT_CONTACTS` are declared (contacts found from geometry
+always: the touching ones are few of those found), ``stepping`` (time-stepping, whose cost does not grow with the
+events) when more plane contacts are declared, unless some has rotational friction (torsion, rolling: event-driven
+only); ``held`` (constraint rows) otherwise, naming the
 constraint that keeps the modes off."""
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any, NamedTuple
 from ..constraints import FingertipContact, PointContact
 from ..errors import ConstraintError, PinstabError
 from ..scene import CONTACT_TREATMENTS, Scene
-from ..solvers.contact_modes import plane_geometries
+from ..solvers.contact_modes import plane_geometries, turning_contacts
 
 MAX_EVENT_CONTACTS = 8  # declared plane contacts beyond this many default to time-stepping
 
@@ -46,12 +47,17 @@ def contact_choice(scene: Scene) -> ContactChoice | None:
     if others:
         return ContactChoice("held", "automatic", f"constraints {', '.join(others)} are not contacts")
     try:
-        plane_geometries(contacts)
+        geometries = plane_geometries(contacts)
     except ConstraintError as error:
         return ContactChoice("held", "automatic", str(error).split(":")[0] + ": no event-driven modes")
     count = len(contacts)
     if scene.contact_finders:
         return ContactChoice("event", "automatic", f"{count} contacts found from geometry, each with modes")
+    turning = turning_contacts(geometries)
+    if count > MAX_EVENT_CONTACTS and turning:
+        return ContactChoice(
+            "event", "automatic", f"{count} contacts, rotational friction at {turning[0]}: time-stepping has none"
+        )
     if count > MAX_EVENT_CONTACTS:
         return ContactChoice(
             "stepping", "automatic", f"{count} contacts, more than {MAX_EVENT_CONTACTS}: time-stepping"

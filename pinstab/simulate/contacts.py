@@ -19,7 +19,7 @@ from ..integration import INTEGRATORS, StepLoop, TimeGrid
 from ..integration.contact_stepping import ContactStepper
 from ..integration.events import EventLoop, RunEnd
 from ..scene import Scene
-from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
+from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries, turning_contacts
 from ..solvers.core_modes import CoreModeDynamics
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem, build_system
@@ -146,7 +146,7 @@ def simulate_stepping(
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), which do not hold joint limits
     (``limit_watch`` fed every step's state), timed by the call's ``clock``."""
     geometries, system, q, v, _ = contact_system(scene, q0, v0)
-    turning = [g.name for g in geometries if g.torsion or g.rolling]
+    turning = turning_contacts(geometries)
     if turning:
         raise PinstabError(
             f"scene {scene.name}: time-stepping contacts have no rotational friction yet (torsion, rolling, a soft "

@@ -98,6 +98,12 @@ def spin_name(contact: str, spin: Spin) -> str:
     return f"{contact} {spin.kind}"
 
 
+def turning_contacts(contacts: list[PlaneContactGeometry]) -> list[str]:
+    """The names of ``contacts`` with rotational friction (torsion or rolling), which only event-driven contacts
+    take."""
+    return [contact.name for contact in contacts if contact.torsion or contact.rolling]
+
+
 def contact_spins(contacts: list[PlaneContactGeometry]) -> list[Spin]:
     """The rotational frictions of ``contacts``: each contact's torsion, then its rolling, when not zero."""
     spins = []
