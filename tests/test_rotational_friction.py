@@ -182,6 +182,9 @@ def test_d_a_soft_finger_slips_in_torsion_at_its_bound(tmp_path):
     ]
     reached = next(e for e in events if e["cause"] == "torsion reached its bound at middle")
     assert abs(abs(reached["force"][1]) - torsion * reached["force"][0]) <= 1e-12 * reached["force"][0]
+    # a spin that slips from rest is a slip for stop_on, as a contact's is: the ring's at the start
+    stopped = simulate(soft_finger_scene(tmp_path, "5 mm"), dt=0.01, duration=0.1, contacts="event", stop_on="slip")
+    assert (stopped.info.stopped["contact"], stopped.info.stopped["t"]) == ("ring torsion", 0.0)
 
 
 @pytest.mark.parametrize(

@@ -54,9 +54,10 @@ from ..solvers.mode_choice import (
     SLIP_SPEED,
     TOUCH_GAP,
     TOUCH_SPEED,
+    Choice,
     choose_modes,
-    cone_margin,
     sticking_margin,
+    torque_margin,
 )
 from ..solvers.ncp import NcpSolver
 from .adaptive import AdaptiveLoop
@@ -319,7 +320,7 @@ class EventLoop(AdaptiveLoop):
         if dynamics.spin_modes[j] is Mode.SLIDING:
             rates = solution.contacts.spins[friction.rows - 3 * len(dynamics.contacts)]
             return float(rates @ self._reference[f]) if self._armed[f] else np.inf
-        return cone_margin(solution.loads(), friction) / friction.bound + slack
+        return torque_margin(solution.loads(), friction) + slack
 
     def _limit_dip(self, segment: Segment) -> float | None:
         """The earliest time [s] inside the step ``segment`` at which a released joint limit's gap on the dense
@@ -480,8 +481,8 @@ class EventLoop(AdaptiveLoop):
             if dynamics.spin_modes[j] is Mode.SLIDING:
                 if rates[friction.rows] @ self._reference[k + j] <= SLIP_SPEED:
                     return f"{spin.kind} slip reached zero at {name}"
-            elif cone_margin(loads, friction) / friction.bound < worst:
-                worst = cone_margin(loads, friction) / friction.bound
+            elif torque_margin(loads, friction) < worst:
+                worst = torque_margin(loads, friction)
                 cause = f"{spin.kind} reached its bound at {name}"
         return cause
 
@@ -633,11 +634,12 @@ class EventLoop(AdaptiveLoop):
         dynamics.spin_modes[:] = choice.spin_modes
         self._gap_floors = [min(0.0, gap) for gap in contacts.gaps]  # a gap closes again from where it is
         names = {contact.name for contact in dynamics.contacts}
+        names |= {spin_name(dynamics.contacts[spin.contact].name, spin) for spin in dynamics.spins}
         stops = [e for e in self.events[first:] if e.contact in names and stop_kind(e) in self.stop_on]
         if stops:
             raise RunEnd(t, q, v, event=stops[0])
 
-    def _spin_events(self, t: float, cause: str, before: list[str], force_record: bool, choice) -> None:
+    def _spin_events(self, t: float, cause: str, before: list[str], force_record: bool, choice: Choice) -> None:
         """Record the spins whose mode changes at t in ``choice`` (from their contacts' modes ``before`` and their
         own): contact ``<name> <kind>`` (e.g. ``table rolling``), force (f_n [N], torque [N m]), slip velocity
         its relative angular velocity [rad/s] (padded with zeros); arm the sliding ones that spin."""

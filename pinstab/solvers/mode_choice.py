@@ -380,13 +380,18 @@ def cone_margin(loads: np.ndarray, friction: Friction) -> float:
     return friction.bound * loads[friction.normal] - math.hypot(*loads[friction.rows])
 
 
+def torque_margin(loads: np.ndarray, friction: Friction) -> float:
+    """A spin's :func:`cone_margin` per unit bound, ``f_n - |tau| / bound`` [N]: comparable with the forces' slack."""
+    return cone_margin(loads, friction) / friction.bound
+
+
 def spin_margin(dynamics: ModeDynamics, solution: ModeSolution, modes: list[Mode], spin_modes: list[Mode]) -> float:
     """The smallest margin of the sticking spins in ``solution`` (contacts in ``modes``, spins in ``spin_modes``),
     per unit bound: ``f_n - |tau| / bound`` [N] (inf when none sticks). Their torques are the smallest that give the
     motion (redundant spins share theirs evenly, not at their best)."""
     loads = solution.loads()
     margins = [
-        cone_margin(loads, friction) / friction.bound
+        torque_margin(loads, friction)
         for friction in dynamics.frictions[len(dynamics.contacts) :]
         if modes[friction.contact] is not Mode.SEPARATED and spin_modes[friction.spin] is Mode.STICKING
     ]
