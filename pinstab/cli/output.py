@@ -105,11 +105,12 @@ def emit(result: dict[str, Any], as_json: bool, text: Callable[[dict[str, Any]],
 
 def events_table(events: list[dict[str, Any]], rows: int = EVENT_ROWS) -> list[str]:
     """The first ``rows`` contact events as text lines (time [s], contact, from -> to, cause, normal force [N],
-    slip speed [m/s]), and how many more there are; no lines without events."""
+    slip speed [m/s; rad/s for a contact's torsion or rolling]), and how many more there are; no lines without
+    events."""
     if not events:
         return []
     lines = [
-        f"contact events ({len(events)}):",
+        f"contact events ({len(events)}; slip in rad/s for torsion and rolling):",
         f"  {'t [s]':>14}  {'contact':<12} {'from -> to':<24} {'f_n [N]':>10}  {'slip [m/s]':>10}  cause",
     ]
     for event in events[:rows]:
