@@ -117,7 +117,7 @@ def test_a_run_without_stop_on_lists_every_event(capsys):
     code = cli.main(["run", "bouncing-ball", "--duration", "2", "--dt", "0.01", "--quiet"])
     text = capsys.readouterr().out
     assert code == cli.EXIT_OK
-    assert f"contact events ({len(events_)}):" in text
+    assert f"contact events ({len(events_)}; slip in rad/s for torsion and rolling):" in text
     assert f"... and {len(events_) - cli.EVENT_ROWS} more" in text
 
 
