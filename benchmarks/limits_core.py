@@ -5,7 +5,10 @@ in one run (REPEATS times each, the least kept), their ratio, and the largest di
 * ``pendulum``: the pendulum of tests/test_joint_limits.py, falling from rest onto its lower limit, held, pulled off by
   a torque ramp (2 s);
 * ``panda-anchor``: the bundled closed chain, whose held run (native path) leaves joint2's lower limit and is run again
-  from the start by the event path with its closure and 14 limits (1 s; the held attempt is in both timings).
+  from the start by the event path with its closure and 14 limits (1 s; the held attempt is in both timings);
+* ``mjcf-biped``: tests/data/mjcf_biped.xml, two legs of six hinges with 12 limits, 5 dry joint frictions (MJCF
+  ``frictionloss``: sticking ones held as one-row entries, slipping ones' torques applied), springs and a joint
+  equality, from its keyframe (1 s): its CPU s/s "after" is whether it runs in real time (<= 1).
 
 "before" evaluates each mode by :class:`~pinstab.solvers.contact_modes.ModeDynamics` (a Pinocchio pass from Python and
 dense numpy solves), "after" by :class:`~pinstab.solvers.core_modes.CoreModeDynamics` (the core kernel). A third
@@ -32,6 +35,7 @@ from pinstab.bench import save_results
 from pinstab.constraints.joint_limits import joint_limits
 from pinstab.kernels import block_jacobian, joint_limit_gaps
 from pinstab.model import ConstrainedModel
+from pinstab.scene import scene_from_dict
 from pinstab.solvers.contact_modes import ModeDynamics
 from pinstab.solvers.core_modes import CoreModeDynamics
 
@@ -42,9 +46,14 @@ contacts_module = importlib.import_module("pinstab.simulate.contacts")  # the mo
 REPEATS = 3
 CALLS = 20_000  # evaluations of the limit rows per timing
 OUT = Path(__file__).parent / "results" / "limits_core.json"
-RUNS = {"pendulum": (_pendulum, 2.0), "panda-anchor": (lambda: pinstab.load_scene("panda-anchor"), 1.0)}
+DATA = Path(__file__).parents[1] / "tests" / "data"
+RUNS = {
+    "pendulum": (_pendulum, 2.0),
+    "panda-anchor": (lambda: pinstab.load_scene("panda-anchor"), 1.0),
+    "mjcf-biped": (lambda: scene_from_dict({"robot": {"mjcf": "mjcf_biped.xml"}}, base_dir=DATA), 1.0),
+}
 EVALUATIONS = {
-    "before": lambda model, limits, statistics: ModeDynamics(model, [], limits, statistics),
+    "before": lambda model, limits, statistics, frictions: ModeDynamics(model, [], limits, statistics, frictions),
     "after": CoreModeDynamics,
 }
 

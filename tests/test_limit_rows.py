@@ -128,7 +128,7 @@ def _numpy_modes(monkeypatch):
     monkeypatch.setattr(
         contacts_module,
         "CoreModeDynamics",
-        lambda model, limits, statistics: ModeDynamics(model, [], limits, statistics),
+        lambda model, limits, statistics, frictions=None: ModeDynamics(model, [], limits, statistics, frictions),
     )
 
 

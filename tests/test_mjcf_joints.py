@@ -142,7 +142,7 @@ def test_check_lists_what_is_not_read(tmp_path: Path, capsys) -> None:
     assert main(["check", str(tmp_path / "scene.toml"), "--json"]) == 0
     notes = "\n".join(json.loads(capsys.readouterr().out)["robot_notes"])
     for phrase in (
-        "frictionloss of joints 'ja' (0.2), 'jb' (0.2)",
+        "joints 'ja', 'jb': their frictionloss is held as hard dry friction",
         "joints 'ja', 'jb': their ranges are held as hard limits",
         "joint margin of 'jb' not read",
         "solref/solimp/torquescale of equalities 'pair' ignored",

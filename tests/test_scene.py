@@ -56,7 +56,7 @@ from pinstab.scene import scene_from_dict
         (
             {"forces": [{"kind": "motor"}]},
             r"kind 'motor' is not a force kind; valid kinds: external-force, grasp-control, grasp-hold, "
-            r"joint-actuator, joint-spring, joint-torque, spring-damper",
+            r"joint-actuator, joint-friction, joint-spring, joint-torque, spring-damper",
         ),
         (
             {"forces": [{"kind": "joint-torque", "joint": "crank", "torque": "2 N"}]},

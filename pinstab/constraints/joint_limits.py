@@ -89,7 +89,8 @@ class ActiveLimit(BlockRows):
     its multiplier is the limit's reaction [N m or N], positive when it pushes away from the bound.
 
     Args:
-        limit: the limit held.
+        limit: the limit held (or another one-row entry with a ``name`` and a compiled ``row``: a sticking joint
+            friction, :class:`~pinstab.forces.joint_friction.JointFriction`, whose multiplier is its torque).
     """
 
     holonomic = True

@@ -32,6 +32,13 @@ moving away (turned back by its impact, thrown off by another limit's) where it 
 impacts of two coupled limits, each throwing the other off its bound, settle (their speeds shrink by a fixed
 factor from one impact to the next, until both are below TOUCH_SPEED and held) instead of each return falling a
 slack further, its load's work over it keeping the chatter going for ever.
+
+Joint frictions (:mod:`pinstab.forces.joint_friction`) are one-row entries too: a sticking one's event function is its
+margin to its bound (:func:`~pinstab.solvers.joint_friction_modes.sticking_margins`), a slipping one's its velocity
+along its slip (watched once faster than :data:`ARMING_SPEED`, as a contact's slip from rest); their modes are chosen
+with the limits' and the contacts' (:func:`~pinstab.solvers.joint_friction_modes.choose_frictions`), a joint that
+starts sticking has its velocity (below TOUCH_SPEED) set to zero, and in an impact they are free (a dry friction's
+impulse is zero).
 """
 
 from __future__ import annotations
@@ -48,6 +55,7 @@ from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
 from ..solvers.contact_modes import ModeDynamics, ModeSolution, plane_geometries, spin_name
 from ..solvers.impacts import impact, limit_impact
+from ..solvers.joint_friction_modes import choose_frictions, sticking_margins
 from ..solvers.mode_choice import (
     CONSISTENCY,
     EVENT_SLACK,
@@ -131,6 +139,7 @@ class EventLoop(AdaptiveLoop):
         self._crawl = 0  # accepted steps shorter than CRAWL_STEP in a row since the last event
         self._chatter: list[tuple[float, list[int]]] = []  # the limit impacts in a row CHATTER_GAP apart: t [s], limits
         self.active_time = {limit.name: 0.0 for limit in dynamics.limits}
+        self._slip_armed = [True] * len(dynamics.joint_frictions)  # a joint friction's slip is watched for its end
         self.finders: list[Any] = []
         self._declared: dict[str, int] = {}  # the contacts not found from geometry: their places, by name
         self._found: set[str] = set()  # the names of the contacts found from geometry at the last step's end
@@ -144,7 +153,7 @@ class EventLoop(AdaptiveLoop):
         dynamics = self.dynamics
         self._floors = [_floor(limit, q) for limit in dynamics.limits]
         separated = [Mode.SEPARATED.value] * len(dynamics.limits)
-        self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(dynamics.contacts), True, separated)
+        self._switch(q, v, 0.0, START, [Mode.SEPARATED.value] * len(dynamics.contacts), True, separated, [])
 
     def advance(self, q: np.ndarray, v: np.ndarray, start: int, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
         grid, system = self.grid, self.system
@@ -256,6 +265,8 @@ class EventLoop(AdaptiveLoop):
         slip has turned, past an event the loop locates and steps again to."""
         self.dynamics.continued = None
         self._reference = self._slip_directions(q, v)
+        for i, friction in enumerate(self.dynamics.joint_frictions):
+            self._slip_armed[i] = self._slip_armed[i] or abs(v[friction.index_v]) > ARMING_SPEED
         self.dynamics.continued = [
             direction if armed else None for direction, armed in zip(self._reference, self._armed, strict=True)
         ]
@@ -306,7 +317,29 @@ class EventLoop(AdaptiveLoop):
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
         values[len(dynamics.contacts) :] = [self._spin_value(solution, j, slack) for j in range(len(dynamics.spins))]
-        return np.concatenate([values, limits])
+        return np.concatenate([values, limits, self._friction_values(v, solution)])
+
+    def _friction_values(self, v: np.ndarray, solution: ModeSolution) -> np.ndarray:
+        """Each joint friction's event function: a sticking one's margin to its bound [N m or N], a slipping one's
+        velocity along its slip [rad/s or m/s] once watched (armed; inf before)."""
+        dynamics = self.dynamics
+        if not dynamics.joint_frictions:
+            return np.zeros(0)
+        values = sticking_margins(dynamics, dynamics.joint_friction_torques(solution), EVENT_SLACK)
+        for i, (friction, slip) in enumerate(zip(dynamics.joint_frictions, dynamics.slips, strict=True)):
+            if slip and self._slip_armed[i]:
+                values[i] = slip * v[friction.index_v]
+        return values
+
+    def _friction_cause(self, q: np.ndarray, v: np.ndarray, t: float) -> str | None:
+        """``friction reached its bound at <name>`` or ``slip velocity reached zero at <name>`` for the first joint
+        friction whose event function is below zero at (q, v, t), else None."""
+        values = self._friction_values(v, self.dynamics.solve(q, v, t))
+        for value, friction, stuck in zip(values, self.dynamics.joint_frictions, self.dynamics.stuck, strict=True):
+            if value < 0.0:
+                what = "friction reached its bound" if stuck else "slip velocity reached zero"
+                return f"{what} at {friction.name}"
+        return None
 
     def _spin_value(self, solution: ModeSolution, j: int, slack: float) -> float:
         """Spin j's event function in ``solution`` (``slack``: the force slack [N]): none (inf) while its contact is
@@ -432,9 +465,11 @@ class EventLoop(AdaptiveLoop):
             for i, limit in enumerate(dynamics.limits)
             if not dynamics.active[i] and limit.gap(q) <= TOUCH_GAP and limit.speed(v) < -TOUCH_SPEED
         ]
-        cause = LIMIT_REACHED if reached else self._reaction_zero(q, v, t)
+        cause = LIMIT_REACHED if reached else self._reaction_zero(q, v, t) or self._friction_cause(q, v, t)
+        frictions_before = self._friction_modes()
         if reached:
             self._count_chatter(q, v, t, reached)
+            self._free_frictions()
             v = self._limit_impact(q, v, t, reached, limits_before)
         contacts = dynamics.kinematics(q, v)
         closing = [
@@ -445,12 +480,39 @@ class EventLoop(AdaptiveLoop):
         if cause is None:
             cause = GAP_CLOSED if closing else self._bound_reached(q, v, t)
         if closing:
+            self._free_frictions()
             v = self._impact(q, v, t, closing, before)
-        self._switch(q, v, t, cause, before, limits_before=limits_before)
+        self._switch(q, v, t, cause, before, limits_before=limits_before, frictions_before=frictions_before)
+        v = self._stick(v)
         self.step_size = None if closing or reached else self.step_size
         if self.step_size is None:
             self.step_size = self.initial_step(q, v, self.system.acceleration(q, v, t, 0), t)
         return q, v
+
+    def _friction_modes(self) -> list[tuple[str, float]]:
+        """Each joint friction's mode now, ``sticking``, ``sliding`` (slipping) or ``separated`` (free, in an
+        impact), with its slip sign."""
+        dynamics = self.dynamics
+        return [
+            ((Mode.STICKING if stuck else Mode.SLIDING if slip else Mode.SEPARATED).value, slip)
+            for stuck, slip in zip(dynamics.stuck, dynamics.slips, strict=True)
+        ]
+
+    def _free_frictions(self) -> None:
+        """Set the joint frictions free (neither sticking nor slipping) for an impact: a dry friction's impulse is
+        zero."""
+        count = len(self.dynamics.joint_frictions)
+        self.dynamics.stuck[:], self.dynamics.slips[:] = [False] * count, [0.0] * count
+
+    def _stick(self, v: np.ndarray) -> np.ndarray:
+        """``v`` with the velocity of each sticking joint friction's joint (at rest: within TOUCH_SPEED of zero) set to
+        zero: its row holds the velocity it has."""
+        stuck = [f.index_v for f, held in zip(self.dynamics.joint_frictions, self.dynamics.stuck, strict=True) if held]
+        if not stuck:
+            return v
+        v = v.copy()
+        v[stuck] = 0.0
+        return v
 
     def _bound_reached(self, q: np.ndarray, v: np.ndarray, t: float) -> str:
         """What reached its bound at an event at (q, v, t) in the modes before it, e.g. ``friction reached the
@@ -601,6 +663,7 @@ class EventLoop(AdaptiveLoop):
         before: list[str],
         force_record: bool = False,
         limits_before: list[str] | None = None,
+        frictions_before: list[tuple[str, float]] | None = None,
     ):
         dynamics = self.dynamics
         slack = CONSISTENCY if cause in (START, GAP_CLOSED, LIMIT_REACHED) else EVENT_SLACK
@@ -609,6 +672,7 @@ class EventLoop(AdaptiveLoop):
         except ContactInfeasibleError as exc:  # no replay: the modes up to here are the run's
             raise RunEnd(t, q, v, error=exc) from None
         self._limit_events(q, v, t, cause, limits_before or [], choice.solution)
+        self._friction_events(v, t, cause, frictions_before or [], choice.solution)
         first = len(self.events)
         contacts = choice.solution.contacts
         for f, direction in choice.directions.items():
@@ -699,7 +763,8 @@ class EventLoop(AdaptiveLoop):
             for i, held in zip(candidates, assignment, strict=True):
                 dynamics.active[i] = held
             try:
-                choice = choose_modes(dynamics, q, v, t, slack, stopped)
+                contact_modes = lambda: choose_modes(dynamics, q, v, t, slack, stopped)  # noqa: E731
+                choice = choose_frictions(dynamics, v, t, slack, contact_modes)
             except ContactInfeasibleError as exc:
                 error = exc
                 continue
@@ -749,6 +814,22 @@ class EventLoop(AdaptiveLoop):
             if old != new and not (cause == START and not held):
                 event_cause = "impact" if old == CLOSING else cause
                 self.events.append(ContactEvent(t, limit.name, old, new, event_cause, (float(reactions[i]), 0.0, 0.0)))
+
+    def _friction_events(
+        self, v: np.ndarray, t: float, cause: str, before: list[tuple[str, float]], solution: ModeSolution
+    ) -> None:
+        """Record the joint frictions whose mode or slip sign changed from ``before`` (empty at the start: each one's
+        first mode) with their torque in ``solution`` and velocity; a slip from rest is watched for its end once faster
+        than :data:`ARMING_SPEED`."""
+        dynamics = self.dynamics
+        torques = dynamics.joint_friction_torques(solution)
+        for i, (friction, new) in enumerate(zip(dynamics.joint_frictions, self._friction_modes(), strict=True)):
+            speed = float(v[friction.index_v])
+            self._slip_armed[i] = abs(speed) > ARMING_SPEED
+            old = before[i] if before else (Mode.SEPARATED.value, 0.0)
+            if old != new or not before:
+                force = (float(torques[i]), 0.0, 0.0)
+                self.events.append(ContactEvent(t, friction.name, old[0], new[0], cause, force, (speed, 0.0)))
 
     def _release_floor(self, i: int, q: np.ndarray, v: np.ndarray) -> float:
         """Where limit i, released at (q, v), counts as reached again [rad, m]. Released at rest (its rate within

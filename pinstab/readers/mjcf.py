@@ -13,7 +13,8 @@ that parser is wrong or silent:
   a geom's ``type``, ``mass`` and ``pos``), the includes inlined (the parser ignores ``<include>``), the
   ``<compiler>`` first (the parser reads the bodies with only what came before them);
 - joints (:mod:`.mjcf_joints`): limits (``range``, ``limited``, in the file's units), ``damping`` and
-  ``stiffness``/``springref`` as ``joint-spring`` forces, ``armature`` (the parser's rotor inertia);
+  ``stiffness``/``springref`` as ``joint-spring`` forces, ``frictionloss`` as ``joint-friction`` forces (dry friction,
+  stick and slip), ``armature`` (the parser's rotor inertia);
 - the start (:mod:`.mjcf_keyframes`): the keyframe ``robot.keyframe`` names, else the file's first, else MuJoCo's
   qpos0 (the joints at ``ref``);
 - ``<equality>``: closures and joint relations with their names (:mod:`.mjcf_equalities`);
@@ -23,8 +24,8 @@ that parser is wrong or silent:
 
 What is not read is said in :attr:`RobotSource.notes`: the ``<option>`` gravity (the scene's ``gravity`` key sets
 it), actuators other than a joint's motor, position, velocity or affine general one (:mod:`.mjcf_actuators`),
-tendons, sensors, contact pairs (each named), a ball joint's cone limit, joint friction (``frictionloss``), the
-soft-constraint parameters of equalities and limits (pinstab's are rigid).
+tendons, sensors, contact pairs (each named), a ball joint's cone limit, the soft-constraint parameters of
+equalities, limits and joint friction (pinstab's are rigid).
 """
 
 from __future__ import annotations

@@ -10,8 +10,10 @@
   velocities as MuJoCo's; a ball or free joint's stiffness, and a spring on a joint of a composite joint (a body
   with several joints) are refused, naming the joint;
 - ``armature`` [kg m^2 or kg]: the parser writes it into ``model.armature`` (rotor inertia, in the mass matrix);
-- ``frictionloss`` (MuJoCo's dry joint friction, a force bounded by it with stick and slip) is left out with a
-  note naming the joints and values, as an SDF joint's ``<friction>``: pinstab has no such force;
+- ``frictionloss`` [N m or N] (MuJoCo's dry joint friction, a force bounded by it with stick and slip): a
+  ``joint-friction`` force element each (:mod:`pinstab.forces.joint_friction`), named ``<joint>/frictionloss``, which
+  runs the scene event-driven; MuJoCo's is soft (``solreffriction``, ``solimpfriction``: a sticking joint creeps a
+  little; a note says so, naming the joints); on a ball or free joint, or a joint of a composite joint, refused;
 - ``springdamper`` (stiffness and damping given by a time constant and a damping ratio, from the joint's inertia
   at qpos0) is refused, naming the joint; ``margin`` and the actuator attributes (``actuatorfrcrange``,
   ``actuatorgravcomp``) are noted as not read.
@@ -40,7 +42,8 @@ class JointReader:
     """Reads the joints of ``document`` into the Pinocchio ``model`` built from it.
 
     Attributes:
-        forces: the ``joint-spring`` scene entries of the joints' damping and springs, in the file's order.
+        forces: the ``joint-spring`` scene entries of the joints' damping and springs and the ``joint-friction``
+            entries of their frictionloss, in the file's order.
         notes: what was changed or not read, in words.
     """
 
@@ -70,8 +73,8 @@ class JointReader:
                 index = q_index(self.model, name, names[0], offset)
                 offset += SCALAR_JOINTS[kind]
                 self._refuse(joint, where)
-                if self._number(joint, "frictionloss", where):
-                    friction.append(f"{name!r} ({self._number(joint, 'frictionloss', where):g})")
+                if self._friction(joint, name, kind, composite=len(joints) > 1, where=where):
+                    friction.append(repr(name))
                 for key in NOT_READ:
                     if self.document.attribute(joint, key) is not None:
                         not_read.setdefault(key, []).append(name)
@@ -85,8 +88,8 @@ class JointReader:
             )
         if friction:
             self.notes.append(
-                f"frictionloss of joints {', '.join(friction)} [N m or N] left out (MuJoCo's dry joint friction, "
-                "sticking and slipping: pinstab has no joint friction)"
+                f"joints {', '.join(friction)}: their frictionloss is held as hard dry friction, sticking exactly "
+                "(MuJoCo's is soft, solreffriction/solimpfriction: a sticking joint creeps a little)"
             )
         self.notes += [f"joint {key} of {', '.join(map(repr, joints))} not read" for key, joints in not_read.items()]
 
@@ -128,10 +131,36 @@ class JointReader:
         factor = self.document.angle_factor() if kind == "hinge" else 1.0
         entry: dict[str, Any] = {"name": f"{name}/spring", "kind": "joint-spring", "joint": name, "damping": damping}
         if stiffness:
-            entry |= {"stiffness": stiffness, "reference": self._number(joint, "springref", where) * factor}
+            reference = float(self.document.numbers(joint, "springref", 1, where, [0.0])[0])  # of either sign
+            entry |= {"stiffness": stiffness, "reference": reference * factor}
         self.forces.append(entry)
 
+    def _friction(self, joint: ET.Element, name: str, kind: str, composite: bool, where: str) -> bool:
+        """The joint's frictionloss as a ``joint-friction`` entry (none when zero); whether it has one.
+
+        Raises:
+            SceneError: a frictionloss on a ball or free joint, or on a joint of a composite joint.
+        """
+        friction = self._number(joint, "frictionloss", where)
+        if friction == 0.0:
+            return False
+        if kind in ("ball", "free") or composite:
+            what = f"a {kind} joint" if kind in ("ball", "free") else "a joint of a body with several joints"
+            raise SceneError(
+                f"{where}: frictionloss={friction:g} on {what} is not read (dry joint friction on a 1-DOF joint of its "
+                "own body only); remove it or give the joint its own body"
+            )
+        self.forces.append(
+            {"name": f"{name}/frictionloss", "kind": "joint-friction", "joint": name, "friction": friction}
+        )
+        return True
+
     def _number(self, joint: ET.Element, key: str, where: str) -> float:
+        """The joint's non-negative number ``key`` (damping, stiffness, frictionloss), 0 when not given.
+
+        Raises:
+            SceneError: a negative one (MuJoCo refuses it).
+        """
         value = float(self.document.numbers(joint, key, 1, where, [0.0])[0])
         if value < 0.0:
             raise SceneError(f"{where}: {key}={value} is negative (MuJoCo refuses it)")

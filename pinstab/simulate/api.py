@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import DivergenceError, JointLimitsWarning, SolverLimitWarning
 from ..files import check_output
+from ..forces.joint_friction import joint_frictions
 from ..memory import named_when_exhausted
 from ..runinfo import SolverStatistics
 from ..scene import Scene, load_scene
@@ -108,7 +109,8 @@ def simulate(
             :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
             change in ``info.contact_events``; None or ``held``: they are held as constraint rows; ``auto``: the
             scene's choice (:func:`~pinstab.simulate.choice.contact_choice`). The run reports the treatment, how it
-            was chosen and why in ``info.contact_treatment``.
+            was chosen and why in ``info.contact_treatment``. A scene with joint friction (``joint-friction``) runs
+            event-driven unless asked for another treatment, which refuses it (naming the joints).
         stop_on: with ``contacts="event"``, the kinds of contact event that end the run
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
             ``separation``, a touching contact opens): the trajectory ends at the first such event, with
@@ -161,6 +163,9 @@ def simulate(
         dt = DEFAULT_DT if scene.step is None else scene.step
     integrator = default_integrator(integrator, rtol, atol)
     contacts, choice = resolve_contacts(scene, contacts)
+    reason = "event-driven contacts"
+    if joint_frictions(scene.forces):
+        reason += " and joint friction (stick and slip at events)"
     kinds = stop_kinds(stop_on, contacts)
     if stream is not None:
         h5py_module()
@@ -186,8 +191,8 @@ def simulate(
         return _checked(scene, choice, stepped, clock)
     if contacts is not None:
         events = simulate_events(
-            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, stream=stream,
-            assembly_tol=assembly_tol, clock=clock,
+            scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, reason, stream,
+            assembly_tol, clock,
         )  # fmt: skip
         return _checked(scene, choice, events, clock)
     diverged: DivergenceError | None = None

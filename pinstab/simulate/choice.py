@@ -8,7 +8,9 @@ they are the scene's only constraints and at most :data:`MAX_EVENT_CONTACTS` are
 always: the touching ones are few of those found), ``stepping`` (time-stepping, whose cost does not grow with the
 events) when more plane contacts are declared, unless some has rotational friction (torsion, rolling: event-driven
 only); ``held`` (constraint rows) otherwise, naming the
-constraint that keeps the modes off."""
+constraint that keeps the modes off. A scene with joint friction (:mod:`pinstab.forces.joint_friction`, stick and slip
+at events) is ``event`` unless asked otherwise (by the caller: ``contacts=None`` too, the call's default; or by its
+``[run] contacts``), and refused by a treatment that cannot take it (:func:`resolve_contacts`)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from typing import Any, NamedTuple
 
 from ..constraints import FingertipContact, PointContact
 from ..errors import ConstraintError, PinstabError
+from ..forces.joint_friction import joint_frictions, refusal
 from ..scene import CONTACT_TREATMENTS, Scene
 from ..solvers.contact_modes import plane_geometries, turning_contacts
 
@@ -39,10 +42,14 @@ def contact_choice(scene: Scene) -> ContactChoice | None:
     """The treatment a run of ``scene`` takes unless asked for one (module docstring), or None for a scene without
     contacts."""
     contacts = [c for c in scene.constraints if isinstance(c, PointContact | FingertipContact)]
-    if not contacts:
+    frictions = joint_frictions(scene.forces)
+    if not contacts and not frictions:
         return None
     if scene.contacts is not None:
         return ContactChoice(scene.contacts, "scene", f"scene {scene.name} asks for it ([run] contacts)")
+    if frictions:
+        names = ", ".join(friction.name for friction in frictions)
+        return ContactChoice("event", "automatic", f"joint frictions {names}: stick and slip at events")
     others = [c.name for c in scene.constraints if not isinstance(c, PointContact | FingertipContact)]
     if others:
         return ContactChoice("held", "automatic", f"constraints {', '.join(others)} are not contacts")
@@ -72,20 +79,25 @@ def default_contacts(scene: Scene) -> str:
 
 
 def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, ContactChoice | None]:
-    """``simulate``'s ``contacts`` (None or ``held``: rows; ``event``; ``stepping``; ``auto``: the scene's choice) as
-    (``event``, ``stepping`` or None for held rows; the choice to report, None for a scene without contacts).
+    """``simulate``'s ``contacts`` (None or ``held``: rows; ``event``; ``stepping``; ``auto``: the scene's choice; None
+    for a scene with joint friction: the scene's choice too) as (``event``, ``stepping`` or None for held rows; the
+    choice to report, None for a scene without contacts or joint friction).
 
     Raises:
-        PinstabError: another value (naming the valid ones).
+        PinstabError: another value (naming the valid ones); a treatment other than ``event`` for a scene with joint
+            friction (naming the frictions, their joints and the treatment that takes them).
     """
     valid = (*CONTACT_TREATMENTS, "auto")
     if contacts is not None and contacts not in valid:
         raise PinstabError(f"contacts: unknown treatment {contacts!r}; valid: {', '.join(valid)}")
     automatic = contact_choice(scene)
-    if contacts == "auto":
+    frictions = joint_frictions(scene.forces)
+    if contacts == "auto" or (contacts is None and frictions):
         choice = automatic
         treatment = "held" if choice is None else choice.treatment
     else:
         treatment = contacts or "held"
         choice = None if automatic is None else ContactChoice(treatment, "asked", f"asked for {treatment}")
+    if frictions and treatment != "event":
+        raise refusal(frictions, f"{treatment} contacts (contacts={treatment!r}, --contacts {treatment})")
     return (None if treatment == "held" else treatment), choice

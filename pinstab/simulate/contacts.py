@@ -15,6 +15,7 @@ from ..assembly import AssemblyReport, assemble
 from ..constraints.joint_limits import JointLimit, LimitWatch
 from ..contact.modes import STOP_KINDS, stop_kind
 from ..errors import PinstabError
+from ..forces.joint_friction import JointFriction, joint_frictions
 from ..integration import INTEGRATORS, StepLoop, TimeGrid
 from ..integration.contact_stepping import ContactStepper
 from ..integration.events import EventLoop, RunEnd
@@ -87,22 +88,23 @@ def simulate_events(
     assembly_tol: float | None = None,
     clock: RunClock | None = None,
 ) -> Trajectory | StreamedTrajectory:
-    """:func:`simulate` with event-driven contacts (``contacts="event"``) and joint limits, ending at the first
-    event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``; ``assembly_tol``: the closures' assembly
-    tolerance (see :func:`~pinstab.assembly.assemble`); ``clock``: the call's (None: one from here)."""
+    """:func:`simulate` with event-driven contacts (``contacts="event"``), joint limits and joint frictions, ending at
+    the first event of a kind in ``stop_on``; ``reason``: the run's ``path_reason``; ``assembly_tol``: the closures'
+    assembly tolerance (see :func:`~pinstab.assembly.assemble`); ``clock``: the call's (None: one from here)."""
     clock = RunClock() if clock is None else clock
     if contacts != "event":
         raise PinstabError(f"contacts {contacts!r} is not a contact treatment; valid: event, stepping")
-    limits = limits or []
-    geometries, system, q, v, report = contact_system(scene, q0, v0, closures=bool(limits), tolerance=assembly_tol)
+    limits, frictions = limits or [], joint_frictions(scene.forces)
+    closures = bool(limits or frictions)
+    geometries, system, q, v, report = contact_system(scene, q0, v0, closures=closures, tolerance=assembly_tol)
     grid = TimeGrid.of(dt, duration, record_every)
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
     statistics = system.solver.statistics
-    if limits and not geometries:  # closures and joint limits: each mode's evaluation is the core's
-        dynamics = CoreModeDynamics(system.model, limits, statistics)
+    if closures and not geometries:  # closures, limits, frictions: each mode's evaluation is the core's
+        dynamics = CoreModeDynamics(system.model, limits, statistics, frictions)
     else:
-        dynamics = ModeDynamics(system.model, geometries, limits, statistics)
+        dynamics = ModeDynamics(system.model, geometries, limits, statistics, frictions)
     system.acceleration = dynamics.acceleration
     system.path, system.path_reason = "contact-events", reason
     stepper = INTEGRATORS.build("dop853", system)
@@ -173,8 +175,9 @@ def simulate_stepping(
 def contact_system(
     scene: Scene, q0: np.ndarray, v0: np.ndarray, closures: bool = False, tolerance: float | None = None
 ) -> tuple[list[PlaneContactGeometry], ConstrainedSystem, np.ndarray, np.ndarray, AssemblyReport | None]:
-    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them, the
-    start state and its assembly report (None without closures). Its other constraints must be equality rows kept
+    """The unilateral contacts of a scene (:func:`event_contacts`), the system of its bodies without them (and
+    without its joint frictions, which the modes' dynamics hold), the start state and its assembly report (None
+    without closures). Its other constraints must be equality rows kept
     in the system (assembled at the start, to ``tolerance``: see :func:`~pinstab.assembly.assemble`) with
     ``closures`` (joint limits), else there must be none and some contact. A sweep checks its points with it.
 
@@ -192,7 +195,8 @@ def contact_system(
         )
     # the modes' dynamics replace the system's accelerations (its solver counts theirs): off Pinocchio's native
     # path, whose solves and checks would count work the run does not do (kept: the closures, none without them)
-    system = build_system(dataclasses.replace(scene, constraints=kept), "none", "dense")
+    forces = [element for element in scene.forces if not isinstance(element, JointFriction)]
+    system = build_system(dataclasses.replace(scene, constraints=kept, forces=forces), "none", "dense")
     q, v = q0.copy(), v0.copy()
     report = None
     if closures and kept:

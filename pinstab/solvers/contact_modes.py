@@ -20,11 +20,13 @@ non-unique and the accelerations unique). Whether the forces can also lie inside
 motion).
 
 Bilateral rows B, always held, come first: the model's own equality constraints (loop closures: ``G a + gamma
-= -Kd g - Kp phi``) and the joint limits that are active (``sign a_i = -Kd sign v_i - Kp gap``,
-:mod:`pinstab.constraints.joint_limits`). They are eliminated before the contacts: ``free`` and ``mobility``
-are the accelerations without contact forces and their response to them *with* B held (``a = a0 + M^-1 B^T
-lambda``, ``B a = beta``), so that contact modes, forces and impacts see a system whose closures and active
-limits hold; the reactions ``lambda`` (closure rows, then active limits) are affine in the contact forces.
+= -Kd g - Kp phi``), the joint frictions that stick (``a_i = 0``, :mod:`pinstab.forces.joint_friction`; a slipping
+one's friction is an applied torque) and the joint limits that are active (``sign a_i = -Kd sign v_i - Kp gap``,
+:mod:`pinstab.constraints.joint_limits`). They are eliminated before the contacts: ``free`` and ``mobility`` are the
+accelerations without contact forces and their response to them *with* B held (``a = a0 + M^-1 B^T lambda``,
+``B a = beta``), so that contact modes, forces and impacts see a system whose closures, sticking frictions and active
+limits hold; the reactions ``lambda`` (closure rows, sticking frictions, then active limits) are affine in the contact
+forces.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import Mode
 from ..contact.round_pairs import core_nearest
 from ..errors import ConstraintError, ContactInfeasibleError, SolverError
+from ..forces.joint_friction import JointFriction
 from ..kernels import block_jacobian
 from ..model import ConstrainedModel
 from ..runinfo import SolverStatistics
@@ -176,7 +179,8 @@ class ModeSolution(NamedTuple):
     """Accelerations [m/s^2, rad/s^2], the contact forces (k, 3) [N, basis], the free accelerations
     (without contact forces, the bilateral rows held), their response to the contact forces (nv, 3k; M^-1 W^T
     without bilateral rows), the kinematics they were computed at, and the bilateral rows' reactions (closure
-    rows, then active limits) [N, N m] (empty without bilateral rows); the spins' torques (m,) [N m, basis]."""
+    rows, sticking joint frictions, then active limits) [N, N m] (empty without bilateral rows); the spins' torques (m,)
+    [N m, basis]."""
 
     acceleration: np.ndarray
     forces: np.ndarray
@@ -224,6 +228,8 @@ class ModeDynamics:
             held as bilateral rows. contacts: the plane contacts.
         limits: the joint limits (:mod:`pinstab.constraints.joint_limits`), each active (a bilateral row) or not.
         statistics: where its evaluations are counted (a run's solver statistics; default: its own).
+        joint_frictions: the joint frictions (:mod:`pinstab.forces.joint_friction`), each sticking (a bilateral row),
+            slipping (an applied torque) or free (neither: in an impact, where a dry friction's impulse is zero).
 
     Attributes:
         name: what a run reports as its method (``info.method``). modes: each contact's mode. spins: the contacts'
@@ -235,7 +241,8 @@ class ModeDynamics:
             one keeps once its slip turns against it: the sliding mode continued smoothly past its end, where the
             event loop's step and dense output locate that end
             (:meth:`~pinstab.integration.events.EventLoop._continue_slips`).
-            active: whether each limit is held. statistics:
+            active: whether each limit is held. joint_frictions: the joint frictions; stuck: whether each sticks;
+            slips: each one's slip sign s (its torque ``-friction s``; 0: none). statistics:
             the dynamics evaluations so far (states: a state solved in several modes counts once; status
             ``contact modes``), the worst relative residual of the mode's force system [-].
     """
@@ -248,11 +255,15 @@ class ModeDynamics:
         contacts: list[PlaneContactGeometry],
         limits: list[JointLimit] | None = None,
         statistics: SolverStatistics | None = None,
+        joint_frictions: list[JointFriction] | None = None,
     ) -> None:
         self.model = model
         self.contacts = contacts
         self.limits = list(limits or [])
         self.active = [False] * len(self.limits)
+        self.joint_frictions = list(joint_frictions or [])
+        self.stuck = [False] * len(self.joint_frictions)
+        self.slips = [0.0] * len(self.joint_frictions)
         self.modes: list[Mode] = [Mode.SEPARATED] * len(contacts)
         self.spins = contact_spins(contacts)
         self.frictions = frictions(contacts, self.spins)
@@ -412,19 +423,46 @@ class ModeDynamics:
             reactions[active] = solution.reactions[solution.reactions.size - len(active) :]
         return reactions
 
+    def joint_friction_torques(self, solution: ModeSolution) -> np.ndarray:
+        """Each joint friction's torque in ``solution`` [N m or N]: a sticking one's reaction, a slipping one's
+        ``-friction s``."""
+        torques = np.array([-f.friction * s for f, s in zip(self.joint_frictions, self.slips, strict=True)])
+        stuck = [i for i, held in enumerate(self.stuck) if held]
+        if stuck:
+            end = solution.reactions.size - sum(self.active)
+            torques[stuck] = solution.reactions[end - len(stuck) : end]
+        return torques
+
+    def slip_torque(self) -> np.ndarray:
+        """The slipping joint frictions' generalized force [N m or N] (nv,)."""
+        tau = np.zeros(self.model.nv)
+        for friction, slip in zip(self.joint_frictions, self.slips, strict=True):
+            tau[friction.index_v] -= friction.friction * slip
+        return tau
+
+    def one_rows(self) -> list:
+        """The one-row bilateral entries held now, each with a compiled ``row``: the sticking joint frictions, then
+        the active limits."""
+        frictions = [f for f, held in zip(self.joint_frictions, self.stuck, strict=True) if held]
+        return frictions + [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
+
     def bilateral_rows(self, terms, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The bilateral rows at (q, v) (``terms``: :meth:`ConstrainedModel.dynamics_terms` there): their Jacobian
         B (b, nv), velocity residual (b,) [m/s, rad/s] and acceleration target ``beta`` (b,) [m/s^2, rad/s^2]
-        (closure rows, then the active limits)."""
+        (closure rows, then the sticking frictions and the active limits: :meth:`one_rows`)."""
         values = terms.values
-        limits = [limit for limit, held in zip(self.limits, self.active, strict=True) if held]
-        rows = np.zeros((len(limits), self.model.nv))
-        for r, limit in enumerate(limits):  # the core's row (its Jacobian reads no pass of the Data)
-            rows[r] = block_jacobian(self.model.model, self.model.scratch, limit.row, 0.0)[0]
+        held = self.one_rows()
+        rows = np.zeros((len(held), self.model.nv))
+        for r, entry in enumerate(held):  # the core's row (its Jacobian reads no pass of the Data)
+            rows[r] = block_jacobian(self.model.model, self.model.scratch, entry.row, 0.0)[0]
         jacobian = np.vstack([values.jacobian, rows])
         velocity = np.concatenate([values.velocity_residual, rows @ v])
-        target = np.concatenate([-values.drift, np.zeros(len(limits))])
+        target = np.concatenate([-values.drift, np.zeros(len(held))])
         return jacobian, velocity, target
+
+    def mode_key(self) -> tuple:
+        """What the unforced terms depend on besides the state: the limits held, the frictions' modes."""
+        return tuple(self.active), tuple(self.stuck), tuple(self.slips)
 
     def _unforced(
         self, q: np.ndarray, v: np.ndarray, t: float
@@ -432,14 +470,15 @@ class ModeDynamics:
         """The accelerations without contact forces, their response to them (M^-1 W^T without bilateral rows),
         the contacts and the bilateral rows' reactions at (q, v, t); the last state's are kept, as choosing modes
         solves one state in many of them (applied forces may cost a QP each)."""
-        key = (t, q.tobytes(), v.tobytes(), tuple(self.active))
+        key = (t, q.tobytes(), v.tobytes(), self.mode_key())
         if key != self._state:
             self.statistics.record("contact modes", 0, math.nan, math.nan)
             terms = self.model.dynamics_terms(q, v, t)
             contacts = self.kinematics_from_kin(v)
-            columns = [terms.tau - terms.bias, contacts.jacobian.T]
+            tau = terms.tau + self.slip_torque() if self.joint_frictions else terms.tau
+            columns = [tau - terms.bias, contacts.jacobian.T]
             self._spin_terms = None
-            if not self.model.constraints.rows and not any(self.active):
+            if not self.model.constraints.rows and not self.one_rows():
                 solved = self._mass_solve(terms.mass_matrix, np.column_stack(columns), t)
                 if contacts.spins.size:  # a solve of its own: the contacts' columns as without spins, to the bit
                     spun = self._mass_solve(terms.mass_matrix, contacts.spin_jacobian.T, t)
