@@ -65,6 +65,7 @@ TOP_KEYS = {
     "run",
 }
 INITIAL_KEYS = {"q", "v"}
+RUN_KEYS = {"dt", "contacts", "rtol"}
 # scene arrays read through a registry: each entry's 'kind' picks the reader
 KIND_TABLES = {  # scene array: (what an entry is called, whether its blocks are prescribed)
     "closures": ("closure", False),
@@ -95,6 +96,8 @@ class Scene:
         step: ``[run] dt``, the scene's time step [s] (what ``simulate`` and ``--dt`` default to), or None (1e-3).
         contacts: ``[run] contacts``, the contact treatment the scene asks for (:data:`CONTACT_TREATMENTS`; what
             ``--contacts`` defaults to), or None (:func:`~pinstab.simulate.choice.contact_choice`).
+        rtol: ``[run] rtol``, the relative tolerance of its event-driven runs (what ``rtol`` and ``--rtol`` default to
+            with ``contacts="event"``), or None (1e-10).
         collisions: the robot-object collision checks of a scene with objects
             (:mod:`pinstab.contact.collisions`: warned at load, run at a run's samples), or None.
         contact_finders: the finders of its contacts from geometry
@@ -123,6 +126,7 @@ class Scene:
     assembly_tolerance: float | None = None
     step: float | None = None
     contacts: str | None = None
+    rtol: float | None = None
     collisions: CollisionCheck | None = None
     contact_finders: list[Any] = field(default_factory=list)
 
@@ -307,6 +311,7 @@ def scene_from_dict(
         assembly_tolerance=_assembly_tolerance(data.get("assembly")),
         step=_run_step(data.get("run")),
         contacts=_run_contacts(data.get("run")),
+        rtol=_run_tolerance(data.get("run")),
         collisions=collisions,
         contact_finders=tables.contact_finders,
     )
@@ -436,13 +441,24 @@ def _run_step(value: Any) -> float | None:
     """``[run] dt``, the scene's time step [s] (positive, finite; units allowed), or None when not given."""
     if value is None:
         return None
-    check_keys(table(value, "run"), {"dt", "contacts"}, "run")
+    check_keys(table(value, "run"), RUN_KEYS, "run")
     if "dt" not in value:
         return None
     step = quantity(value["dt"], "time", "run.dt")
     if not 0.0 < step < math.inf:
         raise SceneError(f"run.dt must be a positive time step, e.g. 5e-4 or '0.5 ms', got {value['dt']!r}")
     return step
+
+
+def _run_tolerance(value: Any) -> float | None:
+    """``[run] rtol``, the relative tolerance [-] of the scene's error-controlled runs (event-driven contacts), in
+    (0, 1), or None when not given."""
+    if value is None or "rtol" not in value:
+        return None
+    rtol = value["rtol"]
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0.0 < rtol < 1.0:
+        raise SceneError(f"run.rtol must be a number in (0, 1), e.g. 1e-8, got {rtol!r}")
+    return float(rtol)
 
 
 def _assembly_tolerance(value: Any) -> float | None:

@@ -1,7 +1,9 @@
 """``joint-spring``: a spring-damper on a joint coordinate, or on the free axis of a loop closure.
 
 On a 1-DOF joint (``joint``): torque [N m] or force [N] ``-k (q - q_ref) - c qdot``; on a multi-DOF joint
-(a ball) only damping, ``-c v`` on each of its velocity coordinates. Between two frames (``frame_a``,
+(a ball) only damping, ``-c v`` on each of its velocity coordinates. On a list of 1-DOF joints (``joints``, a
+posture held by PD): one such spring-damper per joint, named ``<name>/<joint>``, with the same gains, each held at
+``reference`` or, with ``reference = "start"``, at its position in the scene's initial configuration. Between two frames (``frame_a``,
 ``frame_b`` with offsets and rpy, as a closure's, ``axis`` in their axes and ``motion`` ``revolute`` or
 ``prismatic``): the same law on the free coordinate s, the turn ``axis . log3(R_b^T R_a)`` [rad] or the
 slide ``axis . R_b^T (p_a - p_b)`` [m], applied as ``-(k (s - s_ref) + c sdot) ds/dq``.
@@ -16,7 +18,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ..errors import SceneError, choices
+from ..errors import SceneError, choices, repeated
 from ..kernels import RowBlock, block_jacobian, block_residual, joint_spring_force
 from ..kinematics import Kinematics
 from ..tables import SceneTables, closure_frames
@@ -25,6 +27,8 @@ from .base import FORCE_KINDS, ForceElement
 
 SPRING_KEYS = {"name", "kind", "stiffness", "reference", "damping"}
 JOINT_KEYS = SPRING_KEYS | {"joint"}
+POSTURE_KEYS = SPRING_KEYS | {"joints"}
+START = "start"  # the list form's reference: each joint's position in the scene's initial configuration
 FRAME_KEYS = SPRING_KEYS | {"frame_a", "offset_a", "rpy_a", "frame_b", "offset_b", "rpy_b", "axis", "motion"}
 MOTIONS = ("revolute", "prismatic")
 PRISMATIC = 3  # the compiled row kind (cpp/core_rows.hpp RowKind::prismatic): its rows R_b^T (p_a - p_b) across,
@@ -129,21 +133,24 @@ def _frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple:
     return frame_a, frame_b, placement_b, axis, motion
 
 
-@FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate or a closure's free axis")
-def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) -> JointSpring:
-    """Scene table: ``joint`` or the frame form (see the module), ``stiffness`` [N m/rad or N/m],
-    ``reference`` [rad or m], ``damping`` [N m s/rad or N s/m]."""
-    frame_form = "joint" not in entry
-    tables.check_keys(entry, FRAME_KEYS if frame_form else JOINT_KEYS, where)
+@FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate, a list of them, or a closure's free axis")
+def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) -> JointSpring | list[JointSpring]:
+    """Scene table: ``joint``, ``joints`` (a list of 1-DOF joints: one spring each, ``<name>/<joint>``; ``reference``
+    ``"start"`` holds each at its initial position) or the frame form (see the module), ``stiffness`` [N m/rad or
+    N/m], ``reference`` [rad or m], ``damping`` [N m s/rad or N s/m]."""
+    form = "joints" if "joints" in entry else "joint" if "joint" in entry else "frame"
+    tables.check_keys(entry, {"joints": POSTURE_KEYS, "joint": JOINT_KEYS, "frame": FRAME_KEYS}[form], where)
     stiffness = tables.number(entry, "stiffness", where, 0.0)
     damping = tables.number(entry, "damping", where, 0.0)
-    reference = tables.quantity(entry.get("reference", 0.0), "coordinate", f"{where}.reference")
     for label, value in (("stiffness", stiffness), ("damping", damping)):
         if value < 0:
             raise SceneError(f"{where}.{label} must be >= 0, got {value}")
     within_ceiling(stiffness, f"{where}.stiffness", "N m/rad or N/m")
     within_ceiling(damping, f"{where}.damping", "N m s/rad or N s/m")
-    if frame_form:
+    if form == "joints":
+        return _posture(entry, tables, name, where, stiffness, damping)
+    reference = tables.quantity(entry.get("reference", 0.0), "coordinate", f"{where}.reference")
+    if form == "frame":
         return JointSpring(name, stiffness, reference, damping, frames=_frames(entry, tables, name, where))
     joint = tables.model.joints[tables.joint_id(entry["joint"], f"{where}.joint")]
     dofs = np.arange(joint.idx_v, joint.idx_v + joint.nv)
@@ -152,3 +159,40 @@ def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) 
     if stiffness:
         raise SceneError(f"{where}: joint {entry['joint']!r} has {joint.nv} DOF; a stiffness needs a 1-DOF joint")
     return JointSpring(name, 0.0, 0.0, damping, dofs)
+
+
+def _posture(
+    entry: dict, tables: SceneTables, name: str, where: str, stiffness: float, damping: float
+) -> list[JointSpring]:
+    """The list form: one joint spring per joint of ``joints`` (1-DOF, each once), at ``reference`` [rad or m]: a
+    value for all, ``"start"`` (each at its position in the scene's initial configuration) or a table by joint (of
+    values or ``"start"``; a joint it leaves out is held at its start)."""
+    joints = entry["joints"]
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) for j in joints):
+        raise SceneError(f"{where}.joints must be a non-empty list of joint names, got {joints!r}")
+    twice = repeated(joints)
+    if twice:
+        raise SceneError(f"{where}.joints names {', '.join(twice)} more than once")
+    value = entry.get("reference", 0.0)
+    if isinstance(value, dict):
+        tables.check_keys(value, set(joints), f"{where}.reference")
+    elif isinstance(value, str) and value != START and len(value.split()) != 2:
+        raise SceneError(
+            f"{where}.reference must be a number, '<number> <unit>', {START!r} or a table by joint, got {value!r}"
+        )
+    springs = []
+    for joint_name in joints:
+        joint = tables.model.joints[tables.joint_id(joint_name, f"{where}.joints")]
+        if joint.nv != 1 or joint.nq != 1:
+            raise SceneError(
+                f"{where}.joints: joint {joint_name!r} has {joint.nq} coordinates; the list form takes 1-DOF joints"
+            )
+        held = value.get(joint_name, START) if isinstance(value, dict) else value
+        if held == START:
+            held = float(tables.q0[joint.idx_q])
+        else:
+            held = tables.quantity(held, "coordinate", f"{where}.reference.{joint_name}")
+        springs.append(
+            JointSpring(f"{name}/{joint_name}", stiffness, held, damping, np.array([joint.idx_v]), joint.idx_q)
+        )
+    return springs

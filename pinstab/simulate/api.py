@@ -190,6 +190,8 @@ def simulate(
             )
         return _checked(scene, choice, stepped, clock)
     if contacts is not None:
+        if rtol is None and atol is None:
+            rtol = scene.rtol
         events = simulate_events(
             scene, contacts, dt, duration, rtol, atol, record_every, q0, v0, progress, kinds, table, reason, stream,
             assembly_tol, clock,

@@ -51,6 +51,7 @@ from ..runinfo import SolverStatistics
 
 SLIP_FLOOR = 1e-9  # [m/s] below this slip speed the slip direction is the one it started in
 RANK_TOLERANCE = 1e-12  # relative singular values of the force system below this: redundant rows
+HELD_RANK_TOLERANCE = 1e-9  # relative singular values of the bilateral rows below this: redundant rows
 
 
 @dataclass
@@ -502,12 +503,17 @@ class ModeDynamics:
     ) -> tuple[np.ndarray, np.ndarray]:
         """The accelerations' response to the generalized forces ``columns`` (nv, c) with the bilateral rows
         ``jacobian`` (b, nv) held at ``targets`` (b, c): ``B (unheld + held lambda) = targets``; and the rows'
-        reactions lambda (b, c)."""
-        solved = self._mass_solve(mass_matrix, np.column_stack([columns, jacobian.T]), t)
-        size = columns.shape[1]
-        unheld, held = solved[:, :size], solved[:, size:]
-        reactions = np.linalg.lstsq(jacobian @ held, targets - jacobian @ unheld, rcond=RANK_TOLERANCE)[0]
-        return unheld + held @ reactions, reactions
+        reactions lambda (b, c). Solved through the rows' own SVD B = U S V^T (rank at :data:`HELD_RANK_TOLERANCE`):
+        a = V S^-1 U^T targets + N z on B's range and null space N, with N^T M N z = N^T (columns - M a_range); not
+        through the Delassus matrix B M^-1 B^T, whose condition squares theirs (Cassie's shin-spring triangles, 2e-7
+        from singular: its least squares dropped their rows and the knee springs folded)."""
+        u, sigma, vt = np.linalg.svd(jacobian)
+        rank = int(np.sum(sigma > HELD_RANK_TOLERANCE * sigma[0])) if sigma.size else 0
+        u, sigma, across, null = u[:, :rank], sigma[:rank], vt[:rank].T, vt[rank:].T
+        ranged = across @ ((u.T @ targets) / sigma[:, None])
+        along = self._mass_solve(null.T @ mass_matrix @ null, null.T @ (columns - mass_matrix @ ranged), t)
+        response = ranged + null @ along
+        return response, u @ ((across.T @ (mass_matrix @ response - columns)) / sigma[:, None])
 
     def _mass_solve(self, mass_matrix: np.ndarray, rhs: np.ndarray, t: float) -> np.ndarray:
         """``M^-1 rhs`` at time ``t`` [s].

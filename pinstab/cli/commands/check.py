@@ -55,6 +55,7 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
     from ...model import ConstrainedModel
     from ...scene import load_scene
     from ...simulate.choice import default_contacts
+    from ...simulate.contacts import event_contacts
     from ...simulate.held import refuse_separating_contacts
     from ...simulate.limits import held_limits
 
@@ -66,9 +67,10 @@ def check(args: argparse.Namespace) -> dict[str, Any]:
         else None
     )
     model = ConstrainedModel(scene)
-    assembled = (
-        model if default_contacts(scene) == "held" else ConstrainedModel(dataclasses.replace(scene, constraints=[]))
-    )
+    kept = set(event_contacts(scene)[1])  # event-driven contacts are not assembled; closures beside them are
+    held = [c for c in scene.constraints if c.name in kept]
+    event = default_contacts(scene) != "held"
+    assembled = ConstrainedModel(dataclasses.replace(scene, constraints=held)) if event else model
     report = assemble(assembled, scene.q0, scene.v0, tolerance=assembly_tolerance(args))
     if assembled is model:  # contacts held as rows (the scene's default): a start they cannot hold, as run refuses
         refuse_separating_contacts(model, report.q, report.v, scene.name)
