@@ -3,10 +3,11 @@
 On a 1-DOF joint (``joint``): torque [N m] or force [N] ``-k (q - q_ref) - c qdot``; on a multi-DOF joint
 (a ball) only damping, ``-c v`` on each of its velocity coordinates. On a list of 1-DOF joints (``joints``, a
 posture held by PD): one such spring-damper per joint, named ``<name>/<joint>``, with the same gains, each held at
-``reference`` or, with ``reference = "start"``, at its position in the scene's initial configuration. Between two frames (``frame_a``,
-``frame_b`` with offsets and rpy, as a closure's, ``axis`` in their axes and ``motion`` ``revolute`` or
-``prismatic``): the same law on the free coordinate s, the turn ``axis . log3(R_b^T R_a)`` [rad] or the
-slide ``axis . R_b^T (p_a - p_b)`` [m], applied as ``-(k (s - s_ref) + c sdot) ds/dq``.
+``reference``: a value, ``"start"`` (its position in the scene's initial configuration) or a table by joint.
+Between two frames (``frame_a``, ``frame_b`` with offsets and rpy, as a closure's, ``axis`` in their axes and
+``motion`` ``revolute`` or ``prismatic``): the same law on the free coordinate s, the turn
+``axis . log3(R_b^T R_a)`` [rad] or the slide ``axis . R_b^T (p_a - p_b)`` [m], applied as
+``-(k (s - s_ref) + c sdot) ds/dq``.
 Stored energy ``k (s - s_ref)^2 / 2`` [J].
 """
 
@@ -133,7 +134,9 @@ def _frames(entry: dict, tables: SceneTables, name: str, where: str) -> tuple:
     return frame_a, frame_b, placement_b, axis, motion
 
 
-@FORCE_KINDS.register("joint-spring", summary="a spring-damper on a joint coordinate, a list of them, or a closure's free axis")
+@FORCE_KINDS.register(
+    "joint-spring", summary="a spring-damper on a joint coordinate, a list of them, or a closure's free axis"
+)
 def parse_joint_spring(entry: dict, tables: SceneTables, name: str, where: str) -> JointSpring | list[JointSpring]:
     """Scene table: ``joint``, ``joints`` (a list of 1-DOF joints: one spring each, ``<name>/<joint>``; ``reference``
     ``"start"`` holds each at its initial position) or the frame form (see the module), ``stiffness`` [N m/rad or
