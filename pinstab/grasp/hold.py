@@ -41,6 +41,7 @@ from ..units import within_ceiling
 from .holding import (
     FEASIBILITY,
     HOLD_MARGIN,
+    UNBOUNDED,
     ConeTest,
     WarmQP,
     closest_holding,
@@ -65,7 +66,6 @@ HOLD_KEYS = {
     "release",
 }
 RELEASES = ("press", "relax")  # once let go: press at the cap as before, or press no more
-UNBOUNDED = 1e30  # ProxQP's infinite bound
 
 
 class GraspHold(ForceElement):
@@ -135,7 +135,7 @@ class GraspHold(ForceElement):
             return free
         count = len(free)
         solution, solved, _ = self._pyramid_qp.solve(
-            np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper
+            np.eye(count), -self.pressing, carrier, load, self._cones, self._lower, self._upper, screen=True
         )
         if solved and self._cone_test.holds(solution):
             return solution

@@ -40,6 +40,8 @@ COMPLEMENTARITY = 1e-6  # relative to the bound: a row with a multiplier farther
 # no contact it holds sits on its cone's edge, where rounding (the solves' 1e-13, FEASIBILITY's 1e-9 N) decides
 # whether it slips; 1000 times FEASIBILITY, and the hold lets go that much earlier (tilt_at_first_slip)
 HOLD_MARGIN = 1e-6
+UNBOUNDED = 1e30  # ProxQP's infinite bound
+LP_INFEASIBLE = 2  # scipy.optimize.linprog's status: the problem is infeasible
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 
@@ -121,34 +123,29 @@ def normal_columns(columns: list[ConeColumns]) -> list[int]:
 
 def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(values g >= 0 inside the exact limits with f_n >= 0 (a bound, see :class:`_Problem`): mu^2 f_n^2 - |f_t|^2,
-    torsion f_n -+ m_z; their Jacobian with respect to the forces): smooth, for SLSQP."""
-    values, jacobian = [], []
+    torsion f_n -+ m_z; their Jacobian with respect to the forces): smooth, for SLSQP, which calls it ~2000 times a
+    solve near a let-go (on Python floats: squares by ``pow`` as before, where numpy's array square, x * x, differs
+    from it in the last bit of ~1 in 1000 values)."""
+    f = forces.tolist()
+    values, rows, entries, gradients = [], [], [], []
     for contact in columns:
         n = contact.normal
-        rows = []
         if contact.tangents is not None:
             t1, t2 = contact.tangents
-            a, b = forces[t1], forces[t2]
-            rows.append(
-                (
-                    contact.mu**2 * forces[n] ** 2 - a**2 - b**2,
-                    {n: 2 * contact.mu**2 * forces[n], t1: -2 * a, t2: -2 * b},
-                )
-            )
+            a, b, mu2 = f[t1], f[t2], contact.mu**2
+            rows.extend([len(values)] * 3)
+            entries.extend((n, t1, t2))
+            gradients.extend((2 * mu2 * f[n], -2 * a, -2 * b))
+            values.append(mu2 * f[n] ** 2 - a**2 - b**2)
         if contact.spin is not None:
             for sign in (1.0, -1.0):
-                rows.append(
-                    (
-                        contact.torsion * forces[n] - sign * forces[contact.spin],
-                        {n: contact.torsion, contact.spin: -sign},
-                    )
-                )
-        for value, gradient in rows:
-            values.append(value)
-            row = np.zeros(forces.size)
-            row[list(gradient)] = list(gradient.values())
-            jacobian.append(row)
-    return np.array(values), np.array(jacobian).reshape(-1, forces.size)
+                rows.extend([len(values)] * 2)
+                entries.extend((n, contact.spin))
+                gradients.extend((contact.torsion, -sign))
+                values.append(contact.torsion * f[n] - sign * f[contact.spin])
+    jacobian = np.zeros((len(values), forces.size))
+    jacobian[rows, entries] = gradients
+    return np.array(values), jacobian
 
 
 def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
@@ -339,6 +336,26 @@ def closest_holding(
     return problem.solve(objective)
 
 
+def feasible(equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> bool:
+    """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by HiGHS's phase one
+    (a linear program without cost, ~1 ms on a grasp's pyramids where a failing ProxQP runs its iteration cap, ~10 ms).
+    False only where HiGHS proves the rows infeasible: its feasibility tolerance (1e-7) is looser than the QPs' eps_abs
+    (1e-10), so that rows it finds infeasible no QP here solves."""
+    from scipy.optimize import linprog
+
+    finite_upper, finite_lower = np.abs(upper) < UNBOUNDED, np.abs(lower) < UNBOUNDED
+    result = linprog(
+        np.zeros(inequality.shape[1]),
+        A_ub=np.vstack([inequality[finite_upper], -inequality[finite_lower]]),
+        b_ub=np.concatenate([upper[finite_upper], -lower[finite_lower]]),
+        A_eq=equality,
+        b_eq=rhs,
+        bounds=(None, None),
+        method="highs",
+    )
+    return result.status != LP_INFEASIBLE
+
+
 def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:
     """A dense ProxQP of that shape with this module's settings (see :class:`WarmQP`)."""
     qp = proxsuite.proxqp.dense.QP(variables, equalities, inequalities)
@@ -367,9 +384,32 @@ class WarmQP:
         self._qp: proxsuite.proxqp.dense.QP | None = None
         self._shape: tuple[int, int, int] = (0, 0, 0)
         self._active: tuple[np.ndarray, np.ndarray] | None = None  # (row indices, +1 upper / -1 lower bound)
+        self._failed = False  # whether the last solve failed
+        self._unsolved: tuple[np.ndarray, ...] | None = None  # the last failing problem, screened out, not yet solved
 
-    def solve(self, hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
-        """(x, solved, ProxQP's info: None when the previous active set gave x)."""
+    def solve(
+        self, hessian, gradient, equality, rhs, inequality, lower, upper, screen: bool = False
+    ) -> tuple[np.ndarray, bool, Any]:
+        """(x, solved, ProxQP's info: None when the previous active set gave x or the screen refused the problem).
+
+        With ``screen``, after a failed solve a problem whose rows an LP finds infeasible (:func:`feasible`) is not
+        given to ProxQP (which would run to its iteration cap, warm and then cold: ~20 ms on a grasp's pyramids, the
+        LP ~1 ms): it fails at once (x NaN), and it is solved cold only when a later problem is given to ProxQP, which
+        then warm-starts from it as it would have (the same solutions to the last bit)."""
+        shape = (len(gradient), equality.shape[0], inequality.shape[0])
+        problem = (hessian, gradient, equality, rhs, inequality, lower, upper)
+        if screen and self._failed and shape == self._shape and not feasible(equality, rhs, inequality, lower, upper):
+            self._unsolved = tuple(np.array(part) for part in problem)
+            return np.full(len(gradient), np.nan), False, None
+        if self._unsolved is not None:  # the failing problem screened out last: its cold solve, as it would have been
+            self._cold(*self._unsolved)
+            self._unsolved = None
+        x, solved, info = self._solve(*problem)
+        self._failed = not solved
+        return x, solved, info
+
+    def _solve(self, hessian, gradient, equality, rhs, inequality, lower, upper) -> tuple[np.ndarray, bool, Any]:
+        """:meth:`solve` without the screen."""
         shape = (len(gradient), equality.shape[0], inequality.shape[0])
         if shape == self._shape and self._active is not None:
             x = _on_active_set(hessian, gradient, equality, rhs, inequality, lower, upper, *self._active)
@@ -382,16 +422,21 @@ class WarmQP:
             qp.solve()
             if qp.results.info.status in _SOLVED and _complementary(qp, inequality, lower, upper):
                 return self._solved(qp), True, qp.results.info
-        qp = self._qp = _fresh_qp(*shape)
-        self._shape = shape
+        qp = self._cold(hessian, gradient, equality, rhs, inequality, lower, upper)
+        solved = qp.results.info.status in _SOLVED
+        return (self._solved(qp) if solved else np.array(qp.results.x)), solved, qp.results.info
+
+    def _cold(self, hessian, gradient, equality, rhs, inequality, lower, upper) -> proxsuite.proxqp.dense.QP:
+        """ProxQP built afresh for the problem and solved cold (no active set kept): the QP warm solves start from."""
+        qp = self._qp = _fresh_qp(len(gradient), equality.shape[0], inequality.shape[0])
+        self._shape = (len(gradient), equality.shape[0], inequality.shape[0])
         # no Ruiz equilibration: the problems are already in N and m (Hessian condition ~15 on allegro-lift), and
         # equilibrating them made the iteration count erratic (30 -> 400..13,000, varying with the CPU's vector
         # instructions and from run to run), so that a QP solved here could fail on another machine
         qp.init(hessian, gradient, equality, rhs, inequality, lower, upper, compute_preconditioner=False)
         qp.solve()
-        solved = qp.results.info.status in _SOLVED
         self._active = None
-        return (self._solved(qp) if solved else np.array(qp.results.x)), solved, qp.results.info
+        return qp
 
     def _solved(self, qp: proxsuite.proxqp.dense.QP) -> np.ndarray:
         """ProxQP's x, its active set kept for the next solve (multipliers z: H x + g + E^T y + C^T z = 0, z > 0 at an
