@@ -127,10 +127,10 @@ class GraspHold(ForceElement):
         flickers, over 1e-5 s of allegro-tilt, and with it the hand's torques, by 0.06 N at the fingertips)."""
         carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self._object]
+        if t is not None and t >= self.released:
+            return self._let_go(carrier, load)
         # least squares: the forces closest to the squeeze among those that best carry the object's weight
         free = closest_solution(carrier, load, self.pressing)
-        if t is not None and t >= self.released:
-            return self._let_go(carrier, load, free)
         if self._cone_test.holds(free):
             return free
         count = len(free)
@@ -146,12 +146,14 @@ class GraspHold(ForceElement):
             self.released = t
         return self._let_go(carrier, load, free)
 
-    def _let_go(self, carrier: np.ndarray, load: np.ndarray, free: np.ndarray) -> np.ndarray:
-        """The forces [N, N m] when none inside the cones hold: the least-squares ``free`` ones, or with a cap those
-        closest to the squeeze within it (the fingers press at most max_squeeze, and some contact leaves its cone);
-        none with ``release`` ``relax``."""
+    def _let_go(self, carrier: np.ndarray, load: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+        """The forces [N, N m] when none inside the cones hold: the least-squares ``free`` ones (None: found here), or
+        with a cap those closest to the squeeze within it (the fingers press at most max_squeeze, and some contact
+        leaves its cone); none with ``release`` ``relax``."""
         if self.release == "relax":
-            return np.zeros_like(free)
+            return np.zeros(len(self.pressing))
+        if free is None:
+            free = closest_solution(carrier, load, self.pressing)
         if math.isinf(self.max_squeeze):
             return free
         count, caps = len(free), len(self._normals)
