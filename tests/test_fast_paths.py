@@ -14,7 +14,16 @@ import pytest
 from pinstab import load_scene
 from pinstab.actuation import Actuation
 from pinstab.grasp.analysis import GraspContact
-from pinstab.grasp.holding import FEASIBILITY, ConeTest, WarmQP, cone_columns, cone_margins
+from pinstab.grasp.holding import (
+    FEASIBILITY,
+    ConeTest,
+    Limits,
+    WarmQP,
+    _limit_values,
+    cone_columns,
+    cone_margins,
+    feasible,
+)
 from pinstab.grasp.linalg import closest_solution, pinv, svd
 from pinstab.kinematics import Kinematics
 from pinstab.model import ConstrainedModel
@@ -165,6 +174,53 @@ def test_warm_started_qp_is_the_cold_one():
         warm_iterations += info.iter if k and info is not None else 0
         cold_iterations += cold_info.iter if k else 0
     assert warm_iterations <= cold_iterations
+
+
+def test_screened_qp_fails_at_once_and_solves_as_before():
+    """A screened QP (``screen=True``) refuses, without ProxQP (info None, x NaN), a problem after a failure whose rows
+    the LP finds infeasible, and its solutions are the unscreened QP's to the last bit through a sequence that goes
+    infeasible and back (the failing problem screened out is solved cold before the next one, which starts from
+    it). The LP's verdict is the closed form: |x_i| <= 0.2 and E x = b hold together iff |b| <= 0.2 sum |E_row| (one
+    equality row)."""
+    size = 6
+    hessian_root = RNG.normal(size=(size, size))
+    hessian, gradient = hessian_root @ hessian_root.T + size * np.eye(size), RNG.normal(size=size)
+    equality, inequality = RNG.normal(size=(1, size)), np.eye(size)
+    lower, upper = np.full(size, -0.2), np.full(size, 0.2)
+    reach = 0.2 * float(np.abs(equality).sum())  # the largest |E x| with |x_i| <= 0.2
+    loads = [0.1, 0.3 * reach, 2.0 * reach, 3.0 * reach, 2.5 * reach, 0.2 * reach, 0.25 * reach]
+    for load in (0.999 * reach, 1.001 * reach):
+        assert feasible(equality, np.array([load]), inequality, lower, upper) == (load <= reach)
+    screened, plain = WarmQP(), WarmQP()
+    for k, load in enumerate(loads):
+        rhs = np.array([load])
+        x, solved, info = screened.solve(hessian, gradient, equality, rhs, inequality, lower, upper, screen=True)
+        reference, reference_solved, _ = plain.solve(hessian, gradient, equality, rhs, inequality, lower, upper)
+        assert solved == reference_solved == (load <= reach)
+        if solved:
+            np.testing.assert_array_equal(x, reference)
+        elif k > 0 and loads[k - 1] > reach:  # after a failure: refused by the LP, ProxQP not run
+            assert info is None and np.isnan(x).all()
+
+
+def test_cone_limit_values_and_their_jacobian():
+    """SLSQP's limit rows: mu^2 f_n^2 - |f_t|^2 of a point contact and torsion f_n -+ m_z of a soft finger (closed
+    form), their Jacobian the central differences' (exact for quadratics up to rounding, 1e-9)."""
+    contacts = [Limits("point", "point-friction", 0.8, 0.0), Limits("soft", "soft-finger", 0.5, 0.01)]
+    columns, count = cone_columns(contacts)
+    forces = RNG.normal(size=count)
+    values, jacobian = _limit_values(columns, forces)
+    f_t1, f_t2, f_n, s_t1, s_t2, s_n, m_z = forces
+    expected = [0.64 * f_n**2 - f_t1**2 - f_t2**2, 0.25 * s_n**2 - s_t1**2 - s_t2**2, 0.01 * s_n - m_z, 0.01 * s_n + m_z]
+    np.testing.assert_allclose(values, expected, rtol=1e-14, atol=1e-15)
+    step = 1e-6
+    differences = np.column_stack(
+        [
+            (_limit_values(columns, forces + step * e)[0] - _limit_values(columns, forces - step * e)[0]) / (2 * step)
+            for e in np.eye(count)
+        ]
+    )
+    np.testing.assert_allclose(jacobian, differences, atol=1e-9)
 
 
 def test_one_row_servo_solve_is_the_pseudo_inverses():
