@@ -336,9 +336,12 @@ def closest_holding(
     return problem.solve(objective)
 
 
-def feasible(equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> bool:
-    """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by HiGHS's phase one
-    (a linear program without cost, ~1 ms on a grasp's pyramids where a failing ProxQP runs its iteration cap, ~10 ms).
+def feasible(
+    equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> bool:
+    """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by HiGHS's phase
+    one (a linear program without cost, ~1 ms on a grasp's pyramids where a failing ProxQP runs to its iteration cap,
+    ~10 ms).
     False only where HiGHS proves the rows infeasible: its feasibility tolerance (1e-7) is looser than the QPs' eps_abs
     (1e-10), so that rows it finds infeasible no QP here solves."""
     from scipy.optimize import linprog
