@@ -19,6 +19,7 @@ from pinstab.grasp.holding import (
     ConeTest,
     Limits,
     WarmQP,
+    _limit_jacobian,
     _limit_values,
     cone_columns,
     cone_margins,
@@ -209,7 +210,7 @@ def test_cone_limit_values_and_their_jacobian():
     contacts = [Limits("point", "point-friction", 0.8, 0.0), Limits("soft", "soft-finger", 0.5, 0.01)]
     columns, count = cone_columns(contacts)
     forces = RNG.normal(size=count)
-    values, jacobian = _limit_values(columns, forces)
+    values, jacobian = _limit_values(columns, forces), _limit_jacobian(columns, forces)
     f_t1, f_t2, f_n, s_t1, s_t2, s_n, m_z = forces
     friction = [0.64 * f_n**2 - f_t1**2 - f_t2**2, 0.25 * s_n**2 - s_t1**2 - s_t2**2]
     expected = [*friction, 0.01 * s_n - m_z, 0.01 * s_n + m_z]
@@ -217,7 +218,7 @@ def test_cone_limit_values_and_their_jacobian():
     step = 1e-6
     differences = np.column_stack(
         [
-            (_limit_values(columns, forces + step * e)[0] - _limit_values(columns, forces - step * e)[0]) / (2 * step)
+            (_limit_values(columns, forces + step * e) - _limit_values(columns, forces - step * e)) / (2 * step)
             for e in np.eye(count)
         ]
     )

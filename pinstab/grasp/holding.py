@@ -121,31 +121,44 @@ def normal_columns(columns: list[ConeColumns]) -> list[int]:
     return [contact.normal for contact in columns]
 
 
-def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(values g >= 0 inside the exact limits with f_n >= 0 (a bound, see :class:`_Problem`): mu^2 f_n^2 - |f_t|^2,
-    torsion f_n -+ m_z; their Jacobian with respect to the forces): smooth, for SLSQP, which calls it ~2000 times a
-    solve near a let-go (on Python floats: squares by ``pow`` as before, where numpy's array square, x * x, differs
-    from it in the last bit of ~1 in 1000 values)."""
+def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> np.ndarray:
+    """Values g >= 0 inside the exact limits with f_n >= 0 (a bound, see :class:`_Problem`): mu^2 f_n^2 - |f_t|^2,
+    torsion f_n -+ m_z; smooth, for SLSQP, which calls it ~10 times an iteration, ~5000 times a solve near a let-go (on
+    Python floats: squares by ``pow`` as before, where numpy's array square, x * x, differs from it in the last bit of
+    ~1 in 1000 values)."""
     f = forces.tolist()
-    values, rows, entries, gradients = [], [], [], []
+    values = []
     for contact in columns:
         n = contact.normal
         if contact.tangents is not None:
             t1, t2 = contact.tangents
-            a, b, mu2 = f[t1], f[t2], contact.mu**2
-            rows.extend([len(values)] * 3)
+            values.append(contact.mu**2 * f[n] ** 2 - f[t1] ** 2 - f[t2] ** 2)
+        if contact.spin is not None:
+            values.extend(contact.torsion * f[n] - sign * f[contact.spin] for sign in (1.0, -1.0))
+    return np.array(values)
+
+
+def _limit_jacobian(columns: list[ConeColumns], forces: np.ndarray) -> np.ndarray:
+    """The Jacobian of :func:`_limit_values` with respect to the forces (rows in its order)."""
+    f = forces.tolist()
+    rows, entries, gradients, count = [], [], [], 0
+    for contact in columns:
+        n = contact.normal
+        if contact.tangents is not None:
+            t1, t2 = contact.tangents
+            rows.extend([count] * 3)
             entries.extend((n, t1, t2))
-            gradients.extend((2 * mu2 * f[n], -2 * a, -2 * b))
-            values.append(mu2 * f[n] ** 2 - a**2 - b**2)
+            gradients.extend((2 * contact.mu**2 * f[n], -2 * f[t1], -2 * f[t2]))
+            count += 1
         if contact.spin is not None:
             for sign in (1.0, -1.0):
-                rows.extend([len(values)] * 2)
+                rows.extend([count] * 2)
                 entries.extend((n, contact.spin))
                 gradients.extend((contact.torsion, -sign))
-                values.append(contact.torsion * f[n] - sign * f[contact.spin])
-    jacobian = np.zeros((len(values), forces.size))
+                count += 1
+    jacobian = np.zeros((count, forces.size))
     jacobian[rows, entries] = gradients
-    return np.array(values), jacobian
+    return jacobian
 
 
 def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
@@ -270,10 +283,10 @@ class _Problem:
         return None
 
     def limits(self, x: np.ndarray) -> np.ndarray:
-        return np.concatenate([_limit_values(self.columns, x[:-1])[0], self.caps @ x])
+        return np.concatenate([_limit_values(self.columns, x[:-1]), self.caps @ x])
 
     def limits_jacobian(self, x: np.ndarray) -> np.ndarray:
-        jacobian = _limit_values(self.columns, x[:-1])[1]
+        jacobian = _limit_jacobian(self.columns, x[:-1])
         return np.vstack([np.hstack([jacobian, np.zeros((len(jacobian), 1))]), self.caps])
 
     def solve(self, objective) -> Holding:
