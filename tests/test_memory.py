@@ -13,6 +13,7 @@ from pinstab.cli import main
 from pinstab.memory import available_bytes, data_bytes, limit_bytes, parse_size
 
 MEASURE_DATA = """
+import ctypes
 import sys
 import pinocchio as pin
 from pinstab.scene import load_scene
@@ -22,6 +23,7 @@ def rss():
 model = load_scene("nfourbar", N=int(sys.argv[1])).model
 tensors = sys.argv[2] == "pin.Data"
 build = pin.Data if tensors else new_data
+ctypes.CDLL("libc.so.6").malloc_trim(0)  # freed heap given back: the datas' pages are new, not reused
 before = rss()
 datas = [build(model) for _ in range(4)]
 print((rss() - before) / 4, data_bytes(model.nv, model.njoints, tensors))
