@@ -455,10 +455,7 @@ def _run_tolerance(value: Any) -> float | None:
     (0, 1), or None when not given."""
     if value is None or "rtol" not in value:
         return None
-    rtol = value["rtol"]
-    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0.0 < rtol < 1.0:
-        raise SceneError(f"run.rtol must be a number in (0, 1), e.g. 1e-8, got {rtol!r}")
-    return float(rtol)
+    return relative_tolerance(value["rtol"], "run.rtol", "of the error control's step")
 
 
 def _assembly_tolerance(value: Any) -> float | None:

@@ -186,12 +186,11 @@ def check_velocity(model: pin.Model, v: np.ndarray, where: str) -> None:
 
 
 # -- tolerances ----------------------------------------------------------------------------------
-def relative_tolerance(value: Any, where: str) -> float:
-    """A relative tolerance [-]: a number in (0, 1); SceneError naming ``where`` otherwise (negative, zero, NaN,
-    infinite, at least 1, not a number)."""
+def relative_tolerance(value: Any, where: str, meaning: str = "a fraction of the mechanism's size") -> float:
+    """A relative tolerance [-]: a number in (0, 1); SceneError naming ``where`` (and what it is relative to,
+    ``meaning``) otherwise (negative, zero, NaN, infinite, at least 1, not a number)."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value < 1.0:
         raise SceneError(
-            f"{where} must be a relative tolerance, a number in (0, 1) such as 1e-10 (a fraction of the mechanism's "
-            f"size), got {value!r}"
+            f"{where} must be a relative tolerance, a number in (0, 1) such as 1e-10 ({meaning}), got {value!r}"
         )
     return float(value)
