@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import tomllib
 
 import numpy as np
 import pytest
 from fuzzing import cli
 
+from conftest import ROBOTS
 from pinstab import load_scene, simulate
 from pinstab.errors import PinstabError, SceneError
 from pinstab.scene import scene_from_dict
@@ -48,6 +50,34 @@ def test_many_declared_contacts_step_in_time_and_others_keep_them_held():
     mixed = dataclasses.replace(push, constraints=[*push.constraints, *fourbar.constraints])
     choice = contact_choice(mixed)
     assert choice.treatment == "held" and fourbar.constraints[0].name in choice.why
+
+
+def test_a_grasp_contact_without_modes_keeps_the_contacts_held_naming_it():
+    """allegro-tilt with its index contact rigid (a model with no event-driven modes): held, naming the contact and
+    its model; with it point-friction again, the contacts switch."""
+    data = tomllib.loads((ROBOTS / "allegro-tilt.toml").read_text(encoding="utf-8"))
+    index = next(entry for entry in data["contacts"] if entry.get("name") == "index")
+    point_friction = dict(index)
+    index["model"] = "rigid"
+    del index["mu"]
+    choice = contact_choice(scene_from_dict(data, "rigid-index", ROBOTS))
+    assert choice.treatment == "held" and choice.why == "grasp contact index is rigid: no event-driven modes", choice
+    index.update(point_friction)
+    assert contact_choice(scene_from_dict(data, "index", ROBOTS)).treatment == "event"
+
+
+def test_simulate_without_contacts_runs_the_treatment_the_scene_asks_for():
+    """box-push with ``[run] contacts = "stepping"``: ``simulate(scene)`` (contacts None) steps in time as the scene
+    asks, equal to the last bit to the run asked for stepping; asked for held, it holds."""
+    data = tomllib.loads((ROBOTS / "box-push.toml").read_text(encoding="utf-8"))
+    data = {"run": {"contacts": "stepping"}, **data}
+    scene = scene_from_dict(data, "box-push-stepping", ROBOTS)
+    default = simulate(scene, duration=0.05)
+    stepping = simulate(scene, contacts="stepping", duration=0.05)
+    assert default.info.contact_treatment["treatment"] == "stepping"
+    assert default.info.contact_treatment["chosen"] == "scene"
+    assert np.array_equal(default.q, stepping.q) and np.array_equal(default.v, stepping.v)
+    assert simulate(scene, contacts="held", duration=0.05).info.contact_treatment["treatment"] == "held"
 
 
 def test_auto_runs_the_scenes_choice_to_the_last_bit_and_reports_it():

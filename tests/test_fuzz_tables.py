@@ -20,6 +20,7 @@ The number of examples comes from the Hypothesis profile (tests/conftest.py, :fu
 from __future__ import annotations
 
 import copy
+import json
 import math
 import re
 import tomllib
@@ -840,11 +841,12 @@ SLOW_EVENTS = {  # box-push on corners moved out to x = -0.45 m and -1.0 m, push
 def test_event_steps_do_not_collapse(files: RunFiles) -> None:
     """:data:`SLOW_EVENTS` with ``--contacts event --duration 0.12``: 4 min 25 s of wall time, 149,058 accepted
     dop853 steps down to 6.8e-13 s, for 8 contact events (found by the long profile): two corners start sliding
-    from rest at 1e-9 m/s, their friction direction turning within 1e-11 s. Now 500 steps in a row shorter than
-    1e-9 s end the run with exit 5 naming the sliding contacts (tests/test_contact_wall_time.py)."""
-    with time_limit(3):
-        outcome, _ = run_contact_case(ContactCase(SLOW_EVENTS), "event", "absent", files)
-    assert outcome.code in (0, 4, 5), outcome
+    from rest at 1e-9 m/s, their friction direction turning within 1e-11 s. Then 500 steps in a row shorter than
+    1e-9 s ended the run with exit 5; now a grazing slip's direction is slaved to its slip acceleration and the run
+    reaches its end in 2,239 steps (tests/test_contact_wall_time.py checks it against time-stepping)."""
+    outcome, _ = run_contact_case(ContactCase(SLOW_EVENTS), "event", "absent", files)
+    assert outcome.code == 0, outcome
+    assert json.loads(outcome.out)["error_control"]["steps_accepted"] < 5000
 
 
 SPINNING_ON_A_POINT = {  # a 0.056 kg ball, one frictionless contact at a point of its equator, spinning as it slides

@@ -84,7 +84,9 @@ LIMIT_REACHED, REACTION_ZERO = "limit reached", "reaction reached zero"
 # A run whose error control keeps taking steps shorter than CRAWL_STEP [s], CRAWL_STEPS of them in a row with no
 # event between, ends with ContactInfeasibleError: dynamics that fast are no rigid contact's (a slip of 1e-9 m/s,
 # whose direction turns within |v| / (mu f_n / m), about 1e-11 s: 149,058 steps of 1e-11 s, 4.5 min of wall time,
-# for 2.5e-6 s of simulated time); after an event the steps grow from a first one of 1e-11 s tenfold per step.
+# for 2.5e-6 s of simulated time; a grazing slip is now slaved to its slip acceleration, as
+# :mod:`pinstab.solvers.contact_modes` says, and that box slips through); after an event the steps grow from a first
+# one of 1e-11 s tenfold per step.
 CRAWL_STEP, CRAWL_STEPS = 1e-9, 500
 # A run whose joint limits are reached CHATTER_IMPACTS times in a row, each impact within CHATTER_GAP [s] of the last,
 # ends with ContactInfeasibleError: inelastic impacts of coupled limits settle, their speeds shrinking by a fixed factor

@@ -109,7 +109,8 @@ def simulate(
             :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
             change in ``info.contact_events``; None or ``held``: they are held as constraint rows; ``auto``: the
             scene's choice (:func:`~pinstab.simulate.choice.contact_choice`). The run reports the treatment, how it
-            was chosen and why in ``info.contact_treatment``. A scene with joint friction (``joint-friction``) runs
+            was chosen and why in ``info.contact_treatment``. A scene that asks for a treatment (its ``[run]
+            contacts``) runs it unless asked for another; a scene with joint friction (``joint-friction``) runs
             event-driven unless asked for another treatment, which refuses it (naming the joints).
         stop_on: with ``contacts="event"``, the kinds of contact event that end the run
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;

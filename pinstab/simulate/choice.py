@@ -17,10 +17,10 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 from ..constraints import FingertipContact, PointContact
-from ..errors import ConstraintError, PinstabError
+from ..errors import PinstabError
 from ..forces.joint_friction import joint_frictions, refusal
 from ..scene import CONTACT_TREATMENTS, Scene
-from ..solvers.contact_modes import plane_geometries, turning_contacts
+from ..solvers.contact_modes import modeless_contacts, plane_geometries, turning_contacts
 
 MAX_EVENT_CONTACTS = 8  # declared plane contacts beyond this many default to time-stepping
 
@@ -53,10 +53,11 @@ def contact_choice(scene: Scene) -> ContactChoice | None:
     others = [c.name for c in scene.constraints if not isinstance(c, PointContact | FingertipContact)]
     if others:
         return ContactChoice("held", "automatic", f"constraints {', '.join(others)} are not contacts")
-    try:
-        geometries = plane_geometries(contacts)
-    except ConstraintError as error:
-        return ContactChoice("held", "automatic", str(error).split(":")[0] + ": no event-driven modes")
+    modeless = modeless_contacts(contacts)
+    if modeless:
+        first = modeless[0]
+        return ContactChoice("held", "automatic", f"grasp contact {first.name} is {first.model}: no event-driven modes")
+    geometries = plane_geometries(contacts)
     count = len(contacts)
     if scene.contact_finders:
         return ContactChoice("event", "automatic", f"{count} contacts found from geometry, each with modes")
@@ -80,8 +81,9 @@ def default_contacts(scene: Scene) -> str:
 
 def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, ContactChoice | None]:
     """``simulate``'s ``contacts`` (None or ``held``: rows; ``event``; ``stepping``; ``auto``: the scene's choice; None
-    for a scene with joint friction: the scene's choice too) as (``event``, ``stepping`` or None for held rows; the
-    choice to report, None for a scene without contacts or joint friction).
+    for a scene with joint friction or one that asks for a treatment (``[run] contacts``): the scene's choice too) as
+    (``event``, ``stepping`` or None for held rows; the choice to report, None for a scene without contacts or joint
+    friction).
 
     Raises:
         PinstabError: another value (naming the valid ones); a treatment other than ``event`` for a scene with joint
@@ -92,7 +94,7 @@ def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, Co
         raise PinstabError(f"contacts: unknown treatment {contacts!r}; valid: {', '.join(valid)}")
     automatic = contact_choice(scene)
     frictions = joint_frictions(scene.forces)
-    if contacts == "auto" or (contacts is None and frictions):
+    if contacts == "auto" or (contacts is None and (frictions or scene.contacts is not None)):
         choice = automatic
         treatment = "held" if choice is None else choice.treatment
     else:
