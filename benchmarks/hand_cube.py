@@ -20,7 +20,7 @@ and a grid of steps. Both are measured the same way, at every step:
 The MuJoCo setting compared is the cheapest of the grid with penetration and slip at most pinstab's, else the one
 nearest to them (the least of the larger of its two ratios to pinstab's).
 
-    python benchmarks/hand_cube.py           # prints the tables (~1 min); --save writes
+    python benchmarks/hand_cube.py           # prints the tables (~1.5 min); --save writes
                                              # benchmarks/results/hand_cube.json (from a clean committed tree)
 """
 
