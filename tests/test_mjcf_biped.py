@@ -15,6 +15,7 @@ from mujoco_twin import mujoco_run, twins, written
 
 import pinstab
 from pinstab.cli import main
+from pinstab.trajectory import Trajectory
 
 BIPED = Path(__file__).parent / "data" / "mjcf_biped.xml"
 JOINTS = ["l_hip", "l_knee", "l_ankle", "r_hip", "r_knee", "r_ankle"]
@@ -101,3 +102,19 @@ def test_core_modes_are_numpy_modes(monkeypatch):
         (e["contact"], e["to"]) for e in core.info.contact_events
     ]
     np.testing.assert_allclose(numpy.q, core.q, rtol=0, atol=1e-9)
+
+
+def test_saving_the_run_changes_nothing_in_it(tmp_path, capsys):
+    """``run --save`` (issue 36: a run that succeeded without it exited 2, "lost rank"): the biped scene, whose joint
+    equality couples two joints, runs 0.5 s with and without ``--save`` to exit 0 and the same figures to the last
+    bit (the JSON but its timings and the saved path); the saved samples are the run's."""
+    scene = str(BIPED.with_suffix(".toml"))
+    results = []
+    for extra in ([], ["--save", str(tmp_path / "run.npz")]):
+        assert main(["run", scene, "--duration", "0.5", "--json", *extra]) == 0
+        result = json.loads(capsys.readouterr().out)
+        results.append({k: v for k, v in result.items() if k not in ("wall_s", "timings", "saved")})
+    assert results[0] == results[1]
+    saved = Trajectory.load(tmp_path / "run.npz")
+    direct = pinstab.simulate(twins(BIPED)[0], duration=0.5)
+    np.testing.assert_array_equal(saved.q, direct.q)
