@@ -53,7 +53,7 @@ from ..constraints.joint_limits import JointLimit
 from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
-from ..solvers.contact_modes import ModeDynamics, ModeSolution, plane_geometries, spin_name
+from ..solvers.contact_modes import GRAZING_SPEED, ModeDynamics, ModeSolution, plane_geometries, spin_name
 from ..solvers.impacts import impact, limit_impact
 from ..solvers.joint_friction_modes import choose_frictions, sticking_margins
 from ..solvers.mode_choice import (
@@ -407,8 +407,10 @@ class EventLoop(AdaptiveLoop):
         at zero acceleration, and rounding would otherwise end it at once, over and over."""
         rates = self.dynamics.kinematics(q, v).rates()
         slips = [rates[friction.rows] for friction in self.dynamics.frictions]
+        from_rest = self.dynamics.from_rest
         for f, slip in enumerate(slips):
             self._armed[f] = self._armed[f] or math.hypot(*slip) > ARMING_SPEED
+            from_rest[f] = from_rest[f] and math.hypot(*slip) < GRAZING_SPEED
         return [self.dynamics.slip_direction(f, slip) for f, slip in enumerate(slips)]
 
     def _locate(self, segment: Segment, t0: float, t1: float) -> float:
@@ -681,6 +683,7 @@ class EventLoop(AdaptiveLoop):
             dynamics.directions[f] = direction
         for i, (old, new) in enumerate(zip(before, choice.modes, strict=True)):
             self._armed[i] = new is not Mode.SLIDING or float(np.hypot(*contacts.velocities[i, 1:])) > SLIP_SPEED
+            dynamics.from_rest[i] = not self._armed[i]
             if new is Mode.STICKING and dynamics.modes[i] is not Mode.STICKING:
                 dynamics.contacts[i].anchor = contacts.local[i].copy()
             if force_record or old != new.value:

@@ -24,14 +24,14 @@ Grazing slip: a slip that starts from rest, at its cone's edge, turns its direct
 ``|s_perp| / |v_t|`` (s_perp: the part of its slip acceleration s across d), within 1e-11 s at 1e-9 m/s: a stiff
 direction that explicit error-controlled steps follow only at steps that short (a box pushed at mu = 5 took 149,058
 steps of 1e-11 s; the run was stopped as a crawl). In the limit the direction is slaved to the slow manifold
-``d x s(d) = 0``, ``d . s(d) > 0``: the slip accelerates along its own friction's direction. While a sliding
-contact's slip is slower than :data:`GRAZING_SPEED` and speeds up, its d is that root (Newton's method on the angles
-of all such contacts at once, from the directions the slips have; a root more than :data:`GRAZING_TURN` away from
-them is another motion's and is not taken), a function of the state alone; above it, d is the slip velocity's, which
-the slaved slip has been accelerating along (a slip that slows down is never slaved: its end is an event). The box
-now slips through to its slip ends; its state 0.022 s into the slip agrees with the time-stepping contacts' extrapolated
-to dt = 0 (Richardson, from 2e-5 and 1e-5 s) to 1.3e-9 m, where each of those is 3.5e-5 m off
-(tests/test_contact_wall_time.py).
+``d x s(d) = 0``, ``d . s(d) > 0``: the slip accelerates along its own friction's direction. While a slip that
+started from rest has not yet been faster than :data:`GRAZING_SPEED` and speeds up, its d is that root (Newton's
+method on the angles of all such contacts at once, from the directions the slips have; a root more than
+:data:`GRAZING_TURN` away from them is another motion's and is not taken), a function of the state alone; above it,
+d is the slip velocity's, which the slaved slip has been accelerating along (a slip that slows down is never slaved:
+its end is an event). The box now slips through to its slip ends; its state 0.022 s into the slip agrees with the
+time-stepping contacts' extrapolated to dt = 0 (Richardson, from 2e-5 and 1e-5 s) to 1.3e-9 m, where each of those is
+3.5e-5 m off (tests/test_contact_wall_time.py).
 
 Bilateral rows B, always held, come first: the model's own equality constraints (loop closures: ``G a + gamma
 = -Kd g - Kp phi``), the joint frictions that stick (``a_i = 0``, :mod:`pinstab.forces.joint_friction`; a slipping
@@ -256,6 +256,9 @@ class ModeDynamics:
             rotational frictions (:class:`Spin`), spin_modes: each one's (sticking or sliding; none while its contact
             is separated). frictions: every friction law (:class:`Friction`: each contact's linear one, then the
             spins). directions: the slip direction each sliding friction started in ((t1, t2) for a contact's).
+            from_rest: whether each friction slides in a slip that started from rest and has not yet been faster than
+            :data:`GRAZING_SPEED` (the event loop keeps it; a grazing slip's direction is slaved only then: a slip
+            that ends slows down from faster).
             friction_places: each friction's index before the last :meth:`rearrange`. continued: None, or each
             friction's slip direction at the start of the step being taken (None: not continued), which a sliding
             one keeps once its slip turns against it: the sliding mode continued smoothly past its end, where the
@@ -289,6 +292,7 @@ class ModeDynamics:
         self.frictions = frictions(contacts, self.spins)
         self.spin_modes: list[Mode] = [Mode.STICKING] * len(self.spins)
         self.directions: list[np.ndarray] = [_first_direction(f) for f in self.frictions]
+        self.from_rest = [False] * len(self.frictions)
         self.friction_places: list[int | None] = list(range(len(self.frictions)))
         self.continued: list[np.ndarray | None] | None = None
         self.statistics = SolverStatistics() if statistics is None else statistics
@@ -314,7 +318,7 @@ class ModeDynamics:
         self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
         self.spins = contact_spins(self.contacts)
         self.spin_modes = [spin_modes.get((self.contacts[s.contact].name, s.kind), Mode.STICKING) for s in self.spins]
-        directions, self.frictions = self.directions, frictions(self.contacts, self.spins)
+        directions, from_rest, self.frictions = self.directions, self.from_rest, frictions(self.contacts, self.spins)
         self.friction_places = [
             old.get((self.contacts[f.contact].name, f.spin is None or self.spins[f.spin].kind)) for f in self.frictions
         ]
@@ -322,6 +326,7 @@ class ModeDynamics:
             _first_direction(f) if k is None else directions[k]
             for f, k in zip(self.frictions, self.friction_places, strict=True)
         ]
+        self.from_rest = [k is not None and from_rest[k] for k in self.friction_places]
         self.continued = None
         self._redundant.clear()  # keyed by the modes of a layout
         self._state = None
@@ -432,7 +437,8 @@ class ModeDynamics:
         return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions, torques)
 
     def _grazing(self, modes: list[Mode], velocities: np.ndarray, system: np.ndarray, rates: np.ndarray) -> list[int]:
-        """The sliding contacts' frictions (linear, mu > 0) in a grazing slip: slower than :data:`GRAZING_SPEED`,
+        """The sliding contacts' frictions (linear, mu > 0) in a grazing slip: started from rest and not yet faster
+        than :data:`GRAZING_SPEED` (:attr:`from_rest`),
         speeding up along the direction the force ``system`` gives them (their slip acceleration, in ``rates``, has a
         positive component along it: a slip that slows down ends, an event), and not turned against the direction
         it had at the step's start (a slip ending within the step: the event loop locates its end)."""
@@ -441,7 +447,8 @@ class ModeDynamics:
             slip = velocities[friction.rows]
             continued = None if self.continued is None else self.continued[f]
             if (
-                modes[friction.contact] is Mode.SLIDING
+                self.from_rest[f]
+                and modes[friction.contact] is Mode.SLIDING
                 and friction.bound > 0.0
                 and math.hypot(*slip) < GRAZING_SPEED
                 and float(rates[friction.rows] @ system[friction.rows, friction.normal]) > 0.0
