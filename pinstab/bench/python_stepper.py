@@ -19,15 +19,26 @@ from scipy.linalg import cho_factor, cho_solve
 from ..errors import ContactSolveError
 from ..integration.contact_stepping import MIDPOINT_PASSES, MIDPOINT_TOLERANCE, ContactStepper
 from ..integration.stepping import Failure
+from ..solvers.contact_modes import ModeDynamics
 from ..solvers.mode_choice import TOUCH_GAP
-from ..solvers.ncp import CHECK_RTOL, CONE_ROWS, friction_cones, ncp_residual
+from ..solvers.ncp import CHECK_RTOL, CONE_ROWS, NcpSolver, friction_cones, ncp_residual
+from ..system import ConstrainedSystem
 
 
 class PythonStepper(ContactStepper):
     """:class:`~pinstab.integration.contact_stepping.ContactStepper` with its step's numbers in NumPy (the
-    reference; same arguments)."""
+    reference; same arguments).
+
+    Attributes:
+        free_flyers: (idx_q, idx_v) of the model's free-flyer joints.
+    """
 
     name = "moreau-jean-numpy"
+
+    def __init__(self, system: ConstrainedSystem, dynamics: ModeDynamics, solver: NcpSolver) -> None:
+        super().__init__(system, dynamics, solver)
+        joints = system.model.model.joints[1:]
+        self.free_flyers = [(j.idx_q, j.idx_v) for j in joints if j.shortname() == "JointModelFreeFlyer"]
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
@@ -85,15 +96,10 @@ class PythonStepper(ContactStepper):
                 return v_free
         raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
 
-    def _free_flyers(self) -> list[tuple[int, int]]:
-        """(idx_q, idx_v) of the model's free-flyer joints."""
-        joints = self.system.model.model.joints[1:]
-        return [(joint.idx_q, joint.idx_v) for joint in joints if joint.shortname() == "JointModelFreeFlyer"]
-
     def _turn(self, v: np.ndarray) -> np.ndarray:
         """-omega x v_lin in each free flyer's translation rows."""
         shift = np.zeros_like(v)
-        for _, iv in self._free_flyers():
+        for _, iv in self.free_flyers:
             shift[iv : iv + 3] = -np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
         return shift
 
@@ -101,7 +107,7 @@ class PythonStepper(ContactStepper):
         """q (+) dt v with each free flyer moved by dt pdot; v with its v_lin in its joint frame at q+."""
         model = self.system.model.model
         q_next, v_next = pin.integrate(model, q, dt * v), v.copy()
-        for iq, iv in self._free_flyers():
+        for iq, iv in self.free_flyers:
             rate = pin.Quaternion(q[iq + 3 : iq + 7]).toRotationMatrix() @ v[iv : iv + 3]
             q_next[iq : iq + 3] = q[iq : iq + 3] + dt * rate
             v_next[iv : iv + 3] = pin.Quaternion(q_next[iq + 3 : iq + 7]).toRotationMatrix().T @ rate
