@@ -1,9 +1,11 @@
-// pinstab._compiled.ConeSolver, ncp_residual and ConeStepper: the checked cone solve of pinstab.solvers.ncp and the
-// numeric part of the time-stepping contacts' step (pinstab.integration.contact_stepping), cpp/cone_solve.hpp and
-// cpp/cone_step.hpp.
+// pinstab._compiled.ConeSolver, ncp_residual, ConeStepper and plane_contact_rows: the checked cone solve of
+// pinstab.solvers.ncp, the numeric part of the time-stepping contacts' step (pinstab.integration.contact_stepping) and
+// the plane contacts' rows both contact treatments read (pinstab.solvers.contact_modes), cpp/cone_solve.hpp,
+// cpp/cone_step.hpp and cpp/plane_contacts.hpp.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
 #include <stdexcept>
@@ -11,6 +13,7 @@
 
 #include "cone_step.hpp"
 #include "kernels.hpp"
+#include "plane_contacts.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -45,9 +48,47 @@ void check_sizes(const pinocchio::Model& model, const VectorXd& q, const VectorX
   }
 }
 
+// The plane contacts of the arrays (k entries each; bases 3k x 3, origins k x 3), their frames checked in the model.
+std::vector<PlaneContact> plane_contacts(const pinocchio::Model& model, const VectorXi& frames,
+                                         const VectorXi& plane_frames, const VectorXd& radii, const RowMatrix& bases,
+                                         const RowMatrix& origins) {
+  const Eigen::Index k = frames.size();
+  if (plane_frames.size() != k || radii.size() != k || bases.rows() != 3 * k || bases.cols() != 3 ||
+      origins.rows() != k || origins.cols() != 3) {
+    throw std::invalid_argument(
+        "plane_contact_rows: frames, plane frames, radii (k), bases (3k x 3) and origins (k x 3) disagree");
+  }
+  std::vector<PlaneContact> contacts(static_cast<std::size_t>(k));
+  for (Eigen::Index i = 0; i < k; ++i) {
+    PlaneContact& contact = contacts[static_cast<std::size_t>(i)];
+    contact.frame = frames(i), contact.plane_frame = plane_frames(i), contact.radius = radii(i);
+    if (contact.frame < 0 || contact.frame >= model.nframes || contact.plane_frame < -1 ||
+        contact.plane_frame >= model.nframes) {
+      throw std::invalid_argument("plane_contact_rows: a frame outside the model (plane frame -1: the world)");
+    }
+    contact.basis = bases.middleRows<3>(3 * i);
+    contact.origin = origins.row(i).transpose();
+  }
+  return contacts;
+}
+
 }  // namespace
 
 void bind_cones(nb::module_& m) {
+  m.def(
+      "plane_contact_rows",
+      [](nb::handle model, nb::handle data, const VectorXi& frames, const VectorXi& plane_frames,
+         const VectorXd& radii, const RowMatrix& bases, const RowMatrix& origins, const VectorXd& v) {
+        const pinocchio::Model& native = python_model(model.ptr());
+        if (v.size() != native.nv) throw std::invalid_argument("plane_contact_rows: v not of the model's size nv");
+        const auto contacts = plane_contacts(native, frames, plane_frames, radii, bases, origins);
+        PlaneContactRows r = plane_contact_rows(native, python_data(data.ptr(), native), contacts, v);
+        return nb::make_tuple(r.gaps, r.positions, r.local, r.velocities, r.jacobian, r.drift, r.bases);
+      },
+      "model"_a, "data"_a, "frames"_a, "plane_frames"_a, "radii"_a, "bases"_a, "origins"_a, "v"_a,
+      "The plane contacts' (gaps [m], points [m, world], points in the plane's axes, velocities (k x 3) [m/s], "
+      "Jacobians (3k x nv), drifts (3k) [m/s^2], bases (3k x 3, world axes)) at a pin.Data's state after a full "
+      "pass; plane frame -1: the world (pinstab.solvers.contact_modes).");
   m.def(
       "ncp_residual",
       [](const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& impulses, const VectorXd& mus) {
