@@ -31,6 +31,7 @@ from pinstab.bench.python_stepper import PythonStepper
 from pinstab.integration.contact_stepping import ContactStepper
 from pinstab.simulate.contacts import stepping_parts
 from pinstab.simulate.loop import start_state
+from pinstab.simulate.threads import single_blas_thread
 
 DT = 1e-3  # [s]
 STEPS = 300
@@ -59,6 +60,7 @@ class TimedCall:
         return result
 
 
+@single_blas_thread  # as simulate() runs
 def pinstab_steps(name: str, stepper: type[ContactStepper]) -> tuple[float, np.ndarray, TimedCall | None]:
     """STEPS steps of scene ``name`` with ``stepper``: CPU per step [s], the end configuration, the timed compiled
     call (None for the NumPy stepper)."""

@@ -30,7 +30,8 @@ class PythonStepper(ContactStepper):
     reference; same arguments).
 
     Attributes:
-        free_flyers: (idx_q, idx_v) of the model's free-flyer joints.
+        free_flyers: (idx_q, idx_v) of the model's free-flyer joints. cones: the cone solve's constraint models by
+            the friction coefficients of its contacts (built once each).
     """
 
     name = "moreau-jean-numpy"
@@ -39,6 +40,7 @@ class PythonStepper(ContactStepper):
         super().__init__(system, dynamics, solver)
         joints = system.model.model.joints[1:]
         self.free_flyers = [(j.idx_q, j.idx_v) for j in joints if j.shortname() == "JointModelFreeFlyer"]
+        self.cones: dict[tuple[float, ...], tuple] = {}
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
@@ -73,7 +75,10 @@ class PythonStepper(ContactStepper):
         rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
         delassus, g = jacobian[rows] @ mobility[:, rows], offset[rows]
         scales = np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
-        cones = friction_cones([min(mu, 1.0) for mu in mus])
+        key = tuple(mus)
+        if key not in self.cones:
+            self.cones[key] = friction_cones([min(mu, 1.0) for mu in mus])
+        cones = self.cones[key]
         solution = scales * self.solver.solve(scales[:, None] * delassus * scales, scales * g, *cones)
         scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
         if not ncp_residual(delassus, g, solution, mus) <= CHECK_RTOL * scale:
