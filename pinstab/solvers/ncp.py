@@ -85,7 +85,8 @@ class NcpSolver:
 
     Attributes:
         size: the largest problem size it takes (at least 3). result: Pinocchio's ``ADMMSolverResult`` of the last
-        ADMM solve. method: the solver whose answer the last
+        :meth:`solve`. cones: the compiled checked solve (``pinstab._compiled.ConeSolver``) of :meth:`solve_contacts`,
+        which the compiled time-stepping step calls too. method: the solver whose answer the last
             :meth:`solve_contacts` kept (``ADMM`` or ``PGS``; the last one tried when none passed). residual:
             that answer's :func:`ncp_residual` [units of g]. tolerance: the residual it accepted [units of g].
     """
