@@ -102,7 +102,16 @@ void bind_cones(nb::module_& m) {
         "The natural map's largest contact residual of impulses (t1, t2, n per contact) on the problem (D, g) with "
         "friction coefficients mus [-], in the units of g (pinstab.solvers.ncp.ncp_residual).");
   nb::class_<ConeSolver>(m, "ConeSolver")
-      .def(nb::init<int, double, int>(), "size"_a, "tolerance"_a, "max_iterations"_a)
+      .def(
+          "__init__",
+          [](ConeSolver* self, int size, double tolerance, int max_iterations, int lanczos_size) {
+            if (size < 0 || max_iterations < 1 || lanczos_size < 1 || !(tolerance > 0.0)) {
+              throw std::invalid_argument(
+                  "ConeSolver: size >= 0, tolerance > 0, max_iterations >= 1 and lanczos_size >= 1");
+            }
+            new (self) ConeSolver(size, tolerance, max_iterations, lanczos_size);
+          },
+          "size"_a, "tolerance"_a, "max_iterations"_a, "lanczos_size"_a)
       .def(
           "solve",
           [](ConeSolver& self, const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& mus,

@@ -93,10 +93,11 @@ struct ConeSolver::Solvers {
   }
 };
 
-ConeSolver::ConeSolver(int size, double tolerance, int max_iterations)
+ConeSolver::ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size)
     : solvers_(std::make_unique<Solvers>(std::max(size, 3))), max_iterations_(max_iterations) {
   set_tolerances(solvers_->admm_settings, tolerance, max_iterations);
   solvers_->admm_settings.admm_update_rule = pinocchio::ADMMUpdateRule::SPECTRAL;
+  solvers_->admm_settings.lanczos_size = static_cast<std::size_t>(lanczos_size);
   set_tolerances(solvers_->pgs_settings, tolerance, max_iterations);
 }
 

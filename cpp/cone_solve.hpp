@@ -31,10 +31,11 @@ struct ConeStatus {
 };
 
 // ADMM and PGS in NCP mode with every feasibility and complementarity tolerance (absolute and relative) at
-// `tolerance` and at most `max_iterations` each (ADMM: the spectral rho rule).
+// `tolerance` and at most `max_iterations` each (ADMM: the spectral rho rule, D's largest eigenvalue estimated by
+// `lanczos_size` Lanczos steps).
 class ConeSolver {
  public:
-  ConeSolver(int size, double tolerance, int max_iterations);
+  ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size);
   ~ConeSolver();
   ConeSolver(const ConeSolver&) = delete;
   ConeSolver& operator=(const ConeSolver&) = delete;
