@@ -33,6 +33,7 @@ void bind_spring_damper(nb::module_& m);
 SpringDamperSpec spring_damper_spec(nb::dict form, const pinocchio::Model& model);
 void bind_kkt_sparsity(nb::module_& m);  // cpp/kkt_sparsity_bindings.cpp (a measurement)
 void bind_projection(nb::module_& m);  // cpp/projection_bindings.cpp
+void bind_cones(nb::module_& m);       // cpp/cone_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -192,6 +193,7 @@ NB_MODULE(_compiled, m) {
   bind_adaptive(m);
   bind_steps(m);
   bind_limits(m);
+  bind_cones(m);
   bind_spring_damper(m);
   bind_kkt_sparsity(m);
   nb::class_<Kernel>(m, "Kernel")

@@ -6,8 +6,10 @@ once), Pinocchio's constrained dynamics, the banded solve, the servo solve and t
 (:mod:`pinstab.paths`), the explicit step loop over them (:mod:`pinstab.integration.compiled`), the explicit schemes'
 steps that the Python loops take too, their stages evaluated by a Python callable (:mod:`pinstab.integration.schemes`),
 the error-controlled loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a
-fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`) and the drift and energy series of a run of
-compiled rows (:mod:`pinstab.series`).
+fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`), the drift and energy series of a run of
+compiled rows (:mod:`pinstab.series`), the checked cone solve (:mod:`pinstab.solvers.ncp`), the plane contacts' rows
+(:mod:`pinstab.solvers.contact_modes`) and the numeric part of the time-stepping contacts' step
+(:mod:`pinstab.integration.contact_stepping`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -23,6 +25,8 @@ try:
         AdaptivePair,
         BandedKernel,
         CompiledTarget,
+        ConeSolver,
+        ConeStepper,
         CoreCorrection,
         CoreKernel,
         CoreProjection,
@@ -65,6 +69,8 @@ try:
         kkt_cost_split,
         least_norm,
         native_residual,
+        ncp_residual,
+        plane_contact_rows,
         primal_residual,
         project_positions,
         servo_parts,
@@ -90,6 +96,8 @@ __all__ = [
     "AdaptivePair",
     "BandedKernel",
     "CompiledTarget",
+    "ConeSolver",
+    "ConeStepper",
     "CoreCorrection",
     "CoreKernel",
     "CoreProjection",
@@ -134,6 +142,8 @@ __all__ = [
     "kkt_cost_split",
     "least_norm",
     "native_residual",
+    "ncp_residual",
+    "plane_contact_rows",
     "primal_residual",
     "project_positions",
     "servo_parts",

@@ -1,6 +1,6 @@
 """Time-stepping contacts keep a free body's energy under spin (issue 34, the fuzzer's
 test_time_stepping_keeps_a_spinning_ball_energy): free flyers stepped in world axes, the gyroscopic term at the
-step's midpoint (pinstab/integration/free_flyers.py, contact_stepping.py).
+step's midpoint (pinstab/integration/contact_stepping.py, cpp/cone_step.hpp).
 
 Measured (these tests, dt = 1 ms): the frictionless sphere-spin ball (omega0 = -30 rad/s, v0 = 2 m/s) keeps 4.781 J
 to 1e-15 over 3 s (it gained 27.7 J with the term explicit) and stays within 1.3e-8 m of the event-driven run; a

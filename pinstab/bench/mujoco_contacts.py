@@ -8,6 +8,7 @@ the same masses and inertias as pinstab's, gravity as in pinstab's scene:
 * incline: a 1 kg box of side 0.1 m on the plane z = 0 (MuJoCo's box-plane collision: its corners),
   gravity (g sin theta, 0, -g cos theta);
 * sphere-spin: a 1 kg solid sphere on z = 0, thrown with v0 along x and backspin omega0;
+* box-stack: 1 kg cubes of side 0.1 m stacked at rest on z = 0 (several free bodies, each its free joint);
 * bouncing-ball: a 1 kg sphere of radius 0.05 m dropped from a gap h, frictionless (``condim`` 1), its
   restitution e set by solref's damping ratio ``zeta = -ln e / sqrt(pi^2 + ln^2 e)`` (a linear
   spring-damper's);
@@ -98,6 +99,18 @@ def incline(theta: float, mu: float, v_down: float = 0.0, v_across: float = 0.0)
     )
     gravity = (GRAVITY * math.sin(theta), 0.0, -GRAVITY * math.cos(theta))
     return MujocoScene(body, gravity, np.array([v_down, v_across, 0, 0, 0, 0.0]), np.zeros(6))
+
+
+def box_stack(count: int, mu: float) -> MujocoScene:
+    """box-stack: ``count`` 1 kg cubes of side BOX_SIDE stacked at rest on z = 0, friction ``mu`` (MuJoCo's box-plane
+    and box-box collisions: four corners per face pair, as pinstab's contacts found from geometry)."""
+    half = BOX_SIDE / 2
+    body = f'<geom type="plane" size="0 0 1" friction="{mu!r} 0 0"/>' + "".join(
+        f'<body pos="0 0 {half + k * BOX_SIDE!r}"><freejoint/><geom type="box" size="{_v([half] * 3)}" mass="1" '
+        f'friction="{mu!r} 0 0"/></body>'
+        for k in range(count)
+    )
+    return MujocoScene(body, (0.0, 0.0, -GRAVITY), np.zeros(6 * count), np.zeros(6 * count))
 
 
 def sphere_spin(v0: float, omega0: float, mu: float, radius: float) -> MujocoScene:

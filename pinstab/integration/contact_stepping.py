@@ -4,16 +4,20 @@ One step of ``dt`` from (q, v) at t, for plane contacts (:class:`~pinstab.solver
 
     v_free = v + dt (M^-1 (tau - g - c(w)) - turn(w))     w = (v + v_free) / 2
     v+     = v_free + M^-1 J^T lambda          (J: the contact points' Jacobians in their bases)
-    q+     = q (+) dt v+                       (free flyers: moved by dt pdot+, :mod:`.free_flyers`)
+    q+     = q (+) dt v+                       (free flyers: moved by dt pdot+)
 
-M, tau and the gravity g at (q, t). Free-flyer joints are stepped in their parent's axes (:mod:`.free_flyers`:
-``turn(w)`` takes their frame's turn ``-omega x v_lin`` out of their translation rows, the position moves by
-``dt pdot``), and the velocity terms c(w) = C(q, w) w (h = C v + g) are taken at the free step's midpoint velocity
-w (the implicit midpoint rule in them, by fixed point: :meth:`ContactStepper.free_velocity`). Both keep a free
-body's kinetic energy: in the parent's axes a free flyer's translation has no velocity term left, and the midpoint
-keeps ``omega^T I omega / 2`` under the gyroscopic term ``omega x I omega`` (``w^T c(w) = 0``: it does no work),
-where the explicit term scaled the velocity by ``sqrt(1 + (omega dt)^2)`` each step. Explicit in the joint frame,
-a frictionless ball spinning at 30 rad/s and sliding at 2 m/s gained 28 J in 3 s (from 4.78 J).
+M, tau and the gravity g at (q, t). Free-flyer joints are stepped in their parent's axes, as MuJoCo's free joints
+(``pdot = R v_lin`` instead of Pinocchio's joint-frame ``v_lin``: in the joint frame a body gliding at a constant
+``pdot`` has ``d v_lin / dt = -omega x v_lin``, and a step that takes this term at one velocity moves the body
+along a screw, not along the velocity its impulses were computed for): ``turn(w)`` takes their frame's turn
+``-omega x v_lin`` out of their translation rows, the position moves by ``p+ = p + dt R v_lin+`` and the velocity
+stored is ``R+^T R v_lin+`` (the same ``pdot`` in the end's joint frame, ``R+ = R exp(dt omega+)``), and the
+velocity terms c(w) = C(q, w) w (h = C v + g) are taken at the free step's midpoint velocity w (the implicit
+midpoint rule in them, by fixed point, :data:`MIDPOINT_PASSES` at most). Both keep a free body's kinetic energy: in
+the parent's axes a free flyer's translation has no velocity term left, and the midpoint keeps ``omega^T I omega /
+2`` under the gyroscopic term ``omega x I omega`` (``w^T c(w) = 0``: it does no work), where the explicit term
+scaled the velocity by ``sqrt(1 + (omega dt)^2)`` each step. Explicit in the joint frame, a frictionless ball
+spinning at 30 rad/s and sliding at 2 m/s gained 28 J in 3 s (from 4.78 J).
 
 The impulses lambda [N s] of the contacts whose gap would close within the step, or stay within
 :data:`~pinstab.solvers.mode_choice.TOUCH_GAP` of closed (``gap + dt (J v_free)_n <= TOUCH_GAP``: a box resting
@@ -46,6 +50,13 @@ the run kept up to the step's start), never with a state off the law. The scheme
 Euler between events; an impact or a switch is located to within a step): a contact point on a rotating body
 ends a step up to ``dt^2 omega^2 r / 2`` inside its plane (the chord ``dt v+`` against the arc, ``r`` the point's
 distance from the axis), which the next step's gap term takes back.
+
+The step's numbers are compiled (``pinstab._compiled.ConeStepper``, cpp/cone_step.hpp): the free velocity and its
+midpoint passes (M's Cholesky factor, Pinocchio's ``nonLinearEffects``), the contacts in the problem and their biases,
+the Delassus matrix, the checked cone solve (the one :meth:`~pinstab.solvers.ncp.NcpSolver.solve_contacts` calls),
+the impulses' velocity change and the position update. Python keeps what the compiled step reads and what it tells:
+the contacts (found by coal; gaps and Jacobians from :class:`~pinstab.solvers.contact_modes.ModeDynamics`, the rule
+the event-driven contacts use), the applied forces, the modes and events, the statistics and errors.
 """
 
 from __future__ import annotations
@@ -54,16 +65,16 @@ import math
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
-from scipy.linalg import cho_factor, cho_solve
 
 from ..contact.modes import ContactEvent, Mode, as_tuple
 from ..errors import ContactSolveError
-from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries
+from ..kernels import ConeStepper
+from ..model import DynamicsTerms
+from ..solvers import ncp
+from ..solvers.contact_modes import ContactKinematics, ModeDynamics, PlaneContactGeometry, plane_geometries
 from ..solvers.mode_choice import TOUCH_GAP
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
-from .free_flyers import FreeFlyers
 from .schemes import Integrator
 from .stepping import Failure
 
@@ -101,7 +112,7 @@ class ContactStepper(Integrator):
         self.modes: list[Mode] | None = None
         self.impulses = np.zeros((count, 3))
         self._index = {contact.name: i for i, contact in enumerate(dynamics.contacts)}
-        self.free_flyers = FreeFlyers(system.model.model)
+        self.compiled = ConeStepper(system.model.model, system.model.scratch)
         self.finders: list[Any] = []
         self._declared: list[PlaneContactGeometry] = []
 
@@ -116,10 +127,11 @@ class ContactStepper(Integrator):
 
     def _refind(self, q: np.ndarray) -> None:
         """Take the contacts found at q as the dynamics' (see :meth:`find_contacts`)."""
-        found = plane_geometries([contact for finder in self.finders for contact in finder.contacts(q)])
-        contacts = self._declared + found
-        if [c.name for c in contacts] == [c.name for c in self.dynamics.contacts]:
-            return
+        found = [contact for finder in self.finders for contact in finder.contacts(q)]
+        names = [contact.name for contact in self._declared + found]
+        if names == [contact.name for contact in self.dynamics.contacts]:
+            return  # the same contacts (their geometries, which cost more than the search, are not rebuilt)
+        contacts = self._declared + plane_geometries(found)
         places = self.dynamics.rearrange(contacts)
         if self.modes is not None:
             self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
@@ -129,57 +141,50 @@ class ContactStepper(Integrator):
             self.solver = NcpSolver(3 * len(contacts))
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
+        """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+).
+
+        Raises:
+            Failure: the velocity terms at the step's midpoint did not settle in :data:`MIDPOINT_PASSES` passes (a
+                step too large: the stepping loop locates and names it).
+            ContactSolveError: no solver met the contact law of the step's contacts.
+        """
+        terms, contacts = self.start(q, v, t, dt)
+        laws = [(contact.mu, contact.restitution) for contact in self.dynamics.contacts]
+        mus, restitutions = np.array(laws, dtype=float).reshape(-1, 2).T
+        settings = np.array([TOUCH_GAP, MIDPOINT_TOLERANCE, MIDPOINT_PASSES, ncp.CHECK_RTOL])
+        q_next, v_next, active, impulses, velocities, reach, settled, solved = self.compiled.step(
+            q,
+            v,
+            dt,
+            terms.mass_matrix,
+            terms.tau - terms.bias,
+            contacts.gaps,
+            np.ascontiguousarray(contacts.velocities[:, 0]),
+            contacts.jacobian,
+            mus,
+            restitutions,
+            settings,
+            self.solver.cones,
+        )
+        if not settled:
+            raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
+        if active:
+            self.solver.read_status()
+            self.solver.record(self.system.solver.statistics)
+            if not solved:
+                raise self._unsolved(tuple(active), t)
+        self._track(t, dt, impulses, velocities, reach)
+        self.impulses = impulses
+        return q_next, v_next
+
+    def start(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[DynamicsTerms, ContactKinematics]:
+        """What a step of ``dt`` [s] from (q, v) at t [s] reads, M, h and the applied forces and the contacts' gaps
+        and Jacobians, after taking back the events of a step the loop replays and finding the contacts at q."""
         if self.events and self.events[-1].t > t + dt / 2:
             self._rewind(t + dt / 2)
         if self.finders:
             self._refind(q)
-        model = self.system.model
-        terms = model.dynamics_terms(q, v, t)
-        contacts = self.dynamics.kinematics_from_kin(v)
-        factor = cho_factor(terms.mass_matrix)
-        v_free, mobility = (
-            self.free_velocity(q, v, dt, terms.tau - terms.bias, factor),
-            cho_solve(factor, contacts.jacobian.T),
-        )
-        reach = contacts.jacobian @ v_free
-        active = tuple(int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[0::3] <= TOUCH_GAP))
-        impulses = np.zeros_like(self.impulses)
-        v_new = v_free
-        if active:
-            offset = reach.copy()
-            for i in active:
-                offset[3 * i] += self._normal_bias(i, contacts.gaps[i], contacts.velocities[i, 0], dt)
-            mus = [self.dynamics.contacts[i].mu for i in active]
-            impulses[np.array(active)] = self.solver.solve_contacts(contacts.jacobian, mobility, offset, active, mus)
-            self.solver.record(self.system.solver.statistics)
-            if not self.solver.status().converged:
-                raise self._unsolved(active, t)
-            v_new = v_free + mobility @ impulses.ravel()
-        velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
-        normal = contacts.jacobian[0::3]
-        self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
-        self.impulses = impulses
-        return self.free_flyers.integrate(self.system.model.model, q, v_new, dt)
-
-    def free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
-        """v_free [m/s, rad/s] of a step of ``dt`` [s] from (q, v): ``force`` = tau - h(q, v) [N, N m] with the
-        velocity terms c(v) of h taken back and c(w) put in, and the free flyers' ``turn(w)`` taken out, at the
-        midpoint w = (v + v_free) / 2, by fixed point (``factor``: M's Cholesky factor); non-finite when the passes
-        do not settle (a step too large: :class:`~.stepping.Failure`, which the stepping loop locates and names)."""
-        model, data = self.system.model.model, self.system.model.scratch
-        turn = self.free_flyers.turn
-        v_free = v + dt * (cho_solve(factor, force) - turn(v))
-        at_start = pin.nonLinearEffects(model, data, q, v).copy()  # gravity cancels in the difference
-        for _ in range(MIDPOINT_PASSES):
-            middle = (v + v_free) / 2
-            shift = pin.nonLinearEffects(model, data, q, middle) - at_start
-            v_next = v + dt * (cho_solve(factor, force - shift) - turn(middle))
-            change = float(np.max(np.abs(v_next - v_free), initial=0.0))
-            v_free = v_next
-            if change <= MIDPOINT_TOLERANCE * float(np.max(np.abs(v_free), initial=0.0)):
-                return v_free
-        raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
+        return self.system.model.dynamics_terms(q, v, t), self.dynamics.kinematics_from_kin(v)
 
     def _rewind(self, t: float) -> None:
         """Forget the events after t [s] and take back the modes before them: the loop replays steps it took
@@ -201,14 +206,6 @@ class ContactStepper(Integrator):
             names,
             t,
         )
-
-    def _normal_bias(self, i: int, gap: float, normal_velocity: float, dt: float) -> float:
-        """b_n of contact i [m/s]: the gap's term, or Newton's impact law when it asks for more."""
-        restitution = self.dynamics.contacts[i].restitution
-        bias = gap / dt
-        if restitution > 0.0 and normal_velocity < 0.0:
-            bias = min(bias, restitution * normal_velocity)
-        return bias
 
     def _track(self, t: float, dt: float, impulses: np.ndarray, velocities: np.ndarray, reach: np.ndarray) -> None:
         """Read each contact's mode over the step (``reach``: the normal velocity a unit normal impulse gives

@@ -147,18 +147,8 @@ def simulate_stepping(
 ) -> Trajectory | StreamedTrajectory:
     """:func:`simulate` with time-stepping contacts (``contacts="stepping"``), which do not hold joint limits
     (``limit_watch`` fed every step's state), timed by the call's ``clock``."""
-    geometries, system, q, v, _ = contact_system(scene, q0, v0)
-    turning = turning_contacts(geometries)
-    if turning:
-        raise PinstabError(
-            f"scene {scene.name}: time-stepping contacts have no rotational friction yet (torsion, rolling, a soft "
-            f"finger's torsion) at {', '.join(turning)}; run it with event-driven contacts (--contacts event)"
-        )
     grid = TimeGrid.of(dt, duration, record_every)
-    system.bind(grid.dt, "semi-implicit-euler", q)
-    dynamics = ModeDynamics(system.model, geometries)
-    stepper = ContactStepper(system, dynamics, NcpSolver(3 * len(geometries)))
-    stepper.find_contacts(scene.contact_finders)
+    system, stepper, q, v = stepping_parts(scene, grid.dt, q0, v0)
     system.path, system.path_reason = "contact-stepping", "time-stepping contacts (Moreau-Jean, ADMM in NCP mode)"
     info = run_info(scene, system, stepper.name, grid, None, "none", None, record_every)
     info.solver = "pinocchio-admm"
@@ -170,6 +160,29 @@ def simulate_stepping(
     with kept_when_stopped(loop, system, info, clock), nullcontext() if bar is None else closing(bar):
         loop.run(q, v, bar)
     return trajectory_of(loop, system, info, clock)
+
+
+def stepping_parts(
+    scene: Scene, dt: float, q0: np.ndarray, v0: np.ndarray, stepper: type[ContactStepper] = ContactStepper
+) -> tuple[ConstrainedSystem, ContactStepper, np.ndarray, np.ndarray]:
+    """The system bound to steps of ``dt`` [s], the ``stepper`` (its class: :func:`simulate_stepping`'s, or the
+    NumPy reference of a benchmark or test) asking the scene's finders for contacts, and the start state of a
+    time-stepping run of ``scene``.
+
+    Raises:
+        PinstabError: a scene whose contacts have rotational friction, or whose constraints do not fit.
+    """
+    geometries, system, q, v, _ = contact_system(scene, q0, v0)
+    turning = turning_contacts(geometries)
+    if turning:
+        raise PinstabError(
+            f"scene {scene.name}: time-stepping contacts have no rotational friction yet (torsion, rolling, a soft "
+            f"finger's torsion) at {', '.join(turning)}; run it with event-driven contacts (--contacts event)"
+        )
+    system.bind(dt, "semi-implicit-euler", q)
+    stepping = stepper(system, ModeDynamics(system.model, geometries), NcpSolver(3 * len(geometries)))
+    stepping.find_contacts(scene.contact_finders)
+    return system, stepping, q, v
 
 
 def contact_system(

@@ -59,7 +59,7 @@ from ..contact.modes import Mode
 from ..contact.round_pairs import core_nearest
 from ..errors import ConstraintError, ContactInfeasibleError, SolverError
 from ..forces.joint_friction import JointFriction
-from ..kernels import block_jacobian
+from ..kernels import block_jacobian, plane_contact_rows
 from ..model import ConstrainedModel
 from ..runinfo import SolverStatistics
 
@@ -300,6 +300,7 @@ class ModeDynamics:
         self._state: tuple | None = None
         self._unforced_terms: tuple[np.ndarray, np.ndarray, ContactKinematics, Bilateral | None] | None = None
         self._spin_terms: SpinResponse | None = None  # the spins' response at the state of _unforced_terms
+        self._planes: tuple[np.ndarray, tuple] | None = None  # plane_arrays of the contacts
 
     def rearrange(self, contacts: list[PlaneContactGeometry]) -> list[int | None]:
         """Take ``contacts`` as the contacts, in their order (contacts found from geometry come and go): one of the
@@ -328,6 +329,7 @@ class ModeDynamics:
         ]
         self.from_rest = [k is not None and from_rest[k] for k in self.friction_places]
         self.continued = None
+        self._planes = None
         self._redundant.clear()  # keyed by the modes of a layout
         self._state = None
         return places
@@ -632,44 +634,36 @@ class ModeDynamics:
             ) from None
 
     def kinematics_from_kin(self, v: np.ndarray) -> ContactKinematics:
-        """:meth:`kinematics` from the pass :meth:`ConstrainedModel.dynamics_terms` just made."""
+        """:meth:`kinematics` from the pass :meth:`ConstrainedModel.dynamics_terms` just made (the plane contacts'
+        rows compiled, :func:`~pinstab.kernels.plane_contact_rows`; a round pair's here, :func:`_round_rows`)."""
         kin = self.model.kin
         k = len(self.contacts)
-        gaps, positions, local, velocities = np.zeros(k), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
-        jacobian, drift = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k)
-        bases = [np.eye(3)] * k  # (n, t1, t2) in world axes
-        for i, contact in enumerate(self.contacts):
-            rows = slice(3 * i, 3 * i + 3)
-            if contact.core is not None:
-                gaps[i], positions[i], jacobian[rows], drift[rows], bases[i] = _round_rows(kin, contact, v)
-                local[i] = kin.placement(contact.plane_frame).actInv(positions[i])
-                velocities[i] = jacobian[rows] @ v
-                continue
-            plane = None if contact.plane_frame is None else kin.placement(contact.plane_frame)
-            basis = contact.basis if plane is None else contact.basis @ plane.rotation.T  # (n, t1, t2), world axes
-            bases[i] = basis
-            normal, frame = basis[0], contact.frame
-            frame_jacobian, frame_drift = kin.jacobian(frame), kin.drift_acceleration(frame)
-            positions[i] = kin.placement(frame).translation - contact.radius * normal
-            point_jacobian, point_drift = frame_jacobian[:3], frame_drift.linear
-            if contact.radius:  # the touching point of the sphere: v_c + omega x (-r n)
-                arm = contact.radius * pin.skew(normal)
-                point_jacobian = point_jacobian + arm @ frame_jacobian[3:]
-                point_drift = point_drift + arm @ frame_drift.angular
-            if contact.plane_frame is not None:  # relative to the plane's material point at p
-                point_jacobian, point_drift = _relative(
-                    kin, contact.plane_frame, positions[i], v, point_jacobian, point_drift
-                )
-            local[i] = positions[i] if plane is None else plane.actInv(positions[i])
-            jacobian[rows] = basis @ point_jacobian
-            velocities[i] = jacobian[rows] @ v
-            drift[rows] = basis @ point_drift
-            gaps[i] = contact.basis[0] @ (local[i] - contact.origin)
-            if not np.isfinite(gaps[i]):
-                raise ConstraintError(
-                    f"contact {contact.name}: its gap is {gaps[i]} (the state is not finite: q has "
-                    f"{np.count_nonzero(~np.isfinite(self.model.kin.q))} non-finite entries)"
-                )
+        if self._planes is None:
+            self._planes = plane_arrays(self.contacts)
+        places, arrays = self._planes
+        planar = plane_contact_rows(kin.model, kin.data, *arrays, v)
+        if places.size == k:
+            gaps, positions, local, velocities, jacobian, drift, world = planar
+        else:  # round pairs among them, in their places
+            gaps, positions, local, velocities = np.zeros(k), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3))
+            jacobian, drift, world = np.zeros((3 * k, self.model.nv)), np.zeros(3 * k), np.zeros((3 * k, 3))
+            rows = (3 * places[:, None] + np.arange(3)).ravel()
+            gaps[places], positions[places], local[places], velocities[places] = planar[:4]
+            jacobian[rows], drift[rows], world[rows] = planar[4:]
+            for i, contact in enumerate(self.contacts):
+                if contact.core is not None:
+                    rows = slice(3 * i, 3 * i + 3)
+                    gaps[i], positions[i], jacobian[rows], drift[rows], world[rows] = _round_rows(kin, contact, v)
+                    local[i] = kin.placement(contact.plane_frame).actInv(positions[i])
+                    velocities[i] = jacobian[rows] @ v
+        missing = np.flatnonzero(~np.isfinite(gaps[places]))
+        if missing.size:
+            i = int(places[missing[0]])
+            raise ConstraintError(
+                f"contact {self.contacts[i].name}: its gap is {gaps[i]} (the state is not finite: q has "
+                f"{np.count_nonzero(~np.isfinite(self.model.kin.q))} non-finite entries)"
+            )
+        bases = world.reshape(-1, 3, 3)  # (n, t1, t2) in world axes
         if not self.spins:
             return ContactKinematics(gaps, positions, local, velocities, jacobian, drift)
         spin_rows = [np.zeros((0, self.model.nv))]
@@ -688,6 +682,21 @@ class ModeDynamics:
     def acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
         """The accelerations at (q, v, t) in the current modes [m/s^2, rad/s^2] (the integrators' call)."""
         return self.solve(q, v, t).acceleration
+
+
+def plane_arrays(contacts: list[PlaneContactGeometry]) -> tuple[np.ndarray, tuple]:
+    """The places of ``contacts`` without a core (not round pairs) and their compiled form for
+    :func:`~pinstab.kernels.plane_contact_rows`: frames, plane frames (-1: the world), radii [m], bases (3k x 3) and
+    plane points (k x 3) [m]."""
+    places = np.array([i for i, contact in enumerate(contacts) if contact.core is None], dtype=int)
+    chosen = [contacts[i] for i in places]
+    return places, (
+        np.array([contact.frame for contact in chosen], dtype=np.int32),
+        np.array([-1 if c.plane_frame is None else c.plane_frame for c in chosen], dtype=np.int32),
+        np.array([contact.radius for contact in chosen], dtype=float),
+        np.array([contact.basis for contact in chosen], dtype=float).reshape(-1, 3),
+        np.array([contact.origin for contact in chosen], dtype=float).reshape(-1, 3),
+    )
 
 
 def _relative(

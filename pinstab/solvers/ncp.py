@@ -10,18 +10,18 @@ contact's sigma_n is exactly 0 and its friction opposes sigma_t; ``solve_ncp``).
 (CCP, ``solve_ncp = False``) would let sliding contacts lift off by ``mu |sigma_t|``; it is never used here.
 Each contact's three rows are in Pinocchio's order (t1, t2, n): normal last.
 
-:meth:`NcpSolver.solve_contacts` does not take a solver's word for it. It poses the problem with each contact's
-tangential impulse in units of ``s = max(mu, 1)`` times the normal one (``lambda = S lambda'``, ``D' = S D S``,
-``g' = S g``, cones of ``mu / s <= 1``: the same problem, ``lambda' . sigma' = lambda . sigma`` and
-``sigma'_n + (mu / s) |sigma'_t| = sigma_n + mu |sigma_t|``), because ADMM in NCP mode fails on steep cones: on
-the painleve-rod it missed the first step at mu = 4 and 5 (0.9 and 1.3 m/s off the law on a 1 m/s slip) and
-returned NaN 0.8 s on at mu = 10, where the scaled problems converge in 40 to 200 iterations. Cones below 1 are
-left as they are (scaling them up would shrink the tangential block of D by mu^2). Each answer is then measured
-by :func:`ncp_residual`, the natural map of the De Saxce law computed here, and kept only within
-:data:`CHECK_RTOL`, whatever the solver's own flag says; else Pinocchio's projected Gauss-Seidel in NCP mode
-(PGS) solves the same problem, checked the same way, and if it misses too the solve reports that it did not
-converge (the callers stop the run with a :class:`~pinstab.errors.ContactSolveError` or
-:class:`~pinstab.errors.ContactInfeasibleError`).
+:meth:`NcpSolver.solve_contacts` does not take a solver's word for it (its rules, below, are compiled:
+``pinstab._compiled.ConeSolver``, cpp/cone_solve.hpp, which the compiled time-stepping step calls too). It poses
+the problem with each contact's tangential impulse in units of ``s = max(mu, 1)`` times the normal one (``lambda =
+S lambda'``, ``D' = S D S``, ``g' = S g``, cones of ``mu / s <= 1``: the same problem, ``lambda' . sigma' = lambda
+. sigma`` and ``sigma'_n + (mu / s) |sigma'_t| = sigma_n + mu |sigma_t|``), because ADMM in NCP mode fails on steep
+cones: on the painleve-rod it missed the first step at mu = 4 and 5 (0.9 and 1.3 m/s off the law on a 1 m/s slip)
+and returned NaN 0.8 s on at mu = 10, where the scaled problems converge in 40 to 200 iterations. Cones below 1 are
+left as they are (scaling them up would shrink the tangential block of D by mu^2). Each answer is then measured by
+:func:`ncp_residual`, the natural map of the De Saxce law computed there, and kept only within :data:`CHECK_RTOL`,
+whatever the solver's own flag says; else Pinocchio's projected Gauss-Seidel in NCP mode (PGS) solves the same
+problem, checked the same way, and if it misses too the solve reports that it did not converge (the callers stop
+the run with a :class:`~pinstab.errors.ContactSolveError` or :class:`~pinstab.errors.ContactInfeasibleError`).
 """
 
 from __future__ import annotations
@@ -33,6 +33,8 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from ..kernels import ConeSolver
+from ..kernels import ncp_residual as compiled_residual
 from ..runinfo import SolverStatistics
 
 CHECK_RTOL = 1e-6
@@ -41,13 +43,17 @@ entry of g or of D lambda): a contact velocity off the law by less moves a conta
 per step (1 nm per 1 ms step at 1 m/s). It lies 400 times above the worst residual of ADMM's converged
 answers (tolerance 1e-12) over the bundled contact scenes at mu in [0, 10] (2.4e-9, allegro-tilt) and far below
 the misses it must catch (ADMM on the painleve-rod at mu = 4: 0.9 of the 1 m/s slip; 1.4e-2 at mu = 7)."""
+LANCZOS_SIZE = 12
+"""[-] the Lanczos steps of ADMM's estimate of D's largest eigenvalue (its spectral rho rule). Pinocchio's default
+takes one per row: on box-stack's 12 sticking corners (36 rows) that estimate was 3/4 of the solve (229 us; 58 us
+with 12 steps, the same 26 iterations to the same tolerance)."""
 CONE_ROWS = (1, 2, 0)  # Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
 CONE_ORDER = np.eye(3)[list(CONE_ROWS)]  # (n, t1, t2) -> (t1, t2, n)
 
 
 def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettings:
     """ADMM's settings in NCP mode with every feasibility and complementarity tolerance (absolute and
-    relative) at ``tolerance`` and the spectral rho rule of Pinocchio's example."""
+    relative) at ``tolerance`` and the spectral rho rule of Pinocchio's example (:data:`LANCZOS_SIZE` steps)."""
     settings = pin.ADMMSolverSettings()
     settings.max_iterations = max_iterations
     settings.solve_ncp = True
@@ -55,17 +61,7 @@ def admm_settings(tolerance: float, max_iterations: int) -> pin.ADMMSolverSettin
         setattr(settings, f"absolute_{name}_tol", tolerance)
         setattr(settings, f"relative_{name}_tol", tolerance)
     settings.admm_update_rule = pin.ADMMUpdateRule.SPECTRAL
-    return settings
-
-
-def pgs_settings(tolerance: float, max_iterations: int) -> pin.PGSSolverSettings:
-    """PGS's settings in NCP mode with every feasibility and complementarity tolerance at ``tolerance``."""
-    settings = pin.PGSSolverSettings()
-    settings.max_iterations = max_iterations
-    settings.solve_ncp = True
-    for name in ("feasibility", "complementarity"):
-        setattr(settings, f"absolute_{name}_tol", tolerance)
-        setattr(settings, f"relative_{name}_tol", tolerance)
+    settings.lanczos_size = LANCZOS_SIZE
     return settings
 
 
@@ -94,7 +90,8 @@ class NcpSolver:
 
     Attributes:
         size: the largest problem size it takes (at least 3). result: Pinocchio's ``ADMMSolverResult`` of the last
-        ADMM solve. method: the solver whose answer the last
+        :meth:`solve`. cones: the compiled checked solve (``pinstab._compiled.ConeSolver``) of :meth:`solve_contacts`,
+        which the compiled time-stepping step calls too. method: the solver whose answer the last
             :meth:`solve_contacts` kept (``ADMM`` or ``PGS``; the last one tried when none passed). residual:
             that answer's :func:`ncp_residual` [units of g]. tolerance: the residual it accepted [units of g].
     """
@@ -112,15 +109,12 @@ class NcpSolver:
         self.settings = admm_settings(tolerance, max_iterations)
         self.solver = pin.ADMMConstraintSolver(size)
         self.result = pin.ADMMSolverResult()
-        self.pgs_settings = pgs_settings(tolerance, max_iterations)
-        self.pgs = pin.PGSConstraintSolver(size)
-        self.pgs_result = pin.PGSSolverResult()
+        self.cones = ConeSolver(size, tolerance, max_iterations, LANCZOS_SIZE)
         self.compliance = compliance
         self.warm_start = warm_start
         self.method, self.residual, self.tolerance = "ADMM", 0.0, 0.0
         self._last_size = -1
         self._status = NcpStatus(0, False, math.nan, math.nan, math.nan)
-        self._cones: dict[tuple[float, ...], tuple] = {}
 
     def solve(self, delassus: np.ndarray, g: np.ndarray, models, datas) -> np.ndarray:
         """ADMM's lambda of the problem ``(D, g)`` on the cones of the constraint ``models`` (their friction
@@ -151,31 +145,17 @@ class NcpSolver:
         at most 1, then PGS when ADMM's answer misses :func:`ncp_residual`'s tolerance; :meth:`status` says
         whether the answer returned passed it."""
         rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
-        key = tuple(float(mu) for mu in mus)
-        if key not in self._cones:
-            self._cones[key] = (*friction_cones([min(mu, 1.0) for mu in key]), cone_scales(key))
-        models, datas, scales = self._cones[key]
         delassus, g = jacobian[rows] @ mobility[:, rows], offset[rows]
-        scaled = (scales[:, None] * delassus * scales, scales * g)
-        solution = scales * self.solve(*scaled, models, datas)
-        if not self._check(delassus, g, solution, key):
-            operator = pin.DelassusOperatorDense(0.5 * (scaled[0] + scaled[0].T))
-            self.pgs.solve(operator, scaled[1], models, datas, self.pgs_settings, self.pgs_result)
-            solution = scales * self.pgs_result.retrieveConstraintImpulses()
-            self.method, self._status = "PGS", _status_of(self.pgs_result)
-            self._check(delassus, g, solution, key)
+        solution = self.cones.solve(delassus, g, np.asarray(mus, dtype=float), CHECK_RTOL)
+        self.read_status()
         return solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
 
-    def _check(self, delassus: np.ndarray, g: np.ndarray, solution: np.ndarray, mus: Sequence[float]) -> bool:
-        """Whether ``solution`` meets the law to :data:`CHECK_RTOL` of the problem's velocity scale (the largest
-        entry of g or of D lambda); the status's converged flag says so from now on."""
-        self.residual = ncp_residual(delassus, g, solution, mus)
-        finite = bool(np.all(np.isfinite(solution)))
-        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))) if finite else 0.0)
-        self.tolerance = CHECK_RTOL * scale
-        passed = self.residual <= self.tolerance
-        self._status = self._status._replace(converged=passed)
-        return passed
+    def read_status(self) -> None:
+        """Take the last checked solve's status from the compiled solver (:attr:`cones`): the solver kept, its
+        residual, the residual accepted, the status."""
+        method, iterations, converged, primal, dual, complementarity, residual, accepted = self.cones.status
+        self.method, self.residual, self.tolerance = method, residual, accepted
+        self._status = NcpStatus(iterations, converged, primal, dual, complementarity)
 
     def record(self, statistics: SolverStatistics) -> None:
         """Count the last solve in ``statistics`` (status ``ADMM converged``, ``PGS converged`` or ``ADMM, PGS
@@ -210,37 +190,15 @@ def _status_of(result) -> NcpStatus:
     )
 
 
-def cone_scales(mus: Sequence[float]) -> np.ndarray:
-    """Each row's unit (t1, t2, n per contact, Pinocchio's order): ``max(mu, 1)`` on the tangential rows of a
-    contact of friction coefficient ``mu`` [-], 1 on its normal row."""
-    return np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
-
-
 def ncp_residual(delassus: np.ndarray, g: np.ndarray, impulses: np.ndarray, mus: Sequence[float]) -> float:
     """How far ``impulses`` (Pinocchio's order, t1, t2, n per contact) are from solving the problem ``(D, g)``
     with friction coefficients ``mus`` [-], in the units of g: the largest contact's natural map
     ``|lambda - P_K(lambda - rho (sigma + mu |sigma_t| e_n))| / rho``, ``rho = 1 / trace D`` (at most
     ``1 / |D|_2``: the map over rho only grows as rho shrinks); 0 exactly at a solution (lambda in K, sigma_n >= 0,
-    lambda orthogonal to the De Saxce velocity), inf for a non-finite lambda."""
-    if not np.all(np.isfinite(impulses)):
-        return math.inf
-    rho = 1.0 / max(float(np.trace(delassus)), np.finfo(float).tiny)
-    impulses3 = impulses.reshape(-1, 3)
-    desaxce = (delassus @ impulses + g).reshape(-1, 3)
-    desaxce[:, 2] += np.asarray(mus) * np.hypot(desaxce[:, 0], desaxce[:, 1])
-    gaps = impulses3 - cone_projections(impulses3 - rho * desaxce, np.asarray(mus, dtype=float))
-    return float(np.max(np.linalg.norm(gaps, axis=1), initial=0.0)) / rho
-
-
-def cone_projections(x: np.ndarray, mus: np.ndarray) -> np.ndarray:
-    """The nearest point of each row (t1, t2, n) of ``x`` to the cone ``|t| <= mu n`` of its entry of ``mus``."""
-    tangential, normal = np.hypot(x[:, 0], x[:, 1]), x[:, 2]
-    along = np.maximum(normal + mus * tangential, 0.0) / (1.0 + mus * mus)  # the normal part (0: in the polar cone)
-    shrink = np.divide(mus * along, tangential, out=np.zeros_like(along), where=tangential > 0.0)
-    projected = np.column_stack([x[:, 0] * shrink, x[:, 1] * shrink, along])
-    inside = (tangential <= mus * normal) & (normal >= 0.0)
-    projected[inside] = x[inside]
-    return projected
+    lambda orthogonal to the De Saxce velocity), inf for a non-finite lambda (compiled: the check of
+    :meth:`NcpSolver.solve_contacts` computes it there)."""
+    arrays = (np.asarray(x, dtype=float) for x in (delassus, g, impulses, mus))
+    return compiled_residual(*arrays)
 
 
 def friction_cones(mus: Sequence[float]) -> tuple[pin.StdVec_ConstraintModel, pin.StdVec_ConstraintData]:

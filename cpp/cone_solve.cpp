@@ -1,0 +1,153 @@
+#include "cone_solve.hpp"
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include <pinocchio/algorithm/delassus-operator.hpp>
+#include <pinocchio/algorithm/solvers/admm-solver.hpp>
+#include <pinocchio/algorithm/solvers/pgs-solver.hpp>
+#include <pinocchio/constraints.hpp>
+
+namespace pinstab {
+
+namespace {
+
+using ConstraintModel = pinocchio::ConstraintModelTpl<double, 0, pinocchio::ConstraintCollectionDefaultTpl>;
+using ConstraintData = pinocchio::ConstraintDataTpl<double, 0, pinocchio::ConstraintCollectionDefaultTpl>;
+
+// Feasibility and complementarity tolerances (absolute and relative) of a solver's settings, NCP mode.
+template <class Settings>
+void set_tolerances(Settings& settings, double tolerance, int max_iterations) {
+  settings.max_iterations = static_cast<std::size_t>(max_iterations);
+  settings.solve_ncp = true;
+  settings.absolute_feasibility_tol = tolerance;
+  settings.relative_feasibility_tol = tolerance;
+  settings.absolute_complementarity_tol = tolerance;
+  settings.relative_complementarity_tol = tolerance;
+}
+
+// The nearest point of x (t1, t2, n) to the cone |t| <= mu n.
+Eigen::Vector3d cone_projection(const Eigen::Vector3d& x, double mu) {
+  const double tangential = std::hypot(x(0), x(1)), normal = x(2);
+  if (tangential <= mu * normal && normal >= 0.0) return x;
+  const double along = std::max(normal + mu * tangential, 0.0) / (1.0 + mu * mu);  // 0: in the polar cone
+  const double shrink = tangential > 0.0 ? mu * along / tangential : 0.0;
+  return Eigen::Vector3d(x(0) * shrink, x(1) * shrink, along);
+}
+
+// Each row's unit (t1, t2, n per contact): max(mu, 1) on the tangential rows, 1 on the normal one.
+Eigen::VectorXd cone_scales(const Eigen::VectorXd& mus) {
+  Eigen::VectorXd scales(3 * mus.size());
+  for (Eigen::Index i = 0; i < mus.size(); ++i) {
+    const double s = std::max(mus(i), 1.0);
+    scales.segment<3>(3 * i) << s, s, 1.0;
+  }
+  return scales;
+}
+
+}  // namespace
+
+double ncp_residual(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
+                    const Eigen::VectorXd& mus) {
+  if (!impulses.allFinite()) return std::numeric_limits<double>::infinity();
+  const double rho = 1.0 / std::max(delassus.trace(), std::numeric_limits<double>::min());
+  const Eigen::VectorXd sigma = delassus * impulses + g;
+  double worst = 0.0;
+  for (Eigen::Index i = 0; i < mus.size(); ++i) {
+    Eigen::Vector3d desaxce = sigma.segment<3>(3 * i);
+    desaxce(2) += mus(i) * std::hypot(desaxce(0), desaxce(1));
+    const Eigen::Vector3d lambda = impulses.segment<3>(3 * i);
+    worst = std::max(worst, (lambda - cone_projection(lambda - rho * desaxce, mus(i))).norm());
+  }
+  return worst / rho;
+}
+
+// Pinocchio's solvers, their settings and results, and the cones of the last friction coefficients.
+struct ConeSolver::Solvers {
+  pinocchio::ADMMConstraintSolver admm;
+  pinocchio::ADMMSolverSettings admm_settings;
+  pinocchio::ADMMSolverResult admm_result;
+  pinocchio::PGSConstraintSolver pgs;
+  pinocchio::PGSSolverSettings pgs_settings;
+  pinocchio::PGSSolverResult pgs_result;
+  Eigen::VectorXd mus;  // the cones' friction coefficients (unscaled)
+  std::vector<ConstraintModel> models;
+  std::vector<ConstraintData> datas;
+  pinocchio::Model empty;
+
+  Solvers(int size) : admm(static_cast<std::size_t>(size)), pgs(static_cast<std::size_t>(size)) {}
+
+  // Constraint models carrying only the cones |lambda_t| <= min(mu, 1) lambda_n (what the solvers read of them).
+  void set_cones(const Eigen::VectorXd& coefficients) {
+    if (coefficients.size() == mus.size() && coefficients == mus) return;
+    mus = coefficients;
+    models.clear();
+    datas.clear();
+    for (Eigen::Index i = 0; i < mus.size(); ++i) {
+      pinocchio::PointContactConstraintModel cone(empty, 0, pinocchio::SE3::Identity(), 0, pinocchio::SE3::Identity());
+      cone.setFriction(std::min(mus(i), 1.0));
+      models.emplace_back(cone);
+      datas.push_back(models.back().createData());
+    }
+  }
+};
+
+ConeSolver::ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size)
+    : solvers_(std::make_unique<Solvers>(std::max(size, 3))), max_iterations_(max_iterations) {
+  set_tolerances(solvers_->admm_settings, tolerance, max_iterations);
+  solvers_->admm_settings.admm_update_rule = pinocchio::ADMMUpdateRule::SPECTRAL;
+  solvers_->admm_settings.lanczos_size = static_cast<std::size_t>(lanczos_size);
+  set_tolerances(solvers_->pgs_settings, tolerance, max_iterations);
+}
+
+ConeSolver::~ConeSolver() = default;
+
+template <class Result>
+void read_status(const Result& result, const char* method, ConeStatus& status) {
+  status.method = method;
+  status.iterations = static_cast<long>(result.iterations);
+  status.primal_feasibility = result.primal_feasibility;
+  status.dual_feasibility = result.dual_feasibility;
+  status.complementarity = result.complementarity;
+}
+
+Eigen::VectorXd ConeSolver::solve(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g,
+                                  const Eigen::VectorXd& mus, double check_rtol) {
+  Solvers& s = *solvers_;
+  s.set_cones(mus);
+  const Eigen::VectorXd scales = cone_scales(mus);
+  const Eigen::MatrixXd scaled = scales.asDiagonal() * delassus * scales.asDiagonal();
+  const Eigen::VectorXd scaled_g = scales.cwiseProduct(g);
+  const Eigen::MatrixXd symmetric = 0.5 * (scaled + scaled.transpose());
+  Eigen::VectorXd impulses(g.size());
+  {
+    pinocchio::DelassusOperatorDense operator_(symmetric);
+    s.admm.solve(operator_, scaled_g, s.models, s.datas, s.admm_settings, s.admm_result);
+    s.admm_result.retrieveConstraintImpulses(impulses);
+  }
+  impulses = scales.cwiseProduct(impulses);
+  read_status(s.admm_result, "ADMM", status_);
+  if (check(delassus, g, impulses, mus, check_rtol)) return impulses;
+  {
+    pinocchio::DelassusOperatorDense operator_(symmetric);
+    s.pgs.solve(operator_, scaled_g, s.models, s.datas, s.pgs_settings, s.pgs_result);
+    s.pgs_result.retrieveConstraintImpulses(impulses);
+  }
+  impulses = scales.cwiseProduct(impulses);
+  read_status(s.pgs_result, "PGS", status_);
+  check(delassus, g, impulses, mus, check_rtol);
+  return impulses;
+}
+
+bool ConeSolver::check(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
+                       const Eigen::VectorXd& mus, double check_rtol) {
+  status_.residual = ncp_residual(delassus, g, impulses, mus);
+  double scale = g.size() ? g.cwiseAbs().maxCoeff() : 0.0;
+  if (impulses.allFinite() && g.size()) scale = std::max(scale, (delassus * impulses).cwiseAbs().maxCoeff());
+  status_.accepted = check_rtol * scale;
+  status_.converged = status_.residual <= status_.accepted;
+  return status_.converged;
+}
+
+}  // namespace pinstab

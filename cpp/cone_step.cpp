@@ -1,0 +1,124 @@
+#include "cone_step.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <pinocchio/algorithm/joint-configuration.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+
+namespace pinstab {
+
+namespace {
+
+constexpr int CONE_ROWS[3] = {1, 2, 0};  // Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
+
+double largest(const Eigen::VectorXd& x) { return x.size() ? x.cwiseAbs().maxCoeff() : 0.0; }
+
+// b_n of a contact [m/s]: the gap's term gap / dt, or Newton's impact law min(gap / dt, e v_n) when it approaches
+// (v_n < 0) with restitution e > 0.
+double normal_bias(double gap, double normal_velocity, double restitution, double dt) {
+  double bias = gap / dt;
+  if (restitution > 0.0 && normal_velocity < 0.0) bias = std::min(bias, restitution * normal_velocity);
+  return bias;
+}
+
+}  // namespace
+
+FreeFlyers::FreeFlyers(const pinocchio::Model& model) {
+  for (std::size_t j = 1; j < model.joints.size(); ++j) {
+    if (model.joints[j].shortname() == "JointModelFreeFlyer") joints_.emplace_back(model.idx_qs[j], model.idx_vs[j]);
+  }
+}
+
+Eigen::VectorXd FreeFlyers::turn(const Eigen::VectorXd& v) const {
+  Eigen::VectorXd shift = Eigen::VectorXd::Zero(v.size());
+  for (const auto& [iq, iv] : joints_) {
+    const Eigen::Vector3d linear = v.segment<3>(iv), omega = v.segment<3>(iv + 3);
+    shift.segment<3>(iv) = -omega.cross(linear);
+  }
+  return shift;
+}
+
+void FreeFlyers::integrate(const pinocchio::Model& model, const Eigen::VectorXd& q, const Eigen::VectorXd& v,
+                           double dt, Eigen::VectorXd& q_next, Eigen::VectorXd& v_next) const {
+  q_next = pinocchio::integrate(model, q, (dt * v).eval());
+  v_next = v;
+  for (const auto& [iq, iv] : joints_) {
+    const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Quaterniond>(q.data() + iq + 3).toRotationMatrix();
+    const Eigen::Vector3d rate = rotation * v.segment<3>(iv);
+    q_next.segment<3>(iq) = q.segment<3>(iq) + dt * rate;
+    const Eigen::Matrix3d turned = Eigen::Map<const Eigen::Quaterniond>(q_next.data() + iq + 3).toRotationMatrix();
+    v_next.segment<3>(iv) = turned.transpose() * rate;
+  }
+}
+
+StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const FreeFlyers& free_flyers,
+                     const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt, const Eigen::MatrixXd& mass,
+                     const Eigen::VectorXd& force, const StepContacts& contacts, const StepSettings& settings,
+                     ConeSolver& solver) {
+  StepResult result;
+  const Eigen::LLT<Eigen::MatrixXd> factor(mass);
+  // the free velocity, the velocity terms c(w) at the midpoint w = (v + v_free) / 2 by fixed point (gravity cancels in
+  // the difference of h at w and at v)
+  Eigen::VectorXd v_free = v + dt * (factor.solve(force) - free_flyers.turn(v));
+  const Eigen::VectorXd at_start = pinocchio::nonLinearEffects(model, data, q, v);
+  result.settled = false;
+  for (int pass = 0; pass < settings.midpoint_passes; ++pass) {
+    const Eigen::VectorXd middle = 0.5 * (v + v_free);
+    const Eigen::VectorXd shift = pinocchio::nonLinearEffects(model, data, q, middle) - at_start;
+    const Eigen::VectorXd next = v + dt * (factor.solve(force - shift) - free_flyers.turn(middle));
+    const double change = largest(next - v_free);
+    v_free = next;
+    if (change <= settings.midpoint_tolerance * largest(v_free)) {
+      result.settled = true;
+      break;
+    }
+  }
+  if (!result.settled) return result;
+  const Eigen::MatrixXd& jacobian = contacts.jacobian;
+  const Eigen::Index k = contacts.gaps.size();
+  const Eigen::MatrixXd mobility = factor.solve(jacobian.transpose());  // M^-1 J^T
+  const Eigen::VectorXd reach = jacobian * v_free;
+  for (Eigen::Index i = 0; i < k; ++i) {
+    if (contacts.gaps(i) + dt * reach(3 * i) <= settings.touch_gap) result.active.push_back(static_cast<int>(i));
+  }
+  result.impulses = Eigen::MatrixXd::Zero(k, 3);
+  Eigen::VectorXd v_new = v_free;
+  if (!result.active.empty()) {
+    const Eigen::Index m = 3 * static_cast<Eigen::Index>(result.active.size());
+    std::vector<Eigen::Index> rows;
+    for (const int i : result.active) {
+      for (const int r : CONE_ROWS) rows.push_back(3 * i + r);
+    }
+    Eigen::MatrixXd delassus(m, m), active_jacobian(m, jacobian.cols()), active_mobility(jacobian.cols(), m);
+    Eigen::VectorXd g(m), mus(result.active.size());
+    for (Eigen::Index a = 0; a < m; ++a) {
+      active_jacobian.row(a) = jacobian.row(rows[a]);
+      active_mobility.col(a) = mobility.col(rows[a]);
+      g(a) = reach(rows[a]);
+    }
+    for (std::size_t a = 0; a < result.active.size(); ++a) {
+      const int i = result.active[a];
+      mus(a) = contacts.mus(i);
+      g(3 * a + 2) += normal_bias(contacts.gaps(i), contacts.normal_velocities(i), contacts.restitutions(i), dt);
+    }
+    delassus.noalias() = active_jacobian * active_mobility;
+    const Eigen::VectorXd solution = solver.solve(delassus, g, mus, settings.check_rtol);
+    result.solved = solver.status().converged;
+    for (std::size_t a = 0; a < result.active.size(); ++a) {
+      result.impulses.row(result.active[a]) << solution(3 * a + 2), solution(3 * a), solution(3 * a + 1);
+    }
+    if (!result.solved) return result;
+    v_new += active_mobility * solution;
+  }
+  const Eigen::VectorXd velocities = jacobian * v_new;
+  result.velocities = velocities.reshaped(3, k).transpose();
+  result.reach.resize(k);
+  for (Eigen::Index i = 0; i < k; ++i) result.reach(i) = jacobian.row(3 * i).dot(mobility.col(3 * i));
+  free_flyers.integrate(model, q, v_new, dt, result.q, result.v);
+  return result;
+}
+
+}  // namespace pinstab

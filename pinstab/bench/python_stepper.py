@@ -1,0 +1,119 @@
+"""The time-stepping contacts' step in NumPy and Pinocchio's Python bindings, as pinstab took it before the step was
+compiled (cpp/cone_step.hpp): the second method the compiled step is checked against
+(``tests/test_contact_stepping_compiled.py``) and timed against (``benchmarks/stepping_core.py``).
+
+The same physics as :class:`~pinstab.integration.contact_stepping.ContactStepper` (its module says which), computed
+another way: SciPy's Cholesky factor of M, the midpoint passes over ``pin.nonLinearEffects``, the Delassus matrix by
+NumPy, ADMM through Pinocchio's Python bindings on the problem with steep cones scaled to 1 (:meth:`NcpSolver.solve`),
+free flyers moved by ``pin.Quaternion``. It has no PGS fallback: a step whose ADMM answer misses the contact law
+(:func:`~pinstab.solvers.ncp.ncp_residual` beyond :data:`~pinstab.solvers.ncp.CHECK_RTOL` of the velocity scale)
+raises :class:`~pinstab.errors.ContactSolveError`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import cho_factor, cho_solve
+
+from ..errors import ContactSolveError
+from ..integration.contact_stepping import MIDPOINT_PASSES, MIDPOINT_TOLERANCE, ContactStepper
+from ..integration.stepping import Failure
+from ..solvers.contact_modes import ModeDynamics
+from ..solvers.mode_choice import TOUCH_GAP
+from ..solvers.ncp import CHECK_RTOL, CONE_ROWS, NcpSolver, friction_cones, ncp_residual
+from ..system import ConstrainedSystem
+
+
+class PythonStepper(ContactStepper):
+    """:class:`~pinstab.integration.contact_stepping.ContactStepper` with its step's numbers in NumPy (the
+    reference; same arguments).
+
+    Attributes:
+        free_flyers: (idx_q, idx_v) of the model's free-flyer joints. cones: the cone solve's constraint models by
+            the friction coefficients of its contacts (built once each).
+    """
+
+    name = "moreau-jean-numpy"
+
+    def __init__(self, system: ConstrainedSystem, dynamics: ModeDynamics, solver: NcpSolver) -> None:
+        super().__init__(system, dynamics, solver)
+        joints = system.model.model.joints[1:]
+        self.free_flyers = [(j.idx_q, j.idx_v) for j in joints if j.shortname() == "JointModelFreeFlyer"]
+        self.cones: dict[tuple[float, ...], tuple] = {}
+
+    def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
+        terms, contacts = self.start(q, v, t, dt)
+        factor = cho_factor(terms.mass_matrix)
+        v_free = self._free_velocity(q, v, dt, terms.tau - terms.bias, factor)
+        mobility = cho_solve(factor, contacts.jacobian.T)
+        reach = contacts.jacobian @ v_free
+        active = [int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[0::3] <= TOUCH_GAP)]
+        impulses = np.zeros((len(contacts.gaps), 3))
+        if active:
+            offset = reach.copy()
+            for i in active:
+                restitution, normal_velocity = self.dynamics.contacts[i].restitution, contacts.velocities[i, 0]
+                bias = contacts.gaps[i] / dt
+                if restitution > 0.0 and normal_velocity < 0.0:
+                    bias = min(bias, restitution * normal_velocity)
+                offset[3 * i] += bias
+            impulses[active] = self._solve(contacts.jacobian, mobility, offset, active, t)
+        v_new = v_free + mobility @ impulses.ravel()
+        velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
+        normal = contacts.jacobian[0::3]
+        self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
+        self.impulses = impulses
+        return self._integrate(q, v_new, dt)
+
+    def _solve(
+        self, jacobian: np.ndarray, mobility: np.ndarray, offset: np.ndarray, active: list[int], t: float
+    ) -> np.ndarray:
+        """The impulses (len(active), 3) [N s] in (n, t1, t2): ADMM on the cones scaled to at most 1, checked."""
+        mus = [self.dynamics.contacts[i].mu for i in active]
+        rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
+        delassus, g = jacobian[rows] @ mobility[:, rows], offset[rows]
+        scales = np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
+        key = tuple(mus)
+        if key not in self.cones:
+            self.cones[key] = friction_cones([min(mu, 1.0) for mu in mus])
+        cones = self.cones[key]
+        solution = scales * self.solver.solve(scales[:, None] * delassus * scales, scales * g, *cones)
+        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
+        if not ncp_residual(delassus, g, solution, mus) <= CHECK_RTOL * scale:
+            names = [self.dynamics.contacts[i].name for i in active]
+            raise ContactSolveError(f"at t = {t:.9g} s ADMM missed the contact law (no fallback here)", names, t)
+        return solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
+
+    def _free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
+        """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint, by fixed point."""
+        model, data = self.system.model.model, self.system.model.scratch
+        v_free = v + dt * (cho_solve(factor, force) - self._turn(v))
+        at_start = pin.nonLinearEffects(model, data, q, v).copy()
+        for _ in range(MIDPOINT_PASSES):
+            middle = (v + v_free) / 2
+            shift = pin.nonLinearEffects(model, data, q, middle) - at_start
+            v_next = v + dt * (cho_solve(factor, force - shift) - self._turn(middle))
+            change = float(np.max(np.abs(v_next - v_free), initial=0.0))
+            v_free = v_next
+            if change <= MIDPOINT_TOLERANCE * float(np.max(np.abs(v_free), initial=0.0)):
+                return v_free
+        raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
+
+    def _turn(self, v: np.ndarray) -> np.ndarray:
+        """-omega x v_lin in each free flyer's translation rows."""
+        shift = np.zeros_like(v)
+        for _, iv in self.free_flyers:
+            shift[iv : iv + 3] = -np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
+        return shift
+
+    def _integrate(self, q: np.ndarray, v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """q (+) dt v with each free flyer moved by dt pdot; v with its v_lin in its joint frame at q+."""
+        model = self.system.model.model
+        q_next, v_next = pin.integrate(model, q, dt * v), v.copy()
+        for iq, iv in self.free_flyers:
+            rate = pin.Quaternion(q[iq + 3 : iq + 7]).toRotationMatrix() @ v[iv : iv + 3]
+            q_next[iq : iq + 3] = q[iq : iq + 3] + dt * rate
+            v_next[iv : iv + 3] = pin.Quaternion(q_next[iq + 3 : iq + 7]).toRotationMatrix().T @ rate
+        return q_next, v_next
