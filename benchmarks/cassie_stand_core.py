@@ -40,7 +40,7 @@ def timed_run(scene: pinstab.Scene, evaluation: str) -> tuple[float, pinstab.Tra
     contacts_module.CoreModeDynamics = EVALUATIONS[evaluation]
     try:
         start = time.process_time()
-        run = pinstab.simulate(scene, duration=DURATION, progress=False)
+        run = pinstab.simulate(scene, contacts="event", duration=DURATION, progress=False)
         return (time.process_time() - start) / DURATION, run
     finally:
         contacts_module.CoreModeDynamics = CoreModeDynamics
