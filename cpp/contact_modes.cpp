@@ -172,6 +172,7 @@ bool ContactModes::solve(const pinocchio::Model& model, pinocchio::Data& data, c
         system.row(row) = delassus.row(row);
         rhs(row) = -reach(row);
         const Eigen::Vector2d slip = velocities_.row(i).tail<2>().transpose();
+        if (contacts_[i].mu > 0.0 && std::hypot(slip(0), slip(1)) < settings_.grazing_speed) return false;
         const Eigen::Vector2d direction =
             unit_slip(slip, directions_.row(i).transpose(), references_.row(i).transpose(), continued_(i),
                       settings_.slip_floor);

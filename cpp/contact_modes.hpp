@@ -30,9 +30,11 @@ struct PlaneContact {
 enum class ContactMode { sticking = 0, sliding = 1, separated = 2 };
 
 // The settings: relative singular values below held_rank drop a bilateral row (HELD_RANK_TOLERANCE), below
-// rank_tolerance a force row (RANK_TOLERANCE); slips slower than slip_floor [m/s] keep their direction (SLIP_FLOOR).
+// rank_tolerance a force row (RANK_TOLERANCE); slips slower than slip_floor [m/s] keep their direction (SLIP_FLOOR); a
+// sliding contact with friction slower than grazing_speed [m/s] (GRAZING_SPEED) is not solved here: ModeDynamics may
+// slave its direction to its slip acceleration (a grazing slip).
 struct ContactSettings {
-  double held_rank = 1e-9, rank_tolerance = 1e-12, slip_floor = 1e-9;
+  double held_rank = 1e-9, rank_tolerance = 1e-12, slip_floor = 1e-9, grazing_speed = 1e-5;
 };
 
 // The unit slip direction (pinstab.solvers.contact_modes.unit_slip): `reference` once the slip has turned against it
@@ -49,7 +51,7 @@ class ContactModes {
                  const Eigen::MatrixXd& references, const Mask& continued);
   // The accelerations at the state of `data` (after computeAllTerms and updateFramePlacements at (q, v)): M (both
   // triangles), force = tau - h [N, N m], the bilateral rows B (b x nv) held at B a = target; false: not solved (a
-  // singular reduced mass, a gap or force not finite: ModeDynamics names it).
+  // singular reduced mass, a gap or force not finite: ModeDynamics names it; a grazing slip: ModeDynamics solves it).
   bool solve(const pinocchio::Model& model, pinocchio::Data& data, const VectorXd& v, const Eigen::MatrixXd& mass,
              const VectorXd& force, const Eigen::MatrixXd& rows, const VectorXd& target);
 

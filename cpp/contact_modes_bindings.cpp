@@ -39,7 +39,7 @@ void set_contacts(CoreKernel& kernel, const VectorXi& frames, const RowMatrix& b
     contacts[i] = {frames(i), bases.middleRows<3>(3 * i), origins.row(i).transpose(), radii(i), mus(i)};
   }
   ContactSettings limits{nb::cast<double>(settings["held_rank"]), nb::cast<double>(settings["rank_tolerance"]),
-                         nb::cast<double>(settings["slip_floor"])};
+                         nb::cast<double>(settings["slip_floor"]), nb::cast<double>(settings["grazing_speed"])};
   kernel.set_contacts(ContactModes(std::move(contacts), limits));
 }
 
@@ -69,7 +69,7 @@ void bind_contact_modes(nb::module_& m) {
       "origins"_a, "radii"_a, "mus"_a, "settings"_a,
       "Solve plane contacts in modes in place of the KKT solve (cpp/contact_modes.hpp), the rows held: each "
       "contact's frame, basis rows (n, t1, t2) (3k x 3, world), plane origin (k x 3) [m], sphere radius [m] and mu; "
-      "settings: dict of held_rank, rank_tolerance, slip_floor [m/s].");
+      "settings: dict of held_rank, rank_tolerance, slip_floor [m/s], grazing_speed [m/s].");
   nb::cpp_function_def(
       &set_contact_modes, nb::scope(kernel), nb::name("set_contact_modes"), nb::is_method(), "modes"_a,
       "directions"_a, "references"_a, "continued"_a,

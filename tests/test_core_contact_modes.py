@@ -17,7 +17,7 @@ from pinstab.contact.modes import Mode
 from pinstab.model import ConstrainedModel
 from pinstab.scene import load_scene
 from pinstab.simulate.contacts import contact_system
-from pinstab.solvers.contact_modes import ModeDynamics, PlaneContactGeometry
+from pinstab.solvers.contact_modes import GRAZING_SPEED, ModeDynamics, PlaneContactGeometry
 from pinstab.solvers.core_modes import CORE_STATUS, CoreModeDynamics
 
 STICK, SLIDE, APART = Mode.STICKING, Mode.SLIDING, Mode.SEPARATED
@@ -40,6 +40,12 @@ def _compare(model: ConstrainedModel, contacts, q, v, t, modes, tolerance: float
         if directions is not None:
             dynamics.directions[: len(contacts)] = [np.array(d, dtype=float) for d in directions]
     expected, solved = numpy.solve(q, v, t, modes), core.solve(q, v, t, modes)
+    speeds = np.hypot(*expected.contacts.velocities[:, 1:].T)
+    slow = zip(modes, contacts, speeds, strict=True)
+    if any(mode is SLIDE and c.mu > 0.0 and speed < GRAZING_SPEED for mode, c, speed in slow):
+        assert core.statistics.status_counts == {"contact modes": 1}  # a grazing slip: ModeDynamics' own solve
+        np.testing.assert_array_equal(solved.acceleration, expected.acceleration)
+        return
     assert core.statistics.status_counts == {CORE_STATUS: 1}
     accelerations = float(np.abs(expected.free).max())
     for name in ("acceleration", "forces", "free", "mobility", "reactions"):
@@ -82,8 +88,8 @@ def test_cassie_core_modes_are_numpy_modes(cassie, modes):
 @pytest.mark.parametrize("modes", [[STICK], [SLIDE], [APART]])
 def test_fourbar_core_modes_are_numpy_modes(modes):
     """A four-bar (a planar-point closure) whose coupler's frame touches the plane y = 0.05 m (mu 0.4): sticking
-    (its out-of-plane row zero: least squares), sliding (the slip's direction, and the fallback one while at rest) and
-    separated, to 1e-12 relative."""
+    (its out-of-plane row zero: least squares), sliding (along the slip; at rest a grazing slip, ModeDynamics' own)
+    and separated, to 1e-12 relative."""
     scene = pinstab.load_scene("fourbar")
     model = ConstrainedModel(scene)
     frame = scene.model.getFrameId("coupler", pin.BODY)
@@ -115,10 +121,12 @@ def test_contacts_the_core_does_not_take_are_numpy_modes():
 
 
 def test_cassie_stand_runs_on_the_core_to_the_last_bit():
-    """cassie-stand's event-driven run (0.05 s) evaluates every mode on the core, and a second run gives the same
-    trajectory to the last bit."""
+    """cassie-stand's event-driven run (0.05 s) evaluates its modes on the core (all but the start's choice of modes,
+    measured 142 and 1), and a second run gives the same trajectory to the last bit."""
     scene = load_scene("cassie-stand")
     first, second = (pinstab.simulate(scene, contacts="event", duration=0.05, progress=False) for _ in range(2))
-    assert set(first.info.solver_statistics.status_counts) == {CORE_STATUS}
+    counts = first.info.solver_statistics.status_counts
+    assert set(counts) <= {CORE_STATUS, "contact modes"} and counts[CORE_STATUS] >= 100
+    assert counts.get("contact modes", 0) <= 1  # the start's choice, whose slips from rest graze: ModeDynamics'
     np.testing.assert_array_equal(first.q, second.q)
     np.testing.assert_array_equal(first.v, second.v)

@@ -7,7 +7,9 @@ limits and sticking frictions held as equality rows (:class:`~pinstab.constraint
 kernel's rows; without contacts its KKT solve gives the accelerations, with them its contacts' solve
 (``cpp/contact_modes.hpp``: the rows eliminated through their own factorization, then the modes' force system, the
 rules of ModeDynamics) in place of it, for contacts on a plane fixed in the world without rotational friction; others
-(a plane carried by a body, a round pair, torsion or rolling) are ModeDynamics'. The rows are the event path's: their
+(a plane carried by a body, a round pair, torsion or rolling) are ModeDynamics', and so is an evaluation with a
+sliding contact slower than :data:`~pinstab.solvers.contact_modes.GRAZING_SPEED` (a grazing slip, whose direction
+ModeDynamics slaves to its slip acceleration). The rows are the event path's: their
 drift without a stabilization term (its closures are assembled and its error control keeps them).
 """
 
@@ -25,6 +27,7 @@ from ..paths.core import CoreDynamics, CoreTerm
 from ..runinfo import SolverStatistics
 from .base import ACCEPTED_RESIDUAL
 from .contact_modes import (
+    GRAZING_SPEED,
     HELD_RANK_TOLERANCE,
     RANK_TOLERANCE,
     SLIP_FLOOR,
@@ -38,7 +41,12 @@ from .proxsuite_ import DIRECT_PIVOT
 
 CORE_STATUS = "contact modes, core"  # the solver status of an evaluation the core kernel solved
 MODE_CODES = {Mode.STICKING: 0, Mode.SLIDING: 1, Mode.SEPARATED: 2}  # cpp/contact_modes.hpp ContactMode
-CONTACT_SETTINGS = {"held_rank": HELD_RANK_TOLERANCE, "rank_tolerance": RANK_TOLERANCE, "slip_floor": SLIP_FLOOR}
+CONTACT_SETTINGS = {
+    "held_rank": HELD_RANK_TOLERANCE,
+    "rank_tolerance": RANK_TOLERANCE,
+    "slip_floor": SLIP_FLOOR,
+    "grazing_speed": GRAZING_SPEED,  # a grazing slip (its direction slaved to its slip acceleration) is ModeDynamics'
+}
 
 
 def compiled_contact(contact: PlaneContactGeometry) -> bool:
@@ -51,9 +59,9 @@ class CoreModeDynamics(ModeDynamics):
     """:class:`ModeDynamics` whose evaluations in a mode are each solved by the core kernel (one kernel per set of held
     one-row entries, built at its first use; a slipping joint friction's torque passed in as an applied force; the
     contacts set on it whenever their layout changes). An evaluation the kernel does not accept (its residual, see
-    :class:`~pinstab.paths.core.CoreDynamics`, or contacts it does not take: :func:`compiled_contact`) is solved by
-    :class:`ModeDynamics`' own, which names what fails; the statistics count the core's under :data:`CORE_STATUS`, the
-    others under ``contact modes``.
+    :class:`~pinstab.paths.core.CoreDynamics`, a grazing slip, or contacts it does not take: :func:`compiled_contact`)
+    is solved by :class:`ModeDynamics`' own, which names what fails; the statistics count the core's under
+    :data:`CORE_STATUS`, the others under ``contact modes``.
 
     Args:
         model, contacts, limits, statistics, joint_frictions: as :class:`ModeDynamics`'.
