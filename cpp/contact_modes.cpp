@@ -6,8 +6,6 @@
 #include <stdexcept>
 
 #include <Eigen/QR>
-#include <pinocchio/algorithm/frames.hpp>
-#include <pinocchio/spatial/skew.hpp>
 
 namespace pinstab {
 
@@ -20,8 +18,9 @@ Eigen::Vector2d unit_slip(const Eigen::Vector2d& slip, const Eigen::Vector2d& fa
   return speed > floor ? Eigen::Vector2d(slip / speed) : fallback;
 }
 
-ContactModes::ContactModes(std::vector<PlaneContact> contacts, ContactSettings settings)
-    : contacts_(std::move(contacts)), settings_(settings) {
+ContactModes::ContactModes(std::vector<PlaneContact> contacts, VectorXd mus, ContactSettings settings)
+    : contacts_(std::move(contacts)), mus_(std::move(mus)), settings_(settings) {
+  if (mus_.size() != size()) throw std::invalid_argument("ContactModes: one mu a contact");
   const int k = size();
   modes_.assign(k, ContactMode::separated);
   directions_ = MatrixXd::Zero(k, 2);
@@ -49,40 +48,11 @@ MatrixXd ContactModes::forces() const {
   return forces;
 }
 
-// ModeDynamics.kinematics_from_kin for world planes: the touching point p = c - r n of the sphere at the frame's
-// origin c, its rows B (J_c + r [n]x J_omega) and drift B (a_c + r [n]x alpha) (classical, at zero joint
-// acceleration), its velocity in the basis and its gap n.(p - origin).
+// The contacts' rows at the state (cpp/plane_contacts.hpp); false: a gap not finite.
 bool ContactModes::kinematics(const pinocchio::Model& model, pinocchio::Data& data, const VectorXd& v) {
-  const int k = size(), nv = model.nv;
-  gaps_.resize(k);
-  positions_.resize(k, 3);
-  velocities_.resize(k, 3);
-  jacobian_.resize(3 * k, nv);
-  drift_.resize(3 * k);
-  Eigen::Matrix<double, 6, Eigen::Dynamic> frame(6, nv);
-  for (int i = 0; i < k; ++i) {
-    const PlaneContact& contact = contacts_[i];
-    frame.setZero();
-    pinocchio::getFrameJacobian(model, data, contact.frame, pinocchio::LOCAL_WORLD_ALIGNED, frame);
-    const pinocchio::Motion acceleration =
-        pinocchio::getFrameClassicalAcceleration(model, data, contact.frame, pinocchio::LOCAL_WORLD_ALIGNED);
-    const Eigen::Vector3d normal = contact.basis.row(0).transpose();
-    const Eigen::Vector3d point = data.oMf[contact.frame].translation() - contact.radius * normal;
-    Eigen::Matrix<double, 3, Eigen::Dynamic> rows = frame.topRows<3>();
-    Eigen::Vector3d drift = acceleration.linear();
-    if (contact.radius != 0.0) {
-      const Eigen::Matrix3d arm = contact.radius * pinocchio::skew(normal);
-      rows += arm * frame.bottomRows<3>();
-      drift += arm * acceleration.angular();
-    }
-    jacobian_.middleRows<3>(3 * i) = contact.basis * rows;
-    velocities_.row(i) = (jacobian_.middleRows<3>(3 * i) * v).transpose();
-    drift_.segment<3>(3 * i) = contact.basis * drift;
-    positions_.row(i) = point.transpose();
-    gaps_(i) = normal.dot(point - contact.origin);
-    if (!std::isfinite(gaps_(i))) return false;
-  }
-  return true;
+  rows_ = plane_contact_rows(model, data, contacts_, v);
+  jacobian_ = rows_.jacobian;
+  return rows_.gaps.allFinite();
 }
 
 // ModeDynamics._held with the targets zero but on the first column: B (unheld + held lambda) = targets through B^T's
@@ -155,7 +125,7 @@ bool ContactModes::solve(const pinocchio::Model& model, pinocchio::Data& data, c
   free_ = response.col(0);
   mobility_ = response.rightCols(linear);
   const MatrixXd delassus = jacobian_ * mobility_;
-  const VectorXd reach = jacobian_ * free_ + drift_;  // the contact accelerations without forces
+  const VectorXd reach = jacobian_ * free_ + rows_.drift;  // the contact accelerations without forces
   MatrixXd system = MatrixXd::Zero(linear, linear);
   VectorXd rhs = VectorXd::Zero(linear);
   for (int i = 0; i < k; ++i) {
@@ -171,13 +141,13 @@ bool ContactModes::solve(const pinocchio::Model& model, pinocchio::Data& data, c
       case ContactMode::sliding: {  // the normal row, then f_t + mu f_n d = 0
         system.row(row) = delassus.row(row);
         rhs(row) = -reach(row);
-        const Eigen::Vector2d slip = velocities_.row(i).tail<2>().transpose();
-        if (contacts_[i].mu > 0.0 && std::hypot(slip(0), slip(1)) < settings_.grazing_speed) return false;
+        const Eigen::Vector2d slip = rows_.velocities.row(i).tail<2>().transpose();
+        if (mus_(i) > 0.0 && std::hypot(slip(0), slip(1)) < settings_.grazing_speed) return false;
         const Eigen::Vector2d direction =
             unit_slip(slip, directions_.row(i).transpose(), references_.row(i).transpose(), continued_(i),
                       settings_.slip_floor);
         system.block<2, 2>(row + 1, row + 1).setIdentity();
-        system.block<2, 1>(row + 1, row) = contacts_[i].mu * direction;
+        system.block<2, 1>(row + 1, row) = mus_(i) * direction;
         break;
       }
     }

@@ -1,6 +1,6 @@
 // Plane contacts in given modes, the core kernel's form of pinstab.solvers.contact_modes.ModeDynamics (its module
 // docstring states the rules): contact i is a point of a body (a sphere's centre, radius r) on a plane fixed in the
-// world, basis B_i with rows (n, t1, t2); its rows are B_i (J_i a + c_i) of the touching point. The bilateral rows
+// world or carried by a body, basis B_i with rows (n, t1, t2); its rows B_i (J_i a + c_i) are cpp/plane_contacts.hpp's. The bilateral rows
 // (closures, held one-row entries) are eliminated first through the rank-revealing factorization of their Jacobian
 // (not the Delassus matrix, whose condition squares theirs: Cassie's shin-spring triangles, 2e-7 from singular), then
 // the 3k x 3k force system of the modes is solved: sticking B_i (J_i a + c_i) = 0; sliding n.(J_i a + c_i) = 0 and
@@ -15,16 +15,9 @@
 #include <pinocchio/multibody/model.hpp>
 
 #include "kernels.hpp"
+#include "plane_contacts.hpp"
 
 namespace pinstab {
-
-// pinstab.solvers.contact_modes.PlaneContactGeometry of a world plane without rotational friction.
-struct PlaneContact {
-  int frame = -1;                                         // the operational frame at the point (the sphere's centre)
-  Eigen::Matrix3d basis = Eigen::Matrix3d::Identity();    // rows (n, t1, t2), world axes
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();       // a point of the plane [m, world]
-  double radius = 0.0, mu = 0.0;                          // [m], [-]
-};
 
 // pinstab.contact.modes.Mode
 enum class ContactMode { sticking = 0, sliding = 1, separated = 2 };
@@ -44,7 +37,8 @@ Eigen::Vector2d unit_slip(const Eigen::Vector2d& slip, const Eigen::Vector2d& fa
 
 class ContactModes {
  public:
-  ContactModes(std::vector<PlaneContact> contacts, ContactSettings settings);
+  // the contacts (cpp/plane_contacts.hpp) and their friction coefficients mu [-]
+  ContactModes(std::vector<PlaneContact> contacts, VectorXd mus, ContactSettings settings);
   // The modes (k), each contact's fallback slip direction (k x 2, in (t1, t2)) and, where `continued`, the direction
   // a continued slip keeps once it turns against it (k x 2).
   void set_modes(const std::vector<ContactMode>& modes, const Eigen::MatrixXd& directions,
@@ -57,18 +51,14 @@ class ContactModes {
 
   int size() const { return static_cast<int>(contacts_.size()); }
   // the last solve's: accelerations, contact forces (k x 3, basis), accelerations without contact forces and their
-  // response (nv x 3k), the bilateral reactions (b), the contacts' gaps (k), points (k x 3, world), velocities
-  // (k x 3, basis), Jacobian (3k x nv, basis), drift (3k), the force system's relative residual
+  // response (nv x 3k), the bilateral reactions (b), the contacts' rows (cpp/plane_contacts.hpp: gaps, points,
+  // velocities, Jacobian, drift), the force system's relative residual
   const VectorXd& acceleration() const { return acceleration_; }
   Eigen::MatrixXd forces() const;
   const VectorXd& free() const { return free_; }
   const Eigen::MatrixXd& mobility() const { return mobility_; }
   const VectorXd& reactions() const { return reactions_; }
-  const VectorXd& gaps() const { return gaps_; }
-  const Eigen::MatrixXd& positions() const { return positions_; }
-  const Eigen::MatrixXd& velocities() const { return velocities_; }
-  const Eigen::MatrixXd& jacobian() const { return jacobian_; }
-  const VectorXd& drift() const { return drift_; }
+  const PlaneContactRows& rows() const { return rows_; }
   double residual() const { return residual_; }
 
  private:
@@ -78,13 +68,15 @@ class ContactModes {
   bool forces_of(const Eigen::MatrixXd& system, const VectorXd& rhs);
 
   std::vector<PlaneContact> contacts_;
+  VectorXd mus_;
   ContactSettings settings_;
   std::vector<ContactMode> modes_;
   Eigen::MatrixXd directions_, references_;
   Mask continued_;
   std::map<std::vector<int>, bool> redundant_;  // by the modes: whether the force system is rank-deficient
-  VectorXd gaps_, drift_, free_, reactions_, acceleration_, forces_;
-  Eigen::MatrixXd positions_, velocities_, jacobian_, mobility_;
+  PlaneContactRows rows_;
+  Eigen::MatrixXd jacobian_, mobility_;  // rows_.jacobian, column-major
+  VectorXd free_, reactions_, acceleration_, forces_;
   double residual_ = 0.0;
 };
 

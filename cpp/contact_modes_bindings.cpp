@@ -23,24 +23,25 @@ ContactModes& contacts_of(CoreKernel& kernel) {
   return *contacts;
 }
 
-void set_contacts(CoreKernel& kernel, const VectorXi& frames, const RowMatrix& bases, const RowMatrix& origins,
-                  const VectorXd& radii, const VectorXd& mus, nb::dict settings) {
+void set_contacts(CoreKernel& kernel, const VectorXi& frames, const VectorXi& plane_frames, const RowMatrix& bases,
+                  const RowMatrix& origins, const VectorXd& radii, const VectorXd& mus, nb::dict settings) {
   const Eigen::Index k = frames.size();
-  if (bases.rows() != 3 * k || bases.cols() != 3 || origins.rows() != k || origins.cols() != 3 || radii.size() != k ||
-      mus.size() != k) {
-    throw std::invalid_argument("CoreKernel.set_contacts: per contact a frame, a basis (3 rows), an origin (3), a "
-                                "radius and mu");
+  if (plane_frames.size() != k || bases.rows() != 3 * k || bases.cols() != 3 || origins.rows() != k ||
+      origins.cols() != 3 || radii.size() != k || mus.size() != k) {
+    throw std::invalid_argument("CoreKernel.set_contacts: per contact a frame, a plane frame, a basis (3 rows), an "
+                                "origin (3), a radius and mu");
   }
+  const int frames_in_model = static_cast<int>(kernel.model().nframes);
   std::vector<PlaneContact> contacts(k);
   for (Eigen::Index i = 0; i < k; ++i) {
-    if (frames(i) < 0 || frames(i) >= static_cast<int>(kernel.model().nframes)) {
-      throw std::invalid_argument("CoreKernel.set_contacts: a frame outside the model's");
+    if (frames(i) < 0 || frames(i) >= frames_in_model || plane_frames(i) < -1 || plane_frames(i) >= frames_in_model) {
+      throw std::invalid_argument("CoreKernel.set_contacts: a frame outside the model's (plane frame -1: the world)");
     }
-    contacts[i] = {frames(i), bases.middleRows<3>(3 * i), origins.row(i).transpose(), radii(i), mus(i)};
+    contacts[i] = {frames(i), plane_frames(i), radii(i), bases.middleRows<3>(3 * i), origins.row(i).transpose()};
   }
   ContactSettings limits{nb::cast<double>(settings["held_rank"]), nb::cast<double>(settings["rank_tolerance"]),
                          nb::cast<double>(settings["slip_floor"]), nb::cast<double>(settings["grazing_speed"])};
-  kernel.set_contacts(ContactModes(std::move(contacts), limits));
+  kernel.set_contacts(ContactModes(std::move(contacts), mus, limits));
 }
 
 void set_contact_modes(CoreKernel& kernel, const VectorXi& modes, const RowMatrix& directions,
@@ -55,9 +56,9 @@ void set_contact_modes(CoreKernel& kernel, const VectorXi& modes, const RowMatri
 
 nb::tuple contact_solution(CoreKernel& kernel) {
   const ContactModes& contacts = contacts_of(kernel);
-  return nb::make_tuple(contacts.forces(), contacts.free(), contacts.mobility(), contacts.gaps(),
-                        contacts.positions(), contacts.velocities(), contacts.jacobian(), contacts.drift(),
-                        contacts.residual());
+  const PlaneContactRows& rows = contacts.rows();
+  return nb::make_tuple(contacts.forces(), contacts.free(), contacts.mobility(), rows.gaps, rows.positions, rows.local,
+                        rows.velocities, rows.jacobian, rows.drift, contacts.residual());
 }
 
 }  // namespace
@@ -65,10 +66,11 @@ nb::tuple contact_solution(CoreKernel& kernel) {
 void bind_contact_modes(nb::module_& m) {
   const nb::handle kernel = nb::type<CoreKernel>();
   nb::cpp_function_def(
-      &set_contacts, nb::scope(kernel), nb::name("set_contacts"), nb::is_method(), "frames"_a, "bases"_a,
-      "origins"_a, "radii"_a, "mus"_a, "settings"_a,
+      &set_contacts, nb::scope(kernel), nb::name("set_contacts"), nb::is_method(), "frames"_a, "plane_frames"_a,
+      "bases"_a, "origins"_a, "radii"_a, "mus"_a, "settings"_a,
       "Solve plane contacts in modes in place of the KKT solve (cpp/contact_modes.hpp), the rows held: each "
-      "contact's frame, basis rows (n, t1, t2) (3k x 3, world), plane origin (k x 3) [m], sphere radius [m] and mu; "
+      "contact's frame, plane frame (-1: the world), basis rows (n, t1, t2) (3k x 3) and plane origin (k x 3) [m] in "
+      "the plane's axes, sphere radius [m] and mu; "
       "settings: dict of held_rank, rank_tolerance, slip_floor [m/s], grazing_speed [m/s].");
   nb::cpp_function_def(
       &set_contact_modes, nb::scope(kernel), nb::name("set_contact_modes"), nb::is_method(), "modes"_a,
@@ -78,8 +80,8 @@ void bind_contact_modes(nb::module_& m) {
   nb::cpp_function_def(
       &contact_solution, nb::scope(kernel), nb::name("contact_solution"), nb::is_method(),
       "The last evaluation's contact forces (k x 3) [N, basis], accelerations without contact forces, their "
-      "response (nv x 3k), gaps (k) [m], points (k x 3) [m, world], velocities (k x 3) [m/s, basis], Jacobian "
-      "(3k x nv), drift (3k) [m/s^2] and the force system's relative residual.");
+      "response (nv x 3k), gaps (k) [m], points (k x 3) [m, world] and in the planes' axes, velocities (k x 3) "
+      "[m/s, basis], Jacobian (3k x nv), drift (3k) [m/s^2] and the force system's relative residual.");
 }
 
 }  // namespace pinstab

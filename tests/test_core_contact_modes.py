@@ -85,36 +85,36 @@ def test_cassie_core_modes_are_numpy_modes(cassie, modes):
         _compare(model, contacts, q, v, 0.0, modes, CASSIE_TOLERANCE)
 
 
-@pytest.mark.parametrize("modes", [[STICK], [SLIDE], [APART]])
-def test_fourbar_core_modes_are_numpy_modes(modes):
-    """A four-bar (a planar-point closure) whose coupler's frame touches the plane y = 0.05 m (mu 0.4): sticking
-    (its out-of-plane row zero: least squares), sliding (along the slip; at rest a grazing slip, ModeDynamics' own)
-    and separated, to 1e-12 relative."""
-    scene = pinstab.load_scene("fourbar")
-    model = ConstrainedModel(scene)
+def _coupler_contact(scene, **options) -> PlaneContactGeometry:
+    """The four-bar coupler's frame on the plane y = 0.05 m (mu 0.4), in the world's axes or ``options``'."""
     frame = scene.model.getFrameId("coupler", pin.BODY)
     plane = np.array([0.0, 0.05, 0.0])
-    contact = PlaneContactGeometry("coupler/plane", frame, contact_basis(np.array([0.0, 1.0, 0.0])), plane, 0.4, 0.0)
+    return PlaneContactGeometry(
+        "coupler/plane", frame, contact_basis(np.array([0.0, 1.0, 0.0])), plane, 0.4, 0.0, **options
+    )
+
+
+@pytest.mark.parametrize("carried", [False, True], ids=["world plane", "carried by the crank"])
+@pytest.mark.parametrize("modes", [[STICK], [SLIDE], [APART]])
+def test_fourbar_core_modes_are_numpy_modes(modes, carried):
+    """A four-bar (a planar-point closure) whose coupler's frame touches a plane fixed in the world or carried by the
+    crank: sticking (its out-of-plane row zero: least squares), sliding (along the slip; at rest a grazing slip,
+    ModeDynamics' own) and separated, to 1e-12 relative."""
+    scene = pinstab.load_scene("fourbar")
+    model = ConstrainedModel(scene)
+    options = {"plane_frame": scene.model.getFrameId("crank", pin.BODY)} if carried else {}
+    contact = _coupler_contact(scene, **options)
     for v in (scene.v0, np.zeros(scene.model.nv)):
         _compare(model, [contact], scene.q0, v, 0.0, modes, FOURBAR_TOLERANCE, directions=[(0.0, 1.0)])
 
 
 def test_contacts_the_core_does_not_take_are_numpy_modes():
-    """A plane carried by a body (here the crank's) is not the core's: the evaluation is ModeDynamics' own, counted
+    """A contact with rotational friction (torsion) is not the core's: the evaluation is ModeDynamics' own, counted
     under its status."""
     scene = pinstab.load_scene("fourbar")
     model = ConstrainedModel(scene)
-    frame = scene.model.getFrameId("coupler", pin.BODY)
-    carried = PlaneContactGeometry(
-        "coupler/crank",
-        frame,
-        contact_basis(np.array([0.0, 1.0, 0.0])),
-        np.zeros(3),
-        0.4,
-        0.0,
-        plane_frame=scene.model.getFrameId("crank", pin.BODY),
-    )
-    numpy, core = ModeDynamics(model, [carried]), CoreModeDynamics(model, [carried])
+    turning = _coupler_contact(scene, torsion=0.01)
+    numpy, core = ModeDynamics(model, [turning]), CoreModeDynamics(model, [turning])
     solved = core.solve(scene.q0, scene.v0, 0.0, [STICK])
     np.testing.assert_array_equal(solved.acceleration, numpy.solve(scene.q0, scene.v0, 0.0, [STICK]).acceleration)
     assert set(core.statistics.status_counts) == {"contact modes"}

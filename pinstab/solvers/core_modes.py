@@ -6,11 +6,12 @@ impacts, events: :mod:`pinstab.integration.events`), and each evaluation in a mo
 limits and sticking frictions held as equality rows (:class:`~pinstab.constraints.joint_limits.ActiveLimit`) are the
 kernel's rows; without contacts its KKT solve gives the accelerations, with them its contacts' solve
 (``cpp/contact_modes.hpp``: the rows eliminated through their own factorization, then the modes' force system, the
-rules of ModeDynamics) in place of it, for contacts on a plane fixed in the world without rotational friction; others
-(a plane carried by a body, a round pair, torsion or rolling) are ModeDynamics', and so is an evaluation with a
-sliding contact slower than :data:`~pinstab.solvers.contact_modes.GRAZING_SPEED` (a grazing slip, whose direction
-ModeDynamics slaves to its slip acceleration). The rows are the event path's: their
-drift without a stabilization term (its closures are assembled and its error control keeps them).
+rules of ModeDynamics, the contacts' rows ``cpp/plane_contacts.hpp``'s) in place of it, for contacts on a plane fixed in
+the world or carried by a body, without rotational friction; others (a round pair, torsion or rolling) are
+ModeDynamics', and so is an evaluation with a sliding contact slower than
+:data:`~pinstab.solvers.contact_modes.GRAZING_SPEED` (a grazing slip, whose direction ModeDynamics slaves to its slip
+acceleration). The rows are the event path's: their drift without a stabilization term (its closures are assembled
+and its error control keeps them).
 """
 
 from __future__ import annotations
@@ -50,9 +51,9 @@ CONTACT_SETTINGS = {
 
 
 def compiled_contact(contact: PlaneContactGeometry) -> bool:
-    """Whether the core evaluates ``contact``'s modes: a point (or sphere) on a plane fixed in the world, without
-    rotational friction."""
-    return contact.plane_frame is None and contact.core is None and not contact.torsion and not contact.rolling
+    """Whether the core evaluates ``contact``'s modes: a point (or sphere) on a plane fixed in the world or carried by a
+    body (not a round pair's), without rotational friction."""
+    return contact.core is None and not contact.torsion and not contact.rolling
 
 
 class CoreModeDynamics(ModeDynamics):
@@ -116,6 +117,7 @@ class CoreModeDynamics(ModeDynamics):
             contacts = self.contacts
             kernel.set_contacts(
                 np.array([c.frame for c in contacts], dtype=np.int32),
+                np.array([-1 if c.plane_frame is None else c.plane_frame for c in contacts], dtype=np.int32),
                 np.vstack([c.basis for c in contacts]),
                 np.array([c.origin for c in contacts]),
                 np.array([c.radius for c in contacts]),
@@ -163,9 +165,9 @@ class CoreModeDynamics(ModeDynamics):
         if acceleration is None:
             return super().solve(q, v, t, modes, spin_modes)
         kernel = self.mode_kernel().kernel
-        forces, free, mobility, gaps, positions, velocities, jacobian, drift, residual = kernel.contact_solution()
+        forces, free, mobility, *rows, residual = kernel.contact_solution()
         self.statistics.worst_primal_residual = max(self.statistics.worst_primal_residual, residual)
-        contacts = ContactKinematics(gaps, positions, positions, velocities, jacobian, drift)
+        contacts = ContactKinematics(*rows)  # gaps, points, local points, velocities, Jacobian, drift
         return ModeSolution(acceleration, forces, free, mobility, contacts, np.array(kernel.multipliers()))
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, t: float, stage: int = 0) -> np.ndarray:
