@@ -53,7 +53,7 @@ RUNS = {
     "mjcf-biped": (lambda: scene_from_dict({"robot": {"mjcf": "mjcf_biped.xml"}}, base_dir=DATA), 1.0),
 }
 EVALUATIONS = {
-    "before": lambda model, limits, statistics, frictions: ModeDynamics(model, [], limits, statistics, frictions),
+    "before": ModeDynamics,
     "after": CoreModeDynamics,
 }
 
@@ -102,7 +102,7 @@ def row_costs() -> dict[str, float]:
         constraint.calc(model, data, constraint_data)
         constraint.jacobian(model, data, constraint_data)
 
-    system = CoreModeDynamics(ConstrainedModel(scene), limits)
+    system = CoreModeDynamics(ConstrainedModel(scene), [], limits)
     kernels = {}
     for label, on in (("kernel_closure_only", ()), ("kernel_two_limits_held", held)):
         system.active = [limit in on for limit in limits]

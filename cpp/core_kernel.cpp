@@ -139,6 +139,16 @@ bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const Vect
   }
   force_ -= data_.nle;
   const VectorXd rhs = -drift_ + (holds_term ? *held_ : term_value_);
+  if (contacts_) {  // the contacts in their modes, the rows held
+    if (!contacts_->solve(model_, data_, v, data_.M, force_, jacobian_, rhs)) {
+      ++status_counts_["contact modes not solved"];
+      return false;
+    }
+    ++status_counts_["contact modes"];
+    multipliers_ = contacts_->reactions();
+    a = contacts_->acceleration();
+    return true;
+  }
   if (!solve(rhs)) return false;
   if (!inside_limits() || (python_ && !python_->holds(t, multipliers_))) {
     ++status_counts_["outside a contact's limits"];

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "contact_modes.hpp"
 #include "core_rows.hpp"
 #include "grasp_forces.hpp"
 #include "inertial_term.hpp"
@@ -117,6 +118,10 @@ class CoreKernel : public Kernel {
   const pinocchio::Model& model() const { return model_; }
   const std::vector<RowBlock>& blocks() const { return blocks_; }
   const std::shared_ptr<PythonPart>& python() const { return python_; }
+  // Plane contacts in given modes (cpp/contact_modes.hpp) solved in place of the KKT solve, the rows held as
+  // bilateral ones (pinstab.solvers.core_modes); none: the KKT solve. The multipliers are then the rows' reactions.
+  void set_contacts(std::optional<ContactModes> contacts) { contacts_ = std::move(contacts); }
+  ContactModes* contacts() { return contacts_ ? &*contacts_ : nullptr; }
 
  private:
   bool solve(const VectorXd& rhs);
@@ -143,6 +148,7 @@ class CoreKernel : public Kernel {
   Eigen::MatrixXd jacobian_;
   VectorXd phi_, time_term_, drift_, force_, multipliers_, acceleration_;
   KktSolve kkt_;
+  std::optional<ContactModes> contacts_;
 };
 
 }  // namespace pinstab

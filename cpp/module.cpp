@@ -34,6 +34,7 @@ SpringDamperSpec spring_damper_spec(nb::dict form, const pinocchio::Model& model
 void bind_kkt_sparsity(nb::module_& m);  // cpp/kkt_sparsity_bindings.cpp (a measurement)
 void bind_projection(nb::module_& m);  // cpp/projection_bindings.cpp
 void bind_cones(nb::module_& m);       // cpp/cone_bindings.cpp
+void bind_contact_modes(nb::module_& m);  // cpp/contact_modes_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -761,4 +762,5 @@ NB_MODULE(_compiled, m) {
           },
           "q"_a, "rows"_a, "(M^-1 G^T (G M^-1 G^T)^-1 rows, usable) at q.");
   bind_projection(m);  // after CoreKernel, which its classes take
+  bind_contact_modes(m);  // after CoreKernel, whose methods it adds
 }

@@ -125,11 +125,7 @@ def test_a_limit_keeps_its_fields_through_pickling_and_refuses_other_blocks():
 
 def _numpy_modes(monkeypatch):
     """Evaluate the modes by ModeDynamics' numpy solves (the path before the core took them)."""
-    monkeypatch.setattr(
-        contacts_module,
-        "CoreModeDynamics",
-        lambda model, limits, statistics, frictions=None: ModeDynamics(model, [], limits, statistics, frictions),
-    )
+    monkeypatch.setattr(contacts_module, "CoreModeDynamics", ModeDynamics)
 
 
 @pytest.mark.parametrize(("scene", "duration", "dq"), [("pendulum", 2.0, 1e-11), ("panda-anchor", 1.0, 1e-9)])

@@ -91,11 +91,7 @@ def test_core_modes_are_numpy_modes(monkeypatch):
 
     scene = twins(BIPED)[0]
     core = pinstab.simulate(scene, duration=0.5, dt=0.01)
-    monkeypatch.setattr(
-        contacts_module,
-        "CoreModeDynamics",
-        lambda model, limits, statistics, frictions: ModeDynamics(model, [], limits, statistics, frictions),
-    )
+    monkeypatch.setattr(contacts_module, "CoreModeDynamics", ModeDynamics)
     numpy = pinstab.simulate(scene, duration=0.5, dt=0.01)
     assert set(numpy.info.solver_statistics.status_counts) == {"contact modes"}
     assert [(e["contact"], e["to"]) for e in numpy.info.contact_events] == [

@@ -101,8 +101,8 @@ def simulate_events(
     control = error_control(EVENT_RTOL if rtol is None and atol is None else rtol, atol, "dop853")
     system.bind(grid.dt, "dop853", q)
     statistics = system.solver.statistics
-    if closures and not geometries:  # closures, limits, frictions: each mode's evaluation is the core's
-        dynamics = CoreModeDynamics(system.model, limits, statistics, frictions)
+    if closures and (not geometries or system.model.constraints.rows):  # held rows: each evaluation is the core's
+        dynamics = CoreModeDynamics(system.model, geometries, limits, statistics, frictions)
     else:
         dynamics = ModeDynamics(system.model, geometries, limits, statistics, frictions)
     system.acceleration = dynamics.acceleration
