@@ -843,7 +843,7 @@ def test_event_steps_do_not_collapse(files: RunFiles) -> None:
     dop853 steps down to 6.8e-13 s, for 8 contact events (found by the long profile): two corners start sliding
     from rest at 1e-9 m/s, their friction direction turning within 1e-11 s. Then 500 steps in a row shorter than
     1e-9 s ended the run with exit 5; now a grazing slip's direction is slaved to its slip acceleration and the run
-    reaches its end in 2,239 steps (tests/test_contact_wall_time.py checks it against time-stepping)."""
+    reaches its end in 2,223 steps (tests/test_contact_wall_time.py checks it against time-stepping)."""
     outcome, _ = run_contact_case(ContactCase(SLOW_EVENTS), "event", "absent", files)
     assert outcome.code == 0, outcome
     assert json.loads(outcome.out)["error_control"]["steps_accepted"] < 5000

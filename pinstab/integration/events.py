@@ -409,8 +409,9 @@ class EventLoop(AdaptiveLoop):
         slips = [rates[friction.rows] for friction in self.dynamics.frictions]
         from_rest = self.dynamics.from_rest
         for f, slip in enumerate(slips):
-            self._armed[f] = self._armed[f] or math.hypot(*slip) > ARMING_SPEED
-            from_rest[f] = from_rest[f] and math.hypot(*slip) < GRAZING_SPEED
+            speed = math.hypot(*slip)
+            self._armed[f] = self._armed[f] or speed > ARMING_SPEED
+            from_rest[f] = from_rest[f] and speed < GRAZING_SPEED
         return [self.dynamics.slip_direction(f, slip) for f, slip in enumerate(slips)]
 
     def _locate(self, segment: Segment, t0: float, t1: float) -> float:

@@ -410,7 +410,7 @@ class ModeDynamics:
         if key not in self._redundant:  # the rank of the rows: fixed by the modes and the contacts' layout
             self._redundant[key] = not np.linalg.cond(system) < 1.0 / RANK_TOLERANCE
         forces = _forces(system, rhs, self._redundant[key])
-        grazing = self._grazing(modes, velocities, system, delassus @ forces + reach)
+        grazing = self._grazing(modes, velocities, system, (delassus, reach), forces)
         if grazing:
             forces = self._follow_slip_acceleration(
                 system, rhs, self._redundant[key], (delassus, reach), forces, grazing
@@ -438,23 +438,32 @@ class ModeDynamics:
                 reactions = bilateral.reactions + bilateral.response @ forces + spun.reactions @ torques
         return ModeSolution(acceleration, forces.reshape(-1, 3), free, mobility, contacts, reactions, torques)
 
-    def _grazing(self, modes: list[Mode], velocities: np.ndarray, system: np.ndarray, rates: np.ndarray) -> list[int]:
+    def _grazing(
+        self,
+        modes: list[Mode],
+        velocities: np.ndarray,
+        system: np.ndarray,
+        slip_rows: tuple[np.ndarray, np.ndarray],
+        forces: np.ndarray,
+    ) -> list[int]:
         """The sliding contacts' frictions (linear, mu > 0) in a grazing slip: started from rest and not yet faster
-        than :data:`GRAZING_SPEED` (:attr:`from_rest`),
-        speeding up along the direction the force ``system`` gives them (their slip acceleration, in ``rates``, has a
-        positive component along it: a slip that slows down ends, an event), and not turned against the direction
-        it had at the step's start (a slip ending within the step: the event loop locates its end)."""
+        than :data:`GRAZING_SPEED` (:attr:`from_rest`), speeding up along the direction the force ``system`` gives
+        them (their slip acceleration ``D f + r``, ``slip_rows`` = (D, r) at ``forces``, has a positive component
+        along it: a slip that slows down ends, an event), and not turned against the direction it had at the step's
+        start (a slip ending within the step: the event loop locates its end). The slip acceleration is computed
+        only for the frictions that pass the other tests (most evaluations have none)."""
+        delassus, reach = slip_rows
         grazing = []
         for f, friction in enumerate(self.frictions[: len(self.contacts)]):
-            slip = velocities[friction.rows]
+            slip, rows = velocities[friction.rows], friction.rows
             continued = None if self.continued is None else self.continued[f]
             if (
                 self.from_rest[f]
                 and modes[friction.contact] is Mode.SLIDING
                 and friction.bound > 0.0
                 and math.hypot(*slip) < GRAZING_SPEED
-                and float(rates[friction.rows] @ system[friction.rows, friction.normal]) > 0.0
                 and (continued is None or float(slip @ continued) > 0.0)
+                and float((delassus[rows] @ forces + reach[rows]) @ system[rows, friction.normal]) > 0.0
             ):
                 grazing.append(f)
         return grazing

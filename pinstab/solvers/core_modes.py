@@ -37,6 +37,7 @@ from .contact_modes import (
     ModeDynamics,
     ModeSolution,
     PlaneContactGeometry,
+    plane_arrays,
 )
 from .proxsuite_ import DIRECT_PIVOT
 
@@ -114,16 +115,9 @@ class CoreModeDynamics(ModeDynamics):
         core = self.mode_kernel()
         kernel, k = core.kernel, len(self.contacts)
         if self._layouts.get(id(core)) != self._layout:
-            contacts = self.contacts
-            kernel.set_contacts(
-                np.array([c.frame for c in contacts], dtype=np.int32),
-                np.array([-1 if c.plane_frame is None else c.plane_frame for c in contacts], dtype=np.int32),
-                np.vstack([c.basis for c in contacts]),
-                np.array([c.origin for c in contacts]),
-                np.array([c.radius for c in contacts]),
-                np.array([c.mu for c in contacts]),
-                CONTACT_SETTINGS,
-            )
+            frames, plane_frames, radii, bases, origins = plane_arrays(self.contacts)[1]  # all: none is a round pair
+            mus = np.array([c.mu for c in self.contacts])
+            kernel.set_contacts(frames, plane_frames, bases, origins, radii, mus, CONTACT_SETTINGS)
             self._layouts[id(core)], self._codes[id(core)] = self._layout, None
         codes = tuple(MODE_CODES[mode] for mode in modes)
         sliding = MODE_CODES[Mode.SLIDING] in codes
