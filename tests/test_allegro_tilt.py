@@ -90,3 +90,22 @@ def test_stop_on_slip_writes_the_recording(capsys, tmp_path):
     assert code == cli.EXIT_STOPPED, err
     assert json.loads(printed)["frames"] == 3  # 0, 0.05, 0.10 s, then the slip at 0.143 s
     assert "pinstab ready: allegro-tilt" in out.read_text()
+
+
+def test_the_let_go_is_an_event_whatever_the_duration_and_output_step():
+    """The hold's let-go is located by the event loop (issue 36's defect: it latched at the first evaluation that found
+    no holding forces, also a stage of a rejected step, so that a run let go at 0.1167 s or 0.1432 s as --duration
+    changed the steps): runs to 0.15, 0.2 and 0.3 s at output steps 0.01 and 0.001 s, whose steps differ, let go within
+    1e-10 s of one another (measured 2.1e-12 s; events are located to 1e-12 s) and within 1e-6 s of the prediction
+    (measured 5.3e-8 s), and report it as the hold's event."""
+    scene = load_scene("allegro-tilt")
+    predicted = slip_time(scene, tilt_at_first_slip(scene, AXIS))
+    let_go = set()
+    for duration, dt in ((0.15, 0.01), (0.2, 0.001), (0.3, 0.01)):
+        run = simulate(scene, contacts="event", duration=duration, dt=dt, stop_on=("slip",))
+        events = [e for e in run.info.contact_events if e["contact"] == "hold"]
+        assert [(e["from"], e["to"]) for e in events] == [("holding", "let go")]
+        assert events[0]["cause"] == "no forces inside the cones hold ball"
+        let_go.add(events[0]["t"])
+    assert max(let_go) - min(let_go) <= 1e-10
+    assert all(abs(t - predicted) <= 1e-6 for t in let_go)

@@ -17,10 +17,7 @@ from pinstab.grasp.analysis import GraspContact
 from pinstab.grasp.holding import (
     FEASIBILITY,
     ConeTest,
-    Limits,
     WarmQP,
-    _limit_jacobian,
-    _limit_values,
     cone_columns,
     cone_margins,
     feasible,
@@ -202,27 +199,6 @@ def test_screened_qp_fails_at_once_and_solves_as_before():
             np.testing.assert_array_equal(x, reference)
         elif k > 0 and loads[k - 1] > reach:  # after a failure: refused by the LP, ProxQP not run
             assert info is None and np.isnan(x).all()
-
-
-def test_cone_limit_values_and_their_jacobian():
-    """SLSQP's limit rows: mu^2 f_n^2 - |f_t|^2 of a point contact and torsion f_n -+ m_z of a soft finger (closed
-    form), their Jacobian the central differences' (exact for quadratics up to rounding, 1e-9)."""
-    contacts = [Limits("point", "point-friction", 0.8, 0.0), Limits("soft", "soft-finger", 0.5, 0.01)]
-    columns, count = cone_columns(contacts)
-    forces = RNG.normal(size=count)
-    values, jacobian = _limit_values(columns, forces), _limit_jacobian(columns, forces)
-    f_t1, f_t2, f_n, s_t1, s_t2, s_n, m_z = forces
-    friction = [0.64 * f_n**2 - f_t1**2 - f_t2**2, 0.25 * s_n**2 - s_t1**2 - s_t2**2]
-    expected = [*friction, 0.01 * s_n - m_z, 0.01 * s_n + m_z]
-    np.testing.assert_allclose(values, expected, rtol=1e-14, atol=1e-15)
-    step = 1e-6
-    differences = np.column_stack(
-        [
-            (_limit_values(columns, forces + step * e) - _limit_values(columns, forces - step * e)) / (2 * step)
-            for e in np.eye(count)
-        ]
-    )
-    np.testing.assert_allclose(jacobian, differences, atol=1e-9)
 
 
 def test_one_row_servo_solve_is_the_pseudo_inverses():

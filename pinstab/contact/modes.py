@@ -27,6 +27,7 @@ class Mode(StrEnum):
 
 
 CLOSING = "closing"  # the impact between separated and a lasting mode (an event, not a mode)
+HOLDING, LET_GO = "holding", "let go"  # a grasp-hold's let-go (an event of a force element, not a contact): from, to
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Mapping
 from typing import Any, NamedTuple
@@ -65,6 +66,7 @@ class ForceElement(ABC):
 
     name: str
     needs_kinematics: bool = True
+    switches: bool = False  # whether it switches at events an event-driven run locates (switch_value, switch)
 
     @abstractmethod
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
@@ -72,6 +74,17 @@ class ForceElement(ABC):
 
     def restart(self) -> None:
         """A run starts: forget what an earlier run left in the element (the default keeps nothing)."""
+        return None
+
+    def switch_value(self, q: np.ndarray, t: float) -> float | None:
+        """An element that :attr:`switches`: its event function at (q, t) [s] from its last evaluation, below zero once
+        it must switch; None when that evaluation was at another state (the event loop evaluates it at (q, t) and asks
+        again). The default: inf, it never switches."""
+        return math.inf
+
+    def switch(self, t: float) -> str | None:
+        """Switch at the event located at t [s] when the element's event function is below zero there; the event's
+        cause in words, else None (the default: nothing to switch)."""
         return None
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any] | None:

@@ -9,10 +9,12 @@ fingers' forces on the object in the contact frames):
   sits on its cone's edge, where rounding would decide whether it slips) and every normal force at most
   ``max_squeeze`` [N] (default: no cap): the
   least-squares forces when they are inside, else a ProxQP on the cones' inscribed pyramids (``facets``
-  sides), else SciPy's SLSQP on the exact round cones (:mod:`pinstab.grasp.holding`). When no forces
-  inside the cones carry the weight (a grasp without force closure, or the cap), the least-squares
-  forces are kept (with the cap: those closest to the squeeze within the cap), and the run names every
-  contact that leaves its cone;
+  sides), else a conic program on the exact round cones (Clarabel, :mod:`pinstab.grasp.holding`), else,
+  where the load is barely held and that solve stops short of its tolerance, the forces of least squeeze
+  (when within the cap). When no forces inside the cones carry the weight (a grasp without force closure,
+  or the cap), the hold lets go (an event of an event-driven run, located to 1e-12 s): the least-squares
+  forces are kept (with the cap: those closest to the squeeze within the cap; none with ``release``
+  ``relax``), and the run names every contact that leaves its cone;
 * the joint torques that make those forces an equilibrium of the hand:
   ``tau = g_hand - A_hand^T lambda* - K (theta - theta_0) - D theta_dot`` (gravity compensated, joint
   stiffness ``K`` [N m/rad] about the start and damping ``D`` [N m s/rad]).
@@ -47,6 +49,7 @@ from .holding import (
     closest_holding,
     cone_arrays,
     cone_columns,
+    least_squeeze,
     narrowed,
     pyramid_rows,
 )
@@ -82,6 +85,8 @@ class GraspHold(ForceElement):
             or ``relax``: no contact forces (the hand keeps its gravity compensation, stiffness and damping only: the
             object is left to fall out of it).
     """
+
+    switches = True  # its let-go, located by an event-driven run
 
     def __init__(
         self,
@@ -121,12 +126,15 @@ class GraspHold(ForceElement):
 
     def held_forces(self, rows: np.ndarray, gravity: np.ndarray, t: float | None = None) -> np.ndarray:
         """The held contact forces lambda* (s,) [N, N m] given the contact rows A (s x nv) and the generalized
-        gravity g(q) [N, N m] (see the module docstring). With the time t [s] of a run, the hold lets go for good:
-        from the earliest t at which no forces inside the cones hold (:attr:`released`) its forces are the let-go
-        ones at every later t, without the QPs (near that bound whether a solve finds forces within its tolerance
-        flickers, over 1e-5 s of allegro-tilt, and with it the hand's torques, by 0.06 N at the fingertips)."""
+        gravity g(q) [N, N m] (see the module docstring); where no forces inside the cones hold, the let-go ones. With
+        the time t [s] of a run, the hold lets go for good: from :attr:`released` on its forces are the let-go ones,
+        without the QPs (near that bound whether a solve finds forces within its tolerance flickers, over 1e-5 s of
+        allegro-tilt, and with it the hand's torques, by 0.06 N at the fingertips). An event-driven run locates the
+        let-go as an event (:meth:`switch_value`, :meth:`switch`: the hold lets go at the located time, whatever the
+        rejected steps tried beyond it); other runs let go at the first evaluation that finds no holding forces."""
         carrier = rows[:, self._object].T  # A_object^T: contact forces -> object generalized force
         load = gravity[self._object]
+        self.holding = True
         if t is not None and t >= self.released:
             return self._let_go(carrier, load)
         # least squares: the forces closest to the squeeze among those that best carry the object's weight
@@ -142,7 +150,11 @@ class GraspHold(ForceElement):
         exact = closest_holding(carrier, load, self._limits, self.pressing, self.max_squeeze)
         if exact.holds:
             return exact.forces
-        if t is not None:
+        least = least_squeeze(carrier, load, self._limits)  # barely held, the closest solve can fail where this holds
+        if least.holds and least.squeeze <= self.max_squeeze * (1.0 + FEASIBILITY):
+            return least.forces
+        self.holding = False
+        if t is not None and not self.located:
             self.released = t
         return self._let_go(carrier, load, free)
 
@@ -167,6 +179,27 @@ class GraspHold(ForceElement):
         earlier run's last solve gave start forces 1e-11 N apart from a fresh hold's)."""
         self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
         self.released = math.inf  # [s] when the hold let go in the current run (inf: it holds)
+        self.located = False  # whether the run locates the let-go (an event-driven run: :meth:`switch_value`)
+        self.holding = True  # whether the last evaluation found holding forces (or the hold had let go before)
+        self._evaluated: tuple[float, bytes] | None = None  # (t [s], q) of the last evaluation in a run
+
+    def switch_value(self, q: np.ndarray, t: float) -> float | None:
+        """The let-go's event function at (q, t) from the last evaluation (None: that was at another state): 1 while
+        some forces inside the cones hold the object (or the hold has let go already), -1 once none do (a sign change
+        that bisection locates: the holding set shrinks to nothing there, with no margin that reaches zero
+        smoothly). The first call makes the run's let-go a located one (:meth:`switch`)."""
+        self.located = True
+        if self._evaluated != (t, q.tobytes()):
+            return None
+        return 1.0 if self.holding or t >= self.released else -1.0
+
+    def switch(self, t: float) -> str | None:
+        """Let go at the located event at t [s] when the last evaluation found no holding forces; the event's cause
+        (``no forces inside the cones hold <object>``), else None."""
+        if self.holding or t >= self.released:
+            return None
+        self.released = t
+        return f"no forces inside the cones hold {self.object_name or self.name}"
 
     def torques(
         self, rows: np.ndarray, gravity: np.ndarray, q: np.ndarray, v: np.ndarray, t: float | None = None
@@ -181,6 +214,7 @@ class GraspHold(ForceElement):
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         rows = contact_rows(self.contacts, kin, 0.0)
+        self._evaluated = (t, kin.q.tobytes())
         return self.torques(rows, kin.gravity(), kin.q, v, t)
 
     def compiled_form(self, rows: Mapping[str, slice]) -> dict[str, Any]:

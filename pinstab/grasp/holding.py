@@ -9,12 +9,14 @@ the load ``w`` (k,) when ``A lambda = w`` and every contact carries its force: `
 ``|f_t| <= mu f_n`` (the round cone) and, for a soft finger, ``|m_z| <= torsion f_n``; a rigid contact
 carries anything. The *squeeze* of ``lambda`` is its largest normal force [N].
 
-Method: a linear program on the inscribed pyramids (HiGHS) gives a feasible start (the circumscribed
-pyramids decide that no force holds), then SciPy's SLSQP solves the problem on the round cones
-(``mu^2 f_n^2 >= |f_t|^2`` with ``f_n >= 0``). ``mu^2 f_n^2 >= |f_t|^2`` alone is the double cone (its mirror
-has ``f_n <= 0``): ``f_n >= 0`` is a bound of SLSQP's, which every iterate keeps, not one of its constraints,
-which its step relaxes where their linearization is inconsistent (an iterate then landed on the mirror on tilted
-pinches, SciPy 1.15 and 1.17 alike, and the squeeze fell back to the inscribed pyramids' start, up to 2 % high).
+Method: Clarabel, an interior-point solver for conic programs, on the exact round cones (a second-order cone
+``(mu f_n, f_t1, f_t2)`` per friction contact, linear rows for torsion, normal forces and the cap) with a linear
+objective (the squeeze, or the distance to the wished forces through one more second-order cone), its answer kept
+only when this module's own checks pass (the load carried within :data:`FEASIBILITY`, :class:`ConeTest`); for the
+squeeze, after a numerical failure, the forces of a linear program on the inscribed pyramids (HiGHS), when they hold.
+It replaced SciPy's SLSQP on the quadratic form ``mu^2 f_n^2 >= |f_t|^2``, whose constraint gradient vanishes at a
+cone's apex: near a grasp's let-go, where contacts unload, 179 of 631 solves of allegro-drop's first 0.3 s ran to
+SLSQP's 500 iterations and 161 more stopped on a failed line search (45 of 55 CPU s of the run).
 """
 
 from __future__ import annotations
@@ -31,7 +33,12 @@ from ..contact.models import WRENCH_BASES, ContactLimits
 from ..proxqp import proxsuite
 from .analysis import RANK_TOLERANCE
 
-START_FACETS = 16  # sides of the pyramids whose linear program starts the exact solve
+START_FACETS = 16  # sides of the pyramids whose linear program is the squeeze solve's fallback
+CONIC_TOLERANCE = 1e-11  # Clarabel's gap and feasibility tolerances (relative to the problem's scale)
+CONIC_SOLVED = ("Solved", "AlmostSolved")  # Clarabel's statuses whose answer the checks may keep
+CONIC_INFEASIBLE = ("PrimalInfeasible", "AlmostPrimalInfeasible")  # Clarabel's statuses: nothing holds
+REFINEMENT, REFINEMENT_PASSES = 1e-14, 50  # Clarabel's iterative refinement: tolerance, passes (see conic_solve)
+FEASIBILITY_TOLERANCE = 1e-8  # Clarabel's tolerances where it only decides whether rows can hold (its default)
 FEASIBILITY = 1e-9  # relative to the load: residuals and cone margins above -this hold
 QP_ITERATIONS = 200  # a small QP converges in tens of iterations; an infeasible one would run for minutes
 ACTIVE_SET_TOLERANCE = 1e-10  # relative to the largest entry: bounds and multiplier signs of a previous active set
@@ -41,7 +48,6 @@ COMPLEMENTARITY = 1e-6  # relative to the bound: a row with a multiplier farther
 # whether it slips; 1000 times FEASIBILITY, and the hold lets go that much earlier (tilt_at_first_slip)
 HOLD_MARGIN = 1e-6
 UNBOUNDED = 1e30  # ProxQP's infinite bound
-LP_INFEASIBLE = 2  # scipy.optimize.linprog's status: the problem is infeasible
 _SOLVED = (proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED,)
 
 
@@ -119,46 +125,6 @@ def pyramid_rows(columns: list[ConeColumns], count: int, facets: int, widen: flo
 def normal_columns(columns: list[ConeColumns]) -> list[int]:
     """The columns of the normal forces."""
     return [contact.normal for contact in columns]
-
-
-def _limit_values(columns: list[ConeColumns], forces: np.ndarray) -> np.ndarray:
-    """Values g >= 0 inside the exact limits with f_n >= 0 (a bound, see :class:`_Problem`): mu^2 f_n^2 - |f_t|^2,
-    torsion f_n -+ m_z; smooth, for SLSQP, which calls it ~10 times an iteration, ~5000 times a solve near a let-go (on
-    Python floats: squares by ``pow`` as before, where numpy's array square, x * x, differs from it in the last bit of
-    ~1 in 1000 values)."""
-    f = forces.tolist()
-    values = []
-    for contact in columns:
-        n = contact.normal
-        if contact.tangents is not None:
-            t1, t2 = contact.tangents
-            values.append(contact.mu**2 * f[n] ** 2 - f[t1] ** 2 - f[t2] ** 2)
-        if contact.spin is not None:
-            values.extend(contact.torsion * f[n] - sign * f[contact.spin] for sign in (1.0, -1.0))
-    return np.array(values)
-
-
-def _limit_jacobian(columns: list[ConeColumns], forces: np.ndarray) -> np.ndarray:
-    """The Jacobian of :func:`_limit_values` with respect to the forces (rows in its order)."""
-    f = forces.tolist()
-    rows, entries, gradients, count = [], [], [], 0
-    for contact in columns:
-        n = contact.normal
-        if contact.tangents is not None:
-            t1, t2 = contact.tangents
-            rows.extend([count] * 3)
-            entries.extend((n, t1, t2))
-            gradients.extend((2 * contact.mu**2 * f[n], -2 * f[t1], -2 * f[t2]))
-            count += 1
-        if contact.spin is not None:
-            for sign in (1.0, -1.0):
-                rows.extend([count] * 2)
-                entries.extend((n, contact.spin))
-                gradients.extend((contact.torsion, -sign))
-                count += 1
-    jacobian = np.zeros((count, forces.size))
-    jacobian[rows, entries] = gradients
-    return jacobian
 
 
 def cone_margins(contacts: list[Any], forces: np.ndarray) -> dict[str, dict[str, float]]:
@@ -243,7 +209,8 @@ class _Problem:
         self.caps = np.zeros((len(normals), count + 1))  # s - f_n >= 0
         self.caps[np.arange(len(normals)), normals] = -1.0
         self.caps[:, -1] = 1.0
-        # A lambda = w on the independent rows of A (SLSQP needs them independent); w outside A's range: nothing holds
+        # A lambda = w on the independent rows of A (independent rows for the solvers); w outside A's range: nothing
+        # holds
         left, singular, _ = np.linalg.svd(self.carrier, full_matrices=False)
         rank = int(np.count_nonzero(singular > RANK_TOLERANCE * max(float(singular[0]), 1.0)))
         self.reachable = bool(
@@ -251,9 +218,7 @@ class _Problem:
         )
         self.equality = np.hstack([left[:, :rank].T @ self.carrier, np.zeros((rank, 1))])
         self.rhs = left[:, :rank].T @ self.load / self.scale
-        # f_n >= 0 as bounds: SLSQP keeps every iterate inside its bounds, also through a step whose linearized
-        # constraints were inconsistent (it relaxes those, never the bounds), so the quadratic limit holds the
-        # iterates on the cone, not on its mirror (f_n < 0)
+        # the linear program's bounds: f_n >= 0, 0 <= s <= cap
         self.bounds = [(None, None)] * count + [(0.0, None if math.isinf(cap) else cap / self.scale)]
         for normal in normals:
             self.bounds[normal] = (0.0, None)
@@ -282,41 +247,82 @@ class _Problem:
                 return result.x, widen == 1.0
         return None
 
-    def limits(self, x: np.ndarray) -> np.ndarray:
-        return np.concatenate([_limit_values(self.columns, x[:-1]), self.caps @ x])
+    def cone_rows(self, squeeze: bool) -> tuple[np.ndarray, np.ndarray, list[Any]]:
+        """The problem's constraints as Clarabel takes them, ``G x + slack = h`` with the slack in the cones: the
+        independent rows of ``A lambda = w`` (zero cone); ``f_n >= 0``, a soft finger's ``torsion f_n -+ m_z >= 0``
+        and, with the squeeze s among the variables (``squeeze``: x = (lambda, s) / scale), ``s - f_n >= 0``,
+        ``s >= 0`` and, with a cap, ``s <= cap``, without it (x = lambda / scale: an objective that does not read s
+        leaves it undetermined, which ended interior-point solves in numerical errors) ``f_n <= cap`` (non-negative
+        cone); each friction contact's ``(mu f_n, f_t1, f_t2)`` (a second-order cone of dimension 3). Returns (G, h,
+        cones)."""
+        import clarabel
 
-    def limits_jacobian(self, x: np.ndarray) -> np.ndarray:
-        jacobian = _limit_jacobian(self.columns, x[:-1])
-        return np.vstack([np.hstack([jacobian, np.zeros((len(jacobian), 1))]), self.caps])
+        width = self.count + 1 if squeeze else self.count
+        rows, bounds = [-self.equality[:, :width]], [-self.rhs]
+        nonnegative = []
+        for contact in self.columns:
+            nonnegative.append(np.eye(width)[contact.normal])
+            if contact.spin is not None:
+                for sign in (1.0, -1.0):
+                    row = np.zeros(width)
+                    row[[contact.normal, contact.spin]] = [contact.torsion, -sign]
+                    nonnegative.append(row)
+        upper: list[np.ndarray] = []
+        if squeeze:
+            nonnegative.extend(self.caps)
+            nonnegative.append(np.eye(width)[-1])
+            upper = [-np.eye(width)[-1]]
+        elif not math.isinf(self.cap):
+            upper = [-np.eye(width)[contact.normal] for contact in self.columns]
+        if math.isinf(self.cap):
+            upper = []
+        rows.append(-np.array(nonnegative + upper))
+        bounds.append(np.concatenate([np.zeros(len(nonnegative)), np.full(len(upper), self.cap / self.scale)]))
+        cones = [clarabel.ZeroConeT(len(self.rhs)), clarabel.NonnegativeConeT(len(nonnegative) + len(upper))]
+        for contact in self.columns:
+            if contact.tangents is not None:
+                cone = np.zeros((3, width))
+                cone[0, contact.normal] = contact.mu
+                cone[1, contact.tangents[0]] = cone[2, contact.tangents[1]] = 1.0
+                rows.append(-cone)
+                bounds.append(np.zeros(3))
+                cones.append(clarabel.SecondOrderConeT(3))
+        return np.vstack(rows), np.concatenate(bounds), cones
 
-    def solve(self, objective) -> Holding:
-        """Minimize ``objective(x) -> (value, gradient)`` on the round cones, from the pyramids' start."""
-        from scipy.optimize import minimize
+    def solve(self, target: np.ndarray | None = None) -> Holding:
+        """Minimize the last variable on the round cones by Clarabel (an interior-point method for conic programs: the
+        exact second-order cones, to :data:`CONIC_TOLERANCE`): without ``target``, the squeeze s (x = (lambda, s) /
+        scale); with it (forces / scale), the distance r from it (x = (lambda, r) / scale, ``(r, lambda - target)`` in a
+        second-order cone: the least-squares objective as a linear one, which Clarabel solves where the quadratic
+        objective's form ended 432 of 817 solves near allegro-drop's let-go in numerical errors). Its answer is kept
+        when it passes this module's own checks (the load within :data:`FEASIBILITY`, :class:`ConeTest`); else,
+        without a target, where Clarabel failed numerically (not where it proved the problem infeasible), the linear
+        program's forces on the inscribed pyramids (:meth:`start`), when they hold."""
+        import clarabel
 
-        start = self.start() if self.reachable else None
-        if start is None:
+        if not self.reachable:
             return Holding(None, math.inf)
-        x0, inscribed = start
-        result = minimize(
-            objective,
-            x0,
-            jac=True,
-            method="SLSQP",
-            bounds=self.bounds,
-            constraints=[
-                {
-                    "type": "eq",
-                    "fun": lambda x: self.equality @ x - self.rhs,
-                    "jac": lambda x: self.equality,
-                },
-                {"type": "ineq", "fun": self.limits, "jac": self.limits_jacobian},
-            ],
-            options={"ftol": 1e-15, "maxiter": 500},
-        )
-        for x in (result.x, x0 if inscribed else None):
-            if x is None:
-                continue
-            forces = x[:-1] * self.scale
+        matrix, bounds, cones = self.cone_rows(target is None)
+        count = self.count
+        if target is not None:
+            distance = np.zeros((count + 1, count + 1))  # G rows of the slack (r, lambda - target) = h - G (x, r)
+            distance[0, -1] = -1.0
+            distance[1:, :count] = -np.eye(count)
+            matrix = np.vstack([np.hstack([matrix, np.zeros((len(matrix), 1))]), distance])
+            bounds = np.concatenate([bounds, [0.0], -target])
+            cones = [*cones, clarabel.SecondOrderConeT(count + 1)]
+        status, x = conic_solve(np.eye(count + 1)[-1], matrix, bounds, cones, CONIC_TOLERANCE)
+        return self._kept(status, x, target is None)
+
+    def _kept(self, status: str, x: np.ndarray, fallback: bool) -> Holding:
+        """The forces of Clarabel's answer x (its status) when they pass the checks; else, with ``fallback`` after a
+        numerical failure, the inscribed pyramids' linear program's."""
+        candidates = [x] if status in CONIC_SOLVED else []
+        if fallback and status not in CONIC_SOLVED + CONIC_INFEASIBLE:  # a numerical failure: the pyramids may hold
+            start = self.start()
+            candidates = [start[0]] if start is not None and start[1] else []
+        for x in candidates:
+            forces = x[: self.count] * self.scale
             residual = float(np.max(np.abs(self.carrier @ forces - self.load), initial=0.0))
             if residual <= FEASIBILITY * self.scale and self.cone_test.holds(forces):
                 normals = [contact.normal for contact in self.columns]
@@ -327,49 +333,63 @@ class _Problem:
 def least_squeeze(carrier: np.ndarray, load: np.ndarray, contacts: list[Any]) -> Holding:
     """The contact forces that hold ``load`` (A lambda = w) with the smallest largest normal force: the
     squeeze [N] the grasp needs; ``Holding(None, inf)`` when no forces inside the cones hold it."""
-    problem = _Problem(carrier, load, contacts, math.inf)
-    gradient = np.zeros(problem.count + 1)
-    gradient[-1] = 1.0
-    return problem.solve(lambda x: (float(x[-1]), gradient))
+    return _Problem(carrier, load, contacts, math.inf).solve()
 
 
 def closest_holding(
     carrier: np.ndarray, load: np.ndarray, contacts: list[Any], target: np.ndarray, cap: float = math.inf
 ) -> Holding:
     """The contact forces that hold ``load`` inside the cones with every normal force at most ``cap`` [N],
-    closest (least squares) to ``target`` (stacked forces [N, N m]); ``Holding(None, inf)`` when none do."""
+    closest (least squares) to ``target`` (stacked forces [N, N m]); ``Holding(None, inf)`` when none do (or, where
+    the load is barely held, when the interior-point solve does not reach its tolerance: :func:`least_squeeze` is
+    the robust test of whether any forces hold, and its forces the fallback)."""
     problem = _Problem(carrier, load, contacts, cap)
-    wished = np.append(np.asarray(target, float) / problem.scale, 0.0)
-    weights = np.append(np.ones(problem.count), 0.0)
+    return problem.solve(np.asarray(target, float) / problem.scale)
 
-    def objective(x: np.ndarray) -> tuple[float, np.ndarray]:
-        difference = weights * (x - wished)
-        return float(difference @ difference), 2.0 * difference
 
-    return problem.solve(objective)
+def conic_solve(
+    gradient: np.ndarray, matrix: np.ndarray, bounds: np.ndarray, cones: list[Any], tolerance: float
+) -> tuple[str, np.ndarray]:
+    """Clarabel on ``min c^T x`` with ``G x + slack = h``, the slack in ``cones`` (Clarabel's cone list), its gap and
+    feasibility tolerances ``tolerance``, one thread: (its status's name, x)."""
+    import clarabel
+    from scipy import sparse
+
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.max_threads = 1
+    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = tolerance
+    settings.tol_infeas_abs = settings.tol_infeas_rel = tolerance
+    # its linear systems refined to 1e-14 (default 1e-13, 1e-12, 10 passes): near a grasp's let-go, where the held set
+    # shrinks to a point, the default ended 357 of 845 solves of allegro-drop's first 0.15 s in NumericalError; refined,
+    # those are found infeasible in ~20 iterations
+    settings.iterative_refinement_reltol = settings.iterative_refinement_abstol = REFINEMENT
+    settings.iterative_refinement_max_iter = REFINEMENT_PASSES
+    count = len(gradient)
+    solver = clarabel.DefaultSolver(
+        sparse.csc_matrix((count, count)), gradient, sparse.csc_matrix(matrix), bounds, cones, settings
+    )
+    solution = solver.solve()
+    return str(solution.status), np.array(solution.x)
 
 
 def feasible(
     equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray
 ) -> bool:
-    """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by HiGHS's phase
-    one (a linear program without cost, ~1 ms on a grasp's pyramids where a failing ProxQP runs to its iteration cap,
-    ~10 ms).
-    False only where HiGHS proves the rows infeasible: its feasibility tolerance (1e-7) is looser than the QPs' eps_abs
-    (1e-10), so that rows it finds infeasible no QP here solves."""
-    from scipy.optimize import linprog
+    """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by Clarabel on
+    the rows without cost (~0.3 ms on a grasp's pyramids where a failing ProxQP runs to its iteration cap, ~10 ms;
+    HiGHS through SciPy took ~4 ms).
+    False only where Clarabel proves the rows infeasible (a certificate to its default 1e-8, looser than the QPs'
+    eps_abs 1e-10), so that rows it finds infeasible no QP here solves."""
+    import clarabel
 
     finite_upper, finite_lower = np.abs(upper) < UNBOUNDED, np.abs(lower) < UNBOUNDED
-    result = linprog(
-        np.zeros(inequality.shape[1]),
-        A_ub=np.vstack([inequality[finite_upper], -inequality[finite_lower]]),
-        b_ub=np.concatenate([upper[finite_upper], -lower[finite_lower]]),
-        A_eq=equality,
-        b_eq=rhs,
-        bounds=(None, None),
-        method="highs",
-    )
-    return result.status != LP_INFEASIBLE
+    rows = np.vstack([equality, inequality[finite_upper], -inequality[finite_lower]])
+    bounds = np.concatenate([rhs, upper[finite_upper], -lower[finite_lower]])
+    sizes = [(clarabel.ZeroConeT, len(rhs)), (clarabel.NonnegativeConeT, len(bounds) - len(rhs))]
+    cones = [cone(size) for cone, size in sizes if size]
+    status, _ = conic_solve(np.zeros(inequality.shape[1]), rows, bounds, cones, FEASIBILITY_TOLERANCE)
+    return status != CONIC_INFEASIBLE[0]  # a certificate (not the reduced-accuracy AlmostPrimalInfeasible)
 
 
 def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:

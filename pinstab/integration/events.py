@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from ..constraints.joint_limits import JointLimit
-from ..contact.modes import CLOSING, ContactEvent, Mode, as_tuple, stop_kind
+from ..contact.modes import CLOSING, HOLDING, LET_GO, ContactEvent, Mode, as_tuple, stop_kind
 from ..errors import ContactInfeasibleError
 from ..kernels import joint_limit_rates
 from ..solvers.contact_modes import GRAZING_SPEED, ModeDynamics, ModeSolution, plane_geometries, spin_name
@@ -145,6 +145,7 @@ class EventLoop(AdaptiveLoop):
         self.finders: list[Any] = []
         self._declared: dict[str, int] = {}  # the contacts not found from geometry: their places, by name
         self._found: set[str] = set()  # the names of the contacts found from geometry at the last step's end
+        self._switching = [element for element in dynamics.model.forces if element.switches]  # grasp holds' let-go
 
     def _touches(self, i: int, q: np.ndarray) -> bool:
         """Whether limit i touches at q: its gap within TOUCH_GAP of where it counts as reached."""
@@ -319,7 +320,32 @@ class EventLoop(AdaptiveLoop):
                     margin = sticking_margin(dynamics, solution, dynamics.modes) + slack
                 values[i] = margin
         values[len(dynamics.contacts) :] = [self._spin_value(solution, j, slack) for j in range(len(dynamics.spins))]
-        return np.concatenate([values, limits, self._friction_values(v, solution)])
+        return np.concatenate([values, limits, self._friction_values(v, solution), self._switch_values(q, v, t)])
+
+    def _switch_values(self, q: np.ndarray, v: np.ndarray, t: float) -> list[float]:
+        """The event functions of the force elements that switch (a grasp-hold's let-go) at (q, v, t), each evaluated
+        there if its last evaluation was at another state."""
+        values = []
+        for element in self._switching:
+            value = element.switch_value(q, t)
+            if value is None:
+                self.dynamics.model.forces_at(q, v, t, [element])
+                value = element.switch_value(q, t)
+            values.append(value)
+        return values
+
+    def _element_switch(self, q: np.ndarray, v: np.ndarray, t: float) -> str | None:
+        """Switch the force elements whose event function is below zero at (q, v, t) (a grasp-hold lets go): the first
+        one's cause, else None; the dynamics' state is evaluated afresh (its forces changed)."""
+        causes = []
+        for element, value in zip(self._switching, self._switch_values(q, v, t), strict=True):
+            cause = element.switch(t) if value < 0.0 else None
+            if cause is not None:
+                causes.append(cause)
+                self.events.append(ContactEvent(t, element.name, HOLDING, LET_GO, cause))
+        if causes:
+            self.dynamics.forget_state()
+        return causes[0] if causes else None
 
     def _friction_values(self, v: np.ndarray, solution: ModeSolution) -> np.ndarray:
         """Each joint friction's event function: a sticking one's margin to its bound [N m or N], a slipping one's
@@ -470,7 +496,8 @@ class EventLoop(AdaptiveLoop):
             for i, limit in enumerate(dynamics.limits)
             if not dynamics.active[i] and limit.gap(q) <= TOUCH_GAP and limit.speed(v) < -TOUCH_SPEED
         ]
-        cause = LIMIT_REACHED if reached else self._reaction_zero(q, v, t) or self._friction_cause(q, v, t)
+        let_go = self._element_switch(q, v, t)
+        cause = LIMIT_REACHED if reached else let_go or self._reaction_zero(q, v, t) or self._friction_cause(q, v, t)
         frictions_before = self._friction_modes()
         if reached:
             self._count_chatter(q, v, t, reached)

@@ -334,6 +334,10 @@ class ModeDynamics:
         self._state = None
         return places
 
+    def forget_state(self) -> None:
+        """Evaluate the next state afresh (a force element switched: the same state has other forces now)."""
+        self._state = None
+
     def kinematics(self, q: np.ndarray, v: np.ndarray) -> ContactKinematics:
         """The contacts' gaps, velocities, Jacobians and drifts at (q, v) (a full kinematics pass)."""
         self.model.kin.update(q, v)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..contact.modes import Mode
+from ..contact.modes import LET_GO, Mode
 from ..errors import PinstabError
 from ..model import ConstrainedModel
 from ..scene import Scene
@@ -86,7 +86,7 @@ class ContactStates:
 
 def mode_spans(events: list[dict], names: list[str], t_end: float) -> list[ModeSpan]:
     """The mode spans of contacts ``names`` from a run's events (dicts with ``t``, ``contact``, ``to``,
-    ``force``), up to ``t_end`` [s]; a new span begins only where the mode changes.
+    ``force``; a grasp-hold's let-go skipped), up to ``t_end`` [s]; a new span begins only where the mode changes.
 
     Raises:
         PinstabError: an event of a contact not in ``names``, or a contact without a ``start`` event.
@@ -94,6 +94,8 @@ def mode_spans(events: list[dict], names: list[str], t_end: float) -> list[ModeS
     opened: dict[str, list[ModeSpan]] = {name: [] for name in names}
     for event in events:
         name, mode = event["contact"], event["to"]
+        if mode == LET_GO:  # a grasp-hold's, not a contact's
+            continue
         if name not in opened:
             raise PinstabError(f"contact event of {name!r}: no such contact; contacts: {', '.join(names)}")
         if mode not in MODES:  # an impact: the next event, at the same time, settles the mode
