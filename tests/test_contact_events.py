@@ -203,3 +203,31 @@ def test_a_torque_table_replaced_after_loading_reaches_the_compiled_table():
         force.values[0] = 0.0
     with pytest.raises(SceneError, match=f"{force.name}.*strictly increasing"):
         force.times = np.array([2.0, 0.0])
+
+
+@pytest.mark.parametrize(("theta", "mu"), [(0.5, 0.56), (0.5, 0.6), (0.3, 0.31)])
+def test_best_sticking_margin_of_redundant_corners_is_the_closed_form(theta: float, mu: float):
+    """The incline's cube sticking on four corners (redundant rows): the least-norm forces load the downhill corners
+    beyond their cones (margin < 0), and the best margin over the forces that give the same accelerations
+    (:func:`~pinstab.solvers.mode_choice.sticking_margin`, a conic program) is the closed form: the margins
+    ``mu f_n,i - |f_t,i|`` sum to at most ``mu m g cos theta - m g sin theta``, reached when they are equal (each
+    normal force above it), so the best is a quarter of that, to 1e-9 N."""
+    import dataclasses
+
+    from pinstab.contact.modes import Mode
+    from pinstab.generators import incline
+    from pinstab.model import ConstrainedModel
+    from pinstab.scene import scene_from_dict
+    from pinstab.solvers.contact_modes import ModeDynamics, plane_geometries
+    from pinstab.solvers.mode_choice import sticking_margin
+
+    scene = scene_from_dict(incline(theta=theta, mu=mu), "incline")
+    dynamics = ModeDynamics(
+        ConstrainedModel(dataclasses.replace(scene, constraints=[])), plane_geometries(scene.constraints)
+    )
+    modes = [Mode.STICKING] * 4
+    solution = dynamics.solve(scene.q0, np.zeros(scene.model.nv), 0.0, modes)
+    forces = solution.forces
+    assert min(mu * f[0] - math.hypot(*f[1:]) for f in forces) < -0.2  # the least-norm forces leave two cones
+    best = G * (mu * math.cos(theta) - math.sin(theta)) / 4
+    assert abs(sticking_margin(dynamics, solution, modes) - best) <= 1e-9

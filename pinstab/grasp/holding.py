@@ -28,6 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .. import kernels
+from ..conic import INFEASIBLE, SOLVED, conic_solve
 from ..contact.cones import FrictionCone
 from ..contact.models import WRENCH_BASES, ContactLimits
 from ..proxqp import proxsuite
@@ -35,9 +36,6 @@ from .analysis import RANK_TOLERANCE
 
 START_FACETS = 16  # sides of the pyramids whose linear program is the squeeze solve's fallback
 CONIC_TOLERANCE = 1e-11  # Clarabel's gap and feasibility tolerances (relative to the problem's scale)
-CONIC_SOLVED = ("Solved", "AlmostSolved")  # Clarabel's statuses whose answer the checks may keep
-CONIC_INFEASIBLE = ("PrimalInfeasible", "AlmostPrimalInfeasible")  # Clarabel's statuses: nothing holds
-REFINEMENT, REFINEMENT_PASSES = 1e-14, 50  # Clarabel's iterative refinement: tolerance, passes (see conic_solve)
 FEASIBILITY_TOLERANCE = 1e-8  # Clarabel's tolerances where it only decides whether rows can hold (its default)
 FEASIBILITY = 1e-9  # relative to the load: residuals and cone margins above -this hold
 QP_ITERATIONS = 200  # a small QP converges in tens of iterations; an infeasible one would run for minutes
@@ -247,16 +245,14 @@ class _Problem:
                 return result.x, widen == 1.0
         return None
 
-    def cone_rows(self, squeeze: bool) -> tuple[np.ndarray, np.ndarray, list[Any]]:
+    def cone_rows(self, squeeze: bool) -> tuple[np.ndarray, np.ndarray, list[tuple[str, int]]]:
         """The problem's constraints as Clarabel takes them, ``G x + slack = h`` with the slack in the cones: the
         independent rows of ``A lambda = w`` (zero cone); ``f_n >= 0``, a soft finger's ``torsion f_n -+ m_z >= 0``
         and, with the squeeze s among the variables (``squeeze``: x = (lambda, s) / scale), ``s - f_n >= 0``,
         ``s >= 0`` and, with a cap, ``s <= cap``, without it (x = lambda / scale: an objective that does not read s
         leaves it undetermined, which ended interior-point solves in numerical errors) ``f_n <= cap`` (non-negative
         cone); each friction contact's ``(mu f_n, f_t1, f_t2)`` (a second-order cone of dimension 3). Returns (G, h,
-        cones)."""
-        import clarabel
-
+        cones: (kind, size) as :func:`~pinstab.conic.conic_solve` takes them)."""
         width = self.count + 1 if squeeze else self.count
         rows, bounds = [-self.equality[:, :width]], [-self.rhs]
         nonnegative = []
@@ -278,7 +274,7 @@ class _Problem:
             upper = []
         rows.append(-np.array(nonnegative + upper))
         bounds.append(np.concatenate([np.zeros(len(nonnegative)), np.full(len(upper), self.cap / self.scale)]))
-        cones = [clarabel.ZeroConeT(len(self.rhs)), clarabel.NonnegativeConeT(len(nonnegative) + len(upper))]
+        cones = [("zero", len(self.rhs)), ("nonnegative", len(nonnegative) + len(upper))]
         for contact in self.columns:
             if contact.tangents is not None:
                 cone = np.zeros((3, width))
@@ -286,7 +282,7 @@ class _Problem:
                 cone[1, contact.tangents[0]] = cone[2, contact.tangents[1]] = 1.0
                 rows.append(-cone)
                 bounds.append(np.zeros(3))
-                cones.append(clarabel.SecondOrderConeT(3))
+                cones.append(("second-order", 3))
         return np.vstack(rows), np.concatenate(bounds), cones
 
     def solve(self, target: np.ndarray | None = None) -> Holding:
@@ -298,8 +294,6 @@ class _Problem:
         when it passes this module's own checks (the load within :data:`FEASIBILITY`, :class:`ConeTest`); else,
         without a target, where Clarabel failed numerically (not where it proved the problem infeasible), the linear
         program's forces on the inscribed pyramids (:meth:`start`), when they hold."""
-        import clarabel
-
         if not self.reachable:
             return Holding(None, math.inf)
         matrix, bounds, cones = self.cone_rows(target is None)
@@ -310,15 +304,15 @@ class _Problem:
             distance[1:, :count] = -np.eye(count)
             matrix = np.vstack([np.hstack([matrix, np.zeros((len(matrix), 1))]), distance])
             bounds = np.concatenate([bounds, [0.0], -target])
-            cones = [*cones, clarabel.SecondOrderConeT(count + 1)]
+            cones = [*cones, ("second-order", count + 1)]
         status, x = conic_solve(np.eye(count + 1)[-1], matrix, bounds, cones, CONIC_TOLERANCE)
         return self._kept(status, x, target is None)
 
     def _kept(self, status: str, x: np.ndarray, fallback: bool) -> Holding:
         """The forces of Clarabel's answer x (its status) when they pass the checks; else, with ``fallback`` after a
         numerical failure, the inscribed pyramids' linear program's."""
-        candidates = [x] if status in CONIC_SOLVED else []
-        if fallback and status not in CONIC_SOLVED + CONIC_INFEASIBLE:  # a numerical failure: the pyramids may hold
+        candidates = [x] if status in SOLVED else []
+        if fallback and status not in SOLVED + INFEASIBLE:  # a numerical failure: the pyramids may hold
             start = self.start()
             candidates = [start[0]] if start is not None and start[1] else []
         for x in candidates:
@@ -347,32 +341,6 @@ def closest_holding(
     return problem.solve(np.asarray(target, float) / problem.scale)
 
 
-def conic_solve(
-    gradient: np.ndarray, matrix: np.ndarray, bounds: np.ndarray, cones: list[Any], tolerance: float
-) -> tuple[str, np.ndarray]:
-    """Clarabel on ``min c^T x`` with ``G x + slack = h``, the slack in ``cones`` (Clarabel's cone list), its gap and
-    feasibility tolerances ``tolerance``, one thread: (its status's name, x)."""
-    import clarabel
-    from scipy import sparse
-
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.max_threads = 1
-    settings.tol_gap_abs = settings.tol_gap_rel = settings.tol_feas = tolerance
-    settings.tol_infeas_abs = settings.tol_infeas_rel = tolerance
-    # its linear systems refined to 1e-14 (default 1e-13, 1e-12, 10 passes): near a grasp's let-go, where the held set
-    # shrinks to a point, the default ended 357 of 845 solves of allegro-drop's first 0.15 s in NumericalError; refined,
-    # those are found infeasible in ~20 iterations
-    settings.iterative_refinement_reltol = settings.iterative_refinement_abstol = REFINEMENT
-    settings.iterative_refinement_max_iter = REFINEMENT_PASSES
-    count = len(gradient)
-    solver = clarabel.DefaultSolver(
-        sparse.csc_matrix((count, count)), gradient, sparse.csc_matrix(matrix), bounds, cones, settings
-    )
-    solution = solver.solve()
-    return str(solution.status), np.array(solution.x)
-
-
 def feasible(
     equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray
 ) -> bool:
@@ -381,15 +349,12 @@ def feasible(
     HiGHS through SciPy took ~4 ms).
     False only where Clarabel proves the rows infeasible (a certificate to its default 1e-8, looser than the QPs'
     eps_abs 1e-10), so that rows it finds infeasible no QP here solves."""
-    import clarabel
-
     finite_upper, finite_lower = np.abs(upper) < UNBOUNDED, np.abs(lower) < UNBOUNDED
     rows = np.vstack([equality, inequality[finite_upper], -inequality[finite_lower]])
     bounds = np.concatenate([rhs, upper[finite_upper], -lower[finite_lower]])
-    sizes = [(clarabel.ZeroConeT, len(rhs)), (clarabel.NonnegativeConeT, len(bounds) - len(rhs))]
-    cones = [cone(size) for cone, size in sizes if size]
+    cones = [("zero", len(rhs)), ("nonnegative", len(bounds) - len(rhs))]
     status, _ = conic_solve(np.zeros(inequality.shape[1]), rows, bounds, cones, FEASIBILITY_TOLERANCE)
-    return status != CONIC_INFEASIBLE[0]  # a certificate (not the reduced-accuracy AlmostPrimalInfeasible)
+    return status != INFEASIBLE[0]  # a certificate (not the reduced-accuracy AlmostPrimalInfeasible)
 
 
 def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:
