@@ -63,8 +63,8 @@ def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
 
 
 def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
-    """(the scene's unilateral contacts as event-driven geometries: plane contacts and grasp contacts (soft-finger:
-    event-driven only), the names of its other constraints)."""
+    """(the scene's unilateral contacts as the geometries of event-driven and time-stepping contacts: plane contacts
+    and grasp contacts (a soft finger's torsion a spin of its contact), the names of its other constraints)."""
     geometries = plane_geometries(scene.constraints)
     names = {g.name for g in geometries}
     return geometries, [c.name for c in scene.constraints if c.name not in names]
