@@ -125,7 +125,8 @@ class ContactStepper(Integrator):
         self.impulses = np.zeros((count, 3))
         self.spin_modes: list[Mode] = []
         self.torques = np.zeros(len(dynamics.spins))
-        self._index = {name: i for i, name in enumerate(self._names())}
+        self._labels = self._names()
+        self._index = {name: i for i, name in enumerate(self._labels)}
         self.compiled = ConeStepper(system.model.model, system.model.scratch)
         self.finders: list[Any] = []
         self._declared: list[PlaneContactGeometry] = []
@@ -146,15 +147,16 @@ class ContactStepper(Integrator):
         if names == [contact.name for contact in self.dynamics.contacts]:
             return  # the same contacts (their geometries, which cost more than the search, are not rebuilt)
         contacts = self._declared + plane_geometries(found)
-        spins = {name: j for j, name in enumerate(self._names()[len(self.impulses) :])}
+        spins = {name: j for j, name in enumerate(self._labels[len(self.impulses) :])}
         places = self.dynamics.rearrange(contacts)
-        turns = [spins.get(name) for name in self._names()[len(contacts) :]]
+        self._labels = self._names()
+        turns = [spins.get(name) for name in self._labels[len(contacts) :]]
         if self.modes is not None:
             self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
             self.spin_modes = [Mode.SEPARATED if j is None else self.spin_modes[j] for j in turns]
         self.impulses = np.array([np.zeros(3) if i is None else self.impulses[i] for i in places]).reshape(-1, 3)
         self.torques = np.array([0.0 if j is None else self.torques[j] for j in turns])
-        self._index = {name: i for i, name in enumerate(self._names())}
+        self._index = {name: i for i, name in enumerate(self._labels)}
         if 3 * len(contacts) > self.solver.size:
             self.solver = NcpSolver(3 * len(contacts))
 
@@ -257,27 +259,29 @@ class ContactStepper(Integrator):
             Mode.SEPARATED if modes[i] is Mode.SEPARATED else Mode.SLIDING if abs(w) > SPEED_FLOOR else Mode.STICKING
             for i, w in zip(contacts, spins, strict=True)
         ]
-        loads = [
-            *impulses,
-            *(np.array([impulses[i, 0], torque, 0.0]) for i, torque in zip(contacts, torques, strict=True)),
-        ]
-        slips = [*velocities[:, 1:], *(np.array([w, 0.0]) for w in spins)]
         start = self.modes is None
         now = modes + spin_modes
         before = [Mode.SEPARATED] * len(now) if start else self.modes + self.spin_modes
-        for name, old, new, load, slip in zip(self._names(), before, now, loads, slips, strict=True):
-            if start or old is not new:
-                self.events.append(
-                    ContactEvent(
-                        t if start else t + dt,
-                        name,
-                        old.value,
-                        new.value,
-                        "start" if start else "impulse",
-                        as_tuple(load / dt),
-                        as_tuple(slip),
-                        as_tuple(load),
-                    )
+        k = len(modes)
+        for j, (old, new) in enumerate(zip(before, now, strict=True)):
+            if not (start or old is not new):
+                continue
+            if j < k:
+                load, slip = impulses[j], velocities[j, 1:]
+            else:
+                load = np.array([impulses[contacts[j - k], 0], torques[j - k], 0.0])
+                slip = np.array([spins[j - k], 0.0])
+            self.events.append(
+                ContactEvent(
+                    t if start else t + dt,
+                    self._labels[j],
+                    old.value,
+                    new.value,
+                    "start" if start else "impulse",
+                    as_tuple(load / dt),
+                    as_tuple(slip),
+                    as_tuple(load),
                 )
+            )
         self.modes, self.spin_modes = modes, spin_modes
         self.impulses, self.torques = impulses, torques
