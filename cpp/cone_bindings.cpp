@@ -4,16 +4,19 @@
 // cpp/cone_step.hpp and cpp/plane_contacts.hpp.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "cone_step.hpp"
 #include "kernels.hpp"
 #include "plane_contacts.hpp"
+#include "torsion_cone.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -42,9 +45,22 @@ void check_sizes(const pinocchio::Model& model, const VectorXd& q, const VectorX
     throw std::invalid_argument("ConeStepper.step: q, v, mass or force not of the model's sizes (nq, nv)");
   }
   if (contacts.normal_velocities.size() != k || contacts.mus.size() != k || contacts.restitutions.size() != k ||
-      contacts.jacobian.rows() != 3 * k || contacts.jacobian.cols() != model.nv) {
+      contacts.torsions.size() != k || contacts.jacobian.rows() != 3 * k || contacts.jacobian.cols() != model.nv ||
+      contacts.spin_jacobian.rows() != (contacts.torsions.array() > 0.0).count() ||
+      (contacts.spin_jacobian.rows() && contacts.spin_jacobian.cols() != model.nv)) {
     throw std::invalid_argument(
-        "ConeStepper.step: gaps, normal velocities, mus, restitutions (k) and jacobian (3k x nv) disagree");
+        "ConeStepper.step: gaps, normal velocities, mus, restitutions, torsions (k), jacobian (3k x nv) and "
+        "spin_jacobian (one row per torsion > 0 x nv) disagree");
+  }
+}
+
+// The torsion lengths of a problem's contacts (k), checked against its rows (3k + one per torsion > 0).
+void check_layout(const char* where, const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& mus,
+                  const VectorXd& torsions) {
+  if (delassus.rows() != g.size() || delassus.cols() != g.size() || torsions.size() != mus.size() ||
+      g.size() != 3 * mus.size() + (torsions.array() > 0.0).count()) {
+    throw std::invalid_argument(std::string(where) +
+                                ": D, g (3k + one row per torsion > 0), mus (k) and torsions (k) disagree");
   }
 }
 
@@ -91,16 +107,17 @@ void bind_cones(nb::module_& m) {
       "pass; plane frame -1: the world (pinstab.solvers.contact_modes).");
   m.def(
       "ncp_residual",
-      [](const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& impulses, const VectorXd& mus) {
-        if (delassus.rows() != g.size() || delassus.cols() != g.size() || impulses.size() != g.size() ||
-            g.size() != 3 * mus.size()) {
-          throw std::invalid_argument("ncp_residual: D (3k x 3k), g (3k), impulses (3k) and mus (k) disagree");
-        }
-        return ncp_residual(delassus, g, impulses, mus);
+      [](const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& impulses, const VectorXd& mus,
+         const std::optional<VectorXd>& torsions) {
+        const VectorXd lengths = torsions ? *torsions : VectorXd::Zero(mus.size());
+        check_layout("ncp_residual", delassus, g, mus, lengths);
+        if (impulses.size() != g.size()) throw std::invalid_argument("ncp_residual: impulses not of g's size");
+        return torsion_residual(delassus, g, impulses, mus, lengths);
       },
-      "delassus"_a, "g"_a, "impulses"_a, "mus"_a,
-        "The natural map's largest contact residual of impulses (t1, t2, n per contact) on the problem (D, g) with "
-        "friction coefficients mus [-], in the units of g (pinstab.solvers.ncp.ncp_residual).");
+      "delassus"_a, "g"_a, "impulses"_a, "mus"_a, "torsions"_a = nb::none(),
+      "The natural map's largest contact residual of impulses (t1, t2, n per contact, then one torque row per torsion "
+      "> 0) on the problem (D, g) with friction coefficients mus [-] and torsion lengths [m] (None: none), in the "
+      "units of g (pinstab.solvers.ncp.ncp_residual).");
   nb::class_<ConeSolver>(m, "ConeSolver")
       .def(
           "__init__",
@@ -123,6 +140,16 @@ void bind_cones(nb::module_& m) {
           },
           "delassus"_a, "g"_a, "mus"_a, "check_rtol"_a,
           "The checked impulses (t1, t2, n per contact) of the problem (D, g) with friction coefficients mus [-].")
+      .def(
+          "solve_torsion",
+          [](ConeSolver& self, const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& mus,
+             const VectorXd& torsions, double check_rtol) {
+            check_layout("ConeSolver.solve_torsion", delassus, g, mus, torsions);
+            return self.solve_torsion(delassus, g, mus, torsions, check_rtol);
+          },
+          "delassus"_a, "g"_a, "mus"_a, "torsions"_a, "check_rtol"_a,
+          "The checked impulses (t1, t2, n per contact, then one torque row per torsion > 0) of the problem (D, g) "
+          "with friction coefficients mus [-] and torsion lengths torsions [m] (cpp/torsion_cone.hpp).")
       .def_prop_ro("max_iterations", &ConeSolver::max_iterations)
       .def_prop_ro("status", [](const ConeSolver& self) {
         const ConeStatus& s = self.status();
@@ -136,20 +163,24 @@ void bind_cones(nb::module_& m) {
           [](ConeStepper& self, const VectorXd& q, const VectorXd& v, double dt, const Eigen::MatrixXd& mass,
              const VectorXd& force, const VectorXd& gaps, const VectorXd& normal_velocities,
              const Eigen::MatrixXd& jacobian, const VectorXd& mus, const VectorXd& restitutions,
-             const VectorXd& settings, ConeSolver& solver) {
-            const StepContacts contacts{gaps, normal_velocities, jacobian, mus, restitutions};
+             const VectorXd& torsions, const Eigen::MatrixXd& spin_jacobian, const VectorXd& settings,
+             ConeSolver& solver) {
+            const StepContacts contacts{gaps, normal_velocities, jacobian, mus, restitutions, torsions, spin_jacobian};
             check_sizes(self.model, q, v, mass, force, contacts);
             if (settings.size() != 4) throw std::invalid_argument("ConeStepper.step: 4 settings");
             const StepSettings step_settings{settings(0), settings(1), static_cast<int>(settings(2)), settings(3)};
             StepResult r = cone_step(self.model, self.data, self.free_flyers, q, v, dt, mass, force, contacts,
                                      step_settings, solver);
-            return nb::make_tuple(r.q, r.v, r.active, r.impulses, r.velocities, r.reach, r.settled, r.solved);
+            return nb::make_tuple(r.q, r.v, r.active, r.impulses, r.velocities, r.reach, r.torques, r.spins,
+                                  r.settled, r.solved);
           },
           "q"_a, "v"_a, "dt"_a, "mass"_a, "force"_a, "gaps"_a, "normal_velocities"_a, "jacobian"_a, "mus"_a,
-          "restitutions"_a, "settings"_a, "solver"_a,
+          "restitutions"_a, "torsions"_a, "spin_jacobian"_a, "settings"_a, "solver"_a,
           "One step of dt [s]: (q+, v+, the contacts in the problem, impulses (k x 3) [N s], contact velocities J v+ "
-          "(k x 3) [m/s], the normal velocity per unit normal impulse (k), settled, solved); settings (touch gap [m], "
-          "midpoint tolerance, midpoint passes, check rtol).");
+          "(k x 3) [m/s], the normal velocity per unit normal impulse (k), the torsions' torque impulses [N m s] and "
+          "spin velocities [rad/s] (one per torsion > 0), settled, solved); torsions: lengths [m] (k, 0: none), "
+          "spin_jacobian: their rows (one per torsion > 0 x nv); settings (touch gap [m], midpoint tolerance, "
+          "midpoint passes, check rtol).");
 }
 
 }  // namespace pinstab

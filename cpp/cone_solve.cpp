@@ -9,6 +9,8 @@
 #include <pinocchio/algorithm/solvers/pgs-solver.hpp>
 #include <pinocchio/constraints.hpp>
 
+#include "torsion_cone.hpp"
+
 namespace pinstab {
 
 namespace {
@@ -27,15 +29,6 @@ void set_tolerances(Settings& settings, double tolerance, int max_iterations) {
   settings.relative_complementarity_tol = tolerance;
 }
 
-// The nearest point of x (t1, t2, n) to the cone |t| <= mu n.
-Eigen::Vector3d cone_projection(const Eigen::Vector3d& x, double mu) {
-  const double tangential = std::hypot(x(0), x(1)), normal = x(2);
-  if (tangential <= mu * normal && normal >= 0.0) return x;
-  const double along = std::max(normal + mu * tangential, 0.0) / (1.0 + mu * mu);  // 0: in the polar cone
-  const double shrink = tangential > 0.0 ? mu * along / tangential : 0.0;
-  return Eigen::Vector3d(x(0) * shrink, x(1) * shrink, along);
-}
-
 // Each row's unit (t1, t2, n per contact): max(mu, 1) on the tangential rows, 1 on the normal one.
 Eigen::VectorXd cone_scales(const Eigen::VectorXd& mus) {
   Eigen::VectorXd scales(3 * mus.size());
@@ -50,17 +43,7 @@ Eigen::VectorXd cone_scales(const Eigen::VectorXd& mus) {
 
 double ncp_residual(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
                     const Eigen::VectorXd& mus) {
-  if (!impulses.allFinite()) return std::numeric_limits<double>::infinity();
-  const double rho = 1.0 / std::max(delassus.trace(), std::numeric_limits<double>::min());
-  const Eigen::VectorXd sigma = delassus * impulses + g;
-  double worst = 0.0;
-  for (Eigen::Index i = 0; i < mus.size(); ++i) {
-    Eigen::Vector3d desaxce = sigma.segment<3>(3 * i);
-    desaxce(2) += mus(i) * std::hypot(desaxce(0), desaxce(1));
-    const Eigen::Vector3d lambda = impulses.segment<3>(3 * i);
-    worst = std::max(worst, (lambda - cone_projection(lambda - rho * desaxce, mus(i))).norm());
-  }
-  return worst / rho;
+  return torsion_residual(delassus, g, impulses, mus, Eigen::VectorXd::Zero(mus.size()));
 }
 
 // Pinocchio's solvers, their settings and results, and the cones of the last friction coefficients.
@@ -140,9 +123,20 @@ Eigen::VectorXd ConeSolver::solve(const Eigen::MatrixXd& delassus, const Eigen::
   return impulses;
 }
 
+Eigen::VectorXd ConeSolver::solve_torsion(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g,
+                                          const Eigen::VectorXd& mus, const Eigen::VectorXd& torsions,
+                                          double check_rtol) {
+  const Eigen::VectorXd impulses =
+      torsion_admm(delassus, g, mus, torsions, solvers_->admm_settings.absolute_feasibility_tol, max_iterations_,
+                   status_);
+  check(delassus, g, impulses, mus, check_rtol, torsions);
+  return impulses;
+}
+
 bool ConeSolver::check(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
-                       const Eigen::VectorXd& mus, double check_rtol) {
-  status_.residual = ncp_residual(delassus, g, impulses, mus);
+                       const Eigen::VectorXd& mus, double check_rtol, const Eigen::VectorXd& torsions) {
+  status_.residual = torsions.size() ? torsion_residual(delassus, g, impulses, mus, torsions)
+                                     : ncp_residual(delassus, g, impulses, mus);
   double scale = g.size() ? g.cwiseAbs().maxCoeff() : 0.0;
   if (impulses.allFinite() && g.size()) scale = std::max(scale, (delassus * impulses).cwiseAbs().maxCoeff());
   status_.accepted = check_rtol * scale;

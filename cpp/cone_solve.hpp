@@ -43,13 +43,17 @@ class ConeSolver {
   // coefficients mus [-]; status() says which solver's answer it is and whether it passed the check at check_rtol.
   Eigen::VectorXd solve(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& mus,
                         double check_rtol);
+  // The same with torsion rows (cpp/torsion_cone.hpp's layout; torsion lengths torsions [m], k): its ADMM (method
+  // "ADMM-torsion", no fallback), checked by torsion_residual at check_rtol.
+  Eigen::VectorXd solve_torsion(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& mus,
+                                const Eigen::VectorXd& torsions, double check_rtol);
   const ConeStatus& status() const { return status_; }
   int max_iterations() const { return max_iterations_; }
 
  private:
   struct Solvers;
   bool check(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
-             const Eigen::VectorXd& mus, double check_rtol);
+             const Eigen::VectorXd& mus, double check_rtol, const Eigen::VectorXd& torsions = Eigen::VectorXd());
   std::unique_ptr<Solvers> solvers_;
   int max_iterations_;
   ConeStatus status_;

@@ -77,21 +77,32 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     }
   }
   if (!result.settled) return result;
-  const Eigen::MatrixXd& jacobian = contacts.jacobian;
-  const Eigen::Index k = contacts.gaps.size();
+  const Eigen::Index k = contacts.gaps.size(), spins = contacts.spin_jacobian.rows();
+  Eigen::MatrixXd stacked(3 * k + spins, spins ? model.nv : 0);  // the contacts' rows, then the torsions'
+  if (spins) stacked << contacts.jacobian, contacts.spin_jacobian;
+  const Eigen::MatrixXd& jacobian = spins ? stacked : contacts.jacobian;
   const Eigen::MatrixXd mobility = factor.solve(jacobian.transpose());  // M^-1 J^T
   const Eigen::VectorXd reach = jacobian * v_free;
   for (Eigen::Index i = 0; i < k; ++i) {
     if (contacts.gaps(i) + dt * reach(3 * i) <= settings.touch_gap) result.active.push_back(static_cast<int>(i));
   }
   result.impulses = Eigen::MatrixXd::Zero(k, 3);
+  result.torques = Eigen::VectorXd::Zero(spins);
   Eigen::VectorXd v_new = v_free;
   if (!result.active.empty()) {
-    const Eigen::Index m = 3 * static_cast<Eigen::Index>(result.active.size());
-    std::vector<Eigen::Index> rows;
+    std::vector<Eigen::Index> rows, torsion_rows;
     for (const int i : result.active) {
       for (const int r : CONE_ROWS) rows.push_back(3 * i + r);
     }
+    Eigen::VectorXd torsions = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(result.active.size()));
+    for (std::size_t a = 0; a < result.active.size(); ++a) {  // each torsion's row after the contacts'
+      const int i = result.active[a];
+      if (contacts.torsions(i) <= 0.0) continue;
+      torsions(static_cast<Eigen::Index>(a)) = contacts.torsions(i);
+      torsion_rows.push_back(3 * k + (contacts.torsions.head(i).array() > 0.0).count());
+      rows.push_back(torsion_rows.back());
+    }
+    const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
     Eigen::MatrixXd delassus(m, m), active_jacobian(m, jacobian.cols()), active_mobility(jacobian.cols(), m);
     Eigen::VectorXd g(m), mus(result.active.size());
     for (Eigen::Index a = 0; a < m; ++a) {
@@ -105,16 +116,23 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
       g(3 * a + 2) += normal_bias(contacts.gaps(i), contacts.normal_velocities(i), contacts.restitutions(i), dt);
     }
     delassus.noalias() = active_jacobian * active_mobility;
-    const Eigen::VectorXd solution = solver.solve(delassus, g, mus, settings.check_rtol);
+    const Eigen::VectorXd solution = torsion_rows.empty()
+                                         ? solver.solve(delassus, g, mus, settings.check_rtol)
+                                         : solver.solve_torsion(delassus, g, mus, torsions, settings.check_rtol);
     result.solved = solver.status().converged;
     for (std::size_t a = 0; a < result.active.size(); ++a) {
       result.impulses.row(result.active[a]) << solution(3 * a + 2), solution(3 * a), solution(3 * a + 1);
+    }
+    const Eigen::Index linear = 3 * static_cast<Eigen::Index>(result.active.size());
+    for (std::size_t j = 0; j < torsion_rows.size(); ++j) {
+      result.torques(torsion_rows[j] - 3 * k) = solution(linear + static_cast<Eigen::Index>(j));
     }
     if (!result.solved) return result;
     v_new += active_mobility * solution;
   }
   const Eigen::VectorXd velocities = jacobian * v_new;
-  result.velocities = velocities.reshaped(3, k).transpose();
+  result.velocities = velocities.head(3 * k).reshaped(3, k).transpose();
+  result.spins = velocities.tail(spins);
   result.reach.resize(k);
   for (Eigen::Index i = 0; i < k; ++i) result.reach(i) = jacobian.row(3 * i).dot(mobility.col(3 * i));
   free_flyers.integrate(model, q, v_new, dt, result.q, result.v);

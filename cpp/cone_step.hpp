@@ -18,11 +18,14 @@
 namespace pinstab {
 
 // The contacts of a step at its start (k of them, rows (n, t1, t2) each in the contact's basis): gaps [m], normal
-// velocities [m/s], Jacobians (3k x nv), friction coefficients [-] and restitutions [-].
+// velocities [m/s], Jacobians (3k x nv), friction coefficients [-] and restitutions [-]; torsion lengths [m] (k: 0 for
+// none) and the rows of the relative angular velocity about the normal of each contact with torsion (s x nv, contact
+// order: cpp/torsion_cone.hpp's law).
 struct StepContacts {
   Eigen::VectorXd gaps, normal_velocities;
   Eigen::MatrixXd jacobian;
-  Eigen::VectorXd mus, restitutions;
+  Eigen::VectorXd mus, restitutions, torsions;
+  Eigen::MatrixXd spin_jacobian;
 };
 
 // The settings of the step: TOUCH_GAP [m] (a contact is in the problem when gap + dt (J v_free)_n <= touch_gap), the
@@ -35,13 +38,14 @@ struct StepSettings {
 
 // What a step computed: the end state (q+, v+: free flyers' linear velocity in their joint frame at q+), the contacts
 // in the problem, the impulses (k x 3) [N s] and the contact velocities J v+ (k x 3) [m/s], each in (n, t1, t2), the
-// normal velocity a unit normal impulse gives each contact [m/s / N s]; settled false: the midpoint's passes did not
-// settle (nothing else set); solved false: no solver met the contact law (the end state not set).
+// normal velocity a unit normal impulse gives each contact [m/s / N s], the torsions' torque impulses [N m s] and spin
+// velocities [rad/s] (s each); settled false: the midpoint's passes did not settle (nothing else set); solved false: no
+// solver met the contact law (the end state not set).
 struct StepResult {
   Eigen::VectorXd q, v;
   std::vector<int> active;
   Eigen::MatrixXd impulses, velocities;
-  Eigen::VectorXd reach;
+  Eigen::VectorXd reach, torques, spins;
   bool settled = true, solved = true;
 };
 

@@ -76,5 +76,5 @@ def test_the_compiled_step_refuses_arrays_of_other_sizes() -> None:
     with pytest.raises(ValueError, match="not of the model's sizes"):
         compiled.compiled.step(
             q[:-1], v, DT, np.eye(6), np.zeros(6), np.zeros(1), np.zeros(1), np.zeros((3, 6)), np.zeros(1),
-            np.zeros(1), np.zeros(4), compiled.solver.cones,
+            np.zeros(1), np.zeros(1), np.zeros((0, 6)), np.zeros(4), compiled.solver.cones,
         )  # fmt: skip

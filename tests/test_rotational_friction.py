@@ -217,8 +217,10 @@ def test_geometry_contacts_take_rotational_friction_and_refuse_it_without_fricti
         scene_from_dict(scene)
 
 
-def test_time_stepping_contacts_refuse_rotational_friction():
-    with pytest.raises(PinstabError, match="time-stepping contacts have no rotational friction yet .* at ground"):
+def test_time_stepping_contacts_refuse_rolling_resistance_by_name():
+    with pytest.raises(
+        PinstabError, match=r"time-stepping contacts have no rolling resistance yet \(they take torsion\) at ground;"
+    ):
         simulate(scene_from_dict(ball(rolling=0.003)), dt=0.01, duration=0.1, contacts="stepping")
 
 
@@ -236,11 +238,14 @@ def test_contact_states_replay_the_spins_modes():
     np.testing.assert_allclose(states.forces[run.t > v0 / deceleration, 0, :2], 0.0, rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize(("rolling", "treatment"), [(0.003, "event"), (0.0, "stepping")])
-def test_many_contacts_with_rotational_friction_default_to_event_driven(rolling, treatment):
-    """Beyond MAX_EVENT_CONTACTS declared contacts the automatic choice is time-stepping, which has no rotational
-    friction: with it, event-driven."""
+@pytest.mark.parametrize(
+    ("friction", "treatment"),
+    [({"rolling": 0.003}, "event"), ({"rolling": 0.0}, "stepping"), ({"torsion": 0.002}, "stepping")],
+)
+def test_many_contacts_with_rolling_resistance_default_to_event_driven(friction, treatment):
+    """Beyond MAX_EVENT_CONTACTS declared contacts the automatic choice is time-stepping, which takes torsion but has
+    no rolling resistance: with rolling, event-driven."""
     scene = ball()
-    contact = {**scene["contacts"][0], "rolling": rolling}
+    contact = {**scene["contacts"][0], **friction}
     scene["contacts"] = [{**contact, "name": f"ground{k}"} for k in range(MAX_EVENT_CONTACTS + 1)]
     assert contact_choice(scene_from_dict(scene)).treatment == treatment

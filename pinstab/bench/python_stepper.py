@@ -23,6 +23,7 @@ from ..solvers.contact_modes import ModeDynamics
 from ..solvers.mode_choice import TOUCH_GAP
 from ..solvers.ncp import CHECK_RTOL, CONE_ROWS, NcpSolver, friction_cones, ncp_residual
 from ..system import ConstrainedSystem
+from .torsion_admm import torsion_admm, torsion_rows
 
 
 class PythonStepper(ContactStepper):
@@ -47,10 +48,12 @@ class PythonStepper(ContactStepper):
         terms, contacts = self.start(q, v, t, dt)
         factor = cho_factor(terms.mass_matrix)
         v_free = self._free_velocity(q, v, dt, terms.tau - terms.bias, factor)
-        mobility = cho_solve(factor, contacts.jacobian.T)
-        reach = contacts.jacobian @ v_free
-        active = [int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[0::3] <= TOUCH_GAP)]
-        impulses = np.zeros((len(contacts.gaps), 3))
+        k = len(contacts.gaps)
+        jacobian = np.vstack([contacts.jacobian, contacts.spin_jacobian.reshape(-1, v.size)])  # then the torsions'
+        mobility = cho_solve(factor, jacobian.T)
+        reach = jacobian @ v_free
+        active = [int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[: 3 * k : 3] <= TOUCH_GAP)]
+        impulses = np.zeros(jacobian.shape[0])
         if active:
             offset = reach.copy()
             for i in active:
@@ -59,32 +62,51 @@ class PythonStepper(ContactStepper):
                 if restitution > 0.0 and normal_velocity < 0.0:
                     bias = min(bias, restitution * normal_velocity)
                 offset[3 * i] += bias
-            impulses[active] = self._solve(contacts.jacobian, mobility, offset, active, t)
-        v_new = v_free + mobility @ impulses.ravel()
-        velocities = (contacts.jacobian @ v_new).reshape(-1, 3)
+            impulses = self._solve(jacobian, mobility, offset, active, t)
+        v_new = v_free + mobility @ impulses
+        velocities = jacobian @ v_new
         normal = contacts.jacobian[0::3]
-        self._track(t, dt, impulses, velocities, np.einsum("ij,ji->i", normal, mobility[:, 0::3]))
-        self.impulses = impulses
+        reach_n = np.einsum("ij,ji->i", normal, mobility[:, : 3 * k : 3])
+        linear = impulses[: 3 * k].reshape(-1, 3)
+        self._track(t, dt, linear, velocities[: 3 * k].reshape(-1, 3), reach_n, impulses[3 * k :], velocities[3 * k :])
         return self._integrate(q, v_new, dt)
 
     def _solve(
         self, jacobian: np.ndarray, mobility: np.ndarray, offset: np.ndarray, active: list[int], t: float
     ) -> np.ndarray:
-        """The impulses (len(active), 3) [N s] in (n, t1, t2): ADMM on the cones scaled to at most 1, checked."""
-        mus = [self.dynamics.contacts[i].mu for i in active]
-        rows = np.array([3 * i + r for i in active for r in CONE_ROWS])
+        """The impulses of every row (3k (n, t1, t2) [N s], then the torsions' [N m s]), zero off ``active``: ADMM
+        on the cones scaled to at most 1 (:mod:`~pinstab.bench.torsion_admm`'s with torsion rows), checked."""
+        contacts = self.dynamics.contacts
+        mus = [contacts[i].mu for i in active]
+        places = torsion_rows([c.torsion for c in contacts])
+        torsions = [contacts[i].torsion for i in active]
+        spun = [places[i] for i in active if places[i] is not None]
+        rows = np.array([3 * i + r for i in active for r in CONE_ROWS] + spun, dtype=int)
         delassus, g = jacobian[rows] @ mobility[:, rows], offset[rows]
+        if spun:
+            settings = self.solver.settings
+            solution, _ = torsion_admm(
+                delassus, g, mus, torsions, settings.absolute_feasibility_tol, settings.max_iterations
+            )
+        else:
+            solution = self._cone_solve(delassus, g, mus)
+        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
+        if not ncp_residual(delassus, g, solution, mus, torsions) <= CHECK_RTOL * scale:
+            names = [contacts[i].name for i in active]
+            raise ContactSolveError(f"at t = {t:.9g} s ADMM missed the contact law (no fallback here)", names, t)
+        impulses = np.zeros(jacobian.shape[0])
+        impulses[rows] = solution
+        return impulses
+
+    def _cone_solve(self, delassus: np.ndarray, g: np.ndarray, mus: list[float]) -> np.ndarray:
+        """The impulses (t1, t2, n per contact) of a problem without torsion rows: Pinocchio's ADMM on the cones
+        scaled to at most 1."""
         scales = np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
         key = tuple(mus)
         if key not in self.cones:
             self.cones[key] = friction_cones([min(mu, 1.0) for mu in mus])
         cones = self.cones[key]
-        solution = scales * self.solver.solve(scales[:, None] * delassus * scales, scales * g, *cones)
-        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
-        if not ncp_residual(delassus, g, solution, mus) <= CHECK_RTOL * scale:
-            names = [self.dynamics.contacts[i].name for i in active]
-            raise ContactSolveError(f"at t = {t:.9g} s ADMM missed the contact law (no fallback here)", names, t)
-        return solution.reshape(-1, 3)[:, np.argsort(CONE_ROWS)]
+        return scales * self.solver.solve(scales[:, None] * delassus * scales, scales * g, *cones)
 
     def _free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
         """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint, by fixed point."""

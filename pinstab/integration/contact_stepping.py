@@ -36,6 +36,16 @@ its normal velocity at its bound, no lift-off) with ``sigma = J v+ + b``, ``b = 
 * Newton's impact law: a contact approaching with normal velocity ``v_n < 0`` at the step's start and
   restitution e > 0 leaves at ``v_n+ >= -e v_n`` (``b_n = min(gap / dt, e v_n)``), Moreau's form.
 
+Torsion (soft-finger friction, issue 36): a contact with a torsion length c > 0 [m] has a fourth row, the relative
+angular velocity about its normal (:class:`~pinstab.solvers.contact_modes.ModeDynamics`' spin rows, the event-driven
+contacts' rule), and a torque impulse there with the event modes' law: ``|lambda_tau| <= c lambda_n`` beside the
+round cone over the same normal impulse, each friction at its bound against its slip when it slips (maximal
+dissipation of each; De Saxce's velocity ``sigma_n + mu |sigma_t| + c |sigma_tau|``), sticking inside it. Pinocchio's
+solvers have no such set; the step solves it by the ADMM of cpp/torsion_cone.hpp (Pinocchio's NCP-mode iteration on
+the exact projection), checked by the same natural map, without a PGS fallback. A torsion's mode is *separated* with
+its contact, else *sliding* while its spin at the step's end exceeds :data:`SPEED_FLOOR` [rad/s], else *sticking*; its
+changes are events of ``<contact> torsion`` (force: normal force [N], torque [N m]). Rolling resistance is not taken.
+
 Each contact's mode over the step is read from the solution: *separated* when it is not in the problem or
 its normal impulse changes its normal velocity by less than :data:`SPEED_FLOOR`; *sliding* when its slip
 speed at the step's end exceeds :data:`SPEED_FLOOR` (its impulse then lies on the cone's boundary, against
@@ -71,7 +81,7 @@ from ..errors import ContactSolveError
 from ..kernels import ConeStepper
 from ..model import DynamicsTerms
 from ..solvers import ncp
-from ..solvers.contact_modes import ContactKinematics, ModeDynamics, PlaneContactGeometry, plane_geometries
+from ..solvers.contact_modes import ContactKinematics, ModeDynamics, PlaneContactGeometry, plane_geometries, spin_name
 from ..solvers.mode_choice import TOUCH_GAP
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem
@@ -98,7 +108,9 @@ class ContactStepper(Integrator):
 
     Attributes:
         events: the contact events so far. modes: each contact's mode over the last step (None before it).
-        impulses: the last step's impulses (k, 3) [N s] in the contact bases (n, t1, t2).
+        impulses: the last step's impulses (k, 3) [N s] in the contact bases (n, t1, t2). spin_modes: each torsion's
+        (the dynamics' spins) mode over the last step. torques: the last step's torque impulses [N m s] about the
+        normals, one per torsion.
     """
 
     name = "moreau-jean"
@@ -111,7 +123,10 @@ class ContactStepper(Integrator):
         self.events: list[ContactEvent] = []
         self.modes: list[Mode] | None = None
         self.impulses = np.zeros((count, 3))
-        self._index = {contact.name: i for i, contact in enumerate(dynamics.contacts)}
+        self.spin_modes: list[Mode] = []
+        self.torques = np.zeros(len(dynamics.spins))
+        self._labels = self._names()
+        self._index = {name: i for i, name in enumerate(self._labels)}
         self.compiled = ConeStepper(system.model.model, system.model.scratch)
         self.finders: list[Any] = []
         self._declared: list[PlaneContactGeometry] = []
@@ -132,11 +147,16 @@ class ContactStepper(Integrator):
         if names == [contact.name for contact in self.dynamics.contacts]:
             return  # the same contacts (their geometries, which cost more than the search, are not rebuilt)
         contacts = self._declared + plane_geometries(found)
+        spins = {name: j for j, name in enumerate(self._labels[len(self.impulses) :])}
         places = self.dynamics.rearrange(contacts)
+        self._labels = self._names()
+        turns = [spins.get(name) for name in self._labels[len(contacts) :]]
         if self.modes is not None:
             self.modes = [Mode.SEPARATED if i is None else self.modes[i] for i in places]
+            self.spin_modes = [Mode.SEPARATED if j is None else self.spin_modes[j] for j in turns]
         self.impulses = np.array([np.zeros(3) if i is None else self.impulses[i] for i in places]).reshape(-1, 3)
-        self._index = {contact.name: i for i, contact in enumerate(contacts)}
+        self.torques = np.array([0.0 if j is None else self.torques[j] for j in turns])
+        self._index = {name: i for i, name in enumerate(self._labels)}
         if 3 * len(contacts) > self.solver.size:
             self.solver = NcpSolver(3 * len(contacts))
 
@@ -149,10 +169,10 @@ class ContactStepper(Integrator):
             ContactSolveError: no solver met the contact law of the step's contacts.
         """
         terms, contacts = self.start(q, v, t, dt)
-        laws = [(contact.mu, contact.restitution) for contact in self.dynamics.contacts]
-        mus, restitutions = np.array(laws, dtype=float).reshape(-1, 2).T
+        laws = [(contact.mu, contact.restitution, contact.torsion) for contact in self.dynamics.contacts]
+        mus, restitutions, torsions = np.array(laws, dtype=float).reshape(-1, 3).T
         settings = np.array([TOUCH_GAP, MIDPOINT_TOLERANCE, MIDPOINT_PASSES, ncp.CHECK_RTOL])
-        q_next, v_next, active, impulses, velocities, reach, settled, solved = self.compiled.step(
+        q_next, v_next, active, impulses, velocities, reach, torques, spins, settled, solved = self.compiled.step(
             q,
             v,
             dt,
@@ -163,6 +183,8 @@ class ContactStepper(Integrator):
             contacts.jacobian,
             mus,
             restitutions,
+            torsions,
+            contacts.spin_jacobian.reshape(-1, self.system.model.nv),
             settings,
             self.solver.cones,
         )
@@ -173,8 +195,7 @@ class ContactStepper(Integrator):
             self.solver.record(self.system.solver.statistics)
             if not solved:
                 raise self._unsolved(tuple(active), t)
-        self._track(t, dt, impulses, velocities, reach)
-        self.impulses = impulses
+        self._track(t, dt, impulses, velocities, reach, torques, spins)
         return q_next, v_next
 
     def start(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[DynamicsTerms, ContactKinematics]:
@@ -190,11 +211,16 @@ class ContactStepper(Integrator):
         """Forget the events after t [s] and take back the modes before them: the loop replays steps it took
         (after a failed check or solve, to locate it; its probes of a smaller step)."""
         self.events = [event for event in self.events if event.t <= t]
-        modes = [Mode.SEPARATED] * len(self.impulses)  # the first step's events give every contact's mode
+        modes = [Mode.SEPARATED] * len(self._index)  # the first step's events give every contact's and torsion's mode
         for event in self.events:
             if event.contact in self._index:  # (contacts found from geometry come and go)
                 modes[self._index[event.contact]] = Mode(event.after)
-        self.modes = modes
+        self.modes, self.spin_modes = modes[: len(self.impulses)], modes[len(self.impulses) :]
+
+    def _names(self) -> list[str]:
+        """The names of the contacts' modes and events: the contacts', then their torsions' (``ground torsion``)."""
+        contacts = self.dynamics.contacts
+        return [c.name for c in contacts] + [spin_name(contacts[s.contact].name, s) for s in self.dynamics.spins]
 
     def _unsolved(self, active: tuple[int, ...], t: float) -> ContactSolveError:
         """The error of a step from t [s] whose contact problem (the contacts ``active``) no solver met."""
@@ -207,9 +233,19 @@ class ContactStepper(Integrator):
             t,
         )
 
-    def _track(self, t: float, dt: float, impulses: np.ndarray, velocities: np.ndarray, reach: np.ndarray) -> None:
-        """Read each contact's mode over the step (``reach``: the normal velocity a unit normal impulse gives
-        each contact [m/s / N s]) and record the changes."""
+    def _track(
+        self,
+        t: float,
+        dt: float,
+        impulses: np.ndarray,
+        velocities: np.ndarray,
+        reach: np.ndarray,
+        torques: np.ndarray,
+        spins: np.ndarray,
+    ) -> None:
+        """Read each contact's and torsion's mode over the step (``reach``: the normal velocity a unit normal impulse
+        gives each contact [m/s / N s]; ``torques`` [N m s] and ``spins`` [rad/s]: the torsions') and record the
+        changes (a torsion's force and impulse: normal, torque, 0; its slip: spin, 0)."""
         modes = []
         for i in range(len(impulses)):
             if impulses[i, 0] * reach[i] <= SPEED_FLOOR:
@@ -218,20 +254,34 @@ class ContactStepper(Integrator):
                 modes.append(Mode.SLIDING)
             else:
                 modes.append(Mode.STICKING)
+        contacts = [spin.contact for spin in self.dynamics.spins]
+        spin_modes = [
+            Mode.SEPARATED if modes[i] is Mode.SEPARATED else Mode.SLIDING if abs(w) > SPEED_FLOOR else Mode.STICKING
+            for i, w in zip(contacts, spins, strict=True)
+        ]
         start = self.modes is None
-        before = [Mode.SEPARATED] * len(modes) if start else self.modes
-        for i, (old, new) in enumerate(zip(before, modes, strict=True)):
-            if start or old is not new:
-                self.events.append(
-                    ContactEvent(
-                        t if start else t + dt,
-                        self.dynamics.contacts[i].name,
-                        old.value,
-                        new.value,
-                        "start" if start else "impulse",
-                        as_tuple(impulses[i] / dt),
-                        as_tuple(velocities[i, 1:]),
-                        as_tuple(impulses[i]),
-                    )
+        now = modes + spin_modes
+        before = [Mode.SEPARATED] * len(now) if start else self.modes + self.spin_modes
+        k = len(modes)
+        for j, (old, new) in enumerate(zip(before, now, strict=True)):
+            if not (start or old is not new):
+                continue
+            if j < k:
+                load, slip = impulses[j], velocities[j, 1:]
+            else:
+                load = np.array([impulses[contacts[j - k], 0], torques[j - k], 0.0])
+                slip = np.array([spins[j - k], 0.0])
+            self.events.append(
+                ContactEvent(
+                    t if start else t + dt,
+                    self._labels[j],
+                    old.value,
+                    new.value,
+                    "start" if start else "impulse",
+                    as_tuple(load / dt),
+                    as_tuple(slip),
+                    as_tuple(load),
                 )
-        self.modes = modes
+            )
+        self.modes, self.spin_modes = modes, spin_modes
+        self.impulses, self.torques = impulses, torques

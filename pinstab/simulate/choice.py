@@ -6,7 +6,7 @@ The choice: a scene whose contacts can switch switches by default; holding them 
 event-driven modes (plane contacts, contacts found from geometry, grasp contacts but rigid ones) are ``event`` when
 they are the scene's only constraints and at most :data:`MAX_EVENT_CONTACTS` are declared (contacts found from geometry
 always: the touching ones are few of those found), ``stepping`` (time-stepping, whose cost does not grow with the
-events) when more plane contacts are declared, unless some has rotational friction (torsion, rolling: event-driven
+events; torsion included) when more plane contacts are declared, unless some has rolling resistance (event-driven
 only); ``held`` (constraint rows) otherwise, naming the
 constraint that keeps the modes off. A scene with joint friction (:mod:`pinstab.forces.joint_friction`, stick and slip
 at events) is ``event`` unless asked otherwise (by the caller: ``contacts=None`` too, the call's default; or by its
@@ -20,7 +20,7 @@ from ..constraints import FingertipContact, PointContact
 from ..errors import PinstabError
 from ..forces.joint_friction import joint_frictions, refusal
 from ..scene import CONTACT_TREATMENTS, Scene
-from ..solvers.contact_modes import modeless_contacts, plane_geometries, turning_contacts
+from ..solvers.contact_modes import modeless_contacts, plane_geometries, rolling_contacts
 
 MAX_EVENT_CONTACTS = 8  # declared plane contacts beyond this many default to time-stepping
 
@@ -61,10 +61,10 @@ def contact_choice(scene: Scene) -> ContactChoice | None:
     count = len(contacts)
     if scene.contact_finders:
         return ContactChoice("event", "automatic", f"{count} contacts found from geometry, each with modes")
-    turning = turning_contacts(geometries)
-    if count > MAX_EVENT_CONTACTS and turning:
+    rolling = rolling_contacts(geometries)
+    if count > MAX_EVENT_CONTACTS and rolling:
         return ContactChoice(
-            "event", "automatic", f"{count} contacts, rotational friction at {turning[0]}: time-stepping has none"
+            "event", "automatic", f"{count} contacts, rolling resistance at {rolling[0]}: time-stepping has none"
         )
     if count > MAX_EVENT_CONTACTS:
         return ContactChoice(

@@ -20,7 +20,7 @@ from ..integration import INTEGRATORS, StepLoop, TimeGrid
 from ..integration.contact_stepping import ContactStepper
 from ..integration.events import EventLoop, RunEnd
 from ..scene import Scene
-from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries, turning_contacts
+from ..solvers.contact_modes import ModeDynamics, PlaneContactGeometry, plane_geometries, rolling_contacts
 from ..solvers.core_modes import CoreModeDynamics
 from ..solvers.ncp import NcpSolver
 from ..system import ConstrainedSystem, build_system
@@ -63,8 +63,8 @@ def stop_kinds(stop_on: Any, contacts: str | None) -> frozenset[str]:
 
 
 def event_contacts(scene: Scene) -> tuple[list[PlaneContactGeometry], list[str]]:
-    """(the scene's unilateral contacts as event-driven geometries: plane contacts and grasp contacts (soft-finger:
-    event-driven only), the names of its other constraints)."""
+    """(the scene's unilateral contacts as the geometries of event-driven and time-stepping contacts: plane contacts
+    and grasp contacts (a soft finger's torsion a spin of its contact), the names of its other constraints)."""
     geometries = plane_geometries(scene.constraints)
     names = {g.name for g in geometries}
     return geometries, [c.name for c in scene.constraints if c.name not in names]
@@ -170,14 +170,16 @@ def stepping_parts(
     time-stepping run of ``scene``.
 
     Raises:
-        PinstabError: a scene whose contacts have rotational friction, or whose constraints do not fit.
+        PinstabError: a scene whose contacts have rolling resistance, or whose constraints do not fit.
     """
     geometries, system, q, v, _ = contact_system(scene, q0, v0)
-    turning = turning_contacts(geometries)
-    if turning:
+    rolling = rolling_contacts(geometries)
+    if any(finder.spin[1] for finder in scene.contact_finders):
+        rolling.append("the contacts found from geometry")
+    if rolling:
         raise PinstabError(
-            f"scene {scene.name}: time-stepping contacts have no rotational friction yet (torsion, rolling, a soft "
-            f"finger's torsion) at {', '.join(turning)}; run it with event-driven contacts (--contacts event)"
+            f"scene {scene.name}: time-stepping contacts have no rolling resistance yet (they take torsion) at "
+            f"{', '.join(rolling)}; run it with event-driven contacts (--contacts event)"
         )
     system.bind(dt, "semi-implicit-euler", q)
     stepping = stepper(system, ModeDynamics(system.model, geometries), NcpSolver(3 * len(geometries)))

@@ -121,10 +121,10 @@ def spin_name(contact: str, spin: Spin) -> str:
     return f"{contact} {spin.kind}"
 
 
-def turning_contacts(contacts: list[PlaneContactGeometry]) -> list[str]:
-    """The names of ``contacts`` with rotational friction (torsion or rolling), which only event-driven contacts
-    take."""
-    return [contact.name for contact in contacts if contact.torsion or contact.rolling]
+def rolling_contacts(contacts: list[PlaneContactGeometry]) -> list[str]:
+    """The names of ``contacts`` with rolling resistance, which only event-driven contacts take (time-stepping
+    contacts take torsion: :mod:`~pinstab.integration.contact_stepping`)."""
+    return [contact.name for contact in contacts if contact.rolling]
 
 
 def contact_spins(contacts: list[PlaneContactGeometry]) -> list[Spin]:

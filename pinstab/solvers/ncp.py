@@ -162,7 +162,8 @@ class NcpSolver:
         not converged``, the kept solver's iterations and absolute primal and dual residuals; a PGS solve after
         ADMM's miss is a fallback)."""
         status = self.status()
-        label = f"{self.method} converged" if status.converged else "ADMM, PGS not converged"
+        missed = "ADMM-torsion not converged" if self.method == "ADMM-torsion" else "ADMM, PGS not converged"
+        label = f"{self.method} converged" if status.converged else missed
         statistics.record(label, status.iterations, status.primal_feasibility, status.dual_feasibility)
         statistics.fallbacks += self.method == "PGS"
 
@@ -173,10 +174,13 @@ class NcpSolver:
     def failure(self) -> str:
         """Why the last :meth:`solve_contacts` returned an answer that misses the contact law (for an error's
         message): the solvers tried, their iteration limit, the residual and the tolerance [m/s or N s units of g]."""
-        return (
-            f"neither ADMM nor PGS (NCP mode, {self.settings.max_iterations} iterations) met the contact law "
-            f"(residual {self.residual:.3g}, accepted {self.tolerance:.3g})"
+        limit = f"(NCP mode, {self.settings.max_iterations} iterations)"
+        missed = (
+            f"the torsion ADMM {limit} did not meet the contact law"
+            if self.method == "ADMM-torsion"
+            else f"neither ADMM nor PGS {limit} met the contact law"
         )
+        return f"{missed} (residual {self.residual:.3g}, accepted {self.tolerance:.3g})"
 
 
 def _status_of(result) -> NcpStatus:
@@ -190,15 +194,23 @@ def _status_of(result) -> NcpStatus:
     )
 
 
-def ncp_residual(delassus: np.ndarray, g: np.ndarray, impulses: np.ndarray, mus: Sequence[float]) -> float:
+def ncp_residual(
+    delassus: np.ndarray,
+    g: np.ndarray,
+    impulses: np.ndarray,
+    mus: Sequence[float],
+    torsions: Sequence[float] | None = None,
+) -> float:
     """How far ``impulses`` (Pinocchio's order, t1, t2, n per contact) are from solving the problem ``(D, g)``
     with friction coefficients ``mus`` [-], in the units of g: the largest contact's natural map
     ``|lambda - P_K(lambda - rho (sigma + mu |sigma_t| e_n))| / rho``, ``rho = 1 / trace D`` (at most
     ``1 / |D|_2``: the map over rho only grows as rho shrinks); 0 exactly at a solution (lambda in K, sigma_n >= 0,
     lambda orthogonal to the De Saxce velocity), inf for a non-finite lambda (compiled: the check of
-    :meth:`NcpSolver.solve_contacts` computes it there)."""
-    arrays = (np.asarray(x, dtype=float) for x in (delassus, g, impulses, mus))
-    return compiled_residual(*arrays)
+    :meth:`NcpSolver.solve_contacts` computes it there). With ``torsions`` (torsion lengths [m], one per contact),
+    the problem has one more row per torsion > 0 after the contacts' (cpp/torsion_cone.hpp): K bounds its torque by
+    torsion lambda_n too, and the De Saxce velocity adds torsion |sigma_tau|."""
+    arrays = [np.asarray(x, dtype=float) for x in (delassus, g, impulses, mus)]
+    return compiled_residual(*arrays, None if torsions is None else np.asarray(torsions, dtype=float))
 
 
 def friction_cones(mus: Sequence[float]) -> tuple[pin.StdVec_ConstraintModel, pin.StdVec_ConstraintData]:
