@@ -121,14 +121,17 @@ void bind_cones(nb::module_& m) {
   nb::class_<ConeSolver>(m, "ConeSolver")
       .def(
           "__init__",
-          [](ConeSolver* self, int size, double tolerance, int max_iterations, int lanczos_size) {
-            if (size < 0 || max_iterations < 1 || lanczos_size < 1 || !(tolerance > 0.0)) {
+          [](ConeSolver* self, int size, double tolerance, int max_iterations, int lanczos_size, int check_every,
+             double settled) {
+            if (size < 0 || max_iterations < 1 || lanczos_size < 1 || check_every < 1 || !(tolerance > 0.0) ||
+                !(settled > 0.0 && settled <= 1.0)) {
               throw std::invalid_argument(
-                  "ConeSolver: size >= 0, tolerance > 0, max_iterations >= 1 and lanczos_size >= 1");
+                  "ConeSolver: size >= 0, tolerance > 0, max_iterations, lanczos_size and check_every >= 1, settled "
+                  "in (0, 1]");
             }
-            new (self) ConeSolver(size, tolerance, max_iterations, lanczos_size);
+            new (self) ConeSolver(size, tolerance, max_iterations, lanczos_size, check_every, settled);
           },
-          "size"_a, "tolerance"_a, "max_iterations"_a, "lanczos_size"_a)
+          "size"_a, "tolerance"_a, "max_iterations"_a, "lanczos_size"_a, "check_every"_a, "settled"_a)
       .def(
           "solve",
           [](ConeSolver& self, const Eigen::MatrixXd& delassus, const VectorXd& g, const VectorXd& mus,

@@ -1,6 +1,8 @@
 #include "cone_solve.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -76,8 +78,12 @@ struct ConeSolver::Solvers {
   }
 };
 
-ConeSolver::ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size)
-    : solvers_(std::make_unique<Solvers>(std::max(size, 3))), max_iterations_(max_iterations) {
+ConeSolver::ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size, int check_every,
+                       double settled)
+    : solvers_(std::make_unique<Solvers>(std::max(size, 3))),
+      max_iterations_(max_iterations),
+      check_every_(check_every),
+      settled_(settled) {
   set_tolerances(solvers_->admm_settings, tolerance, max_iterations);
   solvers_->admm_settings.admm_update_rule = pinocchio::ADMMUpdateRule::SPECTRAL;
   solvers_->admm_settings.lanczos_size = static_cast<std::size_t>(lanczos_size);
@@ -95,6 +101,36 @@ void read_status(const Result& result, const char* method, ConeStatus& status) {
   status.complementarity = result.complementarity;
 }
 
+// The impulses (unscaled) of `solver` on the scaled problem, run from zero for `every` iterations, then twice as many,
+// and so on up to `max_iterations` (each run the first iterations of the longest: the answers a single run passes
+// through): the answer of the run where the solver meets its own tolerance, else the best one (least `residual`, its
+// ratio to the residual accepted) once a run that passes (ratio <= 1) no longer shrinks it by `settled` against the
+// run before; `iterations` the iterations of all the runs.
+template <class Solver, class Settings, class Result, class Models, class Datas>
+Eigen::VectorXd solve_in_rounds(Solver& solver, Settings settings, Result& result, const Eigen::MatrixXd& symmetric,
+                                const Eigen::VectorXd& scaled_g, const Models& models, Datas& datas,
+                                const Eigen::VectorXd& scales, int max_iterations, int every, double settled,
+                                const std::function<double(const Eigen::VectorXd&)>& residual, long& iterations) {
+  Eigen::VectorXd scaled(scaled_g.size()), impulses(scaled_g.size()), best(scaled_g.size());
+  double least = std::numeric_limits<double>::infinity(), last = least;
+  result.clearConstraintImpulseGuess();
+  iterations = 0;
+  for (long size = std::min(every, max_iterations);; size = std::min<long>(2 * size, max_iterations)) {
+    settings.max_iterations = static_cast<std::size_t>(size);
+    pinocchio::DelassusOperatorDense operator_(symmetric);
+    solver.solve(operator_, scaled_g, models, datas, settings, result);
+    iterations += static_cast<long>(result.iterations);
+    result.retrieveConstraintImpulses(scaled);
+    impulses = scales.cwiseProduct(scaled);
+    if (result.converged) return impulses;
+    const double found = residual(impulses), ratio = std::isnan(found) ? least : found;
+    if (ratio < least || size == std::min(every, max_iterations)) least = ratio, best = impulses;
+    if ((least <= 1.0 && ratio > settled * last) || size == max_iterations) break;
+    last = ratio;
+  }
+  return best;
+}
+
 Eigen::VectorXd ConeSolver::solve(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g,
                                   const Eigen::VectorXd& mus, double check_rtol) {
   Solvers& s = *solvers_;
@@ -103,22 +139,20 @@ Eigen::VectorXd ConeSolver::solve(const Eigen::MatrixXd& delassus, const Eigen::
   const Eigen::MatrixXd scaled = scales.asDiagonal() * delassus * scales.asDiagonal();
   const Eigen::VectorXd scaled_g = scales.cwiseProduct(g);
   const Eigen::MatrixXd symmetric = 0.5 * (scaled + scaled.transpose());
-  Eigen::VectorXd impulses(g.size());
-  {
-    pinocchio::DelassusOperatorDense operator_(symmetric);
-    s.admm.solve(operator_, scaled_g, s.models, s.datas, s.admm_settings, s.admm_result);
-    s.admm_result.retrieveConstraintImpulses(impulses);
-  }
-  impulses = scales.cwiseProduct(impulses);
+  const auto residual = [&](const Eigen::VectorXd& impulses) {
+    check(delassus, g, impulses, mus, check_rtol);
+    return status_.residual / status_.accepted;
+  };
+  long iterations = 0;
+  Eigen::VectorXd impulses = solve_in_rounds(s.admm, s.admm_settings, s.admm_result, symmetric, scaled_g, s.models,
+                                             s.datas, scales, max_iterations_, check_every_, settled_, residual, iterations);
   read_status(s.admm_result, "ADMM", status_);
+  status_.iterations = iterations;
   if (check(delassus, g, impulses, mus, check_rtol)) return impulses;
-  {
-    pinocchio::DelassusOperatorDense operator_(symmetric);
-    s.pgs.solve(operator_, scaled_g, s.models, s.datas, s.pgs_settings, s.pgs_result);
-    s.pgs_result.retrieveConstraintImpulses(impulses);
-  }
-  impulses = scales.cwiseProduct(impulses);
+  impulses = solve_in_rounds(s.pgs, s.pgs_settings, s.pgs_result, symmetric, scaled_g, s.models, s.datas, scales,
+                             max_iterations_, check_every_, settled_, residual, iterations);
   read_status(s.pgs_result, "PGS", status_);
+  status_.iterations = iterations;
   check(delassus, g, impulses, mus, check_rtol);
   return impulses;
 }

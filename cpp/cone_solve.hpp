@@ -32,10 +32,15 @@ struct ConeStatus {
 
 // ADMM and PGS in NCP mode with every feasibility and complementarity tolerance (absolute and relative) at
 // `tolerance` and at most `max_iterations` each (ADMM: the spectral rho rule, D's largest eigenvalue estimated by
-// `lanczos_size` Lanczos steps).
+// `lanczos_size` Lanczos steps), each run for `check_every` iterations, then twice as many and so on, its answer
+// checked after each run: the solve ends at the run where the solver meets its own tolerance, or once an answer
+// passes the check and a run no longer shrinks the residual by the factor `settled` (the best answer kept). On
+// redundant contacts (D rank-deficient) the impulses are not unique and drift within the set of solutions, which the
+// solvers' own tolerances (on the change of the impulses) never meet, while the contact velocities, which the check
+// measures, settle.
 class ConeSolver {
  public:
-  ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size);
+  ConeSolver(int size, double tolerance, int max_iterations, int lanczos_size, int check_every, double settled);
   ~ConeSolver();
   ConeSolver(const ConeSolver&) = delete;
   ConeSolver& operator=(const ConeSolver&) = delete;
@@ -55,7 +60,8 @@ class ConeSolver {
   bool check(const Eigen::MatrixXd& delassus, const Eigen::VectorXd& g, const Eigen::VectorXd& impulses,
              const Eigen::VectorXd& mus, double check_rtol, const Eigen::VectorXd& torsions = Eigen::VectorXd());
   std::unique_ptr<Solvers> solvers_;
-  int max_iterations_;
+  int max_iterations_, check_every_;
+  double settled_;
   ConeStatus status_;
 };
 

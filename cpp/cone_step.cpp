@@ -83,13 +83,29 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
   const Eigen::MatrixXd& jacobian = spins ? stacked : contacts.jacobian;
   const Eigen::MatrixXd mobility = factor.solve(jacobian.transpose());  // M^-1 J^T
   const Eigen::VectorXd reach = jacobian * v_free;
-  for (Eigen::Index i = 0; i < k; ++i) {
-    if (contacts.gaps(i) + dt * reach(3 * i) <= settings.touch_gap) result.active.push_back(static_cast<int>(i));
-  }
-  result.impulses = Eigen::MatrixXd::Zero(k, 3);
-  result.torques = Eigen::VectorXd::Zero(spins);
+  // the problem's contacts: those the free motion closes, then those the impulses of the others close (a body pressed
+  // onto one that its contact stops), solved again with them until none is added (at most k solves); a grown problem
+  // whose answer no solver finds is given up for the one before it (solved again: the solver's status is its answer's)
+  std::vector<char> in_problem(static_cast<std::size_t>(k), 0);
+  const auto admit = [&](const Eigen::VectorXd& velocity) {
+    bool grown = false;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      if (in_problem[i] || contacts.gaps(i) + dt * velocity(3 * i) > settings.touch_gap) continue;
+      in_problem[i] = 1;
+      grown = true;
+    }
+    return grown;
+  };
   Eigen::VectorXd v_new = v_free;
-  if (!result.active.empty()) {
+  const auto solve = [&]() {
+    result.active.clear();
+    for (Eigen::Index i = 0; i < k; ++i) {
+      if (in_problem[i]) result.active.push_back(static_cast<int>(i));
+    }
+    result.impulses = Eigen::MatrixXd::Zero(k, 3);
+    result.torques = Eigen::VectorXd::Zero(spins);
+    v_new = v_free;
+    if (result.active.empty()) return true;
     std::vector<Eigen::Index> rows, torsion_rows;
     for (const int i : result.active) {
       for (const int r : CONE_ROWS) rows.push_back(3 * i + r);
@@ -119,7 +135,6 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     const Eigen::VectorXd solution = torsion_rows.empty()
                                          ? solver.solve(delassus, g, mus, settings.check_rtol)
                                          : solver.solve_torsion(delassus, g, mus, torsions, settings.check_rtol);
-    result.solved = solver.status().converged;
     for (std::size_t a = 0; a < result.active.size(); ++a) {
       result.impulses.row(result.active[a]) << solution(3 * a + 2), solution(3 * a), solution(3 * a + 1);
     }
@@ -127,9 +142,21 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     for (std::size_t j = 0; j < torsion_rows.size(); ++j) {
       result.torques(torsion_rows[j] - 3 * k) = solution(linear + static_cast<Eigen::Index>(j));
     }
-    if (!result.solved) return result;
+    if (!solver.status().converged) return false;
     v_new += active_mobility * solution;
+    return true;
+  };
+  admit(reach);
+  result.solved = solve();
+  if (!result.solved) return result;
+  for (std::vector<char> before = in_problem; admit(jacobian * v_new); before = in_problem) {
+    if (!solve()) {
+      in_problem = before;
+      result.solved = solve();
+      break;
+    }
   }
+  if (!result.solved) return result;
   const Eigen::VectorXd velocities = jacobian * v_new;
   result.velocities = velocities.head(3 * k).reshaped(3, k).transpose();
   result.spins = velocities.tail(spins);

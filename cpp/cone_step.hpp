@@ -28,7 +28,8 @@ struct StepContacts {
   Eigen::MatrixXd spin_jacobian;
 };
 
-// The settings of the step: TOUCH_GAP [m] (a contact is in the problem when gap + dt (J v_free)_n <= touch_gap), the
+// The settings of the step: TOUCH_GAP [m] (a contact is in the problem when gap + dt (J v)_n <= touch_gap, v the free
+// velocity or the velocity after the impulses of the contacts already in it: the problem grows until none is added), the
 // midpoint's relative tolerance and passes, and the cone solve's check (relative residual accepted).
 struct StepSettings {
   double touch_gap = 0.0, midpoint_tolerance = 1e-13;

@@ -1,8 +1,8 @@
 """hand-cube (issue 36): a hand picks a cube off the table with contacts found from the geometry of its fingertips,
 palm, the cube and the table, lifts it with the wrist (the lift the servo's closed-form static sag predicts, the
 fingertips not slipping on the cube), carries it, sets it down at the scripted place, where it rests, with more than
-ten contacts touching at once in the hold; its penetration bounded; the same to the last bit each time. At dt = 2 ms
-(the scene's is 1 ms) to keep the test short: about 2.5 s a run."""
+ten contacts touching at once in the hold; its penetration at rounding level; the same to the last bit each time. At
+dt = 2 ms (the scene's is 1 ms) to keep the test short: about 1 s a run."""
 
 from __future__ import annotations
 
@@ -111,12 +111,13 @@ def test_the_cube_is_set_down_at_the_scripted_place_and_rests_there(runs):
     assert sum(mode == "sticking" for name, mode in last.items() if "ground" in name) == 4
 
 
-def test_penetration_stays_within_g_dt_squared(runs):
-    """A contact the other contacts' impulses close within a step (not its own free motion) ends it up to about
-    g dt^2 inside (the palm pressing the cube with less than its weight, a corner turned up to the palm), taken back
-    the next step."""
+def test_penetration_stays_within_a_nanometre(runs):
+    """A contact the other contacts' impulses close within a step (not its own free motion: the palm pressing the
+    cube with less than its weight, a corner turned up to the palm) is taken into the step's problem too: the deepest
+    overlap stays at rounding level (1e-9 m asserted; measured 1.8e-11 m; before, such a contact ended its step up to
+    about g dt^2 inside, 3.9e-5 m)."""
     scene, (run, _) = runs
     deepest = min(
         feature.gap for finder in scene.contact_finders for q in run.q for feature in finder.shapes.features(q)
     )
-    assert -2 * GRAVITY * DT**2 <= deepest < 0.0  # measured -3.9e-5 m
+    assert -1e-9 <= deepest < 0.0

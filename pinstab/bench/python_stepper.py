@@ -4,13 +4,17 @@ compiled (cpp/cone_step.hpp): the second method the compiled step is checked aga
 
 The same physics as :class:`~pinstab.integration.contact_stepping.ContactStepper` (its module says which), computed
 another way: SciPy's Cholesky factor of M, the midpoint passes over ``pin.nonLinearEffects``, the Delassus matrix by
-NumPy, ADMM through Pinocchio's Python bindings on the problem with steep cones scaled to 1 (:meth:`NcpSolver.solve`),
+NumPy, ADMM through Pinocchio's Python bindings on the problem with steep cones scaled to 1, run for
+:data:`~pinstab.solvers.ncp.CHECK_EVERY` iterations, twice as many and so on, checked after each and ended as the
+compiled solve ends,
 free flyers moved by ``pin.Quaternion``. It has no PGS fallback: a step whose ADMM answer misses the contact law
 (:func:`~pinstab.solvers.ncp.ncp_residual` beyond :data:`~pinstab.solvers.ncp.CHECK_RTOL` of the velocity scale)
 raises :class:`~pinstab.errors.ContactSolveError`.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pinocchio as pin
@@ -21,7 +25,16 @@ from ..integration.contact_stepping import MIDPOINT_PASSES, MIDPOINT_TOLERANCE, 
 from ..integration.stepping import Failure
 from ..solvers.contact_modes import ModeDynamics
 from ..solvers.mode_choice import TOUCH_GAP
-from ..solvers.ncp import CHECK_RTOL, CONE_ROWS, NcpSolver, friction_cones, ncp_residual
+from ..solvers.ncp import (
+    CHECK_EVERY,
+    CHECK_RTOL,
+    CONE_ROWS,
+    ROUND_SETTLED,
+    NcpSolver,
+    admm_settings,
+    friction_cones,
+    ncp_residual,
+)
 from ..system import ConstrainedSystem
 from .torsion_admm import torsion_admm, torsion_rows
 
@@ -52,24 +65,47 @@ class PythonStepper(ContactStepper):
         jacobian = np.vstack([contacts.jacobian, contacts.spin_jacobian.reshape(-1, v.size)])  # then the torsions'
         mobility = cho_solve(factor, jacobian.T)
         reach = jacobian @ v_free
-        active = [int(i) for i in np.flatnonzero(contacts.gaps + dt * reach[: 3 * k : 3] <= TOUCH_GAP)]
-        impulses = np.zeros(jacobian.shape[0])
-        if active:
-            offset = reach.copy()
-            for i in active:
-                restitution, normal_velocity = self.dynamics.contacts[i].restitution, contacts.velocities[i, 0]
-                bias = contacts.gaps[i] / dt
-                if restitution > 0.0 and normal_velocity < 0.0:
-                    bias = min(bias, restitution * normal_velocity)
-                offset[3 * i] += bias
-            impulses = self._solve(jacobian, mobility, offset, active, t)
-        v_new = v_free + mobility @ impulses
+        closed = contacts.gaps + dt * reach[: 3 * k : 3] <= TOUCH_GAP
+        impulses = self._impulses(contacts, jacobian, mobility, reach, closed, dt, t)
+        while True:  # the contacts the free motion closes, then those the others' impulses close, as the compiled step
+            v_new = v_free + mobility @ impulses
+            grown = closed | (contacts.gaps + dt * (jacobian @ v_new)[: 3 * k : 3] <= TOUCH_GAP)
+            if np.array_equal(grown, closed):
+                break
+            try:
+                impulses, closed = self._impulses(contacts, jacobian, mobility, reach, grown, dt, t), grown
+            except ContactSolveError:  # the grown problem given up for the one before it
+                break
         velocities = jacobian @ v_new
         normal = contacts.jacobian[0::3]
         reach_n = np.einsum("ij,ji->i", normal, mobility[:, : 3 * k : 3])
         linear = impulses[: 3 * k].reshape(-1, 3)
         self._track(t, dt, linear, velocities[: 3 * k].reshape(-1, 3), reach_n, impulses[3 * k :], velocities[3 * k :])
         return self._integrate(q, v_new, dt)
+
+    def _impulses(
+        self,
+        contacts,
+        jacobian: np.ndarray,
+        mobility: np.ndarray,
+        reach: np.ndarray,
+        closed: np.ndarray,
+        dt: float,
+        t: float,
+    ) -> np.ndarray:
+        """The impulses of every row (see :meth:`_solve`) of the contacts ``closed``, zero off them: their problem
+        with the normal biases (gap / dt, Newton's impact law)."""
+        active = [int(i) for i in np.flatnonzero(closed)]
+        if not active:
+            return np.zeros(jacobian.shape[0])
+        offset = reach.copy()
+        for i in active:
+            restitution, normal_velocity = self.dynamics.contacts[i].restitution, contacts.velocities[i, 0]
+            bias = contacts.gaps[i] / dt
+            if restitution > 0.0 and normal_velocity < 0.0:
+                bias = min(bias, restitution * normal_velocity)
+            offset[3 * i] += bias
+        return self._solve(jacobian, mobility, offset, active, t)
 
     def _solve(
         self, jacobian: np.ndarray, mobility: np.ndarray, offset: np.ndarray, active: list[int], t: float
@@ -106,7 +142,26 @@ class PythonStepper(ContactStepper):
         if key not in self.cones:
             self.cones[key] = friction_cones([min(mu, 1.0) for mu in mus])
         cones = self.cones[key]
-        return scales * self.solver.solve(scales[:, None] * delassus * scales, scales * g, *cones)
+        scaled = scales[:, None] * delassus * scales
+        operator = pin.DelassusOperatorDense(0.5 * (scaled + scaled.T))
+        solver, result, settings = self.solver.solver, self.solver.result, admm_settings(1e-12, CHECK_EVERY)
+        result.clearConstraintImpulseGuess()
+        total, least, last = self.solver.settings.max_iterations, math.inf, math.inf
+        size = min(CHECK_EVERY, total)
+        while True:  # runs of CHECK_EVERY iterations, twice as many and so on, as the compiled solve
+            settings.max_iterations = size
+            solver.solve(operator, scales * g, *cones, settings, result)
+            solution = scales * result.retrieveConstraintImpulses()
+            if result.converged:
+                return solution
+            scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
+            found = ncp_residual(delassus, g, solution, mus) / (CHECK_RTOL * scale)
+            ratio = least if math.isnan(found) else found
+            if ratio < least or size == min(CHECK_EVERY, total):
+                least, best = ratio, solution
+            if (least <= 1.0 and ratio > ROUND_SETTLED * last) or size == total:
+                return best
+            last, size = ratio, min(2 * size, total)
 
     def _free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
         """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint, by fixed point."""

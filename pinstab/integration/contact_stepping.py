@@ -21,7 +21,11 @@ spinning at 30 rad/s and sliding at 2 m/s gained 28 J in 3 s (from 4.78 J).
 
 The impulses lambda [N s] of the contacts whose gap would close within the step, or stay within
 :data:`~pinstab.solvers.mode_choice.TOUCH_GAP` of closed (``gap + dt (J v_free)_n <= TOUCH_GAP``: a box resting
-on a box falls with it, their gap closing only once the lower one is stopped), solve the frictional contact
+on a box falls with it, their gap closing only once the lower one is stopped), and then of those the others'
+impulses close (``gap + dt (J v+)_n <= TOUCH_GAP``, solved again with them until none is added: a box held up by
+half its weight on a box that the ground stops went 7.4e-6 m into it, and its 8 corners chattered between sticking
+and separated, 276 events in 0.1 s, tests/test_contact_stepping.py; a grown problem whose answer no solver
+finds is given up for the one before it), solve the frictional contact
 problem of :mod:`pinstab.solvers.ncp` (Pinocchio's ADMM in NCP mode: the exact round cone, a sliding contact keeps
 its normal velocity at its bound, no lift-off) with ``sigma = J v+ + b``, ``b = (b_n, 0, 0)`` per contact:
 

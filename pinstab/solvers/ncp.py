@@ -11,17 +11,19 @@ contact's sigma_n is exactly 0 and its friction opposes sigma_t; ``solve_ncp``).
 Each contact's three rows are in Pinocchio's order (t1, t2, n): normal last.
 
 :meth:`NcpSolver.solve_contacts` does not take a solver's word for it (its rules, below, are compiled:
-``pinstab._compiled.ConeSolver``, cpp/cone_solve.hpp, which the compiled time-stepping step calls too). It poses
-the problem with each contact's tangential impulse in units of ``s = max(mu, 1)`` times the normal one (``lambda =
-S lambda'``, ``D' = S D S``, ``g' = S g``, cones of ``mu / s <= 1``: the same problem, ``lambda' . sigma' = lambda
-. sigma`` and ``sigma'_n + (mu / s) |sigma'_t| = sigma_n + mu |sigma_t|``), because ADMM in NCP mode fails on steep
+``pinstab._compiled.ConeSolver``, cpp/cone_solve.hpp, which the compiled time-stepping step calls too). It poses the
+problem with each contact's tangential impulse in units of ``s = max(mu, 1)`` times the normal one (``lambda = S
+lambda'``, ``D' = S D S``, ``g' = S g``, cones of ``mu / s <= 1``: the same problem, ``lambda' . sigma' = lambda .
+sigma`` and ``sigma'_n + (mu / s) |sigma'_t| = sigma_n + mu |sigma_t|``), because ADMM in NCP mode fails on steep
 cones: on the painleve-rod it missed the first step at mu = 4 and 5 (0.9 and 1.3 m/s off the law on a 1 m/s slip)
 and returned NaN 0.8 s on at mu = 10, where the scaled problems converge in 40 to 200 iterations. Cones below 1 are
 left as they are (scaling them up would shrink the tangential block of D by mu^2). Each answer is then measured by
 :func:`ncp_residual`, the natural map of the De Saxce law computed there, and kept only within :data:`CHECK_RTOL`,
-whatever the solver's own flag says; else Pinocchio's projected Gauss-Seidel in NCP mode (PGS) solves the same
-problem, checked the same way, and if it misses too the solve reports that it did not converge (the callers stop
-the run with a :class:`~pinstab.errors.ContactSolveError` or :class:`~pinstab.errors.ContactInfeasibleError`).
+whatever the solver's own flag says (checked after runs of :data:`CHECK_EVERY` iterations, twice as many and so on:
+a passing answer ends the solve once the residual settles, :data:`ROUND_SETTLED`); else Pinocchio's projected
+Gauss-Seidel in NCP mode (PGS) solves the same problem, checked the same way, and if it misses too the solve reports
+that it did not converge (the callers stop the run with a :class:`~pinstab.errors.ContactSolveError` or
+:class:`~pinstab.errors.ContactInfeasibleError`).
 """
 
 from __future__ import annotations
@@ -47,6 +49,22 @@ LANCZOS_SIZE = 12
 """[-] the Lanczos steps of ADMM's estimate of D's largest eigenvalue (its spectral rho rule). Pinocchio's default
 takes one per row: on box-stack's 12 sticking corners (36 rows) that estimate was 3/4 of the solve (229 us; 58 us
 with 12 steps, the same 26 iterations to the same tolerance)."""
+CHECK_EVERY = 50
+"""[-] the iterations of the first run of ADMM (and of PGS): the solve runs from zero for 50 iterations, then 100,
+200 and so on up to the iteration limit (each run the first iterations of the next: the answers a single run passes
+through, restarts having lost the lever scene's ill-conditioned problem), its answer checked by :func:`ncp_residual`
+after each run, and ends once the residual settles (:data:`ROUND_SETTLED`) or the solver meets its own tolerance. On
+redundant contacts (a rank-deficient D: hand-cube's cube between the palm, three fingertips and the table, 11
+contacts, 33 rows of rank 12) the impulses are not unique and ADMM's iterates drift within the set of solutions (the
+change of lambda, which its own tolerances bound, stays near 1e-8 while the contact velocities have settled to 1e-9
+of their scale within 50 iterations): run to its own tolerance it went on to 1e5 iterations, and its answer after
+1e4 could miss the check (hand-cube's set-down with the admission growth of
+:mod:`~pinstab.integration.contact_stepping`; tests/test_ncp_redundant.py). So run, hand-cube's solves (dt = 1 ms,
+2,200) take 35 iterations on average, 1,555 at most, every answer ADMM's."""
+ROUND_SETTLED = 0.5
+"""[-] a run (of twice the iterations of the one before) that shrinks the residual by less than this factor, once an
+answer has passed the check, ends the solve (the best answer kept): the residual has settled (redundant contacts),
+where a converging solve (the painleve-rod's steep cones, 40 to 200 iterations) goes on to its own tolerance."""
 CONE_ROWS = (1, 2, 0)  # Pinocchio's rows (t1, t2, n) as indices of pinstab's (n, t1, t2)
 CONE_ORDER = np.eye(3)[list(CONE_ROWS)]  # (n, t1, t2) -> (t1, t2, n)
 
@@ -109,7 +127,7 @@ class NcpSolver:
         self.settings = admm_settings(tolerance, max_iterations)
         self.solver = pin.ADMMConstraintSolver(size)
         self.result = pin.ADMMSolverResult()
-        self.cones = ConeSolver(size, tolerance, max_iterations, LANCZOS_SIZE)
+        self.cones = ConeSolver(size, tolerance, max_iterations, LANCZOS_SIZE, CHECK_EVERY, ROUND_SETTLED)
         self.compliance = compliance
         self.warm_start = warm_start
         self.method, self.residual, self.tolerance = "ADMM", 0.0, 0.0
