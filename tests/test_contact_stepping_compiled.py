@@ -12,7 +12,9 @@ import pytest
 from pinstab import load_scene
 from pinstab.bench.python_stepper import PythonStepper
 from pinstab.contact.modes import Mode
+from pinstab.generators import box_stack
 from pinstab.integration.contact_stepping import ContactStepper
+from pinstab.scene import scene_from_dict
 from pinstab.simulate.contacts import stepping_parts
 from pinstab.simulate.loop import start_state
 
@@ -78,3 +80,27 @@ def test_the_compiled_step_refuses_arrays_of_other_sizes() -> None:
             q[:-1], v, DT, np.eye(6), np.zeros(6), np.zeros(1), np.zeros(1), np.zeros((3, 6)), np.zeros(1),
             np.zeros(1), np.zeros(1), np.zeros((0, 6)), np.zeros(4), compiled.solver.cones,
         )  # fmt: skip
+
+
+def test_both_steps_take_the_contacts_the_others_impulses_close() -> None:
+    """Two stacked cubes, the top one held up by half its weight (tests/test_contact_stepping.py): the contacts
+    between them open in free motion and close only once the ground stops the bottom cube. Both steppers grow their
+    problems with them (all 8 corners sticking at every step, which the free motion alone leaves separated) and end
+    each step in the same state to STEP_TOLERANCE."""
+    data = box_stack(2, 0.5)
+    data["forces"] = [{"name": "lift", "kind": "external-force", "frame": "box1", "force": [0.0, 0.0, 0.5 * 9.81]}]
+    parts = [
+        stepping_parts(scene, DT, *start_state(scene, None, None), stepper)
+        for scene, stepper in (
+            (scene_from_dict(data, "lifted"), ContactStepper),
+            (scene_from_dict(data, "lifted"), PythonStepper),
+        )
+    ]
+    (_, compiled, q, v), (_, reference, _, _) = parts
+    worst = 0.0
+    for k in range(100):
+        expected = reference.step(q.copy(), v.copy(), k * DT, DT)
+        q, v = compiled.step(q, v, k * DT, DT)
+        worst = max(worst, float(np.max(np.abs(q - expected[0]))), float(np.max(np.abs(v - expected[1]))))
+        assert compiled.modes == reference.modes and compiled.modes.count(Mode.STICKING) == 8, k
+    assert worst <= STEP_TOLERANCE
