@@ -1,5 +1,6 @@
 """What the property-based fuzzers share (tests/test_fuzz*.py): TOML writing, the command line run in process, the
-time bound of an example, outputs that must not be lost, and the physics a contact scene guarantees (gaps, energy).
+time bound of an example and the work bound of a run, outputs that must not be lost, and the physics a contact scene
+guarantees (gaps, energy).
 
 The invariant every fuzzer asserts: an input either runs with finite results, or ends in a
 :class:`~pinstab.errors.PinstabError` (exit 2, 3, 4 or 5 on the command line) whose message says what is wrong;
@@ -179,6 +180,33 @@ def time_limit(seconds: float = EXAMPLE_SECONDS) -> Iterator[None]:
         signal.setitimer(signal.ITIMER_REAL, 0)
         faulthandler.cancel_dump_traceback_later()
         signal.signal(signal.SIGALRM, previous)
+
+
+class Runaway(BaseException):
+    """A run did more of some work than its bound (:func:`work_limit`). Not an :class:`Exception`: no handler of the
+    code under test takes it for one of its own failures."""
+
+
+def work_limit(
+    monkeypatch: Any, owner: type, name: str, most: int, amount: Callable[[Any], int] | None = None
+) -> list[int]:
+    """Count the work of the calls of the method ``owner.name`` from now to the test's end (``monkeypatch``
+    restores it): one per call, or ``amount(instance)`` read after each call (a solver's iterations); the call that
+    takes the count past ``most`` raises :class:`Runaway`. A bound on a run's work that the machine's load does not
+    move, as a wall-time bound is moved, and that ends a loop going round for ever. Returns the count so far (a
+    one-item list)."""
+    done = [0]
+    method = getattr(owner, name)
+
+    def counted(self: Any, *args: Any, **kwargs: Any) -> Any:
+        result = method(self, *args, **kwargs)
+        done[0] += 1 if amount is None else amount(self)
+        if done[0] > most:
+            raise Runaway(f"{owner.__name__}.{name}: {done[0]} done, past the bound of {most}")
+        return result
+
+    monkeypatch.setattr(owner, name, counted)
+    return done
 
 
 # -- outputs that must not be lost ---------------------------------------------------------------------
