@@ -1,5 +1,6 @@
 """Trajectories on the core path against the general path (issue 35: the core must give the present paths' motion):
-every bundled scene whose default run takes the core, run by ``pinstab.simulate()`` at its defaults over DURATION
+every bundled scene whose held run takes the core, run by ``pinstab.simulate()`` at its defaults (contacts held as
+rows) over DURATION
 (Cassie over CASSIE_DURATION: the general path costs ~56 CPU s per simulated second there) and again with
 ``solver="proxsuite"`` (the general path: pinstab's Python rows, ProxQP's direct Cholesky solve, ProxQP itself where
 rows are redundant); the largest difference of any coordinate of q [rad or m] and of v [rad/s or m/s] over the
@@ -38,7 +39,8 @@ REFERENCE_SCENES = ("delta", "cassie")  # the scenes whose general path solves r
 def run(scene: pinstab.Scene, duration: float, **options: Any) -> tuple[pinstab.Trajectory, str | None]:
     """The run (up to where it stopped) and the error that stopped it, if any."""
     try:
-        return pinstab.simulate(scene, duration=duration, progress=False, **options), None
+        # held: the scene's contacts as rows on both paths (event-driven by default, which takes neither)
+        return pinstab.simulate(scene, duration=duration, progress=False, contacts="held", **options), None
     except PinstabError as exc:
         return exc.trajectory, type(exc).__name__
 

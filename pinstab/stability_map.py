@@ -215,6 +215,7 @@ def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0,
                 v0=v0,
                 assemble_initial=False,
                 drift_limit=DIVERGED_RATIO * initial,
+                contacts="held",  # the method's rows, whatever the scene's contacts
             )
         except (DivergenceError, ProjectionError):  # blown up (a failed solve on a blown-up state included)
             return Cell(dt, kp, kd, radius, "diverged", math.inf)

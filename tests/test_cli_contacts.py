@@ -185,7 +185,7 @@ def test_bad_stop_on_is_named(stop_on, phrase):
     with pytest.raises(PinstabError, match=phrase):
         simulate("bouncing-ball", contacts="event", stop_on=stop_on)
     with pytest.raises(PinstabError, match="takes contacts='event'"):
-        simulate("bouncing-ball", stop_on=("slip",))
+        simulate("bouncing-ball", contacts="held", stop_on=("slip",))
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["record", "--help"]])

@@ -1,19 +1,21 @@
 """The contact treatment a run takes (``pinstab.simulate.choice``): a scene whose contacts can switch switches by
 default (event-driven; time-stepping beyond MAX_EVENT_CONTACTS declared ones), holding them is asked for (the
-option, or the scene's ``[run] contacts``), and the run's JSON says which, how chosen and why."""
+option, or the scene's ``[run] contacts``), and the run's JSON says which, how chosen and why; ``simulate(scene)``
+and ``pinstab run`` take the same."""
 
 from __future__ import annotations
 
 import dataclasses
 import json
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
-from fuzzing import cli
+from fuzzing import cli, toml_document
 
 from conftest import ROBOTS
-from pinstab import load_scene, simulate
+from pinstab import Trajectory, load_scene, simulate
 from pinstab.errors import PinstabError, SceneError
 from pinstab.scene import scene_from_dict
 from pinstab.simulate import MAX_EVENT_CONTACTS, contact_choice
@@ -81,8 +83,8 @@ def test_simulate_without_contacts_runs_the_treatment_the_scene_asks_for():
 
 
 def test_auto_runs_the_scenes_choice_to_the_last_bit_and_reports_it():
-    """simulate(contacts="auto") on bouncing-ball is the event-driven run (equal to the last bit) and says so; asked
-    for held, the run says it was asked."""
+    """simulate(contacts="auto") on bouncing-ball is the event-driven run (equal to the last bit) and says so, as does
+    simulate() without contacts; asked for held, the run says it was asked."""
     scene = load_scene("bouncing-ball")
     auto = simulate(scene, contacts="auto", duration=0.5)
     event = simulate(scene, contacts="event", duration=0.5)
@@ -93,11 +95,50 @@ def test_auto_runs_the_scenes_choice_to_the_last_bit_and_reports_it():
         "why": auto.info.contact_treatment["why"],
     }
     assert event.info.contact_treatment["chosen"] == "asked"
-    assert simulate(scene, duration=0.01).info.contact_treatment == {
+    default = simulate(scene, duration=0.5)
+    assert np.array_equal(default.q, event.q) and default.info.contact_treatment == auto.info.contact_treatment
+    assert simulate(scene, contacts="held", duration=0.01).info.contact_treatment == {
         "treatment": "held",
         "chosen": "asked",
         "why": "asked for held",
     }
+
+
+def nine_corner_box(folder: Path) -> Path:
+    """box-push on nine points of its bottom face (MAX_EVENT_CONTACTS + 1 declared contacts), as a scene file."""
+    data = tomllib.loads((ROBOTS / "box-push.toml").read_text(encoding="utf-8"))
+    data["robot"]["urdf"] = str(ROBOTS / data["robot"]["urdf"])
+    corner = data["contacts"][0]
+    points = [(x, y) for x in (-0.1, 0.0, 0.1) for y in (-0.05, 0.0, 0.05)]
+    data["contacts"] = [{**corner, "name": f"p{k}", "offset_a": [x, y, -0.025]} for k, (x, y) in enumerate(points)]
+    path = folder / "nine.toml"
+    path.write_text(toml_document(data), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("name", "treatment", "chosen"),
+    [
+        ("bouncing-ball", "event", "automatic"),
+        ("nine", "stepping", "automatic"),
+        ("hand-cube", "stepping", "scene"),
+        ("allegro-sphere", "held", "scene"),
+    ],
+)
+def test_simulate_and_run_take_the_same_treatment(name, treatment, chosen, tmp_path):
+    """``simulate(scene)`` (contacts None, its default) and ``pinstab run`` without --contacts: the same treatment,
+    reported alike in ``info.contact_treatment`` and the JSON, and the same samples to the last bit."""
+    source = str(nine_corner_box(tmp_path)) if name == "nine" else name
+    api = simulate(load_scene(source), duration=0.02)
+    saved = tmp_path / "run.npz"
+    ran = cli(["run", source, "--duration", "0.02", "--json", "--quiet", "--save", str(saved)])
+    assert ran.code == 0, ran
+    reported = api.info.contact_treatment
+    assert (reported["treatment"], reported["chosen"]) == (treatment, chosen), reported
+    assert json.loads(ran.out)["contact_treatment"] == reported
+    run = Trajectory.load(saved)
+    assert run.info.contact_treatment == reported
+    assert np.array_equal(api.t, run.t) and np.array_equal(api.q, run.q) and np.array_equal(api.v, run.v)
 
 
 def test_the_scene_asks_and_a_wrong_ask_is_refused():
@@ -119,3 +160,17 @@ def test_the_cli_json_reports_the_choice():
         "chosen": "asked",
         "why": "asked for held",
     }
+
+
+def test_held_options_on_switching_contacts_are_refused():
+    """box-push (event-driven by default): a solver, a method other than the default and the method's options belong
+    to held rows; with event-driven or time-stepping contacts they are refused, naming them and contacts='held' (they
+    were ignored); asked for held, they run."""
+    with pytest.raises(PinstabError, match=r"^solver: scene box-push's contacts are event \(4 contacts.*'held'"):
+        simulate("box-push", solver="dense", duration=0.01)
+    with pytest.raises(PinstabError, match=r"^method, kp: scene box-push's contacts are event \(asked for\)"):
+        simulate("box-push", contacts="event", method="projection", kp=1.0, duration=0.01)
+    with pytest.raises(PinstabError, match=r"^solver_options: scene box-push's contacts are stepping"):
+        simulate("box-push", contacts="stepping", solver_options={"eps_abs": 1e-9}, duration=0.01)
+    held = simulate("box-push", contacts="held", method="projection", solver="proxsuite", duration=0.01)
+    assert (held.info.method, held.info.solver) == ("projection", "proxsuite")

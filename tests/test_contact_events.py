@@ -135,7 +135,7 @@ def test_carried_plane_rows_match_finite_differences():
 
 def test_carried_plane_needs_event_contacts():
     with pytest.raises(PinstabError, match="left.*contacts='event'"):
-        simulate("pinch", dt=0.01, duration=0.1)
+        simulate("pinch", dt=0.01, duration=0.1, contacts="held")
 
 
 def test_nan_state_names_the_contact():

@@ -79,7 +79,7 @@ def test_sticking_box_forces_balance_and_match_pinocchio_admm(height):
 
 
 def test_sticking_box_stays_put_over_a_run():
-    traj = simulate(box_scene(), method="baumgarte", dt=2e-3, duration=0.5)
+    traj = simulate(box_scene(), method="baumgarte", dt=2e-3, duration=0.5, contacts="held")
     assert np.abs(traj.q - traj.q[0]).max() < 1e-9
     assert traj.position_drift.max() < 1e-12
     assert traj.info.row_kinds == {f"c{i}": "cone" for i in range(4)}
@@ -128,7 +128,7 @@ def test_frictionless_contacts_let_the_box_slide_and_lift():
 def test_frictionless_box_lifts_off_as_a_free_body(method):
     """A 15 N lift at the centre: the contacts open and stay open (no method pulls the box back to
     the table), and the height follows z0 + a t^2 / 2 with a = (15 - m g) / m."""
-    traj = simulate(box_scene(push=(0.0, 0.0, 15.0), mu=None), method=method, dt=1e-3, duration=0.2)
+    traj = simulate(box_scene(push=(0.0, 0.0, 15.0), mu=None), method=method, dt=1e-3, duration=0.2, contacts="held")
     expected = 0.025 + 0.5 * (15.0 - MASS * GRAVITY) / MASS * traj.t**2
     np.testing.assert_allclose(traj.q[:, 2], expected, rtol=0, atol=1e-9)
     assert np.abs(traj.multipliers[:-1]).max() < 1e-9
@@ -140,4 +140,4 @@ def test_solvers_without_inequalities_refuse_naming_those_that_have_them(solver)
     with pytest.raises(
         SolverError, match=r"does not take cone rows \(constraints c0, c1, c2, c3\); solvers that do: proxsuite"
     ):
-        simulate(box_scene(), solver=solver, duration=0.01)
+        simulate(box_scene(), solver=solver, duration=0.01, contacts="held")

@@ -100,7 +100,7 @@ def holds_at_rest(scene: dict) -> bool:
 def test_a_clamped_corner_holds_the_box_at_rest(back_left_y: float) -> None:
     scene = clamped(back_left_y)
     assert holds_at_rest(scene)  # the right verdict, by hand
-    run = simulate(scene_from_dict(scene, "clamped"), duration=0.12)
+    run = simulate(scene_from_dict(scene, "clamped"), contacts="held", duration=0.12)
     assert run.t[-1] == pytest.approx(0.12)
     assert np.max(np.abs(run.q - run.q[0])) < 1e-12  # at rest
     forces = np.asarray(run.multipliers)
@@ -114,7 +114,7 @@ def test_the_verdict_does_not_depend_on_proxqps_inner_iterations(monkeypatch: py
     ends = []
     for cap in (20, 50, 300):
         monkeypatch.setattr(proxsuite_, "MAX_ITER_IN", cap)
-        run = simulate(scene, duration=0.02)
+        run = simulate(scene, contacts="held", duration=0.02)
         ends.append(np.concatenate([run.q[-1], np.asarray(run.multipliers)[-1]]))
     assert np.max(np.abs(np.array(ends) - ends[1])) < 1e-10
 
@@ -123,7 +123,7 @@ def test_a_corner_that_cannot_hold_is_named_at_the_start(tmp_path) -> None:
     scene = clamped(mu=(0.5, 0.5))
     assert not holds_at_rest(scene)
     with pytest.raises(ContactInfeasibleError, match="at t = 0 s: contact 'front-right' would need to pull") as info:
-        simulate(scene_from_dict(scene, "slipping"), duration=0.12)
+        simulate(scene_from_dict(scene, "slipping"), contacts="held", duration=0.12)
     assert info.value.contacts[0] == "front-right" and info.value.time == 0.0
     path = tmp_path / "slipping.toml"
     path.write_text(toml_document(scene), encoding="utf-8")

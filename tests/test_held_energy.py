@@ -107,9 +107,9 @@ def test_separating_speed_at_the_rest_speed_runs(speed: float, refused: bool) ->
     scene = scene_from_dict(ball((0.0, 0.0), [0.0, 0.0, speed, 0.0, 0.0, 0.0]), "rising")
     if refused:
         with pytest.raises(Exception, match="contact c0 starts separating"):
-            simulate(scene, duration=0.12)
+            simulate(scene, contacts="held", duration=0.12)
         return
-    run = simulate(scene, duration=0.12)
+    run = simulate(scene, contacts="held", duration=0.12)
     energy = mechanical_energy(scene, run.q, run.v)
     assert float(np.max(energy - energy[0])) <= 0.056 * 9.81 * impacts.REST_SPEED * 0.12
 
@@ -120,7 +120,7 @@ def test_frictionless_held_sphere_slides_as_the_closed_form() -> None:
     sphere's inertia is isotropic), its energy constant (rk4 at dt = 1e-3 s: to 1e-9)."""
     velocity, spin, duration = np.array([-1.0, 1.0, 0.0]), np.array(SPIN), 0.12
     scene = scene_from_dict(ball((0.0, 0.0), [*velocity, *spin], radius=0.01, height=0.01), "sliding")
-    run = simulate(scene, duration=duration)
+    run = simulate(scene, contacts="held", duration=duration)
     data = scene.model.createData()
     pin.forwardKinematics(scene.model, data, run.q[-1], run.v[-1])
     moved = data.oMi[1].translation - np.array([-1.0, 0.0, 0.01])

@@ -47,7 +47,7 @@ def free_flight(t: float) -> tuple[np.ndarray, np.ndarray]:
 def stopped_run(scene, **options):
     """The run of ``scene`` to 0.12 s, which must stop where the contact closes again: (the error, its run)."""
     with pytest.raises(ContactInfeasibleError, match=r"held contacts close again at t = 0\.06\d+ s: c0 at") as info:
-        simulate(scene, duration=0.12, **options)
+        simulate(scene, contacts="held", duration=0.12, **options)
     return info.value, info.value.trajectory
 
 
@@ -114,7 +114,7 @@ def test_a_loaded_frictionless_contact_stays_held(integrator: str, dt: float) ->
     (a threshold on the slack alone opened it at t = 0.032 s and stopped the run as an impact)."""
     data = painleve_rod(0.3)
     data["contacts"][0].pop("mu")
-    run = simulate(scene_from_dict(data, "rod"), duration=0.3, integrator=integrator, dt=dt)
+    run = simulate(scene_from_dict(data, "rod"), contacts="held", duration=0.3, integrator=integrator, dt=dt)
     assert run.t[-1] == pytest.approx(0.3) and float(run.multipliers.min()) > 1.8
 
 

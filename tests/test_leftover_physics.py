@@ -105,7 +105,7 @@ def test_a_pendulum_falls_onto_a_plane_time_stepping(tmp_path):
 def test_a_pendulum_resting_on_a_held_plane_contact_has_the_moment_balance_force(tmp_path):
     """The API's default (contacts held as rows): at rest 30 deg down, the contact's multipliers are the normal force
     m g L / l and no tangential force (1e-9 relative), the pendulum still."""
-    trajectory = simulate(load_scene(pendulum_scene(tmp_path, floor_contact("30 deg"))), duration=0.05)
+    trajectory = simulate(load_scene(pendulum_scene(tmp_path, floor_contact("30 deg"))), contacts="held", duration=0.05)
     np.testing.assert_allclose(trajectory.multipliers[-1], [RESTING_FORCE, 0.0, 0.0], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(trajectory.q[-1], [math.cos(math.pi / 6), math.sin(math.pi / 6)], atol=1e-12)
 

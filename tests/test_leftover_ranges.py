@@ -236,9 +236,10 @@ def test_stepping_says_when_it_leaves_the_limits_it_does_not_hold(tmp_path):
     assert abs(left - reached) <= 2e-3
     assert "time-stepping contacts do not hold" in str(warning.message)
     assert stepped.q[:, 1].min() < LOWER - 0.1
-    held = simulate(scene, duration=0.4)
-    assert held.q[:, 1].min() >= LOWER - 1e-9  # held to the event path's drift
-    assert held.info.limits_active_s["lift lower"] == pytest.approx(0.4 - reached, abs=1e-6)
+    event = simulate(scene, duration=0.4)  # the default: event-driven contacts
+    assert event.info.contact_treatment["treatment"] == "event"
+    assert event.q[:, 1].min() >= LOWER - 1e-9  # held to the event path's drift
+    assert event.info.limits_active_s["lift lower"] == pytest.approx(0.4 - reached, abs=1e-6)
 
 
 # -- 5. friction coefficients and directions, one rule each ----------------------------------------------------------

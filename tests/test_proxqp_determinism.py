@@ -32,7 +32,7 @@ def held_box_problem() -> KKTProblem:
     """box-push's held contacts 10 ms into its push (four corners in friction cones: ProxQP's cone rows), the
     problem the solver is handed there (the stabilized right-hand side)."""
     scene = load_scene("box-push")
-    trajectory = simulate(scene, duration=0.01, solver="proxsuite", progress=False)
+    trajectory = simulate(scene, contacts="held", duration=0.01, solver="proxsuite", progress=False)
     system = build_system(scene, "baumgarte", "proxsuite")
     handed = []
     solve = system.solver.solve

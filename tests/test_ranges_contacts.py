@@ -168,7 +168,7 @@ def test_contact_at_the_penetration_tolerance_loads_and_rests(tmp_path):
     assert np.abs(np.asarray(run.q)[:, :3] - run.q[0][:3]).max() < 1e-9
 
 
-@pytest.mark.parametrize("contacts", ["event", "stepping", None])
+@pytest.mark.parametrize("contacts", ["event", "stepping", "held"])
 def test_cube_on_the_incline_rests_at_the_friction_ceiling(contacts):
     """mu = MAX_FRICTION > tan(0.5): the cube stays at rest for 1 s, to 1e-9 m, whichever contact method."""
     run = simulate(load_scene("incline", mu=MAX_FRICTION), contacts=contacts, duration=1.0)

@@ -81,7 +81,7 @@ def test_projection_reports_its_iterations():
     assert summary["assembly_iterations"] is None
 
 
-@pytest.mark.parametrize("contacts", [None, "event", "stepping"])
+@pytest.mark.parametrize("contacts", ["held", "event", "stepping"])
 def test_a_start_of_the_wrong_length_is_named_on_every_path(contacts):
     """q0 / v0 of the wrong length: a PinstabError naming the lengths, on the held and both contact paths (the
     contact paths used to end in Pinocchio's raw ValueError)."""

@@ -399,14 +399,14 @@ SETUP_REFUSALS = [
     (
         system_case("row kinds", "painleve-rod --grid solver=proxsuite,dense --param contacts=held"),
         "solver=dense",
-        {"solver": "dense"},
+        {"solver": "dense", "contacts": "held"},
     ),
     (
         system_case("automatic gains, rtol", "fourbar --grid method=baumgarte,mukharlyamov --param rtol=1e-6"),
         "method=mukharlyamov",
         {"method": "mukharlyamov", "rtol": 1e-6},
     ),
-    (system_case("carried plane, held", "pinch --grid contacts=event,held"), "contacts=held", {}),
+    (system_case("carried plane, held", "pinch --grid contacts=event,held"), "contacts=held", {"contacts": "held"}),
     (
         system_case("closures, stepping", "fourbar --grid contacts=held,stepping"),
         "contacts=stepping",

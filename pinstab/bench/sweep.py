@@ -24,11 +24,13 @@ from ..contact.modes import Mode
 from ..errors import PinstabError
 from ..memory import require
 from ..scene import load_scene
-from ..simulate import default_contacts, simulate
+from ..simulate import simulate
+from ..simulate.choice import resolve_contacts
 from .cluster import LOCAL_WORKERS, StopAfterFlight, dask_client, progress
-from .sweep_grid import MAX_POINTS, CheckedSweep, check_sweep, scene_parameters, sweep_points
+from .sweep_grid import MAX_POINTS, METHOD_OPTIONS, CheckedSweep, check_sweep, scene_parameters, sweep_points
 from .sweep_table import SweepTable, check_table, existing_rows, point_key
 
+HELD_ROW_OPTIONS = frozenset({"method", "solver", *METHOD_OPTIONS})  # the options of held contacts' rows
 FIGURES = (
     "steps",
     "t_end",
@@ -61,8 +63,9 @@ def run_point(
     scene_name: str, point: dict[str, Any], fixed: dict[str, Any], parameters: tuple[str, ...]
 ) -> dict[str, Any]:
     """Simulate one point (its values over the fixed ones; those named in ``parameters`` go to the scene's
-    generator, the others to :func:`~pinstab.simulate.simulate`) and return its row: the point, the figures,
-    and ``error`` (the failure's type and message; the figures then empty).
+    generator, the others to :func:`~pinstab.simulate.simulate`, but :data:`HELD_ROW_OPTIONS` at a point whose contacts
+    are not held) and return its row: the point, the figures, and ``error`` (the failure's type and message; the
+    figures then empty).
 
     Any exception of the run becomes the row's error (a sweep outlives a point that fails, diverges or meets a
     bug); KeyboardInterrupt and SystemExit do not.
@@ -72,8 +75,10 @@ def run_point(
     try:
         options = {name: value for name, value in values.items() if name not in parameters}
         scene = load_scene(scene_name, **{name: value for name, value in values.items() if name in parameters})
-        contacts = options.pop("contacts", None) or default_contacts(scene)
-        trajectory = simulate(scene, contacts=None if contacts == "held" else contacts, **options)
+        if resolve_contacts(scene, options.get("contacts"))[0] is not None:  # the point's contacts are not rows:
+            # the held rows' options (a contacts grid's held points take them) are not its run's; simulate refuses them
+            options = {name: value for name, value in options.items() if name not in HELD_ROW_OPTIONS}
+        trajectory = simulate(scene, **options)  # contacts not swept or fixed: the scene's choice
         row.update(run_figures(trajectory.summary()), path=trajectory.info.path)
         row["error"] = ""
     except Exception as exc:  # noqa: BLE001 - a failed point is a row (see the docstring)

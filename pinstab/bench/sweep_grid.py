@@ -30,7 +30,7 @@ from ..tables import toml_scalar
 from .cluster import Stopped, progress
 from .sweep_table import point_key
 
-CONTACT_TREATMENTS = ("event", "stepping", "held")  # held: simulate(contacts=None)
+CONTACT_TREATMENTS = ("event", "stepping", "held")  # held: the constraint rows of simulate(contacts="held")
 NAMED_CHOICES = {"method": STABILIZERS, "integrator": INTEGRATORS, "solver": SOLVERS, "contacts": CONTACT_TREATMENTS}
 SIMULATE_OPTIONS: dict[str, type] = {
     "method": str,

@@ -16,7 +16,7 @@ from ..stabilizers import STABILIZERS
 from ..tables import toml_scalar
 
 DEFAULT_METHOD = "baumgarte"
-CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts=None)
+CONTACTS = ("event", "stepping", "held")  # --contacts; held: the constraint rows of simulate(contacts="held")
 METHOD_OPTION, SOLVER_OPTION = "method_option_", "solver_option_"  # argparse dest prefixes
 # a word that starts with a minus and a digit, ``-1,0,0``, ``-1e-3``: a value, not an option
 NEGATIVE_VALUE = re.compile(r"^-\.?\d[\w.,+-]*$")

@@ -21,7 +21,7 @@ from ..solvers.proxsuite_ import LIMIT_STATUS
 from ..stream import h5py_module
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..validation import relative_tolerance
-from .choice import ContactChoice, resolve_contacts
+from .choice import ContactChoice, refuse_held_options, resolve_contacts
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
 from .limits import held_limits, limit_left, limit_watch, not_event_driven
@@ -29,6 +29,7 @@ from .loop import DEFAULT_DRIFT_LIMIT, RunClock, start_state
 from .threads import single_blas_thread
 
 DEFAULT_DT = 1e-3  # [s] the time step of a scene without [run] dt
+DEFAULT_METHOD = "baumgarte"  # the stabilization method of held rows
 FIXED_STEP_INTEGRATOR, ERROR_CONTROLLED_INTEGRATOR = "rk4", "dop853"  # the defaults without and with rtol/atol
 
 
@@ -45,7 +46,7 @@ def default_integrator(integrator: str | None, rtol: float | None, atol: float |
 @single_blas_thread
 def simulate(
     scene: Scene | str | Path,
-    method: str = "baumgarte",
+    method: str = DEFAULT_METHOD,
     integrator: str | None = None,
     dt: float | None = None,
     duration: float = 1.0,
@@ -107,11 +108,15 @@ def simulate(
             rtol default :data:`EVENT_RTOL`); ``stepping``: time-stepping contacts, a velocity-level Moreau-Jean
             step of ``dt`` with impulses on the exact round cone (Pinocchio's ADMM in NCP mode;
             :mod:`pinstab.integration.contact_stepping`), modes read from the impulses; both list every mode
-            change in ``info.contact_events``; None or ``held``: they are held as constraint rows; ``auto``: the
-            scene's choice (:func:`~pinstab.simulate.choice.contact_choice`). The run reports the treatment, how it
-            was chosen and why in ``info.contact_treatment``. A scene that asks for a treatment (its ``[run]
-            contacts``) runs it unless asked for another; a scene with joint friction (``joint-friction``) runs
-            event-driven unless asked for another treatment, which refuses it (naming the joints).
+            change in ``info.contact_events``; ``held``: they are held as constraint rows; None (default) or
+            ``auto``: the scene's choice (:func:`~pinstab.simulate.choice.contact_choice`, the choice of ``pinstab
+            run`` without ``--contacts``): contacts that can switch switch (event-driven, time-stepping beyond
+            :data:`~pinstab.simulate.choice.MAX_EVENT_CONTACTS` declared ones), a scene that asks for a treatment
+            (its ``[run] contacts``) runs it, contacts beside other constraints are held. The run reports the
+            treatment, how it was chosen and why in ``info.contact_treatment``. A scene with joint friction
+            (``joint-friction``) runs event-driven unless asked for another treatment, which refuses it (naming
+            the joints). Event-driven and time-stepping contacts refuse the held rows' options (a ``method`` other
+            than the default, ``solver``, ``solver_options``, the method's options), naming ``contacts="held"``.
         stop_on: with ``contacts="event"``, the kinds of contact event that end the run
             (:data:`~pinstab.contact.modes.STOP_KINDS`: ``slip``, a contact at rest starts sliding;
             ``separation``, a touching contact opens): the trajectory ends at the first such event, with
@@ -164,6 +169,9 @@ def simulate(
         dt = DEFAULT_DT if scene.step is None else scene.step
     integrator = default_integrator(integrator, rtol, atol)
     contacts, choice = resolve_contacts(scene, contacts)
+    if contacts is not None:
+        unset = {"method": method == DEFAULT_METHOD, "solver": solver is None, "solver_options": not solver_options}
+        refuse_held_options(scene, contacts, choice, [*(name for name, no in unset.items() if not no), *method_options])
     reason = "event-driven contacts"
     if joint_frictions(scene.forces):
         reason += " and joint friction (stick and slip at events)"

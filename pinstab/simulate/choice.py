@@ -9,8 +9,9 @@ always: the touching ones are few of those found), ``stepping`` (time-stepping, 
 events; torsion included) when more plane contacts are declared, unless some has rolling resistance (event-driven
 only); ``held`` (constraint rows) otherwise, naming the
 constraint that keeps the modes off. A scene with joint friction (:mod:`pinstab.forces.joint_friction`, stick and slip
-at events) is ``event`` unless asked otherwise (by the caller: ``contacts=None`` too, the call's default; or by its
-``[run] contacts``), and refused by a treatment that cannot take it (:func:`resolve_contacts`)."""
+at events) is ``event`` unless asked otherwise (by the caller or by its ``[run] contacts``), and refused by a treatment
+that cannot take it (:func:`resolve_contacts`). ``simulate(scene)`` (``contacts=None``, the call's default, or
+``"auto"``) and ``pinstab run`` without ``--contacts`` take the same choice."""
 
 from __future__ import annotations
 
@@ -80,10 +81,9 @@ def default_contacts(scene: Scene) -> str:
 
 
 def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, ContactChoice | None]:
-    """``simulate``'s ``contacts`` (None or ``held``: rows; ``event``; ``stepping``; ``auto``: the scene's choice; None
-    for a scene with joint friction or one that asks for a treatment (``[run] contacts``): the scene's choice too) as
-    (``event``, ``stepping`` or None for held rows; the choice to report, None for a scene without contacts or joint
-    friction).
+    """``simulate``'s ``contacts`` (``held``: rows; ``event``; ``stepping``; None or ``auto``: the scene's choice,
+    :func:`contact_choice`) as (``event``, ``stepping`` or None for held rows; the choice to report, None for a scene
+    without contacts or joint friction).
 
     Raises:
         PinstabError: another value (naming the valid ones); a treatment other than ``event`` for a scene with joint
@@ -93,13 +93,29 @@ def resolve_contacts(scene: Scene, contacts: str | None) -> tuple[str | None, Co
     if contacts is not None and contacts not in valid:
         raise PinstabError(f"contacts: unknown treatment {contacts!r}; valid: {', '.join(valid)}")
     automatic = contact_choice(scene)
-    frictions = joint_frictions(scene.forces)
-    if contacts == "auto" or (contacts is None and (frictions or scene.contacts is not None)):
+    if contacts is None or contacts == "auto":
         choice = automatic
         treatment = "held" if choice is None else choice.treatment
     else:
-        treatment = contacts or "held"
+        treatment = contacts
         choice = None if automatic is None else ContactChoice(treatment, "asked", f"asked for {treatment}")
+    frictions = joint_frictions(scene.forces)
     if frictions and treatment != "event":
         raise refusal(frictions, f"{treatment} contacts (contacts={treatment!r}, --contacts {treatment})")
     return (None if treatment == "held" else treatment), choice
+
+
+def refuse_held_options(scene: Scene, treatment: str, choice: ContactChoice | None, given: list[str]) -> None:
+    """Refuse the options of held rows in ``given`` (a stabilization method, a KKT backend, their options) on a run
+    whose contacts are ``treatment`` (``event`` or ``stepping``), which has no use for them.
+
+    Raises:
+        PinstabError: some given, naming them, the treatment and how it was chosen, and ``contacts="held"``.
+    """
+    if not given:
+        return
+    how = "asked for" if choice is None or choice.chosen == "asked" else choice.why
+    raise PinstabError(
+        f"{', '.join(given)}: scene {scene.name}'s contacts are {treatment} ({how}), without a stabilization method "
+        "or KKT backend; give contacts='held' to hold them as constraint rows with these options"
+    )
