@@ -343,7 +343,7 @@ def test_no_energy_balance_where_contacts_do_work():
     """The balance counts the force elements' work only: a block sliding between two squeezing fingers (friction
     work) reports none, rather than a balance off by the friction's work; grasp contacts held as rows do no work,
     and the balance of allegro-sphere closes (measured 5.2e-10 relative over 0.5 s)."""
-    sliding = pinstab.simulate("pinch", contacts="event", duration=0.3, mu=0.1)
+    sliding = pinstab.simulate(pinstab.load_scene("pinch", mu=0.1), contacts="event", duration=0.3)
     assert sliding.info.contact_events and sliding.summary()["energy_start"] is not None
     assert "energy_balance_relative" not in sliding.summary()
     held = pinstab.simulate("allegro-sphere", duration=0.1)  # grasp contacts held as rows, grasp-hold torques

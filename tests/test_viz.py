@@ -241,10 +241,10 @@ def test_usage_colours_turn_red_outside_the_cone_or_pulling(allegro):
 
 
 def test_plane_contacts_get_arrows_along_their_multipliers(tmp_path):
-    """box-push: each plane contact's arrow is (t1, t2, n) force rows of length |f| / force_scale (1e-9 m),
-    pointing along the plane's push (+z mostly) at the first frame."""
+    """box-push held as rows: each plane contact's arrow is (t1, t2, n) force rows of length |f| / force_scale
+    (1e-9 m), pointing along the plane's push (+z mostly) at the first frame."""
     scene = pinstab.load_scene("box-push")
-    trajectory = pinstab.simulate(scene, dt=1e-3, duration=0.02)
+    trajectory = pinstab.simulate(scene, contacts="held", dt=1e-3, duration=0.02)
     recording = write_recording(ConstrainedModel(scene), trajectory, tmp_path / "box.html", fps=FPS)
     tracks = _tracks(_commands(recording.path.read_text()))
     for name in ("front-left", "front-right", "back-left", "back-right"):
