@@ -35,6 +35,7 @@ void bind_kkt_sparsity(nb::module_& m);  // cpp/kkt_sparsity_bindings.cpp (a mea
 void bind_projection(nb::module_& m);  // cpp/projection_bindings.cpp
 void bind_cones(nb::module_& m);       // cpp/cone_bindings.cpp
 void bind_contact_modes(nb::module_& m);  // cpp/contact_modes_bindings.cpp
+void bind_geometry_features(nb::module_& m);  // cpp/geometry_features_bindings.cpp
 }  // namespace pinstab
 
 namespace pinstab {
@@ -194,6 +195,7 @@ NB_MODULE(_compiled, m) {
   bind_adaptive(m);
   bind_steps(m);
   bind_limits(m);
+  bind_geometry_features(m);
   bind_cones(m);
   bind_spring_damper(m);
   bind_kkt_sparsity(m);

@@ -5,6 +5,7 @@
 
 #include <stdexcept>
 
+#include "geometry_features.hpp"
 #include "kernels.hpp"
 #include "native_kernel.hpp"
 
@@ -41,6 +42,18 @@ pinocchio::RigidConstraintModelVector& python_constraint_models(PyObject* object
 
 pinocchio::RigidConstraintDataVector& python_constraint_datas(PyObject* object) {
   return wrapped<pinocchio::RigidConstraintDataVector>(object, "datas: not a pinocchio.StdVec_RigidConstraintData");
+}
+
+const pinocchio::GeometryModel& python_geometry_model(PyObject* object) {
+  return wrapped<pinocchio::GeometryModel>(object, "geometry: not a pinocchio.GeometryModel");
+}
+
+pinocchio::GeometryData& python_geometry_data(PyObject* object, const pinocchio::GeometryModel& geometry) {
+  auto& data = wrapped<pinocchio::GeometryData>(object, "geometry_data: not a pinocchio.GeometryData");
+  if (data.oMg.size() != geometry.ngeoms) {
+    throw std::invalid_argument("geometry_data: a pinocchio.GeometryData of another geometry model");
+  }
+  return data;
 }
 
 }  // namespace pinstab

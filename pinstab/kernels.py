@@ -8,8 +8,8 @@ steps that the Python loops take too, their stages evaluated by a Python callabl
 the error-controlled loop of an embedded pair and its control's rules (:mod:`pinstab.integration.adaptive`), a
 fingertip contact's point rows (:mod:`pinstab.constraints.grasp_contacts`), the drift and energy series of a run of
 compiled rows (:mod:`pinstab.series`), the checked cone solve (:mod:`pinstab.solvers.ncp`), the plane contacts' rows
-(:mod:`pinstab.solvers.contact_modes`) and the numeric part of the time-stepping contacts' step
-(:mod:`pinstab.integration.contact_stepping`).
+(:mod:`pinstab.solvers.contact_modes`), the contact features of collision-shape pairs (:mod:`pinstab.contact.geometry`)
+and the numeric part of the time-stepping contacts' step (:mod:`pinstab.integration.contact_stepping`).
 
 The extension is built by ``pip install`` against the ``pin`` release pinstab pins; it links against that
 release's libraries, so another ``pin`` installed afterwards cannot load it: the import error says what to do.
@@ -30,6 +30,7 @@ try:
         CoreCorrection,
         CoreKernel,
         CoreProjection,
+        GeometryFeatures,
         Kernel,
         NativeKernel,
         RowBlock,
@@ -101,6 +102,7 @@ __all__ = [
     "CoreCorrection",
     "CoreKernel",
     "CoreProjection",
+    "GeometryFeatures",
     "Kernel",
     "NativeKernel",
     "RowBlock",

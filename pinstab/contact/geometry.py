@@ -9,7 +9,7 @@ then the points of shape A that lie within the margin of the nearest one, measur
 (B's tangent plane at its nearest point, normal along coal's; when B is a box, the face of B that normal is
 nearest to, exactly: coal's normal and point between two boxes face to face are its solver's, 1e-12 off): a
 sphere's centre with its radius (one feature), a capsule's two end centres with its radius, a box's eight
-corners, a convex mesh's vertices, and a cylinder's features by how it lies (:func:`cylinder_usable`): on its
+corners, a convex mesh's vertices, and a cylinder's features by how it lies: on its
 side (its axis within :data:`SIDE_TILT` of the plane) the two ends of its lowest line, each the centre of an
 end cap with the cylinder's radius (a sphere there touches the plane where the rim does: exact while the axis
 stays parallel to the plane, rolling or at rest); else its rim points, :data:`RIM_POINTS` around each end cap
@@ -17,6 +17,11 @@ stays parallel to the plane, rolling or at rest); else its rim points, :data:`RI
 polygon's corner, not the circle's lowest point). Two round shapes pair only as a sphere (shape A) against a sphere
 or a capsule (:mod:`~pinstab.contact.round_pairs`): one feature, the sphere's centre, on the plane normal to the line
 from B's core, which the contacts re-compute at every state (:attr:`ContactShapes.cores`).
+
+The numbers are compiled (:class:`~pinstab.kernels.GeometryFeatures`, ``cpp/geometry_features.cpp``, the only place
+these rules are): the placements, the broad phase, coal's signed distance, a box's face, the gaps (a cylinder's by how
+it lies) and the margin filter; round pairs pass its broad phase and are measured here, their plane from
+:func:`~pinstab.contact.round_pairs.core_nearest`, the rule the dynamics re-compute it with at every state.
 
 A feature keeps its identity while it persists: its name is ``<shapeA>/<shapeB>[k]``, k its index among shape A's
 points (a box's corner k is the same corner wherever the box turns), and the features come in the order of the
@@ -27,7 +32,7 @@ centred there) on the separating plane, fixed in the world for the ground, carri
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import coal
@@ -35,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import SceneError, choices
+from ..kernels import GeometryFeatures
 from .round_pairs import core_nearest
 
 GROUND = "ground"  # the ground's shape name
@@ -114,14 +120,6 @@ def core_ends(shape: coal.CollisionGeometry) -> np.ndarray | None:
     return None
 
 
-def cylinder_usable(normal: np.ndarray) -> np.ndarray:
-    """Which features of a cylinder (:func:`shape_points`' order) count against a plane of unit ``normal`` (in the
-    cylinder's frame): its end caps' centres (round) when it lies on its side (its axis, z, within
-    :data:`SIDE_TILT` of the plane), else its rim points."""
-    side = abs(float(normal[2])) <= np.sin(SIDE_TILT)
-    return np.concatenate([np.full(2, side), np.full(2 * RIM_POINTS, not side)])
-
-
 class ContactShapes:
     """The collision shapes of a scene, the pairs allowed to touch and their contact features.
 
@@ -158,6 +156,9 @@ class ContactShapes:
         self.margins: list[float] = []
         self.cores: list[np.ndarray | None] = []  # per pair: B's core ends (2, 3) [m, B's shape frame] (a round pair)
         self._points: list[tuple[np.ndarray, np.ndarray]] = []
+        # per pair, per point of shape A: its feature's name, its place [m] in A's joint's frame, its radius [m]
+        self._named: list[list[tuple[str, np.ndarray, float]]] = []
+        self._finder = GeometryFeatures([], [], [], [], [], np.sin(SIDE_TILT))
         self._data = pin.Data(model)
         self._geometry_data = self.geometry.createData()
 
@@ -222,14 +223,20 @@ class ContactShapes:
         self.cores.append(core)
         self.margins.append(MARGIN * max(radius, np.finfo(float).tiny) if margin is None else margin)
         self._points.append(points)
+        label, joint = self.label(len(self.pairs) - 1), self.joint_points(len(self.pairs) - 1)
+        self._named.append([(f"{label}[{k}]", joint[:, k], float(r)) for k, r in enumerate(points[1])])
+        self._finder = GeometryFeatures(
+            self.pairs,
+            [points for points, _ in self._points],
+            [radii for _, radii in self._points],
+            self.margins,
+            [core is not None for core in self.cores],
+            np.sin(SIDE_TILT),
+        )
 
     def features(self, q: np.ndarray) -> list[Feature]:
         """The contact features of every allowed pair at configuration q, in pair order, then by point."""
-        pin.updateGeometryPlacements(self.model, self._data, self.geometry, self._geometry_data, q)
-        found: list[Feature] = []
-        for pair in range(len(self.pairs)):
-            found += self._pair_features(pair)
-        return found
+        return self._found(q, -1)
 
     def label(self, pair: int) -> str:
         """``<shapeA>/<shapeB>``: a pair's name."""
@@ -248,82 +255,45 @@ class ContactShapes:
     def pair_features(self, q: np.ndarray, pair: int) -> list[Feature]:
         """Every feature point of one pair at configuration q, found or not (no broad phase, no margin): where a
         contact found at another configuration is made, its plane that of q."""
-        pin.updateGeometryPlacements(self.model, self._data, self.geometry, self._geometry_data, q)
-        gaps, make = self._measure(pair)
-        return [make(k) for k in range(gaps.size)]
+        return self._found(q, pair)
 
-    def _pair_features(self, pair: int) -> list[Feature]:
-        """The features of one pair at the placements last updated (none beyond the broad phase)."""
-        a, b = self.pairs[pair]
-        objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
-        shape_a, shape_b = objects[a].geometry, objects[b].geometry
-        if not isinstance(shape_b, coal.Halfspace):  # broad phase: the bounding spheres
-            placed_a, placed_b = placements[a], placements[b]
-            apart = np.linalg.norm(placed_a.act(shape_a.aabb_center) - placed_b.act(shape_b.aabb_center))
-            if apart > shape_a.aabb_radius + shape_b.aabb_radius + self.margins[pair]:
-                return []
-        gaps, make = self._measure(pair)
-        return [make(k) for k in np.flatnonzero(gaps <= gaps.min() + self.margins[pair])]
+    def _found(self, q: np.ndarray, pair: int) -> list[Feature]:
+        """The features at q of every pair (pair -1: those the broad phase and the margins keep) or every point of
+        one, in pair order, then by point."""
+        pairs, indices, gaps, normals, points, worlds, rounds = self._finder.find(
+            self.model, self._data, self.geometry, self._geometry_data, np.asarray(q, dtype=float), pair
+        )
+        found = [
+            self._feature(*row)
+            for row in zip(pairs.tolist(), indices.tolist(), worlds, normals, points, gaps, strict=True)
+        ]
+        if not rounds:
+            return found
+        return sorted(found + [self._round_feature(p) for p in rounds], key=lambda feature: feature.pair)
 
-    def _measure(self, pair: int) -> tuple[np.ndarray, Callable[[int], Feature]]:
-        """The gaps [m] of a pair's points to its separating plane at the placements last updated (inf: a point
-        that does not count as the shape lies) and the maker of point k's feature."""
-        a, b = self.pairs[pair]
-        objects, placements = self.geometry.geometryObjects, self._geometry_data.oMg
-        shape_a, shape_b = objects[a].geometry, objects[b].geometry
-        placed_a, placed_b = placements[a], placements[b]
+    def _round_feature(self, pair: int) -> Feature:
+        """A round pair's feature, its sphere's centre, at the placements last updated: its plane on the line from
+        B's core (:mod:`~pinstab.contact.round_pairs`)."""
+        placed_a = self._geometry_data.oMg[self.pairs[pair][0]]
+        shape_b = self.geometry.geometryObjects[self.pairs[pair][1]].geometry
         points, radii = self._points[pair]
-        if self.cores[pair] is not None:  # a round pair: the plane on the line of centres (round_pairs)
-            centre = placed_a.translation
-            nearest = core_nearest(centre, self.core_world(pair))[0]
-            normal = (centre - nearest) / np.linalg.norm(centre - nearest)
-            plane_point = nearest + float(shape_b.radius) * normal
-        else:
-            normal, plane_point = self._separating_plane(shape_a, placed_a, shape_b, placed_b)
+        centre = placed_a.translation
+        nearest = core_nearest(centre, self.core_world(pair))[0]
+        normal = (centre - nearest) / np.linalg.norm(centre - nearest)
+        plane_point = nearest + float(shape_b.radius) * normal
         world = placed_a.rotation @ points.T + placed_a.translation[:, None]
         gaps = normal @ (world - plane_point[:, None]) - radii
-        if isinstance(shape_a, coal.Cylinder):
-            gaps[~cylinder_usable(placed_a.rotation.T @ normal)] = np.inf
-        label, joint = self.label(pair), self.joint_points(pair)
+        return self._feature(pair, 0, world[:, 0], normal, plane_point, gaps[0])
 
-        def make(k: int) -> Feature:
-            name = f"{label}[{k}]"
-            return Feature(name, pair, int(k), joint[:, k], world[:, k], float(radii[k]), normal, plane_point, gaps[k])
-
-        return gaps, make
+    def _feature(
+        self, pair: int, k: int, world: np.ndarray, normal: np.ndarray, point: np.ndarray, gap: float
+    ) -> Feature:
+        """Point k of a pair's shape A as a feature at world place ``world`` [m], its gap ``gap`` [m] to the plane
+        (unit ``normal`` into A, through ``point`` [m, world])."""
+        name, joint, radius = self._named[pair][k]
+        return Feature(name, pair, k, joint, world, radius, normal, point, gap)
 
     def core_world(self, pair: int) -> np.ndarray:
         """A round pair's B core ends (2, 3) [m, world] at the placements last updated."""
         placed = self._geometry_data.oMg[self.pairs[pair][1]]
         return (placed.rotation @ self.cores[pair].T).T + placed.translation
-
-    @staticmethod
-    def _separating_plane(
-        shape_a: coal.CollisionGeometry, placed_a: pin.SE3, shape_b: coal.CollisionGeometry, placed_b: pin.SE3
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The unit normal (into A) and a point [m] (world) of the plane separating two placed shapes: coal's normal
-        and B's nearest point, a box's face nearest to that normal."""
-        result = coal.DistanceResult()
-        coal.distance(
-            shape_a,
-            coal.Transform3s(placed_a.rotation, placed_a.translation),
-            shape_b,
-            coal.Transform3s(placed_b.rotation, placed_b.translation),
-            coal.DistanceRequest(),
-            result,
-        )
-        normal = -np.asarray(result.normal)  # coal's runs from A to B: the plane's, into A
-        plane_point = np.asarray(result.getNearestPoint2())
-        if isinstance(shape_b, coal.Box):
-            return _box_face(shape_b, placed_b, normal)
-        return normal, plane_point
-
-
-def _box_face(box: coal.Box, placed: pin.SE3, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The outward unit normal and centre [m] (world) of the face of a box placed at ``placed`` whose normal is
-    nearest to ``normal`` (world): the plane a shape touching that face rests on."""
-    local = placed.rotation.T @ normal
-    axis = int(np.argmax(np.abs(local)))
-    outward = np.zeros(3)
-    outward[axis] = 1.0 if local[axis] > 0.0 else -1.0
-    return placed.rotation @ outward, placed.act(outward * np.asarray(box.halfSide))
