@@ -11,7 +11,9 @@ from collections.abc import Sequence
 import numpy as np
 
 SOLVED = ("Solved", "AlmostSolved")  # statuses whose x a caller may keep (after its own checks)
-INFEASIBLE = ("PrimalInfeasible", "AlmostPrimalInfeasible")  # statuses that say no x meets the constraints
+PRIMAL_INFEASIBLE = "PrimalInfeasible"  # the status of a certificate that no x meets the constraints
+INFEASIBLE = (PRIMAL_INFEASIBLE, "AlmostPrimalInfeasible")  # statuses that say no x meets them (the second: reduced
+# accuracy)
 REFINEMENT, REFINEMENT_PASSES = 1e-14, 50  # iterative refinement: tolerance, passes (default 1e-13, 1e-12, 10)
 CONES = ("zero", "nonnegative", "second-order")  # the cone kinds of :func:`conic_solve`
 

@@ -76,6 +76,11 @@ class ForceElement(ABC):
         """A run starts: forget what an earlier run left in the element (the default keeps nothing)."""
         return None
 
+    def watch(self) -> None:
+        """An event-driven run locates this element's switches from now on (until :meth:`restart`); the default: it
+        has none."""
+        return None
+
     def switch_value(self, q: np.ndarray, t: float) -> float | None:
         """An element that :attr:`switches`: its event function at (q, t) [s] from its last evaluation, below zero once
         it must switch; None when that evaluation was at another state (the event loop evaluates it at (q, t) and asks

@@ -179,24 +179,27 @@ class GraspHold(ForceElement):
         earlier run's last solve gave start forces 1e-11 N apart from a fresh hold's)."""
         self._pyramid_qp, self._capped_qp = WarmQP(), WarmQP()  # warm-started from the previous evaluation's
         self.released = math.inf  # [s] when the hold let go in the current run (inf: it holds)
-        self.located = False  # whether the run locates the let-go (an event-driven run: :meth:`switch_value`)
+        self.located = False  # whether the run locates the let-go (an event-driven run: :meth:`watch`)
         self.holding = True  # whether the last evaluation found holding forces (or the hold had let go before)
         self._evaluated: tuple[float, bytes] | None = None  # (t [s], q) of the last evaluation in a run
+
+    def watch(self) -> None:
+        """The run locates the let-go (:meth:`switch`): an evaluation without holding forces no longer lets go."""
+        self.located = True
 
     def switch_value(self, q: np.ndarray, t: float) -> float | None:
         """The let-go's event function at (q, t) from the last evaluation (None: that was at another state): 1 while
         some forces inside the cones hold the object (or the hold has let go already), -1 once none do (a sign change
         that bisection locates: the holding set shrinks to nothing there, with no margin that reaches zero
-        smoothly). The first call makes the run's let-go a located one (:meth:`switch`)."""
-        self.located = True
+        smoothly)."""
         if self._evaluated != (t, q.tobytes()):
             return None
-        return 1.0 if self.holding or t >= self.released else -1.0
+        return 1.0 if self.holding else -1.0
 
     def switch(self, t: float) -> str | None:
         """Let go at the located event at t [s] when the last evaluation found no holding forces; the event's cause
         (``no forces inside the cones hold <object>``), else None."""
-        if self.holding or t >= self.released:
+        if self.holding:
             return None
         self.released = t
         return f"no forces inside the cones hold {self.object_name or self.name}"

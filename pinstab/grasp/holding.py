@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .. import kernels
-from ..conic import INFEASIBLE, SOLVED, conic_solve
+from ..conic import INFEASIBLE, PRIMAL_INFEASIBLE, SOLVED, conic_solve
 from ..contact.cones import FrictionCone
 from ..contact.models import WRENCH_BASES, ContactLimits
 from ..proxqp import proxsuite
@@ -263,15 +263,12 @@ class _Problem:
                     row = np.zeros(width)
                     row[[contact.normal, contact.spin]] = [contact.torsion, -sign]
                     nonnegative.append(row)
-        upper: list[np.ndarray] = []
         if squeeze:
             nonnegative.extend(self.caps)
             nonnegative.append(np.eye(width)[-1])
-            upper = [-np.eye(width)[-1]]
-        elif not math.isinf(self.cap):
-            upper = [-np.eye(width)[contact.normal] for contact in self.columns]
-        if math.isinf(self.cap):
-            upper = []
+        upper: list[np.ndarray] = []  # rows that the cap bounds: s, else every f_n
+        if not math.isinf(self.cap):
+            upper = [-np.eye(width)[-1]] if squeeze else [-np.eye(width)[c.normal] for c in self.columns]
         rows.append(-np.array(nonnegative + upper))
         bounds.append(np.concatenate([np.zeros(len(nonnegative)), np.full(len(upper), self.cap / self.scale)]))
         cones = [("zero", len(self.rhs)), ("nonnegative", len(nonnegative) + len(upper))]
@@ -345,8 +342,7 @@ def feasible(
     equality: np.ndarray, rhs: np.ndarray, inequality: np.ndarray, lower: np.ndarray, upper: np.ndarray
 ) -> bool:
     """Whether some x has ``E x = b`` and ``l <= C x <= u`` (bounds of :data:`UNBOUNDED` size: none), by Clarabel on
-    the rows without cost (~0.3 ms on a grasp's pyramids where a failing ProxQP runs to its iteration cap, ~10 ms;
-    HiGHS through SciPy took ~4 ms).
+    the rows without cost (where a failing ProxQP runs to its iteration cap, ~10 ms on a grasp's pyramids).
     False only where Clarabel proves the rows infeasible (a certificate to its default 1e-8, looser than the QPs'
     eps_abs 1e-10), so that rows it finds infeasible no QP here solves."""
     finite_upper, finite_lower = np.abs(upper) < UNBOUNDED, np.abs(lower) < UNBOUNDED
@@ -354,7 +350,7 @@ def feasible(
     bounds = np.concatenate([rhs, upper[finite_upper], -lower[finite_lower]])
     cones = [("zero", len(rhs)), ("nonnegative", len(bounds) - len(rhs))]
     status, _ = conic_solve(np.zeros(inequality.shape[1]), rows, bounds, cones, FEASIBILITY_TOLERANCE)
-    return status != INFEASIBLE[0]  # a certificate (not the reduced-accuracy AlmostPrimalInfeasible)
+    return status != PRIMAL_INFEASIBLE  # a certificate (not the reduced-accuracy AlmostPrimalInfeasible)
 
 
 def _fresh_qp(variables: int, equalities: int, inequalities: int) -> proxsuite.proxqp.dense.QP:

@@ -146,6 +146,8 @@ class EventLoop(AdaptiveLoop):
         self._declared: dict[str, int] = {}  # the contacts not found from geometry: their places, by name
         self._found: set[str] = set()  # the names of the contacts found from geometry at the last step's end
         self._switching = [element for element in dynamics.model.forces if element.switches]  # grasp holds' let-go
+        for element in self._switching:
+            element.watch()
 
     def _touches(self, i: int, q: np.ndarray) -> bool:
         """Whether limit i touches at q: its gap within TOUCH_GAP of where it counts as reached."""
