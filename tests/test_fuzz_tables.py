@@ -52,9 +52,11 @@ from hypothesis import strategies as st
 from conftest import ROBOTS
 from pinstab.errors import PinstabError
 from pinstab.generators import generate
+from pinstab.integration.contact_stepping import ContactStepper
 from pinstab.integration.events import EventLoop
 from pinstab.proxqp import proxsuite
 from pinstab.scene import load_scene
+from pinstab.solvers.contact_modes import ModeDynamics
 from pinstab.trajectory import Trajectory
 
 CONTACT_TREATMENTS = ("event", "stepping", "held")
@@ -325,12 +327,24 @@ def check_contact_case(case: ContactCase, contacts: str, output: str, files: Run
     """Run the case (within the time limit) with its samples written by ``flag``: a named refusal, or a run that
     keeps to the scene's physics."""
     files = RunFiles(files.folder, flag)
-    with time_limit():
+    with time_limit(HANG_STOPPER), pytest.MonkeyPatch.context() as patch:
+        for owner, name, most, amount in CONTACT_CASE_WORK:
+            work_limit(patch, owner, name, most, amount)
         outcome, source = run_contact_case(case, contacts, output, files)
         report(f"exit {outcome.code}: {outcome.message}", f"{contacts}: exit {outcome.code}")
         assert outcome.code in (0, 2, 3, 4, 5), outcome
         assert_named(outcome, case.hostile + case.names)
         assert_physics(case, contacts, outcome, source, files)
+
+
+# Bounds on a contact case's work, which the machine's load does not move (a 30 s wall-time bound failed once under
+# load): some ten times the most measured over 250 examples (0.5 CPU s at most), far below a hang's.
+CONTACT_CASE_WORK = (
+    (ModeDynamics, "solve", 30_000, None),  # event-driven contacts' force solves: 3,209 at most
+    (EventLoop, "_event", 300, None),  # their event locations: 31 at most
+    (ContactStepper, "step", 1_200, None),  # time steps: 120 (0.12 s at 1 ms)
+    (proxsuite.proxqp.dense.QP, "solve", 20_000, lambda qp: qp.results.info.iter),  # held contacts: 1,939 iterations
+)
 
 
 @examples(ci=250)
