@@ -101,30 +101,47 @@ void read_status(const Result& result, const char* method, ConeStatus& status) {
   status.complementarity = result.complementarity;
 }
 
-// The impulses (unscaled) of `solver` on the scaled problem, run from zero for `every` iterations, then twice as many,
-// and so on up to `max_iterations` (each run the first iterations of the longest: the answers a single run passes
-// through): the answer of the run where the solver meets its own tolerance, else the best one (least `residual`, its
-// ratio to the residual accepted) once a run that passes (ratio <= 1) no longer shrinks it by `settled` against the
-// run before; `iterations` the iterations of all the runs.
+// The impulses (unscaled) of `solver` on the scaled problem, each run from zero: for `every` iterations, then half as
+// many, then twice, four times as many and so on up to `max_iterations` (each run the first iterations of the longest:
+// the answers a single run passes through): the answer of the run where the solver meets its own tolerance, else the
+// best one (least `residual`, its ratio to the residual accepted) once a run that passes (ratio <= 1) no longer shrinks
+// it by `settled` against the run of half its iterations (the first run against the half run: a residual settled
+// within `every` iterations, as on redundant contacts, is found without a run of twice as many); `iterations` the
+// iterations of all the runs. One Delassus operator serves every run (each run factors it anew).
 template <class Solver, class Settings, class Result, class Models, class Datas>
 Eigen::VectorXd solve_in_rounds(Solver& solver, Settings settings, Result& result, const Eigen::MatrixXd& symmetric,
                                 const Eigen::VectorXd& scaled_g, const Models& models, Datas& datas,
                                 const Eigen::VectorXd& scales, int max_iterations, int every, double settled,
                                 const std::function<double(const Eigen::VectorXd&)>& residual, long& iterations) {
   Eigen::VectorXd scaled(scaled_g.size()), impulses(scaled_g.size()), best(scaled_g.size());
-  double least = std::numeric_limits<double>::infinity(), last = least;
-  result.clearConstraintImpulseGuess();
+  double least = std::numeric_limits<double>::infinity();
+  bool kept = false;
+  pinocchio::DelassusOperatorDense operator_(symmetric);
   iterations = 0;
-  for (long size = std::min(every, max_iterations);; size = std::min<long>(2 * size, max_iterations)) {
+  // one run of `size` iterations from zero: whether the solver met its tolerance; its answer's ratio (the best kept)
+  const auto run = [&](long size, double& ratio) {
     settings.max_iterations = static_cast<std::size_t>(size);
-    pinocchio::DelassusOperatorDense operator_(symmetric);
+    result.clearConstraintImpulseGuess();
     solver.solve(operator_, scaled_g, models, datas, settings, result);
     iterations += static_cast<long>(result.iterations);
     result.retrieveConstraintImpulses(scaled);
     impulses = scales.cwiseProduct(scaled);
-    if (result.converged) return impulses;
-    const double found = residual(impulses), ratio = std::isnan(found) ? least : found;
-    if (ratio < least || size == std::min(every, max_iterations)) least = ratio, best = impulses;
+    if (result.converged) return true;
+    const double found = residual(impulses);
+    ratio = std::isnan(found) ? least : found;
+    if (ratio < least || !kept) least = ratio, best = impulses, kept = true;
+    return false;
+  };
+  const long first = std::min(every, max_iterations);
+  double last = 0.0, ratio = 0.0, half = 0.0;
+  if (run(first, last)) return impulses;
+  if (first == max_iterations) return best;
+  if (first > 1) {
+    if (run(first / 2, half)) return impulses;
+    if (least <= 1.0 && last > settled * half) return best;
+  }
+  for (long size = std::min<long>(2 * first, max_iterations);; size = std::min<long>(2 * size, max_iterations)) {
+    if (run(size, ratio)) return impulses;
     if ((least <= 1.0 && ratio > settled * last) || size == max_iterations) break;
     last = ratio;
   }

@@ -32,9 +32,10 @@ struct ConeStatus {
 
 // ADMM and PGS in NCP mode with every feasibility and complementarity tolerance (absolute and relative) at
 // `tolerance` and at most `max_iterations` each (ADMM: the spectral rho rule, D's largest eigenvalue estimated by
-// `lanczos_size` Lanczos steps), each run for `check_every` iterations, then twice as many and so on, its answer
-// checked after each run: the solve ends at the run where the solver meets its own tolerance, or once an answer
-// passes the check and a run no longer shrinks the residual by the factor `settled` (the best answer kept). On
+// `lanczos_size` Lanczos steps), each run from zero for `check_every` iterations, then half as many, then twice as many
+// and so on, its answer checked after each run: the solve ends at the run where the solver meets its own tolerance, or
+// once an answer passes the check and a run no longer shrinks the residual by the factor `settled` against the run of
+// half its iterations (the first run against the half run) (the best answer kept). On
 // redundant contacts (D rank-deficient) the impulses are not unique and drift within the set of solutions, which the
 // solvers' own tolerances (on the change of the impulses) never meet, while the contact velocities, which the check
 // measures, settle.

@@ -4,12 +4,13 @@ compiled (cpp/cone_step.hpp): the second method the compiled step is checked aga
 
 The same physics as :class:`~pinstab.integration.contact_stepping.ContactStepper` (its module says which), computed
 another way: SciPy's Cholesky factor of M, the midpoint passes over ``pin.nonLinearEffects``, the Delassus matrix by
-NumPy, ADMM through Pinocchio's Python bindings on the problem with steep cones scaled to 1, run for
-:data:`~pinstab.solvers.ncp.CHECK_EVERY` iterations, twice as many and so on, checked after each and ended as the
-compiled solve ends,
-free flyers moved by ``pin.Quaternion``. It has no PGS fallback: a step whose ADMM answer misses the contact law
-(:func:`~pinstab.solvers.ncp.ncp_residual` beyond :data:`~pinstab.solvers.ncp.CHECK_RTOL` of the velocity scale)
-raises :class:`~pinstab.errors.ContactSolveError`.
+NumPy, ADMM through Pinocchio's Python bindings on the problem with steep cones scaled to 1, run from zero for
+:data:`~pinstab.solvers.ncp.CHECK_EVERY` iterations, half as many, twice as many and so on, checked after each and
+ended as the compiled solve ends, then PGS the same way
+when ADMM's answer misses the contact law (:func:`~pinstab.solvers.ncp.ncp_residual` beyond
+:data:`~pinstab.solvers.ncp.CHECK_RTOL` of the velocity scale), free flyers moved by ``pin.Quaternion``. A step whose
+problem both miss raises :class:`~pinstab.errors.ContactSolveError` (a grown problem is given up for the one before
+it, as the compiled step does).
 """
 
 from __future__ import annotations
@@ -126,42 +127,58 @@ class PythonStepper(ContactStepper):
             )
         else:
             solution = self._cone_solve(delassus, g, mus)
-        scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
-        if not ncp_residual(delassus, g, solution, mus, torsions) <= CHECK_RTOL * scale:
+        if not _residual_ratio(delassus, g, solution, mus, torsions) <= 1.0:
             names = [contacts[i].name for i in active]
-            raise ContactSolveError(f"at t = {t:.9g} s ADMM missed the contact law (no fallback here)", names, t)
+            raise ContactSolveError(f"at t = {t:.9g} s the solvers missed the contact law", names, t)
         impulses = np.zeros(jacobian.shape[0])
         impulses[rows] = solution
         return impulses
 
     def _cone_solve(self, delassus: np.ndarray, g: np.ndarray, mus: list[float]) -> np.ndarray:
         """The impulses (t1, t2, n per contact) of a problem without torsion rows: Pinocchio's ADMM on the cones
-        scaled to at most 1."""
+        scaled to at most 1, then its PGS when ADMM's answer misses the contact law."""
         scales = np.array([s for mu in mus for s in (max(mu, 1.0), max(mu, 1.0), 1.0)])
         key = tuple(mus)
         if key not in self.cones:
             self.cones[key] = friction_cones([min(mu, 1.0) for mu in mus])
-        cones = self.cones[key]
         scaled = scales[:, None] * delassus * scales
         operator = pin.DelassusOperatorDense(0.5 * (scaled + scaled.T))
-        solver, result, settings = self.solver.solver, self.solver.result, admm_settings(1e-12, CHECK_EVERY)
-        result.clearConstraintImpulseGuess()
-        total, least, last = self.solver.settings.max_iterations, math.inf, math.inf
-        size = min(CHECK_EVERY, total)
-        while True:  # runs of CHECK_EVERY iterations, twice as many and so on, as the compiled solve
+        problem = (operator, scales, g, self.cones[key], delassus, mus)
+        solution = self._rounds(self.solver.solver, self.solver.result, admm_settings(1e-12, CHECK_EVERY), *problem)
+        if _residual_ratio(delassus, g, solution, mus) <= 1.0:
+            return solution
+        settings = pin.PGSSolverSettings()
+        settings.solve_ncp = True
+        for name in ("feasibility", "complementarity"):
+            setattr(settings, f"absolute_{name}_tol", 1e-12)
+            setattr(settings, f"relative_{name}_tol", 1e-12)
+        pgs = pin.PGSConstraintSolver(len(g))
+        fresh = pin.DelassusOperatorDense(0.5 * (scaled + scaled.T))  # PGS reads the damping ADMM left: none here
+        return self._rounds(pgs, pin.PGSSolverResult(), settings, fresh, *problem[1:])
+
+    def _rounds(self, solver, result, settings, operator, scales, g, cones, delassus, mus) -> np.ndarray:
+        """The compiled solve's runs (cpp/cone_solve.cpp solve_in_rounds) of ``solver``, each from zero:
+        :data:`CHECK_EVERY` iterations, half as many, twice as many and so on; the converged answer, else the best
+        one once a run no longer shrinks the residual by :data:`ROUND_SETTLED` against the run of half its
+        iterations (the first run against the half run)."""
+        least, best, ratios = math.inf, None, {}
+        for size, pair in _runs(
+            min(CHECK_EVERY, self.solver.settings.max_iterations), self.solver.settings.max_iterations
+        ):
             settings.max_iterations = size
+            result.clearConstraintImpulseGuess()
             solver.solve(operator, scales * g, *cones, settings, result)
             solution = scales * result.retrieveConstraintImpulses()
             if result.converged:
                 return solution
-            scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
-            found = ncp_residual(delassus, g, solution, mus) / (CHECK_RTOL * scale)
-            ratio = least if math.isnan(found) else found
-            if ratio < least or size == min(CHECK_EVERY, total):
-                least, best = ratio, solution
-            if (least <= 1.0 and ratio > ROUND_SETTLED * last) or size == total:
+            found = _residual_ratio(delassus, g, solution, mus)
+            ratios[size] = least if math.isnan(found) else found
+            if best is None or ratios[size] < least:
+                least, best = ratios[size], solution
+            settled = pair is not None and least <= 1.0 and ratios[pair[0]] > ROUND_SETTLED * ratios[pair[1]]
+            if settled or size == self.solver.settings.max_iterations:
                 return best
-            last, size = ratio, min(2 * size, total)
+        return best
 
     def _free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
         """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint, by fixed point."""
@@ -194,3 +211,25 @@ class PythonStepper(ContactStepper):
             q_next[iq : iq + 3] = q[iq : iq + 3] + dt * rate
             v_next[iv : iv + 3] = pin.Quaternion(q_next[iq + 3 : iq + 7]).toRotationMatrix().T @ rate
         return q_next, v_next
+
+
+def _residual_ratio(
+    delassus: np.ndarray, g: np.ndarray, solution: np.ndarray, mus: list[float], torsions: list[float] | None = None
+) -> float:
+    """An answer's :func:`~pinstab.solvers.ncp.ncp_residual` over the residual the check accepts (passes at <= 1)."""
+    scale = max(float(np.max(np.abs(g))), float(np.max(np.abs(delassus @ solution))))
+    return ncp_residual(delassus, g, solution, mus, torsions) / (CHECK_RTOL * scale)
+
+
+def _runs(first: int, total: int) -> list[tuple[int, tuple[int, int] | None]]:
+    """The rounds' run sizes up to ``total`` iterations, each with the (longer, shorter) pair of runs whose residuals
+    tell, once it has run, whether the residual settled: ``first``, its half (against the first), then twice
+    ``first`` (against the first), four times (against twice) and so on."""
+    runs: list[tuple[int, tuple[int, int] | None]] = [(first, None)]
+    if 1 < first < total:
+        runs.append((first // 2, (first, first // 2)))
+    size = first
+    while size < total:
+        runs.append((min(2 * size, total), (min(2 * size, total), size)))
+        size = min(2 * size, total)
+    return runs
