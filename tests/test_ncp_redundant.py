@@ -32,10 +32,11 @@ def test_the_problem_is_redundant_and_admm_alone_does_not_stop():
 
 
 def test_the_checked_solve_settles_in_a_few_runs():
-    """The solve, run for 128 then 64 iterations (the first run's residual settled against its half), ends in 194
-    (250 asserted: a run of 256 after the first, 386; ADMM alone ran out of 1e4) with the contact velocities sigma = D lambda + g of ADMM's answer after 1e5 iterations to 1e-8 m/s
-    (measured 5.8e-9 m/s, of a scale of 0.21 m/s), though the impulses differ by half their size (2.4e-3 of 4.8e-3
-    N s: not unique); its residual far within the check (8.9e-11 m/s)."""
+    """The solve, run for 128 then 64 iterations (the first run's residual settled against its half), ends in 194 (250
+    asserted: a run of 256 after the first, 386; ADMM alone ran out of 1e4) with the contact velocities sigma = D lambda
+    + g of ADMM's answer after 1e5 iterations to 1e-8 m/s (measured 5.8e-9 m/s, of a scale of 0.21 m/s), though the
+    impulses differ by half their size (2.4e-3 of 4.8e-3 N s: not unique); its residual far within the check (8.9e-11
+    m/s)."""
     delassus, g, mus, reference = (PROBLEM[name] for name in ("delassus", "g", "mus", "reference"))
     solver = NcpSolver(len(g))
     impulses = solver.cones.solve(delassus, g, mus, CHECK_RTOL)

@@ -50,21 +50,21 @@ LANCZOS_SIZE = 12
 takes one per row: on box-stack's 12 sticking corners (36 rows) that estimate was 3/4 of the solve (229 us; 58 us
 with 12 steps, the same 26 iterations to the same tolerance)."""
 CHECK_EVERY = 128
-"""[-] the iterations of the first run of ADMM (and of PGS): the solve runs from zero for 128 iterations, then 64
-(the first run's answer half-way), then 256, 512 and so on up to the iteration limit (each run the first iterations of
-the longest: the answers a single run passes through; restarts from the last answer lost the lever scene's
-ill-conditioned problem), its answer checked by :func:`ncp_residual` after each run, and ends once the residual
-settles (:data:`ROUND_SETTLED`) or the solver meets its own tolerance. The half run tells a residual settled within
-the first run (redundant contacts: hand-cube's median unconverged solve passes the check at 1e-5 of it after 32
-iterations and stays there) without a run of 256 (386 iterations -> 193). The first run holds the converged solves of box-stack, incline and sphere-spin (26, 63 and 123
-iterations at most: unchanged; runs from 50 doubled those of the last two). On redundant contacts (a rank-deficient
-D: hand-cube's cube between the palm, three fingertips and the table, 11 contacts, 33 rows of rank 12) the impulses
-are not unique and ADMM's iterates drift within the set of solutions (the change of lambda, which its own tolerances
-bound, stays near 1e-8 while the contact velocities have settled to 1e-9 of their scale): run to its own tolerance
-it went on to 1e5 iterations, and its answer after 1e4 could miss the check (hand-cube's set-down with the admission
-growth of :mod:`~pinstab.integration.contact_stepping`; tests/test_ncp_redundant.py). So run, hand-cube's solves
-(dt = 1 ms, 2,200) take 39 iterations on average, 451 at most (60 and 899 without the half run), every answer
-ADMM's."""
+"""[-] the iterations of the first run of ADMM (and of PGS): the solve runs from zero for 128 iterations, then 64 (the
+first run's answer half-way), then 256, 512 and so on up to the iteration limit (each run the first iterations of the
+longest: the answers a single run passes through; restarts from the last answer lost the lever scene's ill-conditioned
+problem), its answer checked by :func:`ncp_residual` after each run, and ends once the residual settles
+(:data:`ROUND_SETTLED`) or the solver meets its own tolerance. The half run tells a residual settled within the first
+run (redundant contacts: hand-cube's median unconverged solve passes the check at 1e-5 of it after 32 iterations and
+stays there) without a run of 256 (386 iterations -> 194). The first run holds the converged solves of box-stack,
+incline and sphere-spin (26, 63 and 123 iterations at most: unchanged; runs from 50 doubled those of the last two). On
+redundant contacts (a rank-deficient D: hand-cube's cube between the palm, three fingertips and the table, 11 contacts,
+33 rows of rank 12) the impulses are not unique and ADMM's iterates drift within the set of solutions (the change of
+lambda, which its own tolerances bound, stays near 1e-8 while the contact velocities have settled to 1e-9 of their
+scale): run to its own tolerance it went on to 1e5 iterations, and its answer after 1e4 could miss the check
+(hand-cube's set-down with the admission growth of :mod:`~pinstab.integration.contact_stepping`;
+tests/test_ncp_redundant.py). So run, hand-cube's solves (dt = 1 ms, 2,200) take 39 iterations on average, 451 at most
+(60 and 899 without the half run), every answer ADMM's."""
 ROUND_SETTLED = 0.5
 """[-] a run that shrinks the residual by less than this factor against the run of half its iterations, once an
 answer has passed the check, ends the solve (the best answer kept): the residual has settled (redundant contacts),
