@@ -21,6 +21,7 @@ import pytest
 from fuzzing import cli, contact_gaps, plane_contacts
 from test_contact_stepping import rod_delassus
 
+from pinstab.bench.python_stepper import PythonStepper
 from pinstab.contact.coefficients import MAX_FRICTION
 from pinstab.errors import ContactInfeasibleError, ContactSolveError
 from pinstab.generators import ROD_SPEED
@@ -28,6 +29,8 @@ from pinstab.integration.contact_stepping import ContactStepper
 from pinstab.runinfo import SolverStatistics
 from pinstab.scene import Scene, bundled_scenes, load_scene, read_scene_file, scene_from_dict
 from pinstab.simulate import simulate
+from pinstab.simulate.contacts import stepping_parts
+from pinstab.simulate.loop import start_state
 from pinstab.solvers import ncp
 from pinstab.solvers.ncp import CONE_ORDER, NcpSolver, friction_cones, ncp_residual
 
@@ -107,6 +110,21 @@ def test_pgs_takes_over_where_admm_misses():
     np.testing.assert_allclose(solve_rod(solver, 1000.0), sticking_impulse(), rtol=0, atol=1e-9)
     solver.record(statistics)
     assert solver.method == "PGS" and statistics.status_counts == {"PGS converged": 1} and statistics.fallbacks == 1
+
+
+def test_the_numpy_step_falls_back_to_pgs_as_the_compiled_one():
+    """The NumPy reference of the compiled step (pinstab/bench/python_stepper.py) hands ADMM's miss at mu = 1000 to PGS
+    as the compiled solve does: the sticking impulse to 1e-9 N s, the compiled solve's answer to 1e-12 N s."""
+    scene = load_scene("painleve-rod")
+    _, reference, _, _ = stepping_parts(scene, DT, *start_state(scene, None, None), PythonStepper)
+    delassus, g = rod_problem()
+    impulse = reference._cone_solve(delassus, g, [1000.0])
+    np.testing.assert_allclose(impulse, sticking_impulse(), rtol=0, atol=1e-9)
+    solver = NcpSolver(3)
+    compiled = solver.cones.solve(delassus, g, np.array([1000.0]), ncp.CHECK_RTOL)
+    solver.read_status()
+    assert solver.method == "PGS"
+    np.testing.assert_allclose(impulse, compiled, rtol=0, atol=1e-12)
 
 
 def test_a_solve_no_solver_meets_says_so():
