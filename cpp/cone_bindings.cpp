@@ -163,12 +163,13 @@ void bind_cones(nb::module_& m) {
       .def(nb::init<nb::handle, nb::handle>(), "model"_a, "data"_a, nb::keep_alive<1, 2>(), nb::keep_alive<1, 3>())
       .def(
           "step",
-          [](ConeStepper& self, const VectorXd& q, const VectorXd& v, double dt, const Eigen::MatrixXd& mass,
+          // (the matrices row-major: NumPy's C order, taken without a conversion through NumPy on every step)
+          [](ConeStepper& self, const VectorXd& q, const VectorXd& v, double dt, const RowMatrix& mass_rows,
              const VectorXd& force, const VectorXd& gaps, const VectorXd& normal_velocities,
-             const Eigen::MatrixXd& jacobian, const VectorXd& mus, const VectorXd& restitutions,
-             const VectorXd& torsions, const Eigen::MatrixXd& spin_jacobian, const VectorXd& settings,
-             ConeSolver& solver) {
+             const RowMatrix& jacobian, const VectorXd& mus, const VectorXd& restitutions, const VectorXd& torsions,
+             const RowMatrix& spin_jacobian, const VectorXd& settings, ConeSolver& solver) {
             const StepContacts contacts{gaps, normal_velocities, jacobian, mus, restitutions, torsions, spin_jacobian};
+            const Eigen::MatrixXd mass = mass_rows;
             check_sizes(self.model, q, v, mass, force, contacts);
             if (settings.size() != 4) throw std::invalid_argument("ConeStepper.step: 4 settings");
             const StepSettings step_settings{settings(0), settings(1), static_cast<int>(settings(2)), settings(3)};
