@@ -167,24 +167,29 @@ void bind_cones(nb::module_& m) {
           [](ConeStepper& self, const VectorXd& q, const VectorXd& v, double dt, const RowMatrix& mass_rows,
              const VectorXd& force, const VectorXd& gaps, const VectorXd& normal_velocities,
              const RowMatrix& jacobian, const VectorXd& mus, const VectorXd& restitutions, const VectorXd& torsions,
-             const RowMatrix& spin_jacobian, const VectorXd& settings, ConeSolver& solver) {
+             const RowMatrix& spin_jacobian, const VectorXd& guess, const VectorXd& settings, ConeSolver& solver) {
             const StepContacts contacts{gaps, normal_velocities, jacobian, mus, restitutions, torsions, spin_jacobian};
             const Eigen::MatrixXd mass = mass_rows;
             check_sizes(self.model, q, v, mass, force, contacts);
-            if (settings.size() != 4) throw std::invalid_argument("ConeStepper.step: 4 settings");
-            const StepSettings step_settings{settings(0), settings(1), static_cast<int>(settings(2)), settings(3)};
-            StepResult r = cone_step(self.model, self.data, self.free_flyers, q, v, dt, mass, force, contacts,
+            if (settings.size() != 5) throw std::invalid_argument("ConeStepper.step: 5 settings");
+            if (guess.size() != contacts.jacobian.rows() + contacts.spin_jacobian.rows()) {
+              throw std::invalid_argument("ConeStepper.step: guess is not one impulse per contact row and torsion");
+            }
+            const StepSettings step_settings{settings(0), settings(1), static_cast<int>(settings(2)), settings(3),
+                                             settings(4)};
+            StepResult r = cone_step(self.model, self.data, self.free_flyers, q, v, dt, mass, force, contacts, guess,
                                      step_settings, solver);
             return nb::make_tuple(r.q, r.v, r.active, r.impulses, r.velocities, r.reach, r.torques, r.spins,
                                   r.settled, r.solved);
           },
           "q"_a, "v"_a, "dt"_a, "mass"_a, "force"_a, "gaps"_a, "normal_velocities"_a, "jacobian"_a, "mus"_a,
-          "restitutions"_a, "torsions"_a, "spin_jacobian"_a, "settings"_a, "solver"_a,
+          "restitutions"_a, "torsions"_a, "spin_jacobian"_a, "guess"_a, "settings"_a, "solver"_a,
           "One step of dt [s]: (q+, v+, the contacts in the problem, impulses (k x 3) [N s], contact velocities J v+ "
           "(k x 3) [m/s], the normal velocity per unit normal impulse (k), the torsions' torque impulses [N m s] and "
           "spin velocities [rad/s] (one per torsion > 0), settled, solved); torsions: lengths [m] (k, 0: none), "
-          "spin_jacobian: their rows (one per torsion > 0 x nv); settings (touch gap [m], midpoint tolerance, "
-          "midpoint passes, check rtol).");
+          "spin_jacobian: their rows (one per torsion > 0 x nv); guess: impulses (3k, then one per torsion > 0) "
+          "[N s, N m s] for the first midpoint; settings (touch gap [m], midpoint tolerance, midpoint passes, check "
+          "rtol, impulses' midpoint tolerance).");
 }
 
 }  // namespace pinstab

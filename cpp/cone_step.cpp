@@ -24,6 +24,26 @@ double normal_bias(double gap, double normal_velocity, double restitution, doubl
   return bias;
 }
 
+// The free velocity v + dt (M^-1 (force - c(w)) - turn(w)) [m/s, rad/s], the velocity terms c (gravity cancels in the
+// difference of h at w and at v) and the free flyers' turn taken at the midpoint w = (v + v_free + change) / 2 of the
+// step's velocities (`change`: the impulses' velocity change), by fixed point; false: the passes did not settle.
+bool free_velocity(const pinocchio::Model& model, pinocchio::Data& data, const FreeFlyers& free_flyers,
+                   const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt,
+                   const Eigen::LLT<Eigen::MatrixXd>& factor, const Eigen::VectorXd& force,
+                   const Eigen::VectorXd& at_start, const Eigen::VectorXd& change, const StepSettings& settings,
+                   Eigen::VectorXd& v_free) {
+  v_free = v + dt * (factor.solve(force) - free_flyers.turn(v));
+  for (int pass = 0; pass < settings.midpoint_passes; ++pass) {
+    const Eigen::VectorXd middle = 0.5 * (v + v_free + change);
+    const Eigen::VectorXd shift = pinocchio::nonLinearEffects(model, data, q, middle) - at_start;
+    const Eigen::VectorXd next = v + dt * (factor.solve(force - shift) - free_flyers.turn(middle));
+    const double moved = largest(next - v_free);
+    v_free = next;
+    if (moved <= settings.midpoint_tolerance * largest(v_free)) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 FreeFlyers::FreeFlyers(const pinocchio::Model& model) {
@@ -56,33 +76,17 @@ void FreeFlyers::integrate(const pinocchio::Model& model, const Eigen::VectorXd&
 
 StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const FreeFlyers& free_flyers,
                      const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt, const Eigen::MatrixXd& mass,
-                     const Eigen::VectorXd& force, const StepContacts& contacts, const StepSettings& settings,
-                     ConeSolver& solver) {
+                     const Eigen::VectorXd& force, const StepContacts& contacts, const Eigen::VectorXd& guess,
+                     const StepSettings& settings, ConeSolver& solver) {
   StepResult result;
   const Eigen::LLT<Eigen::MatrixXd> factor(mass);
-  // the free velocity, the velocity terms c(w) at the midpoint w = (v + v_free) / 2 by fixed point (gravity cancels in
-  // the difference of h at w and at v)
-  Eigen::VectorXd v_free = v + dt * (factor.solve(force) - free_flyers.turn(v));
   const Eigen::VectorXd at_start = pinocchio::nonLinearEffects(model, data, q, v);
-  result.settled = false;
-  for (int pass = 0; pass < settings.midpoint_passes; ++pass) {
-    const Eigen::VectorXd middle = 0.5 * (v + v_free);
-    const Eigen::VectorXd shift = pinocchio::nonLinearEffects(model, data, q, middle) - at_start;
-    const Eigen::VectorXd next = v + dt * (factor.solve(force - shift) - free_flyers.turn(middle));
-    const double change = largest(next - v_free);
-    v_free = next;
-    if (change <= settings.midpoint_tolerance * largest(v_free)) {
-      result.settled = true;
-      break;
-    }
-  }
-  if (!result.settled) return result;
   const Eigen::Index k = contacts.gaps.size(), spins = contacts.spin_jacobian.rows();
   Eigen::MatrixXd stacked(3 * k + spins, spins ? model.nv : 0);  // the contacts' rows, then the torsions'
   if (spins) stacked << contacts.jacobian, contacts.spin_jacobian;
   const Eigen::MatrixXd& jacobian = spins ? stacked : contacts.jacobian;
   const Eigen::MatrixXd mobility = factor.solve(jacobian.transpose());  // M^-1 J^T
-  const Eigen::VectorXd reach = jacobian * v_free;
+  Eigen::VectorXd v_free, reach;
   // the problem's contacts: those the free motion closes, then those the impulses of the others close (a body pressed
   // onto one that its contact stops), solved again with them until none is added (at most k solves); a grown problem
   // whose answer no solver finds is given up for the one before it (solved again: the solver's status is its answer's)
@@ -96,7 +100,7 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     }
     return grown;
   };
-  Eigen::VectorXd v_new = v_free;
+  Eigen::VectorXd v_new;
   const auto solve = [&]() {
     result.active.clear();
     for (Eigen::Index i = 0; i < k; ++i) {
@@ -146,17 +150,37 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     v_new += active_mobility * solution;
     return true;
   };
-  admit(reach);
-  result.solved = solve();
-  if (!result.solved) return result;
-  for (std::vector<char> before = in_problem; admit(jacobian * v_new); before = in_problem) {
-    if (!solve()) {
-      in_problem = before;
-      result.solved = solve();
-      break;
+  // the problem's answer from the free velocity v_free: the contacts the free motion closes, grown as above
+  const auto contact_solve = [&]() {
+    reach = jacobian * v_free;
+    std::fill(in_problem.begin(), in_problem.end(), 0);
+    admit(reach);
+    if (!solve()) return false;
+    for (std::vector<char> before = in_problem; admit(jacobian * v_new); before = in_problem) {
+      if (!solve()) {
+        in_problem = before;
+        return solve();
+      }
     }
+    return true;
+  };
+  // the velocity terms at the midpoint of the step's velocities, v and v+ = v_free + M^-1 J^T lambda: the impulses'
+  // change first taken from `guess` (the last step's impulses of these contacts), then from the answer, until the
+  // free velocity that the answer's change gives moves by at most impulse_tolerance of the velocities
+  Eigen::VectorXd change = mobility * guess, next;
+  for (int pass = 0;; ++pass) {
+    result.settled = pass < settings.midpoint_passes &&
+                     free_velocity(model, data, free_flyers, q, v, dt, factor, force, at_start, change, settings,
+                                   v_free);
+    if (!result.settled) return result;
+    result.solved = contact_solve();
+    if (!result.solved) return result;
+    change = v_new - v_free;
+    result.settled = free_velocity(model, data, free_flyers, q, v, dt, factor, force, at_start, change, settings,
+                                   next);
+    if (!result.settled) return result;
+    if (largest(next - v_free) <= settings.impulse_tolerance * std::max(largest(v_free), largest(v_new))) break;
   }
-  if (!result.solved) return result;
   const Eigen::VectorXd velocities = jacobian * v_new;
   result.velocities = velocities.head(3 * k).reshaped(3, k).transpose();
   result.spins = velocities.tail(spins);

@@ -30,17 +30,19 @@ struct StepContacts {
 
 // The settings of the step: TOUCH_GAP [m] (a contact is in the problem when gap + dt (J v)_n <= touch_gap, v the free
 // velocity or the velocity after the impulses of the contacts already in it: the problem grows until none is added), the
-// midpoint's relative tolerance and passes, and the cone solve's check (relative residual accepted).
+// midpoint's relative tolerance and passes (each pass over the impulses solves the problem again), the cone solve's
+// check (relative residual accepted) and the impulses' midpoint tolerance (relative: the free velocity the answer's
+// velocity change gives against the one it was solved from).
 struct StepSettings {
   double touch_gap = 0.0, midpoint_tolerance = 1e-13;
   int midpoint_passes = 50;
-  double check_rtol = 1e-6;
+  double check_rtol = 1e-6, impulse_tolerance = 1e-12;
 };
 
 // What a step computed: the end state (q+, v+: free flyers' linear velocity in their joint frame at q+), the contacts
 // in the problem, the impulses (k x 3) [N s] and the contact velocities J v+ (k x 3) [m/s], each in (n, t1, t2), the
 // normal velocity a unit normal impulse gives each contact [m/s / N s], the torsions' torque impulses [N m s] and spin
-// velocities [rad/s] (s each); settled false: the midpoint's passes did not settle (nothing else set); solved false: no
+// velocities [rad/s] (s each); settled false: the midpoint's passes did not settle (the rest not set); solved false: no
 // solver met the contact law (the end state not set).
 struct StepResult {
   Eigen::VectorXd q, v;
@@ -67,10 +69,12 @@ class FreeFlyers {
 };
 
 // One step of dt [s] from (q, v): M (nv x nv) [kg, kg m^2] and force = tau - h(q, v) [N, N m] at the step's start,
-// the model's Data for the velocity terms (nonLinearEffects at the midpoint velocity), the contacts, the solver.
+// the model's Data for the velocity terms (nonLinearEffects at the midpoint velocity), the contacts, a guess of the
+// impulses (3k + s, the contacts' rows then the torsions': the last step's [N s, N m s]) for the first midpoint, the
+// solver.
 StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const FreeFlyers& free_flyers,
                      const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt, const Eigen::MatrixXd& mass,
-                     const Eigen::VectorXd& force, const StepContacts& contacts, const StepSettings& settings,
-                     ConeSolver& solver);
+                     const Eigen::VectorXd& force, const StepContacts& contacts, const Eigen::VectorXd& guess,
+                     const StepSettings& settings, ConeSolver& solver);
 
 }  // namespace pinstab

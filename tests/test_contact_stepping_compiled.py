@@ -75,11 +75,13 @@ def test_box_stack_rests_and_repeats_to_the_last_bit() -> None:
 
 def test_the_compiled_step_refuses_arrays_of_other_sizes() -> None:
     compiled, _, q, v = steppers("sphere-spin")
+    contact = (np.zeros(1), np.zeros(1), np.zeros((3, 6)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((0, 6)))
     with pytest.raises(ValueError, match="not of the model's sizes"):
-        compiled.compiled.step(
-            q[:-1], v, DT, np.eye(6), np.zeros(6), np.zeros(1), np.zeros(1), np.zeros((3, 6)), np.zeros(1),
-            np.zeros(1), np.zeros(1), np.zeros((0, 6)), np.zeros(4), compiled.solver.cones,
-        )  # fmt: skip
+        compiled.compiled.step(q[:-1], v, DT, np.eye(6), np.zeros(6), *contact, np.zeros(3), np.zeros(5),
+                               compiled.solver.cones)  # fmt: skip
+    with pytest.raises(ValueError, match="guess is not one impulse per contact row"):
+        compiled.compiled.step(q, v, DT, np.eye(6), np.zeros(6), *contact, np.zeros(2), np.zeros(5),
+                               compiled.solver.cones)  # fmt: skip
 
 
 def test_both_steps_take_the_contacts_the_others_impulses_close() -> None:

@@ -22,7 +22,7 @@ import pinocchio as pin
 from scipy.linalg import cho_factor, cho_solve
 
 from ..errors import ContactSolveError
-from ..integration.contact_stepping import MIDPOINT_PASSES, MIDPOINT_TOLERANCE, ContactStepper
+from ..integration.contact_stepping import IMPULSE_TOLERANCE, MIDPOINT_PASSES, MIDPOINT_TOLERANCE, ContactStepper
 from ..integration.stepping import Failure
 from ..solvers.contact_modes import ModeDynamics
 from ..solvers.mode_choice import TOUCH_GAP
@@ -60,29 +60,49 @@ class PythonStepper(ContactStepper):
     def step(self, q: np.ndarray, v: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """One step of ``dt`` [s] from (q, v) at t [s]; returns (q+, v+)."""
         terms, contacts = self.start(q, v, t, dt)
-        factor = cho_factor(terms.mass_matrix)
-        v_free = self._free_velocity(q, v, dt, terms.tau - terms.bias, factor)
+        factor, force = cho_factor(terms.mass_matrix), terms.tau - terms.bias
+        at_start = pin.nonLinearEffects(self.system.model.model, self.system.model.scratch, q, v).copy()
         k = len(contacts.gaps)
         jacobian = np.vstack([contacts.jacobian, contacts.spin_jacobian.reshape(-1, v.size)])  # then the torsions'
         mobility = cho_solve(factor, jacobian.T)
-        reach = jacobian @ v_free
-        closed = contacts.gaps + dt * reach[: 3 * k : 3] <= TOUCH_GAP
-        impulses = self._impulses(contacts, jacobian, mobility, reach, closed, dt, t)
-        while True:  # the contacts the free motion closes, then those the others' impulses close, as the compiled step
+        change = mobility @ np.concatenate([self.impulses.reshape(-1), self.torques])  # the last step's impulses
+        for _ in range(MIDPOINT_PASSES):  # the midpoint over the impulses, as the compiled step
+            v_free = self._free_velocity(q, v, dt, force, factor, at_start, change)
+            impulses = self._contact_solve(contacts, jacobian, mobility, v_free, dt, t)
             v_new = v_free + mobility @ impulses
-            grown = closed | (contacts.gaps + dt * (jacobian @ v_new)[: 3 * k : 3] <= TOUCH_GAP)
-            if np.array_equal(grown, closed):
+            change = v_new - v_free
+            moved = np.max(np.abs(self._free_velocity(q, v, dt, force, factor, at_start, change) - v_free))
+            if moved <= IMPULSE_TOLERANCE * max(np.max(np.abs(v_free)), np.max(np.abs(v_new))):
                 break
-            try:
-                impulses, closed = self._impulses(contacts, jacobian, mobility, reach, grown, dt, t), grown
-            except ContactSolveError:  # the grown problem given up for the one before it
-                break
+        else:
+            raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
         velocities = jacobian @ v_new
         normal = contacts.jacobian[0::3]
         reach_n = np.einsum("ij,ji->i", normal, mobility[:, : 3 * k : 3])
         linear = impulses[: 3 * k].reshape(-1, 3)
         self._track(t, dt, linear, velocities[: 3 * k].reshape(-1, 3), reach_n, impulses[3 * k :], velocities[3 * k :])
         return self._integrate(q, v_new, dt)
+
+    def _contact_solve(
+        self, contacts, jacobian: np.ndarray, mobility: np.ndarray, v_free: np.ndarray, dt: float, t: float
+    ) -> np.ndarray:
+        """The impulses of every row (see :meth:`_solve`) from the free velocity ``v_free``: of the contacts the free
+        motion closes, then of those the others' impulses close too (solved again until none is added; a grown
+        problem the solvers miss given up for the one before it), as the compiled step."""
+        k = len(contacts.gaps)
+        reach = jacobian @ v_free
+        closed = contacts.gaps + dt * reach[: 3 * k : 3] <= TOUCH_GAP
+        impulses = self._impulses(contacts, jacobian, mobility, reach, closed, dt, t)
+        while True:
+            grown = closed | (
+                contacts.gaps + dt * (jacobian @ (v_free + mobility @ impulses))[: 3 * k : 3] <= TOUCH_GAP
+            )
+            if np.array_equal(grown, closed):
+                return impulses
+            try:
+                impulses, closed = self._impulses(contacts, jacobian, mobility, reach, grown, dt, t), grown
+            except ContactSolveError:
+                return impulses
 
     def _impulses(
         self,
@@ -180,18 +200,27 @@ class PythonStepper(ContactStepper):
                 return best
         return best
 
-    def _free_velocity(self, q: np.ndarray, v: np.ndarray, dt: float, force: np.ndarray, factor: tuple) -> np.ndarray:
-        """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint, by fixed point."""
+    def _free_velocity(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        dt: float,
+        force: np.ndarray,
+        factor: tuple,
+        at_start: np.ndarray,
+        change: np.ndarray,
+    ) -> np.ndarray:
+        """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint of v and
+        v_free + ``change`` (the impulses' velocity change), by fixed point (``at_start``: h at (q, v))."""
         model, data = self.system.model.model, self.system.model.scratch
         v_free = v + dt * (cho_solve(factor, force) - self._turn(v))
-        at_start = pin.nonLinearEffects(model, data, q, v).copy()
         for _ in range(MIDPOINT_PASSES):
-            middle = (v + v_free) / 2
+            middle = (v + v_free + change) / 2
             shift = pin.nonLinearEffects(model, data, q, middle) - at_start
             v_next = v + dt * (cho_solve(factor, force - shift) - self._turn(middle))
-            change = float(np.max(np.abs(v_next - v_free), initial=0.0))
+            moved = float(np.max(np.abs(v_next - v_free), initial=0.0))
             v_free = v_next
-            if change <= MIDPOINT_TOLERANCE * float(np.max(np.abs(v_free), initial=0.0)):
+            if moved <= MIDPOINT_TOLERANCE * float(np.max(np.abs(v_free), initial=0.0)):
                 return v_free
         raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
 
