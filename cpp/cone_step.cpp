@@ -26,13 +26,13 @@ double normal_bias(double gap, double normal_velocity, double restitution, doubl
 
 // The free velocity v + dt (M^-1 (force - c(w)) - turn(w)) [m/s, rad/s], the velocity terms c (gravity cancels in the
 // difference of h at w and at v) and the free flyers' turn taken at the midpoint w = (v + v_free + change) / 2 of the
-// step's velocities (`change`: the impulses' velocity change), by fixed point; false: the passes did not settle.
+// step's velocities (`change`: the impulses' velocity change), by fixed point from `v_free`; false: the passes did not
+// settle.
 bool free_velocity(const pinocchio::Model& model, pinocchio::Data& data, const FreeFlyers& free_flyers,
                    const Eigen::VectorXd& q, const Eigen::VectorXd& v, double dt,
                    const Eigen::LLT<Eigen::MatrixXd>& factor, const Eigen::VectorXd& force,
                    const Eigen::VectorXd& at_start, const Eigen::VectorXd& change, const StepSettings& settings,
                    Eigen::VectorXd& v_free) {
-  v_free = v + dt * (factor.solve(force) - free_flyers.turn(v));
   for (int pass = 0; pass < settings.midpoint_passes; ++pass) {
     const Eigen::VectorXd middle = 0.5 * (v + v_free + change);
     const Eigen::VectorXd shift = pinocchio::nonLinearEffects(model, data, q, middle) - at_start;
@@ -167,8 +167,10 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
   // the velocity terms at the midpoint of the step's velocities, v and v+ = v_free + M^-1 J^T lambda: the impulses'
   // change first taken from `guess` (the last step's impulses of these contacts), then from the answer, until the
   // free velocity that the answer's change gives moves by at most impulse_tolerance of the velocities
-  Eigen::VectorXd change = mobility * guess, next;
+  Eigen::VectorXd change = mobility * guess;
+  Eigen::VectorXd next = v + dt * (factor.solve(force) - free_flyers.turn(v));  // each fixed point from the last
   for (int pass = 0;; ++pass) {
+    v_free = next;
     result.settled = pass < settings.midpoint_passes &&
                      free_velocity(model, data, free_flyers, q, v, dt, factor, force, at_start, change, settings,
                                    v_free);
@@ -176,6 +178,7 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     result.solved = contact_solve();
     if (!result.solved) return result;
     change = v_new - v_free;
+    next = v_free;
     result.settled = free_velocity(model, data, free_flyers, q, v, dt, factor, force, at_start, change, settings,
                                    next);
     if (!result.settled) return result;

@@ -66,13 +66,14 @@ class PythonStepper(ContactStepper):
         jacobian = np.vstack([contacts.jacobian, contacts.spin_jacobian.reshape(-1, v.size)])  # then the torsions'
         mobility = cho_solve(factor, jacobian.T)
         change = mobility @ np.concatenate([self.impulses.reshape(-1), self.torques])  # the last step's impulses
+        after = v + dt * (cho_solve(factor, force) - self._turn(v))  # each fixed point from the last
         for _ in range(MIDPOINT_PASSES):  # the midpoint over the impulses, as the compiled step
-            v_free = self._free_velocity(q, v, dt, force, factor, at_start, change)
+            v_free = self._free_velocity(q, v, dt, force, factor, at_start, change, after)
             impulses = self._contact_solve(contacts, jacobian, mobility, v_free, dt, t)
             v_new = v_free + mobility @ impulses
             change = v_new - v_free
-            moved = np.max(np.abs(self._free_velocity(q, v, dt, force, factor, at_start, change) - v_free))
-            if moved <= IMPULSE_TOLERANCE * max(np.max(np.abs(v_free)), np.max(np.abs(v_new))):
+            after = self._free_velocity(q, v, dt, force, factor, at_start, change, v_free)
+            if np.max(np.abs(after - v_free)) <= IMPULSE_TOLERANCE * max(np.max(np.abs(v_free)), np.max(np.abs(v_new))):
                 break
         else:
             raise Failure(f"the velocity terms at the step's midpoint did not settle in {MIDPOINT_PASSES} passes")
@@ -209,11 +210,12 @@ class PythonStepper(ContactStepper):
         factor: tuple,
         at_start: np.ndarray,
         change: np.ndarray,
+        v_free: np.ndarray,
     ) -> np.ndarray:
         """v_free [m/s, rad/s] with the velocity terms and the free flyers' turn at the midpoint of v and
-        v_free + ``change`` (the impulses' velocity change), by fixed point (``at_start``: h at (q, v))."""
+        v_free + ``change`` (the impulses' velocity change), by fixed point from ``v_free`` (``at_start``: h at
+        (q, v))."""
         model, data = self.system.model.model, self.system.model.scratch
-        v_free = v + dt * (cho_solve(factor, force) - self._turn(v))
         for _ in range(MIDPOINT_PASSES):
             middle = (v + v_free + change) / 2
             shift = pin.nonLinearEffects(model, data, q, middle) - at_start
