@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from .constraints import ConstraintSet, ConstraintValues, Violation
+from .forces.base import batched
 from .kinematics import Kinematics, symmetric_mass_matrix
 from .memory import data_bytes, model_size, new_data, require
 from .scene import Scene
@@ -55,6 +56,7 @@ class ConstrainedModel:
         self.kin = Kinematics(scene.model)
         self.constraints: ConstraintSet = scene.constraint_set
         self.forces = scene.forces
+        self._evaluated = batched(self.forces)  # what applied_force calls: those of a class batched
         self.forces_need_kinematics = any(element.needs_kinematics for element in self.forces)
         self._data = new_data(scene.model)
         self._scratch_kin: Kinematics | None = None
@@ -101,7 +103,7 @@ class ConstrainedModel:
     def applied_force(self, v: np.ndarray, t: float, elements: list | None = None) -> np.ndarray:
         """Sum of the force elements [N, N m] (``elements``, default all); ``kin`` must be current where they need
         it."""
-        elements = self.forces if elements is None else elements
+        elements = self._evaluated if elements is None else elements
         if not elements:
             return self.no_force
         tau = np.zeros(self.model.nv)

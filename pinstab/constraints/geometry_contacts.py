@@ -97,20 +97,27 @@ class FoundContacts:
                 self.frames[pair, k] = model.addFrame(frame)
         self.order: dict[str, tuple[int, int]] = {}
         self._made: dict[str, PointContact] = {}
+        self._last: tuple[tuple, list[PointContact]] = ((), [])  # the last find's key and contacts
 
     def contacts(self, q: np.ndarray, start: np.ndarray | None = None) -> list[PointContact]:
         """The contacts found at configuration q, in pair order, then by point (a contact found before: the same
         object, its plane where it was first found). ``start``: the configuration a new contact's plane is taken
         at (default q): an event-driven step's start, where the contact is still apart, not its end, which may be
         deep inside (a box falling through the stack in a trial step of 0.14 s: its corners on the wrong faces)."""
-        found = self.shapes.features(q)
+        located = self.shapes.find(q)
+        key = located.key()
+        if key == self._last[0]:  # the features found last (all made then): their contacts, without their tuples
+            return list(self._last[1])
+        found = self.shapes.features_of(located)
         new = {feature.pair for feature in found if feature.name not in self._made}
         if start is not None:
             for pair in sorted(new):
                 for feature in self.shapes.pair_features(start, pair):
                     if feature.name in {f.name for f in found}:
                         self._contact(feature)
-        return [self._contact(feature) for feature in found]
+        contacts = [self._contact(feature) for feature in found]
+        self._last = key, contacts
+        return list(contacts)
 
     def _contact(self, feature: Feature) -> PointContact:
         contact = self._made.get(feature.name)

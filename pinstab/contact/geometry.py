@@ -71,6 +71,28 @@ class Feature(NamedTuple):
     gap: float
 
 
+class FoundFeatures(NamedTuple):
+    """What the compiled finder (:class:`~pinstab.kernels.GeometryFeatures`) found at a configuration, before the
+    :class:`Feature` tuples are made from it (:meth:`ContactShapes.features_of`).
+
+    Attributes:
+        pairs, indices: each feature's pair and point index k. gaps: [m]. normals (n, 3), points (n, 3) [m]: their
+        planes (world). worlds (n, 3): the points [m, world]. rounds: the round pairs kept, measured in Python.
+    """
+
+    pairs: np.ndarray
+    indices: np.ndarray
+    gaps: np.ndarray
+    normals: np.ndarray
+    points: np.ndarray
+    worlds: np.ndarray
+    rounds: list[int]
+
+    def key(self) -> tuple[bytes, bytes, tuple[int, ...]]:
+        """Which features were found, in their order: two finds with one key found the same features (names)."""
+        return self.pairs.tobytes(), self.indices.tobytes(), tuple(self.rounds)
+
+
 def shape_points(shape: coal.CollisionGeometry, where: str) -> tuple[np.ndarray, np.ndarray]:
     """The points (k, 3) [m, shape frame] of a shape's features and the radius (k,) [m] of each (0: a vertex).
     A cylinder's: the centres of its end caps (+z, -z), then :data:`RIM_POINTS` around the +z cap's rim from +x
@@ -236,7 +258,24 @@ class ContactShapes:
 
     def features(self, q: np.ndarray) -> list[Feature]:
         """The contact features of every allowed pair at configuration q, in pair order, then by point."""
-        return self._found(q, -1)
+        return self.features_of(self.find(q))
+
+    def find(self, q: np.ndarray, pair: int = -1) -> FoundFeatures:
+        """What the compiled finder finds at configuration q: the features of every pair that the broad phase and the
+        margins keep (pair -1), or every point of one pair; the placements are left at q (:meth:`features_of`)."""
+        found = self._finder.find(
+            self.model, self._data, self.geometry, self._geometry_data, np.asarray(q, dtype=float), pair
+        )
+        return FoundFeatures(*found)
+
+    def features_of(self, found: FoundFeatures) -> list[Feature]:
+        """The features of the last :meth:`find` (``found``), in pair order, then by point."""
+        places = found.pairs.tolist(), found.indices.tolist()
+        rows = zip(*places, found.worlds, found.normals, found.points, found.gaps, strict=True)
+        features = [self._feature(*row) for row in rows]
+        if not found.rounds:
+            return features
+        return sorted(features + [self._round_feature(p) for p in found.rounds], key=lambda feature: feature.pair)
 
     def label(self, pair: int) -> str:
         """``<shapeA>/<shapeB>``: a pair's name."""
@@ -255,21 +294,7 @@ class ContactShapes:
     def pair_features(self, q: np.ndarray, pair: int) -> list[Feature]:
         """Every feature point of one pair at configuration q, found or not (no broad phase, no margin): where a
         contact found at another configuration is made, its plane that of q."""
-        return self._found(q, pair)
-
-    def _found(self, q: np.ndarray, pair: int) -> list[Feature]:
-        """The features at q of every pair (pair -1: those the broad phase and the margins keep) or every point of
-        one, in pair order, then by point."""
-        pairs, indices, gaps, normals, points, worlds, rounds = self._finder.find(
-            self.model, self._data, self.geometry, self._geometry_data, np.asarray(q, dtype=float), pair
-        )
-        found = [
-            self._feature(*row)
-            for row in zip(pairs.tolist(), indices.tolist(), worlds, normals, points, gaps, strict=True)
-        ]
-        if not rounds:
-            return found
-        return sorted(found + [self._round_feature(p) for p in rounds], key=lambda feature: feature.pair)
+        return self.features_of(self.find(q, pair))
 
     def _round_feature(self, pair: int) -> Feature:
         """A round pair's feature, its sphere's centre, at the placements last updated: its plane on the line from

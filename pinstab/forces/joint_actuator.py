@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SceneError
+from ..kernels import CompiledTarget
 from ..kinematics import Kinematics
 from ..tables import SceneTables, vector
 from .base import FORCE_KINDS, ForceElement, bounded_load
@@ -23,6 +24,7 @@ from .time_table import TimeTable, read_table
 
 ACTUATOR_KEYS = {"name", "kind", "joint", "gear", "gain", "bias", "ctrl", "table", "ctrlrange", "forcerange"}
 UNLIMITED = (-np.inf, np.inf)
+Values = float | np.ndarray  # one actuator's number, or an array of one per actuator
 
 
 class JointActuator(ForceElement):
@@ -56,15 +58,68 @@ class JointActuator(ForceElement):
 
     def force(self, q: float, qdot: float, t: float) -> float:
         """The actuator force f [N or N m] at joint position q [rad or m], velocity qdot and time t [s]."""
-        u = min(max(self.control(t), self.ctrlrange[0]), self.ctrlrange[1])
-        f = self.gain * u + self.bias[0] + self.bias[1] * self.gear * q + self.bias[2] * self.gear * qdot
-        return min(max(f, self.forcerange[0]), self.forcerange[1])
+        law = self.gear, self.gain, self.bias, self.ctrlrange, self.forcerange
+        return float(actuator_force(self.control(t), q, qdot, *law))
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
         tau = np.zeros(self.nv)
         q = float(kin.q[self.q_index]) if self.bias[1] else 0.0
         tau[self.dof] = self.gear * self.force(q, float(v[self.dof]), t)
         return tau
+
+    @classmethod
+    def batch(cls, elements: list[ForceElement]) -> ForceElement:
+        """The actuators ``elements`` evaluated at once (:class:`JointActuators`)."""
+        return JointActuators([element for element in elements if isinstance(element, JointActuator)])
+
+
+class JointActuators(ForceElement):
+    """Joint actuators evaluated at once: their control tables in one compiled evaluation, the law
+    (:func:`actuator_force`) over arrays, each actuator's ``gear f`` added to its joint's coordinate in their order.
+
+    Args:
+        actuators: the actuators (at least one), of one model.
+    """
+
+    def __init__(self, actuators: list[JointActuator]) -> None:
+        self.name = ", ".join(actuator.name for actuator in actuators)
+        self.nv = actuators[0].nv
+        self.dofs = np.array([actuator.dof for actuator in actuators])
+        self.gear = np.array([actuator.gear for actuator in actuators])
+        self.gain = np.array([actuator.gain for actuator in actuators])
+        self.bias = np.array([actuator.bias for actuator in actuators]).T  # (3, n): bias_0, bias_1, bias_2
+        self.ctrlrange = np.array([actuator.ctrlrange for actuator in actuators]).T  # (2, n): low, high
+        self.forcerange = np.array([actuator.forcerange for actuator in actuators]).T
+        self.reading = np.flatnonzero(self.bias[1])  # the actuators whose force reads their joint's position
+        self.q_indices = np.array([actuators[i].q_index for i in self.reading], dtype=int)
+        self.needs_kinematics = bool(self.reading.size)
+        self._controls = CompiledTarget([actuator.control.compiled() for actuator in actuators])
+
+    def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
+        q = np.zeros(self.dofs.size)
+        q[self.reading] = kin.q[self.q_indices]
+        law = self.gear, self.gain, self.bias, self.ctrlrange, self.forcerange
+        forces = actuator_force(self._controls.evaluate(t)[0], q, v[self.dofs], *law)
+        return np.bincount(self.dofs, weights=self.gear * forces, minlength=self.nv)
+
+
+def actuator_force(
+    control: Values,
+    q: Values,
+    qdot: Values,
+    gear: Values,
+    gain: Values,
+    bias: np.ndarray,
+    ctrlrange: tuple[Values, Values] | np.ndarray,
+    forcerange: tuple[Values, Values] | np.ndarray,
+) -> Values:
+    """MuJoCo's affine actuator force f [N or N m] (the module's law), elementwise over arrays of actuators or for
+    one: the control clipped to ``ctrlrange`` (low, high), ``f = gain u + bias_0 + bias_1 gear q + bias_2 gear qdot``
+    at joint position q [rad or m] and velocity qdot [rad/s or m/s], clipped to ``forcerange`` (low, high) [N or N m].
+    """
+    u = np.minimum(np.maximum(control, ctrlrange[0]), ctrlrange[1])
+    f = gain * u + bias[0] + bias[1] * gear * q + bias[2] * gear * qdot
+    return np.minimum(np.maximum(f, forcerange[0]), forcerange[1])
 
 
 def _range(entry: dict, key: str, where: str) -> tuple[float, float]:

@@ -26,7 +26,7 @@ import numpy as np
 from ..constraints import Constraint, ConstraintSet, RowKind
 from ..contact.models import MARGIN_SLACK
 from ..errors import GraspLostError
-from ..forces.base import ForceElement
+from ..forces.base import ForceElement, batched
 from ..kernels import CoreKernel, CoreProjection, RowBlock
 from ..model import ConstrainedModel
 from ..projection import CUTOFF as PROJECTION_CUTOFF
@@ -95,6 +95,7 @@ class PythonPart:
 
     def __init__(self, model: ConstrainedModel, blocks: list[Constraint], elements: list[ForceElement]) -> None:
         self.model, self.blocks, self.elements = model, blocks, elements
+        self._evaluated = batched(elements)  # what an evaluation calls: those of a class batched
         self._stack = ConstraintSet(blocks, model.nv)
         self._reads_kinematics = bool(blocks) or any(element.needs_kinematics for element in elements)
         self._limited = any(block.limits_force for block in blocks)
@@ -104,7 +105,7 @@ class PythonPart:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(G, phi, g_t, gamma0) of the blocks, stacked (phi zero on nonholonomic rows) [m or rad ...], and the
         elements' forces [N, N m] at (t [s], q, v)."""
-        model, elements = self.model, self.elements
+        model, elements = self.model, self._evaluated
         force = model.forces_at(q, v, t, elements) if self._reads_kinematics else model.applied_force(v, t, elements)
         values = self._stack.values(model.kin, q, v, t, with_drift=True)  # no blocks: empty, nothing read
         return values.jacobian, values.phi, values.time_term, values.drift, force
