@@ -143,6 +143,7 @@ class ContactStepper(Integrator):
         self.compiled = ConeStepper(system.model.model, system.model.scratch)
         self.finders: list[Any] = []
         self._declared: list[PlaneContactGeometry] = []
+        self._laws = self._contact_laws()
 
     def find_contacts(self, finders: list[Any]) -> None:
         """Ask ``finders`` (:class:`~pinstab.constraints.geometry_contacts.FoundContacts`) for their contacts at
@@ -157,7 +158,7 @@ class ContactStepper(Integrator):
         """Take the contacts found at q as the dynamics' (see :meth:`find_contacts`)."""
         found = [contact for finder in self.finders for contact in finder.contacts(q)]
         names = [contact.name for contact in self._declared + found]
-        if names == [contact.name for contact in self.dynamics.contacts]:
+        if names == self._labels[: len(self.impulses)]:
             return  # the same contacts (their geometries, which cost more than the search, are not rebuilt)
         contacts = self._declared + plane_geometries(found)
         spins = {name: j for j, name in enumerate(self._labels[len(self.impulses) :])}
@@ -170,6 +171,7 @@ class ContactStepper(Integrator):
         self.impulses = np.array([np.zeros(3) if i is None else self.impulses[i] for i in places]).reshape(-1, 3)
         self.torques = np.array([0.0 if j is None else self.torques[j] for j in turns])
         self._index = {name: i for i, name in enumerate(self._labels)}
+        self._laws = self._contact_laws()
         if 3 * len(contacts) > self.solver.size:
             self.solver = NcpSolver(3 * len(contacts))
 
@@ -182,8 +184,7 @@ class ContactStepper(Integrator):
             ContactSolveError: no solver met the contact law of the step's contacts.
         """
         terms, contacts = self.start(q, v, t, dt)
-        laws = [(contact.mu, contact.restitution, contact.torsion) for contact in self.dynamics.contacts]
-        mus, restitutions, torsions = np.array(laws, dtype=float).reshape(-1, 3).T
+        mus, restitutions, torsions = self._laws
         settings = np.array([TOUCH_GAP, MIDPOINT_TOLERANCE, MIDPOINT_PASSES, ncp.CHECK_RTOL, IMPULSE_TOLERANCE])
         guess = np.concatenate([self.impulses.reshape(-1), self.torques])
         q_next, v_next, active, impulses, velocities, reach, torques, spins, settled, solved = self.compiled.step(
@@ -232,6 +233,12 @@ class ContactStepper(Integrator):
                 modes[self._index[event.contact]] = Mode(event.after)
         self.modes, self.spin_modes = modes[: len(self.impulses)], modes[len(self.impulses) :]
 
+    def _contact_laws(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The contacts' friction coefficients mu [-], restitutions e [-] and torsion lengths c [m], in their order."""
+        laws = [(contact.mu, contact.restitution, contact.torsion) for contact in self.dynamics.contacts]
+        mus, restitutions, torsions = np.array(laws, dtype=float).reshape(-1, 3).T
+        return mus, restitutions, torsions
+
     def _names(self) -> list[str]:
         """The names of the contacts' modes and events: the contacts', then their torsions' (``ground torsion``)."""
         contacts = self.dynamics.contacts
@@ -261,14 +268,11 @@ class ContactStepper(Integrator):
         """Read each contact's and torsion's mode over the step (``reach``: the normal velocity a unit normal impulse
         gives each contact [m/s / N s]; ``torques`` [N m s] and ``spins`` [rad/s]: the torsions') and record the
         changes (a torsion's force and impulse: normal, torque, 0; its slip: spin, 0)."""
-        modes = []
-        for i in range(len(impulses)):
-            if impulses[i, 0] * reach[i] <= SPEED_FLOOR:
-                modes.append(Mode.SEPARATED)
-            elif math.hypot(*velocities[i, 1:]) > SPEED_FLOOR:
-                modes.append(Mode.SLIDING)
-            else:
-                modes.append(Mode.STICKING)
+        apart = (impulses[:, 0] * reach <= SPEED_FLOOR).tolist()
+        modes = [
+            Mode.SEPARATED if away else Mode.SLIDING if math.hypot(*slip) > SPEED_FLOOR else Mode.STICKING
+            for away, slip in zip(apart, velocities[:, 1:].tolist(), strict=True)
+        ]
         contacts = [spin.contact for spin in self.dynamics.spins]
         spin_modes = [
             Mode.SEPARATED if modes[i] is Mode.SEPARATED else Mode.SLIDING if abs(w) > SPEED_FLOOR else Mode.STICKING
@@ -278,9 +282,11 @@ class ContactStepper(Integrator):
         now = modes + spin_modes
         before = [Mode.SEPARATED] * len(now) if start else self.modes + self.spin_modes
         k = len(modes)
-        for j, (old, new) in enumerate(zip(before, now, strict=True)):
-            if not (start or old is not new):
-                continue
+        changed = (
+            range(len(now)) if start else [j for j, (a, b) in enumerate(zip(before, now, strict=True)) if a is not b]
+        )
+        for j in changed:
+            old, new = before[j], now[j]
             if j < k:
                 load, slip = impulses[j], velocities[j, 1:]
             else:
