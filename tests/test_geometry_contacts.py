@@ -142,3 +142,30 @@ def test_a_tilted_box_drop_finds_its_corners_as_they_come():
     assert {e["contact"] for e in runs[0].info.contact_events} == {f"box_0/ground[{k}]" for k in (1, 3, 5, 7)}
     assert np.max(np.abs(runs[0].q[-1] - runs[1].q[-1])) <= 1e-9
     assert abs(runs[0].q[-1, 2] - 0.05) <= 1e-9 and np.max(np.abs(runs[0].v[-1])) <= 1e-9
+
+
+def test_a_finder_asked_again_keeps_its_contacts_and_makes_no_features(monkeypatch):
+    """The contacts of a box at its start and slid 1 mm along the ground are the four corners the scene found, the
+    same objects, without their Feature tuples made again (the compiled finder found the same features); tilted 0.2
+    rad about a bottom edge, two corners stay (the same objects) and the features are made for it, once."""
+    scene = geometry_scene("incline", mu=0.3)
+    finder = scene.contact_finders[0]
+    made = []
+    features_of = finder.shapes.features_of
+    monkeypatch.setattr(finder.shapes, "features_of", lambda found: made.append(found) or features_of(found))
+    first = finder.contacts(scene.q0)
+    slid = scene.q0.copy()
+    slid[0] += 1e-3
+    again = finder.contacts(slid)
+    assert [c.name for c in first] == [f"box_0/ground[{k}]" for k in (1, 3, 5, 7)]
+    assert all(a is b for a, b in zip(again, first, strict=True)) and first == scene.constraints and not made
+    edge = np.array([-0.05, 0.0, 0.0])  # the box's -x bottom edge [m] from its centre; the box on it, tilted up
+    turn = pin.SE3(pin.rpy.rpyToMatrix(0.0, -0.2, 0.0), np.zeros(3))
+    placed = pin.XYZQUATToSE3(scene.q0[:7]) * pin.SE3(np.eye(3), edge + [0, 0, -0.05]) * turn
+    placed = placed * pin.SE3(np.eye(3), -(edge + [0, 0, -0.05]))
+    tilted = scene.q0.copy()
+    tilted[:7] = pin.SE3ToXYZQUAT(placed)
+    left = finder.contacts(tilted)
+    assert [c.name for c in left] == [f"box_0/ground[{k}]" for k in (5, 7)] and len(made) == 1
+    assert left[0] is first[2] and left[1] is first[3]
+    assert finder.contacts(tilted) == left and len(made) == 1

@@ -10,7 +10,11 @@ import numpy as np
 import pytest
 from mujoco_twin import largest_difference, mujoco, twins, written
 
+from pinstab import load_scene
 from pinstab.errors import SceneError
+from pinstab.forces.base import batched
+from pinstab.forces.joint_actuator import JointActuators
+from pinstab.model import ConstrainedModel
 from pinstab.scene import scene_from_dict
 
 ARM = """<mujoco>
@@ -77,6 +81,66 @@ def test_each_actuator_is_a_joint_actuator_with_mujocos_law(arm: Path) -> None:
     ]
     np.testing.assert_allclose(ours, data.qfrc_actuator, rtol=0, atol=1e-12)
     assert abs(data.actuator_force[0]) == 2.0 and data.ctrl[2] == 3.0  # saturated servo, clipped motor control
+
+
+def test_the_model_evaluates_its_actuators_at_once_as_one_by_one(tmp_path: Path) -> None:
+    """The model's applied force takes the arm's actuators (with a second one, a motor, on the shoulder) in one
+    evaluation in the first one's place (:func:`~pinstab.forces.base.batched`): MuJoCo's qfrc_actuator plus the wrist
+    spring's torque to 1e-12 at the keyframe's state, and to the bit the sum of the elements evaluated one by one in
+    their order at 30 random states (the servo saturated or not, the motor's control clipped)."""
+    second = '<motor name="shoulder_motor" joint="shoulder" gear="2" ctrlrange="-1 1"/>\n    <velocity name="elbow'
+    text = ARM.replace('<velocity name="elbow', second).replace('ctrl="1.2 1 3', 'ctrl="1.2 5 1 3')
+    path = written(tmp_path, "arm.xml", text)
+    scene, model = twins(path)
+    constrained = ConstrainedModel(scene)
+    spring, actuators = batched(scene.forces)
+    assert spring is scene.forces[0] and isinstance(actuators, JointActuators)
+    assert actuators.name == "shoulder_servo, shoulder_motor, elbow_damper, wrist_motor, finger_general"
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    data.qvel[:] = [0.4, -1.1, 2.0, 0.3]
+    mujoco.mj_forward(model, data)
+    kin = constrained.kin
+    kin.update(scene.q0, data.qvel.copy())
+    at_once = constrained.applied_force(data.qvel.copy(), 0.0)
+    alone = spring.generalized_force(kin, data.qvel.copy(), 0.0)
+    np.testing.assert_allclose(at_once - alone, data.qfrc_actuator, rtol=0, atol=1e-12)
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        q, v = rng.uniform(-1.0, 1.0, 4), rng.uniform(-3.0, 3.0, 4)
+        kin.update(q, v)
+        one_by_one = np.zeros(4)
+        for element in scene.forces:
+            one_by_one += element.generalized_force(kin, v, 0.0)
+        assert np.array_equal(constrained.applied_force(v, 0.0), one_by_one)
+
+
+def test_hand_cube_servos_at_once_follow_their_tables_as_one_by_one() -> None:
+    """hand-cube's six position servos, each driven by a time table, evaluated at once give the sum of each evaluated
+    alone to the bit at times before, inside and after their tables' points; at rest on their targets (q = u,
+    qdot = 0) the servos push their constant bias alone (the wrist's lift, 3.5316 N: the hand's weight), to 1e-12."""
+    scene = load_scene("hand-cube")
+    constrained = ConstrainedModel(scene)
+    (actuators,) = batched(scene.forces)
+    kin = constrained.kin
+    rng = np.random.default_rng(5)
+    for t in [-1.0, 0.0, 0.05, 0.3, 0.42, 1.0, 1.21, 1.7, 2.09, 5.0]:
+        q = scene.q0 + rng.uniform(-0.05, 0.05, scene.model.nq)
+        v = rng.uniform(-0.5, 0.5, scene.model.nv)
+        kin.update(q, v)
+        one_by_one = np.zeros(scene.model.nv)
+        for element in scene.forces:
+            one_by_one += element.generalized_force(kin, v, t)
+        assert np.array_equal(actuators.generalized_force(kin, v, t), one_by_one)
+        assert np.array_equal(constrained.applied_force(v, t), one_by_one)
+    targets = np.array([element.control(0.6) for element in scene.forces])
+    q = scene.q0.copy()
+    q[[element.q_index for element in scene.forces]] = targets
+    kin.update(q, np.zeros(scene.model.nv))
+    lift = np.zeros(scene.model.nv)
+    lift[[element.dof for element in scene.forces]] = [element.bias[0] for element in scene.forces]
+    assert np.count_nonzero(lift) == 1 and lift[2] == 3.5316
+    np.testing.assert_allclose(constrained.applied_force(np.zeros(scene.model.nv), 0.6), lift, rtol=0, atol=1e-12)
 
 
 def test_the_arm_runs_as_mujoco_from_the_keyframes_controls(arm: Path) -> None:
