@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "geometry_features.hpp"
+#include "numpy_out.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -58,9 +59,10 @@ void bind_geometry_features(nb::module_& m) {
             FoundFeatures found =
                 geometry_features(native, python_data(data.ptr(), native), shapes,
                                   python_geometry_data(geometry_data.ptr(), shapes), q, self.pairs, self.side_sine, pair);
-            return std::make_tuple(std::move(found.pair), std::move(found.index), std::move(found.gap),
-                                   std::move(found.normal), std::move(found.point), std::move(found.world),
-                                   std::move(found.round));
+            return nb::make_tuple(numpy_out(std::move(found.pair)), numpy_out(std::move(found.index)),
+                                  numpy_out(std::move(found.gap)), numpy_out(std::move(found.normal)),
+                                  numpy_out(std::move(found.point)), numpy_out(std::move(found.world)),
+                                  std::move(found.round));
           },
           "model"_a, "data"_a, "geometry"_a, "geometry_data"_a, "q"_a, "pair"_a = -1,
           "(pairs, indices, gaps [m], normals, plane points [m, world], points [m, world], round pairs): the features "

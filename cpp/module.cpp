@@ -17,6 +17,7 @@
 #include "inertial_term.hpp"
 #include "kkt_solve.hpp"
 #include "native_kernel.hpp"
+#include "numpy_out.hpp"
 #include "series.hpp"
 #include "servo_kernel.hpp"
 #include "spring_damper.hpp"
@@ -350,7 +351,8 @@ NB_MODULE(_compiled, m) {
           [](const Targets& self, double t) {
             VectorXd value, rate, curvature;
             self.evaluate(t, value, rate, curvature);
-            return std::make_tuple(value, rate, curvature);
+            return nb::make_tuple(numpy_out(std::move(value)), numpy_out(std::move(rate)),
+                                  numpy_out(std::move(curvature)));
           },
           "t"_a, "(x, dx/dt, d2x/dt2) of every component at t [s].");
   m.def(
