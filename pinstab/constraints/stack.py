@@ -177,6 +177,9 @@ class ConstraintSet:
 
     def values(self, kin: Kinematics, q: np.ndarray, v: np.ndarray, t: float, with_drift: bool) -> ConstraintValues:
         """Everything at (q, v, t); ``kin`` must have been updated at that state."""
+        if not self.rows:  # nothing to read (a time-stepping run's bodies): empty rows, without a pass over none
+            empty = np.zeros(0)
+            return ConstraintValues(empty, np.zeros((0, self.nv)), empty, empty, empty if with_drift else None)
         phi = self.residual(kin, q, t)
         jac, time_term = self.velocity_terms(kin, q, t)
         drift = self.drift(kin, q, v, t) if with_drift else None

@@ -669,9 +669,9 @@ class ModeDynamics:
                     gaps[i], positions[i], jacobian[rows], drift[rows], world[rows] = _round_rows(kin, contact, v)
                     local[i] = kin.placement(contact.plane_frame).actInv(positions[i])
                     velocities[i] = jacobian[rows] @ v
-        missing = np.flatnonzero(~np.isfinite(gaps[places]))
-        if missing.size:
-            i = int(places[missing[0]])
+        finite = np.isfinite(gaps[places])
+        if not finite.all():
+            i = int(places[np.argmin(finite)])  # the first not finite
             raise ConstraintError(
                 f"contact {self.contacts[i].name}: its gap is {gaps[i]} (the state is not finite: q has "
                 f"{np.count_nonzero(~np.isfinite(self.model.kin.q))} non-finite entries)"
