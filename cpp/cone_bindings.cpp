@@ -15,6 +15,7 @@
 
 #include "cone_step.hpp"
 #include "kernels.hpp"
+#include "numpy_out.hpp"
 #include "plane_contacts.hpp"
 #include "torsion_cone.hpp"
 
@@ -99,7 +100,10 @@ void bind_cones(nb::module_& m) {
         if (v.size() != native.nv) throw std::invalid_argument("plane_contact_rows: v not of the model's size nv");
         const auto contacts = plane_contacts(native, frames, plane_frames, radii, bases, origins);
         PlaneContactRows r = plane_contact_rows(native, python_data(data.ptr(), native), contacts, v);
-        return nb::make_tuple(r.gaps, r.positions, r.local, r.velocities, r.jacobian, r.drift, r.bases);
+        return nb::make_tuple(numpy_out(std::move(r.gaps)), numpy_out(std::move(r.positions)),
+                              numpy_out(std::move(r.local)), numpy_out(std::move(r.velocities)),
+                              numpy_out(std::move(r.jacobian)), numpy_out(std::move(r.drift)),
+                              numpy_out(std::move(r.bases)));
       },
       "model"_a, "data"_a, "frames"_a, "plane_frames"_a, "radii"_a, "bases"_a, "origins"_a, "v"_a,
       "The plane contacts' (gaps [m], points [m, world], points in the plane's axes, velocities (k x 3) [m/s], "
