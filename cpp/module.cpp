@@ -15,6 +15,7 @@
 #include "core_kernel.hpp"
 #include "grasp_forces.hpp"
 #include "inertial_term.hpp"
+#include "joint_actuators.hpp"
 #include "kkt_solve.hpp"
 #include "native_kernel.hpp"
 #include "numpy_out.hpp"
@@ -355,6 +356,53 @@ NB_MODULE(_compiled, m) {
                                   numpy_out(std::move(curvature)));
           },
           "t"_a, "(x, dx/dt, d2x/dt2) of every component at t [s].");
+  nb::class_<JointActuators>(m, "CompiledActuators")
+      .def(
+          "__init__",
+          [](JointActuators* self, const std::vector<nb::dict>& controls, const Eigen::VectorXi& dofs,
+             const Eigen::VectorXi& positions, const VectorXd& gear, const VectorXd& gain, const Eigen::MatrixXd& bias,
+             const Eigen::MatrixXd& ctrlrange, const Eigen::MatrixXd& forcerange, int nv) {
+            const Eigen::Index count = gear.size();
+            if (static_cast<Eigen::Index>(controls.size()) != count || dofs.size() != count ||
+                positions.size() != count || gain.size() != count || bias.rows() != 3 || bias.cols() != count ||
+                ctrlrange.rows() != 2 || ctrlrange.cols() != count || forcerange.rows() != 2 ||
+                forcerange.cols() != count) {
+              throw std::invalid_argument("CompiledActuators: one control, dof, position, gear and gain per actuator, "
+                                          "bias (3 x n), ctrlrange and forcerange (2 x n)");
+            }
+            if (count && (dofs.minCoeff() < 0 || dofs.maxCoeff() >= nv || positions.minCoeff() < -1)) {
+              throw std::invalid_argument("CompiledActuators: a dof outside [0, nv) or a position below -1");
+            }
+            JointActuators made{{}, dofs, positions, gear, gain, bias, ctrlrange, forcerange, nv};
+            for (const nb::dict& spec : controls) made.controls.components.push_back(target(spec));
+            new (self) JointActuators(std::move(made));
+          },
+          "controls"_a, "dofs"_a, "positions"_a, "gear"_a, "gain"_a, "bias"_a, "ctrlrange"_a, "forcerange"_a, "nv"_a,
+          "Joint actuators (cpp/joint_actuators.hpp): each one's control table (a compiled target, "
+          "pinstab.forces.time_table.TimeTable.compiled), joint's velocity index and configuration index (-1: its "
+          "position not read), gear [-], gain, bias (3 x n) and ranges (2 x n: low, high) of controls and forces; "
+          "the model's nv.")
+      .def(
+          "forces",
+          [](const JointActuators& self, const VectorXd& q, const VectorXd& qdot, double t) {
+            if (q.size() != self.gear.size() || qdot.size() != self.gear.size()) {
+              throw std::invalid_argument("CompiledActuators.forces: one position and velocity per actuator");
+            }
+            return numpy_out(self.forces(q, qdot, t));
+          },
+          "q"_a, "qdot"_a, "t"_a,
+          "The actuator forces f [N or N m] at their joints' positions q [rad or m], velocities qdot and time t [s].")
+      .def(
+          "generalized_force",
+          [](const JointActuators& self, const VectorXd& q, const VectorXd& v, double t) {
+            if (v.size() != self.nv || (self.positions.size() && self.positions.maxCoeff() >= q.size())) {
+              throw std::invalid_argument("CompiledActuators.generalized_force: v of size nv, q of the model's nq");
+            }
+            return numpy_out(self.generalized_force(q, v, t));
+          },
+          "q"_a, "v"_a, "t"_a,
+          "Their generalized force (nv) [N or N m] at the model's configuration q and velocity v at time t [s]: each "
+          "one's gear f added to its joint's coordinate, in their order.");
   m.def(
       "wrench_force",
       [](nb::handle model, nb::handle data, int frame, const Eigen::Matrix<double, 6, 1>& wrench) {

@@ -24,6 +24,7 @@ try:
         SPRING_COINCIDENT_LENGTH,
         AdaptivePair,
         BandedKernel,
+        CompiledActuators,
         CompiledTarget,
         ConeSolver,
         ConeStepper,
@@ -96,6 +97,7 @@ except ImportError as error:  # pragma: no cover - a broken install
 __all__ = [
     "AdaptivePair",
     "BandedKernel",
+    "CompiledActuators",
     "CompiledTarget",
     "ConeSolver",
     "ConeStepper",

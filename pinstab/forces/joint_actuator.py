@@ -6,7 +6,9 @@ With the control ``u`` (clipped to ``ctrlrange`` when given), the actuator's len
 ``ldot = gear qdot``, the actuator force is ``f = gain u + bias_0 + bias_1 l + bias_2 ldot`` (clipped to
 ``forcerange`` when given) and the joint gets ``gear f`` [N m or N] — MuJoCo's law (``mj_fwdActuation``): a motor
 is gain 1, bias 0; a position servo gain ``kp``, bias ``(0, -kp, -kv)``; a velocity servo gain ``kv``, bias
-``(0, 0, -kv)``. Its work enters the run's energy balance as power ``tau . v``.
+``(0, 0, -kv)``. Its work enters the run's energy balance as power ``tau . v``. A model evaluates its actuators at
+once (:class:`JointActuators`: their tables in one compiled evaluation, the law in one pass). The law is compiled
+(``cpp/joint_actuators.hpp``), its one place.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SceneError
-from ..kernels import CompiledTarget
+from ..kernels import CompiledActuators
 from ..kinematics import Kinematics
 from ..tables import SceneTables, vector
 from .base import FORCE_KINDS, ForceElement, bounded_load
@@ -24,7 +26,6 @@ from .time_table import TimeTable, read_table
 
 ACTUATOR_KEYS = {"name", "kind", "joint", "gear", "gain", "bias", "ctrl", "table", "ctrlrange", "forcerange"}
 UNLIMITED = (-np.inf, np.inf)
-Values = float | np.ndarray  # one actuator's number, or an array of one per actuator
 
 
 class JointActuator(ForceElement):
@@ -55,17 +56,14 @@ class JointActuator(ForceElement):
         self.gear, self.gain, self.bias = gear, gain, np.asarray(bias, float)
         self.control, self.ctrlrange, self.forcerange = control, ctrlrange, forcerange
         self.needs_kinematics = bool(self.bias[1])  # reads kin.q
+        self._law = compiled_law([self])
 
     def force(self, q: float, qdot: float, t: float) -> float:
         """The actuator force f [N or N m] at joint position q [rad or m], velocity qdot and time t [s]."""
-        law = self.gear, self.gain, self.bias, self.ctrlrange, self.forcerange
-        return float(actuator_force(self.control(t), q, qdot, *law))
+        return float(self._law.forces(np.array([q]), np.array([qdot]), t)[0])
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        tau = np.zeros(self.nv)
-        q = float(kin.q[self.q_index]) if self.bias[1] else 0.0
-        tau[self.dof] = self.gear * self.force(q, float(v[self.dof]), t)
-        return tau
+        return self._law.generalized_force(kin.q, v, t)
 
     @classmethod
     def batch(cls, elements: list[ForceElement]) -> ForceElement:
@@ -74,8 +72,8 @@ class JointActuator(ForceElement):
 
 
 class JointActuators(ForceElement):
-    """Joint actuators evaluated at once: their control tables in one compiled evaluation, the law
-    (:func:`actuator_force`) over arrays, each actuator's ``gear f`` added to its joint's coordinate in their order.
+    """Joint actuators evaluated at once: their control tables in one compiled evaluation, the law over them in one
+    pass (:func:`compiled_law`), each actuator's ``gear f`` added to its joint's coordinate in their order.
 
     Args:
         actuators: the actuators (at least one), of one model.
@@ -83,43 +81,27 @@ class JointActuators(ForceElement):
 
     def __init__(self, actuators: list[JointActuator]) -> None:
         self.name = ", ".join(actuator.name for actuator in actuators)
-        self.nv = actuators[0].nv
-        self.dofs = np.array([actuator.dof for actuator in actuators])
-        self.gear = np.array([actuator.gear for actuator in actuators])
-        self.gain = np.array([actuator.gain for actuator in actuators])
-        self.bias = np.array([actuator.bias for actuator in actuators]).T  # (3, n): bias_0, bias_1, bias_2
-        self.ctrlrange = np.array([actuator.ctrlrange for actuator in actuators]).T  # (2, n): low, high
-        self.forcerange = np.array([actuator.forcerange for actuator in actuators]).T
-        self.reading = np.flatnonzero(self.bias[1])  # the actuators whose force reads their joint's position
-        self.q_indices = np.array([actuators[i].q_index for i in self.reading], dtype=int)
-        self.needs_kinematics = bool(self.reading.size)
-        self._controls = CompiledTarget([actuator.control.compiled() for actuator in actuators])
+        self.needs_kinematics = any(actuator.needs_kinematics for actuator in actuators)
+        self._law = compiled_law(actuators)
 
     def generalized_force(self, kin: Kinematics, v: np.ndarray, t: float) -> np.ndarray:
-        q = np.zeros(self.dofs.size)
-        q[self.reading] = kin.q[self.q_indices]
-        law = self.gear, self.gain, self.bias, self.ctrlrange, self.forcerange
-        forces = actuator_force(self._controls.evaluate(t)[0], q, v[self.dofs], *law)
-        return np.bincount(self.dofs, weights=self.gear * forces, minlength=self.nv)
+        return self._law.generalized_force(kin.q, v, t)
 
 
-def actuator_force(
-    control: Values,
-    q: Values,
-    qdot: Values,
-    gear: Values,
-    gain: Values,
-    bias: np.ndarray,
-    ctrlrange: tuple[Values, Values] | np.ndarray,
-    forcerange: tuple[Values, Values] | np.ndarray,
-) -> Values:
-    """MuJoCo's affine actuator force f [N or N m] (the module's law), elementwise over arrays of actuators or for
-    one: the control clipped to ``ctrlrange`` (low, high), ``f = gain u + bias_0 + bias_1 gear q + bias_2 gear qdot``
-    at joint position q [rad or m] and velocity qdot [rad/s or m/s], clipped to ``forcerange`` (low, high) [N or N m].
-    """
-    u = np.minimum(np.maximum(control, ctrlrange[0]), ctrlrange[1])
-    f = gain * u + bias[0] + bias[1] * gear * q + bias[2] * gear * qdot
-    return np.minimum(np.maximum(f, forcerange[0]), forcerange[1])
+def compiled_law(actuators: list[JointActuator]) -> CompiledActuators:
+    """The compiled law of ``actuators`` (``cpp/joint_actuators.hpp``, the one place of the module's law): their
+    tables, joints (the position read where bias_1 is not zero), gears, gains, biases and ranges."""
+    return CompiledActuators(
+        [actuator.control.compiled() for actuator in actuators],
+        np.array([actuator.dof for actuator in actuators], dtype=np.int32),
+        np.array([actuator.q_index if actuator.bias[1] else -1 for actuator in actuators], dtype=np.int32),
+        np.array([actuator.gear for actuator in actuators], dtype=float),
+        np.array([actuator.gain for actuator in actuators], dtype=float),
+        np.array([actuator.bias for actuator in actuators], dtype=float).T.reshape(3, -1),
+        np.array([actuator.ctrlrange for actuator in actuators], dtype=float).T.reshape(2, -1),
+        np.array([actuator.forcerange for actuator in actuators], dtype=float).T.reshape(2, -1),
+        actuators[0].nv,
+    )
 
 
 def _range(entry: dict, key: str, where: str) -> tuple[float, float]:
