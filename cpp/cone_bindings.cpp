@@ -183,8 +183,10 @@ void bind_cones(nb::module_& m) {
                                              settings(4)};
             StepResult r = cone_step(self.model, self.data, self.free_flyers, q, v, dt, mass, force, contacts, guess,
                                      step_settings, solver);
-            return nb::make_tuple(r.q, r.v, r.active, r.impulses, r.velocities, r.reach, r.torques, r.spins,
-                                  r.settled, r.solved);
+            return nb::make_tuple(numpy_out(std::move(r.q)), numpy_out(std::move(r.v)), r.active,
+                                  numpy_out(std::move(r.impulses)), numpy_out(std::move(r.velocities)),
+                                  numpy_out(std::move(r.reach)), numpy_out(std::move(r.torques)),
+                                  numpy_out(std::move(r.spins)), r.settled, r.solved);
           },
           "q"_a, "v"_a, "dt"_a, "mass"_a, "force"_a, "gaps"_a, "normal_velocities"_a, "jacobian"_a, "mus"_a,
           "restitutions"_a, "torsions"_a, "spin_jacobian"_a, "guess"_a, "settings"_a, "solver"_a,
