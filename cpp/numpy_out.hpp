@@ -13,22 +13,23 @@
 
 namespace pinstab {
 
-// A NumPy array owning `value` (an Eigen vector or matrix, moved), with its shape and strides (empty: nanobind's).
+// A NumPy array owning `value` (an Eigen vector or matrix, moved), with its shape and strides.
 template <typename T>
 nanobind::object numpy_out(T&& value) {
   using Held = std::decay_t<T>;
   using Array = nanobind::ndarray<nanobind::numpy, typename Held::Scalar>;
-  if (value.size() == 0) return nanobind::cast(Held(std::forward<T>(value)));  // no data to own: nanobind's own
+  static typename Held::Scalar no_data{};  // an empty array's pointer (Eigen's is null): never read nor written
   auto* held = new Held(std::forward<T>(value));
   nanobind::capsule owner(held, [](void* p) noexcept { delete static_cast<Held*>(p); });
+  auto* data = held->size() ? held->data() : &no_data;
   if constexpr (Held::IsVectorAtCompileTime) {
     const size_t shape[1] = {static_cast<size_t>(held->size())};
     const int64_t strides[1] = {static_cast<int64_t>(held->innerStride())};
-    return nanobind::cast(Array(held->data(), 1, shape, owner, strides), nanobind::rv_policy::reference);
+    return nanobind::cast(Array(data, 1, shape, owner, strides), nanobind::rv_policy::reference);
   } else {
     const size_t shape[2] = {static_cast<size_t>(held->rows()), static_cast<size_t>(held->cols())};
     const int64_t strides[2] = {static_cast<int64_t>(held->rowStride()), static_cast<int64_t>(held->colStride())};
-    return nanobind::cast(Array(held->data(), 2, shape, owner, strides), nanobind::rv_policy::reference);
+    return nanobind::cast(Array(data, 2, shape, owner, strides), nanobind::rv_policy::reference);
   }
 }
 

@@ -234,9 +234,10 @@ class ContactStepper(Integrator):
         self.modes, self.spin_modes = modes[: len(self.impulses)], modes[len(self.impulses) :]
 
     def _contact_laws(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The contacts' friction coefficients mu [-], restitutions e [-] and torsion lengths c [m], in their order."""
+        """The contacts' friction coefficients mu [-], restitutions e [-] and torsion lengths c [m], in their order
+        (each contiguous: the compiled step reads them without a strided copy)."""
         laws = [(contact.mu, contact.restitution, contact.torsion) for contact in self.dynamics.contacts]
-        mus, restitutions, torsions = np.array(laws, dtype=float).reshape(-1, 3).T
+        mus, restitutions, torsions = np.array(laws, dtype=float).reshape(-1, 3).T.copy()
         return mus, restitutions, torsions
 
     def _names(self) -> list[str]:
