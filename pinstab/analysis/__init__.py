@@ -1,7 +1,8 @@
 """Accuracy of a run: the trajectory error against a reference (a scene's exact motion, or a saved run).
 
 Each exact reference is a module here that registers itself in :data:`EXACT_REFERENCES` under its
-scene's name (``fourbar``: the crank-angle equation; ``nfourbar``: the parallelogram pendulum).
+scene's name (``fourbar``: the crank-angle equation; ``nfourbar``: the parallelogram pendulum; ``stiff-fourbar``:
+SciPy's Radau on the open chain's ODE).
 """
 
 from ..registry import load_extensions

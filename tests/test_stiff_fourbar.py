@@ -1,0 +1,134 @@
+"""The stiff four-bar (robots/stiff-fourbar.toml, issue 37): the scene's stiff mode, its SciPy Radau reference
+(pinstab.analysis.spring_chain) and what RK4 does below and above its stability limit.
+
+The reference's chain here is built by Pinocchio alone from the URDF with the rocker cut out and the spring's
+numbers written out, not from pinstab's scene reader; the registered ``--reference exact`` (read from the scene)
+is checked to give the same motion.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import scipy.linalg
+
+from conftest import ROBOTS
+from pinstab import DivergenceError, PinstabError, load_scene, simulate
+from pinstab.analysis import exact_reference
+from pinstab.analysis.spring_chain import Spring, SpringChain, scene_chain
+from pinstab.forces.spring_damper import SpringDamper
+
+STIFFNESS, DAMPING, REST_LENGTH = 5e4, 2500.0, 0.5  # [N/m], [N s/m], [m]: the scene's rocker-spring
+COUPLER_END = ROCKER_PIVOT = np.array([0.6, 0.0, 0.0])  # [m] in the coupler's frame, in the world
+DURATION, SAMPLE = 1.0, 1e-3  # [s]
+RK4_BOUND = 2.785  # |h lambda| at which RK4's stability region meets the negative real axis
+
+
+@pytest.fixture(scope="module")
+def chain() -> SpringChain:
+    text = (ROBOTS / "urdf" / "fourbar.urdf").read_text()
+    text = re.sub(r'\s*<link name="rocker">.*?</link>', "", text, flags=re.S)
+    text = re.sub(r'\s*<joint name="rocker".*?</joint>', "", text, flags=re.S)
+    model = pin.buildModelFromXML(text)
+    model.gravity.linear[:] = [0.0, -9.81, 0.0]
+    end, pivot = pin.SE3(np.eye(3), COUPLER_END), pin.SE3(np.eye(3), ROCKER_PIVOT)
+    spring = Spring("rocker-spring", model.getJointId("coupler"), end, 0, pivot, STIFFNESS, DAMPING, REST_LENGTH)
+    return SpringChain(model, [spring])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return load_scene("stiff-fourbar")
+
+
+@pytest.fixture(scope="module")
+def reference(chain, scene) -> np.ndarray:
+    """(q, v, W) every 1 ms over 1 s: Radau at rtol = atol = 1e-12 (1.7 s of CPU)."""
+    return chain.solve(scene.q0, scene.v0, np.arange(0.0, DURATION + SAMPLE / 2, SAMPLE))
+
+
+def test_the_scene_is_the_stated_stiff_mechanism(chain, scene, reference):
+    """At the start, the generalized eigenvalue of the spring's stiffness k (J^T u)(J^T u)^T against the mass matrix
+    (pin.crba) is omega^2: omega = 378.99 rad/s (the other is 0: the slow mode); the effective mass along the line,
+    1 / (u^T J M^-1 J^T u) = 0.3481 kg, gives the damping ratio c / (2 sqrt(k m)) = 9.47. The linearized ODE's
+    eigenvalues (its Jacobian by central differences) are -7159 /s, -19.8 /s and -1.26 +- 141.2i /s at the start;
+    |lambda| over the reference's first second peaks at 8846 /s (t = 0.33 s): RK4's limit 2.785 / |lambda| is
+    0.389 ms at the start, 0.315 ms over the run. The spring stays within 0.4996-0.5123 m."""
+    (spring,) = scene.forces
+    assert isinstance(spring, SpringDamper) and not scene.constraints and scene.model.nv == 2
+    assert (spring.stiffness, spring.damping, spring.rest_length) == (STIFFNESS, DAMPING, REST_LENGTH)
+    q0, v0 = scene.q0, scene.v0
+    ((_, _, lever),) = chain.lines(q0, v0)
+    mass = pin.crba(chain.model, chain.data, q0)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    omega = np.sqrt(np.abs(scipy.linalg.eigh(STIFFNESS * np.outer(lever, lever), mass, eigvals_only=True)))
+    np.testing.assert_allclose(omega, [0.0, 378.99], atol=0.01)
+    line_mass = 1.0 / (lever @ np.linalg.solve(mass, lever))
+    assert DAMPING / (2 * np.sqrt(STIFFNESS * line_mass)) == pytest.approx(9.47, abs=0.01)
+    start = np.sort_complex(np.linalg.eigvals(chain.jacobian(0.0, reference[0])[:4, :4]))
+    np.testing.assert_allclose(start, [-7159.2, -19.78, -1.26 - 141.20j, -1.26 + 141.20j], atol=0.1)
+    largest = max(np.abs(np.linalg.eigvals(chain.jacobian(0.0, state)[:4, :4])).max() for state in reference[::10])
+    assert largest == pytest.approx(8846, abs=1) and RK4_BOUND / largest == pytest.approx(0.315e-3, abs=1e-6)
+
+
+def test_the_reference_closes_its_energy_balance_and_agrees_with_a_looser_run(chain, scene, reference):
+    """Kinetic + gravity + spring energy (8.816 J at the start) plus the damper's dissipated work W (4.349 J after
+    1 s) stays constant to 6.3e-12 J (bound 1e-10 J); Radau at rtol = atol = 1e-10 agrees in q to 2.5e-10 rad
+    (bound 1e-8 rad), so the 1e-12 run is good to well below 1e-8 rad."""
+    q, v, work = reference[:, :2], reference[:, 2:4], reference[:, 4]
+    energy = np.array([chain.energy(qi, vi) for qi, vi in zip(q, v, strict=True)])
+    assert energy[0] == pytest.approx(8.816, abs=1e-3) and work[-1] == pytest.approx(4.349, abs=1e-3)
+    assert np.abs(energy + work - energy[0]).max() < 1e-10
+    looser = chain.solve(scene.q0, scene.v0, np.arange(0.0, DURATION + SAMPLE / 2, SAMPLE), rtol=1e-10, atol=1e-10)
+    assert np.abs(looser[:, :2] - q).max() < 1e-8
+
+
+def test_rk4_below_the_stiff_limit_follows_the_reference(chain, scene, reference):
+    """pinstab's RK4 at dt = 0.05 ms (|h lambda| <= 0.44) is within 2.36e-6 rad of the Radau reference over 1 s
+    (bound 5e-6 rad; 4.8e-5 rad at 0.1 ms, 1.5e-3 rad at 0.2 ms: the crank turns 1.5 times). The registered
+    ``--reference exact``, read from the scene, is the same Radau motion to 1e-12 rad."""
+    run = simulate(scene, integrator="rk4", dt=5e-5, duration=DURATION, record_every=20)
+    assert len(run.t) == len(reference) and np.abs(run.t - np.arange(len(run.t)) * SAMPLE).max() < 1e-12
+    assert np.abs(run.q - reference[:, :2]).max() < 5e-6
+    registered = exact_reference(scene, scene.q0, scene.v0, run.t[:101])
+    np.testing.assert_allclose(registered.q, reference[:101, :2], rtol=0, atol=1e-12)
+    assert registered.default_of == ("crank", "coupler")
+
+
+@pytest.mark.parametrize(("dt", "diverged_by"), [(5e-4, 0.01), (4e-4, 0.1)])
+def test_rk4_above_the_stiff_limit_stops_as_diverged(scene, dt, diverged_by):
+    """RK4 at dt = 0.5 ms (|h lambda| = 3.6 at the start) leaves the finite states at t = 6 ms, at 0.4 ms (2.86,
+    just past 2.785) at t = 54 ms: simulate() raises DivergenceError (the CLI exits 3), no plausible wrong answer."""
+    with pytest.raises(DivergenceError) as caught:
+        simulate(scene, integrator="rk4", dt=dt, duration=DURATION)
+    assert caught.value.time < diverged_by
+
+
+@pytest.mark.xfail(
+    strict=True, reason="issue 37 item 3: a divergence does not yet name the stiff element and its frequency"
+)
+def test_rk4_above_the_stiff_limit_names_the_stiff_element(scene):
+    """Issue 37's acceptance: an explicit run refused for a stiff element names it (rocker-spring) and its
+    frequency; today the message is 'simulation diverged at t = 0.006 s (step 12): a non-finite state ...'."""
+    with pytest.raises(DivergenceError, match="rocker-spring"):
+        simulate(scene, integrator="rk4", dt=5e-4, duration=DURATION)
+
+
+def test_the_reference_refuses_what_it_does_not_model(chain, tmp_path):
+    """A closed chain (the four-bar's closure), another force kind (a joint torque) and a state with the spring's
+    points together (crank at acos(1/6), the coupler's end on the rocker's pivot) are refused, naming the closure's
+    scene, the element or the spring."""
+    with pytest.raises(PinstabError, match="'fourbar' has constraints"):
+        scene_chain(load_scene("fourbar"))
+    text = (ROBOTS / "stiff-fourbar.toml").read_text().replace('urdf = "urdf/', f'urdf = "{ROBOTS}/urdf/')
+    text += '\n[[forces]]\nname = "motor"\nkind = "joint-torque"\njoint = "crank"\ntorque = 0.2\n'
+    (tmp_path / "driven.toml").write_text(text)
+    with pytest.raises(PinstabError, match="spring-damper forces only; 'motor' is JointTorque"):
+        scene_chain(load_scene(tmp_path / "driven.toml"))
+    crank = np.arccos(1 / 6)
+    coupler = np.arctan2(-0.2 * np.sin(crank), 0.6 - 0.2 * np.cos(crank)) - crank
+    with pytest.raises(PinstabError, match="spring 'rocker-spring': its points coincide"):
+        chain.lines(np.array([crank, coupler]), np.zeros(2))
