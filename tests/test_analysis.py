@@ -111,7 +111,7 @@ def test_references_that_do_not_fit_are_refused(nfourbar_run, tmp_path):
     v[scene.model.joints[scene.model.getJointId("crank2_joint")].idx_v] += 1e-3
     with pytest.raises(PinstabError, match="joint 'crank2_joint' starts 0.001 off it"):
         exact_reference(scene, q, v, run.t)
-    assert set(EXACT_REFERENCES) == {"fourbar", "nfourbar"}
+    assert set(EXACT_REFERENCES) == {"fourbar", "nfourbar", "stiff-fourbar"}
 
 
 def test_comparison_is_saved_loaded_and_charted(nfourbar_run, tmp_path):
