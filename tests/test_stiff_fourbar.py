@@ -82,7 +82,7 @@ def test_the_reference_closes_its_energy_balance_and_agrees_with_a_looser_run(ch
     energy = np.array([chain.energy(qi, vi) for qi, vi in zip(q, v, strict=True)])
     assert energy[0] == pytest.approx(8.816, abs=1e-3) and work[-1] == pytest.approx(4.349, abs=1e-3)
     assert np.abs(energy + work - energy[0]).max() < 1e-10
-    looser = chain.solve(scene.q0, scene.v0, np.arange(0.0, DURATION + SAMPLE / 2, SAMPLE), rtol=1e-10, atol=1e-10)
+    looser = chain.solve(scene.q0, scene.v0, np.arange(0.0, DURATION + SAMPLE / 2, SAMPLE), tolerance=1e-10)
     assert np.abs(looser[:, :2] - q).max() < 1e-8
 
 

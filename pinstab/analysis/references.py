@@ -63,26 +63,36 @@ def exact_name(scene: Scene) -> str | None:
     return None
 
 
-def solve_exact(rate: Callable[[float, np.ndarray], np.ndarray], start: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """A small ODE y' = rate(t, y) from ``start`` at times[0], integrated by SciPy's DOP853 at rtol = atol =
-    :data:`EXACT_TOLERANCE`; returns y at ``times`` (n, len(start)).
+def solve_exact(
+    rate: Callable[[float, np.ndarray], np.ndarray],
+    start: np.ndarray,
+    times: np.ndarray,
+    method: str = "DOP853",
+    tolerance: float = EXACT_TOLERANCE,
+    jacobian: Callable[[float, np.ndarray], np.ndarray] | None = None,
+) -> np.ndarray:
+    """A small ODE y' = rate(t, y) from ``start`` at times[0], integrated by SciPy's ``method`` (DOP853, or an
+    implicit one such as Radau with its ``jacobian`` d rate / dy) at rtol = atol = ``tolerance`` (default
+    :data:`EXACT_TOLERANCE`); returns y at ``times`` (n, len(start)).
 
     Raises:
         PinstabError: the integration failed (its message).
     """
     if len(times) == 1 or times[-1] == times[0]:
         return np.tile(start, (len(times), 1))
+    options = {} if jacobian is None else {"jac": jacobian}
     solution = solve_ivp(
         rate,
         (times[0], times[-1]),
         start,
-        method="DOP853",
+        method=method,
         t_eval=times,
-        rtol=EXACT_TOLERANCE,
-        atol=EXACT_TOLERANCE,
+        rtol=tolerance,
+        atol=tolerance,
+        **options,
     )
     if not solution.success:
-        raise PinstabError(f"the exact reference's integration failed: {solution.message}")
+        raise PinstabError(f"the exact reference's {method} integration failed: {solution.message}")
     return solution.y.T
 
 

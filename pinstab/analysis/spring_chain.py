@@ -18,12 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.integrate import solve_ivp
 
 from ..errors import PinstabError
 from ..forces.spring_damper import SpringDamper
 from ..scene import Scene
-from .references import EXACT_REFERENCES, Reference
+from .references import EXACT_REFERENCES, Reference, solve_exact
 
 RADAU_TOLERANCE = 1e-12  # rtol = atol of the reference's Radau run
 JACOBIAN_STEP = 1e-7  # relative step of the Newton Jacobian's central differences (only Newton's speed rides on it)
@@ -151,33 +150,16 @@ class SpringChain:
         return float(kinetic + gravity + springs)
 
     def solve(
-        self,
-        q0: np.ndarray,
-        v0: np.ndarray,
-        times: np.ndarray,
-        rtol: float = RADAU_TOLERANCE,
-        atol: float = RADAU_TOLERANCE,
+        self, q0: np.ndarray, v0: np.ndarray, times: np.ndarray, tolerance: float = RADAU_TOLERANCE
     ) -> np.ndarray:
-        """The states (q, v, W) at ``times`` [s] from (q0, v0) at times[0], by SciPy's ``Radau`` (Jacobian:
-        :meth:`jacobian`); (len(times), 2 nv + 1).
+        """The states (q, v, W) at ``times`` [s] from (q0, v0) at times[0], by SciPy's ``Radau`` at rtol = atol =
+        ``tolerance`` (its Jacobian: :meth:`jacobian`); (len(times), 2 nv + 1).
 
         Raises:
             PinstabError: the integration failed (SciPy's message).
         """
         start = np.concatenate([q0, v0, [0.0]])
-        solution = solve_ivp(
-            self.rate,
-            (times[0], times[-1]),
-            start,
-            method="Radau",
-            t_eval=times,
-            rtol=rtol,
-            atol=atol,
-            jac=self.jacobian,
-        )
-        if not solution.success:
-            raise PinstabError(f"the spring-chain reference's Radau integration failed: {solution.message}")
-        return solution.y.T
+        return solve_exact(self.rate, start, times, method="Radau", tolerance=tolerance, jacobian=self.jacobian)
 
 
 def scene_chain(scene: Scene) -> SpringChain:
@@ -206,8 +188,4 @@ def spring_chain_motion(scene: Scene, q0: np.ndarray, v0: np.ndarray, times: np.
     """
     chain = scene_chain(scene)
     kind = f"SciPy Radau on the open chain's ODE (Pinocchio ABA), rtol = atol = {RADAU_TOLERANCE:g}"
-    if len(times) == 1 or times[-1] == times[0]:
-        q = np.tile(q0, (len(times), 1))
-    else:
-        q = chain.solve(q0, v0, times)[:, : scene.model.nq]
-    return Reference(kind, q, tuple(scene.model.names[1:]))
+    return Reference(kind, chain.solve(q0, v0, times)[:, : scene.model.nq], tuple(scene.model.names[1:]))
