@@ -56,7 +56,7 @@ def test_the_scene_is_the_stated_stiff_mechanism(chain, scene, reference):
     1 / (u^T J M^-1 J^T u) = 0.3481 kg, gives the damping ratio c / (2 sqrt(k m)) = 9.47. The linearized ODE's
     eigenvalues (its Jacobian by central differences) are -7159 /s, -19.8 /s and -1.26 +- 141.2i /s at the start;
     |lambda| over the reference's first second peaks at 8846 /s (t = 0.33 s): RK4's limit 2.785 / |lambda| is
-    0.389 ms at the start, 0.315 ms over the run. The spring stays within 0.4996-0.5123 m."""
+    0.389 ms at the start, 0.315 ms over the run. The spring stays within 0.4997-0.5123 m."""
     (spring,) = scene.forces
     assert isinstance(spring, SpringDamper) and not scene.constraints and scene.model.nv == 2
     assert (spring.stiffness, spring.damping, spring.rest_length) == (STIFFNESS, DAMPING, REST_LENGTH)
@@ -72,6 +72,8 @@ def test_the_scene_is_the_stated_stiff_mechanism(chain, scene, reference):
     np.testing.assert_allclose(start, [-7159.2, -19.78, -1.26 - 141.20j, -1.26 + 141.20j], atol=0.1)
     largest = max(np.abs(np.linalg.eigvals(chain.jacobian(0.0, state)[:4, :4])).max() for state in reference[::10])
     assert largest == pytest.approx(8846, abs=1) and RK4_BOUND / largest == pytest.approx(0.315e-3, abs=1e-6)
+    lengths = [chain.lines(state[:2], state[2:4])[0][0] for state in reference]
+    assert min(lengths) == pytest.approx(0.4997, abs=1e-4) and max(lengths) == pytest.approx(0.5123, abs=1e-4)
 
 
 def test_the_reference_closes_its_energy_balance_and_agrees_with_a_looser_run(chain, scene, reference):
