@@ -180,6 +180,22 @@ class StepTooLargeError(DivergenceError):
     for the motion: with a smaller one it goes on. The message names dt and a step that works."""
 
 
+class StiffStepError(StepTooLargeError):
+    """An explicit run diverged with a step above its scheme's stability limit of the stiffest mode of the
+    motion, a mode a force element owns (issue 37). The message names the element, its frequency and the
+    largest stable step, and suggests an implicit integrator.
+
+    Attributes:
+        element: the force element's name. frequency: its frequency on the mode [rad/s].
+        eigenvalue: the mode's eigenvalue lambda [1/s]. limit: the largest stable step [s].
+    """
+
+    element: str = ""
+    frequency: float = float("nan")
+    eigenvalue: complex = complex("nan")
+    limit: float = float("nan")
+
+
 def choices(valid: Iterable[str]) -> str:
     """Format a list of valid alternatives for an error message."""
     names = sorted(str(name) for name in valid)

@@ -16,10 +16,20 @@ import pytest
 import scipy.linalg
 
 from conftest import ROBOTS
-from pinstab import DivergenceError, PinstabError, load_scene, simulate
+from pinstab import (
+    DivergenceError,
+    PinstabError,
+    StepTooLargeError,
+    StiffStepError,
+    UnstableGainsWarning,
+    load_scene,
+    simulate,
+)
 from pinstab.analysis import exact_reference
 from pinstab.analysis.spring_chain import Spring, SpringChain, scene_chain
 from pinstab.forces.spring_damper import SpringDamper
+from pinstab.model import ConstrainedModel
+from pinstab.stiff_modes import stiffest_mode
 
 STIFFNESS, DAMPING, REST_LENGTH = 5e4, 2500.0, 0.5  # [N/m], [N s/m], [m]: the scene's rocker-spring
 COUPLER_END = ROCKER_PIVOT = np.array([0.6, 0.0, 0.0])  # [m] in the coupler's frame, in the world
@@ -109,14 +119,75 @@ def test_rk4_above_the_stiff_limit_stops_as_diverged(scene, dt, diverged_by):
     assert caught.value.time < diverged_by
 
 
-@pytest.mark.xfail(
-    strict=True, reason="issue 37 item 3: a divergence does not yet name the stiff element and its frequency"
-)
 def test_rk4_above_the_stiff_limit_names_the_stiff_element(scene):
-    """Issue 37's acceptance: an explicit run refused for a stiff element names it (rocker-spring) and its
-    frequency; today the message is 'simulation diverged at t = 0.006 s (step 12): a non-finite state ...'."""
-    with pytest.raises(DivergenceError, match="rocker-spring"):
+    """Issue 37's acceptance: an explicit run refused for a stiff element names it (rocker-spring), its frequency and
+    the largest stable step, keeping the partial trajectory. The frequency is the element's tangent stiffness against
+    M at the start: 375.3 rad/s, within 1.5 % of the 378.99 rad/s of its stiffness k alone (the 600 N preload's
+    geometric terms make the difference); the limit 0.38905 ms is 2.7853 / 7159.2 /s (the first test's start)."""
+    with pytest.raises(StiffStepError, match=r"dt = 0.5 ms is above rk4's stability limit 0.389 ms") as caught:
         simulate(scene, integrator="rk4", dt=5e-4, duration=DURATION)
+    error = caught.value
+    assert isinstance(error, DivergenceError)  # the CLI's exit 3
+    assert "force element 'rocker-spring' (|lambda| = 7.16e+03 /s, 375.3 rad/s" in str(error)
+    assert "use --dt 0.000389 or smaller, or an implicit integrator" in str(error)
+    assert error.element == "rocker-spring" and error.frequency == pytest.approx(378.99, rel=0.015)
+    assert error.limit == pytest.approx(RK4_BOUND / 7159.2, rel=5e-4) and 0.3891e-3 > error.limit > 0.3890e-3
+    assert error.diverged_at == pytest.approx(6e-3) and len(error.trajectory.t) == 13
+    assert np.isfinite(error.finite_trajectory.q).all() and error.finite_trajectory.t[-1] == pytest.approx(5.5e-3)
+
+
+def test_the_stiffest_mode_is_the_measured_linearization(chain, scene, reference):
+    """pinstab.stiff_modes' eigenvalue (the force elements' and RNEA's central differences against M) is the
+    Radau chain's own Jacobian's stiffest (SciPy helper, ABA by differences) to 1e-6 relative at every 10th sample of
+    the first second (-7159 /s at the start, up to |lambda| = 8846 /s); the spring owns it (share > 0.99); the step
+    limits are the closed forms' intervals on the real axis: RK4 2.7853 (the real root of 1 + x/2 + x^2/6 + x^3/24),
+    Euler 2, to 2e-4 (the mode's modal reduction against its eigenvalue)."""
+    model = ConstrainedModel(scene)
+    rk4_interval = -min(r.real for r in np.roots([1 / 24, 1 / 6, 1 / 2, 1]) if abs(r.imag) < 1e-12)
+    assert rk4_interval == pytest.approx(RK4_BOUND, abs=1e-3)
+    largest = 0.0
+    for time, state in zip(np.arange(0.0, DURATION, 10 * SAMPLE), reference[::10], strict=False):
+        mode = stiffest_mode(model, state[:2], state[2:4], time)
+        measured = np.linalg.eigvals(chain.jacobian(time, state)[:4, :4])
+        stiffest = measured[np.argmax(np.abs(measured))]
+        assert mode.eigenvalue == pytest.approx(stiffest, rel=1e-6) and mode.eigenvalue.imag == 0
+        assert mode.element == "rocker-spring" and mode.share > 0.99
+        assert mode.step_limit("rk4") * abs(mode.eigenvalue) == pytest.approx(rk4_interval, rel=2e-4)
+        assert mode.step_limit("euler") * abs(mode.eigenvalue) == pytest.approx(2.0, rel=2e-4)
+        largest = max(largest, abs(mode.eigenvalue))
+    assert largest == pytest.approx(8846, abs=1)
+    assert stiffest_mode(model, scene.q0, scene.v0, 0.0).eigenvalue.real == pytest.approx(-7159.2, abs=0.1)
+
+
+def test_a_divergence_of_the_gains_names_no_element(tmp_path):
+    """The four-bar with a soft spring added (50 N/m, undamped) and Baumgarte gains too stiff for the step (the
+    divergence contract's run: kp = 3.6e4, kd = 0, semi-implicit Euler at 10 ms) diverges at t = 3.11 s (drift),
+    unnamed: the stiffest mode of the motion on the closure's free coordinate (-3.71 /s) is not the spring's (its
+    share 42 %), and the gains' instability is no force element's."""
+    text = (ROBOTS / "fourbar.toml").read_text().replace('urdf = "urdf/', f'urdf = "{ROBOTS}/urdf/')
+    text += (
+        '\n[[forces]]\nname = "soft"\nkind = "spring-damper"\nframe_a = "crank"\noffset_a = [0.2, 0.0, 0.0]\n'
+        'frame_b = "world"\noffset_b = [0.0, 0.5, 0.0]\nstiffness = 50.0\ndamping = 0.0\nrest_length = 0.3\n'
+    )
+    (tmp_path / "soft.toml").write_text(text)
+    scene = load_scene(tmp_path / "soft.toml")
+    mode = stiffest_mode(ConstrainedModel(scene), scene.q0, scene.v0, 0.0)
+    assert mode.element is None and mode.share < 0.5 and abs(mode.eigenvalue) < 10  # -3.71 /s, the spring's 42 %
+    assert not mode.decays  # kp = -13.8 /s^2: the four-bar's motion there moves away, no step limit applies
+    with (
+        pytest.raises(DivergenceError, match="simulation diverged at") as caught,
+        pytest.warns(UnstableGainsWarning, match="kp = 36000"),
+    ):
+        simulate(
+            scene,
+            method="baumgarte",
+            kp=3.6e4,
+            kd=0.0,
+            integrator="semi-implicit-euler",
+            dt=1e-2,
+            duration=5.0,
+        )
+    assert not isinstance(caught.value, StepTooLargeError) and caught.value.diverged_at == pytest.approx(3.11)
 
 
 def test_the_reference_refuses_what_it_does_not_model(chain, tmp_path):

@@ -29,10 +29,13 @@ from ..errors import (
     ServoInfeasibleError,
     SolverError,
     StepTooLargeError,
+    StiffStepError,
     UnstableGainsWarning,
 )
 from ..projection import project_positions
+from ..stability import SCHEMES as STABILITY_SCHEMES
 from ..stabilizers import ProjectionOptions
+from ..stiff_modes import stiffest_mode
 from ..system import ConstrainedSystem
 from .compiled import CompiledSteps, steps_before
 from .dense import Segment
@@ -162,6 +165,7 @@ class StepLoop:
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.put(0, q, v)
+        self.start = (q, v)
         if self.limit_watch is not None:
             self.limit_watch.see(0, q)
         self.watch = PassageWatch(
@@ -409,6 +413,7 @@ class StepLoop:
         """Raise :class:`StepTooLargeError` when the step from (q, v) at grid step ``good`` failed (``cause``)
         only because dt is too large: the motion goes on with dt / 2 (or dt / 4) for :data:`PROBE_STEPS` steps
         of dt past that point."""
+        self.name_stiff_mode(good, failed, q, v)
         grid = self.grid
         t = grid.time(good)
         span = min(PROBE_STEPS * grid.dt, grid.duration - t)
@@ -421,6 +426,38 @@ class StepLoop:
                     f"--dt {suggested:g} or smaller (or --rtol, error control)"
                 )
                 raise self.diverged(good, failed, reason, q, v, StepTooLargeError)
+
+    def name_stiff_mode(
+        self, good: int, failed: tuple[int, np.ndarray, np.ndarray], q: np.ndarray, v: np.ndarray
+    ) -> None:
+        """Raise :class:`StiffStepError` when dt is above the scheme's stability limit of the stiffest mode of the
+        motion at the run's start (a state the motion had, unlike the blown-up last finite one), a mode a force
+        element owns (:func:`~pinstab.stiff_modes.stiffest_mode`); the run failed from (q, v) at grid step
+        ``good``."""
+        scheme, dt = self.stepper.name, self.grid.dt
+        if scheme not in STABILITY_SCHEMES:  # a scheme whose stability region pinstab does not know
+            return
+        mode = stiffest_mode(self.system.model, *self.start, 0.0)
+        if mode is None or mode.element is None or not mode.decays:
+            return
+        limit = mode.step_limit(scheme)
+        if dt <= limit:
+            return
+        scale = 10.0 ** (2 - math.floor(math.log10(limit)))
+        suggested = math.floor(limit * scale) / scale  # three significant digits, rounded down
+        reason = (
+            f"dt = {dt * 1e3:.3g} ms is above {scheme}'s stability limit {limit * 1e3:.3g} ms of the stiff mode of "
+            f"force element '{mode.element}' (|lambda| = {abs(mode.eigenvalue):.3g} /s, {mode.frequency:.4g} rad/s, "
+            f"at the start): use --dt {suggested:g} or smaller, or an implicit integrator (issue 37)"
+        )
+        error = self.diverged(good, failed, reason, q, v, StiffStepError)
+        error.element, error.frequency, error.eigenvalue, error.limit = (
+            mode.element,
+            mode.frequency,
+            mode.eigenvalue,
+            limit,
+        )
+        raise error
 
     def probe(self, q: np.ndarray, v: np.ndarray, t: float, span: float, step: float) -> bool:
         """Whether steps of ``step`` [s] from (q, v) at t [s] get through ``span`` [s] with every solve and
@@ -471,7 +508,7 @@ class StepLoop:
         grid = self.grid
         t, t_failed = grid.time(good), grid.time(failed[0])
         self.records.end_with((good, t, q, v), (failed[0], t_failed, *failed[1:]))
-        if error is StepTooLargeError:
+        if issubclass(error, StepTooLargeError):
             message = f"the run stopped at t = {t_failed:.6g} s (step {failed[0]}): {reason}"
         else:
             message = (

@@ -1,0 +1,136 @@
+"""The stiffest mode of a scene's linearized motion, and the force element it belongs to (issue 37).
+
+At a state (q, v) the motion ``M(q) dv/dt = tau(q, v) - h(q, v)`` linearizes to ``M x'' + D x' + K x = 0`` with
+``K = -d(tau - h)/dq`` (on the tangent space, by central differences through ``pin.integrate``) and
+``D = -d(tau - h)/dv``; each force element e contributes its own ``K_e``, ``D_e`` and the bias h (gravity, Coriolis)
+the rest. The eigenvalues lambda of ``[[0, I], [-M^-1 K, -M^-1 D]]`` are the linearization's; the one of largest
+modulus, with its position part x, is the stiffest mode. Its share of element e is
+``|x^H (K_e + lambda D_e) x|`` over the sum of those of every element and of the bias: the element whose share is
+above :data:`OWNER_SHARE` owns the mode. Its frequency is ``sqrt(x^T K_e x / x^T M x)`` [rad/s] (x real: an
+overdamped stiff mode's), and the mode's modal stiffness ``kp = x^T K x / x^T M x`` [1/s^2] and damping
+``kd = x^T D x / x^T M x`` [1/s] give the largest stable step of an explicit scheme by the one rule of
+:func:`pinstab.stability.largest_stable_step` (``x'' = -kp x - kd x'``, the deviation dynamics of one row).
+
+Limit: with constraints the matrices are restricted to the null space of the constraint Jacobian G at q
+(``N^T M N``, ``N^T K N``, ``N^T D N``, N an orthonormal basis): the motion's first-order part on the constraint
+manifold, without the constraint forces' own derivatives (their curvature times the multipliers).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg
+
+from .model import ConstrainedModel
+from .stability import largest_stable_step
+
+DIFFERENCE_STEP = 1e-6  # [rad or m, rad/s or m/s]: central differences of the forces, relative error ~1e-10
+OWNER_SHARE = 0.5  # an element owns the stiffest mode when its share of the mode's forces is above this
+
+
+class StiffMode(NamedTuple):
+    """The stiffest mode of the linearization at one state.
+
+    Attributes:
+        eigenvalue: its eigenvalue lambda [1/s] (complex for an oscillating mode).
+        element: the force element that owns it (its share above :data:`OWNER_SHARE`), or None.
+        share: that element's share of the mode's forces (the largest element's when none owns it).
+        frequency: the element's frequency on the mode, sqrt(x^T K_e x / x^T M x) [rad/s] (NaN without element).
+        stiffness: the mode's modal stiffness kp [1/s^2]. damping: its modal damping kd [1/s].
+    """
+
+    eigenvalue: complex
+    element: str | None
+    share: float
+    frequency: float
+    stiffness: float
+    damping: float
+
+    @property
+    def decays(self) -> bool:
+        """Whether the mode decays in the linearized motion (kp > 0, kd >= 0): only then is a step that makes it
+        grow a step too large (a mode that grows on its own grows with any step)."""
+        return self.stiffness > 0 and self.damping >= 0
+
+    def step_limit(self, scheme: str) -> float:
+        """The largest step [s] with which ``scheme`` keeps the mode ``x'' = -kp x - kd x'`` bounded."""
+        return largest_stable_step(np.array([[self.stiffness]]), np.array([[self.damping]]), np.array([True]), scheme)
+
+
+def _jacobians(
+    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, acceleration: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """d(force)/dq and d(force)/dv by central differences, stacked per force: the inertia and bias's
+    ``-(M a + h)`` at the fixed ``acceleration`` a first (Pinocchio's RNEA), then each element's ``tau_e``
+    (shapes (1 + elements, nv, nv)) [N/m or N m/rad, N s/m or N m s/rad]."""
+    nv, elements = model.nv, list(model.forces)
+
+    def forces(qi: np.ndarray, vi: np.ndarray) -> np.ndarray:
+        rows = [model.forces_at(qi, vi, t, [element]).copy() for element in elements]
+        inertia = pin.rnea(model.model, model.scratch, qi, vi, acceleration)
+        return np.array([-inertia, *rows])
+
+    by_q = np.zeros((1 + len(elements), nv, nv))
+    by_v = np.zeros_like(by_q)
+    for i in range(nv):
+        step = np.zeros(nv)
+        step[i] = DIFFERENCE_STEP
+        ahead, behind = pin.integrate(model.model, q, step), pin.integrate(model.model, q, -step)
+        by_q[:, :, i] = (forces(ahead, v) - forces(behind, v)) / (2 * DIFFERENCE_STEP)
+        by_v[:, :, i] = (forces(q, v + step) - forces(q, v - step)) / (2 * DIFFERENCE_STEP)
+    return by_q, by_v
+
+
+def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> StiffMode | None:
+    """The stiffest mode of the linearized motion at (q, v, t) [rad or m, rad/s or m/s, s] (module docstring), or
+    None when the state is not finite or the constraints leave no motion."""
+    if not (np.isfinite(q).all() and np.isfinite(v).all()):
+        return None
+    basis = np.eye(model.nv)
+    if model.constraints.rows:
+        jacobian = model.constraint_values(q, v, t).jacobian
+        basis = scipy.linalg.null_space(jacobian)
+        if basis.shape[1] == 0:
+            return None
+    full_mass = model.mass_matrix(q)
+    mass = basis.T @ full_mass @ basis
+    tau = model.forces_at(q, v, t)  # and h at (q, v) in kin
+    acceleration = basis @ np.linalg.solve(mass, basis.T @ (tau - model.kin.bias))
+    by_q, by_v = _jacobians(model, q, v, t, acceleration)
+    stiffness = -np.einsum("ia,fij,jb->fab", basis, by_q, basis)  # K_f on the free motion
+    damping = -np.einsum("ia,fij,jb->fab", basis, by_v, basis)
+    free = basis.shape[1]
+    companion = np.block(
+        [
+            [np.zeros((free, free)), np.eye(free)],
+            [-np.linalg.solve(mass, stiffness.sum(axis=0)), -np.linalg.solve(mass, damping.sum(axis=0))],
+        ]
+    )
+    eigenvalues, vectors = np.linalg.eig(companion)
+    index = int(np.argmax(np.abs(eigenvalues)))
+    eigenvalue, shape = complex(eigenvalues[index]), vectors[:free, index]
+    shape = shape / shape[np.argmax(np.abs(shape))]  # real for a real eigenvalue
+    contributions = np.abs(np.einsum("i,fij,j->f", shape.conj(), stiffness + eigenvalue * damping, shape))
+    shares = contributions / contributions.sum()
+    owner = 1 + int(np.argmax(shares[1:])) if len(shares) > 1 else None
+    real = shape.real
+    modal_mass = real @ mass @ real
+    element, frequency = None, float("nan")
+    if owner is not None and shares[owner] > OWNER_SHARE:
+        element = model.forces[owner - 1].name
+        at_rest = -np.einsum(
+            "ia,ij,jb->ab", basis, _jacobians(model, q, np.zeros_like(v), t, acceleration)[0][owner], basis
+        )
+        squares = scipy.linalg.eigh((at_rest + at_rest.T) / 2, mass, eigvals_only=True)
+        frequency = float(np.sqrt(max(squares.max(), 0.0)))
+    return StiffMode(
+        eigenvalue,
+        element,
+        float(shares[owner]) if owner is not None else 0.0,
+        frequency,
+        float(real @ stiffness.sum(axis=0) @ real / modal_mass),
+        float(real @ damping.sum(axis=0) @ real / modal_mass),
+    )
