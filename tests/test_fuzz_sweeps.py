@@ -49,6 +49,7 @@ DURATION = 0.01  # [s] each point's run, unless the grid sweeps it
 RUN_FAILURES = (
     "DivergenceError",
     "StepTooLargeError",
+    "StiffStepError",
     "ProjectionError",
     "ContactInfeasibleError",
     "GraspLostError",

@@ -129,11 +129,26 @@ def test_rk4_above_the_stiff_limit_names_the_stiff_element(scene):
     error = caught.value
     assert isinstance(error, DivergenceError)  # the CLI's exit 3
     assert "force element 'rocker-spring' (|lambda| = 7.16e+03 /s, 375.3 rad/s" in str(error)
-    assert "use --dt 0.000389 or smaller, or an implicit integrator" in str(error)
+    assert "at t = 0 s): use --dt 0.000389 or smaller (the limit changes with the state" in str(error)
+    assert str(error).endswith("or an implicit integrator (issue 37)")
     assert error.element == "rocker-spring" and error.frequency == pytest.approx(378.99, rel=0.015)
     assert error.limit == pytest.approx(RK4_BOUND / 7159.2, rel=5e-4) and 0.3891e-3 > error.limit > 0.3890e-3
     assert error.diverged_at == pytest.approx(6e-3) and len(error.trajectory.t) == 13
     assert np.isfinite(error.finite_trajectory.q).all() and error.finite_trajectory.t[-1] == pytest.approx(5.5e-3)
+
+
+def test_rk4_below_the_start_limit_names_the_mode_at_the_last_checked_state(chain, scene):
+    """RK4 at 0.38 ms is inside the start's limit (0.389 ms) but not the run's (0.315 ms): it leaves the finite states
+    at t = 0.2447 s (step 644). The start does not name the spring; the last checked state (t = 0.228 s, step 600,
+    already shaken: |v| = 129 rad/s) does, with limit 0.369 ms from its eigenvalue, the Radau chain's own Jacobian's
+    stiffest there (-7545 /s) to 1e-6 relative."""
+    with pytest.raises(StiffStepError, match=r"limit 0.369 ms .* at t = 0.228 s\): use --dt 0.000369") as caught:
+        simulate(scene, integrator="rk4", dt=3.8e-4, duration=DURATION)
+    error, run = caught.value, caught.value.finite_trajectory
+    assert error.diverged_at == pytest.approx(0.24472) and run.t[600] == pytest.approx(0.228)
+    measured = np.linalg.eigvals(chain.jacobian(0.228, np.r_[run.q[600], run.v[600], 0.0])[:4, :4])
+    assert error.eigenvalue == pytest.approx(measured[np.argmax(np.abs(measured))], rel=1e-6)
+    assert error.limit == pytest.approx(2.7853 / 7544.6, rel=5e-4)
 
 
 def test_the_stiffest_mode_is_the_measured_linearization(chain, scene, reference):

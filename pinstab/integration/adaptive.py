@@ -129,6 +129,10 @@ class AdaptiveLoop(StepLoop):
     def snapshot(self) -> tuple:
         return super().snapshot(), self.step_size, self.previous_error, self._start
 
+    def name_stiff_mode(self, *failure) -> None:
+        """Nothing: under error control the grid's dt is the output step, not a step of the scheme a stiff mode
+        limits (the controller shortens its steps instead)."""
+
     def restore(self, state: tuple) -> None:
         base, self.step_size, self.previous_error, self._start = state
         super().restore(base)

@@ -165,7 +165,7 @@ class StepLoop:
             MemoryError: an allocation failed; :attr:`records` end with the last checked state.
         """
         self.records.put(0, q, v)
-        self.start = (q, v)
+        self.start = (q, v)  # what a failure linearizes the motion at first (name_stiff_mode)
         if self.limit_watch is not None:
             self.limit_watch.see(0, q)
         self.watch = PassageWatch(
@@ -192,6 +192,7 @@ class StepLoop:
         chunk's end) from the checked state (q, v) at step k, then a check; returns the state and its step.
         On a failure the chunk is replayed step by step."""
         stop = min(k + CHECK_STEPS, self.grid.steps)
+        self.checked_state = (k, q, v)  # what a failure in the chunk linearizes the motion at (name_stiff_mode)
         counts = (self.correction_total, self.correction_max)
         saved = self.snapshot()
         try:
@@ -431,24 +432,30 @@ class StepLoop:
         self, good: int, failed: tuple[int, np.ndarray, np.ndarray], q: np.ndarray, v: np.ndarray
     ) -> None:
         """Raise :class:`StiffStepError` when dt is above the scheme's stability limit of the stiffest mode of the
-        motion at the run's start (a state the motion had, unlike the blown-up last finite one), a mode a force
-        element owns (:func:`~pinstab.stiff_modes.stiffest_mode`); the run failed from (q, v) at grid step
-        ``good``."""
+        motion, a decaying mode a force element owns (:func:`~pinstab.stiff_modes.stiffest_mode`), at the run's start
+        or else at the last checked state before the failure (states the motion had, unlike the blown-up last finite
+        one); the run failed from (q, v) at grid step ``good``."""
         scheme, dt = self.stepper.name, self.grid.dt
         if scheme not in STABILITY_SCHEMES:  # a scheme whose stability region pinstab does not know
             return
-        mode = stiffest_mode(self.system.model, *self.start, 0.0)
-        if mode is None or mode.element is None or not mode.decays:
-            return
-        limit = mode.step_limit(scheme)
-        if dt <= limit:
+        checked, checked_q, checked_v = self.checked_state
+        states = [(0.0, *self.start)] + ([(self.grid.time(checked), checked_q, checked_v)] if checked else [])
+        for t, at_q, at_v in states:
+            mode = stiffest_mode(self.system.model, at_q, at_v, t)
+            if mode is None or mode.element is None or not mode.decays:
+                continue
+            limit = mode.step_limit(scheme)
+            if dt > limit:
+                break
+        else:
             return
         scale = 10.0 ** (2 - math.floor(math.log10(limit)))
         suggested = math.floor(limit * scale) / scale  # three significant digits, rounded down
         reason = (
             f"dt = {dt * 1e3:.3g} ms is above {scheme}'s stability limit {limit * 1e3:.3g} ms of the stiff mode of "
             f"force element '{mode.element}' (|lambda| = {abs(mode.eigenvalue):.3g} /s, {mode.frequency:.4g} rad/s, "
-            f"at the start): use --dt {suggested:g} or smaller, or an implicit integrator (issue 37)"
+            f"at t = {t:.6g} s): use --dt {suggested:g} or smaller (the limit changes with the state: leave a margin), "
+            "or an implicit integrator (issue 37)"
         )
         error = self.diverged(good, failed, reason, q, v, StiffStepError)
         error.element, error.frequency, error.eigenvalue, error.limit = (
