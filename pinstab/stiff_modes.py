@@ -69,7 +69,8 @@ def _jacobians(
     nv, elements = model.nv, list(model.forces)
 
     def forces(qi: np.ndarray, vi: np.ndarray) -> np.ndarray:
-        rows = [model.forces_at(qi, vi, t, [element]).copy() for element in elements]
+        rows = [model.forces_at(qi, vi, t, elements[:1]).copy()] if elements else []  # one kinematics pass for all
+        rows += [model.applied_force(vi, t, [element]).copy() for element in elements[1:]]
         inertia = pin.rnea(model.model, model.scratch, qi, vi, acceleration)
         return np.array([-inertia, *rows])
 

@@ -193,15 +193,7 @@ def test_a_divergence_of_the_gains_names_no_element(tmp_path):
         pytest.raises(DivergenceError, match="simulation diverged at") as caught,
         pytest.warns(UnstableGainsWarning, match="kp = 36000"),
     ):
-        simulate(
-            scene,
-            method="baumgarte",
-            kp=3.6e4,
-            kd=0.0,
-            integrator="semi-implicit-euler",
-            dt=1e-2,
-            duration=5.0,
-        )
+        simulate(scene, method="baumgarte", kp=3.6e4, kd=0.0, integrator="semi-implicit-euler", dt=1e-2, duration=5.0)
     assert not isinstance(caught.value, StepTooLargeError) and caught.value.diverged_at == pytest.approx(3.11)
 
 

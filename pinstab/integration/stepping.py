@@ -436,7 +436,7 @@ class StepLoop:
         or else at the last checked state before the failure (states the motion had, unlike the blown-up last finite
         one); the run failed from (q, v) at grid step ``good``."""
         scheme, dt = self.stepper.name, self.grid.dt
-        if scheme not in STABILITY_SCHEMES:  # a scheme whose stability region pinstab does not know
+        if scheme not in STABILITY_SCHEMES or not self.system.model.forces:  # no known region, or no element
             return
         checked, checked_q, checked_v = self.checked_state
         states = [(0.0, *self.start)] + ([(self.grid.time(checked), checked_q, checked_v)] if checked else [])
