@@ -8,6 +8,7 @@ is checked to give the same motion.
 
 from __future__ import annotations
 
+import json
 import re
 
 import numpy as np
@@ -27,6 +28,7 @@ from pinstab import (
 )
 from pinstab.analysis import exact_reference
 from pinstab.analysis.spring_chain import Spring, SpringChain, scene_chain
+from pinstab.cli import main
 from pinstab.forces.spring_damper import SpringDamper
 from pinstab.model import ConstrainedModel
 from pinstab.stiff_modes import stiffest_mode
@@ -135,6 +137,19 @@ def test_rk4_above_the_stiff_limit_names_the_stiff_element(scene):
     assert error.limit == pytest.approx(RK4_BOUND / 7159.2, rel=5e-4) and 0.3891e-3 > error.limit > 0.3890e-3
     assert error.diverged_at == pytest.approx(6e-3) and len(error.trajectory.t) == 13
     assert np.isfinite(error.finite_trajectory.q).all() and error.finite_trajectory.t[-1] == pytest.approx(5.5e-3)
+
+
+def test_the_command_line_exits_3_naming_the_element(capsys):
+    """``pinstab run stiff-fourbar --dt 1e-3`` (the scene's RK4 at 1 ms, |h lambda| = 7.2): exit 3, the element on
+    stderr and in the JSON's ``stiff_mode`` (eigenvalue -7159 /s, limit 0.389 ms)."""
+    code = main(["run", "stiff-fourbar", "--dt", "1e-3", "--duration", "1", "--quiet", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 3 and "force element 'rocker-spring'" in err and "Traceback" not in err
+    mode = json.loads(out)["stiff_mode"]
+    assert mode["element"] == "rocker-spring" and mode["eigenvalue"] == [pytest.approx(-7159.2, abs=0.1), 0.0]
+    assert mode["step_limit"] == pytest.approx(0.38905e-3, rel=1e-4) and mode["frequency"] == pytest.approx(
+        375.3, abs=0.1
+    )
 
 
 def test_rk4_below_the_start_limit_names_the_mode_at_the_last_checked_state(chain, scene):

@@ -16,7 +16,14 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..errors import DivergenceError, MemoryBudgetError, PinstabError, ProjectionError, UnstableGainsWarning
+from ..errors import (
+    DivergenceError,
+    MemoryBudgetError,
+    PinstabError,
+    ProjectionError,
+    StiffStepError,
+    UnstableGainsWarning,
+)
 from ..memory import exhausted, memory_limit
 from .commands import COMMANDS, SIMULATING
 from .exits import (
@@ -187,13 +194,21 @@ def _divergence_payload(
 ) -> dict[str, Any]:
     """A stopped run's JSON: the run's figures up to the last finite state (NaN, null in the JSON, where they cannot
     be had: a servo's controls at a state whose dynamics are not finite, :data:`pinstab.series.NO_DYNAMICS`),
-    ``diverged_at`` [s] (the failed step's time) and ``last_finite_state`` (t [s], q, v)."""
+    ``diverged_at`` [s] (the failed step's time) and ``last_finite_state`` (t [s], q, v); for a stiff mode's
+    divergence ``stiff_mode``: its force element, frequency [rad/s], eigenvalue (re, im) [1/s], step limit [s]."""
     trajectory = getattr(exc, "finite_trajectory", None)
     payload: dict[str, Any] = {"scene": args.scene} if trajectory is None else run_summary(args, trajectory)
     payload.update(diverged=True, error=str(exc))
     if isinstance(exc, DivergenceError):
         payload["diverged_at"] = exc.diverged_at
         payload["last_finite_state"] = {"t": exc.time, "q": np.asarray(exc.q).tolist(), "v": np.asarray(exc.v).tolist()}
+    if isinstance(exc, StiffStepError):
+        payload["stiff_mode"] = {
+            "element": exc.element,
+            "frequency": exc.frequency,
+            "eigenvalue": [exc.eigenvalue.real, exc.eigenvalue.imag],
+            "step_limit": exc.limit,
+        }
     if saved is not None:
         payload["saved"] = saved
     return payload
