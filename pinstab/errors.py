@@ -183,7 +183,7 @@ class StepTooLargeError(DivergenceError):
 class StiffStepError(StepTooLargeError):
     """An explicit run diverged with a step above its scheme's stability limit of the stiffest mode of the
     motion, a mode a force element owns (issue 37). The message names the element, its frequency and the
-    largest stable step, and suggests an implicit integrator.
+    largest stable step.
 
     Attributes:
         element: the force element's name. frequency: its frequency on the mode [rad/s].

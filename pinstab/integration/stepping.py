@@ -454,8 +454,8 @@ class StepLoop:
         reason = (
             f"dt = {dt * 1e3:.3g} ms is above {scheme}'s stability limit {limit * 1e3:.3g} ms of the stiff mode of "
             f"force element '{mode.element}' (|lambda| = {abs(mode.eigenvalue):.3g} /s, {mode.frequency:.4g} rad/s, "
-            f"at t = {t:.6g} s): use --dt {suggested:g} or smaller (the limit changes with the state: leave a margin), "
-            "or an implicit integrator (issue 37)"
+            f"at t = {t:.6g} s): use --dt {suggested:g} or smaller (the limit changes with the state: leave a "
+            "margin); a larger step needs an implicit integrator, which pinstab does not have yet"
         )
         error = self.diverged(good, failed, reason, q, v, StiffStepError)
         error.element, error.frequency, error.eigenvalue, error.limit = (
