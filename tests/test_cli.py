@@ -117,11 +117,16 @@ def test_blow_up_inside_a_step_is_a_divergence(capsys, solver):
 
 
 def test_too_large_step_is_named_with_a_suggestion(capsys):
-    """allegro-sphere at dt = 8 ms loses its grasp only because of the step: dt / 2 holds, so the error names dt."""
+    """allegro-sphere at dt = 8 ms loses its grasp only because of the step: dt is above RK4's stability limit of the
+    grasp hold's stiff mode (|lambda| = 378 /s: 7.52 ms), so the error names the element and that step, with which the
+    run reaches its end."""
     code, out, err = run_cli(capsys, "run", "allegro-sphere", "--dt", "8e-3", "--duration", "0.5", "--json", "--quiet")
     assert code == 3, err
-    assert "dt = 0.008 s is too large" in err and "--dt 0.004" in err and "Traceback" not in err
-    assert json.loads(out)["diverged"] is True
+    assert "dt = 8 ms is above rk4's stability limit 7.52 ms of the stiff mode of force element 'hold'" in err
+    assert "--dt 0.00752" in err and "Traceback" not in err
+    assert json.loads(out)["diverged"] is True and json.loads(out)["stiff_mode"]["element"] == "hold"
+    code, _, err = run_cli(capsys, "run", "allegro-sphere", "--dt", "0.00752", "--duration", "0.5", "--quiet")
+    assert code == 0, err
 
 
 def test_a_signal_swallowed_by_a_destructor_is_delivered_again():
