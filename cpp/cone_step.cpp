@@ -177,7 +177,9 @@ StepResult cone_step(const pinocchio::Model& model, pinocchio::Data& data, const
     if (!result.settled) return result;
     result.solved = contact_solve();
     if (!result.solved) return result;
-    change = v_new - v_free;
+    const Eigen::VectorXd found = v_new - v_free;
+    if (found == change) break;  // the midpoint it was solved from (no impulse, or the guess's): its fixed point
+    change = found;
     next = v_free;
     result.settled = free_velocity(model, data, free_flyers, q, v, dt, factor, force, at_start, change, settings,
                                    next);

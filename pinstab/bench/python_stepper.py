@@ -71,6 +71,8 @@ class PythonStepper(ContactStepper):
             v_free = self._free_velocity(q, v, dt, force, factor, at_start, change, after)
             impulses = self._contact_solve(contacts, jacobian, mobility, v_free, dt, t)
             v_new = v_free + mobility @ impulses
+            if np.array_equal(v_new - v_free, change):  # solved from this midpoint (no impulse, or the guess's)
+                break
             change = v_new - v_free
             after = self._free_velocity(q, v, dt, force, factor, at_start, change, v_free)
             if np.max(np.abs(after - v_free)) <= IMPULSE_TOLERANCE * max(np.max(np.abs(v_free)), np.max(np.abs(v_new))):
