@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 
 import pinstab
-from pinstab.stability_map import plot_stability_map, stability_map
+from pinstab.analysis.stability_map import plot_stability_map, stability_map
 
 
 def main() -> None:

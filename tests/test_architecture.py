@@ -109,8 +109,8 @@ def test_a_stabilizer_registered_outside_the_package_reaches_simulate_the_cli_an
     import numpy as np
 
     from pinstab import load_scene, simulate
+    from pinstab.analysis.stability_map import stability_map
     from pinstab.cli import main
-    from pinstab.stability_map import stability_map
 
     # simulate(): the docs' block ran it; the same gains through baumgarte give the same motion
     ours = spring_method["traj"]

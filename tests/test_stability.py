@@ -9,7 +9,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from pinstab.stability import (
+from pinstab.stability.criterion import (
     POLYNOMIALS,
     SCHEMES,
     amplification,
@@ -137,8 +137,8 @@ def test_stability_map_agrees_with_the_criterion(tmp_path):
     and the PNG and JSON are written."""
 
     import pinstab
+    from pinstab.analysis.stability_map import plot_stability_map, stability_map
     from pinstab.cli import main
-    from pinstab.stability_map import plot_stability_map, stability_map
 
     result = stability_map(pinstab.load_scene("fourbar"), integrator="semi-implicit-euler", grid=8, steps=100)
     assert result.agreement >= 0.9
@@ -156,7 +156,7 @@ def test_stability_map_agrees_with_the_criterion(tmp_path):
 
 def test_stability_map_refuses_bad_ranges():
     import pinstab
-    from pinstab.stability_map import stability_map
+    from pinstab.analysis.stability_map import stability_map
 
     with pytest.raises(pinstab.PinstabError, match="dt range must be two increasing positive numbers"):
         stability_map(pinstab.load_scene("fourbar"), dt_range=(1e-2, 1e-3))
@@ -178,7 +178,7 @@ def test_stability_map_refuses_bad_ranges():
 )
 def test_stability_map_refuses_arguments_out_of_range(options, message):
     import pinstab
-    from pinstab.stability_map import stability_map
+    from pinstab.analysis.stability_map import stability_map
 
     with pytest.raises(pinstab.PinstabError, match=message):
         stability_map(pinstab.load_scene("fourbar"), **options)
@@ -188,8 +188,8 @@ def test_stability_map_raises_what_is_not_a_divergence():
     """A scene the runs cannot simulate is an error, not a map of "diverged" cells; a scene with velocity
     constraints only has no position error to repair."""
     import pinstab
+    from pinstab.analysis.stability_map import stability_map
     from pinstab.errors import ServoInfeasibleError
-    from pinstab.stability_map import stability_map
 
     with pytest.raises(ServoInfeasibleError, match="cannot be realized at t = 0 s"):
         stability_map(pinstab.load_scene("ring-on-rod"), grid=2, steps=2)

@@ -31,7 +31,7 @@ from pinstab.analysis.spring_chain import Spring, SpringChain, scene_chain
 from pinstab.cli import main
 from pinstab.forces.spring_damper import SpringDamper
 from pinstab.model import ConstrainedModel
-from pinstab.stiff_modes import stiffest_mode
+from pinstab.stability.modes import stiffest_mode
 
 STIFFNESS, DAMPING, REST_LENGTH = 5e4, 2500.0, 0.5  # [N/m], [N s/m], [m]: the scene's rocker-spring
 COUPLER_END = ROCKER_PIVOT = np.array([0.6, 0.0, 0.0])  # [m] in the coupler's frame, in the world
@@ -167,7 +167,7 @@ def test_rk4_below_the_start_limit_names_the_mode_at_the_last_checked_state(chai
 
 
 def test_the_stiffest_mode_is_the_measured_linearization(chain, scene, reference):
-    """pinstab.stiff_modes' eigenvalue (the force elements' and RNEA's central differences against M) is the
+    """pinstab.stability.modes' eigenvalue (the force elements' and RNEA's central differences against M) is the
     Radau chain's own Jacobian's stiffest (SciPy helper, ABA by differences) to 1e-6 relative at every 10th sample of
     the first second (-7159 /s at the start, up to |lambda| = 8846 /s); the spring owns it (share > 0.99); the step
     limits are the closed forms' intervals on the real axis: RK4 2.7853 (the real root of 1 + x/2 + x^2/6 + x^3/24),

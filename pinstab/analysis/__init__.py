@@ -2,7 +2,8 @@
 
 Each exact reference is a module here that registers itself in :data:`EXACT_REFERENCES` under its
 scene's name (``fourbar``: the crank-angle equation; ``nfourbar``: the parallelogram pendulum; ``stiff-fourbar``:
-SciPy's Radau on the open chain's ODE).
+SciPy's Radau on the open chain's ODE). Stability maps of runs over a (step, gain) grid, observed beside the
+criterion's prediction: :mod:`.stability_map` (not imported here).
 """
 
 from ..registry import load_extensions

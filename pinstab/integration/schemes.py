@@ -23,7 +23,7 @@ import numpy as np
 
 from ..kernels import RungeKutta, SchemeStep
 from ..registry import NoOptions, Registry
-from ..stability import register_polynomial
+from ..stability.criterion import register_polynomial
 from . import tableaus
 from .tableaus import Tableau
 

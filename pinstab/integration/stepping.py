@@ -33,9 +33,9 @@ from ..errors import (
     UnstableGainsWarning,
 )
 from ..projection import project_positions
-from ..stability import SCHEMES as STABILITY_SCHEMES
+from ..stability.criterion import SCHEMES as STABILITY_SCHEMES
+from ..stability.modes import stiffest_mode
 from ..stabilizers import ProjectionOptions
-from ..stiff_modes import stiffest_mode
 from ..system import ConstrainedSystem
 from .compiled import CompiledSteps, steps_before
 from .dense import Segment
@@ -432,9 +432,9 @@ class StepLoop:
         self, good: int, failed: tuple[int, np.ndarray, np.ndarray], q: np.ndarray, v: np.ndarray
     ) -> None:
         """Raise :class:`StiffStepError` when dt is above the scheme's stability limit of the stiffest mode of the
-        motion, a decaying mode a force element owns (:func:`~pinstab.stiff_modes.stiffest_mode`), at the run's start
-        or else at the last checked state before the failure (states the motion had, unlike the blown-up last finite
-        one); the run failed from (q, v) at grid step ``good``."""
+        motion, a decaying mode a force element owns (:func:`~pinstab.stability.modes.stiffest_mode`), at the run's
+        start or else at the last checked state before the failure (states the motion had, unlike the blown-up last
+        finite one); the run failed from (q, v) at grid step ``good``."""
         scheme, dt = self.stepper.name, self.grid.dt
         if scheme not in STABILITY_SCHEMES or not self.system.model.forces:  # no known region, or no element
             return

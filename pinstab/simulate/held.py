@@ -19,7 +19,7 @@ from ..integration import INTEGRATORS, AdaptiveLoop, ErrorControl, Integrator, S
 from ..model import ConstrainedModel
 from ..scene import Scene
 from ..solvers.impacts import REST_SPEED
-from ..stability import largest_stable_step
+from ..stability.criterion import largest_stable_step
 from ..system import ConstrainedSystem, build_system
 from ..trajectory import StreamedTrajectory, Trajectory
 from ..zero_dynamics import warn_runaway

@@ -14,7 +14,7 @@ from ..constraints import ConstraintValues
 from ..errors import PinstabError
 from ..paths.core import CoreTerm
 from ..registry import Registry
-from ..stability import deviation_radius
+from ..stability.criterion import deviation_radius
 
 if TYPE_CHECKING:
     from ..model import ConstrainedModel

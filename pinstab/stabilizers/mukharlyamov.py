@@ -14,7 +14,7 @@ Variants:
 
 Gains are either given (H = stiffness E, B = damping E) or automatic: placed from the step and the
 integrator so that every eigenvalue of the amplification matrix R(tau W) has modulus ``decay`` per
-step (:func:`pinstab.stability.place_gains`); in the inertial variant the automatic H and B are
+step (:func:`pinstab.stability.criterion.place_gains`); in the inertial variant the automatic H and B are
 those gains times Lambda at the start of the run. With heun and rk4 the term is evaluated at the
 first stage and held over the step (scheme ``held``): evaluated at every stage, gains of order
 1/tau^2 turn the stages' O(tau^2) excursions off the manifold into O(1) accelerations and RK4 loses
@@ -33,7 +33,7 @@ from .. import kernels
 from ..constraints import ConstraintValues
 from ..errors import PinstabError, choices
 from ..kinematics import Kinematics
-from ..stability import is_multistage, place_gains
+from ..stability.criterion import is_multistage, place_gains
 from .base import STABILIZERS, CoreTerm, DeviationGains, Stabilizer
 
 if TYPE_CHECKING:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ...analysis.stability_map import map_methods
 from ...files import check_output
 from ...integration import INTEGRATORS
 from ...solvers import SOLVERS
-from ...stability_map import map_methods
 from ..options import output_argument, scene_arguments, scene_options
 from .base import Command, register
 
@@ -48,8 +48,8 @@ def arguments(stability: argparse.ArgumentParser) -> None:
 
 
 def stability(args: argparse.Namespace) -> dict[str, Any]:
+    from ...analysis.stability_map import plot_stability_map, stability_map
     from ...scene import load_scene
-    from ...stability_map import plot_stability_map, stability_map
 
     if args.output:
         check_output(args.output, ".png", "chart")

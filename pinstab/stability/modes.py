@@ -9,7 +9,7 @@ modulus, with its position part x, is the stiffest mode. Its share of element e 
 above :data:`OWNER_SHARE` owns the mode. Its frequency is ``sqrt(x^T K_e x / x^T M x)`` [rad/s] (x real: an
 overdamped stiff mode's), and the mode's modal stiffness ``kp = x^T K x / x^T M x`` [1/s^2] and damping
 ``kd = x^T D x / x^T M x`` [1/s] give the largest stable step of an explicit scheme by the one rule of
-:func:`pinstab.stability.largest_stable_step` (``x'' = -kp x - kd x'``, the deviation dynamics of one row).
+:func:`pinstab.stability.criterion.largest_stable_step` (``x'' = -kp x - kd x'``, the deviation dynamics of one row).
 
 Limit: with constraints the matrices are restricted to the null space of the constraint Jacobian G at q
 (``N^T M N``, ``N^T K N``, ``N^T D N``, N an orthonormal basis): the motion's first-order part on the constraint
@@ -24,8 +24,8 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from .model import ConstrainedModel
-from .stability import largest_stable_step
+from ..model import ConstrainedModel
+from .criterion import largest_stable_step
 
 DIFFERENCE_STEP = 1e-6  # [rad or m, rad/s or m/s]: central differences of the forces, relative error ~1e-10
 OWNER_SHARE = 0.5  # an element owns the stiffest mode when its share of the mode's forces is above this

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import perturbed_start
-from .errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning, choices
-from .model import ConstrainedModel
-from .scene import Scene
-from .simulate import simulate
-from .stabilizers import STABILIZERS
-from .system import build_system
+from ..assembly import perturbed_start
+from ..errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning, choices
+from ..model import ConstrainedModel
+from ..scene import Scene
+from ..simulate import simulate
+from ..stabilizers import STABILIZERS
+from ..system import build_system
 
 
 def map_methods() -> list[str]:
@@ -226,7 +226,7 @@ def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0,
 
 def plot_stability_map(result: StabilityMap, path: str | Path) -> Path:
     """Write a PNG: observed classes per cell, the predicted boundary rho = 1 drawn over them."""
-    from .plotting import pyplot, save_figure
+    from ..plotting import pyplot, save_figure
 
     plt = pyplot()
     dts = np.array(sorted({c.dt for c in result.cells}))

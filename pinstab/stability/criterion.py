@@ -24,7 +24,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from .errors import PinstabError, choices
+from ..errors import PinstabError, choices
 
 # stability polynomials p(mu) of the Runge-Kutta schemes, R = p(tau W) (lowest degree first)
 POLYNOMIALS = {
@@ -284,7 +284,7 @@ def largest_stable_step(
 
     rho depends on tau^2 S and tau K only, so the same bound says which gains are stable at a given
     step: S (tau_max / tau)^2 and K (tau_max / tau) sit exactly on the boundary. The scan starts at
-    1e-9 s, or lower for gains so large that tau^2 |S| or tau |K| is not small there.
+    1e-9 s, or lower for gains so large that ``tau^2 |S|`` or ``tau |K|`` is not small there.
     """
 
     def radius(tau: float) -> float:
