@@ -45,10 +45,13 @@ class Integrator:
         stages: acceleration evaluations per step.
         nodes: the times of those evaluations as shares of the step (where a step must not put one next
             to a singular configuration: :mod:`pinstab.integration.passages`).
+        implicit: whether its stages solve for themselves (Newton iterations: stable on stiff modes where an explicit
+            scheme's step is limited by them).
     """
 
     name = ""
     stages = 1
+    implicit = False
     nodes: tuple[float, ...] | np.ndarray = (0.0,)
 
     def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
