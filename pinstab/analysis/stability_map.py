@@ -143,11 +143,7 @@ def stability_map(
             "so it needs holonomic constraints"
         )
     result = StabilityMap(scene.name, method, integrator, steps, perturbation)
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=grid * grid, desc=f"stability {scene.name}", unit="run", file=sys.stderr, mininterval=0.5)
+    bar = progress_bar(grid * grid, f"stability {scene.name}", progress)
     for dt in np.geomspace(*dt_range, grid):
         for kp in np.geomspace(*gain_range, grid):
             result.cells.append(
@@ -173,23 +169,45 @@ def _check_map_arguments(
         raise PinstabError(
             f"stability maps take methods with gains kp and kd: {choices(map_methods())}, not {method!r}"
         )
-    for label, (low, high) in (("dt range", dt_range), ("gain range", gain_range)):
+    check_grid({"dt range": dt_range, "gain range": gain_range}, grid, steps, 1)
+    if not (isinstance(perturbation, int | float) and 0.0 < perturbation <= MAX_PERTURBATION):
+        raise PinstabError(
+            f"perturbation must be a number above 0 and at most {MAX_PERTURBATION:g} [rad or m], got {perturbation!r} "
+            "(the size of the start's constraint violation; the default is 0.01)"
+        )
+
+
+def check_grid(ranges: dict[str, tuple[float, float]], grid: int, steps: int, panels: int) -> None:
+    """Refuse a map's ranges (each two increasing positive finite numbers), its ``grid`` (cells per axis, 2 to
+    :data:`MAX_GRID`) and ``steps`` (per run, at least 2) when out of range, or ``panels`` maps of them beyond
+    :data:`MAX_MAP_STEPS` steps in all, naming the argument.
+
+    Raises:
+        PinstabError: the first argument out of its range.
+    """
+    for label, (low, high) in ranges.items():
         if not (0 < low < high) or not math.isfinite(high):
             raise PinstabError(f"{label} must be two increasing positive numbers, got {low} {high}")
     for label, value, top in (("grid", grid, MAX_GRID), ("steps", steps, None)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 2 or (top is not None and value > top):
             bounds = "at least 2" if top is None else f"from 2 to {top}"
             raise PinstabError(f"{label} must be a whole number {bounds}, got {value!r}")
-    if grid * grid * steps > MAX_MAP_STEPS:
+    total = panels * grid * grid * steps
+    if total > MAX_MAP_STEPS:
+        maps = f"{panels} maps" if panels > 1 else "a map"
         raise PinstabError(
-            f"a map of {grid} x {grid} runs of {steps} steps is {grid * grid * steps:,} steps, more than the "
+            f"{maps} of {grid} x {grid} runs of {steps} steps is {total:,} steps, more than the "
             f"{MAX_MAP_STEPS:,} a map takes (the default 40 x 40 x 200 is 320,000); use a smaller grid or fewer steps"
         )
-    if not (isinstance(perturbation, int | float) and 0.0 < perturbation <= MAX_PERTURBATION):
-        raise PinstabError(
-            f"perturbation must be a number above 0 and at most {MAX_PERTURBATION:g} [rad or m], got {perturbation!r} "
-            "(the size of the start's constraint violation; the default is 0.01)"
-        )
+
+
+def progress_bar(total: int, description: str, enabled: bool) -> Any:
+    """A progress bar of ``total`` runs on stderr (tqdm), or None when not ``enabled``."""
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=description, unit="run", file=sys.stderr, mininterval=0.5)
 
 
 def _cell(model: ConstrainedModel, method, integrator, dt, kp, steps, q_off, v0, initial, solver) -> Cell:
@@ -243,7 +261,7 @@ def plot_stability_map(result: StabilityMap, path: str | Path) -> Path:
     from matplotlib.patches import Patch
 
     colors = ["#4c9a2a", "#e0b43c", "#c0392b"]
-    ax.pcolormesh(_edges(dts), _edges(gains), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat")
+    ax.pcolormesh(log_edges(dts), log_edges(gains), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat")
     ax.contour(dts, gains, radii, levels=[1.0], colors="black", linewidths=2.0)
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -261,8 +279,8 @@ def plot_stability_map(result: StabilityMap, path: str | Path) -> Path:
     return save_figure(fig, path)
 
 
-def _edges(centres: np.ndarray) -> np.ndarray:
-    """Cell edges for log-spaced centres."""
+def log_edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges for log-spaced centres (of a map's axis)."""
     logs = np.log(centres)
     middle = (logs[1:] + logs[:-1]) / 2
     return np.exp(np.concatenate([[2 * logs[0] - middle[0]], middle, [2 * logs[-1] - middle[-1]]]))

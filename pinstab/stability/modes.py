@@ -85,9 +85,40 @@ def _jacobians(
     return by_q, by_v
 
 
-def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> StiffMode | None:
-    """The stiffest mode of the linearized motion at (q, v, t) [rad or m, rad/s or m/s, s] (module docstring), or
-    None when the state is not finite or the constraints leave no motion."""
+class Linearization(NamedTuple):
+    """The linearized motion ``M x'' + D x' + K x = 0`` at one state, on the free coordinates x (module docstring).
+
+    Attributes:
+        basis: N, the free motion's orthonormal basis (nv x f; the identity without constraints).
+        mass: M = N^T M N [kg, kg m^2]. stiffness: K_f per force, the inertia and bias first, then each element
+            (1 + elements, f, f) [N/m or N m/rad]. damping: D_f alike [N s/m or N m s/rad].
+        acceleration: the acceleration the inertia's terms are linearized at (nv,) [rad/s^2 or m/s^2].
+    """
+
+    basis: np.ndarray
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    acceleration: np.ndarray
+
+    def companion(self) -> np.ndarray:
+        """``[[0, I], [-M^-1 K, -M^-1 D]]`` (2f x 2f) [1/s^2, 1/s], K and D summed over the forces: its eigenvalues
+        are the linearization's [1/s]."""
+        free = self.mass.shape[0]
+        return np.block(
+            [
+                [np.zeros((free, free)), np.eye(free)],
+                [
+                    -np.linalg.solve(self.mass, self.stiffness.sum(axis=0)),
+                    -np.linalg.solve(self.mass, self.damping.sum(axis=0)),
+                ],
+            ]
+        )
+
+
+def linearize(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Linearization | None:
+    """The linearized motion at (q, v, t) [rad or m, rad/s or m/s, s], or None when the state is not finite or the
+    constraints leave no motion."""
     if not (np.isfinite(q).all() and np.isfinite(v).all()):
         return None
     basis = np.eye(model.nv)
@@ -103,14 +134,18 @@ def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: floa
     by_q, by_v = _jacobians(model, q, v, t, acceleration)
     stiffness = -np.einsum("ia,fij,jb->fab", basis, by_q, basis)  # K_f on the free motion
     damping = -np.einsum("ia,fij,jb->fab", basis, by_v, basis)
+    return Linearization(basis, mass, stiffness, damping, acceleration)
+
+
+def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> StiffMode | None:
+    """The stiffest mode of the linearized motion at (q, v, t) [rad or m, rad/s or m/s, s] (module docstring), or
+    None when the state is not finite or the constraints leave no motion."""
+    linear = linearize(model, q, v, t)
+    if linear is None:
+        return None
+    basis, mass, stiffness, damping, acceleration = linear
     free = basis.shape[1]
-    companion = np.block(
-        [
-            [np.zeros((free, free)), np.eye(free)],
-            [-np.linalg.solve(mass, stiffness.sum(axis=0)), -np.linalg.solve(mass, damping.sum(axis=0))],
-        ]
-    )
-    eigenvalues, vectors = np.linalg.eig(companion)
+    eigenvalues, vectors = np.linalg.eig(linear.companion())
     index = int(np.argmax(np.abs(eigenvalues)))
     eigenvalue, shape = complex(eigenvalues[index]), vectors[:free, index]
     shape = shape / shape[np.argmax(np.abs(shape))]  # real for a real eigenvalue
