@@ -41,13 +41,12 @@ from ..model import ConstrainedModel, kinetic_energy
 from ..scene import Scene, scene_from_dict
 from ..simulate import simulate
 from ..stability.modes import StiffMode, linearize, stiffest_mode
-from ..stability.regions import region_schemes, step_growth
+from ..stability.regions import region_limit, region_schemes, step_growth
 from ..validation import read_scene_file
 from .stability_map import CONVERGED_RATIO, DIVERGED_RATIO, check_grid, log_edges, progress_bar
 
 SCALES = ("element", "stiffness")  # what the factor multiplies: stiffness and damping together, or the stiffness
 CLASSES = ("dissipative", "bounded", "diverged")
-LIMIT_SCAN = (1e-9, 1e3)  # [s]: the steps the limit of a scheme on the stiffest mode is searched between
 
 
 def map_integrators() -> list[str]:
@@ -59,6 +58,28 @@ def map_integrators() -> list[str]:
 def stiff_elements(scene: Scene) -> list[str]:
     """The scene's force elements a map can scale: those with a stiffness."""
     return [element.name for element in scene.forces if hasattr(element, "stiffness")]
+
+
+def default_element(scene: Scene) -> str | None:
+    """The element a map scales when none is named: on a scene without constraints (no gains to sweep) with force
+    elements that have a stiffness, the one that owns the stiffest mode at the start (the only one, when one); None
+    on a scene with constraints or without such elements (its map is the stabilizer's gains).
+
+    Raises:
+        PinstabError: several such elements and none owns the stiffest mode (naming them).
+    """
+    elements = stiff_elements(scene)
+    if scene.constraints or not elements:
+        return None
+    if len(elements) == 1:
+        return elements[0]
+    mode = stiffest_mode(ConstrainedModel(scene), scene.q0, scene.v0, 0.0)
+    if mode is not None and mode.element in elements:
+        return mode.element
+    raise PinstabError(
+        f"scene {scene.name} has no constraints (no gains to map) and no force element owns its stiffest mode: "
+        f"name the element to map with --element, one of {choices(elements)}"
+    )
 
 
 @dataclass
@@ -110,6 +131,25 @@ class ElementMap:
         agrees = [(c.in_region if region else c.predicted_stable) == (c.observed != "diverged") for c in own]
         return sum(agrees) / len(agrees) if agrees else math.nan
 
+    def criterion(self) -> str:
+        """The stiff mode that limits an explicit step, in words: its element, frequency and eigenvalue at the base
+        scale, and each scheme's largest step inside its region for it."""
+        mode = self.mode
+        if mode is None or not mode.decays:
+            return f"scene {self.scene}: no decaying stiffest mode at the start (no step limit from it)"
+        owner = f"belongs to force element {mode.element!r}" if mode.element else "belongs to no single force element"
+        limits = ", ".join(
+            f"{name} {1e3 * limit:.3g} ms" if math.isfinite(limit) else f"{name} none (A-stable)"
+            for name, limit in self.limits.items()
+        )
+        value = mode.eigenvalue
+        eigenvalue = f"{value.real:.4g}" if value.imag == 0 else f"{value.real:.4g} {value.imag:+.4g}i"
+        frequency = f"{mode.frequency:.4g} rad/s, " if math.isfinite(mode.frequency) else ""
+        return (
+            f"the stiffest mode at the base scale {owner} ({frequency}lambda = {eigenvalue} /s); the largest step "
+            f"that keeps it in each scheme's region: {limits}"
+        )
+
     def to_json(self, cells: bool = True) -> dict[str, Any]:
         """The map as JSON: per scheme its agreement and counts; the stiffest mode and its limits; the cells."""
         schemes = {}
@@ -131,6 +171,7 @@ class ElementMap:
             }
         payload = {
             "scene": self.scene,
+            "criterion": self.criterion(),
             "kind": "element",
             "element": self.element,
             "scale": self.scale,
@@ -284,21 +325,10 @@ def _observe(scene: Scene, integrator: str, dt: float, steps: int, energy_scale:
 
 def _mode_limit(mode: StiffMode | None, scheme: str) -> float:
     """The largest step [s] with which ``scheme`` keeps the stiffest mode ``x'' = -kp x - kd x'`` inside its region
-    (inf when no step up to 1e3 s leaves it: an A-stable scheme's; NaN without a decaying mode)."""
+    (inf for an A-stable scheme; NaN without a decaying mode)."""
     if mode is None or not mode.decays:
         return math.nan
-    kp, kd = np.array([[mode.stiffness]]), np.array([[mode.damping]])
-    steps = np.geomspace(*LIMIT_SCAN, 400)
-    outside = [i for i, h in enumerate(steps) if step_growth(scheme, float(h), kp, kd).excess > 1.0]
-    if not outside:
-        return math.inf
-    if outside[0] == 0:
-        return 0.0
-    low, high = float(steps[outside[0] - 1]), float(steps[outside[0]])
-    for _ in range(60):
-        middle = math.sqrt(low * high)
-        low, high = (middle, high) if step_growth(scheme, middle, kp, kd).excess <= 1.0 else (low, middle)
-    return low
+    return region_limit(scheme, np.array([[mode.stiffness]]), np.array([[mode.damping]]))
 
 
 def plot_element_map(result: ElementMap, path: str | Path) -> Path:

@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import PinstabError, choices
 
 SEMI_IMPLICIT_EULER = "semi-implicit-euler"
+LIMIT_SCAN = (1e-9, 1e3)  # [s]: the steps :func:`region_limit` searches between
 
 
 class Tableau(NamedTuple):
@@ -140,3 +141,21 @@ def step_growth(scheme: str, step: float, stiffness: np.ndarray, damping: np.nda
         moduli = np.abs(np.linalg.eigvals(matrix))
         return StepGrowth(eigenvalues, moduli, np.full(len(moduli), exact.max()))
     return StepGrowth(eigenvalues, np.abs(stability_function(scheme, step * eigenvalues)), exact)
+
+
+def region_limit(scheme: str, stiffness: np.ndarray, damping: np.ndarray) -> float:
+    """The largest step [s] with which ``scheme`` keeps every mode of ``x'' = -stiffness x - damping x'`` inside its
+    region (:attr:`StepGrowth.excess` <= 1): the first step of a log scan over :data:`LIMIT_SCAN` that leaves it, then
+    bisection; inf when no step of the scan leaves it (an A-stable scheme on a motion that decays), 0 when the
+    smallest does."""
+    steps = np.geomspace(*LIMIT_SCAN, 400)
+    outside = [i for i, h in enumerate(steps) if step_growth(scheme, float(h), stiffness, damping).excess > 1.0]
+    if not outside:
+        return math.inf
+    if outside[0] == 0:
+        return 0.0
+    low, high = float(steps[outside[0] - 1]), float(steps[outside[0]])
+    for _ in range(60):
+        middle = math.sqrt(low * high)
+        low, high = (middle, high) if step_growth(scheme, middle, stiffness, damping).excess <= 1.0 else (low, middle)
+    return low
