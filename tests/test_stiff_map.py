@@ -145,7 +145,9 @@ def test_implicit_euler_is_predicted_stable_on_the_whole_stiff_map(implicit_sche
 @pytest.fixture(scope="module")
 def small_map() -> ElementMap:
     """A 10 x 10 map of stiff-fourbar (100-step runs) for Euler, Heun and RK4."""
-    return element_map(pinstab.load_scene("stiff-fourbar"), "rocker-spring", ["euler", "heun", "rk4"], grid=10, steps=100)
+    return element_map(
+        pinstab.load_scene("stiff-fourbar"), "rocker-spring", ["euler", "heun", "rk4"], grid=10, steps=100
+    )
 
 
 def test_element_map_agrees_with_the_prediction(small_map, tmp_path):

@@ -353,7 +353,13 @@ def plot_element_map(result: ElementMap, path: str | Path) -> Path:
             classes[i, j] = CLASSES.index(c.observed)
             growth[i, j] = c.steps * math.log10(max(c.excess, 1e-300)) if math.isfinite(c.excess) else 1e300
         ax.pcolormesh(
-            log_edges(dts), log_edges(factors), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat"
+            log_edges(dts),
+            log_edges(factors),
+            classes,
+            cmap=ListedColormap(colors),
+            vmin=-0.5,
+            vmax=2.5,
+            shading="flat",
         )
         if growth.min() < math.log10(DIVERGED_RATIO) < growth.max():
             ax.contour(dts, factors, growth, levels=[math.log10(DIVERGED_RATIO)], colors="black", linewidths=2.0)

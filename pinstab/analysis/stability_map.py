@@ -261,7 +261,9 @@ def plot_stability_map(result: StabilityMap, path: str | Path) -> Path:
     from matplotlib.patches import Patch
 
     colors = ["#4c9a2a", "#e0b43c", "#c0392b"]
-    ax.pcolormesh(log_edges(dts), log_edges(gains), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat")
+    ax.pcolormesh(
+        log_edges(dts), log_edges(gains), classes, cmap=ListedColormap(colors), vmin=-0.5, vmax=2.5, shading="flat"
+    )
     ax.contour(dts, gains, radii, levels=[1.0], colors="black", linewidths=2.0)
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -72,7 +72,9 @@ def _options(args: argparse.Namespace, defaults: dict[str, Any], other: dict[str
     if given:
         flags = ", ".join("--" + name.replace("_", "-") for name in given)
         raise PinstabError(f"{flags}: not an option of {kind} map (see pinstab stability --help)")
-    return {name: value if (value := getattr(args, name)) is not None else default for name, default in defaults.items()}
+    return {
+        name: value if (value := getattr(args, name)) is not None else default for name, default in defaults.items()
+    }
 
 
 def stability(args: argparse.Namespace) -> dict[str, Any]:
