@@ -70,8 +70,9 @@ register_tableau(
 
 
 def region_schemes() -> list[str]:
-    """The schemes whose growth per step is known: the registered tableaus and semi-implicit Euler."""
-    return [*TABLEAUS, SEMI_IMPLICIT_EULER]
+    """The schemes whose growth per step is known: the explicit tableaus, semi-implicit Euler, the implicit ones."""
+    explicit = [name for name, tableau in TABLEAUS.items() if tableau.explicit]
+    return [*explicit, SEMI_IMPLICIT_EULER, *(name for name in TABLEAUS if name not in explicit)]
 
 
 def _tableau(scheme: str) -> Tableau:

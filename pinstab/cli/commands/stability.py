@@ -102,6 +102,15 @@ def stability(args: argparse.Namespace) -> dict[str, Any]:
     if args.output:
         plot_element_map(result, args.output)
     payload = result.to_json(cells=args.json)
+    if not args.json:  # a line per scheme
+        payload = {k: v for k, v in payload.items() if k not in ("schemes", "stiffest_mode")}
+        for name, figures in result.to_json(cells=False)["schemes"].items():
+            limit = figures["limit_dt"]
+            payload[name] = (
+                f"agree on {100 * figures['agreement']:.1f} % (|R| <= 1: {100 * figures['region_agreement']:.1f} %), "
+                f"step limit {'none' if limit is None else f'{1e3 * limit:.3g} ms'}; "
+                + ", ".join(f"{figures[label]} {label}" for label in ("dissipative", "bounded", "diverged"))
+            )
     if args.output:
         payload["map"] = args.output
     return payload
