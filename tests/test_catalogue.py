@@ -517,6 +517,17 @@ CASES = [
     ),
     Case("map of an unrealizable servo", "stability ring-on-rod", "ServoInfeasibleError", "cannot be realized"),
     Case("map of cones on dense", "stability box-push --grid 2 --steps 2", "SolverError", "does not take cone rows"),
+    Case("element map unknown", "stability stiff-fourbar --element crank", "PinstabError", "elements with one"),
+    Case("element map factors", "stability stiff-fourbar --factor-range 1 0", "PinstabError", "factor range must be"),
+    Case(
+        "element map gains", "stability stiff-fourbar --gain-range 1 10", "PinstabError", "not an option of an element"
+    ),
+    Case("gains map factors", "stability fourbar --factor-range 1 10", "PinstabError", "not an option of a gains map"),
+    Case("gains map two schemes", "stability fourbar --integrator rk4 --integrator heun", "PinstabError", "takes one"),
+    Case(
+        "element map dopri5", "stability stiff-fourbar --integrator dopri5", "PinstabError", "known stability function"
+    ),
+    Case("element map too much work", "stability stiff-fourbar --steps 10000", "PinstabError", "4 maps of 40 x 40"),
     # -- trajectory error (--reference, --error-of)
     Case("reference for a scene without one", "run fivebar --reference exact", "PinstabError", "scenes with one"),
     Case("reference missing", "run fourbar --reference {tmp}/none.npz", "PinstabError", "does not exist"),

@@ -18,8 +18,8 @@ Predicted from the linearization at the start: one step multiplies each mode by 
 (:func:`pinstab.stability.regions.step_growth`; beyond the motion's own growth for a mode that grows on its own). The
 scheme's region, ``|R| <= 1`` on every mode, is the asymptotic prediction; a run of N steps diverges when a mode grows
 by more than the diverged ratio over them: ``excess^N > DIVERGED_RATIO``. That is the prediction compared with the
-runs (``agreement``): a lightly damped mode (``stiff-fourbar``'s spring swinging sideways under its initial tension,
--1.3 +- 141i /s) is outside explicit Euler's region at any step, yet grows by less than 1.04 per step below 2 ms and
+runs (``agreement``): a lightly damped mode (``stiff-fourbar``'s motion across its spring, stiffened by the spring's
+initial tension, -1.3 +- 141i /s) is outside explicit Euler's region at any step, yet grows by less than 1.04 per step below 2 ms and
 has died out (the tension relaxes at k / c = 20 /s) long before it could show; the region's own agreement is
 reported beside it (``region_agreement``). The start, not states along a run: near a stiff mode's limit the runs
 last N x 2.8 / |lambda| (0.08 s at the base stiffness for RK4, 200 steps), over which the eigenvalues move little.
@@ -90,6 +90,7 @@ class ElementCell:
         integrator: the scheme. dt: step [s]. factor: the element's scale [-].
         excess: the largest growth per step of a mode beyond the motion's own, from the start's linearization [-].
         observed: dissipative | bounded | diverged. energy_ratio: the energy gained, as a speed ratio (inf: blown up).
+        steps: the run's steps.
     """
 
     integrator: str
