@@ -19,10 +19,11 @@ Predicted from the linearization at the start: one step multiplies each mode by 
 scheme's region, ``|R| <= 1`` on every mode, is the asymptotic prediction; a run of N steps diverges when a mode grows
 by more than the diverged ratio over them: ``excess^N > DIVERGED_RATIO``. That is the prediction compared with the
 runs (``agreement``): a lightly damped mode (``stiff-fourbar``'s motion across its spring, stiffened by the spring's
-initial tension, -1.3 +- 141i /s) is outside explicit Euler's region at any step, yet grows by less than 1.04 per step below 2 ms and
-has died out (the tension relaxes at k / c = 20 /s) long before it could show; the region's own agreement is
-reported beside it (``region_agreement``). The start, not states along a run: near a stiff mode's limit the runs
-last N x 2.8 / |lambda| (0.08 s at the base stiffness for RK4, 200 steps), over which the eigenvalues move little.
+initial tension, -1.3 +- 141i /s) is outside explicit Euler's region at any step, yet grows by less than 1.04 per
+step below 2 ms and has died out (the tension relaxes at k / c = 20 /s) long before it could show; the region's own
+agreement is reported beside it (``region_agreement``). The start, not states along a run: near a stiff mode's limit
+the runs last N x 2.8 / |lambda| (0.08 s at the base stiffness for RK4, 200 steps), over which the eigenvalues move
+little.
 """
 
 from __future__ import annotations
