@@ -3,7 +3,8 @@
 Each exact reference is a module here that registers itself in :data:`EXACT_REFERENCES` under its
 scene's name (``fourbar``: the crank-angle equation; ``nfourbar``: the parallelogram pendulum; ``stiff-fourbar``:
 SciPy's Radau on the open chain's ODE). Stability maps of runs over a (step, gain) grid, observed beside the
-criterion's prediction: :mod:`.stability_map` (not imported here).
+criterion's prediction: :mod:`.stability_map`; over a (step, element scale) grid, one panel per integrator, beside
+the prediction from the linearized motion's eigenvalues: :mod:`.element_map` (neither imported here).
 """
 
 from ..registry import load_extensions
