@@ -229,17 +229,17 @@ class StepLoop:
             f"{stiff_reason(self.stepper.name, self.grid.dt, mode, limit, t)}. Over the last {CHECK_STEPS} steps' "
             f"checks the mode grows {growth:.3g}-fold: the steps ahead would give a wrong motion or none"
         )
-        raise self.stiff_error(good, checked, reason, q, v, mode, limit)
+        raise self.stiff_error(mode, limit, good, checked, reason, q, v)
 
     def stiff_error(
         self,
+        mode: StiffMode,
+        limit: float,
         good: int,
         failed: tuple[int, np.ndarray, np.ndarray],
         reason: str,
         q: np.ndarray,
         v: np.ndarray,
-        mode: StiffMode,
-        limit: float,
     ) -> StiffStepError:
         """The :class:`StiffStepError` of a run stopped for ``mode`` (its step ``limit`` [s]); see :meth:`diverged`."""
         error = self.diverged(good, failed, reason, q, v, StiffStepError)
@@ -490,7 +490,7 @@ class StepLoop:
                 break
         else:
             return
-        raise self.stiff_error(good, failed, stiff_reason(scheme, dt, mode, limit, t), q, v, mode, limit)
+        raise self.stiff_error(mode, limit, good, failed, stiff_reason(scheme, dt, mode, limit, t), q, v)
 
     def probe(self, q: np.ndarray, v: np.ndarray, t: float, span: float, step: float) -> bool:
         """Whether steps of ``step`` [s] from (q, v) at t [s] get through ``span`` [s] with every solve and
