@@ -224,10 +224,11 @@ class StepLoop:
         seen = self.stiff_watch.see(checked[1], checked[2], t)
         if seen is None:
             return
-        mode, limit, growth = seen
+        mode, limit, radius, growth = seen
         reason = (
-            f"{stiff_reason(self.stepper.name, self.grid.dt, mode, limit, t)}. Over the last {CHECK_STEPS} steps' "
-            f"checks the mode grows {growth:.3g}-fold: the steps ahead would give a wrong motion or none"
+            f"{stiff_reason(self.stepper.name, self.grid.dt, mode, limit, t)}. The mode grows by |R| = {radius:.4g} "
+            f"per step there, {growth:.3g}-fold over the crossing ({CHECK_STEPS} steps a check): the steps ahead would "
+            "give a wrong motion or none"
         )
         raise self.stiff_error(mode, limit, good, checked, reason, q, v)
 

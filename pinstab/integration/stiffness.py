@@ -120,9 +120,9 @@ class StiffWatch:
         """|R| per step of the mode [-] at the run's step times ``scale`` (the mode's |lambda| grown by it)."""
         return growth_per_step(mode.eigenvalue, self.dt * scale, self.scheme)
 
-    def see(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[StiffMode, float, float] | None:
+    def see(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[StiffMode, float, float, float] | None:
         """At the check of (q, v, t) [rad or m, rad/s or m/s, s]: None, or when the crossing's growth is above
-        :data:`GROWTH_LIMIT`, the mode (owner named), its step limit [s] and the growth [-]."""
+        :data:`GROWTH_LIMIT`, the mode (owner named), its step limit [s], its |R| per step there and the growth [-]."""
         if self.wait:
             self.wait -= 1
             return None
@@ -144,4 +144,4 @@ class StiffWatch:
         owned = stiffest_mode(self.model, q, v, t)
         if owned is None or owned.element is None:
             return None  # no element's mode: the explicit step is not what a stiff element limits
-        return owned, step_limit(owned.eigenvalue, self.scheme), math.exp(min(self.growth, 700.0))
+        return owned, step_limit(owned.eigenvalue, self.scheme), radius, math.exp(min(self.growth, 700.0))
