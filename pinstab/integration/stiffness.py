@@ -87,7 +87,8 @@ def stiff_reason(scheme: str, dt: float, mode: StiffMode, limit: float, t: float
     """Why ``dt`` [s] is too large for ``scheme``: above its stability ``limit`` [s] of ``mode``, owned by a force
     element, at t [s]; what to use instead (a step, and the registered implicit integrators)."""
     implicit = implicit_integrators()
-    instead = f", or an implicit integrator: --integrator {' or '.join(implicit)}" if implicit else ""
+    others = f" (or {', '.join(implicit[1:])})" if len(implicit) > 1 else ""
+    instead = f", or an implicit integrator: --integrator {implicit[0]}{others}" if implicit else ""
     return (
         f"dt = {dt * 1e3:.3g} ms is above {scheme}'s stability limit {limit * 1e3:.3g} ms of the stiff mode of "
         f"force element '{mode.element}' (|lambda| = {abs(mode.eigenvalue):.3g} /s, {mode.frequency:.4g} rad/s, "
