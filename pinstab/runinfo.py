@@ -109,6 +109,9 @@ class RunInfo:
             ``steps`` from its samples); None otherwise.
         contact_treatment: how contacts were treated (:class:`~pinstab.simulate.choice.ContactChoice` as a dict:
             ``treatment``, ``chosen``, ``why``); None for a scene without contacts.
+        integrator_choice: with ``integrator="auto"``, the integrator ``picked``, the ``reason`` and the ``stiff_mode``
+            it was picked by (element, frequency [rad/s], eigenvalue (re, im) [1/s], step_limit [s]; None without
+            one) (:mod:`pinstab.simulate.integrator_choice`); None otherwise.
     """
 
     scene: str
@@ -141,6 +144,7 @@ class RunInfo:
     timings: dict[str, float] = field(default_factory=dict)
     cut_short: dict[str, Any] | None = None
     contact_treatment: dict[str, Any] | None = None
+    integrator_choice: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (nested dataclasses as dicts)."""

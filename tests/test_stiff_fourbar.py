@@ -132,7 +132,7 @@ def test_rk4_above_the_stiff_limit_names_the_stiff_element(scene):
     assert isinstance(error, DivergenceError)  # the CLI's exit 3
     assert "force element 'rocker-spring' (|lambda| = 7.16e+03 /s, 375.3 rad/s" in str(error)
     assert "at t = 0 s): use --dt 0.000389 or smaller (the limit changes with the state" in str(error)
-    assert str(error).endswith("a larger step needs an implicit integrator, which pinstab does not have yet")
+    assert "(the limit changes with the state: leave a margin)" in str(error) and "not have yet" not in str(error)
     assert error.element == "rocker-spring" and error.frequency == pytest.approx(378.99, rel=0.015)
     assert error.limit == pytest.approx(RK4_BOUND / 7159.2, rel=5e-4) and 0.3891e-3 > error.limit > 0.3890e-3
     assert error.diverged_at == pytest.approx(6e-3) and len(error.trajectory.t) == 13
@@ -152,16 +152,20 @@ def test_the_command_line_exits_3_naming_the_element(capsys):
     )
 
 
-def test_rk4_below_the_start_limit_names_the_mode_at_the_last_checked_state(chain, scene):
-    """RK4 at 0.38 ms is inside the start's limit (0.389 ms) but not the run's (0.315 ms): it leaves the finite states
-    at t = 0.2447 s (step 644). The start does not name the spring; the last checked state (t = 0.228 s, step 600,
-    already shaken: |v| = 129 rad/s) does, with limit 0.369 ms from its eigenvalue, the Radau chain's own Jacobian's
-    stiffest there (-7545 /s) to 1e-6 relative."""
+def test_rk4_below_the_start_limit_is_stopped_by_the_watch_at_a_check(chain, scene):
+    """RK4 at 0.38 ms is inside the start's limit (0.389 ms) but not the run's (0.315 ms): without the stiff-mode watch
+    it left the finite states at t = 0.2447 s (step 644). The watch stops it at the check of t = 0.228 s (step 600),
+    where the mode grows 6e7-fold over 100 steps, before the blow-up: the kept finite trajectory ends at the check
+    before (t = 0.19 s), its energy within the start's 8.816 J; the limit there, 0.369 ms, is 2.7853 over the Radau
+    chain's own Jacobian's stiffest eigenvalue at the stopped state (-7545 /s) to 1e-6 relative."""
     with pytest.raises(StiffStepError, match=r"limit 0.369 ms .* at t = 0.228 s\): use --dt 0.000369") as caught:
         simulate(scene, integrator="rk4", dt=3.8e-4, duration=DURATION)
-    error, run = caught.value, caught.value.finite_trajectory
-    assert error.diverged_at == pytest.approx(0.24472) and run.t[600] == pytest.approx(0.228)
-    measured = np.linalg.eigvals(chain.jacobian(0.228, np.r_[run.q[600], run.v[600], 0.0])[:4, :4])
+    error, run = caught.value, caught.value.trajectory
+    assert error.diverged_at == pytest.approx(0.228) and run.t[-1] == pytest.approx(0.228)
+    assert len(run.t) == 502  # steps 0 .. 500, then 600
+    finite = error.finite_trajectory
+    assert finite.t[-1] == pytest.approx(0.19) and finite.energy.max() == pytest.approx(8.816, abs=1e-3)
+    measured = np.linalg.eigvals(chain.jacobian(0.228, np.r_[run.q[-1], run.v[-1], 0.0])[:4, :4])
     assert error.eigenvalue == pytest.approx(measured[np.argmax(np.abs(measured))], rel=1e-6)
     assert error.limit == pytest.approx(2.7853 / 7544.6, rel=5e-4)
 

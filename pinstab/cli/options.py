@@ -10,7 +10,7 @@ from ..contact.modes import STOP_KINDS
 from ..errors import SceneError
 from ..integration import INTEGRATORS
 from ..registry import Registry, option_fields
-from ..simulate import ERROR_CONTROLLED_INTEGRATOR, EVENT_RTOL, FIXED_STEP_INTEGRATOR, MAX_EVENT_CONTACTS
+from ..simulate import AUTO, ERROR_CONTROLLED_INTEGRATOR, EVENT_RTOL, FIXED_STEP_INTEGRATOR, MAX_EVENT_CONTACTS
 from ..solvers import SOLVERS
 from ..stabilizers import STABILIZERS
 from ..tables import toml_scalar
@@ -219,10 +219,11 @@ def run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--integrator",
         default=None,
-        choices=INTEGRATORS,
+        choices=[*INTEGRATORS, AUTO],
         metavar="INTEGRATOR",
-        help=f"integrator (default: {FIXED_STEP_INTEGRATOR}; {ERROR_CONTROLLED_INTEGRATOR} with --rtol or --atol). "
-        f"{_listed(INTEGRATORS)}",
+        help=f"integrator (default: {FIXED_STEP_INTEGRATOR}; {ERROR_CONTROLLED_INTEGRATOR} with --rtol or --atol; "
+        f"{AUTO}: that default, or an implicit one when the step is above its stability limit of a force element's "
+        f"stiff mode at the start, said in the JSON's integrator_choice). {_listed(INTEGRATORS)}",
     )
     parser.add_argument(
         "--solver",

@@ -89,6 +89,7 @@ def run_summary(args: argparse.Namespace, trajectory) -> dict[str, Any]:
         "scene": info.scene,
         "method": info.method,
         "integrator": info.integrator,
+        "integrator_choice": info.integrator_choice,
         "solver": info.solver,
         "dt": info.dt,
         "duration": args.duration,

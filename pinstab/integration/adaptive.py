@@ -121,6 +121,7 @@ class AdaptiveLoop(StepLoop):
             stepper.nodes, stepper.coupling, stepper.weights, stepper.estimators, HERMITE, constants
         )
         self.compiled = CompiledAdaptive.of(system, stepper, self.rules)  # in place of the fixed-step loop
+        self.stiff_watch = None  # the control, not a criterion at one step, keeps the steps stable
         self.step_size: float | None = None
         self.previous_error = 1.0  # the last accepted step's error, for the PI control
         self.rejected_last = False  # the last step was accepted after a rejection

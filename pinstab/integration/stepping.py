@@ -33,8 +33,7 @@ from ..errors import (
     UnstableGainsWarning,
 )
 from ..projection import project_positions
-from ..stability.criterion import SCHEMES as STABILITY_SCHEMES
-from ..stability.modes import stiffest_mode
+from ..stability.modes import StiffMode, stiffest_mode
 from ..stabilizers import ProjectionOptions
 from ..system import ConstrainedSystem
 from .compiled import CompiledSteps, steps_before
@@ -42,6 +41,7 @@ from .dense import Segment
 from .passages import PassageWatch, Plan
 from .records import Records
 from .schemes import Integrator
+from .stiffness import StiffWatch, step_limit, stiff_reason, watched
 
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
 MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
@@ -123,6 +123,8 @@ class StepLoop:
         compiled: the compiled loop taking runs of steps (:mod:`pinstab.integration.compiled`), or None.
         limit_watch: fed every grid step's state (kept or not), or None: the joint limits a run that does not hold
             them watches (:class:`~pinstab.constraints.joint_limits.LimitWatch`).
+        stiff_watch: the stiff-mode watch at the checks (:mod:`.stiffness`), or None (no force element, an implicit
+            scheme or one the criterion does not know).
     """
 
     def __init__(
@@ -147,6 +149,7 @@ class StepLoop:
         self.corrects = system.stabilizer.corrects
         self.compiled = CompiledSteps.of(system, stepper)
         self.limit_watch: LimitWatch | None = None
+        self.stiff_watch = StiffWatch.of(system, stepper, grid.dt, CHECK_STEPS)
 
     def watch_limits(self, watch: LimitWatch) -> None:
         """Feed ``watch`` every grid step's state from the start (times on this loop's grid)."""
@@ -205,10 +208,49 @@ class StepLoop:
             # the replay passed every check (a warm-started solver took another path): report the chunk
             reason = f"{exc} (a replay checked after every step passed)"
             raise self.diverged(k, replayed, reason, q, v) from None
+        if self.stiff_watch is not None:
+            self.watch_stiffness(k, q, v, (reached, q_end, v_end))
         if progress is not None:
             progress.update(reached - k)
         self.records.checked(reached)
         return q_end, v_end, reached
+
+    def watch_stiffness(
+        self, good: int, q: np.ndarray, v: np.ndarray, checked: tuple[int, np.ndarray, np.ndarray]
+    ) -> None:
+        """Raise :class:`StiffStepError` when the stiff-mode watch stops the run at the check of ``checked`` (step,
+        q, v), the chunk stepped from (q, v) at step ``good``: the records end with both."""
+        t = self.grid.time(checked[0])
+        seen = self.stiff_watch.see(checked[1], checked[2], t)
+        if seen is None:
+            return
+        mode, limit, radius, growth = seen
+        reason = (
+            f"{stiff_reason(self.stepper.name, self.grid.dt, mode, limit, t)}. The mode grows by |R| = {radius:.4g} "
+            f"per step there, {growth:.3g}-fold over the crossing ({CHECK_STEPS} steps a check): the steps ahead would "
+            "give a wrong motion or none"
+        )
+        raise self.stiff_error(mode, limit, good, checked, reason, q, v)
+
+    def stiff_error(
+        self,
+        mode: StiffMode,
+        limit: float,
+        good: int,
+        failed: tuple[int, np.ndarray, np.ndarray],
+        reason: str,
+        q: np.ndarray,
+        v: np.ndarray,
+    ) -> StiffStepError:
+        """The :class:`StiffStepError` of a run stopped for ``mode`` (its step ``limit`` [s]); see :meth:`diverged`."""
+        error = self.diverged(good, failed, reason, q, v, StiffStepError)
+        error.element, error.frequency, error.eigenvalue, error.limit = (
+            mode.element,
+            mode.frequency,
+            mode.eigenvalue,
+            limit,
+        )
+        return error
 
     def snapshot(self) -> tuple:
         """What a replayed chunk starts from besides the state (the passage watch's samples)."""
@@ -436,35 +478,20 @@ class StepLoop:
         start or else at the last checked state before the failure (states the motion had, unlike the blown-up last
         finite one); the run failed from (q, v) at grid step ``good``."""
         scheme, dt = self.stepper.name, self.grid.dt
-        if scheme not in STABILITY_SCHEMES or not self.system.model.forces:  # no known region, or no element
+        if not watched(self.stepper, self.system.model):  # no known region, or no element
             return
         checked, checked_q, checked_v = self.checked_state
         states = [(0.0, *self.start)] + ([(self.grid.time(checked), checked_q, checked_v)] if checked else [])
         for t, at_q, at_v in states:
             mode = stiffest_mode(self.system.model, at_q, at_v, t)
-            if mode is None or mode.element is None or not mode.decays:
+            if mode is None or mode.element is None or not mode.eigenvalue.real < 0:
                 continue
-            limit = mode.step_limit(scheme)
+            limit = step_limit(mode.eigenvalue, scheme)
             if dt > limit:
                 break
         else:
             return
-        scale = 10.0 ** (2 - math.floor(math.log10(limit)))
-        suggested = math.floor(limit * scale) / scale  # three significant digits, rounded down
-        reason = (
-            f"dt = {dt * 1e3:.3g} ms is above {scheme}'s stability limit {limit * 1e3:.3g} ms of the stiff mode of "
-            f"force element '{mode.element}' (|lambda| = {abs(mode.eigenvalue):.3g} /s, {mode.frequency:.4g} rad/s, "
-            f"at t = {t:.6g} s): use --dt {suggested:g} or smaller (the limit changes with the state: leave a "
-            "margin); a larger step needs an implicit integrator, which pinstab does not have yet"
-        )
-        error = self.diverged(good, failed, reason, q, v, StiffStepError)
-        error.element, error.frequency, error.eigenvalue, error.limit = (
-            mode.element,
-            mode.frequency,
-            mode.eigenvalue,
-            limit,
-        )
-        raise error
+        raise self.stiff_error(mode, limit, good, failed, stiff_reason(scheme, dt, mode, limit, t), q, v)
 
     def probe(self, q: np.ndarray, v: np.ndarray, t: float, span: float, step: float) -> bool:
         """Whether steps of ``step`` [s] from (q, v) at t [s] get through ``span`` [s] with every solve and

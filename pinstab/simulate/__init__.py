@@ -6,10 +6,12 @@ by the held path (:mod:`.held`), the contact paths (:mod:`.contacts`: event-driv
 from .api import DEFAULT_DT, ERROR_CONTROLLED_INTEGRATOR, FIXED_STEP_INTEGRATOR, default_integrator, simulate
 from .choice import MAX_EVENT_CONTACTS, ContactChoice, contact_choice, default_contacts
 from .contacts import EVENT_RTOL, HELD_ONLY, event_contacts, stop_kinds
+from .integrator_choice import AUTO
 from .limits import limit_left
 from .loop import DEFAULT_DRIFT_LIMIT, MIN_RTOL, Interrupted, error_control, failure_stop, kept_samples
 
 __all__ = [
+    "AUTO",
     "DEFAULT_DRIFT_LIMIT",
     "DEFAULT_DT",
     "ERROR_CONTROLLED_INTEGRATOR",

@@ -24,6 +24,7 @@ from ..validation import relative_tolerance
 from .choice import ContactChoice, refuse_held_options, resolve_contacts
 from .contacts import simulate_events, simulate_stepping, stop_kinds
 from .held import simulate_held
+from .integrator_choice import AUTO, choose_integrator
 from .limits import held_limits, limit_left, limit_watch, not_event_driven
 from .loop import DEFAULT_DRIFT_LIMIT, RunClock, start_state
 from .threads import single_blas_thread
@@ -77,7 +78,9 @@ def simulate(
             ``projection``, ``post``, ``pinocchio``, or one registered by the user).
         integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``; ``dopri5``,
             ``dop853`` with error control); None (default): ``rk4``, or ``dop853`` when ``rtol`` or ``atol`` is
-            given (:func:`default_integrator`).
+            given (:func:`default_integrator`); ``auto``: that default, or an implicit integrator when the step is
+            above its stability limit of a force element's stiff mode at the start
+            (:mod:`~pinstab.simulate.integrator_choice`; ``info.integrator_choice`` says which and why).
         dt: time step [s] (default: the scene's ``[run] dt``, else :data:`DEFAULT_DT`); the last step is shortened
             so that the run ends at ``duration`` exactly.
         duration: simulated time [s].
@@ -167,7 +170,8 @@ def simulate(
         scene = load_scene(scene)
     if dt is None:
         dt = DEFAULT_DT if scene.step is None else scene.step
-    integrator = default_integrator(integrator, rtol, atol)
+    automatic = integrator == AUTO
+    integrator = default_integrator(None if automatic else integrator, rtol, atol)
     contacts, choice = resolve_contacts(scene, contacts)
     if contacts is not None:
         unset = {"method": method == DEFAULT_METHOD, "solver": solver is None, "solver_options": not solver_options}
@@ -182,6 +186,10 @@ def simulate(
     if assembly_tol is not None:
         relative_tolerance(assembly_tol, "assembly_tol")
     q0, v0 = start_state(scene, q0, v0)
+    picked = None
+    if automatic and contacts is None:
+        controlled = rtol is not None or atol is not None
+        integrator, picked = choose_integrator(scene, q0, v0, dt, integrator, controlled)
     for element in scene.forces:
         element.restart()
     table = held_limits(scene, q0, limits)  # every path refuses a start outside the limits
@@ -216,6 +224,7 @@ def simulate(
         if watch is None or watch.left is None or error.trajectory is None:
             raise
         trajectory, diverged = error.trajectory, error
+    trajectory.info.integrator_choice = picked
     if watch is None:
         return _checked(scene, choice, trajectory, clock)
     left = limit_left(trajectory, watch, v0)

@@ -18,6 +18,8 @@ from ..assembly import AssemblyReport
 from ..errors import ContactInfeasibleError, DivergenceError, PinstabError, ServoInfeasibleError
 from ..integration import CHECK_STEPS, AdaptiveLoop, ErrorControl, StepLoop, StreamedRecords, TimeGrid, embedded_pairs
 from ..integration.events import EventLoop
+from ..integration.schemes import SCHEMES
+from ..kernels import SchemeStep
 from ..memory import RUN_DATA_COPIES, data_bytes, exhausted, require, samples_bytes
 from ..runinfo import RunInfo
 from ..scene import Scene
@@ -237,6 +239,7 @@ def trajectory_of(
         streamed = StreamedTrajectory.complete(records.sink.path, info, math.nan, series)
         clock.stamp(streamed)
         return streamed
+    flow = SchemeStep(SCHEMES["rk4"], None if system.model.euclidean else system.model.model)
     trajectory = Trajectory(  # views of the samples: no second copy of a long run
         records.t[:n],
         records.q[:n],
@@ -244,7 +247,7 @@ def trajectory_of(
         math.nan,
         info,
         correction_iterations=records.corrections[:n],
-        series=StateSeries(system),
+        series=StateSeries(system, flow),  # the energy balance's flow where the samples do not resolve the power
     )
     clock.stamp(trajectory)
     return trajectory

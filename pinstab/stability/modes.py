@@ -61,20 +61,24 @@ class StiffMode(NamedTuple):
 
 
 def _jacobians(
-    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, acceleration: np.ndarray
+    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, acceleration: np.ndarray, split: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """d(force)/dq and d(force)/dv by central differences, stacked per force: the inertia and bias's
     ``-(M a + h)`` at the fixed ``acceleration`` a first (Pinocchio's RNEA), then each element's ``tau_e``
-    (shapes (1 + elements, nv, nv)) [N/m or N m/rad, N s/m or N m s/rad]."""
+    (shapes (1 + elements, nv, nv)) [N/m or N m/rad, N s/m or N m s/rad]; without ``split``, the elements' sum in
+    one row (shapes (2, nv, nv): an element evaluation less per element and difference)."""
     nv, elements = model.nv, list(model.forces)
 
     def forces(qi: np.ndarray, vi: np.ndarray) -> np.ndarray:
-        rows = [model.forces_at(qi, vi, t, elements[:1]).copy()] if elements else []  # one kinematics pass for all
-        rows += [model.applied_force(vi, t, [element]).copy() for element in elements[1:]]
+        if split:
+            rows = [model.forces_at(qi, vi, t, elements[:1]).copy()] if elements else []  # one kinematics pass
+            rows += [model.applied_force(vi, t, [element]).copy() for element in elements[1:]]
+        else:
+            rows = [model.forces_at(qi, vi, t).copy()]
         inertia = pin.rnea(model.model, model.scratch, qi, vi, acceleration)
         return np.array([-inertia, *rows])
 
-    by_q = np.zeros((1 + len(elements), nv, nv))
+    by_q = np.zeros((1 + (len(elements) if split else 1), nv, nv))
     by_v = np.zeros_like(by_q)
     for i in range(nv):
         step = np.zeros(nv)
@@ -116,9 +120,12 @@ class Linearization(NamedTuple):
         )
 
 
-def linearize(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> Linearization | None:
+def linearize(
+    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, split: bool = True
+) -> Linearization | None:
     """The linearized motion at (q, v, t) [rad or m, rad/s or m/s, s], or None when the state is not finite or the
-    constraints leave no motion."""
+    constraints leave no motion. Without ``split`` the elements are differentiated together (one row of K and D for
+    their sum: an element evaluation per difference instead of one per element)."""
     if not (np.isfinite(q).all() and np.isfinite(v).all()):
         return None
     basis = np.eye(model.nv)
@@ -131,16 +138,21 @@ def linearize(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -
     mass = basis.T @ full_mass @ basis
     tau = model.forces_at(q, v, t)  # and h at (q, v) in kin
     acceleration = basis @ np.linalg.solve(mass, basis.T @ (tau - model.kin.bias))
-    by_q, by_v = _jacobians(model, q, v, t, acceleration)
+    by_q, by_v = _jacobians(model, q, v, t, acceleration, split=split)
     stiffness = -np.einsum("ia,fij,jb->fab", basis, by_q, basis)  # K_f on the free motion
     damping = -np.einsum("ia,fij,jb->fab", basis, by_v, basis)
     return Linearization(basis, mass, stiffness, damping, acceleration)
 
 
-def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float) -> StiffMode | None:
+def stiffest_mode(
+    model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: float, owner: bool = True
+) -> StiffMode | None:
     """The stiffest mode of the linearized motion at (q, v, t) [rad or m, rad/s or m/s, s] (module docstring), or
-    None when the state is not finite or the constraints leave no motion."""
-    linear = linearize(model, q, v, t)
+    None when the state is not finite or the constraints leave no motion. Without ``owner`` the elements are
+    differentiated together (their sum: an element evaluation per difference instead of one per element, as the
+    stepping loop's checks take it) and the mode has no owner (``element`` None, ``share`` 0, ``frequency`` NaN):
+    its eigenvalue, stiffness and damping are the same to rounding."""
+    linear = linearize(model, q, v, t, split=owner)
     if linear is None:
         return None
     basis, mass, stiffness, damping, acceleration = linear
@@ -151,21 +163,21 @@ def stiffest_mode(model: ConstrainedModel, q: np.ndarray, v: np.ndarray, t: floa
     shape = shape / shape[np.argmax(np.abs(shape))]  # real for a real eigenvalue
     contributions = np.abs(np.einsum("i,fij,j->f", shape.conj(), stiffness + eigenvalue * damping, shape))
     shares = contributions / contributions.sum()
-    owner = 1 + int(np.argmax(shares[1:])) if len(shares) > 1 else None
+    largest = 1 + int(np.argmax(shares[1:])) if owner and len(shares) > 1 else None
     real = shape.real
     modal_mass = real @ mass @ real
     element, frequency = None, float("nan")
-    if owner is not None and shares[owner] > OWNER_SHARE:
-        element = model.forces[owner - 1].name
+    if largest is not None and shares[largest] > OWNER_SHARE:
+        element = model.forces[largest - 1].name
         at_rest = -np.einsum(
-            "ia,ij,jb->ab", basis, _jacobians(model, q, np.zeros_like(v), t, acceleration)[0][owner], basis
+            "ia,ij,jb->ab", basis, _jacobians(model, q, np.zeros_like(v), t, acceleration)[0][largest], basis
         )
         squares = scipy.linalg.eigh((at_rest + at_rest.T) / 2, mass, eigvals_only=True)
         frequency = float(np.sqrt(max(squares.max(), 0.0)))
     return StiffMode(
         eigenvalue,
         element,
-        float(shares[owner]) if owner is not None else 0.0,
+        float(shares[largest]) if largest is not None else 0.0,
         frequency,
         float(real @ stiffness.sum(axis=0) @ real / modal_mass),
         float(real @ damping.sum(axis=0) @ real / modal_mass),
