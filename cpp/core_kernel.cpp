@@ -12,26 +12,6 @@
 
 namespace pinstab {
 
-void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
-                       Eigen::Ref<VectorXd> force) {
-  for (const JointSpringSpec& spring : springs) {
-    if (spring.q_index < 0) {
-      for (int k = 0; k < spring.dofs.size(); ++k) force(spring.dofs(k)) += -spring.damping * v(spring.dofs(k));
-      continue;
-    }
-    const int dof = spring.dofs(0);
-    force(dof) += -(spring.stiffness * (q(spring.q_index) - spring.reference) + spring.damping * v(dof));
-  }
-}
-
-void add_joint_torques(const std::vector<JointTorqueSpec>& torques, double t, Eigen::Ref<VectorXd> force) {
-  for (const JointTorqueSpec& torque : torques) {
-    double value, rate, curvature;
-    torque.torque.evaluate(t, value, rate, curvature);
-    force(torque.dof) += value;
-  }
-}
-
 Eigen::ArrayXd baumgarte_velocity_gains(double kd, const Mask& holonomic) {
   return holonomic.select(Eigen::ArrayXd::Constant(holonomic.size(), kd), 0.5 * kd);
 }
@@ -122,14 +102,9 @@ bool CoreKernel::acceleration(int stage, double t, const VectorXd& q, const Vect
                             : stabilization_term(term_.stiffness, term_.velocity_gains, phi_, rate);
     if (term_.held) held_ = term_value_;
   }
-  add_joint_springs(forces_.springs, q, v, force_);
-  add_joint_torques(forces_.torques, t, force_);
-  for (const WrenchSpec& wrench : forces_.wrenches) add_wrench(model_, data_, wrench, force_);
-  for (const SpringDamperSpec& spring : forces_.spring_dampers) {
-    if (!add_spring_damper(model_, data_, spring, v, force_)) {  // its points coincide: the element says so
-      ++status_counts_["spring-damper without a direction"];
-      return false;
-    }
+  if (!add_force_elements(model_, data_, forces_, t, q, v, force_)) {  // a spring-damper's points coincide: it says so
+    ++status_counts_["spring-damper without a direction"];
+    return false;
   }
   for (const HoldSpec& hold : forces_.holds) {
     if (!add_hold_torques(model_, data_, hold, jacobian_, q, v, force_)) {

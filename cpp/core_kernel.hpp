@@ -12,44 +12,19 @@
 
 #include "contact_modes.hpp"
 #include "core_rows.hpp"
+#include "force_elements.hpp"
 #include "grasp_forces.hpp"
 #include "inertial_term.hpp"
 #include "kernels.hpp"
 #include "kkt_solve.hpp"
-#include "spring_damper.hpp"
 #include "targets.hpp"
 
 namespace pinstab {
 
-// pinstab.forces.joint_spring.JointSpring in joint form: tau[dofs] = -k (q[q_index] - reference) - c v[dofs] on a
-// 1-DOF joint; -c v[dofs] (damping only) on a multi-DOF one (q_index < 0).
-struct JointSpringSpec {
-  VectorXi dofs;
-  int q_index = -1;
-  double stiffness = 0.0, reference = 0.0, damping = 0.0;
-};
-
-// Adds the springs' generalized forces [N, N m] at (q, v) to force.
-void add_joint_springs(const std::vector<JointSpringSpec>& springs, const VectorXd& q, const VectorXd& v,
-                       Eigen::Ref<VectorXd> force);
-
-// pinstab.forces.joint_torque.JointTorque: tau[dof] = torque(t) [N m or N], its table as a compiled target (linear
-// between its points, held at its ends; a constant: one point).
-struct JointTorqueSpec {
-  int dof = -1;
-  Target torque;
-};
-
-// Adds the torques at t [s] to force.
-void add_joint_torques(const std::vector<JointTorqueSpec>& torques, double t, Eigen::Ref<VectorXd> force);
-
-// The force elements the core computes: joint springs, grasp holds, constant wrenches, spring-dampers, joint torques.
-struct CoreForces {
-  std::vector<JointSpringSpec> springs;
+// The force elements the core computes: those without rows (cpp/force_elements.hpp) and grasp holds (their torques
+// read the core's constraint Jacobian).
+struct CoreForces : ForceElements {
   std::vector<HoldSpec> holds;
-  std::vector<WrenchSpec> wrenches;
-  std::vector<SpringDamperSpec> spring_dampers;
-  std::vector<JointTorqueSpec> torques;
 };
 
 // The stabilization term per row, -K rate - S phi (docs/mathematics.md section 3; pinstab.stabilizers.baumgarte and

@@ -166,6 +166,31 @@ HoldSpec hold(nb::dict form) {
   return hold;
 }
 
+// The force elements' compiled forms (pinstab.forces.*.compiled_form: dicts by kind joint-spring, hold, wrench,
+// spring-damper, joint-torque) for a kernel (named in the errors) of the model.
+CoreForces force_forms(const std::vector<nb::dict>& forms, const pinocchio::Model& model, const std::string& kernel) {
+  CoreForces forces;
+  for (const nb::dict& form : forms) {
+    const std::string kind = nb::cast<std::string>(form["kind"]);
+    if (kind == "joint-spring") {
+      forces.springs.push_back(joint_spring(form));
+    } else if (kind == "hold") {
+      forces.holds.push_back(hold(form));
+    } else if (kind == "wrench") {
+      forces.wrenches.push_back({nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
+    } else if (kind == "spring-damper") {
+      forces.spring_dampers.push_back(spring_damper_spec(form, model));
+    } else if (kind == "joint-torque") {
+      const int dof = nb::cast<int>(form["dof"]);
+      if (dof < 0 || dof >= model.nv) throw std::invalid_argument(kernel + ": a joint torque's dof outside v");
+      forces.torques.push_back({dof, target(nb::cast<nb::dict>(form["torque"]))});
+    } else {
+      throw std::invalid_argument(kernel + ": no compiled force of kind " + kind);
+    }
+  }
+  return forces;
+}
+
 // The Model and Data of a Python pin.Model and one of its pin.Data (cpp/python_data.cpp).
 std::pair<const pinocchio::Model*, pinocchio::Data*> native(nb::handle model, nb::handle data) {
   const pinocchio::Model& loaded = python_model(model.ptr());
@@ -220,28 +245,46 @@ NB_MODULE(_compiled, m) {
           [](NativeKernel* self, nb::handle model, const std::vector<int>& joints1,
              const std::vector<Eigen::Matrix4d>& placements1, const std::vector<int>& joints2,
              const std::vector<Eigen::Matrix4d>& placements2, double kp, double kd, double absolute_accuracy,
-             double relative_accuracy, double mu, int max_iter) {
+             double relative_accuracy, double mu, int max_iter, const std::vector<nb::dict>& forms) {
+            const pinocchio::Model& loaded = python_model(model.ptr());
             std::vector<ClosureSpec> closures;
             for (size_t i = 0; i < joints1.size(); ++i) {
               closures.push_back({joints1[i], joints2[i], placements1[i], placements2[i]});
             }
             const pinocchio::ProximalSettings settings(absolute_accuracy, relative_accuracy, mu, max_iter);
-            new (self) NativeKernel(python_model(model.ptr()), closures, kp, kd, settings);
+            CoreForces forces = force_forms(forms, loaded, "NativeKernel");
+            if (!forces.holds.empty()) throw std::invalid_argument("NativeKernel: a hold reads the core's rows");
+            new (self) NativeKernel(loaded, closures, kp, kd, settings, std::move(static_cast<ForceElements&>(forces)));
           },
           "model"_a, "joints1"_a, "placements1"_a, "joints2"_a, "placements2"_a, "kp"_a, "kd"_a,
-          "absolute_accuracy"_a, "relative_accuracy"_a, "mu"_a, "max_iter"_a,
+          "absolute_accuracy"_a, "relative_accuracy"_a, "mu"_a, "max_iter"_a, "forces"_a = std::vector<nb::dict>(),
           "Pinocchio's constraintDynamics on point closures with the corrector (Kp, Kd) and the proximal solve's "
-          "settings (pinstab.paths.native.NativeDynamics.settings).")
+          "settings (pinstab.paths.native.NativeDynamics.settings), under the applied forces plus the force elements' "
+          "compiled forms (dicts by kind: joint-spring, wrench, spring-damper, joint-torque).")
+      .def(
+          "derivatives",
+          [](NativeKernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
+            Eigen::MatrixXd dadq, dadv;
+            const bool usable = self.derivatives(stage, t, q, v, tau, dadq, dadv);
+            return std::make_tuple(dadq, dadv, usable);
+          },
+          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
+          "(da/dq [1/s^2] against q (+) dq, da/dv [1/s], usable) at (t, q, v) under tau: Pinocchio's analytic "
+          "derivatives plus the force elements' (NativeKernel::derivatives).")
       .def(
           "multipliers",
-          [](NativeKernel& self, const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
+          [](NativeKernel& self, const VectorXd& ts, const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
              const Eigen::MatrixXd& rows) {
+            if (ts.size() != qs.rows() || vs.rows() != qs.rows()) {
+              throw std::invalid_argument("NativeKernel.multipliers: one time per sample (rows of qs, vs)");
+            }
             nb::gil_scoped_release released;
-            return self.multipliers(qs, vs, tau, rows);
+            return self.multipliers(ts, qs, vs, tau, rows);
           },
-          "qs"_a, "vs"_a, "tau"_a, "rows"_a,
-          "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples (rows "
-          "of qs, vs) under tau; NaN where not finite.");
+          "ts"_a, "qs"_a, "vs"_a, "tau"_a, "rows"_a,
+          "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples (times "
+          "ts [s], rows of qs, vs) under tau and the force elements; NaN where not finite or an element refuses the "
+          "state.");
   m.def(
       "light_data", [](nb::handle model) { return nb::steal(new_python_data(model.ptr())); }, "model"_a,
       "A pin.Data of the model without Pinocchio's second-order derivative tensors (cpp/light_data.cpp).");
@@ -698,28 +741,7 @@ NB_MODULE(_compiled, m) {
           [](CoreKernel* self, nb::handle model, std::vector<RowBlock> blocks, const std::vector<nb::dict>& forms,
              double stiffness, const VectorXd& velocity_gains, bool held, nb::dict settings,
              std::optional<nb::dict> tilt, nb::object python, std::optional<nb::dict> inertial) {
-            CoreForces forces;
-            for (const nb::dict& form : forms) {
-              const std::string kind = nb::cast<std::string>(form["kind"]);
-              if (kind == "joint-spring") {
-                forces.springs.push_back(joint_spring(form));
-              } else if (kind == "hold") {
-                forces.holds.push_back(hold(form));
-              } else if (kind == "wrench") {
-                forces.wrenches.push_back(
-                    {nb::cast<int>(form["frame"]), nb::cast<Eigen::Matrix<double, 6, 1>>(form["wrench"])});
-              } else if (kind == "spring-damper") {
-                forces.spring_dampers.push_back(spring_damper_spec(form, python_model(model.ptr())));
-              } else if (kind == "joint-torque") {
-                const int dof = nb::cast<int>(form["dof"]);
-                if (dof < 0 || dof >= python_model(model.ptr()).nv) {
-                  throw std::invalid_argument("CoreKernel: a joint torque's dof outside v");
-                }
-                forces.torques.push_back({dof, target(nb::cast<nb::dict>(form["torque"]))});
-              } else {
-                throw std::invalid_argument("CoreKernel: no compiled force of kind " + kind);
-              }
-            }
+            CoreForces forces = force_forms(forms, python_model(model.ptr()), "CoreKernel");
             CoreSolve solve;
             solve.direct_pivot = nb::cast<double>(settings["direct_pivot"]);
             solve.cutoff = nb::cast<double>(settings["cutoff"]);

@@ -5,28 +5,97 @@
 #include <cmath>
 #include <limits>
 
+#include <pinocchio/algorithm/aba-derivatives.hpp>
+#include <pinocchio/algorithm/constrained-dynamics-derivatives.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/constraints.hpp>
 
 namespace pinstab {
 
 NativeKernel::NativeKernel(const pinocchio::Model& model, const std::vector<ClosureSpec>& closures, double kp,
-                           double kd, const pinocchio::ProximalSettings& settings)
-    : model_(model), data_(light_data(model_)), settings_(settings), kp_(kp), kd_(kd) {
+                           double kd, const pinocchio::ProximalSettings& settings, ForceElements elements)
+    : model_(model),
+      data_(light_data(model_)),
+      settings_(settings),
+      kp_(kp),
+      kd_(kd),
+      elements_(std::move(elements)) {
   for (const ClosureSpec& closure : closures) {
     pinocchio::RigidConstraintModel constraint(pinocchio::CONTACT_3D, model_, closure.joint1,
                                                pinocchio::SE3(closure.placement1), closure.joint2,
                                                pinocchio::SE3(closure.placement2), pinocchio::LOCAL_WORLD_ALIGNED);
     constraint.baumgarte_corrector_parameters() = pinocchio::BaumgarteCorrectorParametersTpl<double>(kp, kd);
     models_.push_back(constraint);
+    two_bodies_ = two_bodies_ || (closure.joint1 != 0 && closure.joint2 != 0);
     datas_.push_back(pinocchio::RigidConstraintData(constraint));
   }
   pinocchio::initConstraintDynamics(model_, data_, models_, datas_);
 }
 
-bool NativeKernel::acceleration(int, double, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+bool NativeKernel::applied_force(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau) {
+  force_ = tau;
+  if (elements_.kinematic()) {
+    pinocchio::computeJointJacobians(model_, data_, q);
+    pinocchio::updateFramePlacements(model_, data_);
+  }
+  return add_force_elements(model_, data_, elements_, t, q, v, force_);
+}
+
+bool NativeKernel::acceleration(int, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                                 VectorXd& a) {
-  a = pinocchio::constraintDynamics(model_, data_, q, v, tau, models_, datas_, settings_);
+  if (elements_.empty()) {
+    a = pinocchio::constraintDynamics(model_, data_, q, v, tau, models_, datas_, settings_);
+    return true;
+  }
+  if (!applied_force(t, q, v, tau)) return false;
+  a = pinocchio::constraintDynamics(model_, data_, q, v, force_, models_, datas_, settings_);
   return true;
+}
+
+bool NativeKernel::acceleration_differences(int stage, double t, const VectorXd& q, const VectorXd& v,
+                                            const VectorXd& tau, Eigen::MatrixXd& dadq) {
+  dadq.resize(model_.nv, model_.nv);
+  VectorXd shifted(model_.nq), plus(model_.nv), minus(model_.nv), step = VectorXd::Zero(model_.nv);
+  for (int k = 0; k < model_.nv; ++k) {
+    step(k) = kAccelerationDifferenceStep;
+    pinocchio::integrate(model_, q, step, shifted);
+    if (!acceleration(stage, t, shifted, v, tau, plus)) return false;
+    step(k) = -kAccelerationDifferenceStep;
+    pinocchio::integrate(model_, q, step, shifted);
+    if (!acceleration(stage, t, shifted, v, tau, minus)) return false;
+    step(k) = 0.0;
+    dadq.col(k) = (plus - minus) / (2.0 * kAccelerationDifferenceStep);
+  }
+  return true;
+}
+
+bool NativeKernel::derivatives(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                               Eigen::MatrixXd& dadq, Eigen::MatrixXd& dadv) {
+  if (two_bodies_ && !acceleration_differences(stage, t, q, v, tau, dadq)) return false;
+  if (!force_element_derivatives(model_, data_, elements_, t, q, v, force_dq_, force_dv_)) return false;
+  if (!applied_force(t, q, v, tau)) return false;
+  if (models_.empty()) {  // no closures: the articulated-body algorithm's derivatives, d a / d tau = M^-1
+    pinocchio::computeABADerivatives(model_, data_, q, v, force_);
+  } else {
+    pinocchio::constraintDynamics(model_, data_, q, v, force_, models_, datas_, settings_);
+    pinocchio::computeConstraintDynamicsDerivatives(model_, data_, models_, datas_, settings_);
+  }
+  if (!two_bodies_) dadq = data_.ddq_dq;
+  dadv = data_.ddq_dv;
+  if (!elements_.empty()) {  // the elements' forces through d a / d tau
+    const auto through = [&](const auto& dadtau) {
+      if (!two_bodies_) dadq.noalias() += dadtau * force_dq_;
+      dadv.noalias() += dadtau * force_dv_;
+    };
+    if (models_.empty()) {
+      through(data_.Minv);
+    } else {
+      through(data_.ddq_dtau);
+    }
+  }
+  return dadq.allFinite() && dadv.allFinite();
 }
 
 double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
@@ -49,17 +118,17 @@ double native_residual(const pinocchio::Model& model, pinocchio::Data& data,
   return std::isfinite(residual) ? residual : std::numeric_limits<double>::quiet_NaN();
 }
 
-std::pair<RowMatrix, VectorXd> NativeKernel::multipliers(const RowMatrix& qs, const RowMatrix& vs, const VectorXd& tau,
-                                                        const Eigen::MatrixXd& rows) {
+std::pair<RowMatrix, VectorXd> NativeKernel::multipliers(const VectorXd& ts, const RowMatrix& qs, const RowMatrix& vs,
+                                                        const VectorXd& tau, const Eigen::MatrixXd& rows) {
   const long n = qs.rows();
   const double nan = std::numeric_limits<double>::quiet_NaN();
   RowMatrix forces = RowMatrix::Constant(n, rows.rows(), nan);
   VectorXd residuals = VectorXd::Constant(n, nan);
   for (long k = 0; k < n; ++k) {
     if (!qs.row(k).allFinite() || !vs.row(k).allFinite()) continue;
-    const VectorXd v = vs.row(k).transpose();
-    const VectorXd a = pinocchio::constraintDynamics(model_, data_, qs.row(k).transpose(), v, tau, models_, datas_,
-                                                     settings_);
+    const VectorXd q = qs.row(k).transpose(), v = vs.row(k).transpose();
+    VectorXd a(model_.nv);
+    if (!acceleration(0, ts(k), q, v, tau, a)) continue;
     forces.row(k) = (rows * data_.lambda_c).transpose();
     residuals(k) = native_residual(model_, data_, models_, datas_, rows, kp_, kd_, v, a);
   }

@@ -191,16 +191,17 @@ class StateSeries:
     def multipliers(self, t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The constraint multipliers per sample [N, N m]; NaN at non-finite samples and where the dynamics cannot be
         had (:data:`NO_DYNAMICS`: the last sample of a run that ended with ContactInfeasibleError, or the last finite
-        state of one that diverged from it). On the native path without force
-        elements, Pinocchio's solves at every sample in one compiled call (``NativeKernel.multipliers``), those that
+        state of one that diverged from it). On the native path where its compiled kernel takes the force elements
+        (:attr:`~pinstab.paths.native.NativeDynamics.force_obstacle`: none, or all compiled), Pinocchio's solves at
+        every sample in one compiled call (``NativeKernel.multipliers``), those that
         miss the check (:meth:`~pinstab.paths.native.NativeDynamics.residual`) taken again one by one as
         :meth:`~pinstab.system.ConstrainedSystem.multipliers` takes them."""
         system = self.system
         out = np.full((len(t), system.model.constraints.rows), np.nan)
         finite = np.isfinite(q).all(axis=1) & np.isfinite(v).all(axis=1)
         native = system.native
-        if native is not None and system.banded is None and not system.model.forces:
-            forces, residuals = native.kernel().multipliers(q, v, system.model.no_force, native.rows)
+        if native is not None and system.banded is None and native.force_obstacle is None:
+            forces, residuals = native.kernel().multipliers(t, q, v, system.model.no_force, native.rows)
             passed = finite & (residuals <= ACCEPTED_RESIDUAL)
             out[passed] = forces[passed]
             finite &= ~passed

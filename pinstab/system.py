@@ -234,6 +234,7 @@ class ConstrainedSystem:
                 self.model.model, closures, *gains, mu=lambda: self.native_mu(start), data=self.model.scratch
             )
         native.set_gains(*gains)
+        native.set_forces(self.model.forces, self.model.constraints.slices)
         self.native = native
         if self.stabilizer.corrects:
             self.projector = NativeProjector(self.model.model, native.closures)

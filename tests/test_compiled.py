@@ -13,6 +13,7 @@ import pytest
 from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import FrameClosure
+from pinstab.forces.base import ForceElement
 from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, kernel_obstacle, steps_before
 from pinstab.integration.schemes import INTEGRATORS, Integrator
 from pinstab.paths.banded import BandedDynamics
@@ -104,10 +105,38 @@ def test_a_singular_evaluation_stops_the_compiled_loop_before_its_step():
     assert done == 2 and np.isfinite(qs).all()
 
 
+class UserForce(ForceElement):
+    """A user's element: no force, no compiled form."""
+
+    name = "user"
+    needs_kinematics = False
+
+    def generalized_force(self, kin, v: np.ndarray, t: float) -> np.ndarray:
+        return np.zeros(len(v))
+
+
+@pytest.mark.parametrize("scene", ["stiff-fourbar", "slider-crank", "cassie-legs"])
+def test_native_path_with_force_elements_bitwise_equal_to_the_python_loop(monkeypatch, scene):
+    """The native path's scenes with force elements (a spring-damper on an open chain; a joint torque and a damper to a
+    world point on a closed one; joint springs and dampers on cassie-legs' closures) over 0.1 s of RK4 at the scene's
+    step: the native kernel takes every element (cpp/force_elements.cpp, the sums in Python's order), so the compiled
+    loop steps with it, and q, v equal the Python loop's (Python's elements, Pinocchio's solve) to the last bit."""
+    loaded = load_scene(scene)
+    dt = loaded.step or 1e-3
+    fast = simulate(loaded, "baumgarte", "rk4", dt, 0.1)
+    with monkeypatch.context() as patch:
+        patch.setattr(CompiledSteps, "of", classmethod(lambda cls, system, stepper: None))
+        slow = simulate(loaded, "baumgarte", "rk4", dt, 0.1)
+    assert fast.info.path == slow.info.path == "native"
+    assert fast.info.compiled_steps >= 0.8 * 0.1 / dt and slow.info.compiled_steps == 0
+    np.testing.assert_array_equal(fast.q, slow.q)
+    np.testing.assert_array_equal(fast.v, slow.v)
+
+
 def test_runs_left_to_python_say_why():
     """A registered integrator of its own step and a correcting method keep the Python loop, each named (a tableau,
-    dop853, does not); the general path and force elements outside the core run the compiled loop on the system's
-    Python evaluation, kernel_obstacle naming why."""
+    dop853, does not); the general path and a force element without a compiled form on the native path (a user's,
+    added to the slider-crank) run the compiled loop on the system's Python evaluation, kernel_obstacle naming why."""
 
     class OwnStep(Integrator):
         name = "own-step"
@@ -119,9 +148,10 @@ def test_runs_left_to_python_say_why():
     assert compiled_obstacle(system, INTEGRATORS.build("dop853", system)) is None
     for scene_name, options, reason in [
         ("fourbar", dict(solver="proxsuite"), "general path"),
-        ("slider-crank", {}, "force elements"),
+        ("slider-crank", {}, "force element 'user' has no compiled form (the native kernel takes joint-spring"),
     ]:
         other = load_scene(scene_name)
+        other.forces.append(UserForce())
         system = build_system(other, "baumgarte", **options)
         system.bind(1e-3, "rk4", other.q0)
         assert compiled_obstacle(system, INTEGRATORS.build("rk4", system)) is None

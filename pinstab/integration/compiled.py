@@ -66,8 +66,10 @@ def kernel_obstacle(system: ConstrainedSystem) -> str | None:
         return f"the {system.path} path (pinstab's KKT backend) runs in Python"
     if system.path == "core":  # its kernel takes every force (its Python part too) and steps on the group
         return None
-    if system.model.forces:
-        return "the scene has force elements (the compiled kernel takes none)"
+    if system.path == "native" and system.native.force_obstacle is not None:
+        return system.native.force_obstacle
+    if system.path != "native" and system.model.forces:
+        return f"the scene has force elements (the compiled {system.path} kernel takes none)"
     if not system.model.euclidean:
         return "a joint with more than one configuration coordinate (the kernel's loop adds q + dt v)"
     return None

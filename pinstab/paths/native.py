@@ -16,14 +16,15 @@ periodic checks, and on every evaluation while a check has failed recently (see
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from functools import cached_property
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
 from ..constraints import Constraint, FrameClosure, RowKind
+from ..forces.base import ForceElement
 from ..kernels import NativeKernel, native_residual
 from ..kinematics import LWA, with_columns
 from ..memory import new_data
@@ -38,6 +39,9 @@ CONTACT_TYPES = {
 NATIVE_KINDS = ("point", "planar-point")
 """Closure kinds of the native path (a weld's rotation rows and moment axes differ from pinstab's)."""
 
+NATIVE_FORCE_KINDS = ("joint-spring", "wrench", "spring-damper", "joint-torque")
+"""Compiled force forms the native kernel takes (``cpp/force_elements.hpp``: a hold's torques read the core's rows)."""
+
 PLANAR_TOLERANCE = 1e-12  # [m per rad]: out-of-plane Jacobian entries of a planar mechanism's closure
 
 
@@ -49,6 +53,21 @@ def rigid_constraint(model: pin.Model, closure: FrameClosure, kp: float, kd: flo
     rcm.name = closure.name
     rcm.setBaumgarteCorrectorParameters(pin.BaumgarteCorrectorParameters(float(kp), float(kd)))
     return rcm
+
+
+def native_forces(elements: list[ForceElement], rows: Mapping[str, slice]) -> tuple[list[dict[str, Any]], str | None]:
+    """The elements' compiled forms (in order) when the native kernel takes every one, else no forms and why, naming
+    the first element it does not take (evaluated in Python then); ``rows``: each constraint's rows by name."""
+    forms = []
+    for element in elements:
+        form = element.compiled_form(rows)
+        if form is None or form["kind"] not in NATIVE_FORCE_KINDS:
+            what = "no compiled form" if form is None else f"the compiled form {form['kind']}"
+            return [], (
+                f"force element {element.name!r} has {what} (the native kernel takes {', '.join(NATIVE_FORCE_KINDS)})"
+            )
+        forms.append(form)
+    return forms, None
 
 
 def unsupported_constraint(constraints: list[Constraint], kinds: tuple[str, ...] = tuple(CONTACT_TYPES)) -> str | None:
@@ -121,6 +140,10 @@ class NativeDynamics:
 
     Attributes:
         rows: selection from Pinocchio's contact rows to the closures' rows.
+        forces: the force elements' compiled forms the compiled kernel adds to the applied forces it is given
+            (:meth:`set_forces`; none by default).
+        force_obstacle: why the compiled kernel does not take the scene's force elements (:func:`native_forces`),
+            or None.
     """
 
     def __init__(
@@ -146,6 +169,8 @@ class NativeDynamics:
             self.rows[row : row + closure.rows, column : column + width] = block
             row, column = row + closure.rows, column + width
         self._kernel: NativeKernel | None = None
+        self.forces: list[dict[str, Any]] = []
+        self.force_obstacle: str | None = None
 
     @cached_property
     def _pinocchio(self) -> _Constraints:
@@ -175,8 +200,15 @@ class NativeDynamics:
         """The proximal solve's settings (accuracies 1e-14 absolute and 1e-12 relative, mu, 50 iterations)."""
         return self._pinocchio.settings
 
+    def set_forces(self, elements: list[ForceElement], rows: Mapping[str, slice]) -> None:
+        """Give the compiled kernel the force elements (``rows``: each constraint's rows by name): their compiled
+        forms where it takes every one, else none, and :attr:`force_obstacle` says why (:func:`native_forces`)."""
+        self.forces, self.force_obstacle = native_forces(elements, rows)
+        self._kernel = None
+
     def kernel(self) -> NativeKernel:
-        """The same solve compiled (``cpp/native_kernel.cpp``), for the compiled step loop; built on first use."""
+        """The same solve compiled (``cpp/native_kernel.cpp``) under the applied forces it is given plus
+        :attr:`forces`, for the compiled step loop; built on first use."""
         if self._kernel is None:
             models = list(self.models)
             self._kernel = NativeKernel(
@@ -191,6 +223,7 @@ class NativeDynamics:
                 self.settings.relative_accuracy,
                 self.settings.mu,
                 self.settings.max_iter,
+                self.forces,
             )
         return self._kernel
 
