@@ -1,8 +1,9 @@
 #include "force_elements.hpp"
 
+#include "group.hpp"
+
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
-#include <pinocchio/algorithm/joint-configuration.hpp>
 
 namespace pinstab {
 namespace {
@@ -78,18 +79,12 @@ bool force_element_derivatives(const pinocchio::Model& model, pinocchio::Data& d
     const Eigen::RowVectorXd along = (line.difference / length).transpose() * line.jacobian;  // u^T J
     dforce_dv.noalias() -= spring.damping * along.transpose() * along;
   }
-  VectorXd shifted(model.nq), plus(model.nv), minus(model.nv);
-  VectorXd step = VectorXd::Zero(model.nv);
-  for (int k = 0; k < model.nv; ++k) {
-    step(k) = kForceDifferenceStep;
-    pinocchio::integrate(model, q, step, shifted);
-    if (!kinematic_force_at(model, data, elements, shifted, v, plus)) return false;
-    step(k) = -kForceDifferenceStep;
-    pinocchio::integrate(model, q, step, shifted);
-    if (!kinematic_force_at(model, data, elements, shifted, v, minus)) return false;
-    step(k) = 0.0;
-    dforce_dq.col(k) += (plus - minus) / (2.0 * kForceDifferenceStep);
-  }
+  Eigen::MatrixXd kinematic;  // the wrenches' and spring-dampers' forces at v, differenced in q
+  const auto force_at = [&](const VectorXd& shifted, VectorXd& force) {
+    return kinematic_force_at(model, data, elements, shifted, v, force);
+  };
+  if (!tangent_differences(model, q, kForceDifferenceStep, force_at, kinematic)) return false;
+  dforce_dq += kinematic;
   return true;
 }
 

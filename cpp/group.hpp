@@ -36,6 +36,27 @@ struct Group {
   }
 };
 
+// Central differences of f over the configuration group: column k of jacobian (nv x nv) is
+// (f(q (+) step e_k) - f(q (+) -step e_k)) / (2 step), q (+) dq by pinocchio::integrate (dq in the tangent space at q),
+// f(q, value) filling value (nv) and returning false where it is not to be used; false then (jacobian incomplete).
+template <typename Function>
+bool tangent_differences(const pinocchio::Model& model, const VectorXd& q, double step, Function&& f,
+                         Eigen::MatrixXd& jacobian) {
+  jacobian.resize(model.nv, model.nv);
+  VectorXd shifted(model.nq), plus(model.nv), minus(model.nv), dq = VectorXd::Zero(model.nv);
+  for (int k = 0; k < model.nv; ++k) {
+    dq(k) = step;
+    pinocchio::integrate(model, q, dq, shifted);
+    if (!f(shifted, plus)) return false;
+    dq(k) = -step;
+    pinocchio::integrate(model, q, dq, shifted);
+    if (!f(shifted, minus)) return false;
+    dq(k) = 0.0;
+    jacobian.col(k) = (plus - minus) / (2.0 * step);
+  }
+  return true;
+}
+
 // One step of a fixed scheme (Scheme) with its stages' storage.
 class SchemeStep {
  public:

@@ -282,9 +282,9 @@ NB_MODULE(_compiled, m) {
             return self.multipliers(ts, qs, vs, tau, rows);
           },
           "ts"_a, "qs"_a, "vs"_a, "tau"_a, "rows"_a,
-          "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples (times "
-          "ts [s], rows of qs, vs) under tau and the force elements; NaN where not finite or an element refuses the "
-          "state.");
+          "(multipliers rows lambda_c [N] (n, closure rows), the solves' relative residuals (n,)) at the samples "
+          "(times ts [s], rows of qs, vs) under tau and the force elements; NaN where not finite or an element "
+          "refuses the state.");
   m.def(
       "light_data", [](nb::handle model) { return nb::steal(new_python_data(model.ptr())); }, "model"_a,
       "A pin.Data of the model without Pinocchio's second-order derivative tensors (cpp/light_data.cpp).");

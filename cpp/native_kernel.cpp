@@ -1,5 +1,7 @@
 #include "native_kernel.hpp"
 
+#include "group.hpp"
+
 #include "stabilization.hpp"
 
 #include <cmath>
@@ -9,7 +11,6 @@
 #include <pinocchio/algorithm/constrained-dynamics-derivatives.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
-#include <pinocchio/algorithm/joint-configuration.hpp>
 #include <pinocchio/constraints.hpp>
 
 namespace pinstab {
@@ -54,26 +55,12 @@ bool NativeKernel::acceleration(int, double t, const VectorXd& q, const VectorXd
   return true;
 }
 
-bool NativeKernel::acceleration_differences(int stage, double t, const VectorXd& q, const VectorXd& v,
-                                            const VectorXd& tau, Eigen::MatrixXd& dadq) {
-  dadq.resize(model_.nv, model_.nv);
-  VectorXd shifted(model_.nq), plus(model_.nv), minus(model_.nv), step = VectorXd::Zero(model_.nv);
-  for (int k = 0; k < model_.nv; ++k) {
-    step(k) = kAccelerationDifferenceStep;
-    pinocchio::integrate(model_, q, step, shifted);
-    if (!acceleration(stage, t, shifted, v, tau, plus)) return false;
-    step(k) = -kAccelerationDifferenceStep;
-    pinocchio::integrate(model_, q, step, shifted);
-    if (!acceleration(stage, t, shifted, v, tau, minus)) return false;
-    step(k) = 0.0;
-    dadq.col(k) = (plus - minus) / (2.0 * kAccelerationDifferenceStep);
-  }
-  return true;
-}
-
 bool NativeKernel::derivatives(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                                Eigen::MatrixXd& dadq, Eigen::MatrixXd& dadv) {
-  if (two_bodies_ && !acceleration_differences(stage, t, q, v, tau, dadq)) return false;
+  const auto acceleration_at = [&](const VectorXd& shifted, VectorXd& a) {
+    return acceleration(stage, t, shifted, v, tau, a);
+  };
+  if (two_bodies_ && !tangent_differences(model_, q, kAccelerationDifferenceStep, acceleration_at, dadq)) return false;
   if (!force_element_derivatives(model_, data_, elements_, t, q, v, force_dq_, force_dv_)) return false;
   if (!applied_force(t, q, v, tau)) return false;
   if (models_.empty()) {  // no closures: the articulated-body algorithm's derivatives, d a / d tau = M^-1

@@ -50,7 +50,7 @@ class NativeKernel : public Kernel {
   // constraint acceleration carries the corrector's Kp and Kd terms) plus the elements' own derivatives
   // (force_element_derivatives) through d a / d tau (M^-1, or Pinocchio's ddq_dtau with closures). Where a closure
   // joins two bodies, Pinocchio 4.1's d a / d q misses terms (the four-bar's crank column is off by 50 /s^2 of 36
-  // at Kp = Kd = 0; closures to the world match differences to 1e-9): dadq is then central differences of this
+  // at Kp = Kd = 0; closures to the world match differences to 1e-10): dadq is then central differences of this
   // kernel's acceleration over pinocchio::integrate steps of kAccelerationDifferenceStep (2 nv evaluations), dadv
   // still analytic. False where an element refuses the state or a result is not finite.
   bool derivatives(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
@@ -73,9 +73,6 @@ class NativeKernel : public Kernel {
   VectorXd force_;
   Eigen::MatrixXd force_dq_, force_dv_;
 
-  // dadq by central differences of acceleration(); false where an evaluation is not to be used
-  bool acceleration_differences(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
-                                Eigen::MatrixXd& dadq);
   // force_ = tau plus the elements' forces at (t, q, v) (a kinematics pass in data_ where they read one); false as
   // add_force_elements
   bool applied_force(double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau);

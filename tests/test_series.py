@@ -117,13 +117,16 @@ def test_compiled_series_are_nan_at_non_finite_samples_and_left_to_python_with_s
     assert ClosureSeries.of(build_system(load_scene("bouncing-ball"), "baumgarte").model) is None  # unilateral
 
 
-def test_native_multipliers_in_one_call_equal_pinocchio_sample_by_sample():
+@pytest.mark.parametrize("scene", ["fourbar", "slider-crank"])
+def test_native_multipliers_in_one_call_equal_pinocchio_sample_by_sample(scene):
     """On the native path the multipliers of every sample in one compiled call equal, to the last bit, those of
-    Pinocchio's solve made sample by sample (``ConstrainedSystem.multipliers``); NaN at a non-finite sample."""
-    trajectory = simulate("fourbar", duration=0.3)
+    Pinocchio's solve made sample by sample (``ConstrainedSystem.multipliers``: under Python's forces of the elements,
+    the slider-crank's torque and damper, which the compiled call sums itself at each sample's time); NaN at a
+    non-finite sample."""
+    trajectory = simulate(scene, duration=0.3)
     series = trajectory._series
     system = series.system
-    assert system.path == "native"
+    assert system.path == "native" and system.native.force_obstacle is None
     one_by_one = np.array(
         [system.multipliers(q, v, t) for t, q, v in zip(trajectory.t, trajectory.q, trajectory.v, strict=True)]
     )
