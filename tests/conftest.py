@@ -113,6 +113,22 @@ def _register_hypothesis_profiles() -> None:
 _register_hypothesis_profiles()
 
 
+def with_python_force(scene):
+    """The scene with a user's force element added (zero force, no compiled form): it keeps a compiled path's
+    evaluation in Python (``kernel_obstacle`` names it)."""
+    from pinstab.forces.base import ForceElement
+
+    class UserForce(ForceElement):
+        name = "user"
+        needs_kinematics = False
+
+        def generalized_force(self, kin, v: np.ndarray, t: float) -> np.ndarray:
+            return np.zeros(len(v))
+
+    scene.forces.append(UserForce())
+    return scene
+
+
 def bundled_with_force(scene: str, **changes):
     """The bundled scene ``robots/<scene>.toml`` with keys of its first ``[[forces]]`` table replaced."""
     import tomllib

@@ -10,10 +10,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from conftest import with_python_force
 from pinstab import build_system, load_scene, simulate
 from pinstab.cli import main
 from pinstab.constraints import FrameClosure
-from pinstab.forces.base import ForceElement
 from pinstab.integration.compiled import SCHEMES, CompiledSteps, compiled_obstacle, kernel_obstacle, steps_before
 from pinstab.integration.schemes import INTEGRATORS, Integrator
 from pinstab.paths.banded import BandedDynamics
@@ -105,16 +105,6 @@ def test_a_singular_evaluation_stops_the_compiled_loop_before_its_step():
     assert done == 2 and np.isfinite(qs).all()
 
 
-class UserForce(ForceElement):
-    """A user's element: no force, no compiled form."""
-
-    name = "user"
-    needs_kinematics = False
-
-    def generalized_force(self, kin, v: np.ndarray, t: float) -> np.ndarray:
-        return np.zeros(len(v))
-
-
 @pytest.mark.parametrize("scene", ["stiff-fourbar", "slider-crank", "cassie-legs"])
 def test_native_path_with_force_elements_bitwise_equal_to_the_python_loop(monkeypatch, scene):
     """The native path's scenes with force elements (a spring-damper on an open chain; a joint torque and a damper to a
@@ -150,8 +140,7 @@ def test_runs_left_to_python_say_why():
         ("fourbar", dict(solver="proxsuite"), "general path"),
         ("slider-crank", {}, "force element 'user' has no compiled form (the native kernel takes joint-spring"),
     ]:
-        other = load_scene(scene_name)
-        other.forces.append(UserForce())
+        other = with_python_force(load_scene(scene_name))
         system = build_system(other, "baumgarte", **options)
         system.bind(1e-3, "rk4", other.q0)
         assert compiled_obstacle(system, INTEGRATORS.build("rk4", system)) is None

@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import with_python_force
 from pinstab import build_system, load_scene, simulate
 from pinstab.analysis import exact_reference
 from pinstab.integration import adaptive
@@ -34,6 +35,17 @@ def _assert_same_run(fast, slow) -> None:
     np.testing.assert_array_equal(fast.v, slow.v)
     assert fast.info.error_control == slow.info.error_control
     assert fast.info.solver_statistics.solves == slow.info.solver_statistics.solves
+
+
+def test_native_kernel_with_force_elements_bitwise_equal_to_the_python_adaptive_loop(monkeypatch):
+    """The slider-crank's torque and damper in the native kernel: dop853 at rtol 1e-7 over 1 s steps compiled, t, q,
+    v, the accepted and rejected steps and the solves equal to the Python loop's (Python's elements) to the last
+    bit."""
+    fast, slow = _run_both(monkeypatch, load_scene("slider-crank"), "dop853", 1e-7, 1.0)
+    assert fast.info.path == slow.info.path == "native"
+    accepted = fast.info.error_control["steps_accepted"]
+    assert accepted > 20 and fast.info.compiled_steps >= 0.8 * accepted and slow.info.compiled_steps == 0
+    _assert_same_run(fast, slow)
 
 
 @pytest.mark.parametrize(("integrator", "rtol"), [("dop853", 1e-8), ("dopri5", 1e-7)])
@@ -166,14 +178,19 @@ def test_bad_shapes_are_refused():
         trial.attempt(lambda q, v, t, stage: np.zeros(2), np.zeros(3), np.zeros(2), 0.0, 0.1)
 
 
+def _loaded(scene: str):
+    """The bundled scene; "slider-crank+user": with a user's force element (conftest.with_python_force)."""
+    return with_python_force(load_scene("slider-crank")) if scene == "slider-crank+user" else load_scene(scene)
+
+
 @pytest.mark.parametrize(
     ("scene", "method", "solver"),
-    [("slider-crank", "baumgarte", None), ("fourbar", "projection", None), ("fourbar", "baumgarte", "dense")],
+    [("slider-crank+user", "baumgarte", None), ("fourbar", "projection", None), ("fourbar", "baumgarte", "dense")],
 )
 def test_runs_of_the_python_evaluation_match_the_python_loop(monkeypatch, scene, method, solver):
-    """Force elements (the slider-crank's spring and torque) and the general path run the compiled loop on the
-    system's Python evaluation (called back), a correcting method (projection) keeps the Python loop: no step of a
-    compiled kernel, the same run as with the compiled loop switched off, to the last bit."""
+    """A force element without a compiled form (a user's, added to the slider-crank) and the general path run the
+    compiled loop on the system's Python evaluation (called back), a correcting method (projection) keeps the Python
+    loop: no step of a compiled kernel, the same run as with the compiled loop switched off, to the last bit."""
     made: list[CompiledAdaptive] = []
     original = CompiledAdaptive.__init__
 
@@ -183,10 +200,10 @@ def test_runs_of_the_python_evaluation_match_the_python_loop(monkeypatch, scene,
 
     with monkeypatch.context() as patch:
         patch.setattr(CompiledAdaptive, "__init__", spy)
-        fast = simulate(load_scene(scene), method, "dop853", 1e-2, 0.5, rtol=1e-7, solver=solver)
+        fast = simulate(_loaded(scene), method, "dop853", 1e-2, 0.5, rtol=1e-7, solver=solver)
     with monkeypatch.context() as patch:
         patch.setattr(CompiledAdaptive, "of", classmethod(lambda cls, system, stepper, pair: None))
-        slow = simulate(load_scene(scene), method, "dop853", 1e-2, 0.5, rtol=1e-7, solver=solver)
+        slow = simulate(_loaded(scene), method, "dop853", 1e-2, 0.5, rtol=1e-7, solver=solver)
     accepted = fast.info.error_control["steps_accepted"]
     assert fast.info.compiled_steps == 0 and accepted > 0
     if method == "projection":
