@@ -58,7 +58,7 @@ bool add_force_elements(const pinocchio::Model& model, pinocchio::Data& data, co
 }
 
 bool force_element_derivatives(const pinocchio::Model& model, pinocchio::Data& data, const ForceElements& elements,
-                               double, const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& dforce_dq,
+                               const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& dforce_dq,
                                Eigen::MatrixXd& dforce_dv) {
   dforce_dq.setZero(model.nv, model.nv);
   dforce_dv.setZero(model.nv, model.nv);

@@ -56,14 +56,15 @@ bool add_force_elements(const pinocchio::Model& model, pinocchio::Data& data, co
 // [m or rad] the central differences' step in the tangent space of q of the kinematic elements' forces
 constexpr double kForceDifferenceStep = 1e-6;
 
-// The derivatives of the elements' forces at (t, q, v): dforce_dq [N/m, N m/rad] against q (+) dq (dq in the tangent
-// space at q) and dforce_dv [N s/m, N m s/rad], nv x nv each (overwritten). Joint springs and dampers analytic
-// (diagonal), torques zero, a spring-damper's damping in v analytic (-c J^T u u^T J); the dependence on q of wrenches
-// and spring-dampers (their Jacobians and lines) by central differences of those elements' forces alone over
-// pinocchio::integrate steps of kForceDifferenceStep. data is overwritten (placements and Jacobians at the shifted
-// configurations); false where a spring-damper has no direction at q or a shifted configuration.
+// The derivatives of the elements' forces at (q, v) (the torques', functions of t alone, are zero): dforce_dq
+// [N/m, N m/rad] against q (+) dq (dq in the tangent space at q) and dforce_dv [N s/m, N m s/rad], nv x nv each
+// (overwritten). Joint springs and dampers analytic (diagonal), a spring-damper's damping in v analytic
+// (-c J^T u u^T J); the dependence on q of wrenches and spring-dampers (their Jacobians and lines) by central
+// differences of those elements' forces alone over pinocchio::integrate steps of kForceDifferenceStep (2 nv
+// kinematics passes). data is overwritten (placements and Jacobians at the shifted configurations); false where a
+// spring-damper has no direction at q or a shifted configuration.
 bool force_element_derivatives(const pinocchio::Model& model, pinocchio::Data& data, const ForceElements& elements,
-                               double t, const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& dforce_dq,
+                               const VectorXd& q, const VectorXd& v, Eigen::MatrixXd& dforce_dq,
                                Eigen::MatrixXd& dforce_dv);
 
 }  // namespace pinstab

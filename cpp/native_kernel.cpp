@@ -61,7 +61,7 @@ bool NativeKernel::derivatives(int stage, double t, const VectorXd& q, const Vec
     return acceleration(stage, t, shifted, v, tau, a);
   };
   if (two_bodies_ && !tangent_differences(model_, q, kAccelerationDifferenceStep, acceleration_at, dadq)) return false;
-  if (!force_element_derivatives(model_, data_, elements_, t, q, v, force_dq_, force_dv_)) return false;
+  if (!force_element_derivatives(model_, data_, elements_, q, v, force_dq_, force_dv_)) return false;
   if (!applied_force(t, q, v, tau)) return false;
   if (models_.empty()) {  // no closures: the articulated-body algorithm's derivatives, d a / d tau = M^-1
     pinocchio::computeABADerivatives(model_, data_, q, v, force_);
