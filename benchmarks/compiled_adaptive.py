@@ -11,9 +11,9 @@ of SciPy's cheapest within 1e-6 rad (any of its gains and tolerances). The N-fou
 1e-7: at smaller tolerances its error-controlled passage through the aligned configuration ends on either branch
 with rounding, benchmarks/README.md), the slider-crank (10 s; force elements: in the native kernel since issue 37,
 the compiled loop on the system's Python evaluation in the results before) and the full cassie (0.1 s at rtol 1e-6;
-a free flyer: the compiled loop on the configuration group, the core path) give the compiled loop's speed-up over the Python adaptive loop. The "python" runs are this
-checkout's Python loop, whose attempts are compiled too (one call each): the Python adaptive loop before the compiled
-one is slower still.
+a free flyer: the compiled loop on the configuration group, the core path) give the compiled loop's speed-up over
+the Python adaptive loop. The "python" runs are this checkout's Python loop, whose attempts are compiled too (one
+call each): the Python adaptive loop before the compiled one is slower still.
 """
 
 from __future__ import annotations
