@@ -12,6 +12,10 @@ bool Pair::needs_end() const {
   return estimators.cols() > stages() && (estimators.col(stages()).array() != 0.0).any();
 }
 
+bool Pair::implicit() const { return (coupling.diagonal().array() != 0.0).any(); }
+
+bool Pair::stiffly_accurate() const { return (coupling.row(stages() - 1).transpose().array() == weights.array()).all(); }
+
 double next_step(const Control& control, double h, double error, double proposed, double previous, bool rejected) {
   const bool limited = h < proposed * (1.0 - 1e-12);  // shortened for a passage or a chunk's end
   double optimal = INFINITY;
@@ -54,9 +58,14 @@ Trial::Trial(const Pair& pair, int nv, const pinocchio::Model* group)
     : q_new(nv), v_new(nv), end(2 * nv), slopes(pair.stages(), 2 * nv), pair_(pair), nv_(nv), group_(group),
       increment_(2 * nv), q_(nv), v_(nv), a_(nv) {}
 
+void Trial::use_group(const pinocchio::Model* group) {
+  if (group != group_.model) group_ = Group(group);
+}
+
 bool Trial::take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a,
                  double t, double h, bool with_end) {
   const int stages = pair_.stages();
+  has_end = false;
   slopes.row(0) << v.transpose(), a.transpose();
   for (int i = 1; i < stages; ++i) {
     increment_.setZero();
@@ -75,6 +84,7 @@ bool Trial::take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const V
     ++evaluations;
     if (!kernel.acceleration(0, t + h, q_new, v_new, tau, a_)) return false;
     end << group_.slope(q, q_new, v_new), a_;
+    has_end = true;
   }
   return true;
 }
@@ -149,9 +159,8 @@ VectorXd magnitude(const Group& group, const VectorXd& q) {
   return increment.cwiseAbs();
 }
 
-int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
+int advance_tableau(Kernel& kernel, Trial& trial, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
                     double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
-  Trial trial(pair, kernel.nv(), kernel.group());
   VectorXd a(kernel.nv());
   auto take = [&](double t, VectorXd& q, VectorXd& v) {
     if (!kernel.acceleration(0, t, q, v, tau, a) || !trial.take(kernel, tau, q, v, a, t, dt, false)) return false;
@@ -175,6 +184,8 @@ Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& c
       error = trial.error(control, size, size_new, h);
       if (error <= 1.0) return Outcome::accepted;
       if (!std::isfinite(error) && own == nullptr) return Outcome::handed_back;  // Python's evaluation says why
+    } else if (trial.unconverged) {
+      error = INFINITY;  // an implicit stage not solved: a shorter step
     } else {
       if (own == nullptr) return Outcome::handed_back;  // not to be used: the Python loop's evaluation takes it
       if (!own->refused() || shrink(control, h, INFINITY) < control.min_step * std::max(1.0, t)) {
@@ -194,11 +205,11 @@ long floor_index(double x) { return static_cast<long>(std::floor(x)); }
 
 }  // namespace
 
-int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
-                     const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs) {
+int adaptive_advance(Kernel& kernel, Trial& trial, const Pair& pair, const Control& control, const Grid& grid,
+                     const Stops& stops, const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs,
+                     RowMatrix& vs) {
   const int nv = kernel.nv();
   const bool own = dynamic_cast<const Refusing*>(&kernel) != nullptr;
-  Trial trial(pair, nv, kernel.group());
   Group group(kernel.group());
   Segment segment;
   VectorXd a_new(nv), q_sample, v_sample, size(2 * nv);
@@ -218,7 +229,7 @@ int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, c
     const bool accepted = outcome == Outcome::accepted;
     bool usable = accepted;
     const double t_new = t + h;
-    if (accepted && pair.needs_end()) {
+    if (accepted && trial.has_end) {
       a_new = trial.end.tail(nv);
     } else if (accepted) {
       ++trial.evaluations;

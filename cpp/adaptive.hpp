@@ -21,12 +21,15 @@ struct Hermite {
 // the dense output's Hermite matrices (empty for steps without error control).
 struct Pair {
   VectorXd nodes;               // c_i (s,)
-  Eigen::MatrixXd coupling;     // a_ij (s x s), strictly lower triangular
+  Eigen::MatrixXd coupling;     // a_ij (s x s), lower triangular: strictly (explicit) or with a non-zero diagonal
+                                // below an explicit first stage (diagonally implicit, cpp/implicit.hpp)
   VectorXd weights;             // b_j (s,)
   Eigen::MatrixXd estimators;   // none, one or two rows, s + 1 columns (the last: the new point's derivative)
   Hermite hermite;
   int stages() const { return static_cast<int>(nodes.size()); }
   bool needs_end() const;       // an estimator weighs the new point's derivative (first same as last)
+  bool implicit() const;        // a non-zero diagonal entry: the stages solve for themselves (ImplicitTrial)
+  bool stiffly_accurate() const;  // b = the last row of a: the step ends on the last stage
 };
 
 // A kernel whose evaluation is the Python loop's own (CallbackKernel): the error-controlled loop takes every decision
@@ -77,27 +80,32 @@ void hermite_coefficients(const Eigen::Ref<const Eigen::MatrixXd>& inverse, cons
 void hermite_state(const Eigen::Ref<const RowMatrix>& coefficients, double u, double h, Eigen::Ref<VectorXd> increment,
                    Eigen::Ref<VectorXd> rate);
 
-// One trial step of the pair on the group of `group` (nullptr: q (+) dq = q + dq).
+// One trial step of the pair on the group of `group` (nullptr: q (+) dq = q + dq): an explicit tableau's (the
+// stages in turn); an implicit one's solves its stages (ImplicitTrial, cpp/implicit.hpp).
 class Trial {
  public:
   Trial(const Pair& pair, int nv, const pinocchio::Model* group = nullptr);
+  virtual ~Trial() = default;
   // The step of h [s] from (q, v) at t [s] with a = a(t, q, v), stage i evaluated by kernel.acceleration(i, ...) under
   // tau: fills q_new, v_new, the stage slopes (rows: [velocity slope in the start's tangent space | acceleration])
-  // and, with `with_end`, the new point's slope (its acceleration evaluated as stage 0). False when an evaluation is
-  // not to be used.
-  bool take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t,
-            double h, bool with_end);
+  // and, with `with_end`, the new point's slope (its acceleration evaluated as stage 0; has_end tells it is filled).
+  // False when an evaluation is not to be used, or (unconverged true) when an implicit stage was not solved.
+  virtual bool take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a,
+                    double t, double h, bool with_end);
+  // Step on the group of `group` from now on (the evaluation of the next call may be another kernel's).
+  void use_group(const pinocchio::Model* group);
   // The largest scaled error [-] of the step of h [s] (DOP853: Hairer's combination of its two estimators), each
   // coordinate scaled by atol + rtol max(size, size_new) (2 nv: |y| before and after).
   double error(const Control& control, const VectorXd& size, const VectorXd& size_new, double h) const;
 
   Group& group() { return group_; }
 
-  VectorXd q_new, v_new, end;  // end: [velocity | acceleration] at the new point (when needed)
+  VectorXd q_new, v_new, end;  // end: [velocity | acceleration] at the new point (when has_end)
   RowMatrix slopes;
   long evaluations = 0;
+  bool has_end = false, unconverged = false;
 
- private:
+ protected:
   const Pair& pair_;
   int nv_;
   Group group_;
@@ -106,7 +114,8 @@ class Trial {
 
 // Fixed steps of dt [s] of the pair's tableau (ExplicitRungeKutta.step: the first stage evaluated at the step's start)
 // from (q, v) at grid step `start`, as advance takes the schemes'.
-int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
+// The trial takes them (an ImplicitTrial's Newton state carries over from one call to the next).
+int advance_tableau(Kernel& kernel, Trial& trial, const VectorXd& q0, const VectorXd& v0, const VectorXd& tau,
                     double dt, long start, int steps, RowMatrix& qs, RowMatrix& vs, Correction* correction = nullptr);
 
 // How an attempt ended: accepted; handed back to the caller (an evaluation of a compiled kernel not to be used, its
@@ -115,7 +124,7 @@ int advance_tableau(Kernel& kernel, const Pair& pair, const VectorXd& q0, const 
 enum class Outcome { accepted = 0, handed_back = 1, raised = 2, too_short = 3 };
 
 // AdaptiveLoop.attempt: trial steps from (q, v, a) at t [s] (size: the start's |y|, 2 nv) of h [s], shorter after each
-// rejection, until one meets the tolerance; h and error become the accepted step's (too_short: the step below
+// rejection (an error above 1, or an implicit stage not solved), until one meets the tolerance; h and error become the accepted step's (too_short: the step below
 // min_step), rejected counts the rejections.
 Outcome attempt(Trial& trial, Kernel& kernel, const Pair& pair, const Control& control, const VectorXd& tau,
                 const VectorXd& q, const VectorXd& v, const VectorXd& a, const VectorXd& size, double t, double& h,
@@ -146,8 +155,10 @@ struct ControlState {
 // Accepted steps from `state` until t_stop, the watch's due time, a crossing within the horizon, or an attempt the
 // compiled loop cannot finish (its outcome in state.outcome; the counts of a CallbackKernel's failed attempt added, as
 // the Python loop adds them before it raises): the state is left at that step's start. Grid samples in the steps
-// taken (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many.
-int adaptive_advance(Kernel& kernel, const Pair& pair, const Control& control, const Grid& grid, const Stops& stops,
-                     const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs, RowMatrix& vs);
+// taken (consecutive grid steps from `first`) are rows of qs, vs (grown as needed); returns how many. The trial (of
+// the pair) takes the steps.
+int adaptive_advance(Kernel& kernel, Trial& trial, const Pair& pair, const Control& control, const Grid& grid,
+                     const Stops& stops, const VectorXd& tau, ControlState& state, long& first, RowMatrix& qs,
+                     RowMatrix& vs);
 
 }  // namespace pinstab

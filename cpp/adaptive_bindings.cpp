@@ -7,21 +7,34 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/tuple.h>
 
+#include <memory>
 #include <optional>
 #include <stdexcept>
 
 #include "callback_kernel.hpp"
+#include "implicit.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 
 namespace pinstab {
 
+nb::object newton_counts(const Pair& pair, const Trial* trial);  // cpp/step_bindings.cpp
+
 namespace {
 
 struct AdaptivePair {
   Pair pair;
   Control control;
+  NewtonSettings newton;         // an implicit pair's: the control's tolerances, kappa and max_iterations given
+  std::unique_ptr<Trial> trial;  // its trial steps' (an ImplicitTrial's Newton state carries over from call to call)
+
+  // The trial step on the kernel's group.
+  Trial& trial_of(Kernel& kernel) {
+    if (!trial || trial->q_new.size() != kernel.nv()) trial = make_trial(pair, kernel.nv(), kernel.group(), newton);
+    trial->use_group(kernel.group());
+    return *trial;
+  }
 };
 
 using Matrices = std::tuple<Eigen::MatrixXd, Eigen::MatrixXd, Eigen::MatrixXd>;
@@ -43,7 +56,7 @@ void check_state(Kernel& kernel, const VectorXd& q, const VectorXd& v, const Vec
   }
 }
 
-nb::tuple run(const AdaptivePair& self, nb::handle kernel_spec, const VectorXd& tau, double t, const VectorXd& q,
+nb::tuple run(AdaptivePair& self, nb::handle kernel_spec, const VectorXd& tau, double t, const VectorXd& q,
               const VectorXd& v, const VectorXd& a, double step_size, double previous_error, double dt,
               double duration, long steps, double slack, double t_stop, double due, double crossing, double horizon) {
   RunKernel kernel(kernel_spec, static_cast<int>(v.size()));
@@ -54,11 +67,12 @@ nb::tuple run(const AdaptivePair& self, nb::handle kernel_spec, const VectorXd& 
   RowMatrix qs(8, q.size()), vs(8, v.size());
   long first = 0;
   int samples;
+  Trial& trial = self.trial_of(*kernel);
   if (kernel.callback) {  // its evaluations hold the GIL
-    samples = adaptive_advance(*kernel, self.pair, self.control, grid, stops, tau, state, first, qs, vs);
+    samples = adaptive_advance(*kernel, trial, self.pair, self.control, grid, stops, tau, state, first, qs, vs);
   } else {
     nb::gil_scoped_release released;
-    samples = adaptive_advance(*kernel, self.pair, self.control, grid, stops, tau, state, first, qs, vs);
+    samples = adaptive_advance(*kernel, trial, self.pair, self.control, grid, stops, tau, state, first, qs, vs);
   }
   RowMatrix kept_q = qs.topRows(samples), kept_v = vs.topRows(samples);
   nb::object raised = nb::none();
@@ -68,11 +82,11 @@ nb::tuple run(const AdaptivePair& self, nb::handle kernel_spec, const VectorXd& 
                         kept_q, kept_v, state.outcome == Outcome::too_short ? state.failed_step : NAN, raised);
 }
 
-nb::tuple attempt_step(const AdaptivePair& self, nb::handle kernel_spec, const VectorXd& tau, const VectorXd& q,
+nb::tuple attempt_step(AdaptivePair& self, nb::handle kernel_spec, const VectorXd& tau, const VectorXd& q,
                        const VectorXd& v, const VectorXd& a, double t, double h) {
   RunKernel kernel(kernel_spec, static_cast<int>(v.size()));
   check_state(*kernel, q, v, a);
-  Trial trial(self.pair, (*kernel).nv(), (*kernel).group());
+  Trial& trial = self.trial_of(*kernel);
   VectorXd size(2 * v.size());
   size << magnitude(trial.group(), q), v.cwiseAbs();
   double error = 0.0;
@@ -80,7 +94,7 @@ nb::tuple attempt_step(const AdaptivePair& self, nb::handle kernel_spec, const V
   const Outcome outcome = attempt(trial, *kernel, self.pair, self.control, tau, q, v, a, size, t, h, error, rejected);
   const bool accepted = outcome == Outcome::accepted;
   return nb::make_tuple(static_cast<int>(outcome), h, error, rejected, trial.q_new, trial.v_new, trial.slopes,
-                        accepted && self.pair.needs_end() ? nb::cast(trial.end) : nb::none(),
+                        accepted && trial.has_end ? nb::cast(trial.end) : nb::none(),
                         outcome == Outcome::raised ? kernel.raised() : nb::none());
 }
 
@@ -115,19 +129,32 @@ void bind_adaptive(nb::module_& m) {
              const Eigen::MatrixXd& estimators, const Matrices& matrices, nb::dict constants) {
             const Hermite hermite = hermite_of(matrices);
             auto c = [&](const char* key) { return nb::cast<double>(constants[key]); };
-            if (estimators.rows() < 1 || estimators.rows() > 2 || estimators.cols() != nodes.size() + 1 ||
-                coupling.rows() != nodes.size() || coupling.cols() != nodes.size() || weights.size() != nodes.size()) {
-              throw std::invalid_argument("AdaptivePair: inconsistent tableau shapes");
+            Pair pair{nodes, coupling, weights, estimators, hermite};
+            check_tableau(pair, "AdaptivePair");
+            if (estimators.rows() < 1 || estimators.rows() > 2 || estimators.cols() != nodes.size() + 1) {
+              throw std::invalid_argument("AdaptivePair: one or two estimators of s + 1 entries");
             }
-            new (self) AdaptivePair{Pair{nodes, coupling, weights, estimators, hermite},
-                                    Control{c("rtol"), c("atol"), c("safety"), c("min_factor"), c("max_factor"),
-                                            c("min_step"), c("pi_alpha"), c("pi_beta"), c("estimator_mix"),
-                                            c("exponent")}};
+            if (pair.implicit() && !pair.stiffly_accurate()) {
+              throw std::invalid_argument("AdaptivePair: an implicit pair must be stiffly accurate (b = last row of a)");
+            }
+            const Control control{c("rtol"), c("atol"), c("safety"), c("min_factor"), c("max_factor"),
+                                  c("min_step"), c("pi_alpha"), c("pi_beta"), c("estimator_mix"), c("exponent")};
+            NewtonSettings newton{control.rtol, control.atol, 1.0, 1};
+            if (pair.implicit()) {
+              newton.kappa = c("newton_kappa");
+              newton.max_iterations = nb::cast<int>(constants["newton_iterations"]);
+            }
+            new (self) AdaptivePair{std::move(pair), control, newton, nullptr};
           },
           "nodes"_a, "coupling"_a, "weights"_a, "estimators"_a, "hermite"_a, "constants"_a,
-          "An embedded pair (c, a, b, estimators with the new point's column, the Hermite matrices) and the "
-          "control's constants (dict: rtol, atol, safety, min_factor, max_factor, min_step, pi_alpha, pi_beta, "
-          "estimator_mix, exponent).")
+          "An embedded pair (c, a, b: explicit, or diagonally implicit and stiffly accurate; estimators with the new "
+          "point's column, the Hermite matrices) and the control's constants (dict: rtol, atol, safety, min_factor, "
+          "max_factor, min_step, pi_alpha, pi_beta, estimator_mix, exponent; for an implicit pair newton_kappa and "
+          "newton_iterations, its Newton iteration's, cpp/implicit.hpp).")
+      .def_prop_ro(
+          "newton", [](const AdaptivePair& self) { return newton_counts(self.pair, self.trial.get()); },
+          "An implicit pair's (iterations, jacobians, factorizations, failures) over its steps so far (None: an "
+          "explicit one).")
       .def("run", &run, "kernel"_a, "tau"_a, "t"_a, "q"_a, "v"_a, "a"_a, "step_size"_a, "previous_error"_a, "dt"_a,
            "duration"_a, "steps"_a, "slack"_a, "t_stop"_a, "due"_a, "crossing"_a, "horizon"_a,
            "(steps, t, q, v, a, step_size, previous_error, accepted, rejected, evaluations, smallest, largest, first, "

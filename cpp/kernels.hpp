@@ -36,6 +36,11 @@ class Kernel {
   virtual bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                             VectorXd& a) = 0;
   virtual int nv() const = 0;
+  // The Jacobians of a(t, q, v) under tau at stage `stage`: dadq (nv x nv, against q (+) dq with dq in the tangent space
+  // at q) [1/s^2] and dadv (nv x nv) [1/s]; false when not usable. The default: finite differences of acceleration
+  // (cpp/jacobian.cpp).
+  virtual bool jacobian(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                        Eigen::MatrixXd& dadq, Eigen::MatrixXd& dadv);
   // The model whose configuration group the step loop integrates on (pinocchio::integrate, and stage velocities
   // carried to the step's start with dDifference, where its joints are not all of one coordinate), or nullptr: a
   // kernel whose models' joints all are (q (+) dq = q + dq).

@@ -6,11 +6,13 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/tuple.h>
 
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "callback_kernel.hpp"
+#include "implicit.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -43,6 +45,13 @@ struct PythonScheme {
 struct PythonTableau {
   GroupModel model;
   Pair pair;
+  NewtonSettings newton;  // an implicit tableau's
+  std::unique_ptr<Trial> trial;  // its steps' (an ImplicitTrial's Newton state carries over from call to call)
+
+  Trial& trial_of(int nv) {
+    if (!trial || trial->q_new.size() != nv) trial = make_trial(pair, nv, model.group, newton);
+    return *trial;
+  }
 };
 
 nb::tuple scheme_step(PythonScheme& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array, double t,
@@ -90,9 +99,10 @@ nb::tuple scheme_run(PythonScheme& self, nb::handle kernel, const VectorXd& q, c
 
 nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q, const VectorXd& v,
                       const VectorXd& tau, double dt, int steps, long start, Corrector* corrector) {
+  Trial& trial = self.trial_of(static_cast<int>(v.size()));
   return fixed_run(self.model, kernel, q, v, steps, corrector,
                    [&](Kernel& evaluation, RowMatrix& qs, RowMatrix& vs, Correction* correction) {
-                     return advance_tableau(evaluation, self.pair, q, v, tau, dt, start, steps, qs, vs, correction);
+                     return advance_tableau(evaluation, trial, q, v, tau, dt, start, steps, qs, vs, correction);
                    });
 }
 
@@ -110,10 +120,24 @@ nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::hand
   } else if (!kernel.acceleration(0, t, q, v, VectorXd(), a)) {
     reraise(kernel.raised(false));
   }
-  Trial trial(self.pair, nv, self.model.group);
-  if (!trial.take(kernel, VectorXd(), q, v, a, t, h, with_end)) reraise(kernel.raised(false));
-  return nb::make_tuple(trial.q_new, trial.v_new, trial.slopes, with_end ? nb::cast(trial.end) : nb::none());
+  Trial& trial = self.trial_of(nv);
+  if (!trial.take(kernel, VectorXd(), q, v, a, t, h, with_end)) {
+    if (trial.unconverged) throw NewtonFailure(dynamic_cast<ImplicitTrial&>(trial).failure(t, h));
+    reraise(kernel.raised(false));
+  }
+  return nb::make_tuple(trial.q_new, trial.v_new, trial.slopes, trial.has_end ? nb::cast(trial.end) : nb::none());
 }
+
+}  // namespace
+
+nb::object newton_counts(const Pair& pair, const Trial* trial) {
+  if (!pair.implicit()) return nb::none();
+  const auto* implicit = dynamic_cast<const ImplicitTrial*>(trial);
+  const NewtonCounts counts = implicit == nullptr ? NewtonCounts() : implicit->counts;
+  return nb::make_tuple(counts.iterations, counts.jacobians, counts.factorizations, counts.failures);
+}
+
+namespace {
 
 constexpr const char* RUN_DOC =
     "(qs, vs, done, raised, iterations): up to `steps` steps of dt [s] from (q, v) at grid step `start` (time start "
@@ -125,6 +149,7 @@ constexpr const char* RUN_DOC =
 }  // namespace
 
 void bind_steps(nb::module_& m) {
+  nb::exception<NewtonFailure>(m, "NewtonFailure", PyExc_ArithmeticError);
   nb::class_<Corrector>(m, "Corrector",
                         "A correction of the state after each step of a compiled run (its kind: CoreCorrection).");
   nb::class_<PythonScheme>(m, "SchemeStep")
@@ -152,16 +177,18 @@ void bind_steps(nb::module_& m) {
       .def(
           "__init__",
           [](PythonTableau* self, const VectorXd& nodes, const Eigen::MatrixXd& coupling, const VectorXd& weights,
-             nb::object model) {
-            if (nodes.size() < 1 || coupling.rows() != nodes.size() || coupling.cols() != nodes.size() ||
-                weights.size() != nodes.size()) {
-              throw std::invalid_argument("RungeKutta: nodes (s), coupling (s x s) and weights (s) of one tableau");
-            }
-            new (self) PythonTableau{GroupModel(std::move(model)), Pair{nodes, coupling, weights, {}, {}}};
+             nb::object model, std::optional<std::tuple<double, double, double, int>> newton) {
+            Pair pair{nodes, coupling, weights, {}, {}};
+            check_tableau(pair, "RungeKutta");
+            if (pair.implicit() && !newton) throw std::invalid_argument("RungeKutta: an implicit tableau needs newton");
+            const auto [rtol, atol, kappa, iterations] = newton.value_or(std::make_tuple(1.0, 1.0, 1.0, 1));
+            new (self) PythonTableau{GroupModel(std::move(model)), std::move(pair),
+                                     NewtonSettings{rtol, atol, kappa, iterations}, nullptr};
           },
-          "nodes"_a, "coupling"_a, "weights"_a, "model"_a.none(),
-          "An explicit tableau (c_i, a_ij strictly lower triangular, b_j) on the group of a pin.Model (None: every "
-          "joint of one coordinate).")
+          "nodes"_a, "coupling"_a, "weights"_a, "model"_a.none(), "newton"_a.none() = nb::none(),
+          "A tableau (c_i, a_ij lower triangular: strictly, or diagonally implicit below an explicit first stage, b_j) "
+          "on the group of a pin.Model (None: every joint of one coordinate); newton: (rtol, atol, kappa, "
+          "max_iterations) of an implicit tableau's Newton iteration (cpp/implicit.hpp).")
       .def("attempt", &tableau_attempt, "acceleration"_a, "q"_a, "v"_a, "t"_a, "h"_a, "first"_a.none() = nb::none(),
            "end"_a = false,
            "(q_new, v_new, slopes, end slope or None): the step of h [s] from (q, v) at t [s], stage i evaluated by "
@@ -169,7 +196,11 @@ void bind_steps(nb::module_& m) {
            "slopes: stages x 2 nv, [velocity slope in the start's tangent space | acceleration] per stage; with end, "
            "the new point's slope (its acceleration evaluated as stage 0).")
       .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a,
-           "corrector"_a.none() = nb::none(), RUN_DOC);
+           "corrector"_a.none() = nb::none(), RUN_DOC)
+      .def_prop_ro(
+          "newton", [](const PythonTableau& self) { return newton_counts(self.pair, self.trial.get()); },
+          "An implicit tableau's (iterations, jacobians, factorizations, failures) over its steps so far (None: an "
+          "explicit one).");
 }
 
 }  // namespace pinstab

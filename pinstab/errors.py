@@ -175,6 +175,12 @@ class DivergenceError(PinstabError):
         self.diverged_at = diverged_at
 
 
+class NewtonError(DivergenceError):
+    """An implicit integrator's Newton iteration did not solve a stage of a fixed step, even with a fresh Jacobian
+    (:mod:`pinstab.integration.implicit`). The message names the scheme, the stage, the step's start time and
+    length, and the last scaled increment; the run keeps its trajectory up to the step's start."""
+
+
 class StepTooLargeError(DivergenceError):
     """A run failed (a blow-up, a solve, a contact that could not hold) only because its step is too large
     for the motion: with a smaller one it goes on. The message names dt and a step that works."""

@@ -93,6 +93,9 @@ class RunInfo:
             slip velocity, impulse).
         error_control: with rtol/atol, the tolerances and the accepted and rejected steps
             (:meth:`~pinstab.integration.adaptive.ErrorControl.summary`); None for fixed steps.
+        newton: with an implicit integrator, what its Newton iteration did (``newton_iterations``: iterations, one
+            evaluation each; ``jacobian_evaluations``; ``lu_factorizations``; ``newton_failures``: stages not solved,
+            each retried with a fresh Jacobian or, under error control, with a shorter step); None otherwise.
         stopped: why the run ended before its duration, with the samples up to then: ``reason`` (``slip``
             or ``separation``: an event it was asked to stop on, with ``contact`` and ``event``; ``contact
             failure``: contacts with no solution, with ``error``, the error's class, and ``message``) and
@@ -138,6 +141,7 @@ class RunInfo:
     controls: list[str] = field(default_factory=list)
     passages: list[dict[str, Any]] = field(default_factory=list)
     error_control: dict[str, Any] | None = None
+    newton: dict[str, int] | None = None
     contact_events: list[dict[str, Any]] = field(default_factory=list)
     stopped: dict[str, Any] | None = None
     limits_active_s: dict[str, float] | None = None

@@ -427,6 +427,8 @@ def run_figures(info: RunInfo, wall_time: float, t_end: float, figures: dict[str
     summary["dynamics_evaluations"] = statistics.solves
     if info.error_control is not None:
         summary["error_control"] = info.error_control
+    if info.newton is not None:
+        summary["newton"] = info.newton
     passages = info.passages
     summary["singular_passages"] = passages
     summary["branch_changes"] = sum(not passage["branch_kept"] for passage in passages)

@@ -52,7 +52,8 @@ def test_runge_kutta_keeps_its_order_on_se3(data_dir, integrator, order):
 def test_unknown_integrator_lists_the_valid_ones():
     with pytest.raises(
         PinstabError,
-        match="unknown integrator 'rk5'; valid integrators: dop853, dopri5, euler, heun, rk4, semi-implicit-euler",
+        match="unknown integrator 'rk5'; valid integrators: dop853, dopri5, esdirk4, euler, heun, implicit-euler, "
+        "implicit-midpoint, rk4, semi-implicit-euler",
     ):
         simulate("fourbar", integrator="rk5", duration=0.01)
 

@@ -39,8 +39,9 @@ from ..errors import DivergenceError
 from ..kernels import AdaptivePair
 from .compiled import AdaptiveRun, CompiledAdaptive, python_evaluation
 from .dense import HERMITE, Segment
+from .implicit import NEWTON_ITERATIONS, NEWTON_KAPPA, newton_figures
 from .passages import HORIZON
-from .schemes import ExplicitRungeKutta
+from .schemes import TableauScheme
 from .stepping import GRID_SLACK, StepLoop
 
 SAFETY = 0.9
@@ -96,11 +97,14 @@ class AdaptiveLoop(StepLoop):
 
     Args:
         system, stepper, grid, every, drift_limit, warned: as :class:`StepLoop` (``stepper`` an
-            :class:`ExplicitRungeKutta` with an error estimator).
+            :class:`~pinstab.integration.schemes.TableauScheme` with an error estimator: an explicit pair, or a
+            stiffly accurate implicit one whose stages Newton's iteration solves to a share :data:`NEWTON_KAPPA
+            <pinstab.integration.implicit.NEWTON_KAPPA>` of the tolerances, a stage it cannot solve rejecting the
+            step like an error above 1).
         control: the tolerances, and the counters the loop fills.
     """
 
-    def __init__(self, system, stepper: ExplicitRungeKutta, grid, every, drift_limit, warned, control: ErrorControl):
+    def __init__(self, system, stepper: TableauScheme, grid, every, drift_limit, warned, control: ErrorControl):
         super().__init__(system, stepper, grid, every, drift_limit, warned)
         self.control = control
         self.pair = stepper
@@ -116,6 +120,8 @@ class AdaptiveLoop(StepLoop):
             "pi_beta": PI_BETA,
             "estimator_mix": ESTIMATOR_MIX,
             "exponent": self.exponent,
+            "newton_kappa": NEWTON_KAPPA,
+            "newton_iterations": NEWTON_ITERATIONS,
         }
         self.rules = AdaptivePair(
             stepper.nodes, stepper.coupling, stepper.weights, stepper.estimators, HERMITE, constants
@@ -126,6 +132,11 @@ class AdaptiveLoop(StepLoop):
         self.previous_error = 1.0  # the last accepted step's error, for the PI control
         self.rejected_last = False  # the last step was accepted after a rejection
         self._start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (q, v, a) where the next step starts
+
+    def newton_figures(self) -> dict[str, int] | None:
+        """What an implicit pair's Newton iteration did so far (its compiled pair's), None for an explicit one."""
+        counts = self.rules.newton
+        return None if counts is None else newton_figures(counts)
 
     def snapshot(self) -> tuple:
         return super().snapshot(), self.step_size, self.previous_error, self._start

@@ -33,10 +33,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from ..errors import ContactInfeasibleError
-from ..kernels import RungeKutta, SchemeStep
+from ..kernels import SchemeStep
 from ..projection import compiled_projections
 from ..stabilizers.projection import ProjectingStabilizer
-from .schemes import SCHEMES, ExplicitRungeKutta
+from .implicit import ImplicitRungeKutta
+from .schemes import SCHEMES, TableauScheme
 
 if TYPE_CHECKING:
     from ..kernels import AdaptivePair, Kernel
@@ -47,7 +48,7 @@ if TYPE_CHECKING:
 def compiled_obstacle(system: ConstrainedSystem, stepper: Integrator, adaptive: bool = False) -> str | None:
     """Why the compiled loop cannot take this run's steps (naming the first reason), or None; ``adaptive``: the
     error-controlled steps of an embedded pair (:class:`CompiledAdaptive`), else fixed steps of :data:`SCHEMES`."""
-    if not adaptive and stepper.name not in SCHEMES and not isinstance(stepper, ExplicitRungeKutta):
+    if not adaptive and stepper.name not in SCHEMES and not isinstance(stepper, TableauScheme):
         return f"integrator {stepper.name} is neither one of {', '.join(SCHEMES)} nor a Runge-Kutta tableau"
     stabilizer = system.stabilizer
     if stabilizer.corrects and not (
@@ -98,18 +99,22 @@ class CompiledLoop:
 
 class CompiledSteps(CompiledLoop):
     """Fixed steps of the compiled loop (``cpp/stepping.cpp``: a scheme's, or a tableau's as
-    :meth:`ExplicitRungeKutta.step` takes them).
+    :meth:`TableauScheme.step` takes them; an implicit one's on the stepper's own compiled step, whose Newton state
+    its Python steps share).
 
     Args:
-        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`, or an
-            :class:`~pinstab.integration.schemes.ExplicitRungeKutta`).
+        system: the bound system. stepper: its integrator (one of :data:`SCHEMES`, or a
+            :class:`~pinstab.integration.schemes.TableauScheme`).
     """
 
     def __init__(self, system: ConstrainedSystem, stepper: Integrator) -> None:
         super().__init__(system)
         self.stages = stepper.stages
-        if isinstance(stepper, ExplicitRungeKutta):
-            self.step = RungeKutta(stepper.nodes, stepper.coupling, stepper.weights, self.group)
+        self.implicit = isinstance(stepper, ImplicitRungeKutta)
+        if self.implicit:
+            self.step = stepper.compiled
+        elif isinstance(stepper, TableauScheme):
+            self.step = stepper.compiled_tableau(self.group)
         else:
             self.step = SchemeStep(SCHEMES[stepper.name], self.group)
         stabilizer = system.stabilizer  # a method that corrects: on the core's compiled projections (the obstacle)
@@ -135,13 +140,15 @@ class CompiledSteps(CompiledLoop):
         corrections' iterations per step done (None for a method that does not correct)."""
         kernel = self.kernel()
         evaluation = python_evaluation(self.system) if kernel is None else kernel
+        before = self.step.newton[0] if self.implicit else 0
         qs, vs, done, raised, iterations = self.step.run(
             evaluation, q, v, self.system.model.no_force, dt, steps, start, self.corrector
         )
         if kernel is None:
             self.callback_steps += done
-        else:
-            self.system.count_compiled(done * self.stages)
+        else:  # an implicit step: its first stage and its Newton iterations
+            newton = self.step.newton[0] - before if self.implicit else done * (self.stages - 1)
+            self.system.count_compiled(done + newton)
             self.steps += done
         return qs, vs, done, raised, iterations
 

@@ -111,14 +111,15 @@ class RK4(FixedScheme):
     nodes = (0.0, 0.5, 0.5, 1.0)
 
 
-class ExplicitRungeKutta(Integrator):
-    """An explicit Runge-Kutta scheme given by its :class:`~pinstab.integration.tableaus.Tableau`, stepped by
-    ``cpp/adaptive.cpp`` (:class:`~pinstab.kernels.RungeKutta`).
+class TableauScheme(Integrator):
+    """A Runge-Kutta scheme given by its tableau (:class:`~pinstab.integration.tableaus.Tableau`), stepped by
+    ``cpp/adaptive.cpp`` (:class:`~pinstab.kernels.RungeKutta`): explicit (:class:`ExplicitRungeKutta`) or
+    diagonally implicit (:class:`~pinstab.integration.implicit.ImplicitRungeKutta`, ``cpp/implicit.cpp``).
 
     Attributes:
-        tableau: the coefficients. nodes: c_i (s,). coupling: a_ij (s x s, strictly lower triangular).
-        weights: b_j (s,). estimators: the error estimators' weights (one row each, s + 1 columns: the last
-            for the derivative at the new point), empty without one.
+        tableau: the coefficients. nodes: c_i (s,). coupling: a_ij (s x s, lower triangular: strictly for an
+            explicit scheme). weights: b_j (s,). estimators: the error estimators' weights (one row each, s + 1
+            columns: the last for the derivative at the new point), empty without one.
     """
 
     tableau: Tableau
@@ -129,17 +130,22 @@ class ExplicitRungeKutta(Integrator):
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
+        if "tableau" not in cls.__dict__:  # an intermediate base
+            return
         tableau = cls.tableau
         cls.stages = len(tableau.nodes)
         cls.nodes = np.array(tableau.nodes)
         cls.coupling = _lower_triangle(tableau.coupling, cls.stages)
         cls.weights = _row(tableau.weights, cls.stages)
         cls.estimators = np.array([_row(estimator, cls.stages + 1) for estimator in tableau.estimators])
-        register_polynomial(cls.name, stability_polynomial(cls.coupling, cls.weights))
 
     def __init__(self, system: ConstrainedSystem, options: NoOptions | None = None) -> None:
         super().__init__(system, options)
-        self._tableau = RungeKutta(self.nodes, self.coupling, self.weights, _group(system))
+        self._tableau = self.compiled_tableau(_group(system))
+
+    def compiled_tableau(self, group: pin.Model | None) -> RungeKutta:
+        """The compiled step of the tableau on the group of ``group`` (None: every joint of one coordinate)."""
+        return RungeKutta(self.nodes, self.coupling, self.weights, group)
 
     def step(self, q, v, t, dt):
         return self.attempt(q, v, t, dt)[:2]
@@ -152,6 +158,15 @@ class ExplicitRungeKutta(Integrator):
         weigh, and with ``end`` the new point's slope ([velocity slope | acceleration], its acceleration evaluated
         as stage 0; else None). ``first``: the acceleration at (q, v, t) when already known."""
         return self._tableau.attempt(self.system.acceleration, q, v, t, dt, first, end)
+
+
+class ExplicitRungeKutta(TableauScheme):
+    """An explicit Runge-Kutta scheme given by its tableau (a_ij strictly lower triangular); its stability
+    polynomial registered for the step-size criterion."""
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        register_polynomial(cls.name, stability_polynomial(cls.coupling, cls.weights))
 
 
 def _lower_triangle(rows: dict[int, dict[int, float]], stages: int) -> np.ndarray:
@@ -209,6 +224,6 @@ def embedded_pairs() -> list[str]:
         entry.name
         for entry in INTEGRATORS.entries()
         if isinstance(entry.factory, type)
-        and issubclass(entry.factory, ExplicitRungeKutta)
+        and issubclass(entry.factory, TableauScheme)
         and len(entry.factory.estimators)
     ]

@@ -24,6 +24,7 @@ from ..constraints.joint_limits import LimitWatch
 from ..errors import (
     ContactInfeasibleError,
     DivergenceError,
+    NewtonError,
     PinstabError,
     ProjectionError,
     ServoInfeasibleError,
@@ -301,6 +302,11 @@ class StepLoop:
                 keep(k, q, v)
         return q, v, k
 
+    def newton_figures(self) -> dict[str, int] | None:
+        """What an implicit integrator's Newton iteration did so far (:func:`~pinstab.integration.implicit.
+        newton_figures`), None for an explicit one."""
+        return self.stepper.newton_figures() if self.stepper.implicit else None
+
     def store(self, q: np.ndarray, v: np.ndarray, k: int, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Correct the state reached at grid step k (at time t [s] when it is not a grid time: a step of a
         plan around a singular passage), count the correction and keep the sample when k is recorded."""
@@ -434,6 +440,8 @@ class StepLoop:
                 failed = (reached, q_next, v_next)
                 self.check(q_next, v_next, reached)
             except Failure as exc:
+                reason = str(exc)
+            except NewtonError as exc:
                 reason = str(exc)
             except DivergenceError:
                 reason = "a non-finite state"

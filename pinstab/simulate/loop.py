@@ -232,6 +232,7 @@ def trajectory_of(
         info.contact_events = [event.to_dict() for event in events if event.t <= info.t_end]
     if isinstance(loop, AdaptiveLoop):
         info.error_control = loop.control.summary()
+    info.newton = loop.newton_figures()
     if _streamed(loop):
         records.finish()
         records.sink.close()

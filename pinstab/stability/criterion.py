@@ -44,6 +44,33 @@ def register_polynomial(scheme: str, coefficients: tuple[float, ...]) -> None:
         SCHEMES.append(scheme)
 
 
+TABLEAUS: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+"""The implicit schemes' tableaus (a, b) by name: R = R(tau W), R(z) = 1 + z b^T (I - z a)^-1 1 a rational function."""
+
+
+def register_tableau(scheme: str, coupling: np.ndarray, weights: np.ndarray) -> None:
+    """Make an implicit Runge-Kutta scheme known by its tableau (a lower triangular with a non-zero diagonal, b):
+    its one-step amplification is the rational stability function of its tableau (:func:`stability_function`)."""
+    TABLEAUS[scheme] = (np.array(coupling, dtype=float), np.array(weights, dtype=float))
+    if scheme not in SCHEMES:
+        SCHEMES.append(scheme)
+
+
+def stability_function(coupling: np.ndarray, weights: np.ndarray, z: complex) -> complex:
+    """R(z) = 1 + z b^T (I - z a)^-1 1 of a Runge-Kutta tableau: its one-step amplification of y' = lambda y at
+    z = h lambda [dimensionless]."""
+    stages = len(weights)
+    solved = np.linalg.solve(np.eye(stages) - z * np.asarray(coupling), np.ones(stages, dtype=complex))
+    return complex(1.0 + z * (np.asarray(weights) @ solved))
+
+
+def _tableau_amplification(coupling: np.ndarray, weights: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """R(Z) = I + (b^T (x) Z) (I - a (x) Z)^-1 (1 (x) I) of a tableau at the matrix Z (n x n)."""
+    n, stages = z.shape[0], len(weights)
+    stacked = np.linalg.solve(np.eye(stages * n) - np.kron(coupling, z), np.kron(np.ones((stages, 1)), np.eye(n)))
+    return np.eye(n) + np.kron(weights[None, :], z) @ stacked
+
+
 def is_multistage(scheme: str) -> bool:
     """Whether ``scheme`` evaluates the dynamics more than once per step (a Runge-Kutta scheme of
     order >= 2)."""
@@ -93,6 +120,8 @@ def amplification(
                 [-step * stiffness, velocity_map],
             ]
         )
+    if scheme in TABLEAUS:
+        return _tableau_amplification(*TABLEAUS[scheme], step * w)
     result = np.zeros((n, n))
     power = np.eye(n)
     for coefficient in POLYNOMIALS[scheme]:
@@ -162,6 +191,9 @@ def scalar_radius(kp: float, kd: float, step: float, scheme: str, holonomic: boo
 def _scalar_eigenvalues(kp: float, kd: float, step: float, scheme: str, holonomic: bool) -> list[complex]:
     """The eigenvalues of R(tau W) for scalar gains (see :func:`scalar_radius`)."""
     tau, stiffness, damping = Fraction(step), Fraction(kp), Fraction(kd)
+    if scheme in TABLEAUS:
+        roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
+        return [stability_function(*TABLEAUS[scheme], complex(mu)) for mu in roots]
     if scheme in POLYNOMIALS:
         roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
         eigenvalues = []
@@ -226,6 +258,11 @@ def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
     if not (0.0 <= decay < 1.0) or not math.isfinite(step) or step <= 0:
         raise PinstabError(
             f"gain placement needs a decay factor r in [0, 1) and a step > 0, got r = {decay}, dt = {step}"
+        )
+    if scheme in TABLEAUS:
+        raise PinstabError(
+            f"the gains are placed for explicit schemes only, not {scheme}: give the gains (--kp, --kd), or use "
+            f"another method (baumgarte)"
         )
     if scheme in ("euler", "semi-implicit-euler", "held"):
         stiffness = (1.0 - decay) ** 2 / step**2
