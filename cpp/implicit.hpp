@@ -8,11 +8,13 @@
 //   Z = S_i + h g F(Z),  S_i = h sum_{j<i} a_ij k_j,  g = a_ii,
 //   F(Z) = (slope(q0, q0 (+) Zq, v0 + Zv), a(t + c_i h, q0 (+) Zq, v0 + Zv)),
 // then k_i = (Z - S_i) / (h g) (the slope the stage equation gives, not a further evaluation). The iteration matrix
-// I - h g J with J = [[0, I], [dadq, dadv]] (the kernel's Jacobian at a step's start) reduces by its 2 x 2 block
-// structure to the nv x nv M = I - h g dadv - (h g)^2 dadq: dZv = M^-1 (r_v + h g dadq r_q), dZq = r_q + h g dZv
-// (r = S_i + h g F(Z) - Z), from the guess Z = S_i + h g (I - h g J)^-1 k_(i-1). M's LU factors serve every stage of the same h g, the iterations and the steps that
-// follow; the Jacobian is kept while the iteration converges fast (rate theta <= 1/2), refreshed at the next step's
-// start after a slow one, and at once (the step retried) when an iteration with an older one fails.
+// I - h g J with J = [[0, I], [dadq, dadv]] (the kernel's Jacobian) reduces by its 2 x 2 block structure to the
+// nv x nv M = I - h g dadv - (h g)^2 dadq: dZv = M^-1 (r_v + h g dadq r_q), dZq = r_q + h g dZv
+// (r = S_i + h g F(Z) - Z), from the guess Z = S_i + h g (I - h g J)^-1 k_(i-1). M's LU factors serve every stage of
+// the same h g, the iterations and the steps that follow. The Jacobian (at a step's start) is kept while the
+// iteration converges fast (rate theta <= 0.1), refreshed at the next step's start after a slower one, at a stage's
+// iterate when the iterations left cannot converge at the rate seen (at most twice per stage), and at once (the step
+// retried) when an iteration with an older one fails.
 #pragma once
 
 #include <Eigen/LU>
