@@ -236,6 +236,16 @@ NB_MODULE(_compiled, m) {
           },
           "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
           "(accelerations, usable) at (t, q, v) under tau, for that stage of a step.")
+      .def(
+          "jacobian",
+          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
+            Eigen::MatrixXd dadq, dadv;
+            const bool usable = self.jacobian(stage, t, q, v, tau, dadq, dadv);
+            return std::make_tuple(dadq, dadv, usable);
+          },
+          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
+          "(da/dq [1/s^2], da/dv [1/s], usable) at (t, q, v) under tau: dq in the tangent space at q (the implicit "
+          "schemes' Newton matrix; by default forward differences of acceleration, cpp/jacobian.cpp).")
       .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a = 0,
            "(qs, vs, done): up to `steps` steps of dt of the scheme (0 euler, 1 semi-implicit Euler, 2 Heun, 3 RK4) "
            "from grid step `start` (time start dt).");

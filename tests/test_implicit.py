@@ -10,8 +10,10 @@ from fractions import Fraction
 from types import SimpleNamespace
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
+from conftest import ROBOTS
 from pinstab import load_scene, simulate
 from pinstab.analysis import exact_reference
 from pinstab.analysis.spring_chain import scene_chain
@@ -19,7 +21,7 @@ from pinstab.errors import DivergenceError, NewtonError, PinstabError
 from pinstab.integration.compiled import CompiledAdaptive, CompiledSteps
 from pinstab.integration.implicit import EMBEDDED_WEIGHTS
 from pinstab.integration.schemes import INTEGRATORS, embedded_pairs
-from pinstab.kernels import RungeKutta
+from pinstab.kernels import NativeKernel, RungeKutta
 from pinstab.stability.criterion import stability_function
 
 IMPLICIT = ("implicit-euler", "implicit-midpoint", "esdirk4")
@@ -381,3 +383,21 @@ def test_the_criterion_knows_the_implicit_schemes(name):
     assert all(criterion.scalar_radius(kp, kd, tau, name) < 1.0 for tau in (1e-3, 1.0, 1e3))
     with pytest.raises(PinstabError, match="give the gains"):
         criterion.place_gains(0.01, name, 0.5)
+
+
+def test_default_jacobian_is_pinocchios_derivatives():
+    """Kernel.jacobian's default (forward differences of the kernel's acceleration, cpp/jacobian.cpp) on the native
+    kernel of the four-bar's open chain (no closure: constraintDynamics is ABA) against Pinocchio's analytic
+    computeABADerivatives at a random state: within 1e-5 of the largest entry (the differences' error is of order
+    sqrt(eps) times the second derivatives)."""
+    model = pin.buildModelFromUrdf(str(ROBOTS / "urdf" / "fourbar.urdf"))
+    model.gravity.linear[:] = [0.0, -9.81, 0.0]
+    kernel = NativeKernel(model, [], [], [], [], 0.0, 0.0, 1e-12, 1e-12, 1e-9, 100)
+    rng = np.random.default_rng(0)
+    q, v, tau = rng.uniform(-1, 1, model.nq), rng.uniform(-2, 2, model.nv), rng.uniform(-1, 1, model.nv)
+    dadq, dadv, usable = kernel.jacobian(q, v, tau)
+    data = model.createData()
+    pin.computeABADerivatives(model, data, q, v, tau)
+    assert usable
+    np.testing.assert_allclose(dadq, data.ddq_dq, rtol=0, atol=1e-5 * np.abs(data.ddq_dq).max())
+    np.testing.assert_allclose(dadv, data.ddq_dv, rtol=0, atol=1e-5 * np.abs(data.ddq_dv).max())
