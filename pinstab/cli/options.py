@@ -243,7 +243,7 @@ def run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rtol",
         type=float,
-        help="error control: steps chosen by the embedded pair's error estimate (dopri5, dop853) to this "
+        help="error control: steps chosen by the embedded pair's error estimate (dopri5, dop853, esdirk4) to this "
         "relative tolerance, samples every --dt from its dense output",
     )
     parser.add_argument("--atol", type=float, help="absolute tolerance of the error control (default: --rtol)")

@@ -76,9 +76,10 @@ def simulate(
         scene: a :class:`Scene`, a scene file path or a bundled scene name.
         method: a registered stabilization method (``none``, ``baumgarte``, ``mukharlyamov``,
             ``projection``, ``post``, ``pinocchio``, or one registered by the user).
-        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``; ``dopri5``,
-            ``dop853`` with error control); None (default): ``rk4``, or ``dop853`` when ``rtol`` or ``atol`` is
-            given (:func:`default_integrator`); ``auto``: that default, or an implicit integrator when the step is
+        integrator: a registered integrator (``euler``, ``semi-implicit-euler``, ``heun``, ``rk4``; the implicit
+            ``implicit-euler``, ``implicit-midpoint``; ``dopri5``, ``dop853`` and the implicit ``esdirk4`` with error
+            control too); None (default): ``rk4``, or ``dop853`` when ``rtol`` or ``atol`` is given
+            (:func:`default_integrator`); ``auto``: that default, or an implicit integrator when the step is
             above its stability limit of a force element's stiff mode at the start
             (:mod:`~pinstab.simulate.integrator_choice`; ``info.integrator_choice`` says which and why).
         dt: time step [s] (default: the scene's ``[run] dt``, else :data:`DEFAULT_DT`); the last step is shortened
