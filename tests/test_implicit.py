@@ -22,7 +22,7 @@ from pinstab.integration.compiled import CompiledAdaptive, CompiledSteps
 from pinstab.integration.implicit import EMBEDDED_WEIGHTS
 from pinstab.integration.schemes import INTEGRATORS, embedded_pairs
 from pinstab.kernels import NativeKernel, RungeKutta
-from pinstab.stability.criterion import stability_function
+from pinstab.stability.regions import stability_function
 
 IMPLICIT = ("implicit-euler", "implicit-midpoint", "esdirk4")
 OMEGA, DAMPING = 30.0, 2.0  # a = -OMEGA^2 q - DAMPING v, coordinate by coordinate
@@ -101,6 +101,11 @@ def test_esdirk_coefficients_meet_the_order_conditions():
     assert stepper.estimators[0][6] == 0.0 and EMBEDDED_WEIGHTS == {j: float(w) for j, w in enumerate(b_hat) if w}
 
 
+def _r(scheme: str, z: complex) -> complex:
+    """R(z) of a registered scheme (pinstab.stability.regions, where the implicit module registers its tableaus)."""
+    return complex(stability_function(scheme, z)[0])
+
+
 def _exact_stability(a, b, z: Fraction) -> Fraction:
     """R(z) = 1 + z b^T (I - z a)^-1 1 in fractions (a lower triangular: forward substitution)."""
     x: list[Fraction] = []
@@ -110,23 +115,19 @@ def _exact_stability(a, b, z: Fraction) -> Fraction:
 
 
 def test_esdirk_is_l_stable():
-    """|R(z)| <= 1 on the imaginary axis (A-stable: the left half-plane, R analytic there) and R(z) -> 0 as z -> -inf
-    (L-stable: like 1 / z); implicit Euler and the midpoint rule as their closed
-    forms 1 / (1 - z) and (1 + z/2) / (1 - z/2) (|R| = 1 on the axis: no damping)."""
-    esdirk = INTEGRATORS.build("esdirk4", _system(_oscillator))
+    """The registered stability functions (pinstab.stability.regions): esdirk4's |R(z)| <= 1 on the imaginary axis
+    (A-stable: the left half-plane, R analytic there) and R(z) -> 0 as z -> -inf (L-stable: like 1 / z); implicit
+    Euler and the midpoint rule as their closed forms 1 / (1 - z) and (1 + z/2) / (1 - z/2) (|R| = 1 on the axis: no
+    damping)."""
     for y in np.geomspace(1e-3, 1e4, 200):
-        assert abs(stability_function(esdirk.coupling, esdirk.weights, 1j * y)) <= 1 + 1e-13
-    assert abs(stability_function(esdirk.coupling, esdirk.weights, -1e6)) < 1e-5
+        assert abs(_r("esdirk4", 1j * y)) <= 1 + 1e-13
+    assert abs(_r("esdirk4", -1e6)) < 1e-5
     # in exact arithmetic on the published fractions R(z) z tends to a constant: R(-inf) = 0
     far, farther = (_exact_stability(PUBLISHED_A, PUBLISHED_A[5], F(-(10**k))) for k in (9, 12))
     assert abs(farther) < 1e-10 and float(far / farther) == pytest.approx(1e3, rel=1e-6)
-    euler = INTEGRATORS.build("implicit-euler", _system(_oscillator))
-    midpoint = INTEGRATORS.build("implicit-midpoint", _system(_oscillator))
     for z in (-0.3 + 2j, -50.0, 4j):
-        assert stability_function(euler.coupling, euler.weights, z) == pytest.approx(1 / (1 - z), rel=1e-15)
-        assert stability_function(midpoint.coupling, midpoint.weights, z) == pytest.approx(
-            (1 + z / 2) / (1 - z / 2), rel=1e-15
-        )
+        assert _r("implicit-euler", z) == pytest.approx(1 / (1 - z), rel=1e-15)
+        assert _r("implicit-midpoint", z) == pytest.approx((1 + z / 2) / (1 - z / 2), rel=1e-15)
 
 
 @pytest.mark.parametrize("name", IMPLICIT)
@@ -143,7 +144,7 @@ def test_steps_are_the_stability_function_of_h_a(name, h):
     elif name == "implicit-midpoint":
         factors = (1 + h * eigenvalues / 2) / (1 - h * eigenvalues / 2)
     else:
-        factors = np.array([stability_function(stepper.coupling, stepper.weights, h * lam) for lam in eigenvalues])
+        factors = stability_function(name, h * eigenvalues)
     steps = 20
     amplification = (vectors @ np.diag(factors**steps) @ np.linalg.inv(vectors)).real
     q, v = np.array([0.3, -1.2, 2.0]), np.array([0.7, 0.1, -0.5])
@@ -374,7 +375,7 @@ def test_the_criterion_knows_the_implicit_schemes(name):
     closed = {
         "implicit-euler": lambda z: 1 / (1 - z),
         "implicit-midpoint": lambda z: (1 + z / 2) / (1 - z / 2),
-        "esdirk4": lambda z: stability_function(*criterion.TABLEAUS["esdirk4"], z),
+        "esdirk4": lambda z: _r("esdirk4", z),
     }[name]
     expected = max(abs(closed(z)) for z in mu)
     assert criterion.scalar_radius(kp, kd, step, name) == pytest.approx(expected, rel=1e-12)

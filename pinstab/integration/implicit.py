@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import NewtonError
 from ..kernels import NewtonFailure, RungeKutta
-from ..stability.criterion import register_tableau
+from ..stability.regions import register_tableau
 from .schemes import INTEGRATORS, TableauScheme
 from .tableaus import Tableau
 

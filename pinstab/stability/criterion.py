@@ -25,6 +25,7 @@ from fractions import Fraction
 import numpy as np
 
 from ..errors import PinstabError, choices
+from . import regions
 
 # stability polynomials p(mu) of the Runge-Kutta schemes, R = p(tau W) (lowest degree first)
 POLYNOMIALS = {
@@ -44,24 +45,11 @@ def register_polynomial(scheme: str, coefficients: tuple[float, ...]) -> None:
         SCHEMES.append(scheme)
 
 
-TABLEAUS: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-"""The implicit schemes' tableaus (a, b) by name: R = R(tau W), R(z) = 1 + z b^T (I - z a)^-1 1 a rational function."""
-
-
-def register_tableau(scheme: str, coupling: np.ndarray, weights: np.ndarray) -> None:
-    """Make an implicit Runge-Kutta scheme known by its tableau (a lower triangular with a non-zero diagonal, b):
-    its one-step amplification is the rational stability function of its tableau (:func:`stability_function`)."""
-    TABLEAUS[scheme] = (np.array(coupling, dtype=float), np.array(weights, dtype=float))
-    if scheme not in SCHEMES:
-        SCHEMES.append(scheme)
-
-
-def stability_function(coupling: np.ndarray, weights: np.ndarray, z: complex) -> complex:
-    """R(z) = 1 + z b^T (I - z a)^-1 1 of a Runge-Kutta tableau: its one-step amplification of y' = lambda y at
-    z = h lambda [dimensionless]."""
-    stages = len(weights)
-    solved = np.linalg.solve(np.eye(stages) - z * np.asarray(coupling), np.ones(stages, dtype=complex))
-    return complex(1.0 + z * (np.asarray(weights) @ solved))
+def _implicit(scheme: str) -> regions.Tableau | None:
+    """The tableau of an implicit scheme registered in :mod:`pinstab.stability.regions` (its R(z) rational), or None:
+    its R(tau W) is the tableau's at the matrix tau W."""
+    tableau = regions.TABLEAUS.get(scheme)
+    return None if tableau is None or tableau.explicit else tableau
 
 
 def _tableau_amplification(coupling: np.ndarray, weights: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -120,8 +108,9 @@ def amplification(
                 [-step * stiffness, velocity_map],
             ]
         )
-    if scheme in TABLEAUS:
-        return _tableau_amplification(*TABLEAUS[scheme], step * w)
+    implicit = _implicit(scheme)
+    if implicit is not None:
+        return _tableau_amplification(*implicit, step * w)
     result = np.zeros((n, n))
     power = np.eye(n)
     for coefficient in POLYNOMIALS[scheme]:
@@ -191,9 +180,9 @@ def scalar_radius(kp: float, kd: float, step: float, scheme: str, holonomic: boo
 def _scalar_eigenvalues(kp: float, kd: float, step: float, scheme: str, holonomic: bool) -> list[complex]:
     """The eigenvalues of R(tau W) for scalar gains (see :func:`scalar_radius`)."""
     tau, stiffness, damping = Fraction(step), Fraction(kp), Fraction(kd)
-    if scheme in TABLEAUS:
+    if _implicit(scheme) is not None:
         roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
-        return [stability_function(*TABLEAUS[scheme], complex(mu)) for mu in roots]
+        return [complex(value) for value in regions.stability_function(scheme, np.array(roots, dtype=complex))]
     if scheme in POLYNOMIALS:
         roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
         eigenvalues = []
@@ -259,7 +248,7 @@ def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
         raise PinstabError(
             f"gain placement needs a decay factor r in [0, 1) and a step > 0, got r = {decay}, dt = {step}"
         )
-    if scheme in TABLEAUS:
+    if _implicit(scheme) is not None:
         raise PinstabError(
             f"the gains are placed for explicit schemes only, not {scheme}: give the gains (--kp, --kd), or use "
             f"another method (baumgarte)"
@@ -350,5 +339,6 @@ def largest_stable_step(
 
 
 def _check_scheme(scheme: str) -> None:
-    if scheme not in SCHEMES:
-        raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(SCHEMES)}")
+    if scheme not in SCHEMES and _implicit(scheme) is None:
+        known = [*SCHEMES, *(name for name in regions.TABLEAUS if _implicit(name) is not None)]
+        raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(known)}")
