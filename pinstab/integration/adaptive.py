@@ -39,7 +39,7 @@ from ..errors import DivergenceError
 from ..kernels import AdaptivePair
 from .compiled import AdaptiveRun, CompiledAdaptive, python_evaluation
 from .dense import HERMITE, Segment
-from .implicit import NEWTON_ITERATIONS, NEWTON_KAPPA, newton_figures
+from .implicit import NEWTON_ITERATIONS, newton_figures, newton_kappa
 from .passages import HORIZON
 from .schemes import TableauScheme
 from .stepping import GRID_SLACK, StepLoop
@@ -98,9 +98,9 @@ class AdaptiveLoop(StepLoop):
     Args:
         system, stepper, grid, every, drift_limit, warned: as :class:`StepLoop` (``stepper`` an
             :class:`~pinstab.integration.schemes.TableauScheme` with an error estimator: an explicit pair, or a
-            stiffly accurate implicit one whose stages Newton's iteration solves to a share :data:`NEWTON_KAPPA
-            <pinstab.integration.implicit.NEWTON_KAPPA>` of the tolerances, a stage it cannot solve rejecting the
-            step like an error above 1).
+            stiffly accurate implicit one whose stages Newton's iteration solves to a share
+            (:func:`~pinstab.integration.implicit.newton_kappa`) of the tolerances, a stage it cannot solve rejecting
+            the step like an error above 1).
         control: the tolerances, and the counters the loop fills.
     """
 
@@ -120,7 +120,7 @@ class AdaptiveLoop(StepLoop):
             "pi_beta": PI_BETA,
             "estimator_mix": ESTIMATOR_MIX,
             "exponent": self.exponent,
-            "newton_kappa": NEWTON_KAPPA,
+            "newton_kappa": newton_kappa(control.rtol),
             "newton_iterations": NEWTON_ITERATIONS,
         }
         self.rules = AdaptivePair(

