@@ -61,6 +61,10 @@ class Integrator:
         """One step of ``dt`` [s] from (q, v) at time t [s]; returns the end state (q, v)."""
         raise NotImplementedError
 
+    def newton_figures(self) -> dict[str, int] | None:
+        """What its Newton iteration did in its steps so far (the run summary's ``newton``), None without one."""
+        return None
+
 
 SCHEMES = {"euler": 0, "semi-implicit-euler": 1, "heun": 2, "rk4": 3}
 """The fixed schemes by name: their codes in ``cpp/kernels.hpp`` (``Scheme``); the compiled loop takes these."""

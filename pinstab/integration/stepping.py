@@ -305,7 +305,7 @@ class StepLoop:
     def newton_figures(self) -> dict[str, int] | None:
         """What an implicit integrator's Newton iteration did so far (:func:`~pinstab.integration.implicit.
         newton_figures`), None for an explicit one."""
-        return self.stepper.newton_figures() if self.stepper.implicit else None
+        return self.stepper.newton_figures()
 
     def store(self, q: np.ndarray, v: np.ndarray, k: int, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Correct the state reached at grid step k (at time t [s] when it is not a grid time: a step of a
