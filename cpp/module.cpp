@@ -56,6 +56,16 @@ std::tuple<RowMatrix, RowMatrix, int> run(Kernel& kernel, int scheme, const Vect
   return {qs, vs, done};
 }
 
+// A kernel's method (stage, t, q, v, tau, dadq, dadv) -> usable bound as (q, v, tau, t, stage) -> (dadq, dadv, usable).
+template <class K, class Method>
+auto jacobians(Method method) {
+  return [method](K& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
+    Eigen::MatrixXd dadq, dadv;
+    const bool usable = (self.*method)(stage, t, q, v, tau, dadq, dadv);
+    return std::make_tuple(dadq, dadv, usable);
+  };
+}
+
 // f(model, data, object_frame, finger_frame) bound to a Python pin.Model and one of its pin.Data (cpp/python_data.cpp).
 template <class Function>
 auto on_python_data(Function function) {
@@ -236,14 +246,7 @@ NB_MODULE(_compiled, m) {
           },
           "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
           "(accelerations, usable) at (t, q, v) under tau, for that stage of a step.")
-      .def(
-          "jacobian",
-          [](Kernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
-            Eigen::MatrixXd dadq, dadv;
-            const bool usable = self.jacobian(stage, t, q, v, tau, dadq, dadv);
-            return std::make_tuple(dadq, dadv, usable);
-          },
-          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
+      .def("jacobian", jacobians<Kernel>(&Kernel::jacobian), "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
           "(da/dq [1/s^2], da/dv [1/s], usable) at (t, q, v) under tau: dq in the tangent space at q (the implicit "
           "schemes' Newton matrix; by default forward differences of acceleration, cpp/jacobian.cpp).")
       .def("run", &run, "scheme"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a = 0,
@@ -271,14 +274,7 @@ NB_MODULE(_compiled, m) {
           "Pinocchio's constraintDynamics on point closures with the corrector (Kp, Kd) and the proximal solve's "
           "settings (pinstab.paths.native.NativeDynamics.settings), under the applied forces plus the force elements' "
           "compiled forms (dicts by kind: joint-spring, wrench, spring-damper, joint-torque).")
-      .def(
-          "derivatives",
-          [](NativeKernel& self, const VectorXd& q, const VectorXd& v, const VectorXd& tau, double t, int stage) {
-            Eigen::MatrixXd dadq, dadv;
-            const bool usable = self.derivatives(stage, t, q, v, tau, dadq, dadv);
-            return std::make_tuple(dadq, dadv, usable);
-          },
-          "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
+      .def("derivatives", jacobians<NativeKernel>(&NativeKernel::derivatives), "q"_a, "v"_a, "tau"_a, "t"_a = 0.0, "stage"_a = 0,
           "(da/dq [1/s^2] against q (+) dq, da/dv [1/s], usable) at (t, q, v) under tau: Pinocchio's analytic "
           "derivatives plus the force elements' (NativeKernel::derivatives).")
       .def(
