@@ -19,7 +19,13 @@ from ..forces import JointTorque, SpringDamper
 from ..scene import Scene
 
 DEFAULT_SOLREF = (0.02, 1.0)  # MuJoCo's default: time constant 0.02 s, damping ratio 1
-MUJOCO_SCHEMES = {"euler": "Euler", "semi-implicit-euler": "Euler", "implicitfast": "implicitfast", "rk4": "RK4"}
+MUJOCO_SCHEMES = {
+    "euler": "Euler",
+    "semi-implicit-euler": "Euler",
+    "implicitfast": "implicitfast",
+    "implicit": "implicit",
+    "rk4": "RK4",
+}
 JOINT_AXES = {"RX": (1, 0, 0), "RY": (0, 1, 0), "RZ": (0, 0, 1), "PX": (1, 0, 0), "PY": (0, 1, 0), "PZ": (0, 0, 1)}
 
 
