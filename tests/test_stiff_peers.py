@@ -75,6 +75,17 @@ def test_mujoco_models_the_stiff_mechanism(reference):
     assert 8 < coarse / fine < 12 and fine < 1e-4
 
 
+def test_mujoco_run_that_goes_unstable_is_a_divergence(reference, tmp_path, monkeypatch):
+    """RK4 at 1 ms (above its stability limit 0.31 ms): MuJoCo resets a non-finite state and goes on; the peer stops
+    the run as diverged with MuJoCo's warning instead of measuring the restarted motion, and writes no
+    MUJOCO_LOG.TXT."""
+    pytest.importorskip("mujoco")
+    monkeypatch.chdir(tmp_path)
+    result = run_config(SCENE, {}, Config("mujoco", "rk4", 1e-3, "mujoco", solref=(2e-3, 1.0)), DURATION, reference)
+    assert result.diverged and "went unstable: Nan, Inf or huge value" in result.note
+    assert not list(tmp_path.iterdir())
+
+
 def test_mujoco_peer_refuses_a_force_element_it_has_no_counterpart_for():
     """A joint spring is not written into the MJCF: the peer refuses the scene naming the element rather than
     simulating another system."""
