@@ -19,7 +19,13 @@ from ..forces import JointTorque, SpringDamper
 from ..scene import Scene
 
 DEFAULT_SOLREF = (0.02, 1.0)  # MuJoCo's default: time constant 0.02 s, damping ratio 1
-MUJOCO_SCHEMES = {"euler": "Euler", "semi-implicit-euler": "Euler", "implicitfast": "implicitfast", "rk4": "RK4"}
+MUJOCO_SCHEMES = {
+    "euler": "Euler",
+    "semi-implicit-euler": "Euler",
+    "implicitfast": "implicitfast",
+    "implicit": "implicit",
+    "rk4": "RK4",
+}
 JOINT_AXES = {"RX": (1, 0, 0), "RY": (0, 1, 0), "RZ": (0, 0, 1), "PX": (1, 0, 0), "PY": (0, 1, 0), "PZ": (0, 0, 1)}
 
 
@@ -114,7 +120,13 @@ def run_mujoco(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Simulate with MuJoCo from (q0, v0), keeping a sample every ``every`` steps; returns the q, v
     samples in Pinocchio's ordering and the CPU seconds of the loop. Without joint torques the steps
-    between samples run inside MuJoCo (``mj_step(model, data, nstep)``), its fastest way."""
+    between samples run inside MuJoCo (``mj_step(model, data, nstep)``), its fastest way.
+
+    Raises:
+        PinstabError: mujoco is not installed, the scene has no MJCF counterpart (:func:`mjcf`), or MuJoCo warned
+            during the run (its first warning: a non-finite or huge state, which MuJoCo answers by resetting the
+            state and going on, so the run would continue from another state).
+    """
     try:
         import mujoco
     except ImportError:
@@ -131,14 +143,22 @@ def run_mujoco(
     samples = steps // every + 1
     qs, vs = np.empty((samples, model.nq)), np.empty((samples, model.nv))
     qs[0], vs[0] = q0, v0
-    start = time.process_time()
-    for k in range(1, samples):
-        if torques:
-            for _ in range(every):
-                for element in torques:
-                    mj_data.qfrc_applied[velocity[pin_v.index(element.dof)]] = element.torque(mj_data.time)
-                mujoco.mj_step(mj_model, mj_data)
-        else:
-            mujoco.mj_step(mj_model, mj_data, every)
-        qs[k, pin_q], vs[k, pin_v] = mj_data.qpos[position], mj_data.qvel[velocity]
-    return qs, vs, time.process_time() - start
+    warnings: list[str] = []
+    mujoco.set_mju_user_warning(warnings.append)  # MuJoCo's own handler prints and writes MUJOCO_LOG.TXT
+    try:
+        start = time.process_time()
+        for k in range(1, samples):
+            if torques:
+                for _ in range(every):
+                    for element in torques:
+                        mj_data.qfrc_applied[velocity[pin_v.index(element.dof)]] = element.torque(mj_data.time)
+                    mujoco.mj_step(mj_model, mj_data)
+            else:
+                mujoco.mj_step(mj_model, mj_data, every)
+            qs[k, pin_q], vs[k, pin_v] = mj_data.qpos[position], mj_data.qvel[velocity]
+        cpu = time.process_time() - start
+    finally:
+        mujoco.set_mju_user_warning(None)
+    if warnings:  # a non-finite or huge state: MuJoCo resets it to the model's default and goes on
+        raise PinstabError(f"MuJoCo's {integrator} at dt = {dt:g} s went unstable: {warnings[0]}")
+    return qs, vs, cpu

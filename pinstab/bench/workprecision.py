@@ -34,7 +34,7 @@ from . import stamped
 from .cluster import dask_client, progress
 from .mujoco_peer import run_mujoco
 from .peers import PEER_SCHEMES, native_pinocchio
-from .scipy_peer import SCIPY_PEER, run_scipy
+from .scipy_peer import SCIPY_METHODS, run_scipy
 
 PEER_GAINS = (10.0, 2.0 * math.sqrt(10.0))  # Pinocchio's closed-chain example
 SWEPT_KP = (10.0, 100.0, 1e3, 1e4)  # the hand-written loop's gains, Kd = 2 sqrt(Kp) (10: the example's Kd)
@@ -52,9 +52,9 @@ MAX_RUN_STEPS = 10**8  # steps of one run of a sweep (the reference included): b
 
 @dataclass(frozen=True)
 class Config:
-    """One run: a pinstab method (``peer`` None) or a peer (``pinocchio-native``, ``mujoco``, ``scipy-dop853``)
-    at gains (kp, kd); with ``rtol``, error-controlled (pinstab's ``--rtol``, SciPy's DOP853) and ``dt`` the
-    step of its samples."""
+    """One run: a pinstab method (``peer`` None) or a peer (``pinocchio-native``, ``mujoco``, ``scipy-dop853``,
+    ``scipy-radau``, ``scipy-bdf``) at gains (kp, kd); with ``rtol``, error-controlled (pinstab's ``--rtol``,
+    SciPy's methods) and ``dt`` the step of its samples."""
 
     method: str
     integrator: str
@@ -69,8 +69,8 @@ class Config:
     def curve(self) -> str:
         if self.peer is None:
             return f"{self.method} + {self.integrator}" + (" (rtol)" if self.rtol is not None else "")
-        if self.peer == SCIPY_PEER:
-            return f"{SCIPY_PEER} Kp={self.kp:g}"
+        if self.peer in SCIPY_METHODS:
+            return f"{self.peer} Kp={self.kp:g}"
         if self.peer == "mujoco":
             tied = self.solref is not None and math.isclose(self.solref[0], 2 * self.dt)
             return f"mujoco solref={'2 dt' if tied else f'{self.solref[0]:g}'} + {self.integrator}"
@@ -112,15 +112,16 @@ class Reference:
     dt: float
 
 
-def reference_motion(scene_name: str, parameters: dict[str, Any], duration: float) -> Reference:
+def reference_motion(
+    scene_name: str, parameters: dict[str, Any], duration: float, exact_step: float = EXACT_REFERENCE_STEP
+) -> Reference:
     """The scene's exact motion where it has one (:data:`pinstab.analysis.EXACT_REFERENCES`: the four-bar's
-    crank-angle equation, the N-four-bar's parallelogram pendulum), sampled every
-    :data:`EXACT_REFERENCE_STEP`; any other scene simulated with projection + dop853 at
-    :data:`GENERIC_REFERENCE_STEP`."""
+    crank-angle equation, the N-four-bar's parallelogram pendulum, stiff-fourbar's spring chain), sampled every
+    ``exact_step`` [s]; any other scene simulated with projection + dop853 at :data:`GENERIC_REFERENCE_STEP`."""
     scene = load_scene(scene_name, **parameters)
     start = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
     if exact_name(scene) is not None:
-        dt = EXACT_REFERENCE_STEP
+        dt = exact_step
         t = np.arange(int(round(duration / dt)) + 1) * dt
         exact = exact_reference(scene, start.q, start.v, t)
         return Reference(exact.kind, t, exact.q, dt)
@@ -162,9 +163,17 @@ def run_config(
                 result.evaluations = traj.info.solver_statistics.solves
             else:
                 start_state = assemble(ConstrainedModel(scene), scene.q0, scene.v0)
-                if config.peer == SCIPY_PEER:
+                if config.peer in SCIPY_METHODS:
                     q, v, cpu, result.evaluations = run_scipy(
-                        scene, start_state.q, start_state.v, config.dt, steps, config.kp, config.kd, config.rtol
+                        scene,
+                        start_state.q,
+                        start_state.v,
+                        config.dt,
+                        steps,
+                        config.kp,
+                        config.kd,
+                        config.rtol,
+                        config.peer,
                     )
                     t = np.arange(steps + 1) * config.dt
                 elif config.peer == "mujoco":
@@ -227,21 +236,24 @@ def default_configs(
     peer_dts: tuple[float, ...] = PEER_DTS,
     mujoco_dts: tuple[float, ...] = MUJOCO_DTS,
     rtols: tuple[float, ...] = RTOLS,
+    constrained: bool = True,
 ) -> list[Config]:
     """pinstab's methods x integrators x ``dts``, and its error-controlled dop853 (:data:`ADAPTIVE_METHODS`)
-    at ``rtols``; SciPy's DOP853 over Pinocchio at ``rtols`` and the gains :data:`SCIPY_KP`; the
-    hand-written Pinocchio loop with semi-implicit Euler and RK4 at every one of ``peer_dts`` and the gains
+    at ``rtols``; SciPy's DOP853, Radau and BDF over Pinocchio at ``rtols`` and the gains :data:`SCIPY_KP`;
+    the hand-written Pinocchio loop with semi-implicit Euler and RK4 at every one of ``peer_dts`` and the gains
     :data:`SWEPT_KP`; and (when installed and ``mujoco``) MuJoCo with its Euler, implicitfast and RK4
-    integrators at ``mujoco_dts`` with ``solref`` time constant 2 dt. Error-controlled runs are sampled
-    every :data:`ADAPTIVE_OUTPUT_STEP`."""
+    integrators at ``mujoco_dts`` with ``solref`` time constant 2 dt. A scene without constraints
+    (``constrained`` False) has no Baumgarte gain to sweep: its peers run at Kp = Kd = 0 only. Error-controlled
+    runs are sampled every :data:`ADAPTIVE_OUTPUT_STEP`."""
     configs = [Config(m, i, dt) for m in methods for i in integrators for dt in dts]
     configs += [Config(m, "dop853", ADAPTIVE_OUTPUT_STEP, rtol=rtol) for m in ADAPTIVE_METHODS for rtol in rtols]
     configs += [
-        Config(SCIPY_PEER, "dop853", ADAPTIVE_OUTPUT_STEP, SCIPY_PEER, kp, 2.0 * math.sqrt(kp), rtol=rtol)
-        for kp in SCIPY_KP
+        Config(peer, method.lower(), ADAPTIVE_OUTPUT_STEP, peer, kp, 2.0 * math.sqrt(kp), rtol=rtol)
+        for peer, method in SCIPY_METHODS.items()
+        for kp in (SCIPY_KP if constrained else (0.0,))
         for rtol in rtols
     ]
-    for kp in SWEPT_KP:
+    for kp in SWEPT_KP if constrained else (0.0,):
         kd = PEER_GAINS[1] if kp == PEER_GAINS[0] else 2.0 * math.sqrt(kp)
         configs += [
             Config("pinocchio-native", scheme, dt, "pinocchio-native", kp, kd)
@@ -336,8 +348,9 @@ def cheapest_within(
     results: list[Result], tolerance: float, peer: str | None, adaptive: bool | None = None
 ) -> Result | None:
     """The lowest-cost run of pinstab (``peer`` None) or of one peer (``pinocchio-native``, ``mujoco``,
-    ``scipy-dop853``) whose trajectory error is within ``tolerance`` [rad, m] (:func:`check_tolerance`);
-    ``adaptive`` True or False keeps the error-controlled runs or the fixed-step ones only."""
+    ``scipy-dop853``, ``scipy-radau``, ``scipy-bdf``) whose trajectory error is within ``tolerance`` [rad, m]
+    (:func:`check_tolerance`); ``adaptive`` True or False keeps the error-controlled runs or the fixed-step ones
+    only."""
     check_tolerance(tolerance)
     eligible = [
         r
@@ -350,7 +363,7 @@ def cheapest_within(
     return min(eligible, key=lambda r: r.cpu_per_sim_s) if eligible else None
 
 
-PEERS = ("pinocchio-native", "mujoco", SCIPY_PEER)
+PEERS = ("pinocchio-native", "mujoco", *SCIPY_METHODS)
 
 
 def cheapest_table(results: list[Result], tolerance: float) -> dict[str, Any]:

@@ -28,7 +28,11 @@ def arguments(bench: argparse.ArgumentParser) -> None:
     for flag, steps, whose in (
         ("--peer-dts", PEER_DTS, "the hand-written Pinocchio loop's steps [s]"),
         ("--mujoco-dts", MUJOCO_DTS, "MuJoCo's steps [s], each with solref 2 dt"),
-        ("--rtols", RTOLS, "tolerances of the error-controlled runs, pinstab's dop853 --rtol and SciPy's DOP853"),
+        (
+            "--rtols",
+            RTOLS,
+            "tolerances of the error-controlled runs, pinstab's dop853 --rtol and SciPy's DOP853, Radau and BDF",
+        ),
     ):
         listed = ", ".join(f"{dt:g}" for dt in steps)
         bench.add_argument(flag, nargs="+", type=float, default=list(steps), help=f"{whose} (default: {listed})")
@@ -78,13 +82,14 @@ def bench(args: argparse.Namespace) -> dict[str, Any]:
         peer_dts=tuple(sorted(args.peer_dts)),
         mujoco_dts=tuple(sorted(args.mujoco_dts)),
         rtols=tuple(sorted(args.rtols)),
+        constrained=bool(scene.constraints),
     )
     reference, results = sweep(
         str(scene.source or args.scene), given, configs, args.duration, args.scheduler, args.serial, not args.quiet
     )
     extra: dict[str, Any] = {"duration": args.duration, "tolerance": args.tolerance}
     extra["cheapest"] = cheapest_table(results, args.tolerance)
-    extra["overhead"] = measure_overhead(scene)
+    extra["overhead"] = measure_overhead(scene, scene.step or 1e-3)  # at the scene's step: a stiff one needs its own
     extra["overhead_ratio"] = extra["overhead"]["overhead_ratio"]
     if scene.parameters and "N" in scene.parameters and scene.name == "nfourbar":
         extra["scaling"] = scaling()
