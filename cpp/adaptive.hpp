@@ -99,6 +99,7 @@ class Trial {
   double error(const Control& control, const VectorXd& size, const VectorXd& size_new, double h) const;
 
   Group& group() { return group_; }
+  int nv() const { return nv_; }  // the tangent space's dimension it steps in
 
   VectorXd q_new, v_new, end;  // end: [velocity | acceleration] at the new point (when has_end)
   RowMatrix slopes;

@@ -31,7 +31,7 @@ struct AdaptivePair {
 
   // The trial step on the kernel's group.
   Trial& trial_of(Kernel& kernel) {
-    if (!trial || trial->q_new.size() != kernel.nv()) trial = make_trial(pair, kernel.nv(), kernel.group(), newton);
+    if (!trial || trial->nv() != kernel.nv()) trial = make_trial(pair, kernel.nv(), kernel.group(), newton);
     trial->use_group(kernel.group());
     return *trial;
   }

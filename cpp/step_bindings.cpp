@@ -49,7 +49,7 @@ struct PythonTableau {
   std::unique_ptr<Trial> trial;  // its steps' (an ImplicitTrial's Newton state carries over from call to call)
 
   Trial& trial_of(int nv) {
-    if (!trial || trial->q_new.size() != nv) trial = make_trial(pair, nv, model.group, newton);
+    if (!trial || trial->nv() != nv) trial = make_trial(pair, nv, model.group, newton);
     return *trial;
   }
 };

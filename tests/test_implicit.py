@@ -362,6 +362,21 @@ def test_newton_figures_reach_the_json_summary():
     assert "newton" not in simulate(scene, integrator="rk4", dt=1e-2, duration=0.2).summary()
 
 
+@pytest.mark.parametrize("integrator, rtol", [("implicit-midpoint", None), ("esdirk4", 1e-6)])
+def test_newton_state_carries_over_on_a_free_flyer(integrator, rtol):
+    """On a model whose configuration has more coordinates than its velocity (cassie: a free flyer, nq 47, nv 44) the
+    compiled step keeps its Newton state from one run of steps to the next: the falling robot's motion is a rigid
+    free fall, so one Jacobian serves the whole run, and every step's stages are counted (at least one iteration per
+    implicit stage: the counts were reset at every run of steps, with a fresh Jacobian each time, when the trial was
+    matched to the model by nq)."""
+    summary = simulate(load_scene("cassie"), integrator=integrator, dt=1e-3, duration=0.2, rtol=rtol).summary()
+    newton = summary["newton"]
+    implicit_stages = 1 if rtol is None else 5
+    steps = 200 if rtol is None else summary["error_control"]["steps_accepted"]
+    assert newton["jacobian_evaluations"] == 1
+    assert newton["newton_iterations"] >= implicit_stages * steps
+
+
 @pytest.mark.parametrize("name", IMPLICIT)
 def test_the_criterion_knows_the_implicit_schemes(name):
     """The step-size criterion's R(tau W) of an implicit scheme: the deviation dynamics x'' = -Kp x - Kd x' have
