@@ -7,8 +7,18 @@
 
 namespace pinstab {
 
-CallbackKernel::CallbackKernel(nb::handle acceleration, int nv, const pinocchio::Model* group, nb::handle refusals)
-    : acceleration_(acceleration), refusals_(refusals), nv_(nv), group_(group) {}
+CallbackKernel::CallbackKernel(nb::handle acceleration, int nv, const pinocchio::Model* group, nb::handle refusals,
+                               nb::handle jacobian)
+    : acceleration_(acceleration), refusals_(refusals), nv_(nv), group_(group) {
+  if (jacobian.is_valid() && !jacobian.is_none()) jacobian_ = nb::cast<Kernel*>(jacobian);
+}
+
+bool CallbackKernel::jacobian(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
+                              Eigen::MatrixXd& dadq, Eigen::MatrixXd& dadv) {
+  if (jacobian_ == nullptr) return Kernel::jacobian(stage, t, q, v, tau, dadq, dadv);
+  // the one-step bindings pass no applied forces (the Python evaluation applies the scene's): the kernel's are none
+  return jacobian_->jacobian(stage, t, q, v, tau.size() == nv_ ? tau : VectorXd::Zero(nv_).eval(), dadq, dadv);
+}
 
 void CallbackKernel::share(const VectorXd& q, nb::handle q_array, const VectorXd& v, nb::handle v_array) {
   q0_ = &q, v0_ = &v, q0_array_ = q_array, v0_array_ = v_array;
@@ -57,11 +67,12 @@ RunKernel::RunKernel(nb::handle kernel, int nv) {
     compiled = nb::cast<Kernel*>(kernel);
     return;
   }
-  if (!nb::isinstance<nb::tuple>(kernel) || nb::len(kernel) != 3) {
-    throw std::invalid_argument("a run's kernel is a Kernel or (acceleration, pin.Model or None, refusals)");
+  if (!nb::isinstance<nb::tuple>(kernel) || nb::len(kernel) < 3 || nb::len(kernel) > 4) {
+    throw std::invalid_argument(
+        "a run's kernel is a Kernel or (acceleration, pin.Model or None, refusals[, the Jacobians' Kernel or None])");
   }
   auto part = [&](Py_ssize_t i) { return nb::handle(PyTuple_GET_ITEM(kernel.ptr(), i)); };  // borrowed
-  callback.emplace(part(0), nv, python_group(part(1)), part(2));
+  callback.emplace(part(0), nv, python_group(part(1)), part(2), nb::len(kernel) == 4 ? part(3) : nb::handle());
 }
 
 void reraise(nb::handle exception) {

@@ -21,9 +21,14 @@ namespace nb = nanobind;
 // keeps no Python object alive (no reference cycle runs through C++).
 class CallbackKernel : public Kernel, public Refusing {
  public:
-  CallbackKernel(nb::handle acceleration, int nv, const pinocchio::Model* group, nb::handle refusals = nb::handle());
+  // jacobian: a compiled Kernel whose Jacobians Newton's iteration takes (the run's compiled kernel, so that a step
+  // the Python evaluation takes iterates as the compiled loop's would), or None: differences of this evaluation.
+  CallbackKernel(nb::handle acceleration, int nv, const pinocchio::Model* group, nb::handle refusals = nb::handle(),
+                 nb::handle jacobian = nb::handle());
   bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                     VectorXd& a) override;
+  bool jacobian(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, Eigen::MatrixXd& dadq,
+                Eigen::MatrixXd& dadv) override;
   int nv() const override { return nv_; }
   const pinocchio::Model* group() const override { return group_; }
   bool refused() const override { return refused_; }
@@ -36,14 +41,15 @@ class CallbackKernel : public Kernel, public Refusing {
   nb::handle acceleration_, refusals_;
   int nv_;
   const pinocchio::Model* group_;
+  Kernel* jacobian_ = nullptr;
   const VectorXd *q0_ = nullptr, *v0_ = nullptr;
   nb::handle q0_array_, v0_array_;
   bool refused_ = false;
   nb::object pending_, refusal_;
 };
 
-// The kernel of a compiled run: a compiled Kernel, or (acceleration, pin.Model or None, refusals) of the Python
-// evaluation (a CallbackKernel, made here for one call).
+// The kernel of a compiled run: a compiled Kernel, or (acceleration, pin.Model or None, refusals[, Kernel or None: the
+// Jacobians' kernel]) of the Python evaluation (a CallbackKernel, made here for one call).
 struct RunKernel {
   Kernel* compiled = nullptr;
   std::optional<CallbackKernel> callback;

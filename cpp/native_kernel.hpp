@@ -44,6 +44,11 @@ class NativeKernel : public Kernel {
   bool acceleration(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau,
                     VectorXd& a) override;
   int nv() const override { return model_.nv; }
+  // The Newton iteration's Jacobians (Kernel::jacobian): the analytic ones of derivatives().
+  bool jacobian(int stage, double t, const VectorXd& q, const VectorXd& v, const VectorXd& tau, Eigen::MatrixXd& dadq,
+                Eigen::MatrixXd& dadv) override {
+    return derivatives(stage, t, q, v, tau, dadq, dadv);
+  }
   // The Jacobians of the acceleration at (t, q, v) under tau (with the elements' forces): dadq [1/s^2] against
   // q (+) dq (dq in the tangent space at q), dadv [1/s], nv x nv each. Pinocchio's analytic derivatives of the
   // dynamics (computeABADerivatives without closures; with them computeConstraintDynamicsDerivatives, whose

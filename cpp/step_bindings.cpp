@@ -107,11 +107,11 @@ nb::tuple tableau_run(PythonTableau& self, nb::handle kernel, const VectorXd& q,
 }
 
 nb::tuple tableau_attempt(PythonTableau& self, nb::handle acceleration, nb::handle q_array, nb::handle v_array,
-                          double t, double h, std::optional<VectorXd> first, bool with_end) {
+                          double t, double h, std::optional<VectorXd> first, bool with_end, nb::handle jacobian) {
   const VectorXd q = nb::cast<VectorXd>(q_array), v = nb::cast<VectorXd>(v_array);
   self.model.check(q, v, "RungeKutta.attempt");
   const int nv = static_cast<int>(v.size());
-  CallbackKernel kernel(acceleration, nv, self.model.group);
+  CallbackKernel kernel(acceleration, nv, self.model.group, nb::handle(), jacobian);
   kernel.share(q, q_array, v, v_array);
   VectorXd a(nv);
   if (first) {
@@ -190,11 +190,12 @@ void bind_steps(nb::module_& m) {
           "on the group of a pin.Model (None: every joint of one coordinate); newton: (rtol, atol, kappa, "
           "max_iterations) of an implicit tableau's Newton iteration (cpp/implicit.hpp).")
       .def("attempt", &tableau_attempt, "acceleration"_a, "q"_a, "v"_a, "t"_a, "h"_a, "first"_a.none() = nb::none(),
-           "end"_a = false,
+           "end"_a = false, "jacobian"_a.none() = nb::none(),
            "(q_new, v_new, slopes, end slope or None): the step of h [s] from (q, v) at t [s], stage i evaluated by "
            "acceleration(q, v, t, i) (its exceptions propagate; first: the acceleration at (q, v, t) when known); "
            "slopes: stages x 2 nv, [velocity slope in the start's tangent space | acceleration] per stage; with end, "
-           "the new point's slope (its acceleration evaluated as stage 0).")
+           "the new point's slope (its acceleration evaluated as stage 0); jacobian: the compiled Kernel whose Jacobians "
+           "an implicit stage's Newton iteration takes (None: differences of acceleration).")
       .def("run", &tableau_run, "kernel"_a, "q"_a, "v"_a, "tau"_a, "dt"_a, "steps"_a, "start"_a,
            "corrector"_a.none() = nb::none(), RUN_DOC)
       .def_prop_ro(

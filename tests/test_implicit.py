@@ -18,7 +18,7 @@ from pinstab import load_scene, simulate
 from pinstab.analysis import exact_reference
 from pinstab.analysis.spring_chain import scene_chain
 from pinstab.errors import DivergenceError, NewtonError, PinstabError
-from pinstab.integration.compiled import CompiledAdaptive, CompiledSteps
+from pinstab.integration.compiled import CompiledAdaptive, CompiledLoop, CompiledSteps
 from pinstab.integration.implicit import EMBEDDED_WEIGHTS
 from pinstab.integration.schemes import INTEGRATORS, embedded_pairs
 from pinstab.kernels import NativeKernel, RungeKutta
@@ -254,10 +254,16 @@ def test_stiff_fourbar_esdirk_error_control(stiff):
 
 
 def _python_steps(monkeypatch):
+    """No compiled loop: every step the stepper's own (the Python step path), its Newton Jacobians from the kernel the
+    compiled loop would have stepped with (lent as the loop lends them: the native kernel's analytic derivatives)."""
+
+    def lend(system, stepper):
+        CompiledLoop(system).lend_jacobians(stepper)
+
     patch = monkeypatch.context()
     context = patch.__enter__()
-    context.setattr(CompiledSteps, "of", classmethod(lambda cls, system, stepper: None))
-    context.setattr(CompiledAdaptive, "of", classmethod(lambda cls, system, stepper, pair: None))
+    context.setattr(CompiledSteps, "of", classmethod(lambda cls, system, stepper: lend(system, stepper)))
+    context.setattr(CompiledAdaptive, "of", classmethod(lambda cls, system, stepper, pair: lend(system, stepper)))
     return patch
 
 

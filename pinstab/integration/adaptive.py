@@ -252,7 +252,13 @@ class AdaptiveLoop(StepLoop):
         """
         system, control = self.system, self.control
         outcome, h, error, rejected, q_new, v_new, slopes, end_slope, raised = self.rules.attempt(
-            python_evaluation(system), system.model.no_force, q, v, a, t, h
+            python_evaluation(system, self.pair.jacobian_kernel() if self.pair.implicit else None),
+            system.model.no_force,
+            q,
+            v,
+            a,
+            t,
+            h,
         )
         control.rejected += rejected
         self.rejected_last = rejected > 0

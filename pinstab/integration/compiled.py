@@ -92,6 +92,12 @@ class CompiledLoop:
         self.steps = 0
         self.callback_steps = 0
 
+    def lend_jacobians(self, stepper: Integrator) -> None:
+        """An implicit stepper's own steps (the Python step path) take their Newton Jacobians from the kernel this loop
+        steps with (:meth:`kernel`: its analytic derivatives, or differences of its evaluation), as the loop's do."""
+        if isinstance(stepper, ImplicitRungeKutta):
+            stepper.jacobian_kernel = self.kernel
+
     def kernel(self) -> Kernel | None:
         """The compiled kernel to step with now, or None: the system's Python evaluation."""
         return self.system.compiled_kernel() if self.compiled else None
@@ -127,7 +133,11 @@ class CompiledSteps(CompiledLoop):
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator) -> CompiledSteps | None:
         """The compiled steps of this run, or None when :func:`compiled_obstacle` names a reason."""
-        return None if compiled_obstacle(system, stepper) is not None else cls(system, stepper)
+        if compiled_obstacle(system, stepper) is not None:
+            return None
+        loop = cls(system, stepper)
+        loop.lend_jacobians(stepper)
+        return loop
 
     def run(
         self, q: np.ndarray, v: np.ndarray, start: int, dt: float, steps: int
@@ -168,7 +178,11 @@ class CompiledAdaptive(CompiledLoop):
     @classmethod
     def of(cls, system: ConstrainedSystem, stepper: Integrator, pair: AdaptivePair) -> CompiledAdaptive | None:
         """The compiled loop of this run, or None when :func:`compiled_obstacle` names a reason."""
-        return None if compiled_obstacle(system, stepper, adaptive=True) is not None else cls(system, pair)
+        if compiled_obstacle(system, stepper, adaptive=True) is not None:
+            return None
+        loop = cls(system, pair)
+        loop.lend_jacobians(stepper)
+        return loop
 
     def run(self, *arguments: Any) -> AdaptiveRun:
         """:meth:`AdaptivePair.run <pinstab.kernels.AdaptivePair.run>` under the scene's applied forces (none) on the
@@ -184,10 +198,12 @@ class CompiledAdaptive(CompiledLoop):
         return run
 
 
-def python_evaluation(system: ConstrainedSystem) -> tuple:
+def python_evaluation(system: ConstrainedSystem, jacobian: Kernel | None = None) -> tuple:
     """The system's Python evaluation as the compiled loops take it: (acceleration, the group's pin.Model or None,
-    the exceptions that refuse a trial's state: a contact leaving its cone, a step the error control shortens)."""
-    return (system.acceleration, None if system.model.euclidean else system.model.model, ContactInfeasibleError)
+    the exceptions that refuse a trial's state: a contact leaving its cone, a step the error control shortens, the
+    compiled kernel whose Jacobians an implicit stage's Newton iteration takes or None: differences of acceleration)."""
+    group = None if system.model.euclidean else system.model.model
+    return (system.acceleration, group, ContactInfeasibleError, jacobian)
 
 
 class AdaptiveRun(NamedTuple):
