@@ -527,7 +527,12 @@ CASES = [
     Case(
         "element map dopri5", "stability stiff-fourbar --integrator dopri5", "PinstabError", "known stability function"
     ),
-    Case("element map too much work", "stability stiff-fourbar --steps 10000", "PinstabError", "4 maps of 40 x 40"),
+    Case(
+        "element map too much work",
+        "stability stiff-fourbar --steps 10000",
+        "PinstabError",
+        "maps of 40 x 40 runs of 10000 steps",
+    ),
     # -- trajectory error (--reference, --error-of)
     Case("reference for a scene without one", "run fivebar --reference exact", "PinstabError", "scenes with one"),
     Case("reference missing", "run fourbar --reference {tmp}/none.npz", "PinstabError", "does not exist"),
