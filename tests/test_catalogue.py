@@ -525,7 +525,10 @@ CASES = [
     Case("gains map factors", "stability fourbar --factor-range 1 10", "PinstabError", "not an option of a gains map"),
     Case("gains map two schemes", "stability fourbar --integrator rk4 --integrator heun", "PinstabError", "takes one"),
     Case(
-        "element map dopri5", "stability stiff-fourbar --integrator dopri5", "PinstabError", "known stability function"
+        "element map unknown integrator",
+        "stability stiff-fourbar --integrator rk5",
+        "PinstabError",
+        "known stability function",
     ),
     Case(
         "element map too much work",

@@ -15,8 +15,9 @@ import pinocchio as pin
 import pytest
 
 from pinstab.errors import PinstabError
-from pinstab.integration.schemes import INTEGRATORS, ExplicitRungeKutta, stability_polynomial
+from pinstab.integration.schemes import INTEGRATORS, ExplicitRungeKutta
 from pinstab.kernels import RungeKutta, SchemeStep
+from pinstab.stability.regions import stability_polynomial
 
 OMEGA, DAMPING = 3.0, 0.4  # a = -OMEGA^2 q - DAMPING v, coordinate by coordinate
 
@@ -41,7 +42,8 @@ POLYNOMIALS = {
 @pytest.mark.parametrize("name", [*POLYNOMIALS, "dopri5", "dop853"])
 def test_step_is_the_stability_polynomial_of_h_a(name):
     """On y' = A y (the damped oscillator, 3 coordinates) one step is p(h A) y: Euler 1 + z, Heun 1 + z + z^2 / 2, RK4
-    the degree-4 Taylor polynomial, the tableaus b^T a^(k-1) 1 (NumPy's matrix powers); to 1e-14 relative."""
+    the degree-4 Taylor polynomial, the tableaus b^T a^(k-1) 1 (the registry's, in rational arithmetic); to 1e-14
+    relative."""
     stepper = INTEGRATORS.build(name, _system())
     coefficients = POLYNOMIALS.get(name) or stability_polynomial(stepper.coupling, stepper.weights)
     h = 0.05

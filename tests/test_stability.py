@@ -9,16 +9,23 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+from pinstab.errors import PinstabError
+from pinstab.stability import regions
 from pinstab.stability.criterion import (
-    POLYNOMIALS,
-    SCHEMES,
+    SPECIAL_SCHEMES,
     amplification,
     deviation_radius,
     largest_stable_step,
+    mode_growth,
+    mode_step_limit,
     place_gains,
     scalar_radius,
+    schemes,
     spectral_radius,
 )
+
+SCHEMES = [name for name in schemes() if name in SPECIAL_SCHEMES or regions.TABLEAUS[name].explicit]
+"""The explicit schemes (the specials and the explicit tableaus: euler, heun, rk4, dop853, dopri5)."""
 
 
 def one_step(scheme, stiffness, damping, step, y):
@@ -215,9 +222,10 @@ def test_decoupled_rows_give_the_eigenvalue_solves_radius(scheme):
     damping = np.diag([20.0, 20.0, 10.0, 40.0, 10.0])
     whole = amplification(stiffness, damping, mask, 1e-2, scheme)
     solved = spectral_radius(whole)
-    if scheme in POLYNOMIALS:
+    if scheme not in SPECIAL_SCHEMES:
         roots = (Fraction(-1, 10), Fraction(-1, 5))
-        expected = max(abs(float(sum(Fraction(c) * mu**k for k, c in enumerate(POLYNOMIALS[scheme])))) for mu in roots)
+        polynomial = regions.TABLEAUS[scheme].polynomial
+        expected = max(abs(float(sum(Fraction(c) * mu**k for k, c in enumerate(polynomial)))) for mu in roots)
         block = amplification(np.array([[100.0]]), np.array([[20.0]]), np.array([True]), 1e-2, scheme)
         nilpotent = np.linalg.norm(block - expected * np.eye(2), 2)
         bound = math.sqrt(len(whole) * np.finfo(float).eps * np.linalg.norm(whole, 2) * nilpotent)
@@ -228,3 +236,65 @@ def test_decoupled_rows_give_the_eigenvalue_solves_radius(scheme):
     coupled = damping + 5.0 * np.eye(5, k=1)
     expected = spectral_radius(amplification(stiffness, coupled, mask, 1e-2, scheme))
     assert deviation_radius(stiffness, coupled, mask, 1e-2, scheme) == expected
+
+
+# RK4's real boundary: the real root of 1 + x/2 + x^2/6 + x^3/24 (p(x) - 1 = x (...) / 24 on the real axis), negated
+RK4_REAL_BOUND = -min(r.real for r in np.roots([1 / 24, 1 / 6, 1 / 2, 1]) if abs(r.imag) < 1e-12)
+
+
+def _first_exit(polynomial: list[float], direction: complex) -> float:
+    """The smallest x > 0 with |p(x u)| = 1 where |p| leaves the unit disk, for a polynomial p (lowest degree first)
+    along the unit direction u: the smallest positive real root of (|p(x u)|^2 - 1) / x, from NumPy's roots of that
+    real polynomial in x (the closed form the scan and bisection of mode_step_limit must meet)."""
+    scaled = np.array([c * direction**k for k, c in enumerate(polynomial)])  # p(x u) in x, lowest first
+    square = np.convolve(scaled, scaled.conj()).real  # |p(x u)|^2 in x
+    square[0] -= 1.0
+    roots = np.roots(square[1:][::-1])  # divided by x: the root x = 0 removed
+    real = [r.real for r in roots if abs(r.imag) <= 1e-9 * abs(r) and r.real > 0]
+    return min(real)
+
+
+@pytest.mark.parametrize("modulus", [1e-3, 1.0, 7159.2, 1e9])
+def test_mode_step_limit_meets_the_closed_forms(modulus):
+    """The stability limit of a stiff mode of eigenvalue lambda: explicit Euler 2 / |lambda| on a real one and
+    -2a / |lambda|^2 on a pair a +- ib; RK4 2.785293563 / |lambda| on a real one; on pairs, RK4's, Heun's and DOPRI5's
+    first exit along the ray of lambda from the roots of |p(x u)|^2 = 1 (NumPy); semi-implicit Euler on a pair its
+    2 x 2 step matrix's Jury conditions (det 1 - h kd >= -1 and trace 2 - h^2 kp - h kd >= -(1 + det), kp = |lambda|^2,
+    kd = -2a), on a real one the first-order row 1 + h lambda; implicit Euler, the midpoint rule and ESDIRK4 (A-stable)
+    none. To 1e-9 relative, at moduli from 1e-3 to 1e9 /s (the limit scales as 1 / |lambda|)."""
+    assert RK4_REAL_BOUND == pytest.approx(2.785293563, abs=1e-9)
+    real = -modulus
+    assert mode_step_limit(real, "euler") == pytest.approx(2.0 / modulus, rel=1e-9)
+    assert mode_step_limit(real, "semi-implicit-euler") == pytest.approx(2.0 / modulus, rel=1e-9)
+    assert mode_step_limit(real, "rk4") == pytest.approx(RK4_REAL_BOUND / modulus, rel=1e-9)
+    for angle in (0.3, 1.0, 1.55):  # from the negative real axis towards the imaginary one [rad]
+        pair = modulus * complex(-math.cos(angle), math.sin(angle))
+        a = pair.real
+        assert mode_step_limit(pair, "euler") == pytest.approx(-2 * a / modulus**2, rel=1e-9)
+        for scheme, polynomial in (
+            ("heun", [1, 1, 1 / 2]),
+            ("rk4", [1, 1, 1 / 2, 1 / 6, 1 / 24]),
+            ("dopri5", [1, 1, 1 / 2, 1 / 6, 1 / 24, 1 / 120, 1 / 600]),
+        ):
+            expected = _first_exit(polynomial, pair / modulus) / modulus
+            assert mode_step_limit(pair, scheme) == pytest.approx(expected, rel=1e-9), (scheme, angle)
+        kp, kd = modulus**2, -2 * a
+        jury = min(2 / kd, (-kd + math.sqrt(kd**2 + 4 * kp)) / kp)
+        assert mode_step_limit(pair, "semi-implicit-euler") == pytest.approx(jury, rel=1e-9)
+        for scheme in ("implicit-euler", "implicit-midpoint", "esdirk4"):
+            assert mode_step_limit(pair, scheme) == math.inf
+            assert mode_step_limit(real, scheme) == math.inf
+
+
+def test_mode_step_limit_is_where_the_mode_starts_to_grow():
+    """Just below the limit one step keeps the mode (|R| <= 1), just above it the mode grows (RK4 and DOP853 on a
+    real and a lightly damped mode); a mode that grows on its own (Re lambda > 0) has limit 0 with an explicit scheme;
+    an unknown scheme is refused, naming the valid ones."""
+    for eigenvalue in (complex(-7159.2), complex(-1.3, 141.0)):
+        for scheme in ("rk4", "dop853"):
+            limit = mode_step_limit(eigenvalue, scheme)
+            below, above = (mode_growth(eigenvalue, factor * limit, scheme) for factor in (0.999, 1.001))
+            assert below <= 1.0 < above
+    assert mode_step_limit(complex(5.0, 1.0), "rk4") == 0.0
+    with pytest.raises(PinstabError, match=r"unknown integrator 'rk5'; valid integrators: .*esdirk4.*semi-implicit"):
+        mode_step_limit(-1.0, "rk5")

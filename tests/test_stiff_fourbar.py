@@ -31,6 +31,7 @@ from pinstab.analysis.spring_chain import Spring, SpringChain, scene_chain
 from pinstab.cli import main
 from pinstab.forces.spring_damper import SpringDamper
 from pinstab.model import ConstrainedModel
+from pinstab.stability.criterion import mode_step_limit
 from pinstab.stability.modes import stiffest_mode
 
 STIFFNESS, DAMPING, REST_LENGTH = 5e4, 2500.0, 0.5  # [N/m], [N s/m], [m]: the scene's rocker-spring
@@ -174,8 +175,8 @@ def test_the_stiffest_mode_is_the_measured_linearization(chain, scene, reference
     """pinstab.stability.modes' eigenvalue (the force elements' and RNEA's central differences against M) is the
     Radau chain's own Jacobian's stiffest (SciPy helper, ABA by differences) to 1e-6 relative at every 10th sample of
     the first second (-7159 /s at the start, up to |lambda| = 8846 /s); the spring owns it (share > 0.99); the step
-    limits are the closed forms' intervals on the real axis: RK4 2.7853 (the real root of 1 + x/2 + x^2/6 + x^3/24),
-    Euler 2, to 2e-4 (the mode's modal reduction against its eigenvalue)."""
+    limits are the closed forms' intervals on the real axis over |lambda|: RK4 2.7853 (the real root of 1 + x/2 + x^2/6
+    + x^3/24), Euler 2, to 1e-9 (mode_step_limit of the mode's eigenvalue)."""
     model = ConstrainedModel(scene)
     rk4_interval = -min(r.real for r in np.roots([1 / 24, 1 / 6, 1 / 2, 1]) if abs(r.imag) < 1e-12)
     assert rk4_interval == pytest.approx(RK4_BOUND, abs=1e-3)
@@ -186,8 +187,8 @@ def test_the_stiffest_mode_is_the_measured_linearization(chain, scene, reference
         stiffest = measured[np.argmax(np.abs(measured))]
         assert mode.eigenvalue == pytest.approx(stiffest, rel=1e-6) and mode.eigenvalue.imag == 0
         assert mode.element == "rocker-spring" and mode.share > 0.99
-        assert mode.step_limit("rk4") * abs(mode.eigenvalue) == pytest.approx(rk4_interval, rel=2e-4)
-        assert mode.step_limit("euler") * abs(mode.eigenvalue) == pytest.approx(2.0, rel=2e-4)
+        assert mode_step_limit(mode.eigenvalue, "rk4") * abs(mode.eigenvalue) == pytest.approx(rk4_interval, rel=1e-9)
+        assert mode_step_limit(mode.eigenvalue, "euler") * abs(mode.eigenvalue) == pytest.approx(2.0, rel=1e-9)
         largest = max(largest, abs(mode.eigenvalue))
     assert largest == pytest.approx(8846, abs=1)
     assert stiffest_mode(model, scene.q0, scene.v0, 0.0).eigenvalue.real == pytest.approx(-7159.2, abs=0.1)

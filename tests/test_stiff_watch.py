@@ -13,9 +13,10 @@ from pinstab.analysis.spring_chain import scene_chain
 from pinstab.cli import main
 from pinstab.integration import INTEGRATORS, Integrator
 from pinstab.integration import stepping as stepping_module
-from pinstab.integration.stiffness import StiffWatch, growth_per_step, implicit_integrators, step_limit
+from pinstab.integration.stiffness import StiffWatch, implicit_integrators
 from pinstab.kernels import SchemeStep
 from pinstab.simulate.held import held_system
+from pinstab.stability.criterion import mode_growth, mode_step_limit
 
 DURATION = 1.0  # [s]
 RK4_BOUND = 2.7853  # |h lambda| at which RK4's stability region meets the negative real axis
@@ -61,20 +62,20 @@ def no_implicit(monkeypatch):
     monkeypatch.setattr(INTEGRATORS, "_entries", explicit)
 
 
-def test_growth_per_step_is_rk4s_polynomial_and_the_limit_its_real_bound():
+def test_mode_growth_is_rk4s_polynomial_and_the_limit_its_real_bound():
     """|R| of RK4 on x' = lambda x is |1 + z + z^2/2 + z^3/6 + z^4/24| at z = h lambda (1.104 at z = -2.851); the limit
     is 2.7853 / |lambda| (the polynomial's real root); a complex pair's limit is inside the region's boundary."""
     for z in (-1.0, -2.5, -2.851, -3.2):
-        assert growth_per_step(complex(z / 1e-4), 1e-4, "rk4") == pytest.approx(
+        assert mode_growth(complex(z / 1e-4), 1e-4, "rk4") == pytest.approx(
             abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24), rel=1e-12
         )
-    assert step_limit(complex(-7159.2), "rk4") * 7159.2 == pytest.approx(RK4_BOUND, rel=1e-4)
-    assert step_limit(complex(-7159.2), "euler") * 7159.2 == pytest.approx(2.0, rel=1e-6)
+    assert mode_step_limit(complex(-7159.2), "rk4") * 7159.2 == pytest.approx(RK4_BOUND, rel=1e-4)
+    assert mode_step_limit(complex(-7159.2), "euler") * 7159.2 == pytest.approx(2.0, rel=1e-6)
     pair = complex(-100.0, 1000.0)
     assert (
-        growth_per_step(pair, 0.999 * step_limit(pair, "rk4"), "rk4")
+        mode_growth(pair, 0.999 * mode_step_limit(pair, "rk4"), "rk4")
         <= 1.0
-        < growth_per_step(pair, 1.001 * step_limit(pair, "rk4"), "rk4")
+        < mode_growth(pair, 1.001 * mode_step_limit(pair, "rk4"), "rk4")
     )
 
 
@@ -177,7 +178,7 @@ def test_auto_above_the_margin_picks_the_implicit_integrator(scene, fake_implici
     controlled = simulate(scene, integrator="auto", dt=3.5e-4, duration=0.01, rtol=1e-6)
     assert controlled.info.integrator == "dop853"
     assert controlled.info.integrator_choice["stiff_mode"]["step_limit"] == pytest.approx(
-        step_limit(complex(-7159.2068), "dop853"), rel=1e-6
+        mode_step_limit(complex(-7159.2068), "dop853"), rel=1e-6
     )
 
 

@@ -15,7 +15,7 @@ its energy E = T + V never grows), so the energy a run gains is the step's: its 
 (above :data:`~pinstab.analysis.stability_map.DIVERGED_RATIO`, or blown up).
 
 Predicted from the linearization at the start: one step multiplies each mode by ``|R(h lambda)|``
-(:func:`pinstab.stability.regions.step_growth`; beyond the motion's own growth for a mode that grows on its own). The
+(:func:`pinstab.stability.criterion.step_growth`; beyond the motion's own growth for a mode that grows on its own). The
 scheme's region, ``|R| <= 1`` on every mode, is the asymptotic prediction; a run of N steps diverges when a mode grows
 by more than the diverged ratio over them: ``excess^N > DIVERGED_RATIO``. That is the prediction compared with the
 runs (``agreement``): a lightly damped mode (``stiff-fourbar``'s motion across its spring, stiffened by the spring's
@@ -41,8 +41,8 @@ from ..integration import INTEGRATORS
 from ..model import ConstrainedModel, kinetic_energy
 from ..scene import Scene, scene_from_dict
 from ..simulate import simulate
+from ..stability.criterion import mode_step_limit, schemes, step_growth
 from ..stability.modes import StiffMode, linearize, stiffest_mode
-from ..stability.regions import region_limit, region_schemes, step_growth
 from ..validation import read_scene_file
 from .stability_map import CONVERGED_RATIO, DIVERGED_RATIO, check_grid, log_edges, progress_bar
 
@@ -52,8 +52,8 @@ CLASSES = ("dissipative", "bounded", "diverged")
 
 def map_integrators() -> list[str]:
     """The registered integrators an element map can run: those whose growth per step is known
-    (:func:`pinstab.stability.regions.region_schemes`)."""
-    return [name for name in region_schemes() if name in INTEGRATORS]
+    (:func:`pinstab.stability.criterion.schemes`)."""
+    return [name for name in schemes() if name in INTEGRATORS]
 
 
 def stiff_elements(scene: Scene) -> list[str]:
@@ -326,11 +326,9 @@ def _observe(scene: Scene, integrator: str, dt: float, steps: int, energy_scale:
 
 
 def _mode_limit(mode: StiffMode | None, scheme: str) -> float:
-    """The largest step [s] with which ``scheme`` keeps the stiffest mode ``x'' = -kp x - kd x'`` inside its region
-    (inf for an A-stable scheme; NaN without a decaying mode)."""
-    if mode is None or not mode.decays:
-        return math.nan
-    return region_limit(scheme, np.array([[mode.stiffness]]), np.array([[mode.damping]]))
+    """The largest step [s] with which ``scheme`` keeps the stiffest mode inside its region
+    (:func:`~pinstab.stability.criterion.mode_step_limit`: inf for an A-stable scheme; NaN without a decaying mode)."""
+    return mode_step_limit(mode.eigenvalue, scheme) if mode is not None and mode.decays else math.nan
 
 
 def plot_element_map(result: ElementMap, path: str | Path) -> Path:

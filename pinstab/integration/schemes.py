@@ -23,7 +23,7 @@ import numpy as np
 
 from ..kernels import RungeKutta, SchemeStep
 from ..registry import NoOptions, Registry
-from ..stability.criterion import register_polynomial
+from ..stability.regions import register_tableau
 from . import tableaus
 from .tableaus import Tableau
 
@@ -165,12 +165,12 @@ class TableauScheme(Integrator):
 
 
 class ExplicitRungeKutta(TableauScheme):
-    """An explicit Runge-Kutta scheme given by its tableau (a_ij strictly lower triangular); its stability
-    polynomial registered for the step-size criterion."""
+    """An explicit Runge-Kutta scheme given by its tableau (a_ij strictly lower triangular); its tableau registered
+    for the step-size criterion (:func:`~pinstab.stability.regions.register_tableau`)."""
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
-        register_polynomial(cls.name, stability_polynomial(cls.coupling, cls.weights))
+        register_tableau(cls.name, cls.coupling, cls.weights)
 
 
 def _lower_triangle(rows: dict[int, dict[int, float]], stages: int) -> np.ndarray:
@@ -183,12 +183,6 @@ def _lower_triangle(rows: dict[int, dict[int, float]], stages: int) -> np.ndarra
 
 def _row(entries: dict[int, float], size: int) -> np.ndarray:
     return np.array([entries.get(j, 0.0) for j in range(size)])
-
-
-def stability_polynomial(coupling: np.ndarray, weights: np.ndarray) -> tuple[float, ...]:
-    """The coefficients of a tableau's stability polynomial, lowest degree first: 1, then b^T a^(k-1) 1."""
-    ones = np.ones(len(weights))
-    return tuple([1.0] + [float(weights @ np.linalg.matrix_power(coupling, k) @ ones) for k in range(len(weights))])
 
 
 class DormandPrince853(ExplicitRungeKutta):

@@ -34,6 +34,7 @@ from ..errors import (
     UnstableGainsWarning,
 )
 from ..projection import project_positions
+from ..stability.criterion import mode_step_limit
 from ..stability.modes import StiffMode, stiffest_mode
 from ..stabilizers import ProjectionOptions
 from ..system import ConstrainedSystem
@@ -42,7 +43,7 @@ from .dense import Segment
 from .passages import PassageWatch, Plan
 from .records import Records
 from .schemes import Integrator
-from .stiffness import StiffWatch, step_limit, stiff_reason, watched
+from .stiffness import StiffWatch, stiff_reason, watched
 
 CHECK_STEPS = 100  # steps between the loop's checks of the state (a check costs about two steps)
 MAX_STEPS = 10**10  # beyond this a run takes days whatever the scene
@@ -494,7 +495,7 @@ class StepLoop:
             mode = stiffest_mode(self.system.model, at_q, at_v, t)
             if mode is None or mode.element is None or not mode.eigenvalue.real < 0:
                 continue
-            limit = step_limit(mode.eigenvalue, scheme)
+            limit = mode_step_limit(mode.eigenvalue, scheme)
             if dt > limit:
                 break
         else:

@@ -4,7 +4,7 @@ plausible wrong answer, and the words that name the mode and what to use instead
 
 At the loop's checks (every :data:`~pinstab.integration.stepping.CHECK_STEPS` steps) the motion is linearized at the
 checked state (:func:`~pinstab.stability.modes.stiffest_mode`, the elements differentiated together) and the stiffest
-mode's growth per step |R| is read from its eigenvalue (:func:`growth_per_step`). Measured
+mode's growth per step |R| is read from its eigenvalue (:func:`~pinstab.stability.criterion.mode_growth`). Measured
 on ``stiff-fourbar`` with RK4 (``tests/test_stiff_watch.py``): at 0.32 ms the mode crosses its limit briefly
 (|R| = 1.047 and 1.063 at two checks, a 99- and a 433-fold growth over 100 steps) and the run stays bounded, its energy
 within 3.4e-3 J of a 0.02 ms run's as everywhere before; at 0.33 ms one check sits on the limit (|R| = 0.9994) and the
@@ -26,8 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..stability.criterion import SCHEMES as STABILITY_SCHEMES
-from ..stability.criterion import largest_stable_step, scalar_radius
+from ..stability.criterion import mode_growth, mode_step_limit, schemes
 from ..stability.modes import StiffMode, stiffest_mode
 from .schemes import INTEGRATORS
 
@@ -51,30 +50,7 @@ def implicit_integrators() -> list[str]:
 def watched(stepper: Integrator, model: ConstrainedModel) -> bool:
     """Whether a fixed-step run of ``stepper`` on ``model`` is one a stiff element's mode can limit: an explicit scheme
     whose stability function the criterion knows, on a scene with force elements."""
-    return not stepper.implicit and stepper.name in STABILITY_SCHEMES and bool(model.forces)
-
-
-def eigenvalue_gains(eigenvalue: complex) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The criterion's gains (S, K, holonomic mask) of the mode of ``eigenvalue`` [1/s] alone: ``x' = lambda x``
-    (K = -lambda, a first-order row) for a real one, ``x'' = 2 Re(lambda) x' - |lambda|^2 x`` for a complex pair.
-    Unlike the mode's modal gains, which carry the slow root of their 2 x 2 reduction too (growing where the motion
-    itself moves away: a compressed spring's negative modal stiffness), these give the stiff root's growth alone."""
-    if eigenvalue.imag == 0:
-        return np.zeros((1, 0)), np.array([[-eigenvalue.real]]), np.array([False])
-    return np.array([[abs(eigenvalue) ** 2]]), np.array([[-2 * eigenvalue.real]]), np.array([True])
-
-
-def growth_per_step(eigenvalue: complex, step: float, scheme: str) -> float:
-    """|R| of one step of ``step`` [s] of ``scheme`` on the mode of ``eigenvalue`` [1/s] (:func:`eigenvalue_gains`)."""
-    stiffness, damping, mask = eigenvalue_gains(eigenvalue)
-    kp = float(stiffness[0, 0]) if mask[0] else 0.0
-    return scalar_radius(kp, float(damping[0, 0]), step, scheme, holonomic=bool(mask[0]))
-
-
-def step_limit(eigenvalue: complex, scheme: str) -> float:
-    """The largest step [s] with which ``scheme`` keeps the mode of ``eigenvalue`` [1/s] bounded (RK4: 2.785 /
-    |lambda| for a real one)."""
-    return largest_stable_step(*eigenvalue_gains(eigenvalue), scheme)
+    return not stepper.implicit and stepper.name in schemes() and bool(model.forces)
 
 
 def suggested_step(limit: float) -> float:
@@ -119,7 +95,7 @@ class StiffWatch:
 
     def radius(self, mode: StiffMode, scale: float = 1.0) -> float:
         """|R| per step of the mode [-] at the run's step times ``scale`` (the mode's |lambda| grown by it)."""
-        return growth_per_step(mode.eigenvalue, self.dt * scale, self.scheme)
+        return mode_growth(mode.eigenvalue, self.dt * scale, self.scheme)
 
     def see(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[StiffMode, float, float, float] | None:
         """At the check of (q, v, t) [rad or m, rad/s or m/s, s]: None, or when the crossing's growth is above
@@ -145,4 +121,4 @@ class StiffWatch:
         owned = stiffest_mode(self.model, q, v, t)
         if owned is None or owned.element is None:
             return None  # no element's mode: the explicit step is not what a stiff element limits
-        return owned, step_limit(owned.eigenvalue, self.scheme), radius, math.exp(min(self.growth, 700.0))
+        return owned, mode_step_limit(owned.eigenvalue, self.scheme), radius, math.exp(min(self.growth, 700.0))

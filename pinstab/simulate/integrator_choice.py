@@ -17,9 +17,10 @@ import numpy as np
 
 from ..errors import PinstabError
 from ..integration import INTEGRATORS
-from ..integration.stiffness import MODE_GROWTH, implicit_integrators, step_limit, suggested_step
+from ..integration.stiffness import MODE_GROWTH, implicit_integrators, suggested_step
 from ..model import ConstrainedModel
 from ..scene import Scene
+from ..stability.criterion import mode_step_limit
 from ..stability.modes import stiffest_mode
 
 AUTO = "auto"  # the integrator name that asks for the choice
@@ -47,7 +48,7 @@ def choose_integrator(
     if mode is None or mode.element is None or not mode.eigenvalue.real < 0:
         reason = "no force elements" if not model.forces else "no force element owns a decaying stiffest mode"
         return explicit, {"picked": explicit, "reason": reason, "stiff_mode": None}
-    limit = step_limit(mode.eigenvalue, explicit)
+    limit = mode_step_limit(mode.eigenvalue, explicit)
     stiff = {
         "element": mode.element,
         "frequency": mode.frequency,

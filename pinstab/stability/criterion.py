@@ -13,7 +13,12 @@ any scheme of order >= 2 integrates exactly: ``R = [[E - tau^2 P S / 2, tau P - 
 [-tau S, E - tau K]]``, first order ``E - tau K`` on nonholonomic rows.
 
 This module builds W and R, evaluates the radius, places the discrete eigenvalues at a chosen decay
-factor per step (automatic gains), and finds the largest stable step for given gains.
+factor per step (automatic gains), and finds the largest stable step for given gains. The Runge-Kutta schemes' R come
+from their tableaus (the one registry, :mod:`pinstab.stability.regions`); semi-implicit Euler and ``held`` are the
+special ones (:data:`SPECIAL_SCHEMES`). On a linear motion ``x'' = -K x - D x'`` the same R gives the growth per step
+of its modes (:func:`step_growth`), and on one mode, by its eigenvalue, the growth and the stability limit of a stiff
+mode (:func:`mode_growth`, :func:`mode_step_limit`: the one rule of the stiff-mode watch, ``--integrator auto``, the
+stop that names a stiff element, and the element maps).
 """
 
 from __future__ import annotations
@@ -21,28 +26,30 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import PinstabError, choices
 from . import regions
 
-# stability polynomials p(mu) of the Runge-Kutta schemes, R = p(tau W) (lowest degree first)
-POLYNOMIALS = {
-    "euler": (1.0, 1.0),
-    "heun": (1.0, 1.0, 0.5),
-    "rk4": (1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0),
-}
-SCHEMES = ["euler", "semi-implicit-euler", "heun", "rk4", "held"]
-"""The schemes R is known for (an integrator's module adds its polynomial with :func:`register_polynomial`)."""
+SPECIAL_SCHEMES = ("semi-implicit-euler", "held")
+"""The schemes that are no Runge-Kutta scheme of the first-order system: R is their own step matrix (module
+docstring); every other scheme is known by its tableau (:data:`pinstab.stability.regions.TABLEAUS`)."""
 
 
-def register_polynomial(scheme: str, coefficients: tuple[float, ...]) -> None:
-    """Make a Runge-Kutta scheme known by its stability polynomial p (lowest degree first; for a tableau
-    (a, b): 1, then b^T a^(k-1) 1 for k = 1, 2, ...), so that R = p(tau W)."""
-    POLYNOMIALS[scheme] = coefficients
-    if scheme not in SCHEMES:
-        SCHEMES.append(scheme)
+def schemes() -> list[str]:
+    """The schemes R is known for: the explicit tableaus (euler, heun, rk4, and those an integrator's module registers
+    with :func:`pinstab.stability.regions.register_tableau`), the special ones, then the implicit tableaus."""
+    explicit = [name for name, tableau in regions.TABLEAUS.items() if tableau.explicit]
+    implicit = [name for name, tableau in regions.TABLEAUS.items() if not tableau.explicit]
+    return [*explicit, *SPECIAL_SCHEMES, *implicit]
+
+
+def _polynomial(scheme: str) -> tuple[float, ...] | None:
+    """The stability polynomial p of an explicit tableau (lowest degree first: R = p(tau W)), or None."""
+    tableau = regions.TABLEAUS.get(scheme)
+    return None if tableau is None else tableau.polynomial
 
 
 def _implicit(scheme: str) -> regions.Tableau | None:
@@ -62,7 +69,7 @@ def _tableau_amplification(coupling: np.ndarray, weights: np.ndarray, z: np.ndar
 def is_multistage(scheme: str) -> bool:
     """Whether ``scheme`` evaluates the dynamics more than once per step (a Runge-Kutta scheme of
     order >= 2)."""
-    return len(POLYNOMIALS.get(scheme, ())) > 2
+    return len(_polynomial(scheme) or ()) > 2
 
 
 def deviation_matrix(stiffness: np.ndarray, damping: np.ndarray, holonomic_mask: np.ndarray) -> np.ndarray:
@@ -88,7 +95,7 @@ def amplification(
     _check_scheme(scheme)
     w = deviation_matrix(stiffness, damping, holonomic_mask)
     n = w.shape[0]
-    if scheme in ("semi-implicit-euler", "held"):
+    if scheme in SPECIAL_SCHEMES:
         holonomic = int(np.count_nonzero(holonomic_mask))
         pick = w[:holonomic, holonomic:]
         velocity_map = np.eye(n - holonomic) - step * damping
@@ -110,10 +117,10 @@ def amplification(
         )
     implicit = _implicit(scheme)
     if implicit is not None:
-        return _tableau_amplification(*implicit, step * w)
+        return _tableau_amplification(implicit.coupling, implicit.weights, step * w)
     result = np.zeros((n, n))
     power = np.eye(n)
-    for coefficient in POLYNOMIALS[scheme]:
+    for coefficient in _polynomial(scheme):
         result += coefficient * power
         power = power @ (step * w)
     return result
@@ -183,12 +190,13 @@ def _scalar_eigenvalues(kp: float, kd: float, step: float, scheme: str, holonomi
     if _implicit(scheme) is not None:
         roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
         return [complex(value) for value in regions.stability_function(scheme, np.array(roots, dtype=complex))]
-    if scheme in POLYNOMIALS:
+    polynomial = _polynomial(scheme)
+    if polynomial is not None:
         roots = _quadratic_roots(tau * damping, tau * tau * stiffness) if holonomic else [float(-tau * damping)]
         eigenvalues = []
         for mu in roots:
             value = 0.0
-            for coefficient in reversed(POLYNOMIALS[scheme]):
+            for coefficient in reversed(polynomial):
                 value = value * mu + coefficient
             eigenvalues.append(value)
         return eigenvalues
@@ -253,7 +261,7 @@ def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
             f"the gains are placed for explicit schemes only, not {scheme}: give the gains (--kp, --kd), or use "
             f"another method (baumgarte)"
         )
-    if scheme in ("euler", "semi-implicit-euler", "held"):
+    if scheme in ("euler", *SPECIAL_SCHEMES):
         stiffness = (1.0 - decay) ** 2 / step**2
         damping = {
             "euler": 2.0 * (1.0 - decay),
@@ -262,10 +270,11 @@ def place_gains(step: float, scheme: str, decay: float) -> PlacedGains:
         }[scheme] / step
         first_order = (1.0 - decay) / step
     else:
-        mu_pair = _root_pair(POLYNOMIALS[scheme], decay)
+        polynomial = _polynomial(scheme)
+        mu_pair = _root_pair(polynomial, decay)
         stiffness = float((mu_pair[0] * mu_pair[1]).real) / step**2
         damping = float(-(mu_pair[0] + mu_pair[1]).real) / step
-        first_order = -_real_root_or_minimum(POLYNOMIALS[scheme], decay) / step
+        first_order = -_real_root_or_minimum(polynomial, decay) / step
     achieved = scalar_radius(stiffness, damping, step, scheme)
     first = scalar_radius(0.0, first_order, step, scheme, holonomic=False)
     return PlacedGains(stiffness, damping, first_order, decay, achieved, first)
@@ -338,7 +347,113 @@ def largest_stable_step(
     return float(low)
 
 
+class StepGrowth(NamedTuple):
+    """What one step of a scheme does to the modes of a linear motion.
+
+    Attributes:
+        eigenvalues: the motion's eigenvalues lambda [1/s] (of ``[[0, I], [-K, -D]]``).
+        moduli: per mode, how much one step multiplies it [-]: ``|R(h lambda)|`` for a Runge-Kutta scheme; for a
+            special scheme (:data:`SPECIAL_SCHEMES`) the moduli of its step matrix's eigenvalues (in their own order).
+        exact: per mode, how much the motion itself multiplies it over the step, ``max(1, exp(h Re lambda))`` [-]: a
+            mode that grows on its own (a pendulum above its pivot) is the motion's, not the step's; for a special
+            scheme the largest over the modes.
+    """
+
+    eigenvalues: np.ndarray
+    moduli: np.ndarray
+    exact: np.ndarray
+
+    @property
+    def excess(self) -> float:
+        """The step's growth beyond the motion's, ``max(moduli / exact)`` [-]: above 1, a mode the motion keeps
+        bounded grows with the step (the step is outside the scheme's region for it)."""
+        return float(np.max(self.moduli / self.exact, initial=0.0))
+
+
+def step_growth(scheme: str, step: float, stiffness: np.ndarray, damping: np.ndarray) -> StepGrowth:
+    """How a step of ``step`` [s] of ``scheme`` multiplies the modes of ``x'' = -stiffness x - damping x'``
+    (f x f each, [1/s^2] and [1/s]: the linearization's K and D divided by the mass). A Runge-Kutta step multiplies
+    the mode of eigenvalue lambda of ``J = [[0, I], [-K, -D]]`` by ``R(h lambda)``; a special scheme's step is its
+    matrix of :func:`amplification` on (x, x') (every row holonomic: S = K, K = D).
+
+    Raises:
+        PinstabError: an unknown scheme, naming the known ones.
+    """
+    _check_scheme(scheme)
+    free = stiffness.shape[0]
+    jacobian = np.block([[np.zeros((free, free)), np.eye(free)], [-stiffness, -damping]])
+    eigenvalues = np.linalg.eigvals(jacobian)
+    with np.errstate(over="ignore"):
+        exact = np.maximum(1.0, np.exp(step * eigenvalues.real))
+    if scheme in SPECIAL_SCHEMES:
+        matrix = amplification(stiffness, damping, np.ones(free, dtype=bool), step, scheme)
+        moduli = np.abs(np.linalg.eigvals(matrix))
+        return StepGrowth(eigenvalues, moduli, np.full(len(moduli), exact.max()))
+    return StepGrowth(eigenvalues, np.abs(regions.stability_function(scheme, step * eigenvalues)), exact)
+
+
+def _mode_gains(eigenvalue: complex) -> tuple[float, float, bool]:
+    """The scalar gains (Kp, Kd, holonomic) of the mode of ``eigenvalue`` [1/s] alone: ``x' = lambda x`` (Kd =
+    -lambda, a first-order row) for a real one, ``x'' = 2 Re(lambda) x' - |lambda|^2 x`` for a complex pair. Unlike a
+    mode's modal gains, which carry the slow root of their 2 x 2 reduction too (growing where the motion itself moves
+    away: a compressed spring's negative modal stiffness), these give the mode's own growth alone."""
+    if eigenvalue.imag == 0:
+        return 0.0, -eigenvalue.real, False
+    return abs(eigenvalue) ** 2, -2 * eigenvalue.real, True
+
+
+def mode_growth(eigenvalue: complex, step: float, scheme: str) -> float:
+    """|R| [-] of one step of ``step`` [s] of ``scheme`` on the mode of ``eigenvalue`` [1/s]: ``|R(h lambda)|`` of a
+    Runge-Kutta scheme, the radius of a special scheme's step matrix on the mode alone (:func:`_mode_gains`), from
+    :func:`scalar_radius`'s closed forms.
+
+    Raises:
+        PinstabError: an unknown scheme, naming the known ones.
+    """
+    kp, kd, holonomic = _mode_gains(complex(eigenvalue))
+    return scalar_radius(kp, kd, step, scheme, holonomic=holonomic)
+
+
+MODE_SCAN = (1e-12, 1e6, 32)  # h |lambda| [-] from, to, and points per decade: where mode_step_limit looks for the exit
+
+
+def mode_step_limit(eigenvalue: complex, scheme: str) -> float:
+    """The stability limit of a stiff mode: the largest step h [s] with which ``scheme`` keeps the mode of
+    ``eigenvalue`` [1/s] (complex for an oscillating one) from growing, ``mode_growth <= 1`` for every step up to h
+    (RK4 on a real lambda: 2.7853 / |lambda|; explicit Euler on a pair a +- ib: -2a / |lambda|^2). inf when no step
+    makes it grow (an A-stable scheme on a decaying mode); 0 when the smallest does (a mode that grows on its own) or
+    the eigenvalue is not finite.
+
+    The steps h |lambda| of :data:`MODE_SCAN` are scanned from the smallest up to the first at which the mode grows,
+    then bisected (60 halvings of the log interval: to the rounding unit).
+
+    Raises:
+        PinstabError: an unknown scheme, naming the known ones.
+    """
+    _check_scheme(scheme)
+    eigenvalue = complex(eigenvalue)
+    modulus = abs(eigenvalue)
+    if not math.isfinite(modulus):
+        return 0.0
+    if modulus == 0.0:
+        return math.inf
+    low, high, per_decade = MODE_SCAN
+    steps = np.geomspace(low, high, round(per_decade * math.log10(high / low)) + 1) / modulus
+    exit_index = next((i for i, h in enumerate(steps) if mode_growth(eigenvalue, float(h), scheme) > 1.0), None)
+    if exit_index is None:
+        return math.inf
+    if exit_index == 0:
+        return 0.0
+    inside, outside = float(steps[exit_index - 1]), float(steps[exit_index])
+    for _ in range(60):
+        middle = math.sqrt(inside * outside)
+        if mode_growth(eigenvalue, middle, scheme) > 1.0:
+            outside = middle
+        else:
+            inside = middle
+    return inside
+
+
 def _check_scheme(scheme: str) -> None:
-    if scheme not in SCHEMES and _implicit(scheme) is None:
-        known = [*SCHEMES, *(name for name in regions.TABLEAUS if _implicit(name) is not None)]
-        raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(known)}")
+    if scheme not in SPECIAL_SCHEMES and scheme not in regions.TABLEAUS:
+        raise PinstabError(f"unknown integrator {scheme!r}; valid integrators: {choices(schemes())}")

@@ -8,8 +8,8 @@ modulus, with its position part x, is the stiffest mode. Its share of element e 
 ``|x^H (K_e + lambda D_e) x|`` over the sum of those of every element and of the bias: the element whose share is
 above :data:`OWNER_SHARE` owns the mode. Its frequency is ``sqrt(x^T K_e x / x^T M x)`` [rad/s] (x real: an
 overdamped stiff mode's), and the mode's modal stiffness ``kp = x^T K x / x^T M x`` [1/s^2] and damping
-``kd = x^T D x / x^T M x`` [1/s] give the largest stable step of an explicit scheme by the one rule of
-:func:`pinstab.stability.criterion.largest_stable_step` (``x'' = -kp x - kd x'``, the deviation dynamics of one row).
+``kd = x^T D x / x^T M x`` [1/s] say whether the motion there decays. The largest stable step of a scheme on the mode
+follows from its eigenvalue by the one rule of :func:`pinstab.stability.criterion.mode_step_limit`.
 
 Limit: with constraints the matrices are restricted to the null space of the constraint Jacobian G at q
 (``N^T M N``, ``N^T K N``, ``N^T D N``, N an orthonormal basis): the motion's first-order part on the constraint
@@ -25,7 +25,6 @@ import pinocchio as pin
 import scipy.linalg
 
 from ..model import ConstrainedModel
-from .criterion import largest_stable_step
 
 DIFFERENCE_STEP = 1e-6  # [rad or m, rad/s or m/s]: central differences of the forces, relative error ~1e-10
 OWNER_SHARE = 0.5  # an element owns the stiffest mode when its share of the mode's forces is above this
@@ -54,10 +53,6 @@ class StiffMode(NamedTuple):
         """Whether the mode decays in the linearized motion (kp > 0, kd >= 0): only then is a step that makes it
         grow a step too large (a mode that grows on its own grows with any step)."""
         return self.stiffness > 0 and self.damping >= 0
-
-    def step_limit(self, scheme: str) -> float:
-        """The largest step [s] with which ``scheme`` keeps the mode ``x'' = -kp x - kd x'`` bounded."""
-        return largest_stable_step(np.array([[self.stiffness]]), np.array([[self.damping]]), np.array([True]), scheme)
 
 
 def _jacobians(
