@@ -252,7 +252,7 @@ class AdaptiveLoop(StepLoop):
         """
         system, control = self.system, self.control
         outcome, h, error, rejected, q_new, v_new, slopes, end_slope, raised = self.rules.attempt(
-            python_evaluation(system, self.pair.jacobian_kernel() if self.pair.implicit else None),
+            python_evaluation(system, self.pair.jacobian_kernel()),
             system.model.no_force,
             q,
             v,

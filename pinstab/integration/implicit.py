@@ -35,8 +35,6 @@ from .tableaus import Tableau
 if TYPE_CHECKING:
     import pinocchio as pin
 
-    from ..kernels import Kernel
-
 NEWTON_TOLERANCE = 1e-10  # fixed steps: Newton's rtol and atol [-, rad, m, rad/s, m/s], reached to kappa = 1
 NEWTON_ITERATIONS = 10  # at most per stage
 NEWTON_KAPPA = 0.03  # error control: the iteration stops within min(this, sqrt(rtol)) of the step's tolerance
@@ -103,12 +101,6 @@ class ImplicitRungeKutta(TableauScheme):
 
     implicit = True
 
-    def jacobian_kernel(self) -> Kernel | None:
-        """The compiled kernel whose Jacobians the Newton iteration of this stepper's own steps takes (the run's
-        compiled loop lends its own: :meth:`CompiledLoop.lend_jacobians
-        <pinstab.integration.compiled.CompiledLoop.lend_jacobians>`), or None: differences of the acceleration."""
-        return None
-
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
         register_tableau(cls.name, cls.coupling, cls.weights)
@@ -130,7 +122,7 @@ class ImplicitRungeKutta(TableauScheme):
             NewtonError: a stage that Newton's iteration did not solve even with a fresh Jacobian.
         """
         try:
-            return self._tableau.attempt(self.system.acceleration, q, v, t, dt, first, end, self.jacobian_kernel())
+            return super().attempt(q, v, t, dt, first, end)
         except NewtonFailure as failure:
             raise NewtonError(f"the {self.name} step: {failure}", t, q, v, diverged_at=t) from None
 

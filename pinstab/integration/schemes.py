@@ -30,6 +30,7 @@ from .tableaus import Tableau
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from ..kernels import Kernel
     from ..system import ConstrainedSystem
 
 
@@ -151,6 +152,13 @@ class TableauScheme(Integrator):
         """The compiled step of the tableau on the group of ``group`` (None: every joint of one coordinate)."""
         return RungeKutta(self.nodes, self.coupling, self.weights, group)
 
+    def jacobian_kernel(self) -> Kernel | None:
+        """The compiled kernel whose Jacobians an implicit stage's Newton iteration takes in this stepper's own steps
+        (the run's compiled loop lends its own to an implicit stepper: :meth:`CompiledLoop.lend_jacobians
+        <pinstab.integration.compiled.CompiledLoop.lend_jacobians>`), or None: differences of the acceleration (and
+        none needed by an explicit tableau)."""
+        return None
+
     def step(self, q, v, t, dt):
         return self.attempt(q, v, t, dt)[:2]
 
@@ -161,7 +169,7 @@ class TableauScheme(Integrator):
         the velocity slopes in the start's tangent space, then the accelerations), which the error estimators
         weigh, and with ``end`` the new point's slope ([velocity slope | acceleration], its acceleration evaluated
         as stage 0; else None). ``first``: the acceleration at (q, v, t) when already known."""
-        return self._tableau.attempt(self.system.acceleration, q, v, t, dt, first, end)
+        return self._tableau.attempt(self.system.acceleration, q, v, t, dt, first, end, self.jacobian_kernel())
 
 
 class ExplicitRungeKutta(TableauScheme):
