@@ -525,10 +525,10 @@ CASES = [
     Case("gains map factors", "stability fourbar --factor-range 1 10", "PinstabError", "not an option of a gains map"),
     Case("gains map two schemes", "stability fourbar --integrator rk4 --integrator heun", "PinstabError", "takes one"),
     Case(
-        "element map unknown integrator",
-        "stability stiff-fourbar --integrator rk5",
+        "element map integrator twice",
+        "stability stiff-fourbar --integrator rk4 --integrator rk4",
         "PinstabError",
-        "known stability function",
+        "each once, among those with a known stability function",
     ),
     Case(
         "element map too much work",
