@@ -25,10 +25,13 @@ double largest(const VectorXd& x) {
 
 bool LeastChange::factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, double cutoff) {
   factored_ = false;
+  root_.reset();
   if (!(mass.allFinite() && jacobian.allFinite())) return false;
-  const Eigen::LLT<Eigen::MatrixXd> factors(mass);
-  if (factors.info() != Eigen::Success) return false;
-  spread_ = factors.solve(jacobian.transpose());  // M^-1 G^T
+  mass_factors_.compute(mass);
+  if (mass_factors_.info() != Eigen::Success) return false;
+  cutoff_ = cutoff;
+  jacobian_ = jacobian;
+  spread_ = mass_factors_.solve(jacobian.transpose());  // M^-1 G^T
   if (jacobian.rows()) {
     const Eigen::MatrixXd delassus = jacobian * spread_;
     if (!inverse_.compute(delassus, cutoff)) return false;  // rows that overflow D: not finite
@@ -37,7 +40,7 @@ bool LeastChange::factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jac
   return true;
 }
 
-bool LeastChange::apply(const VectorXd& residual, VectorXd& change) const {
+bool LeastChange::apply(const VectorXd& residual, VectorXd& change, bool refine) const {
   if (!factored_ || !residual.allFinite()) {
     change.setConstant(spread_.rows(), NOT_A_NUMBER);
     return false;
@@ -47,21 +50,40 @@ bool LeastChange::apply(const VectorXd& residual, VectorXd& change) const {
     return true;
   }
   change.noalias() = -(spread_ * inverse_.apply(residual));
+  if (!change.allFinite()) return false;
+  if (refine) refined(residual, change);
   return change.allFinite();
 }
 
+void LeastChange::refined(const VectorXd& residual, VectorXd& change) const {
+  const VectorXd left = jacobian_ * change + residual;
+  const double size = largest(left);
+  const double scale = largest(residual) + (jacobian_.cwiseAbs() * change.cwiseAbs()).maxCoeff();
+  if (!(size > cutoff_ * scale)) return;
+  if (!root_) {  // G L^-T = (L^-1 G^T)^T
+    const Eigen::MatrixXd root = mass_factors_.matrixL().solve(jacobian_.transpose()).transpose();
+    root_ = std::make_unique<Eigen::JacobiSVD<Eigen::MatrixXd>>(root, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    root_->setThreshold(cutoff_);
+  }
+  const VectorXd refined = change - mass_factors_.matrixU().solve(root_->solve(left));
+  if (refined.allFinite() && largest(jacobian_ * refined + residual) <= 0.5 * size) change = refined;
+}
+
 bool weighted_correction(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual,
-                         double cutoff, VectorXd& change) {
+                         double cutoff, VectorXd& change, bool refine) {
   LeastChange least;
   if (!least.factor(mass, jacobian, cutoff)) {
     change.setConstant(mass.rows(), NOT_A_NUMBER);
     return false;
   }
-  return least.apply(residual, change);
+  return least.apply(residual, change, refine);
 }
 
-CorrectionOutcome project_positions(Projections& projections, const Group& group, const PositionRule& rule, double t,
-                                    VectorXd& q, int& iterations, double& worst) {
+namespace {
+
+// One Gauss-Newton run of project_positions (its stopping rule) from q.
+CorrectionOutcome gauss_newton(Projections& projections, const Group& group, const PositionRule& rule, double t,
+                               VectorXd& q, int& iterations, double& worst) {
   double previous = std::numeric_limits<double>::infinity();
   VectorXd step;
   for (iterations = 0; iterations <= rule.max_iterations; ++iterations) {
@@ -83,10 +105,26 @@ CorrectionOutcome project_positions(Projections& projections, const Group& group
   return CorrectionOutcome::not_converged;
 }
 
+}  // namespace
+
+CorrectionOutcome project_positions(Projections& projections, const Group& group, const PositionRule& rule, double t,
+                                    VectorXd& q, int& iterations, double& worst) {
+  projections.refine(false);
+  VectorXd moved = q;
+  CorrectionOutcome outcome = gauss_newton(projections, group, rule, t, moved, iterations, worst);
+  if (outcome == CorrectionOutcome::not_converged && projections.refine(true)) {
+    moved = q;
+    outcome = gauss_newton(projections, group, rule, t, moved, iterations, worst);
+  }
+  if (outcome == CorrectionOutcome::done) q = moved;
+  return outcome;
+}
+
 CorrectionOutcome correct(Projections& projections, const Group& group, bool post, const PositionRule& rule, double t,
                           VectorXd& q, VectorXd& v, int& iterations, double& worst) {
   VectorXd projected;
   if (post) {  // both at the uncorrected state
+    projections.refine(false);
     VectorXd step;
     if (!projections.position_step(q, t, step, worst)) return CorrectionOutcome::not_finite;
     if (!projections.velocity_projection(q, v, t, projected)) return CorrectionOutcome::not_finite;
@@ -182,7 +220,7 @@ bool CoreProjection::position_step(const VectorXd& q, double t, VectorXd& step, 
     enforced_factored_ = true;
     enforced_.factor(mass_, enforced_jacobian_, cutoff_);
   }
-  return enforced_.apply(enforced_phi_, step);
+  return enforced_.apply(enforced_phi_, step, refining_);
 }
 
 bool CoreProjection::velocity_projection(const VectorXd& q, const VectorXd& v, double t, VectorXd& projected) {
@@ -200,7 +238,7 @@ bool CoreProjection::velocity_projection(const VectorXd& q, const VectorXd& v, d
     every_factored_ = true;
   }
   VectorXd change;
-  const bool finite = rows->apply(jacobian_ * v + time_term_, change);
+  const bool finite = rows->apply(jacobian_ * v + time_term_, change, refining_);
   projected = v + change;
   return finite;
 }

@@ -7,6 +7,9 @@
 #include <memory>
 #include <vector>
 
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+
 #include "core_kernel.hpp"
 #include "group.hpp"
 #include "kkt_solve.hpp"
@@ -17,22 +20,40 @@ namespace pinstab {
 // residual r to first order, D^+ the Delassus matrix's pseudo-inverse (DelassusPseudoInverse, eigenvalues at most
 // cutoff times the largest left out), M^-1 G^T from the Cholesky factors of M; factored once for (M, G), applied to
 // any residual of the rows.
+// Forming D squares the rows' condition: where they are near-singular (cassie's shin and heel-spring triangles near
+// alignment: singular values of G L^-T down to 1e-8 of the largest, M = L L^T) D's eigenvalues there fall below the
+// cutoff or into D's rounding, and the correction leaves their part of r in place (cassie's kicked start kept a
+// velocity residual of 5e-6 m/s; the position projection after a 5 ms step stalled at 3e-8 m). Asked to (`refine`),
+// the change is refined once where the residual it leaves, G change + r, is above cutoff times its scale (|r| + |G|
+// |change|, max-norms): by the least-norm solution of the square root's rows, -L^-T (G L^-T)^+ (G change + r), its
+// pseudo-inverse by the singular value decomposition (Eigen's JacobiSVD, singular values at most cutoff times the
+// largest left out), kept where it at least halves that residual (not where the residual is outside the rows' range:
+// redundant rows inconsistent beyond rounding). Where the first change leaves rounding the change is D's alone.
 class LeastChange {
  public:
   // false: M not positive definite, or M, G or G M^-1 G^T not finite
   bool factor(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, double cutoff);
-  // the change for r (rows); false (change NaN): not factored, or r or the change not finite
-  bool apply(const VectorXd& residual, VectorXd& change) const;
+  // the change for r (rows), refined where `refine` (see above); false (change NaN): not factored, or r or the
+  // change not finite
+  bool apply(const VectorXd& residual, VectorXd& change, bool refine = false) const;
 
  private:
+  // the refinement of `change` for r (see above): changes it where the square root's solve at least halves the
+  // residual it leaves
+  void refined(const VectorXd& residual, VectorXd& change) const;
+
   bool factored_ = false;
-  Eigen::MatrixXd spread_;  // M^-1 G^T
+  double cutoff_ = 0.0;
+  Eigen::MatrixXd jacobian_;  // G
+  Eigen::MatrixXd spread_;    // M^-1 G^T
+  Eigen::LLT<Eigen::MatrixXd> mass_factors_;
   DelassusPseudoInverse inverse_;
+  mutable std::unique_ptr<Eigen::JacobiSVD<Eigen::MatrixXd>> root_;  // of G L^-T, made on the first refinement
 };
 
-// LeastChange's factors of (M, G) applied to r once.
+// LeastChange's factors of (M, G) applied to r once (refined where `refine`).
 bool weighted_correction(const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual,
-                         double cutoff, VectorXd& change);
+                         double cutoff, VectorXd& change, bool refine = false);
 
 // The two projections a correction is made of, on one path (pinstab.projection.Projector).
 class Projections {
@@ -43,6 +64,9 @@ class Projections {
   virtual bool position_step(const VectorXd& q, double t, VectorXd& step, double& worst) = 0;
   // v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t) at (q, t) [m/s or rad/s]; false: not finite.
   virtual bool velocity_projection(const VectorXd& q, const VectorXd& v, double t, VectorXd& projected) = 0;
+  // Have both projections refine their least change (LeastChange's `refine`) from now on (on) or not (off); false:
+  // these projections cannot (a Python projector's).
+  virtual bool refine(bool on) { return false; }
 };
 
 // How a correction ended: done; the Gauss-Newton iteration did not converge (its last residual in `worst`); the rows
@@ -59,7 +83,9 @@ struct PositionRule {
 // Gauss-Newton on phi(q) = 0 from q (q becomes the projected configuration): converged when the last step is below the
 // threshold with the residual below it too, or when the residual is below the threshold and at rounding level (floor)
 // or the steps stop contracting (by less than CONTRACTION a step). iterations: the steps taken; worst: the last
-// residual [m or rad].
+// residual [m or rad]. Where it does not converge with D's pseudo-inverse alone it starts again from q with the
+// projections refining (Projections::refine, where they can), and they stay refining until the next call (the
+// velocities of a correction projected the same way); where it converges the steps are D's alone, to the bit.
 CorrectionOutcome project_positions(Projections& projections, const Group& group, const PositionRule& rule, double t,
                                     VectorXd& q, int& iterations, double& worst);
 
@@ -78,6 +104,10 @@ class CoreProjection : public Projections {
   CoreProjection(const CoreKernel& kernel, double cutoff);
   bool position_step(const VectorXd& q, double t, VectorXd& step, double& worst) override;
   bool velocity_projection(const VectorXd& q, const VectorXd& v, double t, VectorXd& projected) override;
+  bool refine(bool on) override {
+    refining_ = on;
+    return true;
+  }
   const pinocchio::Model& model() const { return model_; }
 
  private:
@@ -93,6 +123,7 @@ class CoreProjection : public Projections {
   std::vector<int> holonomic_;  // the holonomic rows' indices
   bool evaluated_ = false, finite_ = false, every_row_holonomic_ = true;
   bool enforced_factored_ = false, every_factored_ = false;  // at the last evaluation
+  bool refining_ = false;
   LeastChange enforced_, every_;  // the factors of the holonomic rows, of every row
   double t_ = 0.0;
   VectorXd q_;

@@ -19,8 +19,8 @@ namespace pinstab {
 
 namespace {
 
-// A Python projector's methods position_step(q, t) -> (dq, max |phi|) and velocity_projection(q, v, t) -> v, called
-// with the GIL held (an exception they raise propagates unchanged).
+// A Python projector's methods position_step(q, t) -> (dq, max |phi|) and velocity_projection(q, v, t) -> v, and
+// refine(on) where it has one, called with the GIL held (an exception they raise propagates unchanged).
 class PythonProjections : public Projections {
  public:
   PythonProjections(nb::handle projector, Eigen::Index nv) : projector_(projector), nv_(nv) {}
@@ -32,6 +32,11 @@ class PythonProjections : public Projections {
   }
   bool velocity_projection(const VectorXd& q, const VectorXd& v, double t, VectorXd& projected) override {
     projected = sized(projector_.attr("velocity_projection")(q, v, t), "velocity_projection");
+    return true;
+  }
+  bool refine(bool on) override {
+    if (!nb::hasattr(projector_, "refine")) return false;
+    projector_.attr("refine")(on);
     return true;
   }
 
@@ -97,18 +102,20 @@ std::tuple<VectorXd, int, double, int> projected_positions(nb::handle projector,
 void bind_projection(nb::module_& m) {
   m.def(
       "weighted_correction",
-      [](const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual, double cutoff) {
+      [](const Eigen::MatrixXd& mass, const Eigen::MatrixXd& jacobian, const VectorXd& residual, double cutoff,
+         bool refine) {
         if (mass.rows() != mass.cols() || jacobian.cols() != mass.rows() || residual.size() != jacobian.rows()) {
           throw std::invalid_argument("weighted_correction: M (n x n), G (r x n) and r (r)");
         }
         VectorXd change;
-        const bool finite = weighted_correction(mass, jacobian, residual, cutoff, change);
+        const bool finite = weighted_correction(mass, jacobian, residual, cutoff, change, refine);
         return std::make_tuple(change, finite);
       },
-      "mass"_a, "jacobian"_a, "residual"_a, "cutoff"_a,
+      "mass"_a, "jacobian"_a, "residual"_a, "cutoff"_a, "refine"_a = false,
       "(-M^-1 G^T (G M^-1 G^T)^+ r, finite): the least change in the kinetic metric that removes r to first order "
-      "(the pseudo-inverse's eigenvalues at most cutoff times the largest left out); finite False: M not positive "
-      "definite or the rows not finite (the change is NaN).");
+      "(the pseudo-inverse's eigenvalues at most cutoff times the largest left out; refine: refined by the singular "
+      "values of G L^-T where that leaves more than rounding of r, cpp/projection.hpp LeastChange); finite False: M "
+      "not positive definite or the rows not finite (the change is NaN).");
   nb::class_<CoreProjection>(m, "CoreProjection")
       .def(nb::init<const CoreKernel&, double>(), "kernel"_a, "cutoff"_a,
            "The projections on a core kernel's rows (its own kinematics pass and M; the pseudo-inverse's cutoff).")

@@ -29,14 +29,18 @@ ROUNDING_RESIDUAL = 16  # ulps of the mechanism's size: a residual this small is
 NOT_CONVERGED, NOT_FINITE = 1, 2  # the compiled corrections' outcomes besides 0, done
 
 
-def weighted_correction(mass: np.ndarray, jacobian: np.ndarray, residual: np.ndarray) -> np.ndarray:
+def weighted_correction(
+    mass: np.ndarray, jacobian: np.ndarray, residual: np.ndarray, refine: bool = False
+) -> np.ndarray:
     """``-M^-1 G^T (G M^-1 G^T)^+ r``: the smallest kinetic-metric change that removes r to first order (M [kg,
-    kg m^2], G, r [m or rad, or m/s or rad/s]; the pseudo-inverse's :data:`CUTOFF`).
+    kg m^2], G, r [m or rad, or m/s or rad/s]; the pseudo-inverse's :data:`CUTOFF`). ``refine``: where near-singular
+    rows leave more than rounding of r (their eigenvalues in G M^-1 G^T below the cutoff), refined by the singular
+    values of the rows' square root ``G L^-T`` (M = L L^T; ``cpp/projection.hpp`` LeastChange).
 
     Raises:
         ProjectionError: M is not positive definite or the rows are not finite.
     """
-    change, finite = kernels.weighted_correction(mass, jacobian, residual, CUTOFF)
+    change, finite = kernels.weighted_correction(mass, jacobian, residual, CUTOFF, refine)
     if not finite:
         raise not_finite()
     return change
@@ -52,7 +56,10 @@ def not_finite() -> ProjectionError:
 
 
 class Projector(Protocol):
-    """The projections a post-step correction is made of, on one path (general or native)."""
+    """The projections a post-step correction is made of, on one path (general or native). A projector that can
+    refine its least change on near-singular rows (:func:`weighted_correction`'s ``refine``) has a method
+    ``refine(on: bool) -> None`` too, which the position projection calls where D's pseudo-inverse alone does not
+    converge (``cpp/projection.hpp`` project_positions)."""
 
     def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
         """The M-weighted Gauss-Newton step ``dq = -M^-1 G^T (G M^-1 G^T)^+ phi`` at q and max |phi|
@@ -74,6 +81,11 @@ class GeneralProjector:
 
     def __init__(self, model: ConstrainedModel) -> None:
         self.model = model
+        self.refining = False
+
+    def refine(self, on: bool) -> None:
+        """Refine both projections' least change from now on (:func:`weighted_correction`'s ``refine``), or not."""
+        self.refining = on
 
     def position_step(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
         model = self.model
@@ -81,11 +93,11 @@ class GeneralProjector:
         mask = model.constraints.enforced_positions(values.phi)
         phi = values.phi[mask]
         worst = float(np.max(np.abs(phi), initial=0.0))
-        return weighted_correction(model.mass_matrix(q), values.jacobian[mask], phi), worst
+        return weighted_correction(model.mass_matrix(q), values.jacobian[mask], phi, self.refining), worst
 
     def velocity_projection(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         model = self.model
-        return project_velocities(model, q, v, t, model.mass_matrix(q))
+        return project_velocities(model, q, v, t, model.mass_matrix(q), refine=self.refining)
 
 
 def tolerances(model: ConstrainedModel, tolerance: float) -> tuple[float, float]:
@@ -194,10 +206,12 @@ def project_velocities(
     mass: np.ndarray,
     kin: Kinematics | None = None,
     touching: float = 0.0,
+    refine: bool = False,
 ) -> np.ndarray:
     """``v - M^-1 G^T (G M^-1 G^T)^+ (G v + g_t)``: the consistent velocity nearest in kinetic metric
     (open or separating unilateral rows left out; open: a gap above ``touching`` [m or rad]); ``mass``: M(q) [kg,
-    kg m^2]; ``kin``: as in :meth:`ConstrainedModel.constraint_values`."""
+    kg m^2]; ``kin``: as in :meth:`ConstrainedModel.constraint_values`; ``refine``: as in
+    :func:`weighted_correction`."""
     values = model.constraint_values(q, v, t, kin)
     rows = model.constraints.enforced_velocities(values, touching)
-    return v + weighted_correction(mass, values.jacobian[rows], values.velocity_residual[rows])
+    return v + weighted_correction(mass, values.jacobian[rows], values.velocity_residual[rows], refine)

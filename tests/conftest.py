@@ -154,3 +154,49 @@ def assert_plan_solves_dynamics(scene, trajectory, k: int) -> None:
     _, forces, acceleration = scene.forces[0].plan(kin, v, t)
     np.testing.assert_allclose(evaluation.acceleration, acceleration, rtol=0, atol=1e-8)
     np.testing.assert_allclose(evaluation.multipliers, forces, rtol=0, atol=1e-8)
+
+
+def kicked_cassie():
+    """The bundled ``cassie`` with its left knee motor turning at 1 rad/s at the start (benchmarks/cassie_implicit.py):
+    its shin and heel-spring closures near-singular (the square root of G M^-1 G^T has singular values down to 9e-9
+    of its largest)."""
+    import tomllib
+
+    from pinstab.scene import scene_from_dict
+
+    data = tomllib.loads((ROBOTS / "cassie.toml").read_text())
+    data["initial"] = {"v": {"left-knee-op": 1.0}}
+    return scene_from_dict(data, base_dir=ROBOTS, name="cassie-kicked")
+
+
+def pinocchio_closure_residuals(system, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each closure's and joint relation's position [m or rad] and velocity [m/s or rad/s] residuals from Pinocchio's
+    frame placements and velocities (not pinstab's rows): frame b relative to frame a in a's axes, the translation
+    and the twist's linear part for a point, and for a revolute (prismatic) closure also the rotation log3(R_a^T R_b)
+    and the angular part across the axis (all of them; the translation and linear part across the axis); a joint
+    relation's coefficients times q (less its target's value, zero here) and times v."""
+    model = system.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, q, v)
+    pin.updateFramePlacements(model, data)
+    positions, velocities = [], []
+    for closure in system.constraints.constraints:
+        if closure.kind == "joint-relation":
+            positions.append(np.atleast_1d(closure.row @ q[closure.q_indices]))
+            velocities.append(np.atleast_1d(closure.row @ v[closure.v_indices]))
+            continue
+        placement_a, placement_b = data.oMf[closure.frame_a], data.oMf[closure.frame_b]
+        relative = placement_a.actInv(placement_b)
+        twist = relative.act(pin.getFrameVelocity(model, data, closure.frame_b, pin.LOCAL))
+        twist -= pin.getFrameVelocity(model, data, closure.frame_a, pin.LOCAL)
+        turn = pin.log3(relative.rotation)
+        if closure.kind == "point":
+            positions.append(relative.translation)
+            velocities.append(twist.linear)
+        elif closure.kind == "revolute":
+            positions += [relative.translation, closure.across @ turn]
+            velocities += [twist.linear, closure.across @ twist.angular]
+        else:
+            positions += [closure.across @ relative.translation, turn]
+            velocities += [closure.across @ twist.linear, twist.angular]
+    return np.concatenate(positions), np.concatenate(velocities)

@@ -7,9 +7,11 @@ residual, the run keeping what it computed."""
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
-from pinstab import build_system, load_scene, simulate
+from conftest import kicked_cassie, pinocchio_closure_residuals
+from pinstab import assemble, build_system, load_scene, simulate
 from pinstab.errors import DivergenceError, ProjectionError
 from pinstab.integration.compiled import CompiledSteps, compiled_obstacle
 from pinstab.integration.schemes import INTEGRATORS
@@ -183,3 +185,25 @@ def test_the_compiled_loop_corrects_on_the_core_path_only():
     assert system.path == "native"
     reason = compiled_obstacle(system, INTEGRATORS.build("rk4", system))
     assert reason == "method post corrects the state after each step (compiled on the core path only)"
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_position_projection_converges_on_near_singular_closures(compiled):
+    """Cassie kicked at its left knee motor (benchmarks/cassie_implicit.py), moved along its start velocity for 1 to
+    20 ms (a step's free motion: closure residuals 1.4e-9 to 5.4e-7 m): its shin and heel-spring triangles are
+    near-singular, G M^-1 G^T's pseudo-inverse drops their directions and Gauss-Newton by it alone stalls (at 3e-13 to
+    1.3e-10 m after 20 iterations, measured); with the least change refined by the singular values of G L^-T the projection,
+    by pinstab's rows in Python (the general projector, the passage guard's) and by the core's compiled ones,
+    converges in 20 iterations: Pinocchio's residual of every closure at most 1e-14 m or rad."""
+    scene = kicked_cassie()
+    system = build_system(scene, "projection")
+    start = assemble(system.model, scene.q0, scene.v0)
+    system.bind(5e-3, "rk4", start.q)
+    assert system.path == "core"
+    projector = system.projector if compiled else GeneralProjector(system.model)
+    for h in (1e-3, 5e-3, 2e-2):
+        moved = pin.integrate(system.model.model, start.q, h * start.v)
+        assert np.abs(pinocchio_closure_residuals(system.model, moved, start.v)[0]).max() >= 1e-9
+        q, iterations = project_positions(system.model, projector, moved, 0.0, 1e-13, 20)
+        assert iterations <= 20
+        assert np.abs(pinocchio_closure_residuals(system.model, q, start.v)[0]).max() <= 1e-14
