@@ -192,9 +192,9 @@ def test_the_position_projection_converges_on_near_singular_closures(compiled):
     """Cassie kicked at its left knee motor (benchmarks/cassie_implicit.py), moved along its start velocity for 1 to
     20 ms (a step's free motion: closure residuals 1.4e-9 to 5.4e-7 m): its shin and heel-spring triangles are
     near-singular, G M^-1 G^T's pseudo-inverse drops their directions and Gauss-Newton by it alone stalls (at 3e-13 to
-    1.3e-10 m after 20 iterations, measured); with the least change refined by the singular values of G L^-T the projection,
-    by pinstab's rows in Python (the general projector, the passage guard's) and by the core's compiled ones,
-    converges in 20 iterations: Pinocchio's residual of every closure at most 1e-14 m or rad."""
+    1.3e-10 m after 20 iterations, measured); with the least change refined by the singular values of G L^-T the
+    projection, by pinstab's rows in Python (the general projector, the passage guard's) and by the core's compiled
+    ones, converges in 20 iterations: Pinocchio's residual of every closure at most 1e-14 m or rad."""
     scene = kicked_cassie()
     system = build_system(scene, "projection")
     start = assemble(system.model, scene.q0, scene.v0)
