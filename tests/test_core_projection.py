@@ -52,6 +52,32 @@ def test_the_least_change_correction_is_numpys_least_squares_one(redundant):
         assert np.abs(null @ (mass @ change)).max() <= 1e-11 * np.abs(mass @ change).max()
 
 
+
+def test_the_refined_correction_is_the_least_squares_one_of_the_square_root():
+    """Random M (SPD, 12 x 12) and G (6 rows) with singular values of G L^-T down to 1e-9 of the largest (M = L L^T),
+    r in the rows' range: G M^-1 G^T's pseudo-inverse drops the near-singular directions (more than 1e-6 of r left);
+    refined, the correction equals NumPy's least-norm solution of the square root's rows, -L^-T lstsq(G L^-T, r), to
+    1e-6 relative (its entries reach 1e9 |r|: conditioning, not the method, bounds the agreement) and leaves of
+    G dq + r only the rounding of G dq (16 eps |G| |dq|); where nothing is dropped (a well-conditioned G) refining
+    changes no bit."""
+    rng = np.random.default_rng(5)
+    mass = _spd(rng, 12)
+    factor = np.linalg.cholesky(mass)
+    left, _, right = np.linalg.svd(rng.standard_normal((6, 12)), full_matrices=False)
+    root = left @ np.diag([1.0, 0.8, 0.5, 1e-3, 1e-7, 1e-9]) @ right  # G L^-T
+    jacobian = root @ factor.T
+    residual = left @ rng.standard_normal(6)  # in the rows' range, along every singular direction
+    plain = weighted_correction(mass, jacobian, residual)
+    assert np.abs(jacobian @ plain + residual).max() > 1e-6 * np.abs(residual).max()
+    refined = weighted_correction(mass, jacobian, residual, refine=True)
+    expected = -np.linalg.solve(factor.T, np.linalg.lstsq(root, residual, rcond=CUTOFF)[0])
+    np.testing.assert_allclose(refined, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    rounding = 16 * np.finfo(float).eps * (np.abs(jacobian) @ np.abs(refined)).max()
+    assert np.abs(jacobian @ refined + residual).max() <= rounding < 1e-6 * np.abs(residual).max()
+    well = rng.standard_normal((6, 12))
+    plain, refined = (weighted_correction(mass, well, residual, refine=on) for on in (False, True))
+    assert np.array_equal(plain, refined)
+
 def test_a_correction_of_rows_not_finite_is_a_projection_error():
     """NaN rows, rows whose G M^-1 G^T overflows (1e200: D = 3e400, whose pseudo-inverse would be 0, no change) or an
     M that is not positive definite: a ProjectionError (the compiled rule says so), not NaN nor a zero change."""
