@@ -52,7 +52,6 @@ def test_the_least_change_correction_is_numpys_least_squares_one(redundant):
         assert np.abs(null @ (mass @ change)).max() <= 1e-11 * np.abs(mass @ change).max()
 
 
-
 def test_the_refined_correction_is_the_least_squares_one_of_the_square_root():
     """Random M (SPD, 12 x 12) and G (6 rows) with singular values of G L^-T down to 1e-9 of the largest (M = L L^T),
     r in the rows' range: G M^-1 G^T's pseudo-inverse drops the near-singular directions (more than 1e-6 of r left);
@@ -77,6 +76,7 @@ def test_the_refined_correction_is_the_least_squares_one_of_the_square_root():
     well = rng.standard_normal((6, 12))
     plain, refined = (weighted_correction(mass, well, residual, refine=on) for on in (False, True))
     assert np.array_equal(plain, refined)
+
 
 def test_a_correction_of_rows_not_finite_is_a_projection_error():
     """NaN rows, rows whose G M^-1 G^T overflows (1e200: D = 3e400, whose pseudo-inverse would be 0, no change) or an
