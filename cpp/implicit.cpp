@@ -213,8 +213,8 @@ bool ImplicitTrial::take(Kernel& kernel, const VectorXd& tau, const VectorXd& q,
 std::string ImplicitTrial::failure(double t, double h) const {
   std::ostringstream text;
   text << "Newton's iteration did not solve stage " << failed_stage << " of the step of " << h << " s from t = " << t
-       << " s, neither simplified nor globalized (a Jacobian at each iterate and a line search, at most "
-       << GLOBAL_ITERATIONS << " of them): its last scaled increment was " << residual << " after "
+       << " s, neither simplified nor globalized (a continuation in the stage's share, at most " << GLOBAL_ITERATIONS
+       << " Jacobians): its last scaled increment was " << residual << " after "
        << failed_iterations << " evaluations; a smaller step solves it (--dt, or error control with --rtol)";
   return text.str();
 }

@@ -7,8 +7,8 @@ stage 0) and a non-zero diagonal below it; implicit Euler and the midpoint rule 
 that first stage, which gives the Newton iteration its first guess. A stage's equation is solved in the tangent
 space at the step's start by a simplified Newton iteration on the reduced nv x nv matrix
 I - h g dadv - (h g)^2 dadq, globalized when it does not converge (a continuation in the stage's share, Newton's
-iteration with a Jacobian at every iterate; ``cpp/implicit.hpp``, where the arithmetic lives; the Jacobians are the kernel's,
-by default finite differences of its evaluation, ``cpp/jacobian.cpp``). The Newton state (the Jacobian, the
+iteration with a Jacobian at every iterate; ``cpp/implicit.hpp``, where the arithmetic lives; the Jacobians are the
+kernel's, by default finite differences of its evaluation, ``cpp/jacobian.cpp``). The Newton state (the Jacobian, the
 factorization, the last rate of convergence) belongs to the compiled step object, which the Python step and the
 compiled loop share: both take the same steps to the last bit.
 
