@@ -16,12 +16,18 @@ constexpr double SLOW_RATE = 0.1;
 constexpr int GLOBAL_ITERATIONS = 40;  // the globalized iteration's Jacobians per stage
 constexpr int SHARE_ITERATIONS = 6;    // its Newton iterations per share of the step
 constexpr double MIN_SHARE = 1.0 / 1024.0;  // its smallest advance of the share
+// a stage after the first two starts from the Lagrange polynomial in c through Z(0) = 0 and the increments of the
+// last PREDICTOR_STAGES stages, extrapolated to its node (on stiff-fourbar, esdirk4 at rtol 1e-9 over 10 s: 496k
+// iterations from the linearized guess; 459k with 1 stage, 385k with 2, 425k with 3, 461k with 4; the error 9.5e-7 rad
+// in each)
+constexpr int PREDICTOR_STAGES = 2;
 
 }  // namespace
 
 ImplicitTrial::ImplicitTrial(const Pair& pair, int nv, const pinocchio::Model* group, const NewtonSettings& settings)
-    : Trial(pair, nv, group), settings_(settings), scale_(2 * nv), z_(2 * nv), known_(2 * nv), residual_(2 * nv),
-      dz_(2 * nv), rhs_(nv), qi_(nv), vi_(nv), ai_(nv), behind_(2 * nv), trial_(2 * nv) {}
+    : Trial(pair, nv, group), settings_(settings), increments_(pair.stages(), 2 * nv), scale_(2 * nv), z_(2 * nv),
+      known_(2 * nv), residual_(2 * nv), dz_(2 * nv), rhs_(nv), qi_(nv), vi_(nv), ai_(nv), behind_(2 * nv),
+      trial_(2 * nv) {}
 
 bool ImplicitTrial::refresh(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, double t,
                             int i) {
@@ -80,6 +86,17 @@ ImplicitTrial::Solve ImplicitTrial::stage(Kernel& kernel, const VectorXd& tau, c
   residual_ = slopes.row(i - 1).transpose();
   solve(hg);
   z_ = known_ + hg * dz_;
+  if (i > PREDICTOR_STAGES) {  // later stages: the stage increments' polynomial through (0, 0) and the last two
+    z_.setZero();
+    const double c = pair_.nodes(i);
+    for (int j = i - PREDICTOR_STAGES; j < i; ++j) {
+      double weight = c / pair_.nodes(j);
+      for (int m = i - PREDICTOR_STAGES; m < i; ++m) {
+        if (m != j) weight *= (c - pair_.nodes(m)) / (pair_.nodes(j) - pair_.nodes(m));
+      }
+      z_ += weight * increments_.row(j).transpose();
+    }
+  }
   const double kappa = std::max(settings_.kappa, 10.0 * std::numeric_limits<double>::epsilon() / settings_.rtol);
   double eta = std::pow(std::max(eta_, std::numeric_limits<double>::epsilon()), 0.8), previous = 0.0, rate = 1.0;
   failed_iterations = 0;
@@ -106,6 +123,7 @@ ImplicitTrial::Solve ImplicitTrial::stage(Kernel& kernel, const VectorXd& tau, c
     if (norm == 0.0 || (trusted && eta * norm <= kappa)) {
       eta_ = eta;
       slopes.row(i) = ((z_ - known_) / hg).transpose();
+      increments_.row(i) = z_.transpose();
       return Solve::converged;
     }
     if (hopeless) break;
@@ -156,6 +174,7 @@ ImplicitTrial::Solve ImplicitTrial::globalize(Kernel& kernel, const VectorXd& ta
         z_ = trial_;
         eta_ = 1.0;
         slopes.row(i) = ((z_ - known_) / hg).transpose();
+        increments_.row(i) = z_.transpose();
         return Solve::converged;
       }
       ++counts.continuation;

@@ -10,7 +10,8 @@
 // then k_i = (Z - S_i) / (h g) (the slope the stage equation gives, not a further evaluation). The iteration matrix
 // I - h g J with J = [[0, I], [dadq, dadv]] (the kernel's Jacobian) reduces by its 2 x 2 block structure to the
 // nv x nv M = I - h g dadv - (h g)^2 dadq: dZv = M^-1 (r_v + h g dadq r_q), dZq = r_q + h g dZv
-// (r = S_i + h g F(Z) - Z), from the guess Z = S_i + h g (I - h g J)^-1 k_(i-1).
+// (r = S_i + h g F(Z) - Z), from the guess Z = S_i + h g (I - h g J)^-1 k_(i-1) for the first two implicit stages
+// and, for the later ones, the quadratic in c through Z(0) = 0 and the last two stages' increments.
 //
 // First a simplified Newton iteration: M's LU factors serve every stage of the same h g, the iterations and the
 // steps that follow; the Jacobian (at a step's start) is kept while the iteration converges fast (rate theta <= 0.1)
@@ -94,6 +95,7 @@ class ImplicitTrial : public Trial {
   NewtonSettings settings_;
   Eigen::MatrixXd dadq_, dadv_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  Eigen::MatrixXd increments_;  // the step's stage increments Z_i (rows)
   bool jacobian_ = false, slow_ = false;
   double factored_ = 0.0;  // the h g of lu_ (0: none)
   double eta_ = 1.0;       // theta / (1 - theta) of the last iteration that converged
