@@ -65,7 +65,7 @@ class ImplicitTrial : public Trial {
   ImplicitTrial(const Pair& pair, int nv, const pinocchio::Model* group, const NewtonSettings& settings);
   // Trial::take, the stages solved; with a stiffly accurate tableau the new point's slope is the last stage's
   // (has_end). False with unconverged when a stage was not solved (failed_stage, residual: the last scaled increment
-  // norm, failed_iterations: its iterations).
+  // norm, failed_iterations: its evaluations).
   bool take(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, const VectorXd& a, double t,
             double h, bool with_end) override;
   // Why the last take was not solved, for the step from t [s] of h [s].
@@ -78,7 +78,7 @@ class ImplicitTrial : public Trial {
  private:
   enum class Solve { converged, unusable, unconverged };
   Solve stage(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, double t, double h, int i);
-  // The globalized iteration of stage i from z_ (module comment).
+  // The globalized iteration of stage i (module comment), its solution in z_.
   Solve globalize(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, double t_stage,
                   double hg, double kappa, int i);
   // residual_ = share S_i + hg F(z) - z (hg: the share's): one evaluation of the dynamics (false: not usable).
