@@ -153,8 +153,8 @@ void bind_adaptive(nb::module_& m) {
           "newton_iterations, its Newton iteration's, cpp/implicit.hpp).")
       .def_prop_ro(
           "newton", [](const AdaptivePair& self) { return newton_counts(self.pair, self.trial.get()); },
-          "An implicit pair's (iterations, jacobians, factorizations, failures) over its steps so far (None: an "
-          "explicit one).")
+          "An implicit pair's (iterations, jacobians, factorizations, failures, globalized, continuation) over its "
+          "steps so far (None: an explicit one).")
       .def("run", &run, "kernel"_a, "tau"_a, "t"_a, "q"_a, "v"_a, "a"_a, "step_size"_a, "previous_error"_a, "dt"_a,
            "duration"_a, "steps"_a, "slack"_a, "t_stop"_a, "due"_a, "crossing"_a, "horizon"_a,
            "(steps, t, q, v, a, step_size, previous_error, accepted, rejected, evaluations, smallest, largest, first, "

@@ -134,7 +134,8 @@ nb::object newton_counts(const Pair& pair, const Trial* trial) {
   if (!pair.implicit()) return nb::none();
   const auto* implicit = dynamic_cast<const ImplicitTrial*>(trial);
   const NewtonCounts counts = implicit == nullptr ? NewtonCounts() : implicit->counts;
-  return nb::make_tuple(counts.iterations, counts.jacobians, counts.factorizations, counts.failures);
+  return nb::make_tuple(counts.iterations, counts.jacobians, counts.factorizations, counts.failures, counts.globalized,
+                        counts.continuation);
 }
 
 namespace {
@@ -200,8 +201,8 @@ void bind_steps(nb::module_& m) {
            "corrector"_a.none() = nb::none(), RUN_DOC)
       .def_prop_ro(
           "newton", [](const PythonTableau& self) { return newton_counts(self.pair, self.trial.get()); },
-          "An implicit tableau's (iterations, jacobians, factorizations, failures) over its steps so far (None: an "
-          "explicit one).");
+          "An implicit tableau's (iterations, jacobians, factorizations, failures, globalized, continuation) over its "
+          "steps so far (None: an explicit one).");
 }
 
 }  // namespace pinstab

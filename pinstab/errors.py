@@ -176,9 +176,10 @@ class DivergenceError(PinstabError):
 
 
 class NewtonError(DivergenceError):
-    """An implicit integrator's Newton iteration did not solve a stage of a fixed step, even with a fresh Jacobian
-    (:mod:`pinstab.integration.implicit`). The message names the scheme, the stage, the step's start time and
-    length, and the last scaled increment; the run keeps its trajectory up to the step's start."""
+    """An implicit integrator's Newton iteration did not solve a stage of a fixed step, even globalized (a continuation
+    in the stage's share, a Jacobian at every iterate: :mod:`pinstab.integration.implicit`). The message names the
+    scheme, the stage, the step's start time and length, the last scaled increment and what to do (a smaller step, or
+    error control); the run keeps its trajectory up to the step's start."""
 
 
 class StepTooLargeError(DivergenceError):

@@ -94,8 +94,11 @@ class RunInfo:
         error_control: with rtol/atol, the tolerances and the accepted and rejected steps
             (:meth:`~pinstab.integration.adaptive.ErrorControl.summary`); None for fixed steps.
         newton: with an implicit integrator, what its Newton iteration did (``newton_iterations``: iterations, one
-            evaluation each; ``jacobian_evaluations``; ``lu_factorizations``; ``newton_failures``: stages not solved,
-            each retried with a fresh Jacobian or, under error control, with a shorter step); None otherwise.
+            evaluation each; ``jacobian_evaluations``; ``lu_factorizations``; ``newton_failures``: stages not
+            solved even globalized, under error control each retried with a shorter step;
+            ``globalized_iterations``: Newton iterations with a Jacobian at the iterate, taken when the simplified
+            iteration does not converge; ``continuation_shares``: the shares s < 1 of a stage their continuation
+            solved on the way to s = 1); None otherwise.
         stopped: why the run ended before its duration, with the samples up to then: ``reason`` (``slip``
             or ``separation``: an event it was asked to stop on, with ``contact`` and ``event``; ``contact
             failure``: contacts with no solution, with ``error``, the error's class, and ``message``) and

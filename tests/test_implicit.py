@@ -2,7 +2,8 @@
 coefficients by the order conditions; one step on a linear oscillator against each scheme's stability function of
 h A (closed forms); the order of convergence on the pendulum-like four-bar; the stiff four-bar against its SciPy Radau
 reference where RK4 diverges; the constrained four-bar against its exact reference; the compiled loop against the
-Python step path to the last bit; Newton's failure named with the trajectory kept."""
+Python step path to the last bit; Newton's failure named with the trajectory kept; the globalized iteration on the
+element map's large steps against the schemes' own equations on SciPy's right-hand side and Radau."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import pytest
 from conftest import ROBOTS
 from pinstab import load_scene, simulate
 from pinstab.analysis import exact_reference
+from pinstab.analysis.element_map import scaled_scene
 from pinstab.analysis.spring_chain import scene_chain
 from pinstab.errors import DivergenceError, NewtonError, PinstabError
 from pinstab.integration.compiled import CompiledAdaptive, CompiledLoop, CompiledSteps
@@ -253,6 +255,95 @@ def test_stiff_fourbar_esdirk_error_control(stiff):
     assert STIFF_DURATION / control["steps_accepted"] > 3 * 0.31e-3
 
 
+LARGE_STEP = 1e-2  # [s]: the element map's largest step, 70 times RK4's limit at 10 times the element
+
+
+def _scaled(factor: float):
+    """stiff-fourbar with its spring-damper's stiffness and damping times ``factor`` (the element map's cell)."""
+    return scaled_scene(load_scene("stiff-fourbar"), "rocker-spring", factor)
+
+
+def _step_residuals(name: str, chain, run) -> np.ndarray:
+    """Each step's residual of the scheme's own equations on the chain's ODE (SciPy's reference's right-hand side:
+    Pinocchio's ABA and the spring in Python), [rad, rad/s] per coordinate: implicit Euler q1 - q0 - h v1,
+    v1 - v0 - h a(q1, v1); the midpoint rule q1 - q0 - h (v0 + v1) / 2, v1 - v0 - h a((q0 + q1) / 2, (v0 + v1) / 2)."""
+    h = np.diff(run.t)[:, None]
+    q0, q1, v0, v1 = run.q[:-1], run.q[1:], run.v[:-1], run.v[1:]
+    at_q, at_v = (q1, v1) if name == "implicit-euler" else ((q0 + q1) / 2, (v0 + v1) / 2)
+    nv = q0.shape[1]
+    acceleration = np.array(
+        [chain.rate(0.0, np.concatenate([q, v, [0.0]]))[nv : 2 * nv] for q, v in zip(at_q, at_v, strict=True)]
+    )
+    return np.hstack([q1 - q0 - h * (v1 if name == "implicit-euler" else (v0 + v1) / 2), v1 - v0 - h * acceleration])
+
+
+@pytest.mark.parametrize(
+    ("name", "duration", "bound"), [("implicit-euler", 0.5, 0.2), ("implicit-midpoint", 0.3, 1e-2)]
+)
+def test_globalized_newton_solves_the_large_step(name, duration, bound):
+    """stiff-fourbar with the element 10 times stiffer (fast eigenvalue -7e4 /s) at dt = 10 ms (h lambda -700), cells
+    the element map predicts stable: the simplified iteration failed there (implicit Euler stopped at t = 0.27 s, the
+    midpoint rule at 0.05 s after a step onto a spurious root of 3000 rad/s). Globalized, the run reaches its end,
+    every step solves the scheme's own equations on the chain's ODE (an evaluation independent of the compiled
+    kernel) to 1e-12 rad and 1e-9 rad/s, the motion stays within ``bound`` [rad] of SciPy's Radau (1e-12) (measured:
+    0.155 rad for implicit Euler's O(h) error, 4.2e-3 rad for the midpoint rule; a spurious root is turns away), no
+    energy is created, and the JSON's figures count the globalized iterations."""
+    scene = _scaled(10.0)
+    run = simulate(scene, integrator=name, dt=LARGE_STEP, duration=duration, limits=False)
+    chain = scene_chain(scene)
+    assert run.t[-1] == pytest.approx(duration)
+    residuals = _step_residuals(name, chain, run)
+    assert np.abs(residuals[:, :2]).max() < 1e-12 and np.abs(residuals[:, 2:]).max() < 1e-9
+    reference = chain.solve(scene.q0, scene.v0, run.t)
+    assert np.abs(run.q - reference[:, :2]).max() < bound
+    assert np.max(run.energy) <= run.energy[0]
+    newton = run.summary()["newton"]
+    assert newton["globalized_iterations"] > 0 and newton["newton_failures"] == 0
+
+
+def _esdirk_step(chain, q0: np.ndarray, v0: np.ndarray, h: float) -> np.ndarray:
+    """One esdirk4 step of the chain's ODE (q, v) from (q0, v0), each stage's velocity increment by SciPy's hybrid
+    root finder from zero (its position increment S_q + h g (v0 + Z_v) on the chain's vector space)."""
+    from scipy.optimize import root
+
+    from pinstab.integration.implicit import ESDIRK4
+
+    nv = len(q0)
+
+    def slope(q, v):
+        return chain.rate(0.0, np.concatenate([q, v, [0.0]]))[: 2 * nv]
+
+    slopes = [slope(q0, v0)]
+    for i in range(1, len(ESDIRK4.nodes)):
+        row = ESDIRK4.coupling[i]
+        hg = h * row[i]
+        known = sum(h * row.get(j, 0.0) * slopes[j] for j in range(i))
+
+        def equation(zv, known=known, hg=hg):
+            q = q0 + known[:nv] + hg * (v0 + zv)
+            return zv - known[nv:] - hg * slope(q, v0 + zv)[nv:]
+
+        zv = root(equation, np.zeros(nv), method="hybr", tol=1e-13).x
+        assert np.abs(equation(zv)).max() < 1e-10 * (1.0 + np.abs(zv).max())  # a root (not only a stall)
+        z = np.concatenate([known[:nv] + hg * (v0 + zv), zv])
+        slopes.append((z - known) / hg)
+    return np.concatenate([q0, v0]) + z  # stiffly accurate: the step ends on its last stage
+
+
+def test_globalized_esdirk_step_is_its_stage_equations_root():
+    """esdirk4 on stiff-fourbar with the element 100 times stiffer at dt = 2 ms (fast eigenvalue -7e5 /s, h lambda
+    -1400), whose first step the simplified iteration left unsolved: globalized, its first step is the one SciPy's root
+    finder gives on the chain's ODE stage by stage to 1e-9 (rad, rad/s), and 0.4 s run without creating energy (the
+    globalized iterations counted)."""
+    scene = _scaled(100.0)
+    run = simulate(scene, integrator="esdirk4", dt=2e-3, duration=0.4, limits=False)
+    chain = scene_chain(scene)
+    first = _esdirk_step(chain, scene.q0, scene.v0, 2e-3)
+    np.testing.assert_allclose(np.concatenate([run.q[1], run.v[1]]), first, rtol=0, atol=1e-9)
+    assert run.t[-1] == pytest.approx(0.4) and np.max(run.energy) <= run.energy[0]
+    assert run.summary()["newton"]["globalized_iterations"] > 0
+
+
 def _python_steps(monkeypatch):
     """No compiled loop: every step the stepper's own (the Python step path), its Newton Jacobians from the kernel the
     compiled loop would have stepped with (lent as the loop lends them: the native kernel's analytic derivatives)."""
@@ -274,13 +365,14 @@ def _python_steps(monkeypatch):
         ("stiff-fourbar", "esdirk4", 1e-2, 1e-7),
         ("fourbar", "implicit-euler", 1e-2, None),
         ("fourbar", "esdirk4", 1e-2, 1e-8),
+        (10.0, "implicit-midpoint", LARGE_STEP, None),  # stiff-fourbar's element x 10: globalized iterations
     ],
 )
 def test_compiled_loop_equals_the_python_step_path(monkeypatch, scene, name, dt, rtol):
     """The compiled loop (fixed steps, error control, on the native compiled kernel) takes the same steps as the
-    Python step path (the system's evaluation in Python) to the last bit, with the same Newton figures; and two runs
-    are the same to the last bit."""
-    loaded = load_scene(scene)
+    Python step path (the system's evaluation in Python) to the last bit, with the same Newton figures (the
+    globalized iteration's too, on the cell where it runs); and two runs are the same to the last bit."""
+    loaded = load_scene(scene) if isinstance(scene, str) else _scaled(scene)
     fast = simulate(loaded, "baumgarte", name, dt, 0.3, rtol=rtol)
     again = simulate(loaded, "baumgarte", name, dt, 0.3, rtol=rtol)
     patch = _python_steps(monkeypatch)
@@ -290,6 +382,8 @@ def test_compiled_loop_equals_the_python_step_path(monkeypatch, scene, name, dt,
         patch.__exit__(None, None, None)
     if rtol is None:  # the native kernel (with the stiff four-bar's spring-damper) evaluates the compiled steps
         assert fast.info.compiled_steps > 0
+    if not isinstance(scene, str):
+        assert fast.info.newton["globalized_iterations"] > 0
     assert slow.info.compiled_steps == 0
     for other in (slow, again):
         np.testing.assert_array_equal(fast.t, other.t)
@@ -322,17 +416,19 @@ def test_constrained_fourbar_implicit_midpoint():
 def test_newton_failure_is_named():
     """A fixed step whose stage equation has no solution (q'' = 1e6 q^2 from q = 3 at h = 10 s: implicit Euler's
     c h^2 q1^2 - q1 + q0 + h v0 = 0 has no real root) raises NewtonError (a DivergenceError: exit 3, the run's
-    trajectory kept by the stepping loop) naming the scheme, the stage, the step and the scaled increment, after a
-    retry with a fresh Jacobian."""
+    trajectory kept by the stepping loop) naming the scheme, the stage, the step, the scaled increment and what to
+    do, after the globalized iteration tried (its iterations counted)."""
     stepper = INTEGRATORS.build("implicit-euler", _system(lambda q, v, t, stage: 1e6 * q**2))
     with pytest.raises(
         NewtonError,
-        match=r"the implicit-euler step: Newton's iteration did not solve stage 1 of the "
-        r"step of 10 s from t = 0 s with a fresh Jacobian: its scaled increment was",
+        match=r"the implicit-euler step: Newton's iteration did not solve stage 1 of the step of 10 s from t = 0 s, "
+        r"neither simplified nor globalized .* its last scaled increment was .* a smaller step solves it \(--dt, or "
+        r"error control with --rtol\)",
     ) as caught:
         stepper.step(np.array([3.0]), np.array([0.0]), 0.0, 10.0)
     assert caught.value.time == 0.0 and isinstance(caught.value, DivergenceError)
-    assert stepper.newton_figures()["newton_failures"] >= 1
+    figures = stepper.newton_figures()
+    assert figures["newton_failures"] == 1 and figures["globalized_iterations"] >= 1
 
 
 def test_implicit_tableaus_are_checked():
@@ -363,6 +459,8 @@ def test_newton_figures_reach_the_json_summary():
         "jacobian_evaluations",
         "lu_factorizations",
         "newton_failures",
+        "globalized_iterations",
+        "continuation_shares",
     }
     assert summary["newton"]["jacobian_evaluations"] >= 1
     assert "newton" not in simulate(scene, integrator="rk4", dt=1e-2, duration=0.2).summary()

@@ -6,12 +6,13 @@ Each tableau is written with an explicit first stage (a_1j = 0, evaluated at the
 stage 0) and a non-zero diagonal below it; implicit Euler and the midpoint rule are their one-stage tableaus behind
 that first stage, which gives the Newton iteration its first guess. A stage's equation is solved in the tangent
 space at the step's start by a simplified Newton iteration on the reduced nv x nv matrix
-I - h g dadv - (h g)^2 dadq (``cpp/implicit.hpp``, where the arithmetic lives; the Jacobians are the kernel's,
-by default finite differences of its evaluation, ``cpp/jacobian.cpp``). The Newton state (the Jacobian, the
+I - h g dadv - (h g)^2 dadq, globalized when it does not converge (a continuation in the stage's share, Newton's
+iteration with a Jacobian at every iterate; ``cpp/implicit.hpp``, where the arithmetic lives; the Jacobians are the
+kernel's, by default finite differences of its evaluation, ``cpp/jacobian.cpp``). The Newton state (the Jacobian, the
 factorization, the last rate of convergence) belongs to the compiled step object, which the Python step and the
 compiled loop share: both take the same steps to the last bit.
 
-A stage that Newton's iteration cannot solve, even with a fresh Jacobian, ends a fixed-step run with
+A stage that Newton's iteration cannot solve, even globalized, ends a fixed-step run with
 :class:`~pinstab.errors.NewtonError` (the trajectory so far kept); under error control the step is rejected and
 shortened, like one whose error is above the tolerance.
 
@@ -119,7 +120,7 @@ class ImplicitRungeKutta(TableauScheme):
         """:meth:`TableauScheme.attempt`.
 
         Raises:
-            NewtonError: a stage that Newton's iteration did not solve even with a fresh Jacobian.
+            NewtonError: a stage that Newton's iteration did not solve, even globalized.
         """
         try:
             return super().attempt(q, v, t, dt, first, end)
@@ -131,14 +132,18 @@ class ImplicitRungeKutta(TableauScheme):
         return newton_figures(self._tableau.newton)
 
 
-def newton_figures(counts: tuple[int, int, int, int]) -> dict[str, int]:
-    """The run summary's figures of a compiled step's ``newton`` counts."""
-    iterations, jacobians, factorizations, failures = counts
+def newton_figures(counts: tuple[int, int, int, int, int, int]) -> dict[str, int]:
+    """The run summary's figures of a compiled step's ``newton`` counts: iterations (evaluations of the dynamics),
+    Jacobians, LU factorizations, failures (stages not solved), the globalized iteration's Newton iterations (a
+    Jacobian at the iterate each) and its continuation's shares s < 1 of a stage solved on the way to s = 1."""
+    iterations, jacobians, factorizations, failures, globalized, continuation = counts
     return {
         "newton_iterations": iterations,
         "jacobian_evaluations": jacobians,
         "lu_factorizations": factorizations,
         "newton_failures": failures,
+        "globalized_iterations": globalized,
+        "continuation_shares": continuation,
     }
 
 
