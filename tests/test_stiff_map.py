@@ -180,6 +180,30 @@ def test_element_map_agrees_with_the_prediction(small_map, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_an_unsolved_stage_is_its_own_class_and_counts_against_a_stable_prediction():
+    """esdirk4 at dt = 10 ms with the element 100 times stiffer: Newton finds no root of the first step's stage on
+    the motion's branch. The run stops with the NewtonError as the cause of the stop the loop names (a smaller step
+    goes on), and the map calls the cell ``unsolved``, not ``diverged``: the scheme is A-stable and predicted stable,
+    so the cell disagrees."""
+    scene = scaled_scene(pinstab.load_scene("stiff-fourbar"), "rocker-spring", 100.0)
+    with pytest.raises(pinstab.DivergenceError) as caught:
+        pinstab.simulate(scene, integrator="esdirk4", dt=1e-2, duration=0.05, limits=False)
+    assert isinstance(caught.value.__cause__, pinstab.NewtonError)
+    result = element_map(
+        pinstab.load_scene("stiff-fourbar"),
+        "rocker-spring",
+        ["esdirk4"],
+        dt_range=(5e-3, 1e-2),
+        factor_range=(50.0, 100.0),
+        grid=2,
+        steps=5,
+    )
+    cell = {(c.dt, c.factor): c for c in result.cells}[(1e-2, 100.0)]
+    assert cell.observed == "unsolved" and cell.predicted_stable
+    unsolved = result.to_json(cells=False)["schemes"]["esdirk4"]["unsolved"]
+    assert unsolved >= 1 and result.agreement("esdirk4") == pytest.approx(1 - unsolved / 4, abs=1e-12)
+
+
 def test_element_map_names_the_stiff_mode_and_its_limits(small_map):
     """The criterion names the element and frequency of the stiffest mode at the base scale; each scheme's limit is
     ``mode_step_limit`` of the mode's eigenvalue (RK4: 0.389 ms, 2.7853 / 7159.2 /s)."""

@@ -12,7 +12,9 @@ Each cell is a run of ``steps`` steps from the scene's start. The mechanism is p
 its energy E = T + V never grows), so the energy a run gains is the step's: its ratio
 ``sqrt(max(E - E0) / E_scale)`` (E_scale the kinetic and element energy at the start: a speed ratio) classes it
 ``dissipative`` (at most :data:`~pinstab.analysis.stability_map.CONVERGED_RATIO`), ``bounded`` or ``diverged``
-(above :data:`~pinstab.analysis.stability_map.DIVERGED_RATIO`, or blown up).
+(above :data:`~pinstab.analysis.stability_map.DIVERGED_RATIO`, or blown up); an implicit scheme's run whose stage
+equation Newton's iteration cannot solve (:class:`~pinstab.errors.NewtonError`, no root on the motion's branch at
+that step) is ``unsolved``, neither stable nor diverged: it counts against a prediction of stability.
 
 Predicted from the linearization at the start: one step multiplies each mode by ``|R(h lambda)|``
 (:func:`pinstab.stability.criterion.step_growth`; beyond the motion's own growth for a mode that grows on its own). The
@@ -36,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DivergenceError, PinstabError, ProjectionError, UnstableGainsWarning, choices
+from ..errors import DivergenceError, NewtonError, PinstabError, ProjectionError, UnstableGainsWarning, choices
 from ..integration import INTEGRATORS
 from ..model import ConstrainedModel, kinetic_energy
 from ..scene import Scene, scene_from_dict
@@ -47,7 +49,9 @@ from ..validation import read_scene_file
 from .stability_map import CONVERGED_RATIO, DIVERGED_RATIO, check_grid, log_edges, progress_bar
 
 SCALES = ("element", "stiffness")  # what the factor multiplies: stiffness and damping together, or the stiffness
-CLASSES = ("dissipative", "bounded", "diverged")
+CLASSES = ("dissipative", "bounded", "diverged", "unsolved")
+RAN = ("dissipative", "bounded")  # the classes of a run that did not diverge
+PANELS_PER_ROW = 4  # the most panels in a row of the figure
 
 
 def map_integrators() -> list[str]:
@@ -90,8 +94,8 @@ class ElementCell:
     Attributes:
         integrator: the scheme. dt: step [s]. factor: the element's scale [-].
         excess: the largest growth per step of a mode beyond the motion's own, from the start's linearization [-].
-        observed: dissipative | bounded | diverged. energy_ratio: the energy gained, as a speed ratio (inf: blown up).
-        steps: the run's steps.
+        observed: dissipative | bounded | diverged | unsolved. energy_ratio: the energy gained, as a speed ratio
+        (inf: blown up or unsolved). steps: the run's steps.
     """
 
     integrator: str
@@ -130,7 +134,7 @@ class ElementMap:
         """Fraction of ``integrator``'s cells where the prediction (``region``: |R| <= 1 on every mode) coincides
         with a run that did not diverge."""
         own = [c for c in self.cells if c.integrator == integrator]
-        agrees = [(c.in_region if region else c.predicted_stable) == (c.observed != "diverged") for c in own]
+        agrees = [(c.in_region if region else c.predicted_stable) == (c.observed in RAN) for c in own]
         return sum(agrees) / len(agrees) if agrees else math.nan
 
     def criterion(self) -> str:
@@ -316,7 +320,9 @@ def _observe(scene: Scene, integrator: str, dt: float, steps: int, energy_scale:
         try:
             run = simulate(scene, integrator=integrator, dt=dt, duration=steps * dt, limits=False)
             energy = np.asarray(run.energy)
-        except (DivergenceError, ProjectionError):  # blown up (a failed solve on a blown-up state included)
+        except (DivergenceError, ProjectionError) as error:  # blown up (a failed solve on a blown-up state included)
+            if isinstance(error, NewtonError) or isinstance(error.__cause__, NewtonError):
+                return "unsolved", math.inf  # the stage equation not solved: not a divergence of the scheme
             return "diverged", math.inf
     if not np.isfinite(energy).all():
         return "diverged", math.inf
@@ -342,10 +348,16 @@ def plot_element_map(result: ElementMap, path: str | Path) -> Path:
     plt = pyplot()
     dts = np.array(sorted({c.dt for c in result.cells}))
     factors = np.array(sorted({c.factor for c in result.cells}))
-    colors = ["#4c9a2a", "#e0b43c", "#c0392b"]
+    colors = ["#4c9a2a", "#e0b43c", "#c0392b", "#7f7f7f"]
     panels = len(result.integrators)
-    fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 4.4), dpi=110, squeeze=False, sharey=True)
-    for ax, name in zip(axes[0], result.integrators, strict=True):
+    rows = math.ceil(panels / PANELS_PER_ROW)
+    columns = math.ceil(panels / rows)
+    fig, axes = plt.subplots(
+        rows, columns, figsize=(4.2 * columns, 4.0 * rows + 0.4), dpi=110, squeeze=False, sharex=True, sharey=True
+    )
+    for ax in axes.flat[panels:]:
+        ax.set_visible(False)
+    for index, (ax, name) in enumerate(zip(axes.flat, result.integrators, strict=False)):
         classes = np.zeros((len(factors), len(dts)))
         growth = np.zeros((len(factors), len(dts)))
         for c in (c for c in result.cells if c.integrator == name):
@@ -358,19 +370,22 @@ def plot_element_map(result: ElementMap, path: str | Path) -> Path:
             classes,
             cmap=ListedColormap(colors),
             vmin=-0.5,
-            vmax=2.5,
+            vmax=len(CLASSES) - 0.5,
             shading="flat",
         )
         if growth.min() < math.log10(DIVERGED_RATIO) < growth.max():
             ax.contour(dts, factors, growth, levels=[math.log10(DIVERGED_RATIO)], colors="black", linewidths=2.0)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("time step dt [s]")
+        if index + columns >= panels:  # no panel below it
+            ax.set_xlabel("time step dt [s]")
+            ax.xaxis.set_tick_params(labelbottom=True)
         ax.set_title(f"{name}: agree on {100 * result.agreement(name):.1f} %", fontsize=10)
     label = "stiffness and damping" if result.scale == "element" else "stiffness"
-    axes[0][0].set_ylabel(f"{result.element}: {label} x factor")
+    for row in axes:
+        row[0].set_ylabel(f"{result.element}: {label} x factor")
     handles = [Patch(color=c, label=name) for c, name in zip(colors, CLASSES, strict=True)]
     handles.append(plt.Line2D([], [], color="black", linewidth=2, label=f"predicted: a mode grows {DIVERGED_RATIO:g}x"))
-    axes[0][-1].legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.9)
+    axes.flat[panels - 1].legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.9)
     fig.suptitle(f"{result.scene}: {result.steps}-step runs, observed vs predicted stability", fontsize=11)
     return save_figure(fig, path)

@@ -436,6 +436,7 @@ class StepLoop:
         k = start
         while k < stop:
             failed = (k + 1, np.full_like(q, np.nan), np.full_like(v, np.nan))
+            cause: NewtonError | None = None
             try:
                 q_next, v_next, reached = self.advance(q, v, k, k + 1)
                 failed = (reached, q_next, v_next)
@@ -443,7 +444,7 @@ class StepLoop:
             except Failure as exc:
                 reason = str(exc)
             except NewtonError as exc:
-                reason = str(exc)
+                reason, cause = str(exc), exc
             except DivergenceError:
                 reason = "a non-finite state"
             except ProjectionError as exc:
@@ -455,16 +456,22 @@ class StepLoop:
             else:
                 q, v, k = q_next, v_next, reached
                 continue
-            self.name_step_size(k, failed, reason, q, v)
-            raise self.diverged(k, failed, reason, q, v)
+            self.name_step_size(k, failed, reason, q, v, cause)
+            raise self.diverged(k, failed, reason, q, v) from cause
         return k, q, v
 
     def name_step_size(
-        self, good: int, failed: tuple[int, np.ndarray, np.ndarray], cause: str, q: np.ndarray, v: np.ndarray
+        self,
+        good: int,
+        failed: tuple[int, np.ndarray, np.ndarray],
+        cause: str,
+        q: np.ndarray,
+        v: np.ndarray,
+        newton: NewtonError | None = None,
     ) -> None:
         """Raise :class:`StepTooLargeError` when the step from (q, v) at grid step ``good`` failed (``cause``)
         only because dt is too large: the motion goes on with dt / 2 (or dt / 4) for :data:`PROBE_STEPS` steps
-        of dt past that point."""
+        of dt past that point. A failure of an implicit stage's Newton iteration (``newton``) is its ``__cause__``."""
         self.name_stiff_mode(good, failed, q, v)
         grid = self.grid
         t = grid.time(good)
@@ -477,7 +484,7 @@ class StepLoop:
                     f"({cause}), with dt = {suggested:g} s the motion goes on past t = {t + span:.6g} s; use "
                     f"--dt {suggested:g} or smaller (or --rtol, error control)"
                 )
-                raise self.diverged(good, failed, reason, q, v, StepTooLargeError)
+                raise self.diverged(good, failed, reason, q, v, StepTooLargeError) from newton
 
     def name_stiff_mode(
         self, good: int, failed: tuple[int, np.ndarray, np.ndarray], q: np.ndarray, v: np.ndarray

@@ -420,9 +420,9 @@ MODE_SCAN = (1e-12, 1e6, 32)  # h |lambda| [-] from, to, and points per decade: 
 def mode_step_limit(eigenvalue: complex, scheme: str) -> float:
     """The stability limit of a stiff mode: the largest step h [s] with which ``scheme`` keeps the mode of
     ``eigenvalue`` [1/s] (complex for an oscillating one) from growing, ``mode_growth <= 1`` for every step up to h
-    (RK4 on a real lambda: ``2.7853 / |lambda|``; explicit Euler on a pair a +- ib: ``-2a / |lambda|^2``). inf when no step
-    makes it grow (an A-stable scheme on a decaying mode); 0 when the smallest does (a mode that grows on its own) or
-    the eigenvalue is not finite.
+    (RK4 on a real lambda: ``2.7853 / |lambda|``; explicit Euler on a pair a +- ib: ``-2a / |lambda|^2``). inf when
+    no step makes it grow (an A-stable scheme on a decaying mode); 0 when the smallest does (a mode that grows on its
+    own) or the eigenvalue is not finite.
 
     The steps ``h |lambda|`` of :data:`MODE_SCAN` are scanned from the smallest up to the first at which the mode grows,
     then bisected (60 halvings of the log interval: to the rounding unit).

@@ -78,7 +78,7 @@ def _options(args: argparse.Namespace, defaults: dict[str, Any], other: dict[str
 
 
 def stability(args: argparse.Namespace) -> dict[str, Any]:
-    from ...analysis.element_map import default_element, element_map, plot_element_map
+    from ...analysis.element_map import CLASSES, default_element, element_map, plot_element_map
     from ...scene import load_scene
 
     if args.output:
@@ -109,7 +109,7 @@ def stability(args: argparse.Namespace) -> dict[str, Any]:
             payload[name] = (
                 f"agree on {100 * figures['agreement']:.1f} % (|R| <= 1: {100 * figures['region_agreement']:.1f} %), "
                 f"step limit {'none' if limit is None else f'{1e3 * limit:.3g} ms'}; "
-                + ", ".join(f"{figures[label]} {label}" for label in ("dissipative", "bounded", "diverged"))
+                + ", ".join(f"{figures[label]} {label}" for label in CLASSES if figures[label] or label != "unsolved")
             )
     if args.output:
         payload["map"] = args.output
