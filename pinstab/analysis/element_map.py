@@ -386,6 +386,10 @@ def plot_element_map(result: ElementMap, path: str | Path) -> Path:
         row[0].set_ylabel(f"{result.element}: {label} x factor")
     handles = [Patch(color=c, label=name) for c, name in zip(colors, CLASSES, strict=True)]
     handles.append(plt.Line2D([], [], color="black", linewidth=2, label=f"predicted: a mode grows {DIVERGED_RATIO:g}x"))
-    axes.flat[panels - 1].legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.9)
-    fig.suptitle(f"{result.scene}: {result.steps}-step runs, observed vs predicted stability", fontsize=11)
+    inch = 1.0 / fig.get_figheight()  # an inch down from the top [figure fraction]
+    title = f"{result.scene}: {result.steps}-step runs, observed vs predicted stability"
+    fig.suptitle(title, fontsize=11, y=1.0 - 0.1 * inch, va="top")
+    legend_top = (0.5, 1.0 - 0.4 * inch)
+    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=legend_top, ncol=len(handles), fontsize=8)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.75 * inch))  # the panels under the title and the legend
     return save_figure(fig, path)
