@@ -52,6 +52,13 @@ void ImplicitTrial::factor(double hg) {
   ++counts.factorizations;
 }
 
+void ImplicitTrial::linearized_guess(int i, double share, double shg, VectorXd& out) {
+  if (shg != factored_) factor(shg);
+  residual_ = slopes.row(i - 1).transpose();
+  solve(shg);
+  out = share * known_ + shg * dz_;
+}
+
 double ImplicitTrial::scaled_norm(const VectorXd& x) const {
   double norm = 0.0;
   for (int c = 0; c < 2 * nv_; ++c) {
@@ -83,10 +90,9 @@ ImplicitTrial::Solve ImplicitTrial::stage(Kernel& kernel, const VectorXd& tau, c
   if (hg != factored_) factor(hg);
   // the guess: the last stage's slope k carried through the linearized stage, Z = S_i + h g (I - h g J)^-1 k (a
   // linearly implicit Euler step; the explicit one, S_i + h g k, overshoots a stiff mode by h g |lambda|)
-  residual_ = slopes.row(i - 1).transpose();
-  solve(hg);
-  z_ = known_ + hg * dz_;
-  if (i > PREDICTOR_STAGES) {  // later stages: the stage increments' polynomial through (0, 0) and the last two
+  if (i <= PREDICTOR_STAGES) {
+    linearized_guess(i, 1.0, hg, z_);
+  } else {  // later stages: the stage increments' polynomial through (0, 0) and the last two
     z_.setZero();
     const double c = pair_.nodes(i);
     for (int j = i - PREDICTOR_STAGES; j < i; ++j) {
@@ -144,10 +150,7 @@ ImplicitTrial::Solve ImplicitTrial::globalize(Kernel& kernel, const VectorXd& ta
   for (int jacobians = 0; jacobians < GLOBAL_ITERATIONS;) {
     const double target = std::min(1.0, share + length), shg = target * hg;
     if (share == 0.0) {  // the linearized stage of the share: the stage's own guess at share 1
-      if (shg != factored_) factor(shg);
-      residual_ = slopes.row(i - 1).transpose();
-      solve(shg);
-      trial_ = target * known_ + shg * dz_;
+      linearized_guess(i, target, shg, trial_);
     } else {
       trial_ = z_ + ((target - share) / (share - last)) * (z_ - behind_);
     }

@@ -86,6 +86,9 @@ class ImplicitTrial : public Trial {
                 double share, double hg, int i, const VectorXd& z);
   // The largest |x_c| / scale_c (NaN when one is).
   double scaled_norm(const VectorXd& x) const;
+  // Stage i's increment at the step's share `share` [-] (shg = share h g [s]) carried through the linearized stage,
+  // share S_i + shg (I - shg J)^-1 k, k the last stage's slope, into `out`
+  void linearized_guess(int i, double share, double shg, VectorXd& out);
   bool refresh(Kernel& kernel, const VectorXd& tau, const VectorXd& q, const VectorXd& v, double t, int i);
   // M = I - h g dadv - (h g)^2 dadq factored.
   void factor(double hg);
